@@ -1,0 +1,550 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The only writer of animation data in ProcLoco.
+
+Everything that creates Actions, writes keyframes or assigns an Action to an object goes
+through this module, so that one place knows both worlds:
+
+* Blender 4.4+ and 5.x: *slotted* Actions. An Action holds ``slots``; F-curves live in
+  ``action.layers[0].strips[0].channelbag(slot).fcurves`` and the object's
+  ``animation_data.action_slot`` says which slot animates it. (5.0 removed the legacy
+  ``Action.fcurves``.)
+* Blender 4.2 LTS: legacy Actions with ``action.fcurves`` and ``fcurves.new(..., action_group=)``.
+
+Keys are written in bulk: ``keyframe_points.add(n)`` then ``foreach_set("co", ...)`` and
+``foreach_set("interpolation", ...)`` from numpy arrays, about a hundred times faster than a
+per-frame ``keyframe_insert``.
+
+Rules this module keeps for the animator:
+
+* A generation makes a **new** Action named after the object (``"<object> ProcLoco"``;
+  Blender appends ``.001`` ... when the name is taken). It never writes into, overwrites or
+  deletes an Action it did not create.
+* :func:`assign_generated_action` remembers what the object had before (Action and slot) in
+  hidden ID properties on the object, which also keep that Action alive when the file is
+  saved. :func:`restore_previous_action` puts it back. Generating again keeps the memory of
+  the *user's* Action, not of the previous generation; a replaced generated Action gets a
+  fake user so that it is never lost silently.
+* Rotations are keyed in each pose bone's (or object's) own rotation mode: quaternion, any
+  Euler order, or axis-angle, with sign/branch continuity from frame to frame.
+
+Shapes: ``frames`` is ``(n_frames,)``; per-channel values are ``(n_frames, n_channels)``;
+quaternions are ``(..., 4)`` in Blender's ``(w, x, y, z)`` order.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import bpy
+import numpy as np
+
+__all__ = [
+    "GENERATED_TAG",
+    "ActionError",
+    "Channel",
+    "assign_action",
+    "assign_generated_action",
+    "channels_of",
+    "clear_generated_action",
+    "generated_action",
+    "is_generated",
+    "is_slotted",
+    "new_action",
+    "previous_action",
+    "push_to_nla",
+    "quaternion_to_euler",
+    "read_channel",
+    "restore_previous_action",
+    "rotation_channels",
+    "write_channels",
+    "write_object_transforms",
+    "write_pose_bone_transforms",
+]
+
+#: ID property set on every Action this module creates; its value is the object's name.
+GENERATED_TAG = "_procloco_generated"
+# Hidden ID properties on the object (a leading underscore hides them from the UI).
+_PREV_ACTION = "_procloco_prev_action"
+_PREV_SLOT = "_procloco_prev_slot"
+_HAS_PREV = "_procloco_has_prev"
+
+_OBJECT_GROUP = "Object Transforms"
+_EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
+
+
+class ActionError(RuntimeError):
+    """Animation data cannot be written as asked (the message is meant for the user)."""
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One animated property: ``data_path`` and ``index`` as in an F-curve; ``group`` its channel group."""
+
+    data_path: str
+    index: int = 0
+    group: str = ""
+
+
+# ---------------------------------------------------------------------------------------
+# Which world are we in
+
+
+def is_slotted() -> bool:
+    """True on Blender 4.4+ (slotted Actions), False on 4.2/4.3 (legacy ``action.fcurves``)."""
+    return bpy.app.version >= (4, 4, 0) and "slots" in bpy.types.Action.bl_rna.properties
+
+
+def _interpolation_code(name: str) -> int:
+    return int(bpy.types.Keyframe.bl_rna.properties["interpolation"].enum_items[name].value)
+
+
+# ---------------------------------------------------------------------------------------
+# Creating and assigning Actions
+
+
+def new_action(obj: bpy.types.Object, suffix: str = "ProcLoco") -> bpy.types.Action:
+    """A new, empty Action for ``obj``, named ``"<obj.name> <suffix>"`` (made unique by Blender).
+
+    The Action is tagged as generated (:data:`GENERATED_TAG`) and, on 4.4+, gets one slot for
+    the object. It is not assigned; see :func:`assign_generated_action`.
+    """
+    action = bpy.data.actions.new(f"{obj.name} {suffix}".strip())
+    action[GENERATED_TAG] = obj.name
+    if is_slotted():
+        action.slots.new(id_type="OBJECT", name=obj.name)
+    else:
+        action.id_root = "OBJECT"
+    return action
+
+
+def is_generated(action: bpy.types.Action | None) -> bool:
+    """True if ``action`` was created by :func:`new_action`."""
+    return action is not None and GENERATED_TAG in action
+
+
+def _slot_for(action: bpy.types.Action, obj: bpy.types.Object) -> Any:
+    """The slot of ``action`` that animates ``obj``: the assigned one, else one named after it,
+    else the first object slot, else a new one."""
+    adt = obj.animation_data
+    if adt is not None and adt.action == action and adt.action_slot is not None:
+        return adt.action_slot
+    candidates = [s for s in action.slots if s.target_id_type in {"OBJECT", "UNSPECIFIED"}]
+    for slot in candidates:
+        if slot.name_display == obj.name:
+            return slot
+    if candidates:
+        return candidates[0]
+    return action.slots.new(id_type="OBJECT", name=obj.name)
+
+
+def assign_action(obj: bpy.types.Object, action: bpy.types.Action | None, slot_identifier: str = "") -> None:
+    """Make ``action`` the object's active Action (``None`` unassigns).
+
+    On 4.4+ the slot is chosen by ``slot_identifier`` when given and present, otherwise as in
+    :func:`_slot_for`. Raises :class:`ActionError` while the object's NLA is in tweak mode.
+    """
+    adt = obj.animation_data
+    if adt is not None and adt.use_tweak_mode:
+        raise ActionError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
+    if action is None:
+        if adt is not None:
+            adt.action = None
+        return
+    adt = obj.animation_data_create()
+    adt.action = action
+    if is_slotted():
+        slot = None
+        if slot_identifier:
+            slot = next((s for s in action.slots if s.identifier == slot_identifier), None)
+        if slot is None:
+            slot = _slot_for(action, obj)
+        if adt.action_slot != slot:
+            adt.action_slot = slot
+
+
+def _current_slot_identifier(obj: bpy.types.Object) -> str:
+    adt = obj.animation_data
+    if not is_slotted() or adt is None or adt.action_slot is None:
+        return ""
+    return str(adt.action_slot.identifier)
+
+
+def assign_generated_action(obj: bpy.types.Object, action: bpy.types.Action) -> None:
+    """Assign a generated ``action`` to ``obj``, remembering what the user had before.
+
+    If the object's current Action is itself generated, the remembered user Action is kept
+    (so Clear goes back to the user's animation, however many times one generates), and the
+    replaced generated Action gets a fake user so it stays reachable.
+    """
+    adt = obj.animation_data
+    if adt is not None and adt.use_tweak_mode:
+        raise ActionError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
+    current = adt.action if adt is not None else None
+    if current is not None and is_generated(current):
+        if current != action:
+            current.use_fake_user = True
+    else:
+        obj[_HAS_PREV] = 1
+        obj[_PREV_SLOT] = _current_slot_identifier(obj)
+        if current is not None:
+            obj[_PREV_ACTION] = current
+        elif _PREV_ACTION in obj:
+            del obj[_PREV_ACTION]
+    assign_action(obj, action)
+
+
+def generated_action(obj: bpy.types.Object) -> bpy.types.Action | None:
+    """The object's active Action if ProcLoco generated it, else ``None``."""
+    adt = obj.animation_data
+    action = adt.action if adt is not None else None
+    return action if is_generated(action) else None
+
+
+def previous_action(obj: bpy.types.Object) -> tuple[bool, bpy.types.Action | None]:
+    """``(remembered, action)``: whether a previous state is remembered, and its Action (or None)."""
+    if _HAS_PREV not in obj:
+        return False, None
+    prev = obj.get(_PREV_ACTION)
+    return True, prev if isinstance(prev, bpy.types.Action) else None
+
+
+def _forget_previous(obj: bpy.types.Object) -> None:
+    for key in (_HAS_PREV, _PREV_ACTION, _PREV_SLOT):
+        if key in obj:
+            del obj[key]
+
+
+def restore_previous_action(obj: bpy.types.Object) -> bool:
+    """Put back the Action (and slot) the object had before the first generation.
+
+    Returns False when nothing was remembered. The remembered state is forgotten afterwards.
+    """
+    remembered, prev = previous_action(obj)
+    if not remembered:
+        return False
+    assign_action(obj, prev, slot_identifier=str(obj.get(_PREV_SLOT, "")))
+    _forget_previous(obj)
+    return True
+
+
+def clear_generated_action(obj: bpy.types.Object) -> bool:
+    """Unassign the object's generated Action, restore the previous one and delete the generated
+    Action when nothing else uses it. Returns False (and changes nothing) when the object's
+    active Action is not a generated one."""
+    action = generated_action(obj)
+    if action is None:
+        return False
+    if not restore_previous_action(obj):
+        assign_action(obj, None)
+    if action.users == 0 and not action.use_fake_user:
+        bpy.data.actions.remove(action)
+    return True
+
+
+# ---------------------------------------------------------------------------------------
+# F-curves
+
+
+def _fcurve_collection(action: bpy.types.Action, obj: bpy.types.Object, create: bool) -> Any:
+    """The F-curve collection of ``action`` for ``obj`` (a channelbag's on 4.4+)."""
+    if not is_slotted():
+        return action.fcurves
+    slot = _slot_for(action, obj) if create else _find_slot(action, obj)
+    if slot is None:
+        return None
+    if not action.layers:
+        if not create:
+            return None
+        action.layers.new("Layer")
+    layer = action.layers[0]
+    if not layer.strips:
+        if not create:
+            return None
+        layer.strips.new(type="KEYFRAME")
+    bag = layer.strips[0].channelbag(slot, ensure=create)
+    return bag.fcurves if bag is not None else None
+
+
+def _find_slot(action: bpy.types.Action, obj: bpy.types.Object) -> Any:
+    adt = obj.animation_data
+    if adt is not None and adt.action == action and adt.action_slot is not None:
+        return adt.action_slot
+    slots = [s for s in action.slots if s.target_id_type in {"OBJECT", "UNSPECIFIED"}]
+    named = [s for s in slots if s.name_display == obj.name]
+    if named:
+        return named[0]
+    return slots[0] if slots else None
+
+
+def _new_fcurve(fcurves: Any, channel: Channel) -> Any:
+    if is_slotted():
+        return fcurves.new(channel.data_path, index=channel.index, group_name=channel.group)
+    return fcurves.new(channel.data_path, index=channel.index, action_group=channel.group)
+
+
+def write_channels(
+    action: bpy.types.Action,
+    obj: bpy.types.Object,
+    channels: Sequence[Channel],
+    frames: np.ndarray,
+    values: np.ndarray,
+    interpolation: str = "LINEAR",
+) -> None:
+    """Write one F-curve per channel in bulk: ``values[:, c]`` keyed at ``frames``.
+
+    frames: ``(n_frames,)`` strictly increasing; values: ``(n_frames, n_channels)``.
+    An existing F-curve with the same path and index in this Action is replaced wholesale.
+    Refuses (:class:`ActionError`) to write into an Action ProcLoco did not create.
+    """
+    if not is_generated(action):
+        raise ActionError(f"Action '{action.name}' was not made by ProcLoco; it is never written to")
+    frames = np.asarray(frames, dtype=np.float64).reshape(-1)
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 1:
+        values = values[:, None]
+    n_frames = frames.shape[0]
+    if values.shape != (n_frames, len(channels)):
+        raise ValueError(f"values shape {values.shape} != ({n_frames}, {len(channels)})")
+    if n_frames == 0 or not channels:
+        return
+    if not np.all(np.isfinite(values)):
+        raise ActionError("refusing to key non-finite values")
+    if n_frames > 1 and not np.all(np.diff(frames) > 0):
+        raise ValueError("frames must be strictly increasing")
+    fcurves = _fcurve_collection(action, obj, create=True)
+    ipo = np.full(n_frames, _interpolation_code(interpolation), dtype=np.int32)
+    co = np.empty((n_frames, 2), dtype=np.float32)
+    co[:, 0] = frames
+    existing = {(fc.data_path, fc.array_index): fc for fc in fcurves}
+    for c, channel in enumerate(channels):
+        old = existing.pop((channel.data_path, channel.index), None)
+        if old is not None:
+            fcurves.remove(old)
+        fcurve = _new_fcurve(fcurves, channel)
+        co[:, 1] = values[:, c]
+        points = fcurve.keyframe_points
+        points.add(n_frames)
+        points.foreach_set("co", co.ravel())
+        points.foreach_set("interpolation", ipo)
+        fcurve.update()
+
+
+def channels_of(action: bpy.types.Action, obj: bpy.types.Object) -> list[Channel]:
+    """Every F-curve ``action`` holds for ``obj`` (read-only view, any Action)."""
+    fcurves = _fcurve_collection(action, obj, create=False)
+    if fcurves is None:
+        return []
+    return [Channel(fc.data_path, fc.array_index, fc.group.name if fc.group else "") for fc in fcurves]
+
+
+def read_channel(
+    action: bpy.types.Action, obj: bpy.types.Object, data_path: str, index: int = 0
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(frames, values)`` of one F-curve's keyframes, both ``(n_keys,)``; None if absent."""
+    fcurves = _fcurve_collection(action, obj, create=False)
+    if fcurves is None:
+        return None
+    fcurve = fcurves.find(data_path, index=index)
+    if fcurve is None:
+        return None
+    points = fcurve.keyframe_points
+    co = np.empty(2 * len(points), dtype=np.float32)
+    points.foreach_get("co", co)
+    co2 = co.reshape(-1, 2).astype(np.float64)
+    return co2[:, 0], co2[:, 1]
+
+
+def push_to_nla(obj: bpy.types.Object, action: bpy.types.Action, track_name: str = "ProcLoco") -> Any:
+    """Add ``action`` as a strip on a new NLA track of ``obj`` (starting at its first key)."""
+    adt = obj.animation_data_create()
+    track = adt.nla_tracks.new()
+    track.name = track_name
+    start = int(np.floor(action.frame_range[0]))
+    strip = track.strips.new(action.name, start, action)
+    if is_slotted() and hasattr(strip, "action_slot"):
+        slot = _find_slot(action, obj)
+        if slot is not None and strip.action_slot != slot:
+            strip.action_slot = slot
+    return strip
+
+
+# ---------------------------------------------------------------------------------------
+# Rotations in any rotation mode
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions (w, x, y, z) -> (..., 3, 3) rotation matrices."""
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    m = np.empty((*q.shape[:-1], 3, 3))
+    m[..., 0, 0] = 1 - 2 * (y * y + z * z)
+    m[..., 0, 1] = 2 * (x * y - w * z)
+    m[..., 0, 2] = 2 * (x * z + w * y)
+    m[..., 1, 0] = 2 * (x * y + w * z)
+    m[..., 1, 1] = 1 - 2 * (x * x + z * z)
+    m[..., 1, 2] = 2 * (y * z - w * x)
+    m[..., 2, 0] = 2 * (x * z - w * y)
+    m[..., 2, 1] = 2 * (y * z + w * x)
+    m[..., 2, 2] = 1 - 2 * (x * x + y * y)
+    return m
+
+
+def quaternion_to_euler(q: np.ndarray, order: str = "XYZ") -> np.ndarray:
+    """(..., 4) quaternions -> (..., 3) Euler angles ``(x, y, z)`` in Blender's convention for
+    ``order`` (``"XYZ"`` applies X first, then Y, then Z: ``R = Rz @ Ry @ Rx``)."""
+    if order not in _EULER_ORDERS:
+        raise ValueError(f"unknown Euler order {order!r}")
+    q = np.asarray(q, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    m = _quat_to_matrix(q)
+    i, j, k = ("XYZ".index(a) for a in order)
+    # sign +1 for the cyclic orders XYZ, YZX, ZXY; -1 for the others.
+    sign = 1.0 if (j - i) % 3 == 1 else -1.0
+    s_mid = np.clip(-sign * m[..., k, i], -1.0, 1.0)
+    mid = np.arcsin(s_mid)
+    first = np.arctan2(sign * m[..., k, j], m[..., k, k])
+    last = np.arctan2(sign * m[..., j, i], m[..., i, i])
+    # Gimbal lock: put everything into the first angle, keep the last at 0.
+    locked = np.abs(s_mid) > 1.0 - 1e-9
+    if np.any(locked):
+        alt_first = np.arctan2(-sign * m[..., j, k], m[..., j, j])
+        first = np.where(locked, alt_first, first)
+        last = np.where(locked, 0.0, last)
+    out = np.empty((*q.shape[:-1], 3))
+    out[..., i] = first
+    out[..., j] = mid
+    out[..., k] = last
+    return out
+
+
+def _euler_continuous(euler: np.ndarray, order: str) -> np.ndarray:
+    """Along axis 0 (frames), pick per frame the Euler triple (of the two equivalent ones and
+    their 2π shifts) closest to the previous frame's, so curves do not jump."""
+    i, j, k = ("XYZ".index(a) for a in order)
+    out = euler.copy()
+    alt = euler.copy()
+    alt[..., i] = euler[..., i] + np.pi
+    alt[..., j] = np.pi - euler[..., j]
+    alt[..., k] = euler[..., k] + np.pi
+    two_pi = 2.0 * np.pi
+    for f in range(1, euler.shape[0]):
+        prev = out[f - 1]
+        a = euler[f] + two_pi * np.round((prev - euler[f]) / two_pi)
+        b = alt[f] + two_pi * np.round((prev - alt[f]) / two_pi)
+        use_b = np.sum((b - prev) ** 2, axis=-1) < np.sum((a - prev) ** 2, axis=-1)
+        out[f] = np.where(use_b[..., None], b, a)
+    return out
+
+
+def _quat_continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs along axis 0 (frames) so consecutive quaternions are in the same hemisphere."""
+    out = q.copy()
+    for f in range(1, q.shape[0]):
+        flip = np.sum(out[f] * out[f - 1], axis=-1) < 0.0
+        out[f] = np.where(flip[..., None], -out[f], out[f])
+    return out
+
+
+def rotation_channels(mode: str, quaternions: np.ndarray) -> tuple[str, np.ndarray]:
+    """Convert ``(n_frames, 4)`` quaternions into the property and values that ``mode`` keys.
+
+    Returns ``(property_name, values)`` with values ``(n_frames, 4)`` for ``"QUATERNION"``
+    (``rotation_quaternion``) and ``"AXIS_ANGLE"`` (``rotation_axis_angle``: angle, x, y, z),
+    ``(n_frames, 3)`` for the Euler orders (``rotation_euler``). Consecutive frames are made
+    continuous (no sign flips, no 2π jumps).
+    """
+    q = np.asarray(quaternions, dtype=np.float64)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    q = _quat_continuous(q)
+    if mode == "QUATERNION":
+        return "rotation_quaternion", q
+    if mode == "AXIS_ANGLE":
+        # Keep w >= 0 per frame would flip axes; instead keep the continuous sign and let the
+        # angle run past π, which is the same rotation.
+        w = np.clip(q[:, 0], -1.0, 1.0)
+        angle = 2.0 * np.arccos(w)
+        s = np.sqrt(np.maximum(1.0 - w * w, 0.0))
+        axis = np.empty((q.shape[0], 3))
+        small = s < 1e-9
+        axis[~small] = q[~small, 1:] / s[~small, None]
+        # No rotation: any axis; reuse the neighbouring frame's so curves stay smooth.
+        axis[small] = np.array([0.0, 1.0, 0.0])
+        if np.any(small) and not np.all(small):
+            idx = np.where(~small, np.arange(q.shape[0]), -1)
+            idx = np.maximum.accumulate(idx)
+            first_valid = int(np.argmax(~small))
+            idx[idx < 0] = first_valid
+            axis = axis[idx]
+        return "rotation_axis_angle", np.column_stack([angle, axis])
+    if mode in _EULER_ORDERS:
+        euler = quaternion_to_euler(q, mode)
+        return "rotation_euler", _euler_continuous(euler, mode)
+    raise ValueError(f"unknown rotation mode {mode!r}")
+
+
+def write_pose_bone_transforms(
+    action: bpy.types.Action,
+    obj: bpy.types.Object,
+    frames: np.ndarray,
+    bone_names: Sequence[str],
+    rotations: np.ndarray | None = None,
+    locations: np.ndarray | None = None,
+    scales: np.ndarray | None = None,
+    interpolation: str = "LINEAR",
+) -> int:
+    """Key pose-bone channels (``matrix_basis`` components) of armature ``obj`` in bulk.
+
+    frames: ``(n_frames,)``; rotations: ``(n_frames, n_bones, 4)`` quaternions written in each
+    bone's rotation mode; locations, scales: ``(n_frames, n_bones, 3)``. Channels are grouped by
+    bone name. Returns the number of F-curves written.
+    """
+    pose = obj.pose
+    if pose is None:
+        raise ActionError(f"'{obj.name}' is not an armature")
+    channels: list[Channel] = []
+    columns: list[np.ndarray] = []
+    for b, name in enumerate(bone_names):
+        pbone = pose.bones.get(name)
+        if pbone is None:
+            raise ActionError(f"'{obj.name}' has no bone '{name}'")
+        base = f'pose.bones["{bpy.utils.escape_identifier(name)}"]'
+        if locations is not None:
+            channels.extend(Channel(f"{base}.location", a, name) for a in range(3))
+            columns.append(np.asarray(locations, dtype=np.float64)[:, b, :])
+        if rotations is not None:
+            prop, vals = rotation_channels(pbone.rotation_mode, np.asarray(rotations)[:, b, :])
+            channels.extend(Channel(f"{base}.{prop}", a, name) for a in range(vals.shape[1]))
+            columns.append(vals)
+        if scales is not None:
+            channels.extend(Channel(f"{base}.scale", a, name) for a in range(3))
+            columns.append(np.asarray(scales, dtype=np.float64)[:, b, :])
+    if not channels:
+        return 0
+    write_channels(action, obj, channels, frames, np.concatenate(columns, axis=1), interpolation)
+    return len(channels)
+
+
+def write_object_transforms(
+    action: bpy.types.Action,
+    obj: bpy.types.Object,
+    frames: np.ndarray,
+    locations: np.ndarray | None = None,
+    rotations: np.ndarray | None = None,
+    interpolation: str = "LINEAR",
+) -> int:
+    """Key the object's own ``location`` ``(n_frames, 3)`` and rotation ``(n_frames, 4)``
+    quaternions (written in ``obj.rotation_mode``). Returns the number of F-curves written."""
+    channels: list[Channel] = []
+    columns: list[np.ndarray] = []
+    if locations is not None:
+        channels += [Channel("location", a, _OBJECT_GROUP) for a in range(3)]
+        columns.append(np.asarray(locations, dtype=np.float64).reshape(-1, 3))
+    if rotations is not None:
+        prop, vals = rotation_channels(obj.rotation_mode, np.asarray(rotations).reshape(-1, 4))
+        channels += [Channel(prop, a, _OBJECT_GROUP) for a in range(vals.shape[1])]
+        columns.append(vals)
+    if not channels:
+        return 0
+    write_channels(action, obj, channels, frames, np.concatenate(columns, axis=1), interpolation)
+    return len(channels)
