@@ -1,0 +1,274 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""blender/rig.py: leg detection, world-space morphology, and poses written back to bones.
+
+Poses are checked by evaluating the rig through the depsgraph after the Action is written.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix, Quaternion
+
+from procloco_addon.blender import actions, rig
+from tests.blender.pose_eval import bone_heads_tails, pose_matrices
+from tools.examples import creatures
+
+pytestmark = pytest.mark.blender
+
+
+@pytest.mark.parametrize(
+    ("name", "side", "tokens"),
+    [
+        ("thigh.L", 1, ("thigh",)),
+        ("DEF-front_thigh.R", -1, ("front", "thigh")),
+        ("DEF-thigh.L.001", 1, ("thigh", "001")),
+        ("LeftUpLeg", 1, ("up", "leg")),
+        ("mixamorig:RightFoot", -1, ("foot",)),
+        ("Leg3_tarsus.R", -1, ("leg", "3", "tarsus")),
+        ("l_femur", 1, ("femur",)),
+        ("Leg3_thigh", 0, ("leg", "3", "thigh")),
+        ("foot_ik.L", 1, ("foot", "ik")),
+        ("upper_arm_left", 1, ("upper", "arm")),
+    ],
+)
+def test_split_name(name: str, side: int, tokens: tuple[str, ...]) -> None:
+    assert rig.split_name(name) == (side, tokens)
+
+
+# Expected detection per example creature: label -> (IK bones, foot bones).
+EXPECTED = {
+    "spider": {f"{s}{n}": (tuple(f"Leg{n}_{seg}.{s}" for seg in ("coxa", "femur", "tibia", "tarsus")), ())
+               for n in range(1, 5) for s in "LR"},
+    "robot": {**{f"{s}{n}": (tuple(f"Leg{n}_{seg}.{s}" for seg in ("thigh", "shin", "foot")), ())
+                 for n in (1, 2) for s in "LR"},
+              "M3": (("Leg3_thigh", "Leg3_shin", "Leg3_foot"), ())},
+    "wolf": {"L1": (("front_thigh.L", "front_shin.L", "front_foot.L"), ("front_toe.L",)),
+             "R1": (("front_thigh.R", "front_shin.R", "front_foot.R"), ("front_toe.R",)),
+             "L2": (("thigh.L", "shin.L", "foot.L"), ("toe.L",)),
+             "R2": (("thigh.R", "shin.R", "foot.R"), ("toe.R",))},
+    "human": {"L1": (("thigh.L", "shin.L"), ("foot.L", "toe.L")),
+              "R1": (("thigh.R", "shin.R"), ("foot.R", "toe.R"))},
+    "lizard": {"L1": (("front_thigh.L", "front_shin.L"), ("front_foot.L",)),
+               "R1": (("front_thigh.R", "front_shin.R"), ("front_foot.R",)),
+               "L2": (("thigh.L", "shin.L"), ("foot.L",)),
+               "R2": (("thigh.R", "shin.R"), ("foot.R",))},
+}
+
+
+@pytest.mark.parametrize("kind", sorted(EXPECTED))
+def test_detects_the_legs_of_the_example_creatures(empty_scene: Any, kind: str) -> None:
+    arm = creatures.BUILDERS[kind](empty_scene)
+    legs = rig.detect_legs(arm)
+    got = {leg.label: (leg.bones, leg.foot) for leg in legs}
+    assert got == EXPECTED[kind]
+    # Front to back, left before right.
+    assert [leg.label for leg in legs] == list(EXPECTED[kind])
+
+
+def _add_ik_targets(arm: Any, legs: list[rig.LegChain], names: str) -> None:
+    """A leaf bone beside every foot, parented to the root (like an IK target or control)."""
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode="EDIT")
+    eb = arm.data.edit_bones
+    root = next(b for b in eb if b.parent is None)
+    for k, leg in enumerate(legs):
+        tip = eb[leg.end].tail.copy()
+        b = eb.new(names.format(k=k, side=leg.label[0]))
+        b.head = tip + type(tip)((0.01, 0.0, 0.0))
+        b.tail = b.head + type(tip)((0.0, -0.02, 0.0))
+        b.parent = root
+    bpy.ops.object.mode_set(mode="OBJECT")
+
+
+@pytest.mark.parametrize("target_names", ["foot_ik.{side}.{k}", "IK_target_{k}", "Ctrl{k}"])
+def test_ik_target_bones_are_not_legs(empty_scene: Any, target_names: str) -> None:
+    arm = creatures.build_spider(empty_scene)
+    before = rig.detect_legs(arm)
+    _add_ik_targets(arm, before, target_names)
+    after = rig.detect_legs(arm)
+    assert [(leg.label, leg.bones) for leg in after] == [(leg.label, leg.bones) for leg in before]
+
+
+def test_topology_finds_unnamed_legs_and_skips_ik_targets(empty_scene: Any) -> None:
+    arm = creatures.build_robot(empty_scene)
+    expected = {leg.label: leg.bones for leg in rig.detect_legs(arm)}
+    # Rename every bone to something meaningless; keep a map to check the result.
+    renamed = {}
+    for i, bone in enumerate(list(arm.data.bones)):
+        renamed[f"Bone{i:02d}"] = bone.name
+        bone.name = f"Bone{i:02d}"
+    new_name = {v: k for k, v in renamed.items()}
+    _add_ik_targets(arm, [rig.LegChain((new_name[bones[-1]],), (), 0, "X") for bones in expected.values()],
+                    "Helper{k}")
+    legs = rig.detect_legs(arm)
+    got = sorted(tuple(renamed[b] for b in leg.bones) for leg in legs)
+    assert got == sorted(expected.values())
+
+
+def test_scaled_and_rotated_rig_gives_the_same_morphology(empty_scene: Any) -> None:
+    small = creatures.build_wolf(empty_scene, name="Small")
+    big = creatures.build_wolf(empty_scene, name="Big", location=(3.0, -2.0, 1.0))
+    big.scale = (100.0, 100.0, 100.0)
+    big.rotation_euler = (0.0, 0.0, np.pi / 2)
+    bpy.context.view_layer.update()
+    m_small = rig.morphology_of(rig.read_rig(small))
+    info_big = rig.read_rig(big)
+    m_big = rig.morphology_of(info_big)
+    assert m_big.labels == m_small.labels
+    assert np.allclose(m_big.rest_joints, 100.0 * m_small.rest_joints, atol=1e-4)
+    assert m_big.body_thickness == pytest.approx(100.0 * m_small.body_thickness, rel=1e-5)
+    # Facing -Y turned by 90 degrees about Z is facing +X.
+    assert np.allclose(info_big.body.forward, [1.0, 0.0, 0.0], atol=1e-6)
+
+
+def test_non_uniform_scale_is_refused(empty_scene: Any) -> None:
+    arm = creatures.build_robot(empty_scene)
+    arm.scale = (1.0, 2.0, 1.0)
+    bpy.context.view_layer.update()
+    with pytest.raises(rig.RigError, match="non-uniform"):
+        rig.read_rig(arm)
+
+
+def test_bad_user_legs_are_refused(empty_scene: Any) -> None:
+    arm = creatures.build_robot(empty_scene)
+    with pytest.raises(rig.RigError, match="not an ancestor"):
+        rig.leg_from_bones(arm, "Leg1_foot.L", "Leg1_thigh.L")
+    with pytest.raises(rig.RigError, match="no bone"):
+        rig.leg_from_bones(arm, "Leg1_thigh.L", "Nope")
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode="EDIT")
+    eb = arm.data.edit_bones["Leg1_shin.L"]
+    # Blender removes truly zero-length bones on leaving edit mode; a 1e-10 bone stays.
+    eb.tail = eb.head + type(eb.head)((0.0, 0.0, 1e-10))
+    bpy.ops.object.mode_set(mode="OBJECT")
+    if "Leg1_shin.L" in arm.data.bones:
+        with pytest.raises(rig.RigError, match=r"zero.length"):
+            rig.leg_from_bones(arm, "Leg1_thigh.L", "Leg1_foot.L")
+    else:  # Blender 4.2 deletes the bone and reparents its child: a valid two-bone leg
+        assert rig.leg_from_bones(arm, "Leg1_thigh.L", "Leg1_foot.L").bones == ("Leg1_thigh.L", "Leg1_foot.L")
+    # A user-chosen end-effector before the foot gets the flat bones after it as its foot.
+    human = creatures.build_human(empty_scene)
+    leg = rig.leg_from_bones(human, "thigh.L", "shin.L")
+    assert leg.bones == ("thigh.L", "shin.L")
+    assert leg.foot[:1] == ("foot.L",)
+
+
+def test_matrix_to_quaternion_matches_mathutils() -> None:
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(300, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    mats = np.array([np.array(Quaternion(x).to_matrix()) for x in q])
+    got = rig.matrix_to_quaternion(mats)
+    dots = np.abs(np.sum(got * q, axis=1))
+    assert np.allclose(dots, 1.0, atol=1e-9)
+
+
+def _fk_truth(arm: Any, info: rig.RigInfo, n_frames: int, seed: int) -> tuple[np.ndarray, list[np.ndarray]]:
+    """Ground truth poses made by Blender itself: random hinge rotations of every leg bone
+    about its leg's plane normal and a moving, turning, pitching body. Returns the body
+    frames (F, 4, 4) and per-leg world joints (F, k + 1, 3) read back through the depsgraph."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.0, n_frames)
+    yaw = 0.8 * np.sin(2 * np.pi * t)
+    pitch = 0.15 * np.sin(4 * np.pi * t)
+    body = np.repeat(info.body.matrix[None], n_frames, axis=0)
+    for f in range(n_frames):
+        rz = np.array(Matrix.Rotation(yaw[f], 3, "Z"))
+        ry = np.array(Matrix.Rotation(pitch[f], 3, "Y"))
+        body[f, :3, :3] = rz @ info.body.matrix[:3, :3] @ ry
+        shift = np.array([0.4 * t[f], 0.1 * t[f], 0.05 * np.sin(3 * t[f])])
+        body[f, :3, 3] = info.body.origin + shift * info.scale
+    # Truth: drive the body bone and the leg bones by hand-made basis rotations.
+    action = actions.new_action(arm, "Truth")
+    frames = np.arange(1, n_frames + 1, dtype=float)
+    bones: list[str] = []
+    quats: list[np.ndarray] = []
+    for leg in info.legs:
+        for _name in leg.bones:
+            axis = rng.normal(size=3) * 0.2 + np.array([1.0, 0.0, 0.0])
+            axis /= np.linalg.norm(axis)
+            angle = 0.4 * np.sin(2 * np.pi * (t + rng.random()))
+            quats.append(np.column_stack([np.cos(angle / 2), np.sin(angle / 2)[:, None] * axis]))
+        bones += list(leg.bones)
+    actions.write_pose_bone_transforms(action, arm, frames, bones, np.stack(quats, axis=1))
+    actions.assign_generated_action(arm, action)
+    joints = []
+    for leg in info.legs:
+        heads, tails = bone_heads_tails(arm, frames.astype(int), list(leg.bones))
+        joints.append(np.concatenate([heads, tails[:, -1:]], axis=1))
+    # The truth above moves legs relative to a body at rest; now move the body too.
+    delta = body @ np.linalg.inv(info.body.matrix)
+    joints = [np.einsum("fij,fkj->fki", delta[:, :3, :3], j) + delta[:, None, :3, 3] for j in joints]
+    return body, joints
+
+
+@pytest.mark.parametrize(("kind", "mode"),
+                         [("spider", "QUATERNION"), ("wolf", "XYZ"), ("robot", "AXIS_ANGLE")])
+def test_solved_pose_reproduces_joint_positions(empty_scene: Any, kind: str, mode: str) -> None:
+    arm = creatures.BUILDERS[kind](empty_scene, location=(1.0, 2.0, 0.5))
+    arm.scale = (3.0, 3.0, 3.0)
+    arm.rotation_euler = (0.0, 0.0, 0.7)
+    bpy.context.view_layer.update()
+    for pb in arm.pose.bones:
+        pb.rotation_mode = mode
+    info = rig.read_rig(arm)
+    n = 12
+    body, joints = _fk_truth(arm, info, n, seed=7)
+    tracks = rig.solve_pose(info, body, joints)
+    action = actions.new_action(arm)
+    actions.write_pose_bone_transforms(action, arm, np.arange(1, n + 1), tracks.bones, tracks.rotations)
+    loc_bones = [b for b, k in zip(tracks.bones, tracks.keyed_location, strict=True) if k]
+    loc_idx = [tracks.bones.index(b) for b in loc_bones]
+    actions.write_pose_bone_transforms(action, arm, np.arange(1, n + 1), loc_bones,
+                                       locations=tracks.locations[:, loc_idx])
+    actions.assign_generated_action(arm, action)
+
+    frames = list(range(1, n + 1))
+    scale = float(info.leg_length.mean())
+    for leg, want in zip(info.legs, joints, strict=True):
+        heads, tails = bone_heads_tails(arm, frames, list(leg.bones))
+        got = np.concatenate([heads, tails[:, -1:]], axis=1)
+        err = np.max(np.linalg.norm(got - want, axis=-1))
+        assert err < 1e-4 * scale, (leg.label, err)
+    # The body bone moves rigidly with the body frame.
+    mats = pose_matrices(arm, frames, [info.body_bone])[:, 0]
+    delta = body @ np.linalg.inv(info.body.matrix)
+    want_mats = delta @ info.world @ info.rest_local[info.body_bone]
+    assert np.allclose(mats, want_mats, atol=1e-4 * scale)
+
+
+def test_knee_plane_kept_without_twist(empty_scene: Any) -> None:
+    """Each leg bone's local axes keep their rest relation to the leg plane: no added twist."""
+    arm = creatures.build_wolf(empty_scene)
+    info = rig.read_rig(arm)
+    n = 6
+    body, joints = _fk_truth(arm, info, n, seed=3)
+    tracks = rig.solve_pose(info, body, joints)
+    action = actions.new_action(arm)
+    actions.write_pose_bone_transforms(action, arm, np.arange(1, n + 1), tracks.bones, tracks.rotations,
+                                       tracks.locations)
+    actions.assign_generated_action(arm, action)
+    frames = list(range(1, n + 1))
+    for leg, rest_j, cur_j in zip(info.legs, info.joints, joints, strict=True):
+        mats = pose_matrices(arm, frames, list(leg.bones))
+        n_rest = rig._unit(rig._bend_normal(rest_j))
+        n_cur = rig._unit(rig._bend_normal(cur_j))
+        # The plane's side is the one facing like the body-turned rest normal.
+        turned = np.einsum("fij,j->fi", (body @ np.linalg.inv(info.body.matrix))[:, :3, :3], n_rest)
+        n_cur *= np.sign(np.einsum("fi,fi->f", n_cur, turned))[:, None]
+        for b, name in enumerate(leg.bones):
+            # Twist = angle of the bone's X axis about its own axis, measured from the leg
+            # plane's normal (made perpendicular to the bone). It must stay the rest twist.
+            rest_m = info.world[:3, :3] @ info.rest_local[name][:3, :3]
+            rest_m /= np.linalg.norm(rest_m, axis=0)
+            f_rest = rig._frames(rest_m[:, 1], n_rest)
+            twist_rest = np.arctan2(rest_m[:, 0] @ f_rest[:, 2], rest_m[:, 0] @ f_rest[:, 1])
+            m = mats[:, b, :3, :3] / np.linalg.norm(mats[:, b, :3, :3], axis=1)[:, None, :]
+            f_now = rig._frames(m[:, :, 1], n_cur)
+            twist_now = np.arctan2(np.einsum("fi,fi->f", m[:, :, 0], f_now[:, :, 2]),
+                                   np.einsum("fi,fi->f", m[:, :, 0], f_now[:, :, 1]))
+            assert np.allclose(twist_now, twist_rest, atol=1e-4), name
