@@ -1,0 +1,174 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Camera, light, world and render settings for ``examples.blend``, and the whole scene.
+
+API::
+
+    setup_render(scene, resolution=(640, 360))    # Workbench, material colours, shadows
+    add_sun(scene, collection=None) -> Object       # a sun for Cycles/EEVEE; sets Workbench's light direction
+    frame_camera(scene, objects, direction=..., margin=0.04) -> Object
+    build_example_scene(scene) -> ExampleScene      # six creatures on the terrain, framed
+
+``EXAMPLE_SCALE[kind]`` is the scale each creature is built at in the example: the
+tarantula and the ant are giants (legs ~0.7 m and ~0.5 m), the others are real size.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+from bpy_extras.object_utils import world_to_camera_view
+from mathutils import Vector
+
+from . import creatures, terrain
+
+#: Scale of each creature in ``examples.blend`` (its builder's ``scale``).
+EXAMPLE_SCALE: dict[str, float] = {"spider": 8.0, "ant": 30.0, "robot": 1.0, "lizard": 1.0, "wolf": 1.0,
+                                   "human": 1.0}
+#: The creatures in lane order, and the objects' names.
+CREATURE_NAMES: dict[str, str] = {"spider": "Spider", "ant": "Ant", "robot": "Robot", "lizard": "Lizard",
+                                  "wolf": "Wolf", "human": "Human"}
+FRAME_START = 1
+FRAME_END = 240
+FPS = 24
+#: Where the camera looks from (towards the scene centre): in front of the creatures, raised.
+CAMERA_DIRECTION = (-0.35, -1.0, -0.55)
+#: The stretch of ground (y) the camera keeps in view.
+FRAMED_Y = (-2.5, 4.0)
+
+
+@dataclass
+class ExampleScene:
+    """What :func:`build_example_scene` made."""
+
+    rigs: dict[str, bpy.types.Object] = field(default_factory=dict)
+    terrain: terrain.Terrain | None = None
+    camera: bpy.types.Object | None = None
+    sun: bpy.types.Object | None = None
+
+
+def setup_render(scene: bpy.types.Scene, resolution: tuple[int, int] = (640, 360)) -> None:
+    """Workbench at ``resolution``, solid material colours, shadows and cavity, a pale sky."""
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.render.resolution_x, scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    shading = scene.display.shading
+    shading.light = "STUDIO"
+    shading.color_type = "MATERIAL"
+    shading.show_shadows = True
+    shading.shadow_intensity = 0.45
+    shading.show_cavity = False
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("Sky")
+    scene.world.color = (0.62, 0.72, 0.85)
+
+
+def add_sun(scene: bpy.types.Scene, collection: bpy.types.Collection | None = None,
+            direction: Sequence[float] = (0.35, 0.45, -0.82)) -> bpy.types.Object:
+    """A sun shining along ``direction``; Workbench's shadow light follows it."""
+    light = bpy.data.lights.new("Sun", "SUN")
+    light.energy = 3.0
+    sun = bpy.data.objects.new("Sun", light)
+    (collection or scene.collection).objects.link(sun)
+    d = Vector(direction).normalized()
+    sun.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
+    sun.location = (0.0, 0.0, 10.0)
+    # Workbench's light_direction points towards the light, in world space.
+    scene.display.light_direction = tuple(-d)
+    return sun
+
+
+def bound_corners(objects: Iterable[bpy.types.Object]) -> list[Vector]:
+    """World-space corners of the evaluated bounding boxes of ``objects`` (8 per object)."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    points: list[Vector] = []
+    for obj in objects:
+        evaluated = obj.evaluated_get(depsgraph)
+        points += [evaluated.matrix_world @ Vector(c) for c in evaluated.bound_box]
+    return points
+
+
+def frame_camera(scene: bpy.types.Scene, points: Sequence[Vector],
+                 direction: Sequence[float] = CAMERA_DIRECTION, margin: float = 0.04,
+                 lens: float = 35.0, collection: bpy.types.Collection | None = None) -> bpy.types.Object:
+    """Make (or reuse) the scene camera looking along ``direction`` at the centre of the
+    world-space ``points``, backed off until every point is inside the frame with ``margin``
+    (a fraction of the frame) to spare."""
+    camera = scene.camera
+    if camera is None:
+        camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+        (collection or scene.collection).objects.link(camera)
+        scene.camera = camera
+    camera.data.lens = lens
+    camera.data.clip_end = 500.0
+    d = Vector(direction).normalized()
+    camera.rotation_euler = d.to_track_quat("-Z", "Y").to_euler()
+    lo = Vector(np.min(np.array(points), axis=0))
+    hi = Vector(np.max(np.array(points), axis=0))
+    target = 0.5 * (lo + hi)
+
+    def fits(distance: float) -> bool:
+        camera.location = target - d * distance
+        bpy.context.view_layer.update()
+        for p in points:
+            u, v, depth = world_to_camera_view(scene, camera, p)
+            inside = margin <= u <= 1 - margin and margin <= v <= 1 - margin
+            if depth <= camera.data.clip_start or not inside:
+                return False
+        return True
+
+    near, far = 0.1, 10.0
+    while not fits(far):
+        far *= 2.0
+        if far > 1e4:
+            raise RuntimeError("cannot frame the objects")
+    for _ in range(40):
+        mid = 0.5 * (near + far)
+        near, far = (near, mid) if fits(mid) else (mid, far)
+    fits(far)
+    return camera
+
+
+def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
+    """The six creatures on the terrain (collections ``Creatures`` and ``Terrain``), a camera
+    framing everything, a sun, Workbench at 640×360, frames 1–240 at 24 fps."""
+    scene.render.fps = FPS
+    scene.render.fps_base = 1.0
+    scene.frame_start, scene.frame_end = FRAME_START, FRAME_END
+    scene.frame_set(FRAME_START)
+    creature_coll = bpy.data.collections.new("Creatures")
+    terrain_coll = bpy.data.collections.new("Terrain")
+    scene.collection.children.link(terrain_coll)
+    scene.collection.children.link(creature_coll)
+    out = ExampleScene()
+    out.terrain = terrain.build_terrain(scene, terrain_coll, FRAME_START, FRAME_END, FPS)
+    for kind, name in CREATURE_NAMES.items():
+        location = (terrain.LANE_X[kind], terrain.START_Y, 0.0)
+        out.rigs[kind] = creatures.BUILDERS[kind](scene, name=name, location=location,
+                                                  scale=EXAMPLE_SCALE[kind], collection=creature_coll)
+    setup_render(scene)
+    out.sun = add_sun(scene)
+    # Frame what the creatures meet, not the whole ground: its far edges may leave the picture.
+    t = out.terrain
+    framed = bound_corners([t.stairs, t.gap, *t.static_crates, *t.moving_crates])
+    framed += bound_corners(s for s in (creatures.skin_of(r) for r in out.rigs.values()) if s is not None)
+    x0, x1 = terrain.X_RANGE
+    framed += [Vector((x, y, 0.0)) for x in (x0 + 0.5, x1 - 0.5) for y in FRAMED_Y]
+    out.camera = frame_camera(scene, framed)
+    return out
+
+
+def creature_screen_boxes(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object]) -> dict[str, np.ndarray]:
+    """Each creature skin's bounding box in normalised camera coordinates: ``[u0, v0, u1, v1]``."""
+    out: dict[str, np.ndarray] = {}
+    for kind, rig in rigs.items():
+        skin = creatures.skin_of(rig)
+        if skin is None:
+            continue
+        uv = np.array([world_to_camera_view(scene, scene.camera, p)[:2] for p in bound_corners([skin])])
+        out[kind] = np.concatenate([uv.min(axis=0), uv.max(axis=0)])
+    return out
+
