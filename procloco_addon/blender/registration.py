@@ -9,12 +9,20 @@ disabling the extension any number of times leaves nothing behind.
 
 from __future__ import annotations
 
+from typing import Any
+
 import bpy
 
 from .locomotion import property_group as locomotion_props
 
 CLASSES: tuple[type, ...] = (
+    locomotion_props.PROCLOCO_PG_leg,
     locomotion_props.PROCLOCO_PG_rig_settings,
+)
+
+# (owner ID type, attribute name, property) for plain properties (not groups)
+PROPERTIES: tuple[tuple[type, str, Any], ...] = (
+    (bpy.types.Object, "procloco_role", locomotion_props.ROLE_PROPERTY),
 )
 
 # (owner ID type, attribute name, property group class)
@@ -28,9 +36,14 @@ def register() -> None:
         bpy.utils.register_class(cls)
     for owner, attr, group in POINTERS:
         setattr(owner, attr, bpy.props.PointerProperty(type=group))
+    for owner, attr, prop in PROPERTIES:
+        setattr(owner, attr, prop)
 
 
 def unregister() -> None:
+    for owner, attr, _prop in reversed(PROPERTIES):
+        if hasattr(owner, attr):
+            delattr(owner, attr)
     for owner, attr, _group in reversed(POINTERS):
         if hasattr(owner, attr):
             delattr(owner, attr)

@@ -67,7 +67,7 @@ def object_world_matrices(obj: bpy.types.Object, frames: Sequence[int]) -> np.nd
     return out
 
 
-def ray_heights(xy: np.ndarray, objects: Sequence[bpy.types.Object], z_top: float = 1e4) -> np.ndarray:
+def ray_heights(xy: np.ndarray, objects: Sequence[bpy.types.Object], z_top: float = 100.0) -> np.ndarray:
     """Highest surface of ``objects`` straight under each point, by ray casts into the evaluated
     meshes at the current frame. xy: ``(n, 2)``; returns ``(n,)`` (``-inf`` where nothing is hit)."""
     from mathutils import Vector

@@ -1,13 +1,96 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Per-rig locomotion settings, saved in the .blend on the armature object."""
+"""Per-rig locomotion settings, saved in the .blend on the armature object.
+
+``Object.procloco`` (:class:`PROCLOCO_PG_rig_settings`) holds what the thesis's Appendix D
+lists as the user's controls — speed, heading or a path to follow, step height, each
+foot's relative position and its gait circle — plus the frame range, the seed and the
+effect switches. ``Object.procloco_role`` is the terrain role of any object.
+
+Lengths are in the scene's units (metres), speeds in metres per second, angles in radians.
+"""
 
 import bpy
-from bpy.props import FloatProperty, IntProperty
+from bpy.props import (
+    BoolProperty,
+    CollectionProperty,
+    EnumProperty,
+    FloatProperty,
+    FloatVectorProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
+
+from ..scene_terrain import ROLE_ITEMS
+
+
+def _is_curve(_self: object, obj: bpy.types.Object) -> bool:
+    return obj.type == "CURVE"
+
+
+class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
+    """One leg of a rig: its bones, its gait circle and its relative foot position.
+
+    ``name`` (inherited) is shown in the legs list; ``label`` is the gait label (L1, R1, ...).
+    """
+
+    label: StringProperty(
+        name="Label",
+        description="Gait label of the leg: L1, R1, L2, ... front to back, left before right; M for midline",
+    )
+    hip: StringProperty(name="Hip", description="First bone of the leg (the hip joint)")
+    end: StringProperty(
+        name="End-Effector",
+        description="Last bone solved by the IK; its tail is placed on the ground "
+        "(often the bone before the foot)",
+    )
+    enabled: BoolProperty(name="Enabled", description="Animate this leg", default=True)
+    swing_start: FloatProperty(
+        name="Swing Start",
+        description="Where in the cycle the foot lifts off (fraction of the cycle)",
+        default=0.0,
+        min=0.0,
+        max=1.0,
+        subtype="FACTOR",
+    )
+    swing_duration: FloatProperty(
+        name="Swing Duration",
+        description="How long the foot is in the air (fraction of the cycle)",
+        default=0.3,
+        min=0.0,
+        max=1.0,
+        subtype="FACTOR",
+    )
+    offset: FloatVectorProperty(
+        name="Foot Offset",
+        description="Shift of the foot's preferred position relative to its rest place, "
+        "in the body's frame (forward, left)",
+        size=2,
+        default=(0.0, 0.0),
+        subtype="XYZ",
+        unit="LENGTH",
+    )
 
 
 class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
     """Locomotion controls of one rig (``Object.procloco``)."""
 
+    legs: CollectionProperty(type=PROCLOCO_PG_leg, name="Legs")
+    active_leg_index: IntProperty(name="Active Leg", default=0, min=0)
+    forward_axis: EnumProperty(
+        name="Forward",
+        description="Which way the rig faces in its rest pose",
+        items=(
+            ("AUTO", "Auto", "From the legs' sides (left/right names), else the rig's -Y axis"),
+            ("-Y", "-Y", "The rig faces its -Y axis (Blender and Rigify convention)"),
+            ("+Y", "+Y", "The rig faces its +Y axis"),
+            ("+X", "+X", "The rig faces its +X axis"),
+            ("-X", "-X", "The rig faces its -X axis"),
+        ),
+        default="AUTO",
+    )
+
+    # --- locomotion -----------------------------------------------------------------
     speed: FloatProperty(
         name="Speed",
         description="Pelvis speed along the heading",
@@ -15,6 +98,28 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         min=0.0,
         soft_max=5.0,
         unit="VELOCITY",
+    )
+    heading: FloatProperty(
+        name="Heading",
+        description="Walking direction relative to where the rig faces (0: straight ahead)",
+        default=0.0,
+        subtype="ANGLE",
+        unit="ROTATION",
+    )
+    turn_rate: FloatProperty(
+        name="Turn Rate",
+        description="Constant turning speed while walking (0: a straight line)",
+        default=0.0,
+        soft_min=-3.0,
+        soft_max=3.0,
+        subtype="ANGLE",
+        unit="ROTATION",
+    )
+    path: PointerProperty(
+        type=bpy.types.Object,
+        name="Path",
+        description="A curve to follow instead of the heading (walked from its start at the given speed)",
+        poll=_is_curve,
     )
     step_height: FloatProperty(
         name="Step Height",
@@ -24,9 +129,86 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         soft_max=1.0,
         unit="LENGTH",
     )
+    spacing: FloatProperty(
+        name="Feet Spacing",
+        description="Scales how far the feet stand from the body's centre line (1: as in the rest pose)",
+        default=1.0,
+        min=0.3,
+        max=2.0,
+    )
+    cycle_time: FloatProperty(
+        name="Cycle Time",
+        description="Duration of one gait cycle (every foot lifts once)",
+        default=1.0,
+        min=0.05,
+        soft_max=5.0,
+        unit="TIME_ABSOLUTE",
+    )
+    gait_preset: StringProperty(
+        name="Gait Preset",
+        description="Name of the gait preset last applied to this rig",
+    )
+
+    # --- time and randomness ------------------------------------------------------------
+    use_scene_range: BoolProperty(
+        name="Scene Frame Range",
+        description="Generate over the scene's frame range",
+        default=True,
+    )
+    frame_start: IntProperty(name="Start", description="First generated frame", default=1)
+    frame_end: IntProperty(name="End", description="Last generated frame", default=250)
     seed: IntProperty(
         name="Seed",
         description="Seed of every random choice; the same seed gives the same Action",
         default=0,
         min=0,
     )
+
+    # --- terrain --------------------------------------------------------------------
+    terrain_collection: PointerProperty(
+        type=bpy.types.Collection,
+        name="Terrain",
+        description="Collection whose meshes are the terrain (empty: every visible mesh not part of a rig)",
+    )
+
+    # --- effects --------------------------------------------------------------------
+    use_pelvis_physics: BoolProperty(
+        name="Pelvis Physics",
+        description="The pelvis bobs with the feet's push and landing (thesis §4.1)",
+        default=True,
+    )
+    use_spine: BoolProperty(
+        name="Flexible Spine",
+        description="The spine bends along the path instead of turning rigidly (thesis §4.2)",
+        default=True,
+    )
+    use_visual_yaw: BoolProperty(
+        name="Spine Sway",
+        description="The spine sways with the feet (thesis §4.4)",
+        default=False,
+    )
+    use_progression: BoolProperty(
+        name="Burst Progression",
+        description="Burst-like speed with stalls, like insects (thesis §4.3)",
+        default=False,
+    )
+    use_gait_randomizer: BoolProperty(
+        name="Gait Randomizer",
+        description="A new random gait at each stall (thesis §4.3)",
+        default=False,
+    )
+
+    def frame_range(self, scene: bpy.types.Scene) -> tuple[int, int]:
+        """``(first, last)`` generated frames."""
+        if self.use_scene_range:
+            return int(scene.frame_start), int(scene.frame_end)
+        return int(self.frame_start), int(self.frame_end)
+
+
+#: ``Object.procloco_role``: the object's part in the terrain (see ``scene_terrain``).
+ROLE_PROPERTY = EnumProperty(
+    name="Terrain Role",
+    description="How ProcLoco's creatures treat this object",
+    items=ROLE_ITEMS,
+    default="AUTO",
+)
