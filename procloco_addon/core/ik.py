@@ -1,0 +1,363 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Leg inverse kinematics, vectorised over every leg of every character (thesis §3.1).
+
+A leg is solved in two stages (joint model in ``morphology``):
+
+1. the *leg plane*: it contains the hip and the target. Its normal is the leg's rest
+   normal, turned about the body's up axis by the foot's horizontal yaw for splayed legs,
+   then made perpendicular to the hip-target line (the smallest twist that puts the target
+   in the plane). Knees therefore keep bending the way they do at rest and never flip.
+2. the planar chain. Two-segment legs use the closed-form law-of-cosines solution. Longer
+   legs start from a shape-preserving guess (the rest bend scaled by one factor found by
+   bisection, so the leg keeps its silhouette and the pose depends on the target only),
+   then run CCD sweeps with per-joint limits (the thesis's solver) and finish with a few
+   damped-least-squares iterations with an active set of limits, which get out of the
+   straight-leg and joint-on-limit stalls where CCD alone stops short. Joint positions are
+   rebuilt from angles and segment lengths, so bone lengths are exact by construction.
+
+All legs are processed with the same numpy calls; Python loops run over joints and CCD
+sweeps only. Shapes use ``N`` legs and ``s`` the longest leg's segment count.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from .morphology import LegBatch, plane_axes
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+_UP = np.array([0.0, 0.0, 1.0])
+_TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True, eq=False)
+class IKResult:
+    """Solved legs.
+
+    - ``joints``: ``(N, s + 1, 3)`` hip, inner joints and end effector (rows past a leg's end
+      repeat the end effector), in the frame the targets were given in.
+    - ``plane_normal``: ``(N, 3)`` leg-plane normals in that frame; hinge angles turn about it.
+    - ``angles``: ``(N, s)`` joint angles (hip pitch, then hinges); pass back as ``init`` of the
+      next solve for temporal coherence.
+    - ``error``: ``(N,)`` distance from end effector to target (0 when reachable).
+    """
+
+    joints: FloatArray
+    plane_normal: FloatArray
+    angles: FloatArray
+    error: FloatArray
+
+
+def wrap_to_limits(angle: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+    """Clamp angles to ``[lo, hi]`` after choosing the 2π-turn closest to the range."""
+    mid = 0.5 * (lo + hi)
+    wrapped = (angle - mid + np.pi) % _TWO_PI - np.pi + mid
+    return np.clip(wrapped, lo, hi)
+
+
+def forward_planar(angles: FloatArray, lengths: FloatArray) -> FloatArray:
+    """Planar joint positions ``(N, s + 1, 2)`` (hip at the origin) of chains with joint
+    ``angles (N, s)`` and segment ``lengths (N, s)``."""
+    phi = np.cumsum(angles, axis=1)
+    seg = lengths[..., None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    out = np.zeros((angles.shape[0], angles.shape[1] + 1, 2))
+    np.cumsum(seg, axis=1, out=out[:, 1:])
+    return out
+
+
+def solve_two_segment(target: FloatArray, lengths: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+    """Closed-form angles ``(N, 2)`` for two-segment planar legs.
+
+    ``target (N, 2)`` in the leg plane (hip at the origin), ``lengths (N, 2)``, limits
+    ``(N, 2)``. The knee bends on the side its limits allow (sign of the limits' middle);
+    out-of-reach targets give the straightest allowed leg pointing at them.
+    """
+    l1 = lengths[:, 0]
+    l2 = lengths[:, 1]
+    r2 = np.einsum("ij,ij->i", target, target)
+    cos_k = np.clip((r2 - l1 * l1 - l2 * l2) / (2.0 * l1 * l2), -1.0, 1.0)
+    side = np.where(lo[:, 1] + hi[:, 1] >= 0.0, 1.0, -1.0)
+    knee = np.clip(side * np.arccos(cos_k), lo[:, 1], hi[:, 1])
+    hip = np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(l2 * np.sin(knee), l1 + l2 * np.cos(knee))
+    return np.stack([wrap_to_limits(hip, lo[:, 0], hi[:, 0]), knee], axis=1)
+
+
+def solve_bend(
+    target: FloatArray,
+    lengths: FloatArray,
+    n_segments: IntArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    rest: FloatArray,
+    *,
+    max_bend: float = 3.0,
+    iterations: int = 34,
+) -> FloatArray:
+    """Shape-preserving start for chains of any length; returns angles ``(N, s)``.
+
+    The hinges take ``κ`` times their rest angles (clamped to their limits; a leg straight at
+    rest bends toward the side its limits allow), with one ``κ ∈ [0, max_bend]`` per leg
+    found by bisection so the chain's reach equals the target distance; the hip pitch then
+    aims the chain at the target. The leg keeps its rest silhouette, only more or less
+    folded, and the pose depends on the target alone (no drift from frame to frame).
+    Targets closer than the most folded pose stay at ``κ = max_bend``; beyond reach the leg
+    is straight. Callers refine with ``solve_ccd``/``solve_dls`` where limits interfere.
+    """
+    n, s = rest.shape
+    rows = np.arange(n)
+    valid = np.arange(s)[None, :] < n_segments[:, None]
+    hinge = rest.copy()
+    hinge[:, 0] = 0.0
+    hinge = np.where(valid, hinge, 0.0)
+    straight = np.abs(hinge).sum(axis=1) < 1e-3
+    if np.any(straight):
+        side = np.where(lo + hi >= 0.0, 1.0, -1.0)
+        default = np.where(valid, 0.3 * side, 0.0)
+        default[:, 0] = 0.0
+        hinge[straight] = default[straight]
+    dist = np.sqrt(np.einsum("ij,ij->i", target, target))
+
+    def reach(kappa: FloatArray) -> tuple[FloatArray, FloatArray]:
+        th = np.clip(kappa[:, None] * hinge, lo, hi)
+        th[:, 0] = 0.0
+        end = forward_planar(th, lengths)[rows, n_segments]
+        return th, np.sqrt(np.einsum("ij,ij->i", end, end))
+
+    k_lo = np.zeros(n)  # straight: longest reach
+    k_hi = np.full(n, max_bend)
+    for _ in range(iterations):
+        mid = 0.5 * (k_lo + k_hi)
+        _, r = reach(mid)
+        too_long = r > dist
+        k_lo = np.where(too_long, mid, k_lo)
+        k_hi = np.where(too_long, k_hi, mid)
+    th, _ = reach(0.5 * (k_lo + k_hi))
+    end = forward_planar(th, lengths)[rows, n_segments]
+    th[:, 0] = np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(end[:, 1], end[:, 0])
+    th[:, 0] = wrap_to_limits(th[:, 0], lo[:, 0], hi[:, 0])
+    return np.where(valid, th, 0.0)
+
+
+def solve_ccd(
+    target: FloatArray,
+    lengths: FloatArray,
+    n_segments: IntArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    init: FloatArray,
+    *,
+    max_sweeps: int = 40,
+    tolerance: float = 1e-5,
+) -> FloatArray:
+    """CCD with joint limits on planar chains; returns angles ``(N, s)``.
+
+    Each sweep visits the joints from the end effector to the hip and turns each one so the
+    end effector points at ``target (N, 2)``, clamped to ``[lo, hi]``. Joints at or past a
+    leg's ``n_segments`` are left alone. Sweeps stop once every leg is within ``tolerance``
+    (metres) or after ``max_sweeps``.
+    """
+    theta = init.copy()
+    n, s = theta.shape
+    rows = np.arange(n)
+    active_joint = np.arange(s)[None, :] < n_segments[:, None]
+    for _ in range(max_sweeps):
+        pts = forward_planar(theta, lengths)
+        end = pts[rows, n_segments]
+        if np.all(np.einsum("ij,ij->i", end - target, end - target) <= tolerance * tolerance):
+            break
+        for j in range(s - 1, -1, -1):
+            pivot = pts[:, j]
+            v_end = end - pivot
+            v_t = target - pivot
+            cross = v_end[:, 0] * v_t[:, 1] - v_end[:, 1] * v_t[:, 0]
+            dot = v_end[:, 0] * v_t[:, 0] + v_end[:, 1] * v_t[:, 1]
+            new = wrap_to_limits(theta[:, j] + np.arctan2(cross, dot), lo[:, j], hi[:, j])
+            turn = np.where(active_joint[:, j], new - theta[:, j], 0.0)
+            theta[:, j] += turn
+            c = np.cos(turn)
+            sn = np.sin(turn)
+            end = pivot + np.stack(
+                [c * v_end[:, 0] - sn * v_end[:, 1], sn * v_end[:, 0] + c * v_end[:, 1]], axis=1
+            )
+    return theta
+
+
+def solve_dls(
+    target: FloatArray,
+    lengths: FloatArray,
+    n_segments: IntArray,
+    lo: FloatArray,
+    hi: FloatArray,
+    init: FloatArray,
+    *,
+    max_iterations: int = 30,
+    tolerance: float = 1e-5,
+    damping: float = 0.02,
+    max_turn: float = 0.35,
+) -> FloatArray:
+    """Damped least squares with joint limits on planar chains; returns angles ``(N, s)``.
+
+    Finishes what CCD leaves: CCD stalls when a joint sits on a limit (a straight hock, a
+    locked wrist) and the target needs the others to move together. Each iteration solves
+    ``dθ = Jᵀ (J Jᵀ + λ² I)⁻¹ e`` with the joints that are pushed into a limit removed from
+    the Jacobian (an active set), λ = ``damping`` times the leg length; steps are capped at
+    ``max_turn`` radians. ``J Jᵀ`` is 2 × 2, so the solve is closed-form for all legs at once.
+    """
+    theta = init.copy()
+    n, s = theta.shape
+    rows = np.arange(n)
+    valid = np.arange(s)[None, :] < n_segments[:, None]
+    lam2 = (damping * lengths.sum(axis=1)) ** 2
+    todo = rows
+    for _ in range(max_iterations):
+        th = theta[todo]
+        pts = forward_planar(th, lengths[todo])
+        end = pts[np.arange(todo.size), n_segments[todo]]
+        err = target[todo] - end
+        converged = np.einsum("ij,ij->i", err, err) <= tolerance * tolerance
+        if np.all(converged):
+            break
+        keep = ~converged
+        todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
+        r = end[:, None, :] - pts[:, :s, :]
+        jac = np.stack([-r[..., 1], r[..., 0]], axis=1)  # (m, 2, s)
+        grad = np.einsum("mks,mk->ms", jac, err)
+        at_lo = (th <= lo[todo] + 1e-9) & (grad < 0.0)
+        at_hi = (th >= hi[todo] - 1e-9) & (grad > 0.0)
+        free = valid[todo] & ~at_lo & ~at_hi
+        jac = jac * free[:, None, :]
+        a11 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 0]) + lam2[todo]
+        a22 = np.einsum("ms,ms->m", jac[:, 1], jac[:, 1]) + lam2[todo]
+        a12 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 1])
+        det = a11 * a22 - a12 * a12
+        x0 = (a22 * err[:, 0] - a12 * err[:, 1]) / det
+        x1 = (a11 * err[:, 1] - a12 * err[:, 0]) / det
+        step = jac[:, 0] * x0[:, None] + jac[:, 1] * x1[:, None]
+        biggest = np.abs(step).max(axis=1, keepdims=True)
+        step *= np.minimum(1.0, max_turn / np.maximum(biggest, 1e-12))
+        theta[todo] = np.clip(th + step, lo[todo], hi[todo])
+    return theta
+
+
+def leg_plane_normals(
+    target_body: FloatArray,
+    hip_body: FloatArray,
+    rest_foot_body: FloatArray,
+    rest_normal_body: FloatArray,
+    yaw_weight: FloatArray,
+    leg_length: FloatArray,
+) -> FloatArray:
+    """Leg-plane normals ``(N, 3)`` in the body frame for feet at ``target_body (N, 3)``.
+
+    The rest normal is turned about the body's z axis by ``yaw_weight`` times the foot's yaw
+    (the angle between its rest and current horizontal directions from the hip, faded out as
+    the foot comes under the hip), then the component along the hip-target line is removed.
+    """
+    d = target_body - hip_body
+    d_h = d[:, :2]
+    r_h = (rest_foot_body - hip_body)[:, :2]
+    yaw = np.arctan2(r_h[:, 0] * d_h[:, 1] - r_h[:, 1] * d_h[:, 0], np.einsum("ij,ij->i", r_h, d_h))
+    fade = np.clip(np.linalg.norm(d_h, axis=1) / (0.25 * leg_length), 0.0, 1.0)
+    psi = yaw_weight * fade * yaw
+    c = np.cos(psi)
+    sn = np.sin(psi)
+    pref = np.stack(
+        [
+            c * rest_normal_body[:, 0] - sn * rest_normal_body[:, 1],
+            sn * rest_normal_body[:, 0] + c * rest_normal_body[:, 1],
+            rest_normal_body[:, 2],
+        ],
+        axis=1,
+    )
+    d_len = np.linalg.norm(d, axis=1, keepdims=True)
+    d_hat = np.divide(d, d_len, out=np.zeros_like(d), where=d_len > 1e-12)
+    normal = pref - np.einsum("ij,ij->i", pref, d_hat)[:, None] * d_hat
+    norm = np.linalg.norm(normal, axis=1, keepdims=True)
+    # target along the preferred normal itself: keep the unprojected rest normal
+    return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), rest_normal_body)
+
+
+def solve_legs(
+    legs: LegBatch,
+    hip_world: FloatArray,
+    body_rot: FloatArray,
+    target_world: FloatArray,
+    init: FloatArray | None = None,
+    *,
+    max_sweeps: int = 12,
+    polish_iterations: int = 30,
+    tolerance: float = 1e-5,
+    shape_preserving: bool = True,
+    mask: npt.NDArray[np.bool_] | None = None,
+) -> IKResult:
+    """Pose every leg so its end effector reaches ``target_world``.
+
+    - ``hip_world``: ``(N, 3)`` hip joint positions in the world.
+    - ``body_rot``: ``(N, 3, 3)`` rotation (body to world) of the body each leg hangs from.
+    - ``target_world``: ``(N, 3)`` end-effector targets.
+    - ``init``: ``(N, s)`` starting angles (the previous frame's); rest angles by default.
+      Used as the CCD start of legs with three or more segments when ``shape_preserving``
+      is False; with it True (the default) those legs start from ``solve_bend``.
+    - ``mask``: optional ``(N,)`` legs to solve; the others keep ``init`` (and their joints
+      are rebuilt from it), e.g. off-screen characters under LOD.
+    """
+    n = legs.n_legs
+    rows = np.arange(n)
+    theta0 = legs.rest_angles if init is None else init
+    rot_t = np.transpose(body_rot, (0, 2, 1))
+    target_body = np.einsum("nij,nj->ni", rot_t, target_world - hip_world)
+    zero = np.zeros((n, 3))
+    rest_foot_rel = legs.rest_foot - legs.hip_offset
+    normal_body = leg_plane_normals(
+        target_body, zero, rest_foot_rel, legs.plane_normal, legs.yaw_weight, legs.leg_length
+    )
+    a, b = plane_axes(normal_body, np.broadcast_to(_UP, (n, 3)))
+    target_2d = np.stack(
+        [np.einsum("ij,ij->i", target_body, a), np.einsum("ij,ij->i", target_body, b)], axis=1
+    )
+
+    theta = theta0.copy()
+    solve = np.ones(n, dtype=bool) if mask is None else mask.astype(bool)
+    two = solve & (legs.n_segments == 2)
+    if np.any(two):
+        idx = np.flatnonzero(two)
+        theta[idx, :2] = solve_two_segment(
+            target_2d[idx], legs.segment_lengths[idx, :2], legs.joint_min[idx, :2], legs.joint_max[idx, :2]
+        )
+    one = solve & (legs.n_segments == 1)
+    if np.any(one):
+        idx = np.flatnonzero(one)
+        theta[idx, 0] = wrap_to_limits(
+            np.arctan2(target_2d[idx, 1], target_2d[idx, 0]), legs.joint_min[idx, 0], legs.joint_max[idx, 0]
+        )
+    many = solve & (legs.n_segments >= 3)
+    if np.any(many):
+        idx = np.flatnonzero(many)
+        args = (
+            target_2d[idx],
+            legs.segment_lengths[idx],
+            legs.n_segments[idx],
+            legs.joint_min[idx],
+            legs.joint_max[idx],
+        )
+        start = solve_bend(*args, legs.rest_angles[idx]) if init is None or shape_preserving else theta0[idx]
+        ccd = solve_ccd(*args, start, max_sweeps=max_sweeps, tolerance=tolerance)
+        refined = solve_dls(*args, ccd, max_iterations=polish_iterations, tolerance=tolerance)
+        # out of reach, the straight start is already the closest pose: keep the better one
+        rows_i = np.arange(idx.size)
+        err_start = np.linalg.norm(forward_planar(start, args[1])[rows_i, args[2]] - args[0], axis=1)
+        err_refined = np.linalg.norm(forward_planar(refined, args[1])[rows_i, args[2]] - args[0], axis=1)
+        theta[idx] = np.where((err_start <= err_refined)[:, None], start, refined)
+
+    pts = forward_planar(theta, legs.segment_lengths)
+    joints_body = pts[..., 0:1] * a[:, None, :] + pts[..., 1:2] * b[:, None, :]
+    joints_world = hip_world[:, None, :] + np.einsum("nij,nkj->nki", body_rot, joints_body)
+    end = joints_world[rows, legs.n_segments]
+    error = np.linalg.norm(end - target_world, axis=1)
+    normal_world = np.einsum("nij,nj->ni", body_rot, normal_body)
+    return IKResult(joints=joints_world, plane_normal=normal_world, angles=theta, error=error)

@@ -1,0 +1,336 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Numbers that say whether a generated walk is right ("What done means for the motion").
+
+Every function takes plain arrays (frames first), so the same checks run on the core's
+simulation result and on poses evaluated in Blender. Shapes: ``F`` frames, ``L`` legs,
+``s`` the longest leg's segment count.
+
+Thresholds (``DESIGN.md``):
+
+- stance feet do not slide: ``MAX_STANCE_SLIDE`` (2 mm) over a stance;
+- no penetration below the terrain or into avoided obstacles beyond ``MAX_PENETRATION``
+  (5 mm), feet and swing trajectories alike;
+- bone lengths: relative error below ``MAX_BONE_LENGTH_ERROR`` (1e-4); joint limits kept;
+- reachable footprints reached: IK error at most ``MAX_REACH_ERROR`` (1 cm);
+- the gait is the one in the circles: lift-off and touch-down within ``MAX_PHASE_ERROR_FRAMES``
+  (one frame) of the sector's start and finish;
+- no leg stretched beyond its length (``MAX_EXTENSION`` = 1).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from .morphology import chain_angles
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+MAX_STANCE_SLIDE = 0.002
+MAX_PENETRATION = 0.005
+MAX_BONE_LENGTH_ERROR = 1e-4
+MAX_JOINT_LIMIT_EXCESS = 1e-6
+MAX_REACH_ERROR = 0.01
+MAX_PHASE_ERROR_FRAMES = 1.0
+MAX_EXTENSION = 1.0 + 1e-6
+
+
+def stance_runs(contact: BoolArray) -> tuple[IntArray, IntArray, IntArray]:
+    """Maximal runs of ``True`` per column of ``contact (F, L)``.
+
+    Returns ``(leg, first, last)`` arrays, one entry per run (``last`` inclusive).
+    """
+    c = np.asarray(contact, dtype=bool)
+    n_frames, n_legs = c.shape
+    padded = np.zeros((n_frames + 2, n_legs), dtype=np.int8)
+    padded[1:-1] = c
+    edges = np.diff(padded, axis=0)
+    start_f, start_l = np.nonzero(edges == 1)
+    end_f, end_l = np.nonzero(edges == -1)
+    # order both by leg, then frame, so starts and ends pair up
+    so = np.lexsort((start_f, start_l))
+    eo = np.lexsort((end_f, end_l))
+    return start_l[so].astype(np.int64), start_f[so].astype(np.int64), (end_f[eo] - 1).astype(np.int64)
+
+
+def stance_sliding(foot: FloatArray, contact: BoolArray) -> FloatArray:
+    """Largest world displacement of each planted foot from where it touched down: ``(L,)``.
+
+    ``foot (F, L, 3)`` end-effector positions, ``contact (F, L)`` True while planted.
+    """
+    f = np.asarray(foot, dtype=np.float64)
+    c = np.asarray(contact, dtype=bool)
+    out = np.zeros(f.shape[1])
+    if not c.any():
+        return out
+    leg, first, _ = stance_runs(c)
+    # position at the start of the run each planted frame belongs to
+    frames, legs = np.nonzero(c)
+    order = np.lexsort((frames, legs))
+    frames, legs = frames[order], legs[order]
+    run_of = np.searchsorted(leg * c.shape[0] + first, legs * c.shape[0] + frames, side="right") - 1
+    anchor = f[first[run_of], legs]
+    disp = np.linalg.norm(f[frames, legs] - anchor, axis=1)
+    np.maximum.at(out, legs, disp)
+    return out
+
+
+def penetration_depth(points: FloatArray, height_at: Callable[[FloatArray], FloatArray]) -> FloatArray:
+    """How far each point ``(..., 3)`` is below the highest surface under it: ``(...)``,
+    positive when below. ``height_at(xy (n, 2)) -> (n,)`` is the surface (e.g.
+    ``Environment.height_at``; points over nothing get a very low surface and never count)."""
+    p = np.asarray(points, dtype=np.float64)
+    flat = p.reshape(-1, 3)
+    surface = np.asarray(height_at(flat[:, :2]), dtype=np.float64)
+    return (surface - flat[:, 2]).reshape(p.shape[:-1])
+
+
+def box_intrusion(points: FloatArray, center: FloatArray, size: FloatArray, yaw: FloatArray) -> FloatArray:
+    """Depth of each point ``(n, 3)`` inside upright boxes (bottom-face ``center (b, 3)``,
+    full ``size (b, 3)``, ``yaw (b,)``): the distance to the nearest face, 0 outside: ``(n,)``."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(center) == 0 or p.shape[0] == 0:
+        return np.zeros(p.shape[0])
+    rel = p[:, None, :] - center[None, :, :]
+    c = np.cos(yaw)[None, :]
+    s = np.sin(yaw)[None, :]
+    lx = c * rel[..., 0] + s * rel[..., 1]
+    ly = -s * rel[..., 0] + c * rel[..., 1]
+    half = 0.5 * size[None, :, :]
+    depth = np.minimum.reduce(
+        [half[..., 0] - np.abs(lx), half[..., 1] - np.abs(ly), rel[..., 2], size[None, :, 2] - rel[..., 2]]
+    )
+    return np.asarray(np.maximum(depth, 0.0).max(axis=1))
+
+
+def bone_length_error(joints: FloatArray, segment_lengths: FloatArray, n_segments: IntArray) -> FloatArray:
+    """Largest relative bone-length error of each leg over all frames: ``(L,)``.
+
+    ``joints (F, L, s + 1, 3)``, ``segment_lengths (L, s)``, ``n_segments (L,)``.
+    """
+    j = np.asarray(joints, dtype=np.float64)
+    lengths = np.linalg.norm(np.diff(j, axis=2), axis=3)
+    valid = np.arange(segment_lengths.shape[1])[None, :] < n_segments[:, None]
+    ref = np.where(valid, segment_lengths, 1.0)
+    rel = np.where(valid[None], np.abs(lengths - segment_lengths[None]) / ref[None], 0.0)
+    return np.asarray(rel.max(axis=(0, 2)))
+
+
+def joint_angles(
+    joints: FloatArray, plane_normal: FloatArray, up: FloatArray, n_segments: IntArray
+) -> FloatArray:
+    """Joint angles ``(F, L, s)`` of posed legs (``morphology`` joint model) from joint
+    positions ``(F, L, s + 1, 3)``, leg-plane normals ``(F, L, 3)`` and the body's up axis
+    ``(F, L, 3)`` (or anything broadcastable)."""
+    j = np.asarray(joints, dtype=np.float64)
+    n_frames, n_legs = j.shape[:2]
+    normal = np.broadcast_to(plane_normal, (n_frames, n_legs, 3)).reshape(-1, 3)
+    upv = np.broadcast_to(up, (n_frames, n_legs, 3)).reshape(-1, 3)
+    nseg = np.broadcast_to(n_segments, (n_frames, n_legs)).reshape(-1)
+    ang = chain_angles(j.reshape(n_frames * n_legs, j.shape[2], 3), normal, upv, nseg)
+    return ang.reshape(n_frames, n_legs, -1)
+
+
+def joint_limit_excess(angles: FloatArray, joint_min: FloatArray, joint_max: FloatArray) -> FloatArray:
+    """Largest amount (radians) by which each leg's joints leave their limits: ``(L,)``.
+
+    ``angles (F, L, s)``; limits ``(L, s)``. Angles are compared on the 2π-turn closest to
+    the limits' middle.
+    """
+    a = np.asarray(angles, dtype=np.float64)
+    mid = 0.5 * (joint_min + joint_max)
+    wrapped = np.mod(a - mid[None] + np.pi, 2.0 * np.pi) - np.pi + mid[None]
+    excess = np.maximum(joint_min[None] - wrapped, wrapped - joint_max[None])
+    return np.asarray(np.maximum(excess, 0.0).max(axis=(0, 2)))
+
+
+def reach_error(
+    end_effector: FloatArray, target: FloatArray, reachable: BoolArray | None = None
+) -> FloatArray:
+    """Largest end-effector to target distance per leg over the frames where the target was
+    reachable: ``(L,)``. ``end_effector``, ``target``: ``(F, L, 3)``; ``reachable (F, L)``."""
+    d = np.linalg.norm(np.asarray(end_effector) - np.asarray(target), axis=2)
+    if reachable is not None:
+        d = np.where(reachable, d, 0.0)
+    return np.asarray(d.max(axis=0))
+
+
+def extension(hip: FloatArray, end_effector: FloatArray, leg_length: FloatArray) -> FloatArray:
+    """Largest hip-to-end-effector distance over leg length, per leg: ``(L,)``
+    (1 is a fully straight leg; more means the leg would have to stretch)."""
+    d = np.linalg.norm(np.asarray(end_effector) - np.asarray(hip), axis=2)
+    return np.asarray((d / leg_length[None, :]).max(axis=0))
+
+
+def target_extension(hip: FloatArray, target: FloatArray, leg_length: FloatArray) -> FloatArray:
+    """Like ``extension`` but for the targets the legs were asked to reach: ``(L,)``."""
+    return extension(hip, target, leg_length)
+
+
+@dataclass(frozen=True)
+class PhaseErrors:
+    """Gait-phase check: signed errors in frames of every lift-off and touch-down found.
+
+    ``lift_leg``/``lift_frame``/``lift_error`` and ``land_leg``/``land_frame``/``land_error``
+    list the events; ``max_abs`` is the largest error magnitude (0 when there are none).
+    """
+
+    lift_leg: IntArray
+    lift_frame: IntArray
+    lift_error: FloatArray
+    land_leg: IntArray
+    land_frame: IntArray
+    land_error: FloatArray
+
+    @property
+    def max_abs(self) -> float:
+        errs = np.concatenate([self.lift_error, self.land_error])
+        return float(np.abs(errs).max()) if errs.size else 0.0
+
+    @property
+    def n_events(self) -> int:
+        return int(self.lift_error.size + self.land_error.size)
+
+
+def swing_phase_errors(
+    contact: BoolArray,
+    needle: FloatArray,
+    phase_step: FloatArray | float,
+    swing_start: FloatArray,
+    swing_duration: FloatArray,
+    ignore: BoolArray | None = None,
+    first_frame: int = 1,
+) -> PhaseErrors:
+    """Measured lift-off/touch-down phases against the gait circles.
+
+    ``contact (F, L)``; ``needle (F,)`` or ``(F, L)`` the needle phase at each frame;
+    ``phase_step`` the phase the needle moves per frame (scalar, ``(F,)`` or ``(F, L)``);
+    ``swing_start``/``swing_duration`` the sectors, ``(L,)`` or per frame ``(F, L)``;
+    ``ignore (F, L)`` marks frames whose events must not be judged (forced re-plans).
+
+    A lift-off is the first frame without contact after contact; its error is the needle's
+    distance past the sector's start, in frames (0 <= e < 1 for a lift at the first frame
+    inside the sector). A touch-down is compared with the sector's finish the same way.
+    """
+    c = np.asarray(contact, dtype=bool)
+    n_frames, n_legs = c.shape
+    nd = np.broadcast_to(np.asarray(needle, dtype=np.float64).reshape(n_frames, -1), (n_frames, n_legs))
+    stp = np.broadcast_to(
+        np.asarray(phase_step, dtype=np.float64).reshape(-1, 1)
+        if np.ndim(phase_step) == 1
+        else np.asarray(phase_step, dtype=np.float64),
+        (n_frames, n_legs),
+    )
+    start = np.broadcast_to(swing_start, (n_frames, n_legs))
+    dur = np.broadcast_to(swing_duration, (n_frames, n_legs))
+    skip = np.zeros_like(c) if ignore is None else np.asarray(ignore, dtype=bool)
+    prev = c[:-1]
+    now = c[1:]
+    lift_f, lift_l = np.nonzero(prev & ~now)
+    land_f, land_l = np.nonzero(~prev & now)
+    lift_f = lift_f + 1
+    land_f = land_f + 1
+
+    def err(frames: IntArray, legs: IntArray, boundary: FloatArray) -> FloatArray:
+        e = np.mod(nd[frames, legs] - boundary[frames, legs] + 0.5, 1.0) - 0.5
+        return np.asarray(e / np.maximum(stp[frames, legs], 1e-12))
+
+    keep_lift = (lift_f >= first_frame) & ~skip[lift_f, lift_l]
+    keep_land = (land_f >= first_frame) & ~skip[land_f, land_l]
+    lift_f, lift_l = lift_f[keep_lift], lift_l[keep_lift]
+    land_f, land_l = land_f[keep_land], land_l[keep_land]
+    finish = np.mod(start + dur, 1.0)
+    return PhaseErrors(
+        lift_leg=lift_l.astype(np.int64),
+        lift_frame=lift_f.astype(np.int64),
+        lift_error=err(lift_f, lift_l, start),
+        land_leg=land_l.astype(np.int64),
+        land_frame=land_f.astype(np.int64),
+        land_error=err(land_f, land_l, finish),
+    )
+
+
+def periodicity_error(series: FloatArray, period_frames: int, start: int = 0) -> float:
+    """Largest difference between ``series[f]`` and ``series[f + period_frames]`` from
+    ``start`` on (any trailing shape)."""
+    s = np.asarray(series, dtype=np.float64)[start:]
+    if s.shape[0] <= period_frames:
+        raise ValueError("the series is shorter than one period")
+    return float(np.abs(s[period_frames:] - s[:-period_frames]).max())
+
+
+@dataclass(frozen=True)
+class MotionReport:
+    """All motion numbers of one result and whether each meets its threshold.
+
+    Per-leg arrays are ``(L,)``. ``phase`` is ``None`` when no gait data was given;
+    ``avoid_intrusion`` is 0 without avoided boxes.
+    """
+
+    stance_slide: FloatArray
+    penetration: float
+    avoid_intrusion: float
+    bone_length_error: FloatArray
+    joint_limit_excess: FloatArray
+    reach_error: FloatArray
+    extension: FloatArray
+    phase: PhaseErrors | None = None
+    notes: tuple[str, ...] = field(default=())
+
+    def failures(self) -> list[str]:
+        """One line per failed check (empty when everything passes)."""
+        out: list[str] = []
+        if self.stance_slide.size and self.stance_slide.max() > MAX_STANCE_SLIDE:
+            out.append(
+                f"stance foot slides {self.stance_slide.max() * 1000:.2f} mm "
+                f"(leg {int(self.stance_slide.argmax())}) > {MAX_STANCE_SLIDE * 1000:.0f} mm"
+            )
+        if self.penetration > MAX_PENETRATION:
+            out.append(
+                f"foot {self.penetration * 1000:.2f} mm below a surface > {MAX_PENETRATION * 1000:.0f} mm"
+            )
+        if self.avoid_intrusion > MAX_PENETRATION:
+            out.append(f"foot {self.avoid_intrusion * 1000:.2f} mm inside an avoided obstacle")
+        if self.bone_length_error.size and self.bone_length_error.max() > MAX_BONE_LENGTH_ERROR:
+            out.append(f"bone length changes by {self.bone_length_error.max():.2e} (relative)")
+        if self.joint_limit_excess.size and self.joint_limit_excess.max() > MAX_JOINT_LIMIT_EXCESS:
+            out.append(f"joint leaves its limits by {np.degrees(self.joint_limit_excess.max()):.3f} deg")
+        if self.reach_error.size and self.reach_error.max() > MAX_REACH_ERROR:
+            out.append(
+                f"end effector misses a reachable target by {self.reach_error.max() * 100:.2f} cm "
+                f"(leg {int(self.reach_error.argmax())})"
+            )
+        if self.extension.size and self.extension.max() > MAX_EXTENSION:
+            out.append(f"leg stretched to {self.extension.max():.4f} of its length")
+        if self.phase is not None and self.phase.max_abs > MAX_PHASE_ERROR_FRAMES:
+            out.append(f"lift-off/touch-down {self.phase.max_abs:.2f} frames away from the gait circles")
+        return out
+
+    @property
+    def passed(self) -> bool:
+        return not self.failures()
+
+    def summary(self) -> str:
+        def top(values: FloatArray, scale: float = 1.0) -> float:
+            return float(values.max()) * scale if values.size else 0.0
+
+        lines = [
+            f"stance slide max      {top(self.stance_slide, 1000.0):8.3f} mm",
+            f"penetration max       {self.penetration * 1000:8.3f} mm",
+            f"avoid intrusion max   {self.avoid_intrusion * 1000:8.3f} mm",
+            f"bone length rel err   {top(self.bone_length_error):8.2e}",
+            f"joint limit excess    {top(self.joint_limit_excess, 180.0 / np.pi):8.4f} deg",
+            f"reach error max       {top(self.reach_error, 100.0):8.3f} cm",
+            f"extension max         {top(self.extension):8.4f} of leg length",
+        ]
+        if self.phase is not None:
+            lines.append(
+                f"phase error max       {self.phase.max_abs:8.3f} frames ({self.phase.n_events} events)"
+            )
+        lines.extend(self.notes)
+        return "\n".join(lines)

@@ -1,0 +1,210 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Pelvis pseudo-physics: the pogo-stick particle (thesis §4.1).
+
+The pelvis height is a particle pushed up by the feet in stance and pulled down by gravity;
+the forces come from the gait circles alone, so the user tunes nothing but the gait and the
+preferred height. Each foot's stance is split into equal halves (thesis figure 4.5):
+
+- *reception* (first half): the foot brings the falling pelvis to a stop, aiming at
+  ``v_T = 0`` at the end of the half (eq. 4.4b): ``a_foot = g + (v_T - v) / T``;
+- *propulsion* (second half): the foot aims at the take-off velocity of a ballistic flight
+  that ends at the preferred height ``y_T`` when the foot lands again (eq. 4.5c):
+  ``v_0 = (y_T - y) / T + g T / 2`` with ``T`` = rest of propulsion + swing, then
+  ``a_foot = g + (v_0 - v) / T_propulsion`` (eq. 4.4b again);
+- *swing*: ``a_foot = 0``.
+
+Here ``g`` is the gravity magnitude (positive; the thesis writes the same equations with a
+negative ``g``). Each foot's acceleration is computed "as if it were alone" (thesis §4.1):
+every foot drives its own pogo particle with its own height and velocity, and the pelvis
+acceleration is the (weighted) mean ``a_pelvis = Σ w_i (a_i - g) / Σ w_i``, so the pelvis
+height is the weighted mean of the particles. Feeding every foot the shared pelvis state
+instead makes a closed loop whose equilibrium drifts far above the preferred height when
+some feet are in swing (the mean force is then too small and the propulsion term
+compensates); the per-foot reading is stable and reaches its periodic orbit within a cycle.
+
+Legs attach to *pelvis nodes* (one per character by default; the spine adds more): a node's
+height is the weighted mean of the particles of the legs attached to it.
+
+Integration is semi-implicit Euler with sub-steps no longer than ``max_substep`` (the
+needle moves linearly inside a frame), so the result barely depends on the frame rate and a
+flight phase is an exact parabola (second differences equal ``-g h²``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from .gait import in_swing, stance_elapsed
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class PelvisPhysicsParams:
+    """``gravity`` in m/s² (lower it for a softer, smaller bounce), ``max_substep`` in s,
+    ``warmup_cycles``: gait cycles run before the first frame so the particles start on
+    their periodic orbit instead of falling from rest."""
+
+    gravity: float = 9.81
+    max_substep: float = 1.0 / 240.0
+    warmup_cycles: int = 4
+
+
+def foot_acceleration(
+    swing: BoolArray,
+    stance_progress: FloatArray,
+    stance_time: FloatArray,
+    swing_time: FloatArray,
+    height: FloatArray,
+    velocity: FloatArray,
+    preferred: FloatArray,
+    gravity: float,
+    min_time: float,
+) -> FloatArray:
+    """Per-foot upward acceleration ``a_foot (N,)`` (eq. 4.4b, 4.5c).
+
+    ``stance_progress`` is the fraction of stance done (0 at touch-down), ``stance_time``
+    and ``swing_time`` the phase durations in seconds, ``height``/``velocity`` the foot's
+    particle state, ``preferred`` the height ``y_T``. Remaining times are floored at
+    ``min_time`` (one integration step) so the last step of a phase is not singular.
+    """
+    reception = ~swing & (stance_progress < 0.5)
+    propulsion = ~swing & ~reception
+    t_rec = np.maximum((0.5 - stance_progress) * stance_time, min_time)
+    a_rec = gravity + (0.0 - velocity) / t_rec
+    t_prop = np.maximum((1.0 - stance_progress) * stance_time, min_time)
+    t_flight = t_prop + swing_time
+    v0 = (preferred - height) / t_flight + 0.5 * gravity * t_flight
+    a_prop = gravity + (v0 - velocity) / t_prop
+    return np.where(reception, a_rec, np.where(propulsion, a_prop, 0.0))
+
+
+def node_acceleration(
+    a_foot: FloatArray, leg_node: IntArray, n_nodes: int, gravity: float, weights: FloatArray | None = None
+) -> FloatArray:
+    """Pelvis-node accelerations ``(n_nodes,)``: the weighted mean of ``a_foot - g``."""
+    w = np.ones_like(a_foot) if weights is None else weights
+    total = np.bincount(leg_node, weights=w, minlength=n_nodes)
+    acc = np.bincount(leg_node, weights=w * (a_foot - gravity), minlength=n_nodes)
+    return np.divide(acc, total, out=np.full(n_nodes, -gravity), where=total > 0.0)
+
+
+class PelvisPhysics:
+    """Per-foot pogo particles for many pelvis nodes.
+
+    ``leg_node (N,)``: the node each leg pushes (flat node index across characters);
+    ``n_nodes``; ``weights (N,)`` per-leg mass shares (default equal).
+    """
+
+    def __init__(
+        self,
+        leg_node: IntArray,
+        n_nodes: int,
+        weights: npt.ArrayLike | None = None,
+        params: PelvisPhysicsParams | None = None,
+    ) -> None:
+        self.leg_node = np.asarray(leg_node, dtype=np.int64)
+        self.n_nodes = int(n_nodes)
+        n = self.leg_node.shape[0]
+        self.weights = (
+            np.ones(n)
+            if weights is None
+            else np.broadcast_to(np.asarray(weights, dtype=np.float64), (n,)).copy()
+        )
+        self.params = params or PelvisPhysicsParams()
+        self.height = np.zeros(n)
+        self.velocity = np.zeros(n)
+
+    def node_height(self) -> FloatArray:
+        """``(n_nodes,)`` weighted mean height of each node's particles."""
+        total = np.bincount(self.leg_node, weights=self.weights, minlength=self.n_nodes)
+        acc = np.bincount(self.leg_node, weights=self.weights * self.height, minlength=self.n_nodes)
+        return np.divide(acc, total, out=np.zeros(self.n_nodes), where=total > 0.0)
+
+    def node_velocity(self) -> FloatArray:
+        total = np.bincount(self.leg_node, weights=self.weights, minlength=self.n_nodes)
+        acc = np.bincount(self.leg_node, weights=self.weights * self.velocity, minlength=self.n_nodes)
+        return np.divide(acc, total, out=np.zeros(self.n_nodes), where=total > 0.0)
+
+    def reset(
+        self,
+        preferred_node_height: FloatArray,
+        needle_leg: FloatArray,
+        rate_leg: FloatArray,
+        disk_start: FloatArray,
+        disk_duration: FloatArray,
+    ) -> None:
+        """Put every particle on (close to) its periodic orbit at the needle phases given.
+
+        A particle is at rest at the end of reception (mid-stance); each one starts there at
+        its node's preferred height, then runs ``warmup_cycles`` cycles plus the way round to
+        the current phase (each leg with its own sub-step length).
+        """
+        self.height = np.asarray(preferred_node_height, dtype=np.float64)[self.leg_node].copy()
+        self.velocity = np.zeros_like(self.height)
+        period = 1.0 / np.maximum(rate_leg, 1e-9)
+        mid_stance = disk_start + disk_duration + 0.5 * (1.0 - disk_duration)
+        span = self.params.warmup_cycles + np.mod(needle_leg - mid_stance, 1.0)
+        total = span * period
+        if not np.any(total > 0.0):
+            return
+        n_sub = max(1, math.ceil(float(total.max()) / self.params.max_substep))
+        h = total / n_sub
+        preferred = self.height.copy()
+        for k in range(n_sub):
+            phase = mid_stance + (k + 0.5) * h * rate_leg
+            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+
+    def _substep(
+        self,
+        phase: FloatArray,
+        rate_leg: FloatArray,
+        disk_start: FloatArray,
+        disk_duration: FloatArray,
+        preferred: FloatArray,
+        h: FloatArray | float,
+    ) -> None:
+        period = 1.0 / np.maximum(rate_leg, 1e-9)
+        swing = in_swing(phase, disk_start, disk_duration)
+        progress = stance_elapsed(phase, disk_start, disk_duration) / (1.0 - disk_duration)
+        a_foot = foot_acceleration(
+            swing,
+            progress,
+            (1.0 - disk_duration) * period,
+            disk_duration * period,
+            self.height,
+            self.velocity,
+            preferred,
+            self.params.gravity,
+            float(np.max(h)),
+        )
+        self.velocity = self.velocity + (a_foot - self.params.gravity) * h
+        self.height = self.height + self.velocity * h
+
+    def step(
+        self,
+        dt: float,
+        needle_leg: FloatArray,
+        rate_leg: FloatArray,
+        disk_start: FloatArray,
+        disk_duration: FloatArray,
+        preferred_node_height: FloatArray,
+    ) -> FloatArray:
+        """Advance ``dt`` seconds from needle phases ``needle_leg (N,)`` (at the step's start)
+        moving at ``rate_leg (N,)`` cycles/s; returns the node heights ``(n_nodes,)``.
+
+        ``preferred_node_height (n_nodes,)`` is each node's ``y_T`` for this step.
+        """
+        n_sub = max(1, math.ceil(dt / self.params.max_substep - 1e-9))
+        h = dt / n_sub
+        preferred = np.asarray(preferred_node_height, dtype=np.float64)[self.leg_node]
+        for k in range(n_sub):
+            phase = needle_leg + (k + 0.5) * h * rate_leg
+            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        return self.node_height()
