@@ -24,7 +24,7 @@ spider    tarantula: cephalothorax, abdomen, two pedipalps, 8 legs of 4 bones   
                                                                                 span ~15 cm
 ant       large ant: thorax, head with 3-bone antennae, petiole, gaster,        body ~2.8 cm
           6 legs of 4 bones
-robot     imaginary pentapod: a body and 5 radial legs of 3 bones               span ~1.2 m
+robot     imaginary pentapod: a body, a sensor, 5 radial legs of 3 bones        span ~1.2 m
 lizard    monitor-like: hips, 4 spine bones, chest, neck, head, 8-bone tail,    ~1 m long
           4 sprawling legs of 3 bones
 wolf      Rigify wolf metarig (tail ``spine.003 > ... > spine``)                shoulder 0.9 m
@@ -39,8 +39,8 @@ the parents listed in the chain's first bone):
 
 * spider/ant: ``Leg<n>_coxa.L > Leg<n>_femur.L > Leg<n>_tibia.L > Leg<n>_tarsus.L``
   (and ``.R``), children of ``Body`` (spider) or ``Thorax`` (ant);
-* robot: ``Leg<n>_thigh > Leg<n>_shin > Leg<n>_foot`` with ``.L``/``.R`` for the side pairs
-  1 and 2 and no suffix for the midline rear leg 3, children of ``Body``;
+* robot: ``Leg<n>_thigh > Leg<n>_shin > Leg<n>_foot``: no suffix for the midline front leg 1,
+  ``.L``/``.R`` for the pairs 2 and 3 (a five-pointed star), children of ``Body``;
 * lizard: hind ``thigh.L > shin.L > foot.L`` (child of ``Hips``) and front
   ``front_thigh.L > front_shin.L > front_foot.L`` (child of ``Chest``);
 * wolf: Rigify's ``shoulder.L > front_thigh.L > front_shin.L > front_foot.L > front_toe.L``
@@ -52,10 +52,13 @@ their local X axis is the knee hinge (horizontal, across the leg's vertical plan
 
 Skin: each creature has one mesh child named ``"<armature name>_Skin"`` (see
 :func:`skin_of`): a tapered capsule per bone, one vertex group per bone (weight 1), an
-Armature modifier on the armature, and a coloured material that Workbench shows. Rig
-settings that make the first click work (speed, step height, ...) are set on
-``Object.procloco`` as far as the add-on has registered them (:func:`build` reports the
-rest in ``obj["procloco_pending_settings"]``); skins get the terrain role ``IGNORE``.
+Armature modifier on the armature, and a coloured material that Workbench shows. Skins get
+the terrain role ``IGNORE``.
+
+Settings: the builders set ``Object.procloco.speed`` and ``step_height`` (``RIG_SETTINGS``,
+times ``scale``) when the add-on is registered, and ``obj["procloco_kind"]``; names the add-on
+does not know are listed in ``obj["procloco_pending_settings"]``. They do not detect legs nor
+apply a gait: ``GAIT_PRESET`` names the preset the example scene applies.
 """
 
 from __future__ import annotations
@@ -223,19 +226,23 @@ def _ant_bones() -> list[BoneSpec]:
 def _robot_bones() -> list[BoneSpec]:
     bones = [
         BoneSpec("Body", None, (0.0, 0.12, 0.34), (0.0, -0.12, 0.34), (0.2, 0.2)),
-        BoneSpec("Sensor", "Body", (0.0, -0.14, 0.45), (0.0, -0.26, 0.50), (0.05, 0.04)),
+        BoneSpec("Sensor", "Body", (0.0, 0.0, 0.5), (0.0, -0.06, 0.62), (0.05, 0.04)),
     ]
     radii = [(0.045, 0.04), (0.04, 0.03), (0.03, 0.02)]
-    pairs = [(1, 36.0), (2, 108.0)]
+    segments = ("thigh", "shin", "foot")
+    lengths, elevations = (0.22, 0.32, 0.12), (30.0, -80.0)
+
+    def hip(azimuth: float) -> Vec3:
+        return _v(_direction(azimuth, 0.0) * 0.18 + np.array([0.0, 0.0, 0.32]))
+
+    # A five-pointed star with one point ahead: the midline front leg 1, then pairs 2 and 3
+    # (the labels M1, L2, R2, L3, R3 of the pentapod gait preset).
+    front = _leg([f"Leg1_{seg}" for seg in segments], "Body", hip(0.0), 0.0, lengths, elevations, radii)
     left: list[BoneSpec] = []
-    for n, azimuth in pairs:
-        d = _direction(azimuth, 0.0) * 0.18
-        names = [f"Leg{n}_{seg}.L" for seg in ("thigh", "shin", "foot")]
-        left += _leg(names, "Body", (d[0], d[1], 0.32), azimuth, (0.22, 0.32, 0.12), (30.0, -80.0), radii)
-    d = _direction(180.0, 0.0) * 0.18
-    rear = _leg([f"Leg3_{seg}" for seg in ("thigh", "shin", "foot")], "Body", (0.0, float(d[1]), 0.32), 180.0,
-                (0.22, 0.32, 0.12), (30.0, -80.0), radii)
-    return bones + left + _mirror(left) + rear
+    for n, azimuth in ((2, 72.0), (3, 144.0)):
+        left += _leg([f"Leg{n}_{seg}.L" for seg in segments], "Body", hip(azimuth), azimuth, lengths,
+                     elevations, radii)
+    return bones + front + left + _mirror(left)
 
 
 def _lizard_bones() -> list[BoneSpec]:
@@ -269,9 +276,9 @@ SPIDER_LEGS = tuple(tuple(f"Leg{n}_{seg}.{s}" for seg in ("coxa", "femur", "tibi
                     for n in range(1, 5) for s in "LR")
 ANT_LEGS = tuple(tuple(f"Leg{n}_{seg}.{s}" for seg in ("coxa", "femur", "tibia", "tarsus"))
                  for n in range(1, 4) for s in "LR")
-ROBOT_LEGS = (*(tuple(f"Leg{n}_{seg}.{s}" for seg in ("thigh", "shin", "foot"))
-                for n in (1, 2) for s in "LR"),
-              ("Leg3_thigh", "Leg3_shin", "Leg3_foot"))
+ROBOT_LEGS = (("Leg1_thigh", "Leg1_shin", "Leg1_foot"),
+              *(tuple(f"Leg{n}_{seg}.{s}" for seg in ("thigh", "shin", "foot"))
+                for n in (2, 3) for s in "LR"))
 LIZARD_LEGS = (*(tuple(f"front_{seg}.{s}" for seg in ("thigh", "shin", "foot")) for s in "LR"),
                *(tuple(f"{seg}.{s}" for seg in ("thigh", "shin", "foot")) for s in "LR"))
 _WOLF_FRONT = ("shoulder", "front_thigh", "front_shin", "front_foot", "front_toe")
@@ -305,25 +312,26 @@ APPENDAGES: dict[str, tuple[tuple[str, ...], ...]] = {
 }
 
 #: First-click ProcLoco settings per kind at scale 1 (lengths and speeds are multiplied by
-#: ``scale``). Names are properties of ``Object.procloco``.
+#: ``scale``). Names are properties of ``Object.procloco``. Speeds are walking speeds, a
+#: little under what the kind's gait preset gives at its leg length, so steps stay short.
 RIG_SETTINGS: dict[str, dict[str, float]] = {
     "spider": {"speed": 0.06, "step_height": 0.012},
     "ant": {"speed": 0.012, "step_height": 0.002},
-    "robot": {"speed": 0.3, "step_height": 0.08},
-    "lizard": {"speed": 0.35, "step_height": 0.03},
-    "wolf": {"speed": 1.0, "step_height": 0.08},
+    "robot": {"speed": 0.45, "step_height": 0.08},
+    "lizard": {"speed": 0.3, "step_height": 0.03},
+    "wolf": {"speed": 0.8, "step_height": 0.08},
     "human": {"speed": 1.2, "step_height": 0.08},
 }
 _SCALED_SETTINGS = ("speed", "step_height")
-# Settings the examples will set once the rig settings group has them (the preset names
-# are files in presets/gait/). Kept apart so nothing unknown is written.
-RIG_SETTINGS_PENDING: dict[str, dict[str, Any]] = {
-    "spider": {"gait_preset": "octopod_alternating_tetrapod"},
-    "ant": {"gait_preset": "hexapod_tripod"},
-    "robot": {"gait_preset": "pentapod_robot"},
-    "lizard": {"gait_preset": "quadruped_walk"},
-    "wolf": {"gait_preset": "quadruped_walk"},
-    "human": {"gait_preset": "biped_walk"},
+#: The shipped gait preset (file stem in ``presets/gait``) each kind walks with; the example
+#: scene applies it once the legs are detected (see ``scene.configure_example_rig``).
+GAIT_PRESET: dict[str, str] = {
+    "spider": "octopod_alternating_tetrapod",
+    "ant": "hexapod_tripod",
+    "robot": "pentapod_robot",
+    "lizard": "quadruped_trot",
+    "wolf": "quadruped_walk",
+    "human": "biped_walk",
 }
 
 SKIN_COLORS: dict[str, tuple[float, float, float, float]] = {
@@ -468,11 +476,9 @@ def skin_of(arm: bpy.types.Object) -> bpy.types.Object | None:
 def _finish(arm: bpy.types.Object, kind: str, scale: float) -> None:
     settings = {k: v * scale if k in _SCALED_SETTINGS else v for k, v in RIG_SETTINGS[kind].items()}
     missing = apply_rig_settings(arm, settings)
-    missing += list(RIG_SETTINGS_PENDING[kind])
     arm["procloco_kind"] = kind
-    # TODO(procloco settings): set these once Object.procloco registers them (gait preset,
-    # frame range, path); until then they are listed here for the build script to report.
-    arm["procloco_pending_settings"] = ",".join(sorted(missing))
+    if missing:  # the add-on is not registered, or lacks these settings
+        arm["procloco_pending_settings"] = ",".join(sorted(missing))
 
 
 def _build_custom(kind: str, bones: Sequence[BoneSpec], scene: bpy.types.Scene, name: str,

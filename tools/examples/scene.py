@@ -6,7 +6,9 @@ API::
     setup_render(scene, resolution=(640, 360))    # Workbench, material colours, shadows
     add_sun(scene, collection=None) -> Object       # a sun for Cycles/EEVEE; sets Workbench's light direction
     frame_camera(scene, objects, direction=..., margin=0.04) -> Object
+    configure_example_rig(rig, kind, terrain_collection) -> list[str]   # first-click settings
     build_example_scene(scene) -> ExampleScene      # six creatures on the terrain, framed
+    creature_screen_boxes(scene, rigs) -> {kind: [u0, v0, u1, v1]}
 
 ``EXAMPLE_SCALE[kind]`` is the scale each creature is built at in the example: the
 tarantula and the ant are giants (legs ~0.7 m and ~0.5 m), the others are real size.
@@ -14,8 +16,10 @@ tarantula and the ant are giants (legs ~0.7 m and ~0.5 m), the others are real s
 
 from __future__ import annotations
 
+import json
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import bpy
 import numpy as np
@@ -23,6 +27,9 @@ from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Vector
 
 from . import creatures, terrain
+from .procloco_props import apply_rig_settings
+
+PRESET_DIR = Path(__file__).resolve().parents[2] / "presets" / "gait"
 
 #: Scale of each creature in ``examples.blend`` (its builder's ``scale``).
 EXAMPLE_SCALE: dict[str, float] = {"spider": 8.0, "ant": 30.0, "robot": 1.0, "lizard": 1.0, "wolf": 1.0,
@@ -132,6 +139,47 @@ def frame_camera(scene: bpy.types.Scene, points: Sequence[Vector],
     return camera
 
 
+def _operator_registered(idname: str) -> bool:
+    module, name = idname.split(".")
+    try:
+        getattr(getattr(bpy.ops, module), name).get_rna_type()
+    except (AttributeError, KeyError):
+        return False
+    return True
+
+
+def configure_example_rig(rig: bpy.types.Object, kind: str,
+                          terrain_collection: bpy.types.Collection | None) -> list[str]:
+    """Settings that make Generate work on the first click: the terrain collection, the
+    scene's frame range, the legs (found by the add-on's own Detect Legs operator) and the
+    kind's gait preset (applied by the add-on's Apply Gait Preset operator), as a user would.
+
+    Returns what could not be done (the add-on lacks a setting or an operator, or refused).
+    """
+    problems = [f"setting '{name}' is not registered"
+                for name in apply_rig_settings(rig, {"terrain_collection": terrain_collection,
+                                                     "use_scene_range": True})]
+    if "procloco" not in bpy.types.Object.bl_rna.properties:
+        return [*problems, "the add-on is not registered"]
+    view_layer = bpy.context.view_layer
+    view_layer.objects.active = rig
+    with bpy.context.temp_override(active_object=rig, object=rig, selected_objects=[rig]):
+        if not _operator_registered("procloco.detect_legs"):
+            problems.append("operator procloco.detect_legs is not registered: legs not detected")
+        elif bpy.ops.procloco.detect_legs() != {"FINISHED"}:
+            problems.append("Detect Legs refused the rig")
+        preset_path = PRESET_DIR / f"{creatures.GAIT_PRESET[kind]}.json"
+        if len(rig.procloco.legs) == 0:
+            problems.append(f"no legs, so gait preset {preset_path.stem} not applied")
+        elif not _operator_registered("procloco.apply_gait_preset"):
+            problems.append("operator procloco.apply_gait_preset is not registered: gait not applied")
+        elif bpy.ops.procloco.apply_gait_preset(filepath=str(preset_path)) != {"FINISHED"}:
+            problems.append(f"gait preset {preset_path.stem} refused")
+        else:
+            rig.procloco.gait_preset = json.loads(preset_path.read_text(encoding="utf-8"))["name"]
+    return problems
+
+
 def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
     """The six creatures on the terrain (collections ``Creatures`` and ``Terrain``), a camera
     framing everything, a sun, Workbench at 640×360, frames 1–240 at 24 fps."""
@@ -147,16 +195,22 @@ def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
     out.terrain = terrain.build_terrain(scene, terrain_coll, FRAME_START, FRAME_END, FPS)
     for kind, name in CREATURE_NAMES.items():
         location = (terrain.LANE_X[kind], terrain.START_Y, 0.0)
-        out.rigs[kind] = creatures.BUILDERS[kind](scene, name=name, location=location,
-                                                  scale=EXAMPLE_SCALE[kind], collection=creature_coll)
+        rig = creatures.BUILDERS[kind](scene, name=name, location=location,
+                                       scale=EXAMPLE_SCALE[kind], collection=creature_coll)
+        problems = configure_example_rig(rig, kind, terrain_coll)
+        if problems:
+            rig["procloco_pending_settings"] = "; ".join(problems)
+        out.rigs[kind] = rig
     setup_render(scene)
     out.sun = add_sun(scene)
     # Frame what the creatures meet, not the whole ground: its far edges may leave the picture.
     t = out.terrain
     framed = bound_corners([t.stairs, t.gap, *t.static_crates, *t.moving_crates])
     framed += bound_corners(s for s in (creatures.skin_of(r) for r in out.rigs.values()) if s is not None)
-    x0, x1 = terrain.X_RANGE
-    framed += [Vector((x, y, 0.0)) for x in (x0 + 0.5, x1 - 0.5) for y in FRAMED_Y]
+    # The ground along each lane, from behind the creatures to past the obstacles.
+    for x in terrain.LANE_X.values():
+        for y in FRAMED_Y:
+            framed.append(Vector((x, y, float(terrain.ground_height(np.array(x), np.array(y))))))
     out.camera = frame_camera(scene, framed)
     return out
 

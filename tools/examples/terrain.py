@@ -22,15 +22,16 @@ spider  flat: two low crates (STEP_OVER), a tall crate (AVOID), a crate moving a
 ant     rolling heightmap hills (±0.22 m), a tall crate (AVOID), a low crate (STEP_OVER)
 robot   a round hill rising 0.7 m over 4 m
 lizard  a low plank (STEP_OVER), a crate moving across (AVOID), gentle hills beyond
-wolf    a gap (0.375 m wide, 0.6 m deep trench, AVOID) and a low crate (STEP_OVER)
+wolf    a gap (a hole 0.375 m wide in the ground) and a low crate (STEP_OVER)
 human   stairs: 4 steps up (0.15 m rise, 0.35 m tread), a landing at 0.6 m, 4 steps down
 ======  =============================================================================
 
 Roles (``Object.procloco_role``): the ground and the stairs are ``GROUND``; crates are
 ``STEP_OVER`` (feet may land on them or pass over them) or ``AVOID`` (feet keep off);
 moving crates are ``AVOID`` and animated with keyframes, so the terrain reader samples
-them per frame; the gap's trench is ``AVOID``: its floor lies 0.6 m below the ground, so
-swing paths pass over it, but no foot may land in it. Crate origins sit at the middle of
+them per frame. The gap is a hole cut in the ground: no surface at all, so swing paths may
+pass over it but no foot lands in it; the trench under it (walls and a floor 0.6 m down) is
+only there to be seen and has the role ``IGNORE``. Crate origins sit at the middle of
 their bottom face; every object carries ``obj["example_feature"]`` naming what it is
 (``ground``, ``stairs``, ``gap``, ``static_crate``, ``moving_crate``).
 """
@@ -281,8 +282,8 @@ def build_stairs(scene: bpy.types.Scene, name: str = "Stairs",
 
 def build_gap(scene: bpy.types.Scene, name: str = "Gap", rect: tuple[float, float, float, float] = GAP_RECT,
               depth: float = GAP_DEPTH, collection: bpy.types.Collection | None = None) -> bpy.types.Object:
-    """The trench under a hole cut in the ground: an open box (floor and walls, faces
-    pointing inwards) ``depth`` below the ground. Role AVOID."""
+    """What one sees under the hole cut in the ground: an open box (floor and walls, faces
+    pointing inwards) ``depth`` deep. Role IGNORE: the gap itself is the lack of ground."""
     x0, x1, y0, y1 = rect
     verts, faces = _box(x0, x1, y0, y1, -depth, 0.0)
     faces = [tuple(reversed(f)) for f in faces[:1] + faces[2:]]  # no lid; normals inwards
@@ -292,7 +293,7 @@ def build_gap(scene: bpy.types.Scene, name: str = "Gap", rect: tuple[float, floa
     mesh.update()
     obj = bpy.data.objects.new(name, mesh)
     _link(scene, obj, collection)
-    set_role(obj, "AVOID")
+    set_role(obj, "IGNORE")
     obj["example_feature"] = "gap"
     return obj
 
