@@ -1,0 +1,149 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Upper convex hulls of height profiles (thesis §3.2.2, §3.4.2, §4.2.3).
+
+The thesis uses the convex hull of elevated points in three places: the 3D foot trajectory
+rests on the hull of the elevated path samples, the pelvis height and pitch come from the hull
+of the ground under the body box and the feet, and spine nodes take their elevation the same
+way. In every case only the *upper* hull of a height profile matters: points ``(x, z)``
+where ``x`` is a position along a horizontal direction and ``z`` a height.
+
+- :func:`upper_hull` — the hull's vertices of one profile (monotone chain, ``O(n log n)``).
+- :func:`upper_hull_eval` — the hull's height and slope at query positions, for a batch of
+  profiles at once (``(..., n)`` points, ``(..., m)`` queries; vectorised over the batch).
+- :func:`project_along` and :func:`hull_height_and_pitch` — 3D points projected on a
+  horizontal direction and the hull's height/pitch under given centres (pelvis, spine nodes).
+
+Outside the profile's ``x`` range the hull is continued flat (the nearest end's height, slope
+0): a pelvis slightly ahead of its last support keeps its height instead of extrapolating.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+
+def upper_hull(x: npt.ArrayLike, z: npt.ArrayLike, keep_collinear: bool = False) -> IntArray:
+    """Indices of the upper hull's vertices of the points ``(x[i], z[i])``, by increasing x.
+
+    ``x``, ``z``: ``(n,)``, ``n >= 1``, any order. Where several points share an ``x`` only
+    the highest can be a vertex. Collinear points on a hull edge are dropped unless
+    ``keep_collinear``. Every input point lies on or below the polyline through the result.
+    """
+    xa = np.asarray(x, dtype=np.float64).ravel()
+    za = np.asarray(z, dtype=np.float64).ravel()
+    if xa.shape != za.shape or xa.size == 0:
+        raise ValueError("x and z must be non-empty and the same length")
+    # Sort by x, then by descending z so the highest of equal-x points comes first.
+    order = np.lexsort((-za, xa))
+    xs = xa[order].tolist()
+    zs = za[order].tolist()
+    idx = order.tolist()
+    hull: list[int] = []  # positions into xs/zs
+    for k in range(len(xs)):
+        if hull and xs[hull[-1]] == xs[k]:
+            continue  # lower duplicate x: never on the upper hull
+        while len(hull) >= 2:
+            i, j = hull[-2], hull[-1]
+            # Cross product of (j - i) and (k - i); >= 0 means j is not strictly above ik.
+            cross = (xs[j] - xs[i]) * (zs[k] - zs[i]) - (zs[j] - zs[i]) * (xs[k] - xs[i])
+            if cross > 0.0 or (cross == 0.0 and not keep_collinear):
+                hull.pop()
+            else:
+                break
+        hull.append(k)
+    return np.asarray([idx[k] for k in hull], dtype=np.intp)
+
+
+def upper_hull_eval(
+    x: npt.ArrayLike,
+    z: npt.ArrayLike,
+    xq: npt.ArrayLike,
+    valid: npt.ArrayLike | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Height and slope of the upper hull at query positions, batched.
+
+    ``x``, ``z``: ``(..., n)`` profiles; ``xq``: ``(..., m)`` queries (same batch shape);
+    ``valid``: optional ``(..., n)`` mask of the points to use (each profile needs at least
+    one). Returns ``(height, slope)``, each ``(..., m)``. At a hull vertex the slope is the
+    mean of the two edges' slopes (a central difference).
+
+    Uses the fact that in 1D the upper hull at ``q`` is the best interpolation over all pairs
+    ``x_i <= q <= x_j`` (Carathéodory), which vectorises over the batch: ``O(n²)`` per query,
+    fine for the tens of points a body or a spine samples.
+    """
+    xa = np.asarray(x, dtype=np.float64)
+    za = np.asarray(z, dtype=np.float64)
+    qa = np.asarray(xq, dtype=np.float64)
+    mask = np.ones(xa.shape, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
+    # Flat continuation outside the range: clamp queries into [min x, max x].
+    xmin = np.min(np.where(mask, xa, np.inf), axis=-1, keepdims=True)
+    xmax = np.max(np.where(mask, xa, -np.inf), axis=-1, keepdims=True)
+    q = np.clip(qa, xmin, xmax)
+    eps = 1e-7 * np.maximum(1.0, xmax - xmin)
+    q_lo = np.maximum(q - eps, xmin)
+    q_hi = np.minimum(q + eps, xmax)
+    m = qa.shape[-1]
+    heights = _hull_heights(xa, za, np.concatenate([q, q_lo, q_hi], axis=-1), mask)
+    height, h_lo, h_hi = heights[..., :m], heights[..., m : 2 * m], heights[..., 2 * m :]
+    span = q_hi - q_lo
+    slope = np.where(span > 0.0, (h_hi - h_lo) / np.where(span > 0.0, span, 1.0), 0.0)
+    outside = (qa < xmin) | (qa > xmax)
+    return height, np.where(outside, 0.0, slope)
+
+
+def _hull_heights(xa: FloatArray, za: FloatArray, q: FloatArray, mask: BoolArray) -> FloatArray:
+    qq = q[..., :, None, None]  # (..., m, 1, 1)
+    xi = xa[..., None, :, None]  # (..., 1, n, 1)
+    xj = xa[..., None, None, :]  # (..., 1, 1, n)
+    zi = za[..., None, :, None]
+    zj = za[..., None, None, :]
+    ok = mask[..., None, :, None] & mask[..., None, None, :] & (xi <= qq) & (qq <= xj)
+    dx = xj - xi
+    wide = dx > 1e-12
+    slope = np.where(wide, (zj - zi) / np.where(wide, dx, 1.0), 0.0)
+    # A point exactly at q (i == j, or equal x) contributes its own height.
+    val = np.where(wide, zi + slope * (qq - xi), np.maximum(zi, zj))
+    val = np.where(ok, val, -np.inf)
+    return np.asarray(np.max(val, axis=(-2, -1)))
+
+
+def project_along(
+    points: npt.ArrayLike, origin_xy: npt.ArrayLike, direction_xy: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Signed horizontal positions along ``direction_xy`` and heights of 3D points.
+
+    ``points``: ``(..., n, 3)``; ``origin_xy``, ``direction_xy``: ``(..., 2)`` (the direction
+    need not be unit). Returns ``(x, z)``, each ``(..., n)``.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    origin = np.asarray(origin_xy, dtype=np.float64)
+    direction = np.asarray(direction_xy, dtype=np.float64)
+    norm = np.linalg.norm(direction, axis=-1, keepdims=True)
+    unit = direction / np.where(norm > 1e-12, norm, 1.0)
+    rel = pts[..., :2] - origin[..., None, :]
+    return np.einsum("...nk,...k->...n", rel, unit), pts[..., 2]
+
+
+def hull_height_and_pitch(
+    points: npt.ArrayLike,
+    centre_xy: npt.ArrayLike,
+    forward_xy: npt.ArrayLike,
+    valid: npt.ArrayLike | None = None,
+) -> tuple[FloatArray, FloatArray]:
+    """Height of the upper hull right under ``centre_xy`` and the pitch of the hull there.
+
+    Thesis §3.2.2: the ground under the body box and the feet form a vertical slice along the
+    body's forward axis; the pelvis sits on the upper hull of that slice and pitches with the
+    hull's segment under its centre. ``points``: ``(..., n, 3)`` (ground samples under the
+    body box and the feet), ``centre_xy``, ``forward_xy``: ``(..., 2)``, ``valid``: ``(..., n)``.
+    Returns ``(height, pitch)``, each ``(...,)``; pitch in radians, positive nose up.
+    """
+    x, z = project_along(points, centre_xy, forward_xy)
+    q = np.zeros((*x.shape[:-1], 1))
+    height, slope = upper_hull_eval(x, z, q, valid)
+    return height[..., 0], np.arctan(slope[..., 0])
