@@ -119,9 +119,16 @@ def test_distance_is_exact_so_the_step_size_does_not_matter() -> None:
     """One character draws the same bursts at any dt; the distance must then agree."""
     params = ProgressionParams(max_speed=1.3)
     _, d_coarse, st_coarse = run(params, n_chars=1, dt=0.25, seconds=30.0, seed=11)
-    _, d_fine, st_fine = run(params, n_chars=1, dt=1 / 240, seconds=30.0, seed=11)
-    assert d_coarse.sum() == pytest.approx(d_fine.sum(), rel=1e-9)
+    v_fine, d_fine, st_fine = run(params, n_chars=1, dt=0.25 / 64, seconds=30.0, seed=11)
+    # Distance covered by the end of every coarse step, both ways.
+    at_coarse = np.cumsum(d_coarse[:, 0])
+    at_fine = np.cumsum(d_fine[:, 0])[63::64]
+    assert at_coarse == pytest.approx(at_fine, rel=1e-9, abs=1e-12)
     assert st_coarse.sum() == st_fine.sum()
+    # ... and it is the integral of the reported speed (trapezoids on the fine steps).
+    v = np.concatenate([[0.0], v_fine[:, 0]])
+    integral = np.cumsum(0.5 * (v[1:] + v[:-1]) * 0.25 / 64)[63::64]
+    assert np.abs(at_coarse - integral).max() < 1e-4
     # And the mean speed is the one the ranges predict, within sampling noise.
     _, d_long, _ = run(params, n_chars=20, dt=0.1, seconds=120.0, seed=5)
     assert d_long.sum(axis=0).mean() / 120.0 / 1.3 == pytest.approx(mean_speed_fraction(params), rel=0.05)

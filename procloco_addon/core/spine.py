@@ -1,0 +1,959 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Flexible spine: virtual pelvis nodes joined by a spine curve (thesis §4.2, §4.4).
+
+A quadruped or a lizard does not turn like a plank. Its body is split into *virtual pelvis
+nodes* ("key nodes" here): the head node, which carries no legs, then one node per girdle
+(shoulders, hips, ...), each carrying the legs attached to it. The real spine joints of the
+rig lie on a chain from the head node to the back node. Every step runs the thesis's four
+steps, vectorised over ``C`` characters that share one :class:`SpineModel`:
+
+1. **Orientation** (§4.2.1, :func:`plan_spine`): the head turns toward the wanted heading
+   (at most ``turn_rate``). The turn is absorbed front to back: each key node bends as far as
+   its yaw limit allows and passes the rest on; when every node is at its limit the whole
+   spine rotates about the node just behind the head.
+2. **Advancing** (§4.2.2): the head moves forward by the step's distance; every other key node
+   is put back on the previous spine (the support), at its own chord length from the node in
+   front, so the body follows the head's path. Bends beyond the limits are clamped and the
+   back node's bend relaxes exponentially over ``relax_time``.
+3. **Elevation and pitch** (§4.2.3): each key node gets a height (the upper hull of the
+   ground under its part of the body plus its rest height; :func:`terrain_guides`, to which
+   the controller adds the pseudo-physics) and a pitch: the environment pitch averaged with
+   the pitch its feet induce (:func:`node_pitch`). The visual yaw of §4.4 (the lizard) turns
+   each node's tangent by the mean angle of its feet away from their rest directions
+   (:func:`visual_yaw`).
+4. **Final 3D spine** (§4.2.4, :func:`build_spine`): a Hermite curve (``core.hermite``)
+   through the 3D key nodes along their tangents is sampled at the bones' lengths; each bone
+   turns from its rest direction by the turn of the curve over its own stretch, and the joint
+   chain is rebuilt from the anchor node with the exact bone lengths, every joint within its
+   yaw/pitch limits. When the legs cannot reach their footprints, :func:`refit` and
+   :func:`repeat_for_reach` run step 4 again on guides moved to where the legs can hold them.
+
+:func:`spine_step` chains the four steps. Shapes: ``C`` characters, ``K`` key nodes (head
+first), ``J`` spine joints (head first), ``L`` legs. Angles in radians; a heading is the
+angle of the forward axis from world +X, counter-clockwise; pitch is positive nose up. The
+body frame is x forward, y left, z up; rest positions are in it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from .hermite import hermite_basis
+from .hull import upper_hull_eval
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+#: A terrain height query: world ``xy`` ``(..., 2)`` -> ground height ``(...)``.
+HeightFn = Callable[[FloatArray], FloatArray]
+
+_CURVE_SAMPLES = 25  # dense samples per key segment for arc-length lookups
+_EPS = 1e-12
+DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
+DEFAULT_JOINT_PITCH_LIMIT = float(np.radians(20.0))
+
+
+def wrap_angle(a: npt.ArrayLike) -> FloatArray:
+    """Angles wrapped into ``[-pi, pi)``."""
+    return np.asarray((np.asarray(a, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi)
+
+
+def _rot2(angle: FloatArray) -> FloatArray:
+    """2D rotation matrices ``(..., 2, 2)`` for angles ``(...)``."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+
+
+def _rotate_about(points: FloatArray, centre: FloatArray, angle: FloatArray) -> FloatArray:
+    """Rotate ``points`` ``(C, n, 2)`` about ``centre`` ``(C, 2)`` by ``angle`` ``(C,)``."""
+    rel = points - centre[:, None, :]
+    return centre[:, None, :] + np.einsum("cij,cnj->cni", _rot2(angle), rel)
+
+
+def _segment_angles(key_xy: FloatArray) -> FloatArray:
+    """Forward direction of each key segment ``(C, K - 1)``: from node ``i + 1`` to node ``i``."""
+    d = key_xy[:, :-1, :] - key_xy[:, 1:, :]
+    return np.arctan2(d[..., 1], d[..., 0])
+
+
+def _bends(seg_angle: FloatArray) -> FloatArray:
+    """Bend at every key node ``(C, K)``: the turn from the segment behind to the one in
+    front (positive to the left); zero at the head and the back node."""
+    c = seg_angle.shape[0]
+    inner = wrap_angle(seg_angle[:, :-1] - seg_angle[:, 1:])
+    return np.concatenate([np.zeros((c, 1)), inner, np.zeros((c, 1))], axis=1)
+
+
+def _node_headings(seg_angle: FloatArray) -> FloatArray:
+    """Heading of each key node ``(C, K)``: the bisector of its two segments. The two end
+    nodes turn from their segment by half the next node's bend, as on a circular arc through
+    three nodes, so a bent spine has no kink in its tangents at the ends."""
+    half_bend = 0.5 * wrap_angle(seg_angle[:, :-1] - seg_angle[:, 1:])  # (C, K - 2)
+    inner = seg_angle[:, 1:] + half_bend
+    if half_bend.shape[1]:
+        head = seg_angle[:, :1] + half_bend[:, :1]
+        back = seg_angle[:, -1:] - half_bend[:, -1:]
+    else:
+        head, back = seg_angle[:, :1], seg_angle[:, -1:]
+    return wrap_angle(np.concatenate([head, inner, back], axis=1))
+
+
+def _rz(angle: FloatArray) -> FloatArray:
+    c, s = np.cos(angle), np.sin(angle)
+    z, o = np.zeros_like(angle), np.ones_like(angle)
+    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+
+
+def _ry(angle: FloatArray) -> FloatArray:
+    c, s = np.cos(angle), np.sin(angle)
+    z, o = np.zeros_like(angle), np.ones_like(angle)
+    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+
+
+def frame_from_yaw_pitch(yaw: npt.ArrayLike, pitch: npt.ArrayLike) -> FloatArray:
+    """Body-to-world rotations ``(..., 3, 3)``: heading ``yaw`` then nose-up ``pitch``."""
+    y = np.asarray(yaw, dtype=np.float64)
+    p = np.asarray(pitch, dtype=np.float64)
+    return np.asarray(_rz(y) @ _ry(-p))
+
+
+def _direction(yaw: FloatArray, pitch: FloatArray) -> FloatArray:
+    cp = np.cos(pitch)
+    return np.stack([cp * np.cos(yaw), cp * np.sin(yaw), np.sin(pitch)], axis=-1)
+
+
+def _yaw_pitch(v: FloatArray) -> tuple[FloatArray, FloatArray]:
+    return np.arctan2(v[..., 1], v[..., 0]), np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
+
+
+# ----------------------------------------------------------------------------- the model
+
+
+@dataclass(frozen=True, eq=False)
+class SpineModel:
+    """A character's spine in its rest pose (body frame), shared by all characters using it.
+
+    - ``joint_rest``: ``(J, 3)`` spine joints from the head (0) to the back node (J - 1).
+    - ``key_joint``: ``(K,)`` the joints that are virtual pelvis nodes, increasing, starting at
+      0 (the head node) and ending at ``J - 1`` (the back node).
+    - ``leg_key``: ``(L,)`` the key node each leg hangs from (never 0: the head has no legs).
+    - ``hip_rest``, ``foot_rest``: ``(L, 3)`` rest hip and foot positions.
+    - ``node_yaw_limit``: ``(K,)`` how far each key node may bend sideways (head and back
+      entries unused).
+    - ``joint_yaw_limit``, ``joint_pitch_limit``: ``(J,)`` how far the turn between the two
+      bones at each joint may move away from its rest value (end entries unused).
+    - ``anchor_key``: the key node whose final position is exactly its guide; the chain is
+      rebuilt from there in both directions (normally the rig's root, the hips).
+    - ``slice_margin``: how far past the head and the back node the ground is sampled.
+
+    Derived (filled in by the constructor): ``bone_length`` ``(J - 1,)``, ``bone_dir``
+    ``(J - 1, 3)`` (unit, head to back), ``key_chord`` ``(K - 1,)`` horizontal distances
+    between key nodes, ``key_rest_height`` ``(K,)`` rest height of each node above its
+    feet (above all feet for the head), ``rest_key_pitch`` ``(K,)``, the rest curve samples.
+    """
+
+    joint_rest: FloatArray
+    key_joint: IntArray
+    leg_key: IntArray
+    hip_rest: FloatArray
+    foot_rest: FloatArray
+    node_yaw_limit: FloatArray
+    joint_yaw_limit: FloatArray
+    joint_pitch_limit: FloatArray
+    anchor_key: int
+    slice_margin: float
+    bone_length: FloatArray = field(init=False)
+    bone_dir: FloatArray = field(init=False)
+    key_chord: FloatArray = field(init=False)
+    key_rest_height: FloatArray = field(init=False)
+    rest_key_pitch: FloatArray = field(init=False)
+    rest_key_heading: FloatArray = field(init=False)
+    joint_segment: IntArray = field(init=False)
+    joint_fraction: FloatArray = field(init=False)
+    rest_chord_yaw: FloatArray = field(init=False)
+    rest_chord_pitch: FloatArray = field(init=False)
+
+    @property
+    def n_joints(self) -> int:
+        return int(self.joint_rest.shape[0])
+
+    @property
+    def n_keys(self) -> int:
+        return int(self.key_joint.shape[0])
+
+    @property
+    def n_legs(self) -> int:
+        return int(self.leg_key.shape[0])
+
+    @property
+    def key_rest(self) -> FloatArray:
+        """``(K, 3)`` rest positions of the key nodes."""
+        return self.joint_rest[self.key_joint]
+
+    def __post_init__(self) -> None:
+        joints = np.asarray(self.joint_rest, dtype=np.float64)
+        key = np.asarray(self.key_joint, dtype=np.int64)
+        leg_key = np.asarray(self.leg_key, dtype=np.int64).reshape(-1)
+        n_j, n_k, n_l = joints.shape[0], key.shape[0], leg_key.shape[0]
+        if joints.ndim != 2 or joints.shape[1] != 3 or n_j < 2 or not np.all(np.isfinite(joints)):
+            raise ValueError("joint_rest must be a finite (J >= 2, 3) array")
+        if n_k < 2 or key[0] != 0 or key[-1] != n_j - 1 or np.any(np.diff(key) <= 0):
+            raise ValueError("key_joint must increase from 0 (the head) to J - 1 (the back node)")
+        if n_l and (leg_key.min() < 1 or leg_key.max() >= n_k):
+            raise ValueError("every leg must hang from a key node other than the head (1 .. K - 1)")
+        bone = np.diff(joints, axis=0)
+        length = np.linalg.norm(bone, axis=1)
+        if np.any(length < 1e-9):
+            raise ValueError(f"spine bone {int(np.argmax(length < 1e-9))} has zero length")
+        chord = np.linalg.norm(np.diff(joints[key, :2], axis=0), axis=1)
+        if np.any(chord < 1e-6):
+            raise ValueError("key nodes must be apart horizontally")
+        if not 0 <= self.anchor_key < n_k:
+            raise ValueError(f"anchor_key must be in 0 .. {n_k - 1}")
+
+        def per(name: str, value: npt.ArrayLike, n: int) -> FloatArray:
+            arr = np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)).copy()
+            if np.any(arr < 0.0) or not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name} must be finite and >= 0")
+            return arr
+
+        set_ = object.__setattr__
+        set_(self, "joint_rest", joints)
+        set_(self, "key_joint", key)
+        set_(self, "leg_key", leg_key)
+        set_(self, "hip_rest", np.asarray(self.hip_rest, dtype=np.float64).reshape(n_l, 3))
+        set_(self, "foot_rest", np.asarray(self.foot_rest, dtype=np.float64).reshape(n_l, 3))
+        set_(self, "node_yaw_limit", per("node_yaw_limit", self.node_yaw_limit, n_k))
+        set_(self, "joint_yaw_limit", per("joint_yaw_limit", self.joint_yaw_limit, n_j))
+        set_(self, "joint_pitch_limit", per("joint_pitch_limit", self.joint_pitch_limit, n_j))
+        set_(self, "bone_length", length)
+        set_(self, "bone_dir", bone / length[:, None])
+        set_(self, "key_chord", chord)
+
+        key_pos = joints[key]
+        feet_z = self.foot_rest[:, 2]
+        all_feet = float(feet_z.mean()) if n_l else float(joints[:, 2].min())
+        ground = np.array([feet_z[leg_key == k].mean() if np.any(leg_key == k) else all_feet
+                           for k in range(n_k)])
+        set_(self, "key_rest_height", key_pos[:, 2] - ground)
+
+        # Rest tangent of every key node: central difference of its neighbours (ends: chord).
+        seg_angle = _segment_angles(key_pos[None, :, :2])
+        set_(self, "rest_key_heading", _node_headings(seg_angle)[0])
+        fwd = np.empty((n_k, 3))
+        fwd[0] = key_pos[0] - key_pos[1]
+        fwd[-1] = key_pos[-2] - key_pos[-1]
+        fwd[1:-1] = key_pos[:-2] - key_pos[2:]
+        set_(self, "rest_key_pitch", np.arctan2(fwd[:, 2], np.hypot(fwd[:, 0], fwd[:, 1])))
+
+        # Where each joint sits on the key curve: its key segment and the fraction of that
+        # segment's bone length before it (key joints at fraction 0, the back node at 1).
+        seg = np.searchsorted(key, np.arange(n_j), side="right") - 1
+        seg = np.minimum(seg, n_k - 2)
+        cum = np.concatenate([[0.0], np.cumsum(length)])
+        start, end = cum[key[seg]], cum[key[seg + 1]]
+        set_(self, "joint_segment", seg.astype(np.int64))
+        set_(self, "joint_fraction", (cum - start) / (end - start))
+
+        rest_samples = _sample_curve(
+            self, key_pos[None], self.rest_key_heading[None], self.rest_key_pitch[None]
+        )[0]
+        rest_yaw, rest_pitch = _yaw_pitch(np.diff(rest_samples, axis=0))
+        set_(self, "rest_chord_yaw", rest_yaw)
+        set_(self, "rest_chord_pitch", rest_pitch)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def build(
+        cls,
+        joint_rest: npt.ArrayLike,
+        key_joint: npt.ArrayLike,
+        leg_key: npt.ArrayLike,
+        hip_rest: npt.ArrayLike,
+        foot_rest: npt.ArrayLike,
+        *,
+        joint_yaw_limit: npt.ArrayLike = DEFAULT_JOINT_YAW_LIMIT,
+        joint_pitch_limit: npt.ArrayLike = DEFAULT_JOINT_PITCH_LIMIT,
+        node_yaw_limit: npt.ArrayLike | None = None,
+        anchor_key: int | None = None,
+        slice_margin: float | None = None,
+    ) -> SpineModel:
+        """A spine model with defaults derived from the rest pose.
+
+        ``node_yaw_limit`` defaults to half the summed joint yaw limits of the joints between
+        the node's two neighbours (at most 90 degrees): a node's bend is shared by the bones
+        around it. ``anchor_key`` defaults to the key node with the most legs (the back-most
+        on a tie). ``slice_margin`` defaults to half the mean distance between key nodes.
+        """
+        joints = np.asarray(joint_rest, dtype=np.float64)
+        key = np.asarray(key_joint, dtype=np.int64)
+        legs = np.asarray(leg_key, dtype=np.int64).reshape(-1)
+        n_j, n_k = joints.shape[0], key.shape[0]
+        yaw_lim = np.broadcast_to(np.asarray(joint_yaw_limit, dtype=np.float64), (n_j,))
+        if node_yaw_limit is None:
+            node_lim = np.zeros(n_k)
+            for i in range(1, n_k - 1):
+                node_lim[i] = min(0.5 * float(yaw_lim[key[i - 1] + 1: key[i + 1]].sum()), 0.5 * np.pi)
+        else:
+            node_lim = np.broadcast_to(np.asarray(node_yaw_limit, dtype=np.float64), (n_k,)).copy()
+        if anchor_key is None:
+            counts = np.bincount(legs, minlength=n_k) if legs.size else np.zeros(n_k, dtype=np.int64)
+            anchor_key = int(n_k - 1 - np.argmax(counts[::-1]))
+        if slice_margin is None:
+            key_xy = joints[key, :2]
+            slice_margin = 0.5 * float(np.linalg.norm(np.diff(key_xy, axis=0), axis=1).mean())
+        return cls(
+            joint_rest=joints,
+            key_joint=key,
+            leg_key=legs,
+            hip_rest=np.asarray(hip_rest, dtype=np.float64),
+            foot_rest=np.asarray(foot_rest, dtype=np.float64),
+            node_yaw_limit=node_lim,
+            joint_yaw_limit=yaw_lim,
+            joint_pitch_limit=np.broadcast_to(np.asarray(joint_pitch_limit, dtype=np.float64), (n_j,)),
+            anchor_key=int(anchor_key),
+            slice_margin=float(slice_margin),
+        )
+
+    @classmethod
+    def from_legs(
+        cls,
+        joint_rest: npt.ArrayLike,
+        hip_rest: npt.ArrayLike,
+        foot_rest: npt.ArrayLike,
+        *,
+        joint_yaw_limit: float = DEFAULT_JOINT_YAW_LIMIT,
+        joint_pitch_limit: float = DEFAULT_JOINT_PITCH_LIMIT,
+        anchor_key: int | None = None,
+    ) -> SpineModel:
+        """A spine model whose key nodes are found from the legs: each leg hangs from the
+        spine joint nearest its hip; those joints plus the head (joint 0) are the key nodes.
+        The chain is cut after the back-most of them (what lies behind is a tail, animated
+        by the pendulums).
+        """
+        joints = np.asarray(joint_rest, dtype=np.float64)
+        hips = np.asarray(hip_rest, dtype=np.float64).reshape(-1, 3)
+        nearest = np.argmin(np.linalg.norm(hips[:, None, :] - joints[None, :, :], axis=2), axis=1)
+        if np.any(nearest == 0):
+            raise ValueError("the spine chain must reach past the front legs to the head: "
+                             "a leg hangs from the first spine joint")
+        used = np.unique(nearest)
+        key = np.concatenate([[0], used]).astype(np.int64)
+        leg_key = np.searchsorted(key, nearest).astype(np.int64)
+        return cls.build(joints[: int(used.max()) + 1], key, leg_key, hips, foot_rest,
+                         joint_yaw_limit=joint_yaw_limit, joint_pitch_limit=joint_pitch_limit,
+                         anchor_key=anchor_key)
+
+
+@dataclass(frozen=True)
+class SpineParams:
+    """Settings of the spine effect (the user's "Flexible spine" and "Visual yaw" switches).
+
+    - ``flexible``: False turns the body as one rigid piece about its origin (no spine).
+    - ``turn_rate``: the head's fastest turn, rad/s.
+    - ``relax_time``: time constant (s) of the back node's bend relaxing toward straight.
+    - ``foot_pitch_weight``: weight of the feet's induced pitch against the environment pitch
+      (0.5 is the thesis's plain average of the two).
+    - ``visual_yaw``, ``visual_yaw_gain``, ``max_visual_yaw``: the lizard effect of §4.4.
+    """
+
+    flexible: bool = True
+    turn_rate: float = np.radians(120.0)
+    relax_time: float = 0.6
+    foot_pitch_weight: float = 0.5
+    visual_yaw: bool = False
+    visual_yaw_gain: float = 1.0
+    max_visual_yaw: float = np.radians(35.0)
+
+    def __post_init__(self) -> None:
+        if self.turn_rate <= 0.0 or self.relax_time <= 0.0:
+            raise ValueError("turn_rate and relax_time must be positive")
+        if not 0.0 <= self.foot_pitch_weight <= 1.0:
+            raise ValueError("foot_pitch_weight must be in [0, 1]")
+
+
+@dataclass(frozen=True)
+class SpineState:
+    """The spine carried from one step to the next: key node positions ``(C, K, 2)`` in the
+    world xy plane (the guides of steps 1-2, not the drawn spine of step 4)."""
+
+    key_xy: FloatArray
+
+    @property
+    def n_chars(self) -> int:
+        return int(self.key_xy.shape[0])
+
+    @classmethod
+    def at_rest(cls, model: SpineModel, origin_xy: npt.ArrayLike, heading: npt.ArrayLike) -> SpineState:
+        """Characters standing in their rest pose: body origins ``(C, 2)``, headings ``(C,)``."""
+        origin = np.atleast_2d(np.asarray(origin_xy, dtype=np.float64))
+        head = np.broadcast_to(np.asarray(heading, dtype=np.float64), origin.shape[:1])
+        rest = model.key_rest[:, :2]
+        return cls(origin[:, None, :] + np.einsum("cij,kj->cki", _rot2(head), rest))
+
+
+@dataclass(frozen=True)
+class SpinePlan:
+    """Steps 1-2: the key nodes on the ground plane.
+
+    ``key_xy`` ``(C, K, 2)``; ``key_heading`` ``(C, K)`` each node's heading (the bisector of
+    its segments); ``bend`` ``(C, K)`` each node's sideways bend (0 at the ends); ``distance``
+    ``(C,)`` the distance the head moved.
+    """
+
+    key_xy: FloatArray
+    key_heading: FloatArray
+    bend: FloatArray
+    distance: FloatArray
+
+
+@dataclass(frozen=True)
+class SpinePose:
+    """Step 4: the drawn spine of every character.
+
+    - ``joints``: ``(C, J, 3)`` world positions of the spine joints (head first).
+    - ``bone_rotation``: ``(C, J - 1, 3, 3)`` rotation taking each bone from its rest
+      (body-frame) direction to the world.
+    - ``joint_frame``: ``(C, J, 3, 3)`` body-to-world rotation at each joint (mean of its
+      bones' turn); :meth:`key_frames` gives them at the key nodes.
+    - ``guide_xyz``: ``(C, K, 3)`` the key node guides the curve went through;
+      ``key_yaw``/``key_pitch`` ``(C, K)`` the tangents' heading (with visual yaw) and the
+      nodes' pitch (deviation from rest, nose up).
+    - ``yaw_dev``/``pitch_dev``: ``(C, J - 1)`` each bone's turn from rest (yaw about world up,
+      pitch in its vertical plane, sign of the bone's rest direction), after the limits.
+    """
+
+    joints: FloatArray
+    bone_rotation: FloatArray
+    joint_frame: FloatArray
+    guide_xyz: FloatArray
+    key_yaw: FloatArray
+    key_pitch: FloatArray
+    yaw_dev: FloatArray
+    pitch_dev: FloatArray
+
+    def key_positions(self, model: SpineModel) -> FloatArray:
+        """``(C, K, 3)`` final positions of the key nodes."""
+        return self.joints[:, model.key_joint]
+
+    def key_frames(self, model: SpineModel) -> FloatArray:
+        """``(C, K, 3, 3)`` final body-to-world rotations of the key nodes."""
+        return self.joint_frame[:, model.key_joint]
+
+
+# ------------------------------------------------------------------------ steps 1 and 2
+
+
+def plan_spine(
+    model: SpineModel,
+    state: SpineState,
+    params: SpineParams,
+    desired_heading: npt.ArrayLike,
+    distance: npt.ArrayLike,
+    dt: float,
+) -> SpinePlan:
+    """Steps 1 and 2 (thesis §4.2.1-4.2.2): turn from the head, then advance on the support.
+
+    ``desired_heading``, ``distance`` (>= 0, metres the head moves this step): ``(C,)`` or
+    scalars. Returns the new key nodes; store ``SpineState(plan.key_xy)`` for the next step.
+    """
+    xy = np.array(state.key_xy, dtype=np.float64, copy=True)
+    c, k = xy.shape[0], xy.shape[1]
+    want = np.broadcast_to(np.asarray(desired_heading, dtype=np.float64), (c,))
+    dist = np.maximum(np.broadcast_to(np.asarray(distance, dtype=np.float64), (c,)), 0.0)
+    seg = _segment_angles(xy)
+    max_turn = params.turn_rate * float(dt)
+    turn = np.clip(wrap_angle(want - seg[:, 0]), -max_turn, max_turn)
+
+    if not params.flexible:
+        xy = _rigid_move(model, xy, turn, dist)
+    else:
+        xy = _turn_from_head(model, xy, turn)
+        # Standing still leaves the nodes exactly where they are (no round-off creep).
+        xy = np.where((dist > 0.0)[:, None, None], _advance_on_support(model, xy, dist), xy)
+        xy = _clamp_bends(model, xy)
+        if k >= 3:
+            # The back node relaxes its bend toward straight (thesis §4.2.2, in green in
+            # figure 4.13), exponentially with the relax time.
+            bend = _bends(_segment_angles(xy))[:, k - 2]
+            keep = np.exp(-float(dt) / params.relax_time)
+            xy[:, k - 1:] = _rotate_about(xy[:, k - 1:], xy[:, k - 2], bend * (1.0 - keep))
+
+    seg = _segment_angles(xy)
+    return SpinePlan(key_xy=xy, key_heading=_node_headings(seg), bend=_bends(seg), distance=dist)
+
+
+def _turn_from_head(model: SpineModel, xy: FloatArray, turn: FloatArray) -> FloatArray:
+    """Thesis §4.2.1: each inner node takes what its limit allows, front to back; the rest
+    rotates the whole spine about the node just behind the head."""
+    k = xy.shape[1]
+    remaining = turn.copy()
+    for i in range(1, k - 1):
+        bend = _bends(_segment_angles(xy))[:, i]
+        limit = model.node_yaw_limit[i]
+        # Only moves that do not push the bend further past its limit are allowed.
+        lo = np.minimum(-limit - bend, 0.0)
+        hi = np.maximum(limit - bend, 0.0)
+        share = np.clip(remaining, lo, hi)
+        xy[:, :i] = _rotate_about(xy[:, :i], xy[:, i], share)
+        remaining = remaining - share
+    others = np.r_[0, 2:k] if k > 2 else np.array([0])
+    xy[:, others] = _rotate_about(xy[:, others], xy[:, 1], remaining)
+    return xy
+
+
+def _advance_on_support(model: SpineModel, xy: FloatArray, dist: FloatArray) -> FloatArray:
+    """Thesis §4.2.2: the head moves ahead; every following node is put on the previous
+    spine (continued straight behind the back node) at its chord length from the node in
+    front."""
+    c, k = xy.shape[0], xy.shape[1]
+    head_dir = xy[:, 0] - xy[:, 1]
+    head_dir /= np.linalg.norm(head_dir, axis=1, keepdims=True)
+    tail_dir = xy[:, -1] - xy[:, -2]
+    tail_dir /= np.linalg.norm(tail_dir, axis=1, keepdims=True)
+    reach = dist + float(model.key_chord.sum()) + 1.0
+    new_head = xy[:, 0] + dist[:, None] * head_dir
+    beyond_back = xy[:, -1] + reach[:, None] * tail_dir
+    support = np.concatenate([new_head[:, None], xy, beyond_back[:, None]], axis=1)  # (C, K + 2, 2)
+    a = support[:, :-1]  # segment starts (C, S, 2)
+    d = support[:, 1:] - a
+    dd = np.einsum("csi,csi->cs", d, d)
+    n_seg = a.shape[1]
+    seg_idx = np.arange(n_seg)
+    out = np.empty_like(xy)
+    out[:, 0] = support[:, 0]
+    g = np.zeros(c, dtype=np.int64)
+    t = np.zeros(c)
+    rows = np.arange(c)
+    for i in range(1, k):
+        q = out[:, i - 1]
+        radius = model.key_chord[i - 1]
+        f = a - q[:, None, :]
+        b = 2.0 * np.einsum("csi,csi->cs", f, d)
+        cc = np.einsum("csi,csi->cs", f, f) - radius * radius
+        disc = b * b - 4.0 * dd * cc
+        root = (-b + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * np.maximum(dd, _EPS))
+        t_min = np.where(seg_idx[None, :] == g[:, None], t[:, None], 0.0)
+        ok = (seg_idx[None, :] >= g[:, None]) & (disc >= 0.0) & (dd > _EPS)
+        ok &= (root >= t_min - 1e-12) & (root <= 1.0 + 1e-12)
+        first = np.argmax(ok, axis=1)  # the long last segment always qualifies
+        g = first
+        t = np.clip(root[rows, first], 0.0, 1.0)
+        out[:, i] = a[rows, first] + t[:, None] * d[rows, first]
+    return out
+
+
+def _clamp_bends(model: SpineModel, xy: FloatArray) -> FloatArray:
+    """Bring every inner node's bend back within its limit, front to back, by turning the
+    part of the spine behind it."""
+    k = xy.shape[1]
+    for i in range(1, k - 1):
+        bend = _bends(_segment_angles(xy))[:, i]
+        limit = model.node_yaw_limit[i]
+        excess = bend - np.clip(bend, -limit, limit)
+        if np.any(excess != 0.0):
+            # Turning the rear part by +x changes this bend by -x.
+            xy[:, i + 1:] = _rotate_about(xy[:, i + 1:], xy[:, i], excess)
+    return xy
+
+
+def _rigid_move(model: SpineModel, xy: FloatArray, turn: FloatArray, dist: FloatArray) -> FloatArray:
+    """No spine: the rest-shaped body turns about its origin and moves along its heading."""
+    rest = model.key_rest[:, :2]
+    heading = _segment_angles(xy)[:, 0] - _segment_angles(rest[None])[0, 0]
+    # The body origin implied by the anchor node (the body is rigid, any node would do).
+    anchor = model.anchor_key
+    origin = xy[:, anchor] - np.einsum("cij,j->ci", _rot2(heading), rest[anchor])
+    heading = heading + turn
+    origin = origin + dist[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
+    return origin[:, None, :] + np.einsum("cij,kj->cki", _rot2(heading), rest)
+
+
+# ------------------------------------------------------------------------------- step 3
+
+
+def _membership(model: SpineModel) -> FloatArray:
+    """``(L, K)`` one-hot: which key node each leg hangs from."""
+    return (model.leg_key[:, None] == np.arange(model.n_keys)[None, :]).astype(np.float64)
+
+
+def _node_mean(model: SpineModel, values: FloatArray, weight: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Weighted mean over each key node's legs of ``values`` ``(C, L)``: ``(C, K)`` and a
+    ``(K,)`` mask of the nodes that have legs with weight (others get 0)."""
+    m = _membership(model) * weight[:, None]
+    wsum = m.sum(axis=0)
+    has = wsum > _EPS
+    return np.where(has[None, :], (values @ m) / np.maximum(wsum, _EPS)[None, :], 0.0), has
+
+
+def terrain_guides(
+    model: SpineModel,
+    plan: SpinePlan,
+    height_at: HeightFn,
+    foot_world: npt.ArrayLike | None = None,
+    samples_per_node: int = 12,
+) -> tuple[FloatArray, FloatArray]:
+    """Each key node's preferred height and environment pitch (thesis §4.2.3, figure 4.14).
+
+    The ground is sampled along the spine's own (curved) path, from ``slice_margin`` before
+    the head to ``slice_margin`` behind the back node. Each node owns the stretch from
+    half-way to the node in front to half-way to the node behind; the upper convex hull of
+    that stretch's ground (and of the feet hanging from the node, ``foot_world`` ``(C, L, 3)``)
+    under the node gives its ground height and slope. Returns ``(height, pitch)``, each
+    ``(C, K)``: ground height plus the node's rest height, and the slope angle (nose up).
+    The controller adds the pseudo-physics offset to ``height`` before :func:`finish_spine`.
+    """
+    xy = plan.key_xy
+    c, k = xy.shape[0], xy.shape[1]
+    chord = np.linalg.norm(np.diff(xy, axis=1), axis=2)  # (C, K - 1)
+    arc = np.concatenate([np.zeros((c, 1)), np.cumsum(chord, axis=1)], axis=1)  # (C, K)
+    margin = model.slice_margin
+    lo = np.concatenate([arc[:, :1] - margin, 0.5 * (arc[:, :-1] + arc[:, 1:])], axis=1)
+    hi = np.concatenate([0.5 * (arc[:, :-1] + arc[:, 1:]), arc[:, -1:] + margin], axis=1)
+    u = np.linspace(0.0, 1.0, max(2, int(samples_per_node)))
+    s = lo[..., None] + (hi - lo)[..., None] * u  # (C, K, n)
+    pts = _polyline_at(xy, arc, s)  # (C, K, n, 2)
+    z = np.asarray(height_at(pts), dtype=np.float64).reshape(s.shape)
+    x = s
+    if foot_world is not None and model.n_legs:
+        feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
+        fwd = np.stack([np.cos(plan.key_heading), np.sin(plan.key_heading)], axis=-1)  # (C, K, 2)
+        node_of_leg = model.leg_key
+        rel = feet[..., :2] - xy[:, node_of_leg]
+        fx = arc[:, node_of_leg] + np.einsum("cli,cli->cl", rel, fwd[:, node_of_leg])  # (C, L)
+        # One column per leg, valid only in its own node's row.
+        mine = node_of_leg[None, :] == np.arange(k)[:, None]  # (K, L)
+        x = np.concatenate([x, np.broadcast_to(fx[:, None, :], (c, k, model.n_legs))], axis=2)
+        z = np.concatenate([z, np.broadcast_to(feet[:, None, :, 2], (c, k, model.n_legs))], axis=2)
+        valid = np.concatenate(
+            [np.ones(s.shape, dtype=bool), np.broadcast_to(mine, (c, k, model.n_legs))], axis=2)
+    else:
+        valid = np.ones(s.shape, dtype=bool)
+    ground, slope = upper_hull_eval(x, z, arc[..., None], valid)
+    # The slope is along the spine from head to back; nose up means the ground rises forward.
+    return ground[..., 0] + model.key_rest_height[None, :], -np.arctan(slope[..., 0])
+
+
+def _polyline_at(xy: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
+    """Points at arc lengths ``s`` ``(C, K, n)`` along the key polyline (continued straight
+    past both ends): ``(C, K, n, 2)``."""
+    c, k = xy.shape[0], xy.shape[1]
+    flat = s.reshape(c, -1)
+    seg = np.clip(np.sum(flat[..., None] >= arc[:, None, 1:-1], axis=-1), 0, k - 2)  # (C, m)
+    rows = np.arange(c)[:, None]
+    a = xy[rows, seg]
+    b = xy[rows, seg + 1]
+    s0 = arc[rows, seg]
+    span = arc[rows, seg + 1] - s0
+    f = (flat - s0) / np.maximum(span, _EPS)
+    return (a + f[..., None] * (b - a)).reshape(*s.shape, 2)
+
+
+def node_pitch(
+    model: SpineModel,
+    plan: SpinePlan,
+    node_z: npt.ArrayLike,
+    env_pitch: npt.ArrayLike,
+    foot_world: npt.ArrayLike | None,
+    params: SpineParams,
+) -> FloatArray:
+    """Each key node's pitch ``(C, K)`` (thesis §4.2.3): environment pitch averaged with the
+    pitch its feet induce.
+
+    A foot's induced pitch is the angle of the perpendicular to the node-to-foot vector in
+    the node's vertical plane, pointing forward: a foot ahead of (or higher than) its place
+    lifts the nose. It is measured against the foot's rest place laid on the environment's
+    slope under the node, so a foot standing where it would stand at rest on that slope
+    induces exactly the environment pitch. The node's pitch is
+    ``(1 - w) * env + w * mean(induced)`` with ``w = foot_pitch_weight``. Nodes without legs
+    (the head) keep the environment pitch.
+    """
+    env = np.asarray(env_pitch, dtype=np.float64)
+    if foot_world is None or model.n_legs == 0 or params.foot_pitch_weight == 0.0:
+        return env.copy()
+    c, k = plan.key_xy.shape[:2]
+    env = np.broadcast_to(env, (c, k))
+    feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
+    z = np.broadcast_to(np.asarray(node_z, dtype=np.float64), (c, k))
+    leg = model.leg_key
+    heading = plan.key_heading[:, leg]
+    rel_xy = feet[..., :2] - plan.key_xy[:, leg]
+    ahead = rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading)
+    below = z[:, leg] - feet[..., 2]
+    rest_rel = model.foot_rest - model.key_rest[leg]
+    rest_heading = model.rest_key_heading[leg]
+    rest_ahead = rest_rel[:, 0] * np.cos(rest_heading) + rest_rel[:, 1] * np.sin(rest_heading)
+    # The rest place on the sloped ground: further below the node behind it, less ahead.
+    ref_below = -rest_rel[None, :, 2] - rest_ahead[None, :] * np.tan(env[:, leg])
+    change = wrap_angle(np.arctan2(ahead, below) - np.arctan2(rest_ahead[None, :], ref_below))  # (C, L)
+    mean_change, has = _node_mean(model, change, np.ones(model.n_legs))
+    # (1 - w) env + w (env + change) = env + w change
+    return np.where(has[None, :], env + params.foot_pitch_weight * mean_change, env)
+
+
+def visual_yaw(
+    model: SpineModel, plan: SpinePlan, foot_world: npt.ArrayLike, params: SpineParams
+) -> FloatArray:
+    """The lizard's visual yaw of each key node's tangent ``(C, K)`` (thesis §4.4).
+
+    Every foot's yaw is the angle, seen from above, between the direction from its node to
+    the foot now and the direction to its rest place (in the node's current frame); a node
+    turns by the mean of its feet's yaws (times ``visual_yaw_gain``, clamped to
+    ``max_visual_yaw``). Nodes without feet do not turn.
+    """
+    c, k = plan.key_xy.shape[:2]
+    if model.n_legs == 0:
+        return np.zeros((c, k))
+    feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
+    leg = model.leg_key
+    rel = feet[..., :2] - plan.key_xy[:, leg]
+    rest_rel = model.foot_rest[:, :2] - model.key_rest[leg, :2]
+    now = np.arctan2(rel[..., 1], rel[..., 0]) - plan.key_heading[:, leg]
+    rest = np.arctan2(rest_rel[:, 1], rest_rel[:, 0]) - model.rest_key_heading[leg]
+    # Feet right under their node have no direction to speak of: weigh by rest distance.
+    weight = np.linalg.norm(rest_rel, axis=1)
+    mean, _ = _node_mean(model, wrap_angle(now - rest), weight)
+    return np.clip(params.visual_yaw_gain * mean, -params.max_visual_yaw, params.max_visual_yaw)
+
+
+# ------------------------------------------------------------------------------- step 4
+
+
+def _sample_curve(
+    model: SpineModel, key_xyz: FloatArray, key_yaw: FloatArray, key_pitch: FloatArray
+) -> FloatArray:
+    """Points ``(C, J, 3)`` on the Hermite curve through the key nodes at the joints' arc
+    fractions. ``key_pitch`` here is the absolute tangent pitch (forward, nose up)."""
+    c, k = key_xyz.shape[:2]
+    back = -_direction(key_yaw, key_pitch)  # the curve runs from the head to the back
+    chord = np.linalg.norm(np.diff(key_xyz, axis=1), axis=2)[..., None]  # (C, K - 1, 1)
+    p1, p2 = key_xyz[:, :-1], key_xyz[:, 1:]
+    t1, t2 = back[:, :-1] * chord, back[:, 1:] * chord
+    ctrl = np.stack([p1, p2, t1, t2], axis=-2)  # (C, K - 1, 4, 3)
+    s = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
+    dense = np.einsum("mf,ckfd->ckmd", hermite_basis(s), ctrl)  # (C, K - 1, m, 3)
+    step = np.linalg.norm(np.diff(dense, axis=2), axis=3)
+    table = np.concatenate([np.zeros((c, k - 1, 1)), np.cumsum(step, axis=2)], axis=2)  # (C, K - 1, m)
+    seg = model.joint_segment
+    tab = table[:, seg]  # (C, J, m)
+    target = model.joint_fraction[None, :] * tab[..., -1]
+    idx = np.clip(np.sum(tab < target[..., None], axis=-1), 1, _CURVE_SAMPLES - 1)  # (C, J)
+    l0 = np.take_along_axis(tab, (idx - 1)[..., None], axis=-1)[..., 0]
+    l1 = np.take_along_axis(tab, idx[..., None], axis=-1)[..., 0]
+    frac = (target - l0) / np.maximum(l1 - l0, _EPS)
+    param = s[idx - 1] + np.clip(frac, 0.0, 1.0) * (s[1] - s[0])
+    # Exact ends: key joints sit on their key node.
+    param = np.where(model.joint_fraction[None, :] <= 0.0, 0.0, param)
+    param = np.where(model.joint_fraction[None, :] >= 1.0, 1.0, param)
+    return np.asarray(np.einsum("cjf,cjfd->cjd", hermite_basis(param), ctrl[:, seg]))
+
+
+def build_spine(
+    model: SpineModel,
+    key_xyz: npt.ArrayLike,
+    key_yaw: npt.ArrayLike,
+    key_pitch: npt.ArrayLike,
+) -> SpinePose:
+    """Step 4 (thesis §4.2.4): the final spine from key node guides.
+
+    ``key_xyz`` ``(C, K, 3)`` guide positions; ``key_yaw`` ``(C, K)`` tangent headings
+    (node heading plus any visual yaw); ``key_pitch`` ``(C, K)`` node pitch, nose up, as a
+    deviation from the rest pose (0 keeps the rest posture). Bone lengths are exact: the
+    chain is rebuilt from the anchor node with each bone's rest direction turned by the
+    curve's turn over that bone, each joint's turn limited to its yaw and pitch limits.
+    """
+    guide = np.asarray(key_xyz, dtype=np.float64)
+    c = guide.shape[0]
+    yaw = np.broadcast_to(np.asarray(key_yaw, dtype=np.float64), guide.shape[:2])
+    pitch = np.broadcast_to(np.asarray(key_pitch, dtype=np.float64), guide.shape[:2])
+    samples = _sample_curve(model, guide, yaw, model.rest_key_pitch[None, :] + pitch)
+    chord_yaw, chord_pitch = _yaw_pitch(np.diff(samples, axis=1))  # (C, J - 1)
+    yaw_dev = wrap_angle(chord_yaw - model.rest_chord_yaw[None, :])
+    pitch_dev = chord_pitch - model.rest_chord_pitch[None, :]
+    yaw_dev, pitch_dev = _limit_joints(model, yaw_dev, pitch_dev)
+
+    rest_yaw = model.rest_chord_yaw[None, :]
+    rest_pitch = model.rest_chord_pitch[None, :]
+    rotation = _rz(rest_yaw + yaw_dev) @ _ry(-(rest_pitch + pitch_dev)) @ _ry(rest_pitch) @ _rz(-rest_yaw)
+    bone_world = np.einsum("cbij,bj->cbi", rotation, model.bone_dir) * model.bone_length[None, :, None]
+
+    anchor_joint = int(model.key_joint[model.anchor_key])
+    joints = np.empty((c, model.n_joints, 3))
+    joints[:, anchor_joint] = guide[:, model.anchor_key]
+    if anchor_joint < model.n_joints - 1:
+        behind = np.cumsum(bone_world[:, anchor_joint:], axis=1)
+        joints[:, anchor_joint + 1:] = guide[:, model.anchor_key, None] + behind
+    if anchor_joint > 0:
+        ahead = np.cumsum(bone_world[:, :anchor_joint][:, ::-1], axis=1)[:, ::-1]
+        joints[:, :anchor_joint] = guide[:, model.anchor_key, None] - ahead
+
+    # Joint frames: the mean turn of the bones on either side (one bone at the ends). For a
+    # bone pointing backward, a positive pitch deviation lowers the nose.
+    pad_y = np.concatenate([yaw_dev[:, :1], yaw_dev, yaw_dev[:, -1:]], axis=1)
+    pad_p = np.concatenate([pitch_dev[:, :1], pitch_dev, pitch_dev[:, -1:]], axis=1)
+    j_yaw = pad_y[:, :-1] + 0.5 * wrap_angle(pad_y[:, 1:] - pad_y[:, :-1])
+    j_nose = -0.5 * (pad_p[:, :-1] + pad_p[:, 1:])
+    frames = frame_from_yaw_pitch(j_yaw, j_nose)
+    return SpinePose(
+        joints=joints,
+        bone_rotation=rotation,
+        joint_frame=frames,
+        guide_xyz=guide.copy(),
+        key_yaw=np.array(yaw, copy=True),
+        key_pitch=np.array(pitch, copy=True),
+        yaw_dev=yaw_dev,
+        pitch_dev=pitch_dev,
+    )
+
+
+def _limit_joints(
+    model: SpineModel, yaw_dev: FloatArray, pitch_dev: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Limit the change of turn at every joint, working outward from the anchor joint."""
+    yaw = yaw_dev.copy()
+    pitch = pitch_dev.copy()
+    n_b = yaw.shape[1]
+    anchor_joint = int(model.key_joint[model.anchor_key])
+    # Bones behind the anchor keep the first one's turn as reference; so do bones ahead.
+    ref_back = min(anchor_joint, n_b - 1)
+    for b in range(ref_back + 1, n_b):  # joint b joins bone b - 1 and bone b
+        yl, pl = model.joint_yaw_limit[b], model.joint_pitch_limit[b]
+        yaw[:, b] = yaw[:, b - 1] + np.clip(wrap_angle(yaw[:, b] - yaw[:, b - 1]), -yl, yl)
+        pitch[:, b] = pitch[:, b - 1] + np.clip(pitch[:, b] - pitch[:, b - 1], -pl, pl)
+    for b in range(ref_back - 1, -1, -1):  # joint b + 1 joins bone b and bone b + 1
+        yl, pl = model.joint_yaw_limit[b + 1], model.joint_pitch_limit[b + 1]
+        yaw[:, b] = yaw[:, b + 1] + np.clip(wrap_angle(yaw[:, b] - yaw[:, b + 1]), -yl, yl)
+        pitch[:, b] = pitch[:, b + 1] + np.clip(pitch[:, b] - pitch[:, b + 1], -pl, pl)
+    return yaw, pitch
+
+
+def finish_spine(
+    model: SpineModel,
+    plan: SpinePlan,
+    params: SpineParams,
+    node_z: npt.ArrayLike,
+    env_pitch: npt.ArrayLike,
+    foot_world: npt.ArrayLike | None = None,
+) -> SpinePose:
+    """Steps 3 and 4 from a plan: node heights ``(C, K)`` (hull height plus rest height plus
+    the pseudo-physics offset), environment pitch ``(C, K)``, current feet ``(C, L, 3)``."""
+    c, k = plan.key_xy.shape[:2]
+    z = np.broadcast_to(np.asarray(node_z, dtype=np.float64), (c, k))
+    env = np.broadcast_to(np.asarray(env_pitch, dtype=np.float64), (c, k))
+    pitch = node_pitch(model, plan, z, env, foot_world, params)
+    yaw = plan.key_heading.copy()
+    if params.visual_yaw and foot_world is not None:
+        yaw = yaw + visual_yaw(model, plan, foot_world, params)
+    guide = np.concatenate([plan.key_xy, z[..., None]], axis=-1)
+    return build_spine(model, guide, yaw, pitch)
+
+
+def refit(model: SpineModel, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePose:
+    """Step 4 again on new guides ``(C, K, 3)`` with the same tangents (thesis §4.2.4: when
+    the leg IK cannot reach, the spine is rebuilt on the closest positions it can hold)."""
+    return build_spine(model, key_xyz, pose.key_yaw, pose.key_pitch)
+
+
+def hip_positions(model: SpineModel, pose: SpinePose) -> FloatArray:
+    """World hip positions ``(C, L, 3)``: each hip rides with the frame of its key node."""
+    joint = model.key_joint[model.leg_key]
+    offset = model.hip_rest - model.joint_rest[joint]  # (L, 3)
+    return pose.joints[:, joint] + np.einsum("clij,lj->cli", pose.joint_frame[:, joint], offset)
+
+
+def repeat_for_reach(
+    model: SpineModel,
+    pose: SpinePose,
+    foot_world: npt.ArrayLike,
+    leg_reach: npt.ArrayLike,
+    iterations: int = 3,
+    slack: float = 0.995,
+) -> SpinePose:
+    """Repeat step 4 until every hip is within ``slack * leg_reach`` of its foot.
+
+    A hip too far from its foot is pulled toward it by the excess; each key node's guide
+    moves by the mean pull of its legs, and the spine is rebuilt (:func:`refit`). This is
+    the hook of thesis §4.2.4 with reach as the legs' ability; a controller whose IK knows
+    better (joint limits) can compute its own guides and call :func:`refit`.
+    ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)``.
+    """
+    if model.n_legs == 0:
+        return pose
+    feet = np.asarray(foot_world, dtype=np.float64)
+    reach = slack * np.broadcast_to(np.asarray(leg_reach, dtype=np.float64), (model.n_legs,))
+    k = pose.guide_xyz.shape[1]
+    count = np.bincount(model.leg_key, minlength=k).astype(np.float64)
+    for _ in range(max(0, int(iterations))):
+        hips = hip_positions(model, pose)
+        to_foot = feet - hips
+        dist = np.linalg.norm(to_foot, axis=-1)
+        excess = np.maximum(dist - reach[None, :], 0.0)
+        if not np.any(excess > 1e-9):
+            break
+        pull = to_foot * (excess / np.maximum(dist, _EPS))[..., None]
+        shift = np.einsum("lk,cld->ckd", _membership(model), pull) / np.maximum(count, 1.0)[None, :, None]
+        pose = refit(model, pose, pose.guide_xyz + shift)
+    return pose
+
+
+# ------------------------------------------------------------------------- one full step
+
+#: ``(plan) -> (node_z, env_pitch)``, each ``(C, K)``: how the controller elevates the nodes.
+GuideFn = Callable[[SpinePlan], tuple[FloatArray, FloatArray]]
+
+
+def spine_step(
+    model: SpineModel,
+    state: SpineState,
+    params: SpineParams,
+    desired_heading: npt.ArrayLike,
+    distance: npt.ArrayLike,
+    dt: float,
+    guides: GuideFn,
+    foot_world: npt.ArrayLike | None = None,
+) -> tuple[SpineState, SpinePlan, SpinePose]:
+    """All four steps for ``C`` characters: plan on the ground, elevate with ``guides``
+    (e.g. :func:`terrain_guides` plus the pseudo-physics), pitch, visual yaw, final curve.
+    Returns the state for the next step, the plan (node headings for the feet) and the pose.
+    """
+    plan = plan_spine(model, state, params, desired_heading, distance, dt)
+    node_z, env_pitch = guides(plan)
+    pose = finish_spine(model, plan, params, node_z, env_pitch, foot_world)
+    return SpineState(plan.key_xy), plan, pose
+
+
+def ground_guides(model: SpineModel, height_at: HeightFn, foot_world: npt.ArrayLike | None = None) -> GuideFn:
+    """A :data:`GuideFn` from a terrain height query alone (no pseudo-physics)."""
+
+    def guides(plan: SpinePlan) -> tuple[FloatArray, FloatArray]:
+        return terrain_guides(model, plan, height_at, foot_world)
+
+    return guides
+
+
+__all__ = [
+    "GuideFn",
+    "HeightFn",
+    "SpineModel",
+    "SpineParams",
+    "SpinePlan",
+    "SpinePose",
+    "SpineState",
+    "build_spine",
+    "finish_spine",
+    "frame_from_yaw_pitch",
+    "ground_guides",
+    "hip_positions",
+    "node_pitch",
+    "plan_spine",
+    "refit",
+    "repeat_for_reach",
+    "spine_step",
+    "terrain_guides",
+    "visual_yaw",
+    "wrap_angle",
+]

@@ -1,0 +1,484 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Flexible spine (thesis §4.2) and visual yaw (§4.4)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+
+from procloco_addon.core.spine import (
+    SpineModel,
+    SpineParams,
+    SpinePlan,
+    SpineState,
+    build_spine,
+    finish_spine,
+    ground_guides,
+    hip_positions,
+    node_pitch,
+    plan_spine,
+    repeat_for_reach,
+    spine_step,
+    terrain_guides,
+    visual_yaw,
+    wrap_angle,
+)
+
+DT = 1 / 30
+
+
+def quadruped(arched: bool = False, **kwargs: object) -> SpineModel:
+    """A dog-sized spine: head, neck, shoulders, three back joints, hips (7 joints, 3 key
+    nodes); front and hind legs 0.5 m long under their girdles."""
+    xs = [0.6, 0.45, 0.3, 0.15, 0.0, -0.15, -0.3]
+    joints = np.array([[x, 0.0, 0.0] for x in xs])
+    joints[0, 2] = 0.1  # head carried higher
+    if arched:
+        joints[3:6, 2] = [0.03, 0.05, 0.03]
+    hips = np.array([[0.3, 0.1, 0.0], [0.3, -0.1, 0.0], [-0.3, 0.1, 0.0], [-0.3, -0.1, 0.0]])
+    feet = hips + np.array([0.0, 0.0, -0.5])
+    return SpineModel.from_legs(joints, hips, feet, **kwargs)  # type: ignore[arg-type]
+
+
+def hexapod_like() -> SpineModel:
+    """A long body with four key nodes (head + three girdles), like the thesis's figure 4.10."""
+    xs = np.linspace(0.9, -0.6, 11)
+    joints = np.stack([xs, np.zeros(11), np.zeros(11)], axis=1)
+    girdles = [0.6, 0.0, -0.6]
+    hips = np.array([[x, s * 0.08, 0.0] for x in girdles for s in (1.0, -1.0)])
+    feet = hips + np.array([0.0, 0.0, -0.3]) + np.array([0.0, 1.0, 0.0]) * np.sign(hips[:, 1:2]) * 0.2
+    return SpineModel.from_legs(joints, hips, feet)
+
+
+def lizard() -> SpineModel:
+    """Thesis figure 4.15: three key nodes (head, shoulders, hips), 9 spine joints, sprawled
+    legs whose feet rest out to the side."""
+    xs = np.linspace(0.3, -0.2, 9)
+    joints = np.stack([xs, np.zeros(9), np.zeros(9)], axis=1)
+    hips = np.array([[xs[3], 0.03, 0.0], [xs[3], -0.03, 0.0], [xs[8], 0.03, 0.0], [xs[8], -0.03, 0.0]])
+    feet = hips + np.array([[0.0, 0.08, -0.05], [0.0, -0.08, -0.05], [0.0, 0.08, -0.05], [0.0, -0.08, -0.05]])
+    return SpineModel.from_legs(joints, hips, feet)
+
+
+def flat(xy: np.ndarray) -> np.ndarray:
+    return np.zeros(xy.shape[:-1])
+
+
+def rest_world(model: SpineModel, origin: np.ndarray, heading: float, lift: float) -> np.ndarray:
+    c, s = np.cos(heading), np.sin(heading)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return model.joint_rest @ rot.T + np.array([origin[0], origin[1], lift])
+
+
+def bone_yaw_pitch(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    v = np.diff(joints, axis=-2)
+    return np.arctan2(v[..., 1], v[..., 0]), np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
+
+
+def run_turn(model: SpineModel, params: SpineParams, heading: float, speed: float, steps: int,
+             height_at: Callable[[np.ndarray], np.ndarray] = flat,
+             ) -> tuple[list[SpinePlan], list[np.ndarray], list[object]]:
+    state = SpineState.at_rest(model, np.zeros((1, 2)), 0.0)
+    plans, joints, poses = [], [], []
+    for _ in range(steps):
+        state, plan, pose = spine_step(model, state, params, heading, speed * DT, DT,
+                                       ground_guides(model, height_at))
+        plans.append(plan)
+        joints.append(pose.joints[0])
+        poses.append(pose)
+    return plans, joints, poses
+
+
+# ------------------------------------------------------------------------------ model
+
+
+def test_model_finds_key_nodes_from_the_legs() -> None:
+    m = quadruped()
+    assert m.key_joint.tolist() == [0, 2, 6]
+    assert m.leg_key.tolist() == [1, 1, 2, 2]
+    assert m.anchor_key == 2  # the hips: most legs, back-most on a tie
+    assert m.key_rest_height == pytest.approx([0.6, 0.5, 0.5])
+    assert m.node_yaw_limit[1] == pytest.approx(0.5 * 5 * np.radians(25.0))
+
+
+def test_bad_spines_are_refused() -> None:
+    joints = np.array([[0.5, 0, 0], [0.0, 0, 0], [-0.5, 0, 0]])
+    hips = np.array([[0.5, 0.1, 0.0]])
+    with pytest.raises(ValueError, match="head"):
+        SpineModel.from_legs(joints, hips, hips - [0, 0, 0.4])
+    with pytest.raises(ValueError, match="zero length"):
+        SpineModel.build(np.array([[0.5, 0, 0], [0.5, 0, 0], [-0.5, 0, 0]]), [0, 2], [1], hips, hips)
+    with pytest.raises(ValueError, match="head"):
+        SpineModel.build(joints, [0, 2], [0], hips, hips)
+    with pytest.raises(ValueError, match="key_joint"):
+        SpineModel.build(joints, [0, 1], [1], hips, hips)
+
+
+# --------------------------------------------------------------------- steps 1, 2 and 4
+
+
+@pytest.mark.parametrize("arched", [False, True])
+def test_walking_straight_keeps_the_rest_pose_exactly(arched: bool) -> None:
+    m = quadruped(arched=arched)
+    heading = 0.7
+    state = SpineState.at_rest(m, np.array([[1.0, 2.0]]), heading)
+    for i in range(20):
+        state, plan, pose = spine_step(m, state, SpineParams(), heading, 0.05, DT, ground_guides(m, flat))
+        moved = np.array([1.0, 2.0]) + 0.05 * (i + 1) * np.array([np.cos(heading), np.sin(heading)])
+        expected = rest_world(m, moved, heading, lift=0.5)
+        assert np.abs(pose.joints[0] - expected).max() < 1e-9
+        assert np.abs(plan.bend).max() < 1e-12
+
+
+def test_turning_90_degrees_bends_progressively_from_the_head() -> None:
+    m = quadruped()
+    plans, joints, _ = run_turn(m, SpineParams(), heading=np.pi / 2, speed=1.0, steps=90)
+    key_heading = np.array([p.key_heading[0] for p in plans])  # (T, K)
+    # Head, shoulders and hips pass 45 degrees in that order, each clearly after the other.
+    first = [int(np.argmax(key_heading[:, k] > np.pi / 4)) for k in range(3)]
+    assert first[0] < first[1] - 2 < first[2] - 4
+    # Along the chain, every bone turns past 45 degrees no earlier than the bone in front.
+    yaw, _ = bone_yaw_pitch(np.array(joints))  # (T, J - 1); bones point backward
+    heading_of_bone = wrap_angle(yaw - np.pi)
+    passed = [int(np.argmax(heading_of_bone[:, b] > np.pi / 4)) for b in range(yaw.shape[1])]
+    assert passed == sorted(passed)
+    assert passed[-1] > passed[0]
+    # While turning, the chain is bent: head bone ahead of the hip bone by a clear angle.
+    assert (heading_of_bone[:, 0] - heading_of_bone[:, -1]).max() > np.radians(30)
+    # In the end the whole body faces the new heading and is straight again.
+    assert heading_of_bone[-1] == pytest.approx(np.full(yaw.shape[1], np.pi / 2), abs=np.radians(1.0))
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_turning_keeps_every_joint_within_its_limits_and_bones_exact(side: float) -> None:
+    m = quadruped()
+    # A sharp U-turn at speed, to the left and to the right: the bends reach their limits.
+    plans, joints, _ = run_turn(m, SpineParams(turn_rate=np.radians(720)), heading=side * (np.pi - 1e-3),
+                                speed=1.5, steps=60)
+    rest_yaw, _ = bone_yaw_pitch(m.joint_rest)
+    for plan, j in zip(plans, joints, strict=True):
+        assert np.all(np.abs(plan.bend[0]) <= m.node_yaw_limit + 1e-9)
+        lengths = np.linalg.norm(np.diff(j, axis=0), axis=1)
+        assert np.abs(lengths - m.bone_length).max() < 1e-12
+        # Measured on the output: the change of turn at each inner joint, from rest.
+        yaw, _ = bone_yaw_pitch(j)
+        dev = wrap_angle(yaw - rest_yaw)
+        turn = np.abs(wrap_angle(np.diff(dev)))
+        assert np.all(turn <= m.joint_yaw_limit[1:-1] + 1e-9)
+    # The turn really strained the spine (step 1 bends it up to the limit; advancing on
+    # the support then opens it a little before the plan is returned).
+    assert max(np.abs(p.bend[0, 1]) for p in plans) > 0.85 * m.node_yaw_limit[1]
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_following_the_head_never_bends_a_node_past_its_limit(side: float) -> None:
+    """Advancing on the support carries a bend backward along the body, like a train on its
+    track; a node that may bend less than the one in front is brought back to its limit."""
+    h = hexapod_like()
+    m = SpineModel.build(h.joint_rest, h.key_joint, h.leg_key, h.hip_rest, h.foot_rest,
+                         node_yaw_limit=np.radians([0.0, 40.0, 8.0, 0.0]))
+    plans, joints, _ = run_turn(m, SpineParams(relax_time=1e9), heading=side * np.pi / 2, speed=1.0, steps=60)
+    bends = np.array([p.bend[0] for p in plans])
+    assert np.all(np.abs(bends) <= m.node_yaw_limit + 1e-9)
+    assert np.abs(bends[:, 2]).max() == pytest.approx(np.radians(8.0))  # the limit did bind
+    assert np.all(side * bends >= -1e-9)  # every node bends toward the turn
+    for j in joints:
+        assert np.abs(np.linalg.norm(np.diff(j, axis=0), axis=1) - m.bone_length).max() < 1e-12
+
+
+def test_tight_joint_limits_bind_on_the_final_chain() -> None:
+    m = quadruped(joint_yaw_limit=np.radians(4.0))
+    m = SpineModel.build(m.joint_rest, m.key_joint, m.leg_key, m.hip_rest, m.foot_rest,
+                         joint_yaw_limit=np.radians(4.0), node_yaw_limit=np.radians(60.0))
+    _, joints, _ = run_turn(m, SpineParams(), heading=np.pi / 2, speed=1.0, steps=30)
+    rest_yaw, _ = bone_yaw_pitch(m.joint_rest)
+    worst = 0.0
+    for j in joints:
+        yaw, _ = bone_yaw_pitch(j)
+        turn = np.abs(wrap_angle(np.diff(wrap_angle(yaw - rest_yaw))))
+        assert np.all(turn <= np.radians(4.0) + 1e-9)
+        worst = max(worst, float(turn.max()))
+    assert worst == pytest.approx(np.radians(4.0))  # the limit was reached: it did bind
+
+
+def test_without_the_spine_the_body_turns_rigidly() -> None:
+    m = quadruped()
+    params = SpineParams(flexible=False)
+    plans, joints, _ = run_turn(m, params, heading=np.pi / 2, speed=1.0, steps=60)
+    rest_gaps = np.linalg.norm(m.joint_rest[:, None] - m.joint_rest[None], axis=2)
+    for plan, j in zip(plans, joints, strict=True):
+        assert np.ptp(plan.key_heading[0]) < 1e-12  # every node faces the same way
+        assert np.abs(plan.bend).max() < 1e-12
+        gaps = np.linalg.norm(j[:, None] - j[None], axis=2)
+        assert np.abs(gaps - rest_gaps).max() < 1e-9
+    headings = np.array([p.key_heading[0, 0] for p in plans])
+    # The body turns at the turn rate until it faces the new heading.
+    assert np.diff(headings)[:10] == pytest.approx(np.full(10, params.turn_rate * DT))
+    assert headings[-1] == pytest.approx(np.pi / 2)
+
+
+@pytest.mark.parametrize("side", [1.0, -1.0])
+def test_turning_in_place_saturates_from_the_head_then_rotates_about_the_node_behind_it(side: float) -> None:
+    m = hexapod_like()
+    assert m.n_keys == 4
+    params = SpineParams(turn_rate=np.radians(90), relax_time=1e9)  # step 1 alone
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    lim = m.node_yaw_limit
+    bends, node1 = [], []
+    for _ in range(80):
+        plan = plan_spine(m, state, params, side * (np.pi - 1e-6), 0.0, DT)
+        state = SpineState(plan.key_xy)
+        bends.append(np.abs(plan.bend[0]))
+        node1.append(plan.key_xy[0, 1].copy())
+    bends_arr = np.array(bends)
+    at_limit = bends_arr[:, 1:3] >= lim[1:3] - 1e-9  # (T, 2)
+    full1 = int(np.argmax(at_limit[:, 0]))
+    full_all = int(np.argmax(at_limit.all(axis=1)))
+    assert 0 < full1 < full_all
+    # The node behind the head bends first; the next one only once the first is at its limit.
+    assert np.all(bends_arr[:full1, 2] < 1e-12)
+    assert bends_arr[full_all, 2] > np.radians(5)
+    assert np.all(bends_arr <= lim + 1e-9)
+    # Then every node is constrained: the whole spine rotates about the node behind the head.
+    pivot = np.array(node1[full_all:])
+    assert np.abs(pivot - pivot[0]).max() < 1e-8  # (limits are met to 1e-9 rad)
+    seg = plan.key_xy[0, 0] - plan.key_xy[0, 1]
+    assert abs(wrap_angle(np.arctan2(seg[1], seg[0]) - side * np.pi)) < 1e-5
+
+
+def test_back_node_relaxes_over_time() -> None:
+    m = quadruped()
+    params = SpineParams(turn_rate=np.radians(240), relax_time=0.5)
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    for _ in range(8):  # bend the spine by turning in place
+        state = SpineState(plan_spine(m, state, params, np.pi / 2, 0.0, DT).key_xy)
+    heading = np.arctan2(*(state.key_xy[0, 0] - state.key_xy[0, 1])[::-1])
+    bend0 = abs(plan_spine(m, state, params, heading, 0.0, 0.0).bend[0, 1])
+    assert bend0 > np.radians(20)
+    # Standing still, facing where the head faces: the back straightens as exp(-t / relax).
+    for _ in range(15):
+        plan = plan_spine(m, state, params, heading, 0.0, DT)
+        state = SpineState(plan.key_xy)
+    assert abs(plan.bend[0, 1]) == pytest.approx(bend0 * np.exp(-15 * DT / 0.5), rel=1e-6)
+
+
+def test_nodes_follow_the_path_of_the_head() -> None:
+    """On the support of the previous spine, the girdles walk where the head walked."""
+    m = quadruped()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    params = SpineParams(turn_rate=np.radians(45))
+    head_path = [state.key_xy[0, 0].copy()]
+    for _ in range(120):
+        plan = plan_spine(m, state, params, np.pi / 2, 0.02, DT)
+        state = SpineState(plan.key_xy)
+        head_path.append(plan.key_xy[0, 0].copy())
+    path = np.array(head_path)
+    # Distance from the shoulders to the head's polyline stays small (cm), though the
+    # shoulders never took a step of their own.
+    seg_a, seg_b = path[:-1], path[1:]
+    d = seg_b - seg_a
+    rel = plan.key_xy[0, 1] - seg_a
+    t = np.clip(np.einsum("ij,ij->i", rel, d) / np.maximum(np.einsum("ij,ij->i", d, d), 1e-18), 0, 1)
+    gap = np.linalg.norm(seg_a + t[:, None] * d - plan.key_xy[0, 1], axis=1).min()
+    assert gap < 0.01
+
+
+def test_characters_are_independent_in_a_batch() -> None:
+    m = quadruped()
+    params = SpineParams()
+    origins = np.array([[0.0, 0.0], [3.0, 1.0], [-2.0, 4.0]])
+    headings = np.array([0.0, 1.0, -2.0])
+    targets = np.array([1.5, -0.5, 2.9])
+    speeds = np.array([0.5, 1.0, 0.0])
+    batch = SpineState.at_rest(m, origins, headings)
+    singles = [SpineState.at_rest(m, origins[i:i + 1], headings[i]) for i in range(3)]
+    for _ in range(25):
+        batch, _, pose = spine_step(m, batch, params, targets, speeds * DT, DT, ground_guides(m, flat))
+        for i in range(3):
+            singles[i], _, single_pose = spine_step(m, singles[i], params, targets[i], speeds[i] * DT, DT,
+                                                    ground_guides(m, flat))
+            assert np.allclose(pose.joints[i], single_pose.joints[0], atol=1e-12)
+
+
+# ----------------------------------------------------------------------------- step 3
+
+
+def stairs(rise: float = 0.1, run: float = 0.3, start: float = 1.0) -> Callable[[np.ndarray], np.ndarray]:
+    def height(xy: np.ndarray) -> np.ndarray:
+        return rise * np.clip(np.floor((xy[..., 0] - start) / run) + 1.0, 0.0, None)
+    return height
+
+
+def test_spine_stays_above_stairs_and_pitches_with_them() -> None:
+    m = quadruped()
+    height = stairs()
+    params = SpineParams()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    pitches = []
+    whole_body_pitch = []
+    for _ in range(150):  # 3 m at 0.6 m/s: over the first step and well up the stairs
+        state, _, pose = spine_step(m, state, params, 0.0, 0.02, DT, ground_guides(m, height))
+        j = pose.joints[0]
+        clearance = j[:, 2] - height(j[:, :2])
+        assert clearance.min() > 0.25  # the body never touches the steps
+        hips_x = j[-1, 0]
+        if hips_x > 1.0 + m.slice_margin:  # the whole body is over the stairs
+            pitches.append(pose.key_pitch[0])
+            d = j[0] - j[-1]
+            whole_body_pitch.append(np.arctan2(d[2] - 0.1, np.hypot(d[0], d[1])))
+    stair_angle = np.arctan2(0.1, 0.3)
+    assert len(pitches) > 30
+    assert np.mean(pitches) == pytest.approx(stair_angle, abs=np.radians(4))
+    assert np.mean(whole_body_pitch) == pytest.approx(stair_angle, abs=np.radians(3))
+
+
+def test_ramp_gives_exact_pitch_and_constant_height_above_ground() -> None:
+    m = quadruped()
+    slope = np.radians(15)
+
+    def ramp(xy: np.ndarray) -> np.ndarray:
+        return np.tan(slope) * xy[..., 0]
+
+    state = SpineState.at_rest(m, np.array([[2.0, 0.0]]), 0.0)
+    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    node_z, env = terrain_guides(m, plan, ramp)
+    assert env[0] == pytest.approx(np.full(3, slope), abs=1e-9)
+    assert node_z[0] == pytest.approx(ramp(plan.key_xy[0]) + m.key_rest_height, abs=1e-9)
+    pose = finish_spine(m, plan, SpineParams(), node_z, env)
+    _, pitch = bone_yaw_pitch(pose.joints[0])
+    _, rest_pitch = bone_yaw_pitch(m.joint_rest)
+    # Bones point backward: a nose-up slope tilts each of them down by the slope. (Near the
+    # raised head a little less: node heights are vertical offsets above the ground.)
+    assert pitch[2:] - rest_pitch[2:] == pytest.approx(np.full(4, -slope), abs=np.radians(0.5))
+    assert pitch[:2] - rest_pitch[:2] == pytest.approx(np.full(2, -slope), abs=np.radians(3.0))
+    # Facing downhill, the pitch is negative.
+    back = SpineState.at_rest(m, np.array([[2.0, 0.0]]), np.pi)
+    _, env_down = terrain_guides(m, plan_spine(m, back, SpineParams(), np.pi, 0.0, DT), ramp)
+    assert env_down[0] == pytest.approx(np.full(3, -slope), abs=1e-9)
+
+
+def test_feet_induce_pitch_averaged_with_the_environment() -> None:
+    m = quadruped()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    node_z = m.key_rest_height[None, :].copy()
+    env = np.array([[0.05, 0.05, 0.05]])
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None]  # rest feet in the world
+    params = SpineParams(foot_pitch_weight=0.5)
+    # Feet where they stand at rest on this ground (flat here): they induce the ground's
+    # own pitch, so the node keeps the environment pitch.
+    assert node_pitch(m, plan, node_z, env, feet, params) == pytest.approx(env)
+    # Both front feet 0.2 m ahead: each induces atan(0.2 / 0.5) more; averaged half/half.
+    ahead = feet.copy()
+    ahead[0, :2, 0] += 0.2
+    pitch = node_pitch(m, plan, node_z, env, ahead, params)
+    assert pitch[0, 1] == pytest.approx(0.05 + 0.5 * np.arctan2(0.2, 0.5))
+    assert pitch[0, 0] == pytest.approx(0.05)  # the head has no feet
+    assert pitch[0, 2] == pytest.approx(0.05)  # hind feet at rest
+    # A foot lower than the ground it should stand on lifts the nose less.
+    low = feet.copy()
+    low[0, 2:, 2] -= 0.1
+    assert node_pitch(m, plan, node_z, env, low, params)[0, 2] == pytest.approx(0.05)  # right below
+
+
+def test_splayed_feet_standing_on_a_slope_induce_the_slope() -> None:
+    m = hexapod_like()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    slope = np.radians(12)
+    node_ground = np.tan(slope) * plan.key_xy[0, :, 0]
+    node_z = (node_ground + m.key_rest_height)[None]
+    feet = m.foot_rest.copy()
+    feet[:, 2] = np.tan(slope) * feet[:, 0]  # the feet stand on the slope under the body
+    env = np.full((1, 4), slope)
+    pitch = node_pitch(m, plan, node_z, env, feet[None], SpineParams(foot_pitch_weight=1.0))
+    assert pitch[0] == pytest.approx(env[0], abs=1e-9)
+
+
+# ------------------------------------------------------------------------- visual yaw
+
+
+def test_visual_yaw_turns_the_girdle_toward_the_feet_offsets() -> None:
+    m = lizard()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.05]))[None].copy()
+    params = SpineParams(visual_yaw=True)
+    assert visual_yaw(m, plan, feet, params) == pytest.approx(np.zeros((1, 3)))
+    # Left front foot forward, right front foot back: both feet swing clockwise about the
+    # shoulders, so the shoulders turn right (negative yaw) by the feet's mean angle.
+    feet[0, 0, 0] += 0.04
+    feet[0, 1, 0] -= 0.04
+    yaw = visual_yaw(m, plan, feet, params)
+    one_foot = np.arctan2(0.04, 0.11)
+    assert yaw[0, 1] == pytest.approx(-one_foot)
+    assert yaw[0, 0] == 0.0
+    assert yaw[0, 2] == pytest.approx(0.0)
+
+    node_z = m.key_rest_height[None, :] + 0.0
+    on = finish_spine(m, plan, params, node_z, np.zeros((1, 3)), feet)
+    off = finish_spine(m, plan, SpineParams(visual_yaw=False), node_z, np.zeros((1, 3)), feet)
+    frames_on = on.key_frames(m)[0]
+    frames_off = off.key_frames(m)[0]
+    shoulder_yaw_on = np.arctan2(frames_on[1, 1, 0], frames_on[1, 0, 0])
+    shoulder_yaw_off = np.arctan2(frames_off[1, 1, 0], frames_off[1, 0, 0])
+    assert shoulder_yaw_off == pytest.approx(0.0, abs=1e-12)
+    assert shoulder_yaw_on < -0.5 * one_foot
+    # The effect is visual: the spine still has its exact bone lengths and the hips stay put.
+    lengths = np.linalg.norm(np.diff(on.joints[0], axis=0), axis=1)
+    assert np.abs(lengths - m.bone_length).max() < 1e-12
+    assert on.key_positions(m)[0, 2] == pytest.approx(off.key_positions(m)[0, 2])
+
+
+def test_visual_yaw_is_clamped() -> None:
+    m = lizard()
+    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.05]))[None].copy()
+    feet[0, 0, 0] += 0.5
+    feet[0, 1, 0] -= 0.5
+    yaw = visual_yaw(m, plan, feet, SpineParams(visual_yaw=True, max_visual_yaw=np.radians(20)))
+    assert yaw[0, 1] == pytest.approx(-np.radians(20))
+
+
+# ------------------------------------------------------------------- reach and hips
+
+
+def test_hips_ride_with_their_girdle() -> None:
+    m = quadruped()
+    pose = build_spine(m, np.array([[[0.6, 0.0, 0.6], [0.3, 0.0, 0.5], [-0.3, 0.0, 0.5]]]),
+                       np.zeros((1, 3)), np.zeros((1, 3)))
+    assert hip_positions(m, pose)[0] == pytest.approx(m.hip_rest + np.array([0.0, 0.0, 0.5]))
+    # Turned by 90 degrees about z: the hips turn with it.
+    turned = build_spine(m, np.array([[[0.0, 0.6, 0.6], [0.0, 0.3, 0.5], [0.0, -0.3, 0.5]]]),
+                         np.full((1, 3), np.pi / 2), np.zeros((1, 3)))
+    hips = hip_positions(m, turned)[0]
+    expected = np.stack([-m.hip_rest[:, 1], m.hip_rest[:, 0], m.hip_rest[:, 2] + 0.5], axis=1)
+    assert hips == pytest.approx(expected)
+
+
+def test_step_four_is_repeated_until_the_legs_reach() -> None:
+    m = quadruped()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    pose = finish_spine(m, plan, SpineParams(), m.key_rest_height[None, :], np.zeros((1, 3)))
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
+    feet[0, :2, 2] -= 0.15  # the front feet stand in a hole: 0.65 m below the shoulders
+    reach = np.full(4, 0.55)
+    before = np.linalg.norm(feet[0] - hip_positions(m, pose)[0], axis=1)
+    assert before[:2].min() > 0.55
+    fixed = repeat_for_reach(m, pose, feet, reach, iterations=6)
+    after = np.linalg.norm(feet[0] - hip_positions(m, fixed)[0], axis=1)
+    assert after.max() <= 0.55 + 1e-3
+    assert fixed.guide_xyz[0, 1, 2] < pose.guide_xyz[0, 1, 2] - 0.05  # the shoulders dropped
+    lengths = np.linalg.norm(np.diff(fixed.joints[0], axis=0), axis=1)
+    assert np.abs(lengths - m.bone_length).max() < 1e-12
+
+
+def test_plan_rejects_nothing_and_never_moves_backward() -> None:
+    m = quadruped()
+    state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
+    plan = plan_spine(m, state, SpineParams(), 0.0, -1.0, DT)  # negative distance is clamped
+    assert plan.key_xy == pytest.approx(state.key_xy)
+    assert plan.distance[0] == 0.0
