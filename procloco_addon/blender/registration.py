@@ -13,11 +13,28 @@ from typing import Any
 
 import bpy
 
+from .gait import handler as gait_handler
+from .gait import ops as gait_ops
+from .gait import panel as gait_panel
+from .gait import property_group as gait_props
 from .locomotion import property_group as locomotion_props
+from .ui import main as ui_main
 
 CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
     locomotion_props.PROCLOCO_PG_rig_settings,
+    gait_props.PROCLOCO_PG_gait_view,
+    # The sidebar tab's parent panel before every feature's sub-panels.
+    ui_main.PROCLOCO_PT_main,
+    gait_ops.PROCLOCO_MT_gait_presets,
+    gait_ops.PROCLOCO_OT_apply_gait_preset,
+    gait_ops.PROCLOCO_OT_add_gait_preset,
+    gait_ops.PROCLOCO_OT_remove_gait_preset,
+    gait_ops.PROCLOCO_OT_toggle_gait_overlay,
+    gait_ops.PROCLOCO_OT_edit_gait_overlay,
+    gait_panel.PROCLOCO_PT_gait,
+    ui_main.PROCLOCO_PT_effects,
+    ui_main.PROCLOCO_PT_generate,
 )
 
 # (owner ID type, attribute name, property) for plain properties (not groups)
@@ -28,6 +45,7 @@ PROPERTIES: tuple[tuple[type, str, Any], ...] = (
 # (owner ID type, attribute name, property group class)
 POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco", locomotion_props.PROCLOCO_PG_rig_settings),
+    (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 
 
@@ -38,12 +56,14 @@ def register() -> None:
         setattr(owner, attr, bpy.props.PointerProperty(type=group))
     for owner, attr, prop in PROPERTIES:
         setattr(owner, attr, prop)
+    gait_handler.register()
 
 
 def unregister() -> None:
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):
             delattr(owner, attr)
+    gait_handler.unregister()
     for owner, attr, _group in reversed(POINTERS):
         if hasattr(owner, attr):
             delattr(owner, attr)

@@ -54,15 +54,17 @@ def measure_sector(image: np.ndarray, layout: geometry.CircleLayout, leg: int) -
     stance = seen == "ring"
     assert swing.any(), f"leg {leg}: ring shows {set(seen)}"
     assert stance.any(), f"leg {leg}: ring shows {set(seen)}"
-    # The needle and the handles cover a few samples: they take the state before them.
-    state = np.where(swing, 1, np.where(stance, 0, -1))
-    for i in np.flatnonzero(state < 0):
-        state[i] = state[i - 1]
-    rises = np.flatnonzero((state == 1) & (np.roll(state, 1) == 0))
-    falls = np.flatnonzero((state == 0) & (np.roll(state, 1) == 1))
+    # The needle and the handles hide a few samples: an edge found across such a gap is put
+    # in the gap's middle (where the needle stands when it sits on the edge).
+    known = np.flatnonzero(swing | stance)
+    state = swing[known]
+    nxt = np.roll(known, -1)
+    gap_mid = np.mod(phases[known] + 0.5 * np.mod(phases[nxt] - phases[known], 1.0), 1.0)
+    rises = gap_mid[~state & np.roll(state, -1)]
+    falls = gap_mid[state & ~np.roll(state, -1)]
     assert len(rises) == 1, f"leg {leg}: {len(rises)} swing runs"
     assert len(falls) == 1, f"leg {leg}: {len(falls)} swing runs"
-    return float(phases[rises[0]]), float(phases[falls[0]])
+    return float(rises[0]), float(falls[0])
 
 
 def measure_needle(image: np.ndarray, layout: geometry.CircleLayout, leg: int) -> float:
@@ -194,7 +196,196 @@ def test_hit_test_finds_sector_handles() -> None:
     c0, c1 = layout.centers
     assert geometry.hit_test(layout, start, duration, (c0[0], c0[1] + mid)) == (0, "START")  # top
     assert geometry.hit_test(layout, start, duration, (c0[0] + mid, c0[1])) == (0, "END")  # 3 o'clock
-    assert geometry.hit_test(layout, start, duration, (c1[0], c1[1] - mid)) == (1, "RING")  # 6 o'clock
+    assert geometry.hit_test(layout, start, duration, (c1[0], c1[1] - mid)) == (1, "MOVE")  # 6 o'clock
+    assert geometry.hit_test(layout, start, duration, (c0[0], c0[1] - mid)) == (0, "RING")  # stance part
     assert geometry.hit_test(layout, start, duration, (c1[0] + mid, c1[1])) == (1, "START")
     assert geometry.hit_test(layout, start, duration, tuple(c0)) is None  # the label, not the ring
     assert geometry.point_phase(layout, 1, (c1[0] - mid, c1[1])) == pytest.approx(0.75)
+
+
+@pytest.mark.parametrize(
+    ("handle", "start", "duration", "grab", "to", "previous", "expected"),
+    [
+        ("END", 0.1, 0.3, 0.4, 0.55, None, (0.1, 0.45)),  # end follows, start stays
+        ("START", 0.1, 0.3, 0.1, 0.0, None, (0.0, 0.4)),  # start follows, end stays at 0.4
+        ("START", 0.1, 0.3, 0.1, 0.9, None, (0.9, 0.5)),  # across phase 0
+        ("MOVE", 0.8, 0.3, 0.9, 0.05, None, (0.95, 0.3)),  # whole sector turns, wrapping
+        ("END", 0.1, 0.3, 0.4, 0.09, 0.97, (0.1, 0.98)),  # pushed past the start: sticks to full
+        ("END", 0.1, 0.3, 0.4, 0.11, 0.03, (0.1, 0.02)),  # pulled back past it: sticks to minimum
+    ],
+)
+def test_dragging_a_sector_edge(handle: str, start: float, duration: float, grab: float, to: float,
+                                previous: float | None, expected: tuple[float, float]) -> None:
+    got = geometry.drag_sector(handle, start, duration, grab, to, previous_duration=previous)
+    assert got == pytest.approx(expected)
+    assert geometry.MIN_DURATION <= got[1] <= 1.0 - geometry.MIN_DURATION
+
+
+# -- the panel's picture follows the rig ----------------------------------------------------
+
+
+def test_panel_picture_follows_the_rig(gpu_ready: None, empty_scene: Any) -> None:
+    import bpy
+
+    from procloco_addon.blender.gait import handler
+    from tests.blender.test_gait_presets import SHIPPED, make_rig
+
+    obj = make_rig(empty_scene, n_pairs=3)
+    bpy.ops.procloco.apply_gait_preset(filepath=str(SHIPPED / "hexapod_tripod.json"))
+    settings = obj.procloco
+    handler.request_refresh()
+    assert handler.flush()
+    labels = tuple(leg.label for leg in settings.legs)
+    layout = geometry.layout_circles(labels, handler.PREVIEW_SIZE, handler.PREVIEW_SIZE)
+
+    def check(pixels: np.ndarray, phase: float) -> None:
+        for i, leg in enumerate(settings.legs):
+            start, end = measure_sector(pixels, layout, i)
+            assert cyclic_error(start, leg.swing_start) <= TOLERANCE, (i, start)
+            assert cyclic_error(end, leg.swing_start + leg.swing_duration) <= TOLERANCE, (i, end)
+            assert cyclic_error(measure_needle(pixels, layout, i), phase) <= TOLERANCE, i
+
+    fps = empty_scene.render.fps / empty_scene.render.fps_base
+    start_frame = settings.frame_range(empty_scene)[0]
+
+    def phase_now() -> float:
+        return ((empty_scene.frame_current - start_frame) / fps / settings.cycle_time) % 1.0
+
+    check(handler.preview_pixels(), phase_now())
+    assert not handler.flush()  # nothing changed: no redraw
+
+    # A value edited (the UI tags the object; the depsgraph handler asks for a redraw).
+    settings.legs[2].swing_start = 0.2
+    obj.update_tag()
+    bpy.context.view_layer.update()
+    assert handler.flush()
+    check(handler.preview_pixels(), phase_now())
+
+    # A frame change moves the needle (frame_change_post handler).
+    empty_scene.frame_set(start_frame + 7)
+    assert handler.flush()
+    check(handler.preview_pixels(), (7 / fps / settings.cycle_time) % 1.0)
+
+
+def test_unregister_removes_handlers_and_picture(gpu_ready: None, empty_scene: Any) -> None:
+    import bpy
+
+    import procloco_addon
+    from procloco_addon.blender.gait import handler
+
+    ours = {handler._on_depsgraph_update, handler._on_frame_change, handler._on_load_post}
+    assert ours <= set(bpy.app.handlers.depsgraph_update_post) | set(bpy.app.handlers.frame_change_post) \
+        | set(bpy.app.handlers.load_post)
+    procloco_addon.unregister()
+    try:
+        left = [h for lst in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post,
+                              bpy.app.handlers.load_post) for h in lst if h in ours]
+        assert left == []
+        assert handler.preview() is None
+        assert not hasattr(bpy.types.WindowManager, "procloco_gait_view")
+    finally:
+        procloco_addon.register()
+    assert handler.preview() is not None
+
+
+# -- the viewport overlay ---------------------------------------------------------------------
+
+
+class _Region:
+    """The parts of a 3D view's main region the overlay uses."""
+
+    def __init__(self, width: int, height: int) -> None:
+        self.width, self.height, self.x, self.y, self.type = width, height, 0, 0, "WINDOW"
+
+
+@pytest.fixture
+def overlay_rig(gpu_ready: None, empty_scene: Any) -> Any:
+    import bpy
+
+    from tests.blender.test_gait_presets import SHIPPED, make_rig
+
+    obj = make_rig(empty_scene)
+    bpy.ops.procloco.apply_gait_preset(filepath=str(SHIPPED / "quadruped_rotary_gallop.json"))
+    view = bpy.context.window_manager.procloco_gait_view
+    view.show_overlay = True
+    yield obj
+    view.show_overlay = False
+    view.overlay_corner = "BOTTOM_LEFT"
+
+
+@pytest.mark.parametrize("corner", ["BOTTOM_LEFT", "TOP_RIGHT"])
+def test_overlay_draws_the_gait_in_the_chosen_corner(overlay_rig: Any, corner: str) -> None:
+    import bpy
+
+    from procloco_addon.blender.gait import handler
+    from tests.blender.ui_recorder import ContextStandIn
+
+    view = bpy.context.window_manager.procloco_gait_view
+    view.overlay_corner = corner
+    region = _Region(640, 480)
+    context = ContextStandIn(area=None, region=region)
+    drawn: list[bool] = []
+    image = draw.render_offscreen(640, 480, lambda: drawn.append(handler.draw_overlay(context, region)),
+                                  clear=(0.5, 0.5, 0.5, 1.0))
+    assert drawn == [True]
+    labels = tuple(leg.label for leg in overlay_rig.procloco.legs)
+    layout, (x, y) = handler.overlay_layout(context, region, labels)
+    width, height = geometry.canvas_size(labels, view.overlay_cell)
+    assert (x < 320) == corner.endswith("LEFT")
+    assert (y < 240) == corner.startswith("BOTTOM")
+    assert 0 <= x <= 640 - width
+    assert 0 <= y <= 480 - height
+    centers = layout.centers + np.array([x, y])
+    shifted = geometry.CircleLayout(640, 480, centers, layout.radius, layout.label_pos, 10.0)
+    for i, leg in enumerate(overlay_rig.procloco.legs):
+        start, end = measure_sector(image, shifted, i)
+        assert cyclic_error(start, leg.swing_start) <= TOLERANCE
+        assert cyclic_error(end, leg.swing_start + leg.swing_duration) <= TOLERANCE
+    # Outside the overlay's rectangle the viewport is untouched.
+    outside = np.ones(image.shape[:2], dtype=bool)
+    outside[int(y):int(y) + height, int(x):int(x) + width] = False
+    assert np.allclose(image[outside][:, :3], 0.5, atol=0.01)
+
+    view.show_overlay = False
+    assert handler.draw_overlay(context, region) is False
+
+
+def test_dragging_in_the_overlay_edits_the_rig(overlay_rig: Any) -> None:
+    from procloco_addon.blender.gait import handler, ops
+    from tests.blender.ui_recorder import ContextStandIn
+
+    legs = overlay_rig.procloco.legs
+    region = _Region(640, 480)
+    labels = tuple(leg.label for leg in legs)
+    layout, _offset = handler.overlay_layout(ContextStandIn(area=None), region, labels)
+    mid = 0.5 * (geometry.RING_INNER + 1.0) * layout.radius
+
+    def at(leg: int, phase: float) -> tuple[float, float]:
+        angle = np.pi / 2 - 2 * np.pi * phase
+        return (layout.centers[leg, 0] + mid * np.cos(angle), layout.centers[leg, 1] + mid * np.sin(angle))
+
+    editor = ops.OverlayEditor(overlay_rig)
+    start, duration = legs[1].swing_start, legs[1].swing_duration
+    # Grab R1's end and drag it 0.1 of a cycle further: the start stays.
+    assert editor.press(layout, at(1, start + duration))
+    assert editor.move(layout, at(1, start + duration + 0.1))
+    assert editor.release()
+    assert legs[1].swing_start == pytest.approx(start, abs=1e-6)
+    assert legs[1].swing_duration == pytest.approx(duration + 0.1, abs=0.005)
+
+    # Grab the middle of L2's sector and turn it; Ctrl-like snapping to 1/20.
+    start2, duration2 = legs[2].swing_start, legs[2].swing_duration
+    assert editor.press(layout, at(2, start2 + duration2 / 2))
+    editor.move(layout, at(2, start2 + duration2 / 2 + 0.23), snap=0.05)
+    assert legs[2].swing_duration == pytest.approx(duration2, abs=1e-6)
+    assert (legs[2].swing_start - start2) % 1.0 == pytest.approx(0.25, abs=0.051)
+    # Esc while dragging puts the values back.
+    assert editor.cancel()
+    assert legs[2].swing_start == pytest.approx(start2, abs=1e-6)
+
+    # A press on the stance part of a ring, or off the rings, grabs nothing.
+    before = [(leg.swing_start, leg.swing_duration) for leg in legs]
+    assert not editor.press(layout, at(0, legs[0].swing_start + legs[0].swing_duration + 0.15))
+    assert not editor.press(layout, (1.0, 1.0))
+    assert not editor.move(layout, at(0, 0.5))
+    assert [(leg.swing_start, leg.swing_duration) for leg in legs] == before

@@ -10,6 +10,7 @@ The geometry itself (angles, rings, needle, label places) lives in ``geometry.py
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -30,6 +31,7 @@ __all__ = [
     "ensure_gpu_context",
     "gpu_available",
     "render_gait_image",
+    "render_offscreen",
 ]
 
 Color = tuple[float, float, float, float]
@@ -194,6 +196,30 @@ def _pixel_projection(width: int, height: int) -> Any:
     ))
 
 
+def render_offscreen(width: int, height: int, draw_fn: Callable[[], None],
+                     clear: Color = DEFAULT_PALETTE.background) -> np.ndarray:
+    """Run ``draw_fn`` in a ``width × height`` off-screen buffer with a pixel projection
+    and return the result, ``(height, width, 4)`` float32 RGBA, rows bottom to top."""
+    offscreen = gpu.types.GPUOffScreen(width, height)
+    flat = gpu.types.Buffer("FLOAT", width * height * 4)
+    try:
+        with offscreen.bind():
+            framebuffer = gpu.state.active_framebuffer_get()
+            framebuffer.clear(color=clear, depth=1.0)
+            gpu.state.depth_test_set("NONE")  # 2D drawing; Blender 4.2 keeps a depth test on
+            gpu.state.blend_set("ALPHA")
+            with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+                gpu.matrix.load_matrix(Matrix.Identity(4))
+                gpu.matrix.load_projection_matrix(_pixel_projection(width, height))
+                draw_fn()
+            gpu.state.blend_set("NONE")
+            # A 1-D buffer: the (h, w, 4) buffer's memoryview reports wrong strides.
+            framebuffer.read_color(0, 0, width, height, 4, 0, "FLOAT", data=flat)
+    finally:
+        offscreen.free()
+    return np.frombuffer(flat, dtype=np.float32).reshape(height, width, 4).copy()
+
+
 def render_gait_image(swing_start: np.ndarray, swing_duration: np.ndarray,
                       labels: tuple[str, ...] | list[str], phase: float | None, *,
                       width: int = 256, height: int = 256, palette: Palette = DEFAULT_PALETTE,
@@ -206,22 +232,8 @@ def render_gait_image(swing_start: np.ndarray, swing_duration: np.ndarray,
     image order). Needs a GPU context (see :func:`ensure_gpu_context`).
     """
     layout = geometry.layout_circles(labels, width, height)
-    offscreen = gpu.types.GPUOffScreen(width, height)
-    flat = gpu.types.Buffer("FLOAT", width * height * 4)
-    try:
-        with offscreen.bind():
-            framebuffer = gpu.state.active_framebuffer_get()
-            framebuffer.clear(color=palette.background, depth=1.0)
-            gpu.state.depth_test_set("NONE")
-            gpu.state.blend_set("ALPHA")
-            with gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
-                gpu.matrix.load_matrix(Matrix.Identity(4))
-                gpu.matrix.load_projection_matrix(_pixel_projection(width, height))
-                draw_gait(layout, swing_start, swing_duration, labels, phase, palette,
-                          show_handles=show_handles)
-            gpu.state.blend_set("NONE")
-            # A 1-D buffer: the (h, w, 4) buffer's memoryview reports wrong strides.
-            framebuffer.read_color(0, 0, width, height, 4, 0, "FLOAT", data=flat)
-    finally:
-        offscreen.free()
-    return np.frombuffer(flat, dtype=np.float32).reshape(height, width, 4).copy()
+
+    def draw_fn() -> None:
+        draw_gait(layout, swing_start, swing_duration, labels, phase, palette, show_handles=show_handles)
+
+    return render_offscreen(width, height, draw_fn, palette.background)

@@ -24,12 +24,15 @@ __all__ = [
     "CircleLayout",
     "angle_to_phase",
     "annulus_sector_triangles",
+    "canvas_size",
+    "drag_sector",
     "hit_test",
     "layout_circles",
     "leg_sides",
     "needle_quad",
     "phase_to_angle",
     "point_phase",
+    "snap_phase",
     "swing_active",
     "wrap_phase",
 ]
@@ -134,6 +137,26 @@ def _rows_by_side(sides: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     return rows, cols, row + 1
 
 
+def _grid(labels: tuple[str, ...] | list[str]) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """Per leg (row, column position) and the grid's (n_rows, n_cols)."""
+    n = len(labels)
+    sides = leg_sides(labels)
+    if np.any(sides != 0) and n > 1:
+        rows, half_cols, n_rows = _rows_by_side(sides)
+        # half-column 0 → column 0, 2 → column 1, 1 (midline) → between them
+        return rows, half_cols / 2.0, n_rows, 2
+    n_cols = max(1, math.ceil(math.sqrt(n)))
+    n_rows = max(1, math.ceil(n / n_cols))
+    idx = np.arange(n)
+    return idx // n_cols, (idx % n_cols).astype(np.float64), n_rows, n_cols
+
+
+def canvas_size(labels: tuple[str, ...] | list[str], cell: int) -> tuple[int, int]:
+    """(width, height) in pixels giving each circle a ``cell × cell`` square."""
+    _rows, _cols, n_rows, n_cols = _grid(labels)
+    return n_cols * cell, n_rows * cell
+
+
 def layout_circles(labels: tuple[str, ...] | list[str], width: int, height: int,
                    *, margin: float = 0.04) -> CircleLayout:
     """Place one circle per leg in the canvas.
@@ -146,18 +169,7 @@ def layout_circles(labels: tuple[str, ...] | list[str], width: int, height: int,
     if n == 0:
         empty = np.zeros((0, 2))
         return CircleLayout(width, height, empty, 0.0, empty, 0.0)
-    sides = leg_sides(labels)
-    paired = bool(np.all(sides != 0) or (np.any(sides != 0) and n > 1))
-    if paired:
-        rows, half_cols, n_rows = _rows_by_side(sides)
-        n_cols = 2
-        # half-column 0 → column 0, 2 → column 1, 1 (midline) → between them
-        col_pos = half_cols / 2.0 * (n_cols - 1)
-    else:
-        n_cols = math.ceil(math.sqrt(n))
-        n_rows = math.ceil(n / n_cols)
-        idx = np.arange(n)
-        rows, col_pos = idx // n_cols, (idx % n_cols).astype(np.float64)
+    rows, col_pos, n_rows, n_cols = _grid(labels)
     pad = margin * min(width, height)
     cell_w = (width - 2 * pad) / n_cols
     cell_h = (height - 2 * pad) / n_rows
@@ -207,9 +219,9 @@ def hit_test(layout: CircleLayout, swing_start: np.ndarray, swing_duration: np.n
     """What a pointer at ``point`` (pixels, canvas frame) would grab.
 
     Returns ``(leg, "START")`` or ``(leg, "END")`` when the point is near the start or end
-    edge of a leg's swing sector on its ring, ``(leg, "RING")`` elsewhere on the ring, or
-    None. Start and end handles win over the ring; the nearer handle wins when both are
-    close (very short sectors).
+    edge of a leg's swing sector on its ring, ``(leg, "MOVE")`` inside the sector,
+    ``(leg, "RING")`` on the stance part of the ring, or None off the rings. Handles win
+    over the ring; the nearer handle wins when both are close (very short sectors).
     """
     if layout.n_legs == 0:
         return None
@@ -230,10 +242,52 @@ def hit_test(layout: CircleLayout, swing_start: np.ndarray, swing_duration: np.n
             best = (d, name)
     if best is not None:
         return leg, best[1]
-    return leg, "RING"
+    phase = float(angle_to_phase(math.atan2(offsets[leg, 1], offsets[leg, 0])))
+    inside = bool(swing_active(np.array([swing_start[leg]]), np.array([swing_duration[leg]]), phase)[0])
+    return leg, "MOVE" if inside else "RING"
 
 
 def point_phase(layout: CircleLayout, leg: int, point: tuple[float, float]) -> float:
     """Cycle phase under ``point`` on leg ``leg``'s circle, in [0, 1)."""
     offset = np.asarray(point, dtype=np.float64) - layout.centers[leg]
     return float(angle_to_phase(math.atan2(offset[1], offset[0])))
+
+
+MIN_DURATION = 0.02  # the shortest swing the editor allows (a zero swing is not a gait)
+
+
+def snap_phase(phase: float, step: float) -> float:
+    """``phase`` rounded to a multiple of ``step`` (no rounding when ``step`` is 0)."""
+    if step <= 0.0:
+        return float(phase)
+    return float(wrap_phase(round(phase / step) * step))
+
+
+def drag_sector(handle: str, start: float, duration: float, grab_phase: float, phase: float, *,
+                previous_duration: float | None = None,
+                min_duration: float = MIN_DURATION) -> tuple[float, float]:
+    """New (swing_start, swing_duration) when a sector's handle is dragged to ``phase``.
+
+    ``handle`` is "START" (the end stays), "END" (the start stays) or "MOVE" (the whole
+    sector turns by ``phase − grab_phase``); ``start``/``duration`` are the values when the
+    drag began. The duration stays within [min_duration, 1 − min_duration]; when the
+    pointer crosses the fixed edge, it sticks to the nearer limit instead of jumping from
+    a full cycle to nothing (``previous_duration`` is the last value shown).
+    """
+    lo, hi = min_duration, 1.0 - min_duration
+    if handle == "MOVE":
+        return float(wrap_phase(start + (phase - grab_phase))), float(duration)
+    if handle == "START":
+        end = start + duration
+        new_duration = float(wrap_phase(end - phase))
+    elif handle == "END":
+        new_duration = float(wrap_phase(phase - start))
+    else:
+        raise ValueError(f"unknown handle {handle!r}")
+    last = duration if previous_duration is None else previous_duration
+    if abs(new_duration - last) > 0.5:  # wrapped past the fixed edge
+        new_duration = hi if last > 0.5 else lo
+    new_duration = min(max(new_duration, lo), hi)
+    if handle == "START":
+        return float(wrap_phase(start + duration - new_duration)), new_duration
+    return float(wrap_phase(start)), new_duration

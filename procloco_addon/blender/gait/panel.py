@@ -1,0 +1,78 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The Gait section of the ProcLoco tab: presets, the circles, per-leg sectors, overlay."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import bpy
+
+from ..ui.main import PANEL_ORDER, RigPanel, active_rig
+from . import handler, ops, rig_gait
+
+__all__ = ["PROCLOCO_PT_gait"]
+
+
+class PROCLOCO_PT_gait(RigPanel, bpy.types.Panel):
+    """Gait circles of the active rig: which part of the cycle each leg swings."""
+
+    bl_label = "Gait"
+    bl_order = PANEL_ORDER["gait"]
+
+    def draw(self, context: Any) -> None:
+        layout = self.layout
+        obj = active_rig(context)
+        view = context.window_manager.procloco_gait_view
+
+        row = layout.row(align=True)
+        # Like Blender's preset menus, the button names the preset applied last.
+        current = obj.procloco.gait_preset or ops.PROCLOCO_MT_gait_presets.bl_label
+        row.menu(ops.PROCLOCO_MT_gait_presets.bl_idname, text=current, icon="PRESET")
+        row.operator(ops.PROCLOCO_OT_add_gait_preset.bl_idname, text="", icon="ADD")
+
+        gait = rig_gait.read_rig_gait(obj)
+        if gait is None:
+            layout.label(text="No legs yet: detect the rig's legs first", icon="INFO")
+            return
+
+        handler.ensure_current(context)  # a stale picture is redrawn on the next event-loop turn
+        layout.template_icon(icon_value=handler.icon_id(), scale=view.picture_scale)
+        phase = rig_gait.phase_at_frame(gait, context.scene)
+        swinging = [label for label, on in zip(gait.labels, gait_swinging(gait, phase), strict=True) if on]
+        info = layout.row()
+        info.alignment = "CENTER"
+        info.label(text=f"Frame {context.scene.frame_current}: phase {phase:.2f}, "
+                        f"swinging {', '.join(swinging) if swinging else 'none'}")
+
+        settings = obj.procloco
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(settings, "cycle_time")
+
+        grid = layout.grid_flow(row_major=True, columns=3, even_columns=False, align=True)
+        grid.use_property_split = False
+        grid.label(text="Leg")
+        grid.label(text="Swing Start")
+        grid.label(text="Duration")
+        for leg, label in zip(settings.legs, gait.labels, strict=True):
+            grid.label(text=label)
+            grid.prop(leg, "swing_start", text="")
+            grid.prop(leg, "swing_duration", text="")
+
+        box = layout.box()
+        header = box.row()
+        header.use_property_split = False
+        header.prop(view, "show_overlay")
+        if view.show_overlay:
+            col = box.column(align=True)
+            col.prop(view, "overlay_corner")
+            col.prop(view, "overlay_cell")
+            box.operator(ops.PROCLOCO_OT_edit_gait_overlay.bl_idname, icon="MOUSE_LMB_DRAG")
+        box.prop(view, "picture_scale")
+
+
+def gait_swinging(gait: rig_gait.RigGait, phase: float) -> list[bool]:
+    """Per leg, whether it swings at ``phase``."""
+    from ...core.gait import in_swing
+
+    return [bool(v) for v in in_swing(phase, gait.swing_start, gait.swing_duration)]

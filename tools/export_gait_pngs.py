@@ -1,0 +1,120 @@
+#!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Export the gait-circle picture of gait presets as PNG images for the documentation.
+
+Runs with Blender as a Python module (the ``bpy`` wheel in ``.venv``)::
+
+    .venv/bin/python tools/export_gait_pngs.py                 # the README's set
+    .venv/bin/python tools/export_gait_pngs.py --all           # every shipped preset
+    .venv/bin/python tools/export_gait_pngs.py quadruped_trot --phase 0.3 --cell 160
+
+Each image is ``docs/images/gait_<preset file stem>.png``, drawn by the same code as the
+panel's picture (``procloco_addon.blender.gait.draw``): one circle per leg laid out like
+the body seen from above, front legs at the top, swing sectors in orange (bright where
+the needle has the leg in swing), the needle in blue.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import struct
+import sys
+import tempfile
+import zlib
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+# The README shows these (the issue asks for the gallops and the hexapod tripod at least).
+README_PRESETS = (
+    "quadruped_rotary_gallop",
+    "quadruped_transverse_gallop",
+    "quadruped_trot",
+    "hexapod_tripod",
+    "octopod_wave",
+    "pentapod_robot",
+)
+DEFAULT_OUT = ROOT / "docs" / "images"
+
+
+def write_png(path: Path, rgba: object) -> None:
+    """Write an ``(h, w, 4)`` float array in [0, 1], rows bottom to top, as an 8-bit RGBA PNG.
+
+    A plain zlib writer: the bytes depend on the pixels only (no time stamps), so an
+    unchanged picture leaves the committed file unchanged.
+    """
+    import numpy as np
+
+    pixels = np.asarray(rgba)
+    data = np.clip(np.round(pixels[::-1] * 255.0), 0, 255).astype(np.uint8)  # top row first
+    height, width = data.shape[:2]
+    raw = b"".join(b"\x00" + data[row].tobytes() for row in range(height))
+
+    def chunk(kind: bytes, payload: bytes) -> bytes:
+        return (struct.pack(">I", len(payload)) + kind + payload
+                + struct.pack(">I", zlib.crc32(kind + payload) & 0xFFFFFFFF))
+
+    header = struct.pack(">IIBBBBB", width, height, 8, 6, 0, 0, 0)
+    png = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 9))
+           + chunk(b"IEND", b""))
+    path.write_bytes(png)
+
+
+def export(names: list[str], out_dir: Path, *, cell: int = 140, phase: float = 0.12) -> list[Path]:
+    """Render each named shipped preset and write ``gait_<name>.png`` into ``out_dir``."""
+    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="procloco-export-"))
+    import bpy
+
+    from procloco_addon.blender.gait import draw, geometry
+    from procloco_addon.core import gait as core_gait
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    draw.ensure_gpu_context()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name in names:
+        path = core_gait.gait_preset_dir() / f"{name}.json"
+        preset = core_gait.load_gait_preset(path)
+        width, height = geometry.canvas_size(preset.legs, cell)
+        image = draw.render_gait_image(preset.swing_start, preset.swing_duration, preset.legs, phase,
+                                       width=width, height=height)
+        target = out_dir / f"gait_{name}.png"
+        write_png(target, image)
+        written.append(target)
+        print(f"{target.relative_to(ROOT) if target.is_relative_to(ROOT) else target}  "
+              f"{preset.name}: {len(preset.legs)} legs, {width}x{height}")
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("presets", nargs="*", help="preset file stems (default: the README's set)")
+    parser.add_argument("--all", action="store_true", help="every shipped preset")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder (default docs/images)")
+    parser.add_argument("--cell", type=int, default=140, help="pixels per leg circle (default 140)")
+    parser.add_argument("--phase", type=float, default=0.12, help="needle phase in [0, 1) (default 0.12)")
+    args = parser.parse_args(argv)
+
+    from procloco_addon.core import gait as core_gait
+
+    if args.all:
+        names = [p.stem for p in core_gait.list_gait_presets()]
+    else:
+        names = args.presets or [n for n in README_PRESETS
+                                 if (core_gait.gait_preset_dir() / f"{n}.json").is_file()]
+    missing = [n for n in names if not (core_gait.gait_preset_dir() / f"{n}.json").is_file()]
+    if missing:
+        print(f"no shipped preset named: {', '.join(missing)}", file=sys.stderr)
+        return 2
+    if not names:
+        print("no presets to export", file=sys.stderr)
+        return 2
+    export(names, args.out, cell=args.cell, phase=args.phase)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
