@@ -13,16 +13,24 @@ from typing import Any
 
 import bpy
 
+from . import cli
 from .gait import handler as gait_handler
 from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
+from .locomotion import ops as locomotion_ops
+from .locomotion import panel as locomotion_panel
 from .locomotion import property_group as locomotion_props
+from .locomotion import ui_list as locomotion_ui_list
 from .ui import main as ui_main
 
 CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
     locomotion_props.PROCLOCO_PG_rig_settings,
+    locomotion_ops.PROCLOCO_OT_detect_legs,
+    locomotion_ops.PROCLOCO_OT_generate_locomotion,
+    locomotion_ops.PROCLOCO_OT_clear_generated_action,
+    locomotion_ui_list.PROCLOCO_UL_legs,
     gait_props.PROCLOCO_PG_gait_view,
     # The sidebar tab's parent panel before every feature's sub-panels.
     ui_main.PROCLOCO_PT_main,
@@ -32,7 +40,10 @@ CLASSES: tuple[type, ...] = (
     gait_ops.PROCLOCO_OT_remove_gait_preset,
     gait_ops.PROCLOCO_OT_toggle_gait_overlay,
     gait_ops.PROCLOCO_OT_edit_gait_overlay,
+    locomotion_panel.PROCLOCO_PT_rig_legs,
     gait_panel.PROCLOCO_PT_gait,
+    locomotion_panel.PROCLOCO_PT_locomotion,
+    locomotion_panel.PROCLOCO_PT_terrain,
     ui_main.PROCLOCO_PT_effects,
     ui_main.PROCLOCO_PT_generate,
 )
@@ -56,10 +67,12 @@ def register() -> None:
         setattr(owner, attr, bpy.props.PointerProperty(type=group))
     for owner, attr, prop in PROPERTIES:
         setattr(owner, attr, prop)
+    cli.register()
     gait_handler.register()
 
 
 def unregister() -> None:
+    cli.unregister()
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):
             delattr(owner, attr)

@@ -1,0 +1,319 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Batch mode: ``blender --background scene.blend --command procloco ...``.
+
+The same entry is callable from Python with the ``bpy`` module: ``main(argv)`` returns the
+exit status. Commands::
+
+    procloco info
+        list the armatures of the scene and the legs ProcLoco finds on each
+    procloco generate --rig NAME [--rig NAME ...] | --all
+                      [--frames START END] [--speed M_PER_S] [--heading DEG] [--step-height M]
+                      [--seed N] [--render DIR] [--frame-step N] [--resolution W H]
+                      [--contact-sheet PNG] [--save BLEND]
+        generate locomotion for the rigs (settings saved on each rig, overridden by the
+        options given), then optionally render Workbench PNG frames into DIR, tile them into
+        a contact sheet and save the .blend
+
+Progress lines go to stdout (``ProcLoco: ...``); errors to stderr with a non-zero status
+(1: the work failed, 2: bad command line).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import bpy
+import numpy as np
+
+from . import rig
+from .locomotion import generate
+
+__all__ = ["contact_sheet", "main", "register", "render_frames", "unregister"]
+
+COMMAND = "procloco"
+_handle: Any = None
+
+
+class CliError(RuntimeError):
+    """A failure reported to the user with exit status 1."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> Any:  # argparse would sys.exit; the caller needs a status
+        raise _UsageError(f"{self.prog}: error: {message}")
+
+
+class _UsageError(Exception):
+    pass
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=COMMAND, description="ProcLoco batch mode")
+    sub = parser.add_subparsers(dest="command", required=True)
+    sub.add_parser("info", help="list armatures and their detected legs")
+    gen = sub.add_parser("generate", help="generate locomotion (and render a preview)")
+    gen.add_argument("--rig", action="append", default=[], metavar="NAME",
+                     help="armature to animate (repeatable)")
+    gen.add_argument("--all", action="store_true", help="every armature of the scene")
+    gen.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
+    gen.add_argument("--speed", type=float, help="speed in metres per second")
+    gen.add_argument("--heading", type=float, help="heading in degrees relative to where the rig faces")
+    gen.add_argument("--step-height", type=float, help="step height in metres")
+    gen.add_argument("--seed", type=int, help="random seed")
+    gen.add_argument("--render", metavar="DIR", help="render Workbench PNG frames into DIR")
+    gen.add_argument("--frame-step", type=int, default=1, help="render every N-th frame")
+    gen.add_argument("--resolution", nargs=2, type=int, default=(640, 360), metavar=("W", "H"))
+    gen.add_argument("--contact-sheet", metavar="PNG", help="tile rendered frames into one image")
+    gen.add_argument("--save", metavar="BLEND", help="save the .blend file there")
+    return parser
+
+
+def _say(text: str) -> None:
+    print(f"ProcLoco: {text}", flush=True)
+
+
+def _context() -> Any:
+    return bpy.context
+
+
+def _cmd_info(_args: argparse.Namespace) -> int:
+    scene = bpy.context.scene
+    arms = sorted((o for o in scene.objects if o.type == "ARMATURE"), key=lambda o: o.name)
+    if not arms:
+        _say(f"scene '{scene.name}' has no armature")
+        return 0
+    for obj in arms:
+        try:
+            legs = rig.detect_legs(obj)
+            desc = ", ".join(f"{leg.label}: {leg.hip} > {leg.end}" for leg in legs)
+            _say(f"{obj.name}: {len(legs)} legs ({desc})")
+        except rig.RigError as err:
+            _say(f"{obj.name}: {err}")
+    return 0
+
+
+def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
+    s = obj.procloco
+    if args.frames is not None:
+        s.use_scene_range = False
+        s.frame_start, s.frame_end = int(args.frames[0]), int(args.frames[1])
+    if args.speed is not None:
+        s.speed = float(args.speed)
+    if args.heading is not None:
+        s.heading = math.radians(float(args.heading))
+    if args.step_height is not None:
+        s.step_height = float(args.step_height)
+    if args.seed is not None:
+        s.seed = int(args.seed)
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    scene = bpy.context.scene
+    arms = {o.name: o for o in scene.objects if o.type == "ARMATURE"}
+    names = sorted(arms) if args.all else list(args.rig)
+    if not names:
+        known = f"; armatures: {', '.join(sorted(arms))}" if arms else "; the scene has no armature"
+        raise CliError("say which rigs to animate: --rig NAME (repeatable) or --all" + known)
+    missing = [n for n in names if n not in arms]
+    if missing:
+        raise CliError(f"no armature named {', '.join(repr(n) for n in missing)} in scene '{scene.name}'"
+                       + (f" (armatures: {', '.join(sorted(arms))})" if arms else " (it has no armature)"))
+    objs = [arms[n] for n in names]
+    for obj in objs:
+        _apply_overrides(obj, args)
+    _say(f"generating {', '.join(names)}")
+    last: dict[str, int] = {}
+
+    def progress(name: str, fraction: float) -> None:
+        tenth = int(10 * fraction)
+        if last.get(name) != tenth:
+            last[name] = tenth
+            _say(f"  {name}: {int(100 * fraction)}%")
+
+    try:
+        made = generate.generate(bpy.context, objs, progress=progress)
+    except (generate.GenerateError, rig.RigError) as err:
+        raise CliError(str(err)) from err
+    assert made is not None
+    for obj, action in zip(objs, made, strict=True):
+        _say(f"{obj.name}: wrote Action '{action.name}'")
+    if args.render:
+        start, end = objs[0].procloco.frame_range(scene)
+        files = render_frames(scene, Path(args.render), range(start, end + 1, max(1, args.frame_step)),
+                              tuple(args.resolution), focus=objs)
+        _say(f"rendered {len(files)} frames into {args.render}")
+        if args.contact_sheet:
+            contact_sheet(files, Path(args.contact_sheet))
+            _say(f"contact sheet {args.contact_sheet}")
+    elif args.contact_sheet:
+        raise CliError("--contact-sheet needs --render DIR")
+    if args.save:
+        path = str(Path(args.save).resolve())
+        bpy.ops.wm.save_as_mainfile(filepath=path, copy=False)
+        _say(f"saved {path}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run one ProcLoco command; returns the exit status (0 success, 1 failure, 2 usage)."""
+    if argv is None:
+        argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    try:
+        args = _parser().parse_args(list(argv))
+    except _UsageError as err:
+        print(str(err), file=sys.stderr, flush=True)
+        return 2
+    try:
+        if args.command == "info":
+            return _cmd_info(args)
+        return _cmd_generate(args)
+    except (CliError, OSError, RuntimeError) as err:
+        print(f"{COMMAND}: error: {err}", file=sys.stderr, flush=True)
+        return 1
+
+
+# ---------------------------------------------------------------------------------------
+# Rendering
+
+
+def _look_at(location: np.ndarray, target: np.ndarray) -> tuple[float, float, float]:
+    """Euler XYZ rotation of a camera at ``location`` looking at ``target`` (Z up)."""
+    d = target - location
+    yaw = math.atan2(d[1], d[0]) - math.pi / 2
+    pitch = math.atan2(math.hypot(d[0], d[1]), -d[2])
+    return (pitch, 0.0, yaw)
+
+
+def _focus_points(objs: Sequence[Any], frames: Sequence[int]) -> np.ndarray:
+    scene = bpy.context.scene
+    pts = []
+    old = scene.frame_current
+    for frame in (frames[0], frames[len(frames) // 2], frames[-1]):
+        scene.frame_set(frame)
+        for obj in objs:
+            m = np.array(obj.matrix_world)
+            pts.extend(m[:3, :3] @ np.array(pb.head) + m[:3, 3] for pb in obj.pose.bones)
+    scene.frame_set(old)
+    return np.array(pts) if pts else np.zeros((1, 3))
+
+
+def render_frames(
+    scene: Any,
+    out_dir: Path,
+    frames: Sequence[int],
+    resolution: tuple[int, int] = (640, 360),
+    focus: Sequence[Any] = (),
+) -> list[Path]:
+    """Render ``frames`` with Workbench into ``out_dir/frame_####.png``; returns the files.
+
+    Uses the scene camera, or a temporary camera framing ``focus`` objects over the range.
+    The scene's render settings are restored afterwards.
+    """
+    frames = list(frames)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    r = scene.render
+    saved = (r.engine, r.filepath, r.resolution_x, r.resolution_y, r.resolution_percentage,
+             r.image_settings.file_format, scene.camera, scene.frame_current)
+    temp_cam = None
+    try:
+        r.engine = "BLENDER_WORKBENCH"
+        r.resolution_x, r.resolution_y = int(resolution[0]), int(resolution[1])
+        r.resolution_percentage = 100
+        r.image_settings.file_format = "PNG"
+        if scene.camera is None:
+            pts = _focus_points(focus, frames) if focus else np.zeros((1, 3))
+            center = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+            size = float(max(np.ptp(pts[:, 0]), np.ptp(pts[:, 1]), np.ptp(pts[:, 2]), 0.1))
+            data = bpy.data.cameras.new("ProcLoco Preview")
+            temp_cam = bpy.data.objects.new("ProcLoco Preview", data)
+            scene.collection.objects.link(temp_cam)
+            loc = center + np.array([1.2, -1.6, 0.9]) * size * 1.3
+            temp_cam.location = tuple(loc)
+            temp_cam.rotation_euler = _look_at(loc, center)
+            scene.camera = temp_cam
+        files = []
+        for i, frame in enumerate(frames):
+            scene.frame_set(int(frame))
+            path = out_dir / f"frame_{int(frame):04d}.png"
+            r.filepath = str(path)
+            bpy.ops.render.render(write_still=True)
+            files.append(path)
+            if i % max(1, len(frames) // 10) == 0:
+                _say(f"  rendered frame {frame} ({i + 1}/{len(frames)})")
+        return files
+    finally:
+        (r.engine, r.filepath, r.resolution_x, r.resolution_y, r.resolution_percentage,
+         r.image_settings.file_format, scene.camera, frame) = saved
+        scene.frame_set(frame)
+        if temp_cam is not None:
+            data = temp_cam.data
+            bpy.data.objects.remove(temp_cam)
+            bpy.data.cameras.remove(data)
+
+
+def contact_sheet(files: Sequence[Path], out: Path, columns: int = 4, max_tiles: int = 12) -> Path:
+    """Tile up to ``max_tiles`` evenly spaced images of ``files`` into one PNG at ``out``."""
+    if not files:
+        raise CliError("no frames to tile into a contact sheet")
+    idx = np.unique(np.linspace(0, len(files) - 1, min(max_tiles, len(files))).round().astype(int))
+    tiles = []
+    size = None
+    for k in idx:
+        img = bpy.data.images.load(str(files[k]), check_existing=False)
+        try:
+            w, h = img.size
+            px = np.empty(w * h * 4, dtype=np.float32)
+            img.pixels.foreach_get(px)
+        finally:
+            bpy.data.images.remove(img)
+        if size is None:
+            size = (w, h)
+        if (w, h) != size:
+            raise CliError("frames of a contact sheet must have one size")
+        tiles.append(px.reshape(h, w, 4))
+    assert size is not None
+    w, h = size
+    cols = min(columns, len(tiles))
+    rows = math.ceil(len(tiles) / cols)
+    sheet = np.ones((rows * h, cols * w, 4), dtype=np.float32)
+    for n, tile in enumerate(tiles):
+        r, c = divmod(n, cols)
+        # Image rows are stored bottom-up: the first tile goes at the top of the sheet.
+        y0 = (rows - 1 - r) * h
+        sheet[y0:y0 + h, c * w:(c + 1) * w] = tile
+    out.parent.mkdir(parents=True, exist_ok=True)
+    img = bpy.data.images.new("ProcLoco contact sheet", cols * w, rows * h, alpha=True)
+    try:
+        img.pixels.foreach_set(sheet.ravel())
+        img.filepath_raw = str(out)
+        img.file_format = "PNG"
+        img.save()
+    finally:
+        bpy.data.images.remove(img)
+    return out
+
+
+# ---------------------------------------------------------------------------------------
+# Registration
+
+
+def _execute(argv: list[str]) -> int:
+    return main(argv)
+
+
+def register() -> None:
+    global _handle
+    if _handle is None and hasattr(bpy.utils, "register_cli_command"):
+        _handle = bpy.utils.register_cli_command(COMMAND, _execute)
+
+
+def unregister() -> None:
+    global _handle
+    if _handle is not None:
+        bpy.utils.unregister_cli_command(_handle)
+        _handle = None

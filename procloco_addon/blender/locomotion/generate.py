@@ -1,0 +1,346 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Generate Locomotion without the operator around it: used by the operator, the batch
+command and the benchmark.
+
+The work for one rig is a :class:`Job` in three stages:
+
+1. :func:`prepare` reads everything from Blender and checks every bad input of the design
+   ("Bad input") — it raises :class:`GenerateError` with a message for the user and changes
+   nothing in the scene;
+2. :func:`simulate` runs the core simulation, one frame per step, as a generator yielding
+   the fraction done (so a modal operator can show progress and stop on Esc with nothing
+   written);
+3. :func:`write` converts the result into pose-bone keys of a **new** Action assigned to the
+   rig (the previous Action is remembered, see :mod:`..actions`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import bpy
+import numpy as np
+
+from ...core import gait as core_gait
+from ...core.morphology import Morphology
+from .. import actions, rig, scene_terrain
+
+__all__ = [
+    "GenerateError",
+    "Job",
+    "default_gait",
+    "detect_into_settings",
+    "generate",
+    "prepare",
+    "settings_legs",
+    "simulate",
+    "write",
+]
+
+# Presets tried, in this order, when a rig has no gait of its own yet.
+_DEFAULT_PRESETS = ("biped_walk", "quadruped_walk", "pentapod_robot", "hexapod_tripod",
+                    "octopod_alternating_tetrapod")
+
+
+class GenerateError(ValueError):
+    """Generation refused; the message is meant for the user."""
+
+
+# ---------------------------------------------------------------------------------------
+# Settings <-> legs and gait
+
+
+def settings_legs(obj: bpy.types.Object) -> list[rig.LegChain] | None:
+    """The enabled legs listed in ``obj.procloco.legs`` (validated), or None if the list is empty."""
+    items = list(obj.procloco.legs)
+    if not items:
+        return None
+    legs = []
+    for item in items:
+        if not item.enabled:
+            continue
+        label = item.label or item.name
+        legs.append(rig.leg_from_bones(obj, item.hip, item.end, label))
+    if not legs:
+        raise GenerateError(f"Every leg of '{obj.name}' is disabled: enable at least one in Rig & Legs")
+    return legs
+
+
+def default_gait(labels: Sequence[str]) -> core_gait.Gait:
+    """A shipped preset matching ``labels``, else a wave gait (one foot up at a time, back to front)."""
+    wanted = sorted(labels)
+    for name in _DEFAULT_PRESETS:
+        try:
+            preset = core_gait.find_gait_preset(name)
+        except core_gait.GaitError:
+            continue
+        if sorted(preset.legs) == wanted:
+            return preset.gait(labels)
+    n = len(labels)
+    start = (np.arange(n)[::-1] / n) % 1.0
+    duration = np.full(n, min(0.45, 0.9 / n))
+    return core_gait.Gait(start, duration, max(0.6, 0.15 * n), "wave")
+
+
+def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
+    """Detect the legs of ``obj`` and store them in ``obj.procloco.legs``.
+
+    A leg keeps its gait sector and foot offset when a leg with the same label was there
+    before; new legs get the default gait. Raises ``rig.RigError`` (and changes nothing) when
+    no leg is found.
+    """
+    settings = obj.procloco
+    legs = rig.detect_legs(obj)
+    labels = [leg.label for leg in legs]
+    old = {item.label or item.name: (item.swing_start, item.swing_duration, tuple(item.offset), item.enabled)
+           for item in settings.legs}
+    gait = default_gait(labels)
+    settings.legs.clear()
+    for k, leg in enumerate(legs):
+        item = settings.legs.add()
+        item.name = leg.label
+        item.label = leg.label
+        item.hip = leg.hip
+        item.end = leg.end
+        if leg.label in old:
+            start, duration, offset, enabled = old[leg.label]
+            item.swing_start, item.swing_duration = start, duration
+            item.offset, item.enabled = offset, enabled
+        else:
+            item.swing_start = float(gait.swing_start[k])
+            item.swing_duration = float(gait.swing_duration[k])
+    if not all(label in old for label in labels):
+        settings.cycle_time = float(gait.cycle_time)
+    settings.active_leg_index = min(settings.active_leg_index, len(legs) - 1)
+    return legs
+
+
+def _gait_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings: bool) -> core_gait.Gait:
+    labels = [leg.label for leg in legs]
+    if not from_settings:
+        return default_gait(labels)
+    settings = obj.procloco
+    by_label = {item.label or item.name: item for item in settings.legs}
+    start = np.array([by_label[lb].swing_start for lb in labels])
+    duration = np.array([by_label[lb].swing_duration for lb in labels])
+    for lb, d in zip(labels, duration, strict=True):
+        if d <= 0.0 or d >= 1.0:
+            kind = "zero" if d <= 0.0 else "full-cycle"
+            raise GenerateError(f"Leg {lb} of '{obj.name}' has a {kind} swing ({d:g}): a foot must both "
+                                "lift and land in every cycle")
+    try:
+        return core_gait.Gait(start, duration, float(settings.cycle_time), settings.gait_preset)
+    except core_gait.GaitError as err:
+        raise GenerateError(f"Gait of '{obj.name}': {err}") from err
+
+
+def _offsets_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings: bool) -> np.ndarray:
+    out = np.zeros((len(legs), 2))
+    if from_settings:
+        by_label = {item.label or item.name: item for item in obj.procloco.legs}
+        for k, leg in enumerate(legs):
+            out[k] = tuple(by_label[leg.label].offset)
+    return out
+
+
+def path_points(context: bpy.types.Context, path: bpy.types.Object) -> np.ndarray:
+    """The path curve as a world polyline ``(n, 3)`` (its first spline, evaluated)."""
+    depsgraph = context.evaluated_depsgraph_get()
+    ev = path.evaluated_get(depsgraph)
+    try:
+        mesh = ev.to_mesh()
+    except RuntimeError:
+        mesh = None
+    if mesh is None:
+        raise GenerateError(f"Path '{path.name}' is empty: give the curve some points")
+    try:
+        n = len(mesh.vertices)
+        co = np.empty(n * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        n_e = len(mesh.edges)
+        edges = np.empty(n_e * 2, dtype=np.int32)
+        mesh.edges.foreach_get("vertices", edges)
+    finally:
+        ev.to_mesh_clear()
+    if n < 2 or n_e == 0:
+        raise GenerateError(f"Path '{path.name}' is empty: give the curve some points")
+    pts = co.reshape(n, 3).astype(np.float64)
+    order = _polyline_order(n, edges.reshape(n_e, 2))
+    m = np.array(ev.matrix_world, dtype=np.float64)
+    world = pts[order] @ m[:3, :3].T + m[:3, 3]
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(world, axis=0), axis=1) > 1e-9])
+    world = world[keep]
+    if world.shape[0] < 2:
+        raise GenerateError(f"Path '{path.name}' is empty: its points all coincide")
+    return world
+
+
+def _polyline_order(n: int, edges: np.ndarray) -> np.ndarray:
+    """Vertex order of the first connected chain, walked from its first end."""
+    nbrs: list[list[int]] = [[] for _ in range(n)]
+    for a, b in edges:
+        nbrs[int(a)].append(int(b))
+        nbrs[int(b)].append(int(a))
+    start = next((i for i in range(n) if len(nbrs[i]) == 1), int(edges[0, 0]))
+    order = [start]
+    seen = {start}
+    cur = start
+    while True:
+        nxt = next((j for j in nbrs[cur] if j not in seen), None)
+        if nxt is None:
+            break
+        order.append(nxt)
+        seen.add(nxt)
+        cur = nxt
+    return np.array(order, dtype=np.int64)
+
+
+# ---------------------------------------------------------------------------------------
+# Jobs
+
+
+@dataclass
+class Job:
+    """Everything one rig's generation needs, read from Blender by :func:`prepare`."""
+
+    obj_name: str
+    info: rig.RigInfo
+    morphology: Morphology
+    terrain: scene_terrain.SceneTerrain
+    gait: core_gait.Gait
+    frames: np.ndarray  # (F,) scene frames
+    dt: float  # seconds per frame
+    speed: float  # m/s
+    heading: float  # world yaw of the walk direction (radians from +X)
+    turn_rate: float  # rad/s
+    path: np.ndarray | None  # (n, 3) world polyline or None
+    step_height: float
+    spacing: float
+    foot_offset: np.ndarray  # (n_legs, 2) body-frame offsets of the preferred footprints
+    seed: int
+    use_pelvis_physics: bool
+    use_spine: bool
+    use_progression: bool
+    use_gait_randomizer: bool
+    warnings: list[str] = field(default_factory=list)
+    result: Any = None
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
+    """Read and check everything for one rig. Raises :class:`GenerateError`; changes nothing."""
+    t0 = time.perf_counter()
+    if obj is None or obj.type != "ARMATURE":
+        name = "Nothing" if obj is None else f"'{obj.name}'"
+        raise GenerateError(f"{name} is not an armature: select a rig")
+    scene = context.scene
+    settings = obj.procloco
+    start, end = settings.frame_range(scene)
+    if end <= start:
+        raise GenerateError(f"The frame range of '{obj.name}' is empty or reversed ({start} to {end})")
+    try:
+        legs = settings_legs(obj)
+        from_settings = legs is not None
+        info = rig.read_rig(obj, legs, settings.forward_axis)
+        morph = rig.morphology_of(info)
+    except rig.RigError as err:
+        raise GenerateError(str(err)) from err
+    gait = _gait_of(obj, info.legs, from_settings)
+    path = None
+    if settings.path is not None:
+        path = path_points(context, settings.path)
+    frames = np.arange(start, end + 1, dtype=np.int64)
+    fps = scene.render.fps / scene.render.fps_base
+    objs = scene_terrain.terrain_objects(context, [obj], settings.terrain_collection)
+    lift = float(np.mean(info.foot_height))
+    try:
+        terrain = scene_terrain.build_environment(context, objs, frames, z_offset=lift)
+        contact_xy = info.contact[:, :2]
+        scene_terrain.check_ground_under(terrain, contact_xy, obj.name)
+    except scene_terrain.TerrainError as err:
+        raise GenerateError(str(err)) from err
+    heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
+    job = Job(
+        obj_name=obj.name,
+        info=info,
+        morphology=morph,
+        terrain=terrain,
+        gait=gait,
+        frames=frames,
+        dt=1.0 / fps,
+        speed=float(settings.speed),
+        heading=heading,
+        turn_rate=float(settings.turn_rate),
+        path=path,
+        step_height=float(settings.step_height),
+        spacing=float(settings.spacing),
+        foot_offset=_offsets_of(obj, info.legs, from_settings),
+        seed=int(settings.seed),
+        use_pelvis_physics=bool(settings.use_pelvis_physics),
+        use_spine=bool(settings.use_spine),
+        use_progression=bool(settings.use_progression),
+        use_gait_randomizer=bool(settings.use_gait_randomizer),
+        warnings=list(info.warnings),
+    )
+    job.timings["read_s"] = time.perf_counter() - t0
+    return job
+
+
+def simulate(job: Job) -> Iterator[float]:
+    """Run the core simulation for ``job``, yielding the fraction of frames done.
+
+    The result lands in ``job.result`` when the generator is exhausted.
+    """
+    from . import simulation
+
+    t0 = time.perf_counter()
+    yield from simulation.run(job)
+    job.timings["simulate_s"] = time.perf_counter() - t0
+
+
+def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
+    """Write ``job.result`` as a new Action on the rig and assign it (previous one remembered)."""
+    from . import simulation
+
+    t0 = time.perf_counter()
+    obj = bpy.data.objects[job.obj_name]
+    body_world, joints_world = simulation.world_tracks(job)
+    tracks = rig.solve_pose(job.info, body_world, joints_world)
+    action = actions.new_action(obj)
+    frames = job.frames.astype(np.float64)
+    try:
+        actions.write_pose_bone_transforms(action, obj, frames, tracks.bones, rotations=tracks.rotations)
+        loc = [i for i, k in enumerate(tracks.keyed_location) if k]
+        if loc:
+            actions.write_pose_bone_transforms(action, obj, frames, [tracks.bones[i] for i in loc],
+                                               locations=tracks.locations[:, loc])
+        actions.assign_generated_action(obj, action)
+    except Exception:
+        bpy.data.actions.remove(action)
+        raise
+    job.timings["write_s"] = time.perf_counter() - t0
+    return action
+
+
+def generate(
+    context: bpy.types.Context,
+    objects: Sequence[bpy.types.Object],
+    progress: Callable[[str, float], None] | None = None,
+    should_cancel: Callable[[], bool] | None = None,
+) -> list[bpy.types.Action] | None:
+    """Generate every rig in ``objects``; all are checked before anything is written.
+
+    Returns the new Actions, or None when ``should_cancel`` asked to stop (nothing written).
+    Raises :class:`GenerateError` (nothing written) on bad input.
+    """
+    jobs = [prepare(context, obj) for obj in objects]
+    for job in jobs:
+        for fraction in simulate(job):
+            if progress is not None:
+                progress(job.obj_name, fraction)
+            if should_cancel is not None and should_cancel():
+                return None
+    return [write(context, job) for job in jobs]
