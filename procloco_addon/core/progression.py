@@ -14,7 +14,8 @@ always within ``[0, max_speed]`` and the distance covered in a step is the exact
 the wave over the step, whatever ``dt`` is.
 
 The gait randomizer (same section) draws random gait circles for a character: swing start
-and duration per leg as cycle fractions, the representation of ``core.gait``. A random gait
+and duration per leg as cycle fractions (:meth:`RandomGait.to_gait` gives a
+``core.gait.Gait``). A random gait
 never has all feet in swing at once, and each foot lifts before the foot that lifted just
 before it lands, so the swing sectors chain around and cover the whole circle. When both
 effects are on, a character gets a new random gait each time it comes to a stall
@@ -31,6 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+
+from .gait import Gait
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -272,6 +275,10 @@ class RandomGait:
     swing_start: FloatArray
     swing_duration: FloatArray
     order: IntArray = field(repr=False)
+
+    def to_gait(self, cycle_time: float, name: str = "Random gait") -> Gait:
+        """The same circles as a :class:`core.gait.Gait` (what the gait manager runs)."""
+        return Gait(self.swing_start.copy(), self.swing_duration.copy(), cycle_time, name)
 
 
 def feet_in_swing(swing_start: FloatArray, swing_duration: FloatArray, phase: FloatArray) -> BoolArray:

@@ -44,11 +44,13 @@ import numpy.typing as npt
 
 from .hermite import hermite_basis
 from .hull import upper_hull_eval
+from .terrain import NO_SURFACE
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
-#: A terrain height query: world ``xy`` ``(..., 2)`` -> ground height ``(...)``.
+#: A terrain height query: world ``xy`` ``(n, 2)`` -> ground height ``(n,)``, such as
+#: ``core.terrain.Environment.height_at``; heights at or below ``NO_SURFACE / 2`` are holes.
 HeightFn = Callable[[FloatArray], FloatArray]
 
 _CURVE_SAMPLES = 25  # dense samples per key segment for arc-length lookups
@@ -603,7 +605,8 @@ def terrain_guides(
     the head to ``slice_margin`` behind the back node. Each node owns the stretch from
     half-way to the node in front to half-way to the node behind; the upper convex hull of
     that stretch's ground (and of the feet hanging from the node, ``foot_world`` ``(C, L, 3)``)
-    under the node gives its ground height and slope. Returns ``(height, pitch)``, each
+    under the node gives its ground height and slope (a node whose whole stretch is over a
+    hole uses the ground under the whole body). Returns ``(height, pitch)``, each
     ``(C, K)``: ground height plus the node's rest height, and the slope angle (nose up).
     The controller adds the pseudo-physics offset to ``height`` before :func:`finish_spine`.
     """
@@ -617,8 +620,16 @@ def terrain_guides(
     u = np.linspace(0.0, 1.0, max(2, int(samples_per_node)))
     s = lo[..., None] + (hi - lo)[..., None] * u  # (C, K, n)
     pts = _polyline_at(xy, arc, s)  # (C, K, n, 2)
-    z = np.asarray(height_at(pts), dtype=np.float64).reshape(s.shape)
+    z = np.asarray(height_at(pts.reshape(-1, 2)), dtype=np.float64).reshape(s.shape)
+    valid = z > 0.5 * NO_SURFACE
     x = s
+    lost = ~valid.any(axis=2)  # (C, K)
+    if lost.any():
+        # A node over a hole (nothing under its stretch) uses the ground under the whole body.
+        whole = np.broadcast_to(valid.reshape(c, 1, -1), (c, k, valid[0].size))
+        x = np.concatenate([x, np.broadcast_to(s.reshape(c, 1, -1), whole.shape)], axis=2)
+        z = np.concatenate([z, np.broadcast_to(z.reshape(c, 1, -1), whole.shape)], axis=2)
+        valid = np.concatenate([valid, whole & lost[..., None]], axis=2)
     if foot_world is not None and model.n_legs:
         feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
         fwd = np.stack([np.cos(plan.key_heading), np.sin(plan.key_heading)], axis=-1)  # (C, K, 2)
@@ -629,10 +640,13 @@ def terrain_guides(
         mine = node_of_leg[None, :] == np.arange(k)[:, None]  # (K, L)
         x = np.concatenate([x, np.broadcast_to(fx[:, None, :], (c, k, model.n_legs))], axis=2)
         z = np.concatenate([z, np.broadcast_to(feet[:, None, :, 2], (c, k, model.n_legs))], axis=2)
-        valid = np.concatenate(
-            [np.ones(s.shape, dtype=bool), np.broadcast_to(mine, (c, k, model.n_legs))], axis=2)
-    else:
-        valid = np.ones(s.shape, dtype=bool)
+        valid = np.concatenate([valid, np.broadcast_to(mine, (c, k, model.n_legs))], axis=2)
+    nothing = ~valid.any(axis=2, keepdims=True)
+    if nothing.any():
+        # No ground and no feet at all: a flat floor at 0 keeps the numbers finite.
+        x = np.concatenate([x, arc[..., None]], axis=2)
+        z = np.concatenate([z, np.zeros((c, k, 1))], axis=2)
+        valid = np.concatenate([valid, nothing], axis=2)
     ground, slope = upper_hull_eval(x, z, arc[..., None], valid)
     # The slope is along the spine from head to back; nose up means the ground rises forward.
     return ground[..., 0] + model.key_rest_height[None, :], -np.arctan(slope[..., 0])

@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from procloco_addon.core.gait import Gait
 from procloco_addon.core.progression import (
     HOLD,
     GaitRandomizerParams,
@@ -215,6 +216,15 @@ def test_random_gaits_respect_a_cap_on_feet_in_the_air() -> None:
         check_gait(g.swing_start, g.swing_duration)
         assert feet_in_swing(g.swing_start, g.swing_duration, np.concatenate([PHASES, g.swing_start])).sum(
             axis=1).max() <= 3
+
+
+def test_random_gait_runs_in_the_gait_manager() -> None:
+    g = random_gait(6, np.random.default_rng(4)).to_gait(cycle_time=0.8)
+    assert isinstance(g, Gait)
+    assert g.cycle_time == 0.8
+    lifted = g.in_swing(PHASES)  # (n_phases, n_legs) from core.gait's own reading
+    assert lifted.sum(axis=1).max() < 6
+    assert lifted.sum(axis=1).min() >= 1
 
 
 def test_random_gaits_same_seed_same_sequence() -> None:

@@ -25,6 +25,7 @@ from procloco_addon.core.spine import (
     visual_yaw,
     wrap_angle,
 )
+from procloco_addon.core.terrain import NO_SURFACE, ROLE_GROUND, Boxes, Environment, Heightmap
 
 DT = 1 / 30
 
@@ -305,23 +306,29 @@ def test_characters_are_independent_in_a_batch() -> None:
 # ----------------------------------------------------------------------------- step 3
 
 
-def stairs(rise: float = 0.1, run: float = 0.3, start: float = 1.0) -> Callable[[np.ndarray], np.ndarray]:
-    def height(xy: np.ndarray) -> np.ndarray:
-        return rise * np.clip(np.floor((xy[..., 0] - start) / run) + 1.0, 0.0, None)
-    return height
+def stairs(rise: float = 0.1, run: float = 0.3, start: float = 1.0, n: int = 12) -> Environment:
+    """A flight of steps going up along +x as static crates (each one from its nosing to
+    the top of the flight), on a flat heightmap."""
+    ground = Heightmap(np.zeros((2, 2)), origin=np.array([-5.0, -5.0]), cell=20.0)
+    x0 = start + run * np.arange(n)
+    x1 = start + run * n
+    centre = np.stack([0.5 * (x0 + x1), np.zeros(n), np.zeros(n)], axis=1)
+    size = np.stack([x1 - x0, np.full(n, 4.0), rise * np.arange(1, n + 1)], axis=1)
+    boxes = Boxes(centre, size, np.zeros(n), np.full(n, ROLE_GROUND), np.zeros(n, dtype=bool))
+    return Environment(heightmap=ground, boxes=boxes)
 
 
 def test_spine_stays_above_stairs_and_pitches_with_them() -> None:
     m = quadruped()
-    height = stairs()
+    env = stairs()
     params = SpineParams()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
     pitches = []
     whole_body_pitch = []
     for _ in range(150):  # 3 m at 0.6 m/s: over the first step and well up the stairs
-        state, _, pose = spine_step(m, state, params, 0.0, 0.02, DT, ground_guides(m, height))
+        state, _, pose = spine_step(m, state, params, 0.0, 0.02, DT, ground_guides(m, env.height_at))
         j = pose.joints[0]
-        clearance = j[:, 2] - height(j[:, :2])
+        clearance = j[:, 2] - env.height_at(j[:, :2])
         assert clearance.min() > 0.25  # the body never touches the steps
         hips_x = j[-1, 0]
         if hips_x > 1.0 + m.slice_margin:  # the whole body is over the stairs
@@ -334,12 +341,41 @@ def test_spine_stays_above_stairs_and_pitches_with_them() -> None:
     assert np.mean(whole_body_pitch) == pytest.approx(stair_angle, abs=np.radians(3))
 
 
+def test_node_over_a_hole_keeps_the_ground_under_the_body() -> None:
+    m = quadruped()
+    # Two platforms 0.2 m high with a trench between them (x in -0.02 .. 0.48): nothing there.
+    platforms = Boxes(np.array([[-2.02, 0.0, 0.0], [2.48, 0.0, 0.0]]), np.array([[4.0, 4.0, 0.2]] * 2),
+                      np.zeros(2), np.full(2, ROLE_GROUND), np.zeros(2, dtype=bool))
+    env = Environment(boxes=platforms)
+    assert env.height_at(np.array([[0.3, 0.0]]))[0] == NO_SURFACE
+    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    node_z, pitch = terrain_guides(m, plan, env.height_at)
+    # The shoulders' whole stretch is over the trench: they keep the height the rest of the
+    # body stands at instead of falling in.
+    assert node_z[0] == pytest.approx(0.2 + m.key_rest_height)
+    assert pitch[0] == pytest.approx(np.zeros(3))
+
+
+def test_feet_on_a_crate_raise_their_node() -> None:
+    m = quadruped()
+    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
+    feet[0, 2:, 2] = 0.3  # both hind feet up on something the slice did not see
+    node_z, _ = terrain_guides(m, plan, lambda xy: np.zeros(len(xy)), feet)
+    assert node_z[0, 2] == pytest.approx(0.3 + m.key_rest_height[2])
+    assert node_z[0, 1] == pytest.approx(m.key_rest_height[1])
+
+
 def test_ramp_gives_exact_pitch_and_constant_height_above_ground() -> None:
     m = quadruped()
     slope = np.radians(15)
 
+    xs = np.arange(-2.0, 8.01, 0.5)
+    terrain = Environment(heightmap=Heightmap(np.tile(np.tan(slope) * xs, (21, 1)),
+                                              origin=np.array([-2.0, -5.0]), cell=0.5))
+
     def ramp(xy: np.ndarray) -> np.ndarray:
-        return np.tan(slope) * xy[..., 0]
+        return terrain.height_at(np.reshape(xy, (-1, 2))).reshape(np.shape(xy)[:-1])
 
     state = SpineState.at_rest(m, np.array([[2.0, 0.0]]), 0.0)
     plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
