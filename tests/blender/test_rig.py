@@ -43,9 +43,9 @@ def test_split_name(name: str, side: int, tokens: tuple[str, ...]) -> None:
 EXPECTED = {
     "spider": {f"{s}{n}": (tuple(f"Leg{n}_{seg}.{s}" for seg in ("coxa", "femur", "tibia", "tarsus")), ())
                for n in range(1, 5) for s in "LR"},
-    "robot": {**{f"{s}{n}": (tuple(f"Leg{n}_{seg}.{s}" for seg in ("thigh", "shin", "foot")), ())
-                 for n in (1, 2) for s in "LR"},
-              "M3": (("Leg3_thigh", "Leg3_shin", "Leg3_foot"), ())},
+    # A five-pointed star: the midline front leg, then two pairs.
+    "robot": {label: (chain, ()) for label, chain in zip(("M1", "L2", "R2", "L3", "R3"), creatures.ROBOT_LEGS,
+                                                           strict=True)},
     "wolf": {"L1": (("front_thigh.L", "front_shin.L", "front_foot.L"), ("front_toe.L",)),
              "R1": (("front_thigh.R", "front_shin.R", "front_foot.R"), ("front_toe.R",)),
              "L2": (("thigh.L", "shin.L", "foot.L"), ("toe.L",)),
@@ -136,20 +136,20 @@ def test_non_uniform_scale_is_refused(empty_scene: Any) -> None:
 def test_bad_user_legs_are_refused(empty_scene: Any) -> None:
     arm = creatures.build_robot(empty_scene)
     with pytest.raises(rig.RigError, match="not an ancestor"):
-        rig.leg_from_bones(arm, "Leg1_foot.L", "Leg1_thigh.L")
+        rig.leg_from_bones(arm, "Leg2_foot.L", "Leg2_thigh.L")
     with pytest.raises(rig.RigError, match="no bone"):
-        rig.leg_from_bones(arm, "Leg1_thigh.L", "Nope")
+        rig.leg_from_bones(arm, "Leg2_thigh.L", "Nope")
     bpy.context.view_layer.objects.active = arm
     bpy.ops.object.mode_set(mode="EDIT")
-    eb = arm.data.edit_bones["Leg1_shin.L"]
+    eb = arm.data.edit_bones["Leg2_shin.L"]
     # Blender removes truly zero-length bones on leaving edit mode; a 1e-10 bone stays.
     eb.tail = eb.head + type(eb.head)((0.0, 0.0, 1e-10))
     bpy.ops.object.mode_set(mode="OBJECT")
-    if "Leg1_shin.L" in arm.data.bones:
+    if "Leg2_shin.L" in arm.data.bones:
         with pytest.raises(rig.RigError, match=r"zero.length"):
-            rig.leg_from_bones(arm, "Leg1_thigh.L", "Leg1_foot.L")
+            rig.leg_from_bones(arm, "Leg2_thigh.L", "Leg2_foot.L")
     else:  # Blender 4.2 deletes the bone and reparents its child: a valid two-bone leg
-        assert rig.leg_from_bones(arm, "Leg1_thigh.L", "Leg1_foot.L").bones == ("Leg1_thigh.L", "Leg1_foot.L")
+        assert rig.leg_from_bones(arm, "Leg2_thigh.L", "Leg2_foot.L").bones == ("Leg2_thigh.L", "Leg2_foot.L")
     # A user-chosen end-effector before the foot gets the flat bones after it as its foot.
     human = creatures.build_human(empty_scene)
     leg = rig.leg_from_bones(human, "thigh.L", "shin.L")
