@@ -7,6 +7,7 @@ Runs with Blender as a Python module (the ``bpy`` wheel in ``.venv``)::
     .venv/bin/python tools/export_gait_pngs.py                 # the README's set
     .venv/bin/python tools/export_gait_pngs.py --all           # every shipped preset
     .venv/bin/python tools/export_gait_pngs.py quadruped_trot --phase 0.3 --cell 160
+    .venv/bin/python tools/export_gait_pngs.py --bench         # time one redraw per preset
 
 Each image is ``docs/images/gait_<preset file stem>.png``, drawn by the same code as the
 panel's picture (``procloco_addon.blender.gait.draw``): one circle per leg laid out like
@@ -89,6 +90,36 @@ def export(names: list[str], out_dir: Path, *, cell: int = 140, phase: float = 0
     return written
 
 
+def bench(names: list[str], repeats: int = 20) -> None:
+    """Print how long the panel's picture takes to draw and read back (the cost of one
+    redraw after a change), per preset, at the panel's size and at the README's size."""
+    import time
+
+    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="procloco-export-"))
+    import bpy
+
+    from procloco_addon.blender.gait import draw, geometry, handler
+    from procloco_addon.core import gait as core_gait
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    start = time.perf_counter()
+    draw.ensure_gpu_context()
+    print(f"GPU context (background mode, one tiny Workbench render): {time.perf_counter() - start:.3f} s")
+    print(f"{'preset':32s} {'legs':>4s} {'size':>9s} {'ms / redraw':>12s}")
+    for name in names:
+        preset = core_gait.load_gait_preset(core_gait.gait_preset_dir() / f"{name}.json")
+        sizes = [(handler.PREVIEW_SIZE, handler.PREVIEW_SIZE), geometry.canvas_size(preset.legs, 140)]
+        for width, height in sizes:
+            draw.render_gait_image(preset.swing_start, preset.swing_duration, preset.legs, 0.1,
+                                   width=width, height=height)  # warm-up (shader compilation)
+            t0 = time.perf_counter()
+            for i in range(repeats):
+                draw.render_gait_image(preset.swing_start, preset.swing_duration, preset.legs, i / repeats,
+                                       width=width, height=height)
+            ms = (time.perf_counter() - t0) / repeats * 1e3
+            print(f"{preset.name:32s} {len(preset.legs):4d} {f'{width}x{height}':>9s} {ms:12.1f}")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("presets", nargs="*", help="preset file stems (default: the README's set)")
@@ -96,6 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder (default docs/images)")
     parser.add_argument("--cell", type=int, default=140, help="pixels per leg circle (default 140)")
     parser.add_argument("--phase", type=float, default=0.12, help="needle phase in [0, 1) (default 0.12)")
+    parser.add_argument("--bench", action="store_true", help="time the drawing instead of writing files")
     args = parser.parse_args(argv)
 
     from procloco_addon.core import gait as core_gait
@@ -112,6 +144,9 @@ def main(argv: list[str] | None = None) -> int:
     if not names:
         print("no presets to export", file=sys.stderr)
         return 2
+    if args.bench:
+        bench(names)
+        return 0
     export(names, args.out, cell=args.cell, phase=args.phase)
     return 0
 

@@ -54,13 +54,19 @@ DEFAULT_PALETTE = Palette()
 _FONT_ID = 0
 
 
+_gpu_ready = False
+
+
 def gpu_available() -> bool:
     """True when GPU drawing works in this process (always in the UI; in background
     mode only after something created a GPU context)."""
-    try:
-        gpu.types.GPUOffScreen(1, 1).free()
-    except (SystemError, RuntimeError):
-        return False
+    global _gpu_ready
+    if not _gpu_ready:
+        try:
+            gpu.types.GPUOffScreen(1, 1).free()
+        except (SystemError, RuntimeError):
+            return False
+        _gpu_ready = True
     return True
 
 

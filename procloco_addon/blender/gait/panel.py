@@ -49,15 +49,15 @@ class PROCLOCO_PT_gait(RigPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         layout.prop(settings, "cycle_time")
 
-        grid = layout.grid_flow(row_major=True, columns=3, even_columns=False, align=True)
-        grid.use_property_split = False
-        grid.label(text="Leg")
-        grid.label(text="Swing Start")
-        grid.label(text="Duration")
+        col = layout.column(align=True)
+        col.use_property_split = False
         for leg, label in zip(settings.legs, gait.labels, strict=True):
-            grid.label(text=label)
-            grid.prop(leg, "swing_start", text="")
-            grid.prop(leg, "swing_duration", text="")
+            split = col.split(factor=0.2, align=True)
+            split.active = leg.enabled  # a leg switched off keeps its circle but is greyed
+            split.label(text=label)
+            row = split.row(align=True)
+            row.prop(leg, "swing_start", text="Start")
+            row.prop(leg, "swing_duration", text="Swing")
 
         box = layout.box()
         header = box.row()
