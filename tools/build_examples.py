@@ -2,8 +2,13 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Build ``examples.blend`` at the repository root from nothing.
 
-    .venv/bin/python tools/build_examples.py                      # writes examples.blend
-    .venv/bin/python tools/build_examples.py --output out/x.blend --render out/examples.png
+    .venv-4.2/bin/python tools/build_examples.py                  # writes examples.blend
+    .venv/bin/python tools/build_examples.py --output out/x.blend --render out/examples.png \
+        --contact-sheet out/creatures.png
+
+The committed file is built with the oldest supported Blender (the 4.2 LTS wheel, made by
+``python3 tools/dev.py venv --blender 4.2``): Blender opens files from older versions, and
+4.2 cannot read files saved by 4.3 and later.
 
 Starts from an empty Blender file every time, so running it again gives the same scene:
 six creatures (spider, ant, five-legged robot, lizard, Rigify wolf, Rigify human), each
@@ -37,9 +42,11 @@ import bpy  # noqa: E402
 DEFAULT_OUTPUT = ROOT / "examples.blend"
 
 
-def build(output: Path = DEFAULT_OUTPUT, render: Path | None = None) -> list[str]:
+def build(output: Path = DEFAULT_OUTPUT, render: Path | None = None,
+          contact_sheet: Path | None = None) -> list[str]:
     """Build the example scene in a fresh file, save it to ``output`` (and render frame 1 to
-    ``render``). Returns the warnings: settings or roles the add-on did not accept."""
+    ``render``, close-ups of each creature to ``contact_sheet``). Returns the warnings:
+    settings, roles or operators the add-on did not provide."""
     # Imported by name: the tools are type-checked apart from the add-on's package tree.
     procloco_addon = importlib.import_module("procloco_addon")
     procloco_props = importlib.import_module("tools.examples.procloco_props")
@@ -66,6 +73,8 @@ def build(output: Path = DEFAULT_OUTPUT, render: Path | None = None) -> list[str
             render.parent.mkdir(parents=True, exist_ok=True)
             bpy.context.scene.render.filepath = str(render)
             bpy.ops.render.render(write_still=True)
+        if contact_sheet is not None:
+            scene.render_contact_sheet(bpy.context.scene, built.rigs, contact_sheet)
     finally:
         if registered:
             procloco_addon.unregister()
@@ -78,8 +87,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT,
                         help="where to save (default: examples.blend)")
     parser.add_argument("--render", type=Path, default=None, help="also render frame 1 to this PNG")
+    parser.add_argument("--contact-sheet", type=Path, default=None,
+                        help="also render a close-up of each creature, side by side, to this PNG")
     args = parser.parse_args(argv)
-    warnings = build(args.output.resolve(), args.render.resolve() if args.render else None)
+    warnings = build(args.output.resolve(), args.render.resolve() if args.render else None,
+                     args.contact_sheet.resolve() if args.contact_sheet else None)
+    if bpy.app.version >= (4, 3, 0):
+        warnings.append(f"built with Blender {bpy.app.version_string}: Blender 4.2 cannot open this file; "
+                        "build the committed examples.blend with the 4.2 wheel (.venv-4.2)")
     for warning in warnings:
         print(f"[examples] warning: {warning}")
     size_mb = args.output.stat().st_size / 1e6

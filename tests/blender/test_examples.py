@@ -160,7 +160,7 @@ def test_terrain_has_ground_crates_stairs_and_gap(empty_scene: Any) -> None:
     co = np.array([v.co for v in mesh.vertices])
     # The ground is the heightmap, flat where the creatures start, hilly elsewhere.
     np.testing.assert_allclose(co[:, 2], terrain.ground_height(co[:, 0], co[:, 1]), atol=1e-6)
-    assert np.all(co[co[:, 1] > 0.8, 2] == 0.0)
+    assert np.all(co[co[:, 1] > 2.0, 2] == 0.0)
     assert np.ptp(co[:, 2]) > 0.5
     for x in terrain.LANE_X.values():
         assert terrain.ground_height(np.array([x]), np.array([terrain.START_Y]))[0] == 0.0
@@ -320,12 +320,10 @@ def test_example_rigs_are_set_up_for_the_first_click(empty_scene: Any) -> None:
     built = scene.build_example_scene(empty_scene)
     terrain_collection = bpy.data.collections["Terrain"]
     assert set(terrain_collection.objects) >= set(built.terrain.all_objects())
-    for kind, rig in built.rigs.items():
+    for rig in built.rigs.values():
         settings = rig.procloco
         assert settings.terrain_collection == terrain_collection
         assert settings.use_scene_range
-        speed = creatures.RIG_SETTINGS[kind]["speed"] * scene.EXAMPLE_SCALE[kind]
-        assert settings.speed == pytest.approx(speed)
     if not scene._operator_registered("procloco.detect_legs"):
         pytest.skip("the add-on has no Detect Legs operator yet: legs and gait presets are not set")
     for kind, rig in built.rigs.items():
@@ -334,9 +332,40 @@ def test_example_rigs_are_set_up_for_the_first_click(empty_scene: Any) -> None:
         preset = json.loads((scene.PRESET_DIR / f"{creatures.GAIT_PRESET[kind]}.json").read_text())
         assert settings.gait_preset == preset["name"]
         assert settings.cycle_time == pytest.approx(preset["cycle_time"])
+        # Speed and step height come from the preset, both scaled by the rig's leg length.
+        assert settings.speed / settings.step_height == pytest.approx(preset["speed"] / preset["step_height"],
+                                                                      rel=1e-5)
         by_label = {leg.label: leg for leg in settings.legs}
         for label, start, duration in zip(preset["legs"], preset["swing_start"], preset["swing_duration"],
                                           strict=True):
             assert by_label[label].swing_start == pytest.approx(start)
             assert by_label[label].swing_duration == pytest.approx(duration)
         assert "procloco_pending_settings" not in rig
+
+
+def test_contact_sheet_has_a_close_up_of_each_creature(empty_scene: Any, tmp_path: Path) -> None:
+    built = terrain.build_ground(empty_scene, x_range=(-2.0, 2.0), y_range=(-2.0, 2.0), cell=0.5,
+                                 height=lambda x, y: np.zeros_like(x))
+    rigs = {"spider": creatures.build_spider(empty_scene, location=(-1.0, 0.0, 0.0), scale=8.0),
+            "robot": creatures.build_robot(empty_scene, location=(1.0, 0.0, 0.0))}
+    scene.setup_render(empty_scene)
+    main_camera = scene.frame_camera(empty_scene, scene.bound_corners([built]))
+    before = (empty_scene.camera, empty_scene.render.resolution_x, empty_scene.render.resolution_y)
+    n_objects = len(bpy.data.objects)
+    path = scene.render_contact_sheet(empty_scene, rigs, tmp_path / "sheet.png", tile=(64, 36), columns=2)
+    sheet = scene._read_png(path)[..., :3]
+    assert sheet.shape == (36, 128, 3)
+    # The same close-ups with the skins hidden: each tile must lose its creature.
+    for rig in rigs.values():
+        skin = creatures.skin_of(rig)
+        assert skin is not None
+        skin.hide_render = True
+    empty = scene._read_png(scene.render_contact_sheet(empty_scene, rigs, tmp_path / "empty.png",
+                                                       tile=(64, 36), columns=2))[..., :3]
+    changed = np.abs(sheet - empty).max(axis=2) > 0.05
+    for col, kind in enumerate(rigs):
+        assert changed[:, col * 64:(col + 1) * 64].mean() > 0.05, f"{kind} is hardly in its close-up"
+    # Nothing of the scene changed.
+    assert (empty_scene.camera, empty_scene.render.resolution_x, empty_scene.render.resolution_y) == before
+    assert empty_scene.camera == main_camera
+    assert len(bpy.data.objects) == n_objects

@@ -9,6 +9,7 @@ API::
     configure_example_rig(rig, kind, terrain_collection) -> list[str]   # first-click settings
     build_example_scene(scene) -> ExampleScene      # six creatures on the terrain, framed
     creature_screen_boxes(scene, rigs) -> {kind: [u0, v0, u1, v1]}
+    render_contact_sheet(scene, rigs, path, tile=(320, 180), columns=3) -> path   # close-ups, one PNG
 
 ``EXAMPLE_SCALE[kind]`` is the scale each creature is built at in the example: the
 tarantula and the ant are giants (legs ~0.7 m and ~0.5 m), the others are real size.
@@ -17,6 +18,7 @@ tarantula and the ant are giants (legs ~0.7 m and ~0.5 m), the others are real s
 from __future__ import annotations
 
 import json
+import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,10 +40,12 @@ EXAMPLE_SCALE: dict[str, float] = {"spider": 8.0, "ant": 30.0, "robot": 1.0, "li
 CREATURE_NAMES: dict[str, str] = {"spider": "Spider", "ant": "Ant", "robot": "Robot", "lizard": "Lizard",
                                   "wolf": "Wolf", "human": "Human"}
 FRAME_START = 1
-FRAME_END = 240
+FRAME_END = 120
 FPS = 24
 #: Where the camera looks from (towards the scene centre): in front of the creatures, raised.
 CAMERA_DIRECTION = (-0.35, -1.0, -0.55)
+#: Where close-ups look from: in front of the creature (it faces -Y), on its left, raised.
+CLOSEUP_DIRECTION = (-0.6, 1.0, -0.5)
 #: The stretch of ground (y) the camera keeps in view.
 FRAMED_Y = (-2.5, 4.0)
 
@@ -100,11 +104,12 @@ def bound_corners(objects: Iterable[bpy.types.Object]) -> list[Vector]:
 
 def frame_camera(scene: bpy.types.Scene, points: Sequence[Vector],
                  direction: Sequence[float] = CAMERA_DIRECTION, margin: float = 0.04,
-                 lens: float = 35.0, collection: bpy.types.Collection | None = None) -> bpy.types.Object:
-    """Make (or reuse) the scene camera looking along ``direction`` at the centre of the
-    world-space ``points``, backed off until every point is inside the frame with ``margin``
-    (a fraction of the frame) to spare."""
-    camera = scene.camera
+                 lens: float = 35.0, collection: bpy.types.Collection | None = None,
+                 camera: bpy.types.Object | None = None) -> bpy.types.Object:
+    """Aim ``camera`` (default: the scene camera, made if missing) along ``direction`` at the
+    centre of the world-space ``points``, backed off until every point is inside the frame
+    with ``margin`` (a fraction of the frame) to spare."""
+    camera = camera or scene.camera
     if camera is None:
         camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
         (collection or scene.collection).objects.link(camera)
@@ -121,7 +126,7 @@ def frame_camera(scene: bpy.types.Scene, points: Sequence[Vector],
         camera.location = target - d * distance
         bpy.context.view_layer.update()
         for p in points:
-            u, v, depth = world_to_camera_view(scene, camera, p)
+            u, v, depth = world_to_camera_view(scene, camera, p)  # any camera; the scene's aspect
             inside = margin <= u <= 1 - margin and margin <= v <= 1 - margin
             if depth <= camera.data.clip_start or not inside:
                 return False
@@ -137,6 +142,68 @@ def frame_camera(scene: bpy.types.Scene, points: Sequence[Vector],
         near, far = (near, mid) if fits(mid) else (mid, far)
     fits(far)
     return camera
+
+
+def _read_png(path: Path) -> np.ndarray:
+    image = bpy.data.images.load(str(path))
+    try:
+        w, h = image.size
+        pixels = np.empty(w * h * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+    return pixels.reshape(h, w, 4)  # row 0 is the bottom of the picture
+
+
+def render_contact_sheet(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object], path: Path,
+                         tile: tuple[int, int] = (320, 180), columns: int = 3,
+                         direction: Sequence[float] = CLOSEUP_DIRECTION) -> Path:
+    """Render each creature close up at the current frame (Workbench, ``tile`` pixels) and
+    save them side by side, ``columns`` per row, as one PNG at ``path``.
+
+    The scene's camera, resolution and output path are left as they were.
+    """
+    render = scene.render
+    saved = (scene.camera, render.resolution_x, render.resolution_y, render.resolution_percentage,
+             render.filepath, render.engine)
+    camera = bpy.data.objects.new("Close-up camera", bpy.data.cameras.new("Close-up camera"))
+    scene.collection.objects.link(camera)
+    rows = -(-len(rigs) // columns)
+    sheet = np.ones((rows * tile[1], columns * tile[0], 4), dtype=np.float32)
+    try:
+        render.engine = "BLENDER_WORKBENCH"
+        render.resolution_x, render.resolution_y = tile
+        render.resolution_percentage = 100
+        with tempfile.TemporaryDirectory() as tmp:
+            for i, (kind, rig) in enumerate(rigs.items()):
+                skin = creatures.skin_of(rig)
+                if skin is None:
+                    continue
+                frame_camera(scene, bound_corners([skin]), direction=direction, margin=0.08, lens=50.0,
+                             camera=camera)
+                scene.camera = camera
+                render.filepath = str(Path(tmp) / f"{kind}.png")
+                bpy.ops.render.render(write_still=True)
+                pixels = _read_png(Path(render.filepath))
+                row, col = divmod(i, columns)
+                top = (rows - 1 - row) * tile[1]  # image rows count from the bottom
+                sheet[top:top + tile[1], col * tile[0]:(col + 1) * tile[0]] = pixels
+        image = bpy.data.images.new("ProcLoco contact sheet", sheet.shape[1], sheet.shape[0], alpha=False)
+        try:
+            image.pixels.foreach_set(sheet.ravel())
+            path.parent.mkdir(parents=True, exist_ok=True)
+            image.filepath_raw = str(path)
+            image.file_format = "PNG"
+            image.save()
+        finally:
+            bpy.data.images.remove(image)
+    finally:
+        (scene.camera, render.resolution_x, render.resolution_y, render.resolution_percentage,
+         render.filepath, render.engine) = saved
+        camera_data = camera.data
+        bpy.data.objects.remove(camera)
+        bpy.data.cameras.remove(camera_data)
+    return path
 
 
 def _operator_registered(idname: str) -> bool:
@@ -182,7 +249,8 @@ def configure_example_rig(rig: bpy.types.Object, kind: str,
 
 def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
     """The six creatures on the terrain (collections ``Creatures`` and ``Terrain``), a camera
-    framing everything, a sun, Workbench at 640×360, frames 1–240 at 24 fps."""
+    framing everything, a sun, Workbench at 640×360, frames 1–120 at 24 fps (5 s: at the
+    speeds of their gait presets every creature meets its lane's obstacles)."""
     scene.render.fps = FPS
     scene.render.fps_base = 1.0
     scene.frame_start, scene.frame_end = FRAME_START, FRAME_END

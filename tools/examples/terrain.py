@@ -12,7 +12,7 @@ API (stable; other tests build on it)::
     LANE_X[kind], START_Y                   # where each creature stands
 
 World layout (metres; creatures walk towards -Y, the way Rigify metarigs face): the ground
-spans x in [-8, 8], y in [-8, 5]; it is flat (z = 0) for y > 0.5 and everywhere a
+spans x in [-8, 8], y in [-8, 5]; it is flat (z = 0) for y > 2 and everywhere a
 creature starts, stairs stand or the gap is cut. Lanes, 2.4 m wide, centred on ``LANE_X``:
 
 ======  =============================================================================
@@ -20,7 +20,7 @@ lane    what is in front of the creature
 ======  =============================================================================
 spider  flat: two low crates (STEP_OVER), a tall crate (AVOID), a crate moving across
 ant     rolling heightmap hills (±0.22 m), a tall crate (AVOID), a low crate (STEP_OVER)
-robot   a round hill rising 0.7 m over 4 m
+robot   a round hill rising 0.7 m over 4 m, starting 1 m ahead of it
 lizard  a low plank (STEP_OVER), a crate moving across (AVOID), gentle hills beyond
 wolf    a gap (a hole 0.375 m wide in the ground) and a low crate (STEP_OVER)
 human   stairs: 4 steps up (0.15 m rise, 0.35 m tread), a landing at 0.6 m, 4 steps down
@@ -104,7 +104,7 @@ def _smoothstep(t: np.ndarray) -> np.ndarray:
 def ground_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Ground elevation at ``(x, y)`` (same-shaped arrays), in metres.
 
-    Zero at the start strip (y > 0.5), in the spider, wolf and human lanes (crates, gap and
+    Zero at the start strip (y > 2), in the spider, wolf and human lanes (crates, gap and
     stairs stand on flat ground) and under the lizard's crates; rolling hills in the ant and
     lizard lanes and a round hill in the robot's.
     """
@@ -122,7 +122,7 @@ def ground_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     # The lizard lane stays flat until its moving crate is behind it.
     lizard = np.interp(x, edges[4:8], [0.0, 1.0, 1.0, 0.0])
     bump_in = bump_in * (1.0 - lizard * (1.0 - _smoothstep((-1.0 - y) / 1.5)))
-    hill = _smoothstep((0.5 - y) / 4.0)
+    hill = _smoothstep((2.0 - y) / 4.0)
     return np.asarray(bump_amp * bumps * bump_in + slope_amp * hill)
 
 
