@@ -403,14 +403,17 @@ class SpinePlan:
     """Steps 1-2: the key nodes on the ground plane.
 
     ``key_xy`` ``(C, K, 2)``; ``key_heading`` ``(C, K)`` each node's heading (the bisector of
-    its segments); ``bend`` ``(C, K)`` each node's sideways bend (0 at the ends); ``distance``
-    ``(C,)`` the distance the head moved.
+    its segments; the end nodes as on an arc, see ``_node_headings``), the frame its legs'
+    footprints are planned in; ``bend`` ``(C, K)`` each node's sideways bend (0 at the ends);
+    ``distance`` ``(C,)`` the distance the head moved; ``steer_heading`` ``(C,)`` the head
+    segment's direction, the heading the user steers (what ``desired_heading`` is compared to).
     """
 
     key_xy: FloatArray
     key_heading: FloatArray
     bend: FloatArray
     distance: FloatArray
+    steer_heading: FloatArray
 
 
 @dataclass(frozen=True)
@@ -486,7 +489,8 @@ def plan_spine(
             xy[:, k - 1:] = _rotate_about(xy[:, k - 1:], xy[:, k - 2], bend * (1.0 - keep))
 
     seg = _segment_angles(xy)
-    return SpinePlan(key_xy=xy, key_heading=_node_headings(seg), bend=_bends(seg), distance=dist)
+    return SpinePlan(key_xy=xy, key_heading=_node_headings(seg), bend=_bends(seg), distance=dist,
+                     steer_heading=seg[:, 0].copy())
 
 
 def _turn_from_head(model: SpineModel, xy: FloatArray, turn: FloatArray) -> FloatArray:

@@ -214,7 +214,8 @@ def test_without_the_spine_the_body_turns_rigidly() -> None:
         assert np.abs(plan.bend).max() < 1e-12
         gaps = np.linalg.norm(j[:, None] - j[None], axis=2)
         assert np.abs(gaps - rest_gaps).max() < 1e-9
-    headings = np.array([p.key_heading[0, 0] for p in plans])
+    headings = np.array([p.steer_heading[0] for p in plans])
+    assert headings == pytest.approx(np.array([p.key_heading[0, 0] for p in plans]))
     # The body turns at the turn rate until it faces the new heading.
     assert np.diff(headings)[:10] == pytest.approx(np.full(10, params.turn_rate * DT))
     assert headings[-1] == pytest.approx(np.pi / 2)
