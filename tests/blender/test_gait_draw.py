@@ -389,3 +389,27 @@ def test_dragging_in_the_overlay_edits_the_rig(overlay_rig: Any) -> None:
     assert not editor.press(layout, (1.0, 1.0))
     assert not editor.move(layout, at(0, 0.5))
     assert [(leg.swing_start, leg.swing_duration) for leg in legs] == before
+
+
+def test_exported_png_is_the_picture(gpu_ready: None, tmp_path: Any) -> None:
+    import bpy
+
+    from procloco_addon.core import gait as core_gait
+    from tools import export_gait_pngs
+
+    assert {"quadruped_rotary_gallop", "quadruped_transverse_gallop", "hexapod_tripod"} <= set(
+        export_gait_pngs.README_PRESETS)
+    [path] = export_gait_pngs.export(["hexapod_tripod"], tmp_path, cell=90, phase=0.3)
+    assert path.name == "gait_hexapod_tripod.png"
+    preset = core_gait.load_gait_preset(core_gait.gait_preset_dir() / "hexapod_tripod.json")
+    width, height = geometry.canvas_size(preset.legs, 90)
+    expected = draw.render_gait_image(preset.swing_start, preset.swing_duration, preset.legs, 0.3,
+                                      width=width, height=height)
+    image = bpy.data.images.load(str(path))
+    try:
+        assert tuple(image.size) == (width, height)
+        pixels = np.empty(width * height * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+    assert np.abs(pixels.reshape(height, width, 4) - expected).max() <= 1.0 / 255 + 1e-6
