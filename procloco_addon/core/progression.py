@@ -31,6 +31,7 @@ import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 from numpy.typing import NDArray
 
 from .gait import Gait
@@ -121,7 +122,9 @@ class ProgressionStep:
     stalled: BoolArray
 
 
-def _speed_in_segment(segment: IntArray, t: FloatArray, half_wave: FloatArray, vmax: float) -> FloatArray:
+def _speed_in_segment(
+    segment: IntArray, t: FloatArray, half_wave: FloatArray, vmax: FloatArray | float
+) -> FloatArray:
     phase = np.pi * np.clip(t / half_wave, 0.0, 1.0)
     rise = 0.5 * vmax * (1.0 - np.cos(phase))
     fall = 0.5 * vmax * (1.0 + np.cos(phase))
@@ -130,7 +133,7 @@ def _speed_in_segment(segment: IntArray, t: FloatArray, half_wave: FloatArray, v
 
 
 def _distance_in_segment(
-    segment: IntArray, t0: FloatArray, t1: FloatArray, half_wave: FloatArray, vmax: float
+    segment: IntArray, t0: FloatArray, t1: FloatArray, half_wave: FloatArray, vmax: FloatArray | float
 ) -> FloatArray:
     """Exact integral of the speed over ``[t0, t1]`` inside one segment."""
     k = np.pi / half_wave
@@ -148,8 +151,12 @@ def progression_step(
     dt: float,
     rng: np.random.Generator,
     enabled: bool | BoolArray = True,
+    max_speed: npt.ArrayLike | None = None,
 ) -> tuple[ProgressionState, ProgressionStep]:
     """Advance every character's burst by ``dt`` seconds.
+
+    ``max_speed`` (``(n_chars,)`` or scalar, m/s) overrides ``params.max_speed``, for crowds
+    whose characters walk at different speeds (or a speed the user animates).
 
     ``enabled`` (scalar or ``(n_chars,)``) switches the effect per character. A disabled
     character moves at ``max_speed`` and is parked at the end of a max-speed hold, so
@@ -160,7 +167,10 @@ def progression_step(
         raise ValueError(f"dt must be finite and >= 0, got {dt!r}")
     n = state.n_chars
     on = np.broadcast_to(np.asarray(enabled, dtype=bool), (n,))
-    vmax = float(params.max_speed)
+    top = params.max_speed if max_speed is None else max_speed
+    vmax = np.broadcast_to(np.asarray(top, dtype=np.float64), (n,))
+    if np.any(vmax < 0.0) or not np.all(np.isfinite(vmax)):
+        raise ValueError("max_speed must be finite and >= 0")
 
     segment = state.segment.copy()
     elapsed = state.elapsed.copy()
@@ -380,6 +390,7 @@ def effects_step(
     progression_on: bool | BoolArray = True,
     randomize_gait: bool | BoolArray = True,
     gait_params: GaitRandomizerParams | None = None,
+    max_speed: npt.ArrayLike | None = None,
 ) -> tuple[ProgressionState, EffectsStep]:
     """Progression plus gait randomizer, coupled as in thesis §4.3.
 
@@ -387,7 +398,7 @@ def effects_step(
     with only the randomizer on keeps the gait it was given at the start
     (:func:`initial_gaits`); with only the progression on, its gait never changes.
     """
-    new_state, step = progression_step(state, params, dt, rng, enabled=progression_on)
+    new_state, step = progression_step(state, params, dt, rng, enabled=progression_on, max_speed=max_speed)
     n = state.n_chars
     both = np.broadcast_to(np.asarray(progression_on, dtype=bool), (n,)) & np.broadcast_to(
         np.asarray(randomize_gait, dtype=bool), (n,)

@@ -145,6 +145,23 @@ def test_same_seed_same_sequence_other_seed_differs() -> None:
     assert not np.array_equal(a[0], c[0])
 
 
+def test_each_character_can_have_its_own_top_speed() -> None:
+    params = ProgressionParams(max_speed=1.0)
+    top = np.array([0.5, 2.0, 0.0])
+    rng = np.random.default_rng(9)
+    state = ProgressionState.start(3, params, rng)
+    speeds = []
+    for _ in range(400):
+        state, out = progression_step(state, params, 1 / 30, rng, max_speed=top)
+        speeds.append(out.speed)
+        assert np.all(out.distance <= top / 30 + 1e-12)
+    speeds_arr = np.array(speeds)
+    assert speeds_arr.max(axis=0) == pytest.approx(top)
+    assert speeds_arr.min() == 0.0
+    _, off = progression_step(state, params, 1 / 30, rng, enabled=False, max_speed=top)
+    assert off.speed == pytest.approx(top)
+
+
 def test_disabled_character_is_parked_at_full_speed() -> None:
     params = ProgressionParams(max_speed=1.0)
     rng = np.random.default_rng(0)
