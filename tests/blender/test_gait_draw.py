@@ -201,6 +201,9 @@ def test_hit_test_finds_sector_handles() -> None:
     assert geometry.hit_test(layout, start, duration, (c1[0] + mid, c1[1])) == (1, "START")
     assert geometry.hit_test(layout, start, duration, tuple(c0)) is None  # the label, not the ring
     assert geometry.point_phase(layout, 1, (c1[0] - mid, c1[1])) == pytest.approx(0.75)
+    assert layout.contains((399.0, 1.0))
+    assert not layout.contains((401.0, 100.0))
+    assert not layout.contains((10.0, -1.0))
 
 
 @pytest.mark.parametrize(

@@ -115,6 +115,10 @@ class CircleLayout:
     def n_legs(self) -> int:
         return int(self.centers.shape[0])
 
+    def contains(self, point: tuple[float, float]) -> bool:
+        """True if ``point`` (pixels, canvas frame) is inside the canvas."""
+        return 0.0 <= point[0] <= self.width and 0.0 <= point[1] <= self.height
+
 
 def _rows_by_side(sides: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """Grid cell (row, column) per leg, legs laid out like the body seen from above.

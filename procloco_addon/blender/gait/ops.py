@@ -300,6 +300,10 @@ class PROCLOCO_OT_edit_gait_overlay(bpy.types.Operator):
         if editor is None or context.area is None:
             handler.set_editing(False)
             return {"CANCELLED"}
+        if context.active_object != editor.obj:  # the overlay now shows another rig
+            editor.cancel()
+            self._finish(context)
+            return {"FINISHED"}
         dragging = editor.drag is not None
         if event.type in {"ESC", "RIGHTMOUSE"} and event.value == "PRESS":
             if dragging:
@@ -316,6 +320,8 @@ class PROCLOCO_OT_edit_gait_overlay(bpy.types.Operator):
             if event.value == "RELEASE" and editor.release():
                 handler.request_refresh()
                 return {"RUNNING_MODAL"}
+            if overlay is not None and overlay[0].contains(overlay[1]):
+                return {"RUNNING_MODAL"}  # a click on the overlay must not select behind it
             return {"PASS_THROUGH"}
         if event.type in {"MOUSEMOVE", "INBETWEEN_MOUSEMOVE"} and dragging:
             overlay = self._overlay(context, event)
