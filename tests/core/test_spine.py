@@ -513,7 +513,7 @@ def test_step_four_is_repeated_until_the_legs_reach() -> None:
     assert np.abs(lengths - m.bone_length).max() < 1e-12
 
 
-def test_plan_rejects_nothing_and_never_moves_backward() -> None:
+def test_negative_distance_means_standing_still() -> None:
     m = quadruped()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
     plan = plan_spine(m, state, SpineParams(), 0.0, -1.0, DT)  # negative distance is clamped
