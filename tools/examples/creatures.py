@@ -558,7 +558,8 @@ def _build_metarig(kind: str, operator: Callable[[], Any], radius_of: Callable[[
 
     if scale <= 0.0:
         raise ValueError("scale must be positive")
-    addon_utils.enable("rigify", default_set=True)
+    if not addon_utils.check("rigify")[1]:  # (enabled by default, loaded)
+        addon_utils.enable("rigify", default_set=True)
     collection = collection or scene.collection
     with _active_scene(scene):
         view_layer = bpy.context.view_layer
