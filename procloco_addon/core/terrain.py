@@ -1,0 +1,942 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The environment and the per-character window grids (thesis §3.4.1).
+
+An :class:`Environment` holds what feet can stand on or must avoid:
+
+- a :class:`Heightmap` (the terrain),
+- :class:`Boxes` (crates: oriented boxes, static or moving, each with a role),
+- :class:`TriangleSoup` meshes (how Blender meshes arrive), each with a role.
+
+Roles: :data:`ROLE_GROUND` and :data:`ROLE_STEP_OVER` are surfaces feet may stand on or pass
+over; :data:`ROLE_AVOID` obstacles are never stepped on nor over (their cells are forbidden).
+
+For planning, the environment near a character is turned into two grids (thesis §3.4.1), the
+:class:`WindowGrids` returned by :meth:`Environment.window` (default 70 × 70 cells of 7 cm):
+
+- the *elevations map*: the highest surface in each cell (terrain and every obstacle, the
+  whole cell area counts, so it is conservative for clearance);
+- the *obstacles' map*: cells covered by avoided obstacles, enlarged by the foot's shape
+  (thesis Figure 3.18). Cells forbidden only because of that enlargement ("dilation") are kept
+  apart, since they are not valid footprints but are not inside an obstacle either.
+
+Windows are cut from a fixed world lattice (cell ``(i, j)`` is centred at ``(j, i) * cell``),
+so static content is rasterised once per world tile and cached; moving boxes and meshes are
+rasterised on demand, only when a window overlaps them, and that raster is reused until they
+move again (thesis: "we compute the map's representation of dynamic objects when they move near
+the multi-legged character").
+
+Coordinates: world metres, Z up. Grid arrays are indexed ``[row, col]`` = ``[y, x]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+ROLE_GROUND = 0
+ROLE_STEP_OVER = 1
+ROLE_AVOID = 2
+
+#: Elevation of cells with no surface at all (a gap, or outside every mesh). Trajectories may
+#: pass over such cells but feet never land there.
+NO_SURFACE = -1.0e4
+_VOID_BELOW = NO_SURFACE * 0.5
+
+
+# ---------------------------------------------------------------------------------------
+# Inputs
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Heightmap:
+    """A regular grid of terrain heights.
+
+    ``heights``: ``(ny, nx)``, row index is y and column index is x; ``origin``: ``(2,)``
+    world xy of cell ``[0, 0]``'s centre; ``cell``: spacing in metres. Heights are bilinearly
+    interpolated between samples; outside the sampled rectangle there is no terrain.
+    """
+
+    heights: FloatArray
+    origin: FloatArray
+    cell: float
+
+    def __post_init__(self) -> None:
+        h = np.asarray(self.heights, dtype=np.float64)
+        if h.ndim != 2 or min(h.shape) < 2:
+            raise ValueError(f"heights must be (ny >= 2, nx >= 2), got {h.shape}")
+        if not np.all(np.isfinite(h)):
+            raise ValueError("heights must be finite")
+        if not self.cell > 0.0:
+            raise ValueError("cell must be positive")
+        object.__setattr__(self, "heights", h)
+        object.__setattr__(self, "origin", np.asarray(self.origin, dtype=np.float64).reshape(2))
+
+    @property
+    def extent(self) -> tuple[FloatArray, FloatArray]:
+        """World xy of the sampled rectangle's min and max corners."""
+        ny, nx = self.heights.shape
+        return self.origin.copy(), self.origin + np.array([nx - 1, ny - 1]) * self.cell
+
+    def sample(self, xy: npt.ArrayLike) -> FloatArray:
+        """Bilinear heights at ``xy`` ``(..., 2)``; :data:`NO_SURFACE` outside: ``(...,)``."""
+        p = np.asarray(xy, dtype=np.float64)
+        ny, nx = self.heights.shape
+        fx = (p[..., 0] - self.origin[0]) / self.cell
+        fy = (p[..., 1] - self.origin[1]) / self.cell
+        tol = 1e-9
+        inside = (fx >= -tol) & (fx <= nx - 1 + tol) & (fy >= -tol) & (fy <= ny - 1 + tol)
+        fx = np.clip(fx, 0.0, nx - 1.0)
+        fy = np.clip(fy, 0.0, ny - 1.0)
+        x0 = np.minimum(np.floor(fx).astype(np.intp), nx - 2)
+        y0 = np.minimum(np.floor(fy).astype(np.intp), ny - 2)
+        tx = fx - x0
+        ty = fy - y0
+        h = self.heights
+        top = h[y0, x0] * (1.0 - tx) + h[y0, x0 + 1] * tx
+        bottom = h[y0 + 1, x0] * (1.0 - tx) + h[y0 + 1, x0 + 1] * tx
+        return np.where(inside, top * (1.0 - ty) + bottom * ty, NO_SURFACE)
+
+
+@dataclass(frozen=True)
+class Boxes:
+    """Oriented boxes standing upright (crates).
+
+    ``center``: ``(n, 3)`` world position of each box's bottom-face centre; ``size``:
+    ``(n, 3)`` full extents (x, y in the box's own frame, then height); ``yaw``: ``(n,)``
+    rotation about +Z in radians; ``role``: ``(n,)`` int (``ROLE_*``); ``dynamic``: ``(n,)``
+    bool, True for boxes that may move (:meth:`Environment.move_boxes`).
+    """
+
+    center: FloatArray
+    size: FloatArray
+    yaw: FloatArray
+    role: npt.NDArray[np.int_]
+    dynamic: BoolArray
+
+    def __post_init__(self) -> None:
+        c = np.asarray(self.center, dtype=np.float64).reshape(-1, 3)
+        n = c.shape[0]
+        s = np.asarray(self.size, dtype=np.float64).reshape(n, 3)
+        yaw = np.asarray(self.yaw, dtype=np.float64).reshape(n)
+        role = np.asarray(self.role, dtype=np.int_).reshape(n)
+        dyn = np.asarray(self.dynamic, dtype=bool).reshape(n)
+        if np.any(s < 0.0) or not np.all(np.isfinite(c)) or not np.all(np.isfinite(s)):
+            raise ValueError("box sizes must be finite and non-negative")
+        if np.any((role < ROLE_GROUND) | (role > ROLE_AVOID)):
+            raise ValueError("unknown box role")
+        for name, value in (("center", c), ("size", s), ("yaw", yaw), ("role", role), ("dynamic", dyn)):
+            object.__setattr__(self, name, value)
+
+    def __len__(self) -> int:
+        return int(self.center.shape[0])
+
+
+@dataclass(frozen=True)
+class TriangleSoup:
+    """A triangle mesh in world space: ``vertices`` ``(v, 3)``, ``faces`` ``(f, 3)`` int."""
+
+    vertices: FloatArray
+    faces: npt.NDArray[np.int_]
+    role: int = ROLE_GROUND
+    dynamic: bool = False
+
+    def __post_init__(self) -> None:
+        v = np.asarray(self.vertices, dtype=np.float64).reshape(-1, 3)
+        f = np.asarray(self.faces, dtype=np.int_).reshape(-1, 3)
+        if f.size and (f.min() < 0 or f.max() >= v.shape[0]):
+            raise ValueError("face indices out of range")
+        if not np.all(np.isfinite(v)):
+            raise ValueError("vertices must be finite")
+        if self.role not in (ROLE_GROUND, ROLE_STEP_OVER, ROLE_AVOID):
+            raise ValueError("unknown soup role")
+        object.__setattr__(self, "vertices", v)
+        object.__setattr__(self, "faces", f)
+
+
+@dataclass(frozen=True)
+class WindowParams:
+    """How to cut a character's window: ``n_cells`` per side, ``cell`` size in metres, and
+    the foot's ground shape (``foot_half_extents`` along the foot's forward and left axes,
+    ``foot_yaw``) used for the default obstacle dilation of :class:`WindowGrids`."""
+
+    n_cells: int = 70
+    cell: float = 0.07
+    foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    foot_yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.n_cells < 3 or not self.cell > 0.0:
+            raise ValueError("a window needs n_cells >= 3 and a positive cell size")
+
+
+# ---------------------------------------------------------------------------------------
+# Kernels and grid helpers
+# ---------------------------------------------------------------------------------------
+def foot_kernel(
+    cell: float, half_extents: npt.ArrayLike, yaw: float = 0.0, anywhere_in_cell: bool = True
+) -> IntArray:
+    """Cell offsets ``(k, 2)`` (rows, cols) covered by a foot box centred in cell ``(0, 0)``.
+
+    With ``anywhere_in_cell`` the foot centre may be anywhere inside its cell (the box is grown
+    by half a cell): dilating forbidden cells by this kernel makes every cell left free safe for
+    a foot whose centre is anywhere in it (thesis Figure 3.18). Without it the foot sits at the
+    cell centre (what a landing foot covers). Always contains ``(0, 0)``.
+    """
+    hx, hy = (float(v) for v in np.asarray(half_extents, dtype=np.float64).reshape(2))
+    if anywhere_in_cell:
+        grow = 0.5 * cell * (abs(math.cos(yaw)) + abs(math.sin(yaw)))
+        hx, hy = hx + grow, hy + grow
+    c, s = abs(math.cos(yaw)), abs(math.sin(yaw))
+    ex = c * hx + s * hy
+    ey = s * hx + c * hy
+    rx = math.ceil(ex / cell + 0.5)
+    ry = math.ceil(ey / cell + 0.5)
+    jj, ii = np.meshgrid(np.arange(-rx, rx + 1), np.arange(-ry, ry + 1))
+    centres = np.stack([jj.ravel() * cell, ii.ravel() * cell], axis=1)
+    hit = _box_overlaps_cells(centres, cell, np.zeros(2), hx, hy, yaw)
+    off = np.stack([ii.ravel()[hit], jj.ravel()[hit]], axis=1).astype(np.intp)
+    if not np.any((off[:, 0] == 0) & (off[:, 1] == 0)):
+        off = np.vstack([off, np.zeros((1, 2), dtype=np.intp)])
+    return off
+
+
+def _box_overlaps_cells(
+    cell_xy: FloatArray, cell: float, box_xy: FloatArray, hx: float | FloatArray,
+    hy: float | FloatArray, yaw: float | FloatArray,
+) -> BoolArray:
+    """Separating-axis test: does each axis-aligned cell square overlap its oriented box?"""
+    cos = np.cos(yaw)
+    sin = np.sin(yaw)
+    d = cell_xy - box_xy
+    half = 0.5 * cell
+    acos = np.abs(cos)
+    asin = np.abs(sin)
+    eps = 1e-9
+    ok_x = np.abs(d[..., 0]) < hx * acos + hy * asin + half - eps
+    ok_y = np.abs(d[..., 1]) < hx * asin + hy * acos + half - eps
+    du = d[..., 0] * cos + d[..., 1] * sin
+    dv = -d[..., 0] * sin + d[..., 1] * cos
+    ok_u = np.abs(du) < hx + half * (acos + asin) - eps
+    ok_v = np.abs(dv) < hy + half * (asin + acos) - eps
+    return np.asarray(ok_x & ok_y & ok_u & ok_v)
+
+
+def dilate(mask: BoolArray, offsets: IntArray) -> BoolArray:
+    """Binary dilation of ``mask`` ``(h, w)`` by the cell ``offsets`` ``(k, 2)``."""
+    out = mask.copy()
+    h, w = mask.shape
+    for di, dj in offsets.tolist():
+        if di == 0 and dj == 0:
+            continue
+        if abs(di) >= h or abs(dj) >= w:
+            continue
+        src = mask[max(0, -di) : h - max(0, di), max(0, -dj) : w - max(0, dj)]
+        out[max(0, di) : h - max(0, -di), max(0, dj) : w - max(0, -dj)] |= src
+    return out
+
+
+def max_filter(values: FloatArray, offsets: IntArray) -> FloatArray:
+    """Maximum of ``values`` ``(h, w)`` over the cell ``offsets`` ``(k, 2)`` around each cell."""
+    out = values.copy()
+    h, w = values.shape
+    for di, dj in offsets.tolist():
+        if (di == 0 and dj == 0) or abs(di) >= h or abs(dj) >= w:
+            continue
+        src = values[max(0, -di) : h - max(0, di), max(0, -dj) : w - max(0, dj)]
+        dst = out[max(0, di) : h - max(0, -di), max(0, dj) : w - max(0, -dj)]
+        np.maximum(dst, src, out=dst)
+    return out
+
+
+def _ranges_to_pairs(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
+    """For items with inclusive integer ranges ``[lo, hi]`` return (item, value) pairs."""
+    counts = np.maximum(hi - lo + 1, 0)
+    total = int(counts.sum())
+    item = np.repeat(np.arange(lo.shape[0], dtype=np.intp), counts)
+    start = np.cumsum(counts) - counts
+    value = np.arange(total, dtype=np.intp) - np.repeat(start, counts) + np.repeat(lo, counts)
+    return item, value
+
+
+def raster_boxes(
+    origin: FloatArray, cell: float, shape: tuple[int, int], center_xy: FloatArray,
+    half_x: FloatArray, half_y: FloatArray, yaw: FloatArray,
+) -> tuple[IntArray, IntArray, IntArray]:
+    """Cells of a grid overlapped by oriented rectangles.
+
+    The grid has cell ``[0, 0]`` centred at ``origin`` ``(2,)``; rectangles have centres
+    ``(n, 2)``, half extents ``(n,)`` and yaw ``(n,)``. Returns ``(box, row, col)`` index
+    arrays of every overlapping (rectangle, cell) pair, vectorised over all rectangles.
+    """
+    ny, nx = shape
+    n = center_xy.shape[0]
+    if n == 0:
+        empty = np.zeros(0, dtype=np.intp)
+        return empty, empty, empty
+    acos = np.abs(np.cos(yaw))
+    asin = np.abs(np.sin(yaw))
+    ex = half_x * acos + half_y * asin
+    ey = half_x * asin + half_y * acos
+    fx = (center_xy[:, 0] - origin[0]) / cell
+    fy = (center_xy[:, 1] - origin[1]) / cell
+    j0 = np.maximum(np.floor(fx - ex / cell - 0.5).astype(np.intp), 0)
+    j1 = np.minimum(np.ceil(fx + ex / cell + 0.5).astype(np.intp), nx - 1)
+    i0 = np.maximum(np.floor(fy - ey / cell - 0.5).astype(np.intp), 0)
+    i1 = np.minimum(np.ceil(fy + ey / cell + 0.5).astype(np.intp), ny - 1)
+    wcols = np.maximum(j1 - j0 + 1, 0)
+    hrows = np.maximum(i1 - i0 + 1, 0)
+    counts = wcols * hrows
+    box = np.repeat(np.arange(n, dtype=np.intp), counts)
+    if box.size == 0:
+        return box, box.copy(), box.copy()
+    start = np.cumsum(counts) - counts
+    local = np.arange(box.size, dtype=np.intp) - start[box]
+    col = j0[box] + local % np.maximum(wcols[box], 1)
+    row = i0[box] + local // np.maximum(wcols[box], 1)
+    cxy = np.stack([origin[0] + col * cell, origin[1] + row * cell], axis=1)
+    hit = _box_overlaps_cells(cxy, cell, center_xy[box], half_x[box], half_y[box], yaw[box])
+    return box[hit], row[hit], col[hit]
+
+
+def raster_triangles(
+    origin: FloatArray, cell: float, shape: tuple[int, int], tris: FloatArray
+) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+    """Cells of a grid overlapped by triangles ``(k, 3, 3)`` and a height for each.
+
+    A cell is overlapped when its square and the triangle's ground projection intersect
+    (separating axes: the grid axes and the triangle's three edge normals), so vertical
+    walls and triangles smaller than a cell count too. The height is the highest point of the
+    triangle's plane over the cell, capped by the triangle's highest vertex: never below the
+    highest point of the triangle inside the cell. Returns ``(tri, row, col, z)``; the caller
+    takes the maximum per cell.
+    """
+    ny, nx = shape
+    k = tris.shape[0]
+    e = np.zeros(0, dtype=np.intp)
+    if k == 0:
+        return e, e.copy(), e.copy(), np.zeros(0)
+    fx = (tris[..., 0] - origin[0]) / cell  # (k, 3) in cells
+    fy = (tris[..., 1] - origin[1]) / cell
+    j0 = np.maximum(np.ceil(fx.min(axis=1) - 0.5).astype(np.intp), 0)
+    j1 = np.minimum(np.floor(fx.max(axis=1) + 0.5).astype(np.intp), nx - 1)
+    i0 = np.maximum(np.ceil(fy.min(axis=1) - 0.5).astype(np.intp), 0)
+    i1 = np.minimum(np.floor(fy.max(axis=1) + 0.5).astype(np.intp), ny - 1)
+    wcols = np.maximum(j1 - j0 + 1, 0)
+    counts = wcols * np.maximum(i1 - i0 + 1, 0)
+    tri = np.repeat(np.arange(k, dtype=np.intp), counts)
+    if tri.size == 0:
+        return e, e.copy(), e.copy(), np.zeros(0)
+    start = np.cumsum(counts) - counts
+    local = np.arange(tri.size, dtype=np.intp) - start[tri]
+    col = j0[tri] + local % np.maximum(wcols[tri], 1)
+    row = i0[tri] + local // np.maximum(wcols[tri], 1)
+    hit = np.ones(tri.size, dtype=bool)
+    vx = fx[tri]  # (m, 3)
+    vy = fy[tri]
+    for a in range(3):
+        b = (a + 1) % 3
+        nxa = -(vy[:, b] - vy[:, a])
+        nya = vx[:, b] - vx[:, a]
+        proj = vx * nxa[:, None] + vy * nya[:, None]
+        centre = col * nxa + row * nya
+        reach = 0.5 * (np.abs(nxa) + np.abs(nya))
+        hit &= (proj.max(axis=1) >= centre - reach - 1e-12) & (proj.min(axis=1) <= centre + reach + 1e-12)
+    tri, row, col = tri[hit], row[hit], col[hit]
+    normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    flat_ok = np.abs(normal[:, 2]) > 1e-12
+    nz = np.where(flat_ok, normal[:, 2], 1.0)
+    gx = -normal[:, 0] / nz
+    gy = -normal[:, 1] / nz
+    px = origin[0] + col * cell - tris[tri, 0, 0]
+    py = origin[1] + row * cell - tris[tri, 0, 1]
+    top = tris[:, :, 2].max(axis=1)
+    plane = tris[tri, 0, 2] + gx[tri] * px + gy[tri] * py + 0.5 * cell * (np.abs(gx[tri]) + np.abs(gy[tri]))
+    z = np.where(flat_ok[tri], np.minimum(plane, top[tri]), top[tri])
+    return tri, row, col, z
+
+
+# ---------------------------------------------------------------------------------------
+# Spatial index for point queries
+# ---------------------------------------------------------------------------------------
+class _BucketIndex:
+    """Items with 2D bounding boxes, bucketed on a regular grid (CSR layout)."""
+
+    def __init__(self, lo: FloatArray, hi: FloatArray) -> None:
+        n = lo.shape[0]
+        self.n = n
+        if n == 0:
+            self.bucket = 1.0
+            self.origin = np.zeros(2)
+            self.shape = (1, 1)
+            self.offsets = np.zeros(2, dtype=np.intp)
+            self.items = np.zeros(0, dtype=np.intp)
+            return
+        ext = hi - lo
+        typical = float(np.median(np.max(ext, axis=1))) if n else 1.0
+        self.origin = lo.min(axis=0)
+        span = hi.max(axis=0) - self.origin
+        bucket = max(2.0 * typical, 1e-3)
+        # Keep the bucket grid reasonably small for sparse, large worlds.
+        while (span[0] / bucket + 1) * (span[1] / bucket + 1) > 4.0e6:
+            bucket *= 2.0
+        self.bucket = bucket
+        nbx = int(span[0] // bucket) + 1
+        nby = int(span[1] // bucket) + 1
+        self.shape = (nby, nbx)
+        bx0 = ((lo[:, 0] - self.origin[0]) // bucket).astype(np.intp)
+        bx1 = np.minimum(((hi[:, 0] - self.origin[0]) // bucket).astype(np.intp), nbx - 1)
+        by0 = ((lo[:, 1] - self.origin[1]) // bucket).astype(np.intp)
+        by1 = np.minimum(((hi[:, 1] - self.origin[1]) // bucket).astype(np.intp), nby - 1)
+        wx = bx1 - bx0 + 1
+        counts = wx * (by1 - by0 + 1)
+        item = np.repeat(np.arange(n, dtype=np.intp), counts)
+        start = np.cumsum(counts) - counts
+        local = np.arange(item.size, dtype=np.intp) - start[item]
+        key = (by0[item] + local // wx[item]) * nbx + bx0[item] + local % wx[item]
+        order = np.argsort(key, kind="stable")
+        self.items = item[order]
+        self.offsets = np.searchsorted(key[order], np.arange(nbx * nby + 1)).astype(np.intp)
+
+    def pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
+        """(point, item) candidate pairs for points ``(n, 2)``."""
+        if self.n == 0 or xy.shape[0] == 0:
+            e = np.zeros(0, dtype=np.intp)
+            return e, e.copy()
+        nby, nbx = self.shape
+        bx = np.floor((xy[:, 0] - self.origin[0]) / self.bucket).astype(np.intp)
+        by = np.floor((xy[:, 1] - self.origin[1]) / self.bucket).astype(np.intp)
+        inside = (bx >= 0) & (bx < nbx) & (by >= 0) & (by < nby)
+        key = np.where(inside, by * nbx + bx, 0)
+        lo = np.where(inside, self.offsets[key], 0)
+        hi = np.where(inside, self.offsets[key + 1], 0)
+        point, pos = _ranges_to_pairs(lo, hi - 1)
+        return point, self.items[pos]
+
+
+# ---------------------------------------------------------------------------------------
+# Window grids
+# ---------------------------------------------------------------------------------------
+@dataclass
+class WindowGrids:
+    """The two grids of a character's window (thesis §3.4.1) and helpers to read them.
+
+    ``origin``: ``(2,)`` world xy of cell ``[0, 0]``'s centre; ``cell``: metres;
+    ``elevation``: ``(ny, nx)`` highest surface per cell (:data:`NO_SURFACE` where none);
+    ``avoid``: ``(ny, nx)`` cells overlapped by avoided obstacles (the obstacle map's core);
+    ``foot_half_extents``/``foot_yaw``: the foot shape of the default dilation.
+
+    Derived, computed on first use: ``forbidden`` (= ``avoid``), ``dilated`` (cells forbidden
+    only by the foot-shape enlargement), ``void`` (no surface) — the obstacle map without
+    slices and without other feet. The planner builds its own per-slice maps with
+    :meth:`obstacle_map`.
+    """
+
+    origin: FloatArray
+    cell: float
+    elevation: FloatArray
+    avoid: BoolArray
+    foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    foot_yaw: float = 0.0
+    _cache: dict[str, npt.NDArray[np.generic]] = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.elevation.shape[0]), int(self.elevation.shape[1]))
+
+    @property
+    def forbidden(self) -> BoolArray:
+        """Cells inside avoided obstacles: ``(ny, nx)``."""
+        return self.avoid
+
+    @property
+    def dilated(self) -> BoolArray:
+        """Cells forbidden only because of the foot-shape enlargement: ``(ny, nx)``."""
+        if "dilated" not in self._cache:
+            self._cache["dilated"] = self.obstacle_map()[1]
+        return self._cache["dilated"]  # type: ignore[return-value]
+
+    @property
+    def void(self) -> BoolArray:
+        """Cells without any surface (gaps): ``(ny, nx)``."""
+        return np.asarray(self.elevation < _VOID_BELOW)
+
+    def obstacle_map(
+        self,
+        level: float | None = None,
+        extra: BoolArray | None = None,
+        foot_half_extents: npt.ArrayLike | None = None,
+        foot_yaw: float | None = None,
+    ) -> tuple[BoolArray, BoolArray]:
+        """The obstacles' map for one height slice (thesis §3.5.2).
+
+        Forbidden cells are the avoided obstacles, the ``extra`` cells (other feet) and, when
+        ``level`` is given, every cell whose elevation is above ``level`` (walked around
+        instead of over). Returns ``(core, dilated)``: ``core`` the forbidden cells, ``dilated``
+        the cells added by the foot-shape enlargement only (thesis Figure 3.18).
+        """
+        core = self.avoid.copy()
+        if extra is not None:
+            core |= extra
+        if level is not None:
+            core |= self.elevation > level
+        half = self.foot_half_extents if foot_half_extents is None else foot_half_extents
+        yaw = self.foot_yaw if foot_yaw is None else foot_yaw
+        grown = dilate(core, foot_kernel(self.cell, half, yaw))
+        return core, grown & ~core
+
+    def rowcol(self, xy: npt.ArrayLike) -> FloatArray:
+        """Continuous (row, col) coordinates of world points ``(..., 2)``: ``(..., 2)``."""
+        p = np.asarray(xy, dtype=np.float64)
+        rows = (p[..., 1] - self.origin[1]) / self.cell
+        cols = (p[..., 0] - self.origin[0]) / self.cell
+        return np.stack([rows, cols], axis=-1)
+
+    def cell_of(self, xy: npt.ArrayLike) -> IntArray:
+        """Integer (row, col) of the cell containing each point ``(..., 2)``."""
+        return np.rint(self.rowcol(xy)).astype(np.intp)
+
+    def xy_of(self, rows: npt.ArrayLike, cols: npt.ArrayLike) -> FloatArray:
+        """World xy of cell centres ``(..., 2)``."""
+        r = np.asarray(rows, dtype=np.float64)
+        c = np.asarray(cols, dtype=np.float64)
+        return np.stack([self.origin[0] + c * self.cell, self.origin[1] + r * self.cell], axis=-1)
+
+    def inside(self, rc: IntArray) -> BoolArray:
+        """Whether integer cells ``(..., 2)`` lie in the window."""
+        ny, nx = self.shape
+        return np.asarray((rc[..., 0] >= 0) & (rc[..., 0] < ny) & (rc[..., 1] >= 0) & (rc[..., 1] < nx))
+
+    def elevation_at(self, xy: npt.ArrayLike) -> FloatArray:
+        """Elevation-map value of the cell under each point; :data:`NO_SURFACE` outside."""
+        rc = self.cell_of(xy)
+        ok = self.inside(rc)
+        r = np.where(ok, rc[..., 0], 0)
+        c = np.where(ok, rc[..., 1], 0)
+        return np.where(ok, self.elevation[r, c], NO_SURFACE)
+
+
+# ---------------------------------------------------------------------------------------
+# Environment
+# ---------------------------------------------------------------------------------------
+_TileKey = tuple[float, int, int]
+
+
+class Environment:
+    """Terrain and obstacles, with point queries and cached per-character window grids.
+
+    ``heightmap``: optional :class:`Heightmap`; ``boxes``: optional :class:`Boxes`;
+    ``soups``: :class:`TriangleSoup` meshes. ``tile_cells``: side of the cached static tiles
+    in cells. Inputs are copied; move things only through :meth:`move_boxes` and
+    :meth:`set_soup_vertices`.
+    """
+
+    def __init__(
+        self,
+        heightmap: Heightmap | None = None,
+        boxes: Boxes | None = None,
+        soups: Sequence[TriangleSoup] = (),
+        tile_cells: int = 128,
+    ) -> None:
+        self.heightmap = heightmap
+        if boxes is None:
+            boxes = Boxes(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0), np.zeros(0, dtype=np.int_),
+                          np.zeros(0, dtype=bool))
+        self._box_center = boxes.center.copy()
+        self._box_size = boxes.size.copy()
+        self._box_yaw = boxes.yaw.copy()
+        self._box_role = boxes.role.copy()
+        self._box_dynamic = boxes.dynamic.copy()
+        self._static_boxes = np.nonzero(~self._box_dynamic)[0]
+        self._dynamic_boxes = np.nonzero(self._box_dynamic)[0]
+        self._soups: list[TriangleSoup] = list(soups)
+        self.tile_cells = int(tile_cells)
+        self._tiles: dict[_TileKey, tuple[FloatArray, BoolArray]] = {}
+        # Lattice rasters of moving things, reused until they move: key (cell, kind, id).
+        self._moving_raster: dict[tuple[float, str, int], tuple[IntArray, IntArray, FloatArray]] = {}
+        self._box_index_static: _BucketIndex | None = None
+        self._box_index_dynamic: _BucketIndex | None = None
+        self._soup_index: dict[int, _BucketIndex] = {}
+        self._soup_tris: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self._update_box_bounds()
+        self.stats = {"tiles_rasterised": 0, "moving_rasterised": 0, "windows": 0}
+
+    # -- read-only views -----------------------------------------------------------------
+    @property
+    def boxes(self) -> Boxes:
+        """A copy of the current boxes."""
+        return Boxes(self._box_center.copy(), self._box_size.copy(), self._box_yaw.copy(),
+                     self._box_role.copy(), self._box_dynamic.copy())
+
+    @property
+    def soups(self) -> tuple[TriangleSoup, ...]:
+        return tuple(self._soups)
+
+    # -- moving things -------------------------------------------------------------------
+    def move_boxes(self, index: npt.ArrayLike, center: npt.ArrayLike, yaw: npt.ArrayLike) -> None:
+        """Move dynamic boxes ``index`` ``(k,)`` to ``center`` ``(k, 3)`` and ``yaw`` ``(k,)``."""
+        idx = np.asarray(index, dtype=np.intp).reshape(-1)
+        if idx.size == 0:
+            return
+        if np.any(~self._box_dynamic[idx]):
+            raise ValueError("only boxes created with dynamic=True can move")
+        self._box_center[idx] = np.asarray(center, dtype=np.float64).reshape(idx.size, 3)
+        self._box_yaw[idx] = np.asarray(yaw, dtype=np.float64).reshape(idx.size)
+        self._update_box_bounds(idx)
+        self._box_index_dynamic = None
+        moved = set(idx.tolist())
+        for key in [k for k in self._moving_raster if k[1] == "box" and k[2] in moved]:
+            del self._moving_raster[key]
+
+    def set_soup_vertices(self, i: int, vertices: npt.ArrayLike) -> None:
+        """Replace the vertices ``(v, 3)`` of dynamic soup ``i`` (same topology)."""
+        soup = self._soups[i]
+        if not soup.dynamic:
+            raise ValueError("only soups created with dynamic=True can move")
+        v = np.asarray(vertices, dtype=np.float64).reshape(soup.vertices.shape)
+        self._soups[i] = TriangleSoup(v, soup.faces, soup.role, True)
+        self._soup_index.pop(i, None)
+        self._soup_tris.pop(i, None)
+        for key in [k for k in self._moving_raster if k[1] == "soup" and k[2] == i]:
+            del self._moving_raster[key]
+
+    def clear_cache(self) -> None:
+        """Forget every cached tile and raster (memory only; results do not change)."""
+        self._tiles.clear()
+        self._moving_raster.clear()
+
+    def _update_box_bounds(self, idx: IntArray | None = None) -> None:
+        if idx is None:
+            idx = np.arange(self._box_center.shape[0])
+            self._box_lo = np.zeros((idx.size, 2))
+            self._box_hi = np.zeros((idx.size, 2))
+        hx = 0.5 * self._box_size[idx, 0]
+        hy = 0.5 * self._box_size[idx, 1]
+        acos = np.abs(np.cos(self._box_yaw[idx]))
+        asin = np.abs(np.sin(self._box_yaw[idx]))
+        ext = np.stack([hx * acos + hy * asin, hx * asin + hy * acos], axis=1)
+        self._box_lo[idx] = self._box_center[idx, :2] - ext
+        self._box_hi[idx] = self._box_center[idx, :2] + ext
+
+    # -- point queries -------------------------------------------------------------------
+    def _box_pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
+        if self._box_index_static is None:
+            s = self._static_boxes
+            self._box_index_static = _BucketIndex(self._box_lo[s], self._box_hi[s])
+        if self._box_index_dynamic is None:
+            d = self._dynamic_boxes
+            self._box_index_dynamic = _BucketIndex(self._box_lo[d], self._box_hi[d])
+        p1, b1 = self._box_index_static.pairs(xy)
+        p2, b2 = self._box_index_dynamic.pairs(xy)
+        point = np.concatenate([p1, p2])
+        box = np.concatenate([self._static_boxes[b1], self._dynamic_boxes[b2]])
+        rel = xy[point] - self._box_center[box, :2]
+        cos = np.cos(self._box_yaw[box])
+        sin = np.sin(self._box_yaw[box])
+        u = rel[:, 0] * cos + rel[:, 1] * sin
+        v = -rel[:, 0] * sin + rel[:, 1] * cos
+        inside = (np.abs(u) <= 0.5 * self._box_size[box, 0]) & (np.abs(v) <= 0.5 * self._box_size[box, 1])
+        return point[inside], box[inside]
+
+    def _soup_triangles(self, i: int) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Triangles ``(f, 3, 3)`` of soup ``i`` and their xy bounds, cached until it moves."""
+        hit = self._soup_tris.get(i)
+        if hit is None:
+            soup = self._soups[i]
+            tris = soup.vertices[soup.faces]
+            hit = (tris, tris[..., :2].min(axis=1), tris[..., :2].max(axis=1))
+            self._soup_tris[i] = hit
+        return hit
+
+    def _soup_hits(self, i: int, xy: FloatArray) -> tuple[IntArray, FloatArray]:
+        tris, tlo, thi = self._soup_triangles(i)
+        if i not in self._soup_index:
+            self._soup_index[i] = _BucketIndex(tlo, thi)
+        point, tri = self._soup_index[i].pairs(xy)
+        t = tris[tri]
+        a = t[:, 0, :2]
+        e1 = t[:, 1, :2] - a
+        e2 = t[:, 2, :2] - a
+        p = xy[point] - a
+        den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        good = np.abs(den) > 1e-15
+        den = np.where(good, den, 1.0)
+        u = (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / den
+        v = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
+        tol = -1e-9
+        inside = good & (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
+        z = t[:, 0, 2] + u * (t[:, 1, 2] - t[:, 0, 2]) + v * (t[:, 2, 2] - t[:, 0, 2])
+        return point[inside], z[inside]
+
+    def height_at(self, xy: npt.ArrayLike) -> FloatArray:
+        """Highest surface (terrain and every obstacle) under each point ``(n, 2)``: ``(n,)``.
+
+        :data:`NO_SURFACE` where there is nothing at all.
+        """
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.full(p.shape[0], NO_SURFACE)
+        if self.heightmap is not None:
+            out = np.maximum(out, self.heightmap.sample(p))
+        point, box = self._box_pairs(p)
+        np.maximum.at(out, point, self._box_center[box, 2] + self._box_size[box, 2])
+        for i in range(len(self._soups)):
+            pt, z = self._soup_hits(i, p)
+            np.maximum.at(out, pt, z)
+        return out
+
+    def forbidden_at(self, xy: npt.ArrayLike) -> BoolArray:
+        """Whether each point ``(n, 2)`` lies inside an avoided obstacle's footprint: ``(n,)``."""
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        out = np.zeros(p.shape[0], dtype=bool)
+        point, box = self._box_pairs(p)
+        out[point[self._box_role[box] == ROLE_AVOID]] = True
+        for i, soup in enumerate(self._soups):
+            if soup.role == ROLE_AVOID:
+                pt, _ = self._soup_hits(i, p)
+                out[pt] = True
+        return out
+
+    # -- rasterisation -----------------------------------------------------------------------
+    def _raster_into(
+        self, origin: FloatArray, cell: float, elev: FloatArray, avoid: BoolArray,
+        box_ids: IntArray, soup_ids: Sequence[int],
+    ) -> None:
+        shape = (elev.shape[0], elev.shape[1])
+        if box_ids.size:
+            b, r, c = raster_boxes(origin, cell, shape, self._box_center[box_ids, :2],
+                                   0.5 * self._box_size[box_ids, 0], 0.5 * self._box_size[box_ids, 1],
+                                   self._box_yaw[box_ids])
+            ids = box_ids[b]
+            np.maximum.at(elev, (r, c), self._box_center[ids, 2] + self._box_size[ids, 2])
+            a = self._box_role[ids] == ROLE_AVOID
+            avoid[r[a], c[a]] = True
+        for i in soup_ids:
+            soup = self._soups[i]
+            tris = soup.vertices[soup.faces]
+            _, r, c, z = raster_triangles(origin, cell, shape, tris)
+            np.maximum.at(elev, (r, c), z)
+            if soup.role == ROLE_AVOID:
+                avoid[r, c] = True
+
+    def _heightmap_cells(self, origin: FloatArray, cell: float, shape: tuple[int, int]) -> FloatArray:
+        """Highest terrain height over each cell's area (exact for the bilinear surface).
+
+        A bilinear patch is linear along grid-parallel lines, so over a rectangle its maximum
+        is at a corner of the rectangle cut by the heightmap's grid lines: sample the lattice
+        of cell borders and heightmap lines, then take the maximum over each cell's lattice
+        points. A cell partly over the terrain's edge counts as terrain.
+        """
+        ny, nx = shape
+        hm = self.heightmap
+        if hm is None:
+            return np.full(shape, NO_SURFACE)
+        hny, hnx = hm.heights.shape
+
+        def axis(o: float, n: int, h_o: float, h_n: int) -> tuple[FloatArray, IntArray]:
+            borders = o + (np.arange(n + 1) - 0.5) * cell
+            lines = h_o + np.arange(h_n) * hm.cell
+            lines = lines[(lines > borders[0]) & (lines < borders[-1])]
+            coords = np.union1d(borders, lines)
+            return coords, np.searchsorted(coords, borders)
+
+        xs, bx = axis(float(origin[0]), nx, float(hm.origin[0]), hnx)
+        ys, by = axis(float(origin[1]), ny, float(hm.origin[1]), hny)
+        gx, gy = np.meshgrid(xs, ys)
+        lattice = hm.sample(np.stack([gx, gy], axis=-1))
+        lattice = np.where(lattice < _VOID_BELOW, -np.inf, lattice)
+        # Max over [b_i, b_{i+1}] (both borders included) along each axis.
+        rows = np.maximum(np.maximum.reduceat(lattice, by[:-1], axis=0), lattice[by[1:]])
+        cells = np.maximum(np.maximum.reduceat(rows, bx[:-1], axis=1), rows[:, bx[1:]])
+        return np.where(np.isfinite(cells), cells, NO_SURFACE)
+
+    def _static_tile(self, cell: float, ti: int, tj: int) -> tuple[FloatArray, BoolArray]:
+        key = (cell, ti, tj)
+        tile = self._tiles.get(key)
+        if tile is not None:
+            return tile
+        t = self.tile_cells
+        origin = np.array([tj * t * cell, ti * t * cell])
+        shape = (t, t)
+        elev = self._heightmap_cells(origin, cell, shape)
+        avoid = np.zeros(shape, dtype=bool)
+        lo = origin - cell
+        hi = origin + t * cell
+        s = self._static_boxes
+        near = s[np.all((self._box_hi[s] >= lo) & (self._box_lo[s] <= hi), axis=1)]
+        self._raster_into(origin, cell, elev, avoid, near, [])
+        for i, soup in enumerate(self._soups):
+            if soup.dynamic or soup.faces.shape[0] == 0:
+                continue
+            tris, tlo, thi = self._soup_triangles(i)
+            sel = np.all((thi >= lo) & (tlo <= hi), axis=1)
+            if np.any(sel):
+                _, r, c, z = raster_triangles(origin, cell, shape, tris[sel])
+                np.maximum.at(elev, (r, c), z)
+                if soup.role == ROLE_AVOID:
+                    avoid[r, c] = True
+        self._tiles[key] = (elev, avoid)
+        self.stats["tiles_rasterised"] += 1
+        return elev, avoid
+
+    def _cache_moving_boxes(self, cell: float, ids: IntArray) -> None:
+        """Rasterise the moving boxes ``ids`` not cached yet, all in one vectorised call."""
+        cached = self._moving_raster
+        todo = np.asarray([b for b in ids.tolist() if (cell, "box", b) not in cached], dtype=np.intp)
+        if todo.size == 0:
+            return
+        lo = self._box_lo[todo].min(axis=0)
+        hi = self._box_hi[todo].max(axis=0)
+        i0 = math.floor(lo[1] / cell) - 1
+        j0 = math.floor(lo[0] / cell) - 1
+        shape = (math.ceil(hi[1] / cell) + 2 - i0, math.ceil(hi[0] / cell) + 2 - j0)
+        origin = np.array([j0 * cell, i0 * cell])
+        half = 0.5 * self._box_size[todo]
+        which, r, c = raster_boxes(origin, cell, shape, self._box_center[todo, :2], half[:, 0], half[:, 1],
+                                   self._box_yaw[todo])
+        order = np.argsort(which, kind="stable")
+        which, r, c = which[order], r[order] + i0, c[order] + j0
+        bounds = np.searchsorted(which, np.arange(todo.size + 1))
+        top = self._box_center[todo, 2] + self._box_size[todo, 2]
+        for k, b in enumerate(todo.tolist()):
+            sl = slice(bounds[k], bounds[k + 1])
+            self._moving_raster[(cell, "box", b)] = (r[sl], c[sl], np.full(bounds[k + 1] - bounds[k], top[k]))
+        self.stats["moving_rasterised"] += int(todo.size)
+
+    def _moving_soup_cells(self, cell: float, ident: int) -> tuple[IntArray, IntArray, FloatArray]:
+        """Lattice cells (I, J) and heights covered by one moving soup, cached until it moves."""
+        key = (cell, "soup", ident)
+        hit = self._moving_raster.get(key)
+        if hit is not None:
+            return hit
+        soup = self._soups[ident]
+        v = soup.vertices
+        lo = v[:, :2].min(axis=0)
+        hi = v[:, :2].max(axis=0)
+        i0 = math.floor(lo[1] / cell) - 1
+        j0 = math.floor(lo[0] / cell) - 1
+        shape = (math.ceil(hi[1] / cell) + 2 - i0, math.ceil(hi[0] / cell) + 2 - j0)
+        origin = np.array([j0 * cell, i0 * cell])
+        _, r, c, z = raster_triangles(origin, cell, shape, v[soup.faces])
+        out = (r + i0, c + j0, z)
+        self._moving_raster[key] = out
+        self.stats["moving_rasterised"] += 1
+        return out
+
+    def window(self, center_xy: npt.ArrayLike, params: WindowParams | None = None) -> WindowGrids:
+        """The grids of the ``n_cells`` × ``n_cells`` window nearest to ``center_xy`` ``(2,)``.
+
+        The window is snapped to the world lattice (its centre is within half a cell of
+        ``center_xy``). Static content comes from cached tiles; moving boxes and meshes that
+        overlap the window are pasted from their cached rasters (re-rasterised only after
+        they moved). For many characters prefer :meth:`windows` (one batch for all).
+        """
+        return self.windows(np.asarray(center_xy, dtype=np.float64).reshape(1, 2), params)[0]
+
+    def windows(self, centers_xy: npt.ArrayLike, params: WindowParams | None = None) -> list[WindowGrids]:
+        """:meth:`window` for many characters at once (``(n, 2)`` centres): the moving boxes
+        near any of them are rasterised in a single vectorised batch, once per move."""
+        prm = params if params is not None else WindowParams()
+        cell = float(prm.cell)
+        n = int(prm.n_cells)
+        ctr = np.asarray(centers_xy, dtype=np.float64).reshape(-1, 2)
+        i0s = np.rint(ctr[:, 1] / cell).astype(np.intp) - n // 2
+        j0s = np.rint(ctr[:, 0] / cell).astype(np.intp) - n // 2
+        lo_w = np.column_stack([j0s, i0s]) * cell - cell
+        hi_w = lo_w + (n + 1) * cell
+        d = self._dynamic_boxes
+        near_all: list[IntArray] = []
+        if d.size:
+            # Moving boxes sorted by their min x: each window scans only a narrow x range.
+            dlo = self._box_lo[d]
+            order = np.argsort(dlo[:, 0], kind="stable")
+            d_sorted = d[order]
+            lo_sorted = dlo[order]
+            hi_sorted = self._box_hi[d_sorted]
+            widest = float(np.max(hi_sorted[:, 0] - lo_sorted[:, 0]))
+            first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left")
+            last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right")
+            for w in range(ctr.shape[0]):
+                sl = slice(int(first[w]), int(last[w]))
+                ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
+                      & (lo_sorted[sl, 1] <= hi_w[w, 1]))
+                near_all.append(d_sorted[sl][ok])
+            self._cache_moving_boxes(cell, np.unique(np.concatenate(near_all)))
+        moving_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic and soup.faces.shape[0]]
+        half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
+        out: list[WindowGrids] = []
+        for w in range(ctr.shape[0]):
+            i0 = int(i0s[w])
+            j0 = int(j0s[w])
+            elev, avoid = self._static_window(cell, n, i0, j0)
+            rows: list[IntArray] = []
+            cols: list[IntArray] = []
+            tops: list[FloatArray] = []
+            avoid_rows: list[IntArray] = []
+            avoid_cols: list[IntArray] = []
+            for b in near_all[w].tolist() if near_all else []:
+                r, c, z = self._moving_raster[(cell, "box", b)]
+                rows.append(r)
+                cols.append(c)
+                tops.append(z)
+                if self._box_role[b] == ROLE_AVOID:
+                    avoid_rows.append(r)
+                    avoid_cols.append(c)
+            for i in moving_soups:
+                v = self._soups[i].vertices[:, :2]
+                if np.all(v.max(axis=0) >= lo_w[w]) and np.all(v.min(axis=0) <= hi_w[w]):
+                    r, c, z = self._moving_soup_cells(cell, i)
+                    rows.append(r)
+                    cols.append(c)
+                    tops.append(z)
+                    if self._soups[i].role == ROLE_AVOID:
+                        avoid_rows.append(r)
+                        avoid_cols.append(c)
+            if rows:
+                r = np.concatenate(rows) - i0
+                c = np.concatenate(cols) - j0
+                z = np.concatenate(tops)
+                ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
+                np.maximum.at(elev, (r[ok], c[ok]), z[ok])
+            if avoid_rows:
+                r = np.concatenate(avoid_rows) - i0
+                c = np.concatenate(avoid_cols) - j0
+                ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
+                avoid[r[ok], c[ok]] = True
+            self.stats["windows"] += 1
+            origin = np.array([j0 * cell, i0 * cell])
+            out.append(WindowGrids(origin, cell, elev, avoid, half, float(prm.foot_yaw)))
+        return out
+
+    def _static_window(self, cell: float, n: int, i0: int, j0: int) -> tuple[FloatArray, BoolArray]:
+        """Copy of the static grids of the window whose cell [0, 0] is lattice cell (i0, j0)."""
+        elev = np.empty((n, n))
+        avoid = np.empty((n, n), dtype=bool)
+        t = self.tile_cells
+        for ti in range(i0 // t, (i0 + n - 1) // t + 1):
+            r_lo = max(i0, ti * t)
+            r_hi = min(i0 + n, (ti + 1) * t)
+            for tj in range(j0 // t, (j0 + n - 1) // t + 1):
+                c_lo = max(j0, tj * t)
+                c_hi = min(j0 + n, (tj + 1) * t)
+                te, ta = self._static_tile(cell, ti, tj)
+                dst = (slice(r_lo - i0, r_hi - i0), slice(c_lo - j0, c_hi - j0))
+                src = (slice(r_lo - ti * t, r_hi - ti * t), slice(c_lo - tj * t, c_hi - tj * t))
+                elev[dst] = te[src]
+                avoid[dst] = ta[src]
+        return elev, avoid
+
+    def rasterise(
+        self, origin: npt.ArrayLike, cell: float, shape: tuple[int, int]
+    ) -> tuple[FloatArray, BoolArray]:
+        """Elevation and avoid grids of any rectangle, without caches (reference/debugging)."""
+        o = np.asarray(origin, dtype=np.float64).reshape(2)
+        elev = self._heightmap_cells(o, cell, shape)
+        avoid = np.zeros(shape, dtype=bool)
+        self._raster_into(o, cell, elev, avoid, np.arange(self._box_center.shape[0]), range(len(self._soups)))
+        return elev, avoid

@@ -1,0 +1,261 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Environment, rasterisation and per-character window grids (thesis §3.4.1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from procloco_addon.core.terrain import (
+    NO_SURFACE,
+    ROLE_AVOID,
+    ROLE_GROUND,
+    ROLE_STEP_OVER,
+    Boxes,
+    Environment,
+    Heightmap,
+    TriangleSoup,
+    WindowParams,
+    dilate,
+    foot_kernel,
+)
+
+SMALL = WindowParams(n_cells=30, cell=0.07, foot_half_extents=(0.03, 0.03))
+
+
+def flat(size: float = 6.0, z: float = 0.0) -> Heightmap:
+    n = int(size / 0.5) + 1
+    return Heightmap(np.full((n, n), z), np.array([-size / 2, -size / 2]), 0.5)
+
+
+def boxes(rows: list[tuple[float, float, float, float, float, float, int, bool]]) -> Boxes:
+    """(x, y, sx, sy, sz, yaw, role, dynamic) rows, standing on z = 0."""
+    a = np.array([r[:6] for r in rows], dtype=float).reshape(-1, 6)
+    return Boxes(np.column_stack([a[:, :2], np.zeros(len(rows))]), a[:, 2:5], a[:, 5],
+                 np.array([r[6] for r in rows], dtype=int), np.array([r[7] for r in rows], dtype=bool))
+
+
+def random_env(seed: int, n_boxes: int = 25, dynamic: bool = True) -> Environment:
+    rng = np.random.default_rng(seed)
+    hm = Heightmap(rng.normal(size=(21, 21)) * 0.05, np.array([-2.5, -2.5]), 0.25)
+    xy = rng.uniform(-1.5, 1.5, (n_boxes, 2))
+    b = Boxes(np.column_stack([xy, rng.uniform(-0.05, 0.05, n_boxes)]),
+              np.column_stack([rng.uniform(0.05, 0.5, (n_boxes, 2)), rng.uniform(0.02, 0.4, n_boxes)]),
+              rng.uniform(-np.pi, np.pi, n_boxes), rng.choice([ROLE_STEP_OVER, ROLE_AVOID], n_boxes),
+              (rng.random(n_boxes) < 0.5) & dynamic)
+    ramp_v = np.array([[0.2, -1.0, 0.1], [1.2, -1.0, 0.3], [0.2, -0.2, 0.5]])
+    ramp = TriangleSoup(ramp_v, np.array([[0, 1, 2]]), ROLE_STEP_OVER)
+    return Environment(hm, b, [ramp], tile_cells=16)
+
+
+def test_heightmap_is_bilinear_and_ends_at_its_border() -> None:
+    xs = np.arange(5) * 0.5
+    gx, gy = np.meshgrid(xs, np.arange(4) * 0.5)
+    hm = Heightmap(0.3 * gx - 0.2 * gy + 1.0, np.zeros(2), 0.5)
+    rng = np.random.default_rng(0)
+    p = rng.uniform([0, 0], [2.0, 1.5], (200, 2))
+    assert np.allclose(hm.sample(p), 0.3 * p[:, 0] - 0.2 * p[:, 1] + 1.0)  # exact on a plane
+    assert np.all(hm.sample(np.array([[-0.1, 0.5], [0.5, 1.6], [2.1, 0.0]])) == NO_SURFACE)
+    with pytest.raises(ValueError, match="finite"):
+        Heightmap(np.array([[0.0, np.nan], [0.0, 0.0]]), np.zeros(2), 0.5)
+
+
+@given(st.integers(0, 10_000))
+def test_window_elevation_is_the_highest_surface_in_each_cell(seed: int) -> None:
+    env = random_env(seed)
+    rng = np.random.default_rng(seed + 1)
+    centre = rng.uniform(-0.8, 0.8, 2)
+    w = env.window(centre, SMALL)
+    # Points anywhere in the window: the cell holds at least their height (conservative).
+    lo = w.origin - 0.5 * w.cell
+    pts = rng.uniform(lo, lo + np.array(w.shape[::-1]) * w.cell, (3000, 2))
+    assert np.all(env.height_at(pts) <= w.elevation_at(pts) + 1e-9)
+    # Avoided boxes are forbidden cells; every point inside one lies in a forbidden cell.
+    inside_avoid = env.forbidden_at(pts)
+    rc = w.cell_of(pts[inside_avoid])
+    assert np.all(w.avoid[rc[:, 0], rc[:, 1]])
+
+
+def test_terrain_cells_hold_exactly_the_highest_point_of_the_bilinear_surface() -> None:
+    rng = np.random.default_rng(2)
+    for hm_cell in (0.25, 0.05):  # coarser and finer than the window cells
+        hm = Heightmap(rng.normal(size=(41, 41)) * 0.05, np.array([-1.0, -1.0]), hm_cell)
+        w = Environment(hm).window(np.array([0.1, 0.2]), WindowParams(n_cells=12))
+        ny, nx = w.shape
+        s = np.linspace(-0.5, 0.5, 41) * w.cell
+        ox, oy = np.meshgrid(s, s)
+        centres = w.xy_of(*np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij"))
+        pts = centres[:, :, None, :] + np.column_stack([ox.ravel(), oy.ravel()])[None, None]
+        dense_max = hm.sample(pts).max(axis=2)
+        assert np.all(w.elevation >= dense_max - 1e-12)
+        assert np.all(w.elevation - dense_max <= 0.05)  # samples 1/40 cell apart: close to exact
+        assert np.mean(w.elevation - dense_max) < 2e-3
+
+
+@given(st.integers(0, 10_000))
+def test_cached_tiles_and_moving_rasters_equal_a_fresh_rasterisation(seed: int) -> None:
+    env = random_env(seed)
+    rng = np.random.default_rng(seed)
+    dyn = np.nonzero(env.boxes.dynamic)[0]
+    for step in range(3):
+        centres = rng.uniform(-1.0, 1.0, (3, 2))
+        for w in env.windows(centres, SMALL):
+            elev, avoid = env.rasterise(w.origin, w.cell, w.shape)
+            assert np.allclose(w.elevation, elev, rtol=0.0, atol=1e-12)
+            assert np.array_equal(w.avoid, avoid)
+        if dyn.size:
+            b = env.boxes
+            env.move_boxes(dyn, b.center[dyn] + np.array([0.1, -0.05, 0.0]) * (step + 1), b.yaw[dyn] + 0.3)
+
+
+def test_static_tiles_are_rasterised_once_and_moving_boxes_only_when_they_moved() -> None:
+    env = Environment(flat(), boxes([(0.3, 0.0, 0.2, 0.2, 0.1, 0.0, ROLE_STEP_OVER, False),
+                                     (-0.3, 0.0, 0.2, 0.2, 0.2, 0.0, ROLE_AVOID, True),
+                                     (2.5, 2.5, 0.2, 0.2, 0.2, 0.0, ROLE_AVOID, True)]), tile_cells=32)
+    env.window(np.zeros(2), SMALL)
+    tiles = env.stats["tiles_rasterised"]
+    assert env.stats["moving_rasterised"] == 1  # the far moving box is not near this window
+    env.window(np.array([0.05, 0.02]), SMALL)
+    assert env.stats["tiles_rasterised"] == tiles
+    assert env.stats["moving_rasterised"] == 1  # nothing moved: reused
+    b = env.boxes
+    env.move_boxes(np.array([1]), np.array([[-0.5, 0.2, 0.0]]), np.array([0.4]))
+    w = env.window(np.zeros(2), SMALL)
+    assert env.stats["moving_rasterised"] == 2
+    assert env.stats["tiles_rasterised"] == tiles
+    # The box left its old cells and occupies its new ones.
+    assert not w.avoid[tuple(w.cell_of(np.array([-0.3, -0.08])))]
+    assert w.avoid[tuple(w.cell_of(np.array([-0.5, 0.2])))]
+    assert w.elevation[tuple(w.cell_of(np.array([-0.5, 0.2])))] == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="dynamic"):
+        env.move_boxes(np.array([0]), b.center[:1], b.yaw[:1])
+
+
+def test_box_cells_are_exactly_the_cells_the_rotated_box_overlaps() -> None:
+    env = Environment(None, boxes([(0.1, -0.05, 0.5, 0.12, 0.3, 0.6, ROLE_AVOID, False)]))
+    w = env.window(np.zeros(2), SMALL)
+    # Dense samples of each cell; a cell overlaps the box iff one of its samples is inside.
+    ny, nx = w.shape
+    s = (np.arange(15) + 0.5) / 15 - 0.5
+    ox, oy = np.meshgrid(s, s)
+    offs = np.column_stack([ox.ravel(), oy.ravel()]) * w.cell
+    centres = w.xy_of(*np.meshgrid(np.arange(ny), np.arange(nx), indexing="ij"))
+    pts = (centres[:, :, None, :] + offs[None, None, :, :]).reshape(-1, 2)
+    hit = env.forbidden_at(pts).reshape(ny, nx, -1).any(axis=2)
+    assert np.array_equal(w.avoid, hit)
+    assert np.all(w.elevation[w.avoid] == pytest.approx(0.3))
+    assert np.all(w.elevation[~w.avoid] == NO_SURFACE)  # no terrain at all: void
+    assert np.array_equal(w.void, ~w.avoid)
+
+
+def test_step_over_raises_the_elevation_but_is_not_forbidden() -> None:
+    env = Environment(flat(), boxes([(0.0, 0.0, 0.3, 0.3, 0.15, 0.0, ROLE_STEP_OVER, False)]))
+    w = env.window(np.zeros(2), SMALL)
+    centre = tuple(w.cell_of(np.zeros(2)))
+    assert w.elevation[centre] == pytest.approx(0.15)
+    assert not w.avoid.any()
+    assert not w.dilated.any()
+    # A slice below the crate's top forbids it (walk around); one above does not.
+    core_low, dil_low = w.obstacle_map(level=0.1)
+    core_high, _ = w.obstacle_map(level=0.2)
+    assert core_low[centre]
+    assert not core_high.any()
+    assert dil_low.any()
+    assert not (dil_low & core_low).any()
+
+
+def test_dilation_is_kept_apart_and_follows_the_foot_shape() -> None:
+    env = Environment(flat(), boxes([(0.0, 0.0, 0.05, 0.05, 0.3, 0.0, ROLE_AVOID, False)]))
+    w = env.window(np.zeros(2), SMALL)
+    assert np.count_nonzero(w.forbidden) == 1
+    assert np.count_nonzero(w.dilated) == 8  # a small foot anywhere in its cell: one ring
+    assert not (w.forbidden & w.dilated).any()
+    # A long foot along x, then turned 90°: the dilation turns with it.
+    _, along_x = w.obstacle_map(foot_half_extents=(0.12, 0.02), foot_yaw=0.0)
+    _, along_y = w.obstacle_map(foot_half_extents=(0.12, 0.02), foot_yaw=np.pi / 2)
+    rows_x, cols_x = np.nonzero(along_x)
+    rows_y, cols_y = np.nonzero(along_y)
+    assert np.ptp(cols_x) > np.ptp(rows_x)
+    assert np.ptp(rows_y) > np.ptp(cols_y)
+    assert np.array_equal(along_x, along_y.T)  # square window centred on the box
+    # Other feet as extra forbidden cells.
+    extra = np.zeros(w.shape, dtype=bool)
+    extra[3, 4] = True
+    core, dil = w.obstacle_map(extra=extra)
+    assert core[3, 4]
+    assert dil[3, 5]
+
+
+def test_foot_kernel_covers_the_foot_anywhere_in_its_cell() -> None:
+    cell = 0.07
+    for half, yaw in (((0.03, 0.03), 0.0), ((0.1, 0.02), 0.7), ((0.0, 0.0), 0.0)):
+        k = foot_kernel(cell, half, yaw)
+        ks = {tuple(v) for v in k.tolist()}
+        rng = np.random.default_rng(3)
+        c, s = np.cos(yaw), np.sin(yaw)
+        for _ in range(300):
+            centre = rng.uniform(-0.5, 0.5, 2) * cell  # anywhere in cell (0, 0)
+            u, v = rng.uniform(-1, 1, 2) * np.asarray(half)
+            p = centre + np.array([c * u - s * v, s * u + c * v])
+            cell_rc = (int(np.rint(p[1] / cell)), int(np.rint(p[0] / cell)))
+            assert cell_rc in ks
+    # Dilation equals the union of shifted copies.
+    mask = np.zeros((9, 9), dtype=bool)
+    mask[4, 4] = True
+    grown = dilate(mask, foot_kernel(cell, (0.1, 0.02), 0.0))
+    assert grown[4, 2]
+    assert grown[4, 6]
+    assert not grown[2, 4]
+
+
+def test_triangle_soups_ground_gaps_and_moving_meshes() -> None:
+    # A sloped ground quad over x in [-1, 0], nothing over x > 0 (a gap).
+    v = np.array([[-1.0, -1.0, 0.0], [0.0, -1.0, 0.2], [0.0, 1.0, 0.2], [-1.0, 1.0, 0.0]])
+    ground = TriangleSoup(v, np.array([[0, 1, 2], [0, 2, 3]]), ROLE_GROUND)
+    lid_v = np.array([[-0.6, -0.1, 0.5], [-0.4, -0.1, 0.5], [-0.5, 0.1, 0.5]])
+    lid = TriangleSoup(lid_v, np.array([[0, 1, 2]]), ROLE_AVOID, dynamic=True)
+    env = Environment(None, None, [ground, lid])
+    w = env.window(np.array([-0.3, 0.0]), SMALL)
+    rng = np.random.default_rng(5)
+    pts = rng.uniform([-0.95, -0.9], [-0.05, 0.9], (2000, 2))
+    h = env.height_at(pts)
+    e = w.elevation_at(pts)
+    assert np.all(h <= e + 1e-9)
+    rc = w.cell_of(pts)
+    ground_only = ~w.avoid[rc[:, 0], rc[:, 1]]
+    assert np.all((e - h)[ground_only] <= 0.2 * w.cell + 1e-9)  # slope 0.2 across at most a cell
+    gap = w.elevation_at(np.array([[0.3, 0.0]]))[0]
+    assert gap == NO_SURFACE
+    assert w.avoid[tuple(w.cell_of(np.array([-0.5, 0.0])))]
+    # Moving the lid moves its forbidden cells.
+    env.set_soup_vertices(1, lid.vertices + np.array([0.0, 0.5, 0.0]))
+    w2 = env.window(np.array([-0.3, 0.0]), SMALL)
+    assert not w2.avoid[tuple(w2.cell_of(np.array([-0.5, 0.0])))]
+    assert w2.avoid[tuple(w2.cell_of(np.array([-0.5, 0.5])))]
+    assert env.forbidden_at(np.array([[-0.5, 0.5], [-0.5, 0.0]])).tolist() == [True, False]
+    with pytest.raises(ValueError, match="dynamic"):
+        env.set_soup_vertices(0, v)
+
+
+def test_windows_batch_equals_single_windows_and_snaps_to_the_lattice() -> None:
+    env = random_env(11)
+    centres = np.array([[0.0, 0.0], [0.33, -0.41], [1.2, 0.9]])
+    batch = env.windows(centres, SMALL)
+    for c, w in zip(centres, batch, strict=True):
+        single = env.window(c, SMALL)
+        assert np.array_equal(single.elevation, w.elevation)
+        assert np.array_equal(single.avoid, w.avoid)
+        mid = w.xy_of(np.array(SMALL.n_cells // 2), np.array(SMALL.n_cells // 2))
+        assert np.all(np.abs(mid - c) <= 0.5 * SMALL.cell + 1e-12)
+        assert np.allclose(np.round(w.origin / SMALL.cell) * SMALL.cell, w.origin)
+
+
+def test_bad_inputs_are_refused() -> None:
+    with pytest.raises(ValueError, match="role"):
+        Boxes(np.zeros((1, 3)), np.ones((1, 3)), np.zeros(1), np.array([7]), np.zeros(1, dtype=bool))
+    with pytest.raises(ValueError, match="range"):
+        TriangleSoup(np.zeros((3, 3)), np.array([[0, 1, 3]]))
+    with pytest.raises(ValueError, match="n_cells"):
+        WindowParams(n_cells=2)
