@@ -307,14 +307,14 @@ _STATIC_CRATES: tuple[tuple[str, str, float, float, tuple[float, float, float], 
     ("Crate.Spider.Tall", "spider", -0.75, -0.3, (0.6, 0.6, 0.8), "AVOID"),
     ("Crate.Spider.Low2", "spider", 0.3, -1.3, (0.6, 0.4, 0.22), "STEP_OVER"),
     ("Crate.Ant.Tall", "ant", 0.7, -0.4, (0.5, 0.5, 0.6), "AVOID"),
-    ("Crate.Ant.Low", "ant", -0.3, -1.6, (0.4, 0.4, 0.12), "STEP_OVER"),
+    ("Crate.Ant.Low", "ant", -0.2, 0.9, (0.4, 0.4, 0.12), "STEP_OVER"),
     ("Crate.Lizard.Plank", "lizard", 0.0, 1.9, (0.3, 0.3, 0.05), "STEP_OVER"),
-    ("Crate.Wolf.Low", "wolf", 0.4, -2.5, (0.4, 0.4, 0.2), "STEP_OVER"),
+    ("Crate.Wolf.Low", "wolf", 0.1, 1.3, (0.4, 0.4, 0.2), "STEP_OVER"),
 )
 # (name, lane, y, size, amplitude along x, period in seconds, phase in cycles)
 _MOVING_CRATES: tuple[tuple[str, str, float, tuple[float, float, float], float, float, float], ...] = (
     ("Crate.Spider.Moving", "spider", -2.2, (0.5, 0.5, 0.4), 0.8, 4.0, 0.0),
-    ("Crate.Lizard.Moving", "lizard", 1.0, (0.35, 0.35, 0.3), 0.8, 3.0, 0.25),
+    ("Crate.Lizard.Moving", "lizard", 1.25, (0.35, 0.35, 0.3), 0.8, 3.0, 0.25),
 )
 
 
