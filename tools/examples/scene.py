@@ -5,7 +5,8 @@ API::
 
     setup_render(scene, resolution=(640, 360))    # Workbench, material colours, shadows
     add_sun(scene, collection=None) -> Object       # a sun for Cycles/EEVEE; sets Workbench's light direction
-    frame_camera(scene, objects, direction=..., margin=0.04) -> Object
+    bound_corners(objects) -> list[Vector]          # world corners of evaluated bounding boxes
+    frame_camera(scene, points, direction=..., margin=0.04, camera=None) -> Object
     configure_example_rig(rig, kind, terrain_collection) -> list[str]   # first-click settings
     build_example_scene(scene) -> ExampleScene      # six creatures on the terrain, framed
     creature_screen_boxes(scene, rigs) -> {kind: [u0, v0, u1, v1]}
