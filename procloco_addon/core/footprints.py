@@ -1,0 +1,419 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Footprint planning: the best couple (footprint, trajectory) for a swinging foot
+(thesis §3.5, §3.7, Appendix E).
+
+:func:`plan_footstep` is the planner the character controller calls for every foot that
+starts (or restarts) a swing:
+
+1. **Candidates** (§3.5.1): positions around the preferred footprint on the preferred
+   footprint's own sub-cell lattice (so the preferred footprint itself is a candidate, exactly),
+   within ``candidate_radius``. Never candidates: cells inside or next to avoided obstacles and
+   other feet (the obstacle map, enlarged by the foot shape), cells without any surface, cells
+   the leg cannot reach from its hip, or too far above/below the foot.
+2. **Target score** in [0, 1] (§3.5.1), the product of four criteria:
+   distance to the preferred footprint ``1 - d / fixed_distance``; free neighbours ``n / 8``
+   (a neighbour is not free if forbidden or if the ground there differs by more than
+   ``edge_height``); ``edge_score`` (0.8) on an obstacle's rim (a neighbour lower by more than
+   ``edge_height``); 0 if the leg would cross another leg (hip→footprint crosses another
+   hip→foot).
+3. **Height slices** (§3.5.2, Figure 3.25): for slice levels ``z_foot + k * slice_size``
+   every cell higher than the level is forbidden, so paths walk around it and over everything
+   lower; the last pass has no slice and goes over everything. ``slice_size=None``: only that
+   last pass.
+4. **Best couple with partial scores** (Appendix E): targets by decreasing score; the search
+   stops at the first target whose score cannot beat the best couple (path scores are at most
+   1); a couple's 2D score bounds its 3D score, so the 3D trajectory is only built when the 2D
+   bound beats the best couple. The result equals the exhaustive search's (ties go to the
+   earlier couple in the same order), which ``exhaustive=True`` runs for checking.
+5. **LOD** (§3.7): ``max_couples_after_first`` limits the couples evaluated once a valid
+   couple exists (0: stop at the first valid couple); ``slice_size`` (None = no slices).
+
+One wavefront per slice, grown from the foot, serves every target (the distance to all
+candidates at once); ``shared_wavefront=False`` grows one per (target, slice) as the thesis
+does, for comparison. Neither ever raises for an unreachable target nor returns NaN: a failed
+plan is a :class:`Couple` with ``ok=False`` and a ``message``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from .pathing import FootTrajectory, PathContext, PathParams, path_score_2d, search_region, vertical_factor
+from .terrain import _VOID_BELOW, WindowGrids, _box_overlaps_cells, raster_boxes
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+_NEIGHBOURS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+
+
+@dataclass(frozen=True)
+class PlannerParams:
+    """Knobs of the footprint planner. Lengths in metres.
+
+    ``step_height``: clearance of the swing above what it passes over.
+    ``slice_size``: height slices for "around or over" (None: no slices, go over everything).
+    ``leg_reach``: how far a footprint may be from the hip (horizontal) and the search
+    rectangle's width (``search_half_width`` defaults to ``max(candidate_radius, reach / 2)``).
+    ``candidate_radius``: candidates within this distance of the preferred footprint.
+    ``fixed_distance``: distance at which the distance criterion reaches 0.
+    ``foot_half_extents``: the foot's ground box (forward, left half sizes).
+    ``max_couples_after_first``: LOD budget (None: full search; 0: first valid couple).
+    ``edge_height``: a height step larger than this between neighbour cells is an edge.
+    ``edge_score``: the criterion's value on an obstacle rim (thesis: 0.8).
+    ``max_height_change``: footprints further than this above/below the foot are never
+    candidates (None: ``leg_reach``).
+    ``tension``: of the 2D cardinal curve. ``shared_wavefront``: one wavefront per slice from
+    the foot (True) or one per target and slice (False, the thesis's way).
+    ``exhaustive``: evaluate every couple fully (reference for tests; ignores the LOD budget).
+    ``max_targets``: cap on the number of candidates considered (best first), None for all.
+    """
+
+    step_height: float = 0.1
+    slice_size: float | None = 0.1
+    leg_reach: float = 0.6
+    candidate_radius: float = 0.2
+    fixed_distance: float = 0.3
+    foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    max_couples_after_first: int | None = None
+    edge_height: float = 0.04
+    edge_score: float = 0.8
+    max_height_change: float | None = None
+    search_half_width: float | None = None
+    tension: float = 0.5
+    shared_wavefront: bool = True
+    exhaustive: bool = False
+    max_targets: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.slice_size is not None and not self.slice_size > 0.0:
+            raise ValueError("slice_size must be positive or None")
+        if not (self.leg_reach > 0.0 and self.fixed_distance > 0.0 and self.candidate_radius >= 0.0):
+            raise ValueError("leg_reach and fixed_distance must be positive, candidate_radius >= 0")
+        if self.max_couples_after_first is not None and self.max_couples_after_first < 0:
+            raise ValueError("max_couples_after_first must be >= 0 or None")
+
+
+@dataclass(frozen=True)
+class Couple:
+    """The planner's answer for one foot.
+
+    ``ok``: a valid couple was found; ``footprint``: ``(3,)`` world position (the foot's start
+    when not ok); ``trajectory``: the 3D swing (None when not ok); ``score`` =
+    ``target_score * path_score`` in [0, 1]; ``n_couples``: couples (target, slice) whose 2D
+    plan was built; ``n_paths``: 3D trajectories built; ``n_targets``: candidate footprints;
+    ``n_wavefronts``: distance fields grown; ``first_valid_couple``: 1-based index of the first
+    valid couple among the evaluated ones (0 if none); ``n_couples_after_first``;
+    ``slice_level``: the slice of the chosen couple (None = no slice); ``message``: why not ok.
+    """
+
+    ok: bool
+    footprint: FloatArray
+    trajectory: FootTrajectory | None
+    score: float
+    target_score: float
+    path_score: float
+    n_couples: int
+    n_paths: int
+    message: str = ""
+    n_targets: int = 0
+    n_wavefronts: int = 0
+    wavefront_iterations: int = 0
+    first_valid_couple: int = 0
+    n_couples_after_first: int = 0
+    slice_level: float | None = None
+    target_index: int = -1
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """Scored candidate footprints: ``xy`` ``(k, 2)``, ``cells`` ``(k, 2)`` region cells,
+    ``z`` ``(k,)`` landing heights, ``score`` ``(k,)`` and its criteria ``distance``, ``free``,
+    ``edge``, ``crossing`` (each ``(k,)``), sorted best first."""
+
+    xy: FloatArray
+    cells: IntArray
+    z: FloatArray
+    score: FloatArray
+    distance: FloatArray
+    free: FloatArray
+    edge: FloatArray
+    crossing: FloatArray
+
+
+def _fail(start: FloatArray, message: str, **counts: int) -> Couple:
+    get = counts.get
+    return Couple(False, start.copy(), None, 0.0, 0.0, 0.0, get("n_couples", 0), get("n_paths", 0), message,
+                  get("n_targets", 0), get("n_wavefronts", 0), get("wavefront_iterations", 0))
+
+
+def legs_cross(
+    hip_xy: FloatArray, foot_xy: FloatArray, other_hips: FloatArray, other_feet: FloatArray
+) -> BoolArray:
+    """Whether segment hip→foot ``(k, 2)`` properly crosses any other leg's hip→foot
+    ``(j, 2)``; returns ``(k,)``. Touching at an end (shared hips) is not a crossing."""
+    if other_hips.shape[0] == 0:
+        return np.zeros(foot_xy.shape[0], dtype=bool)
+    p = np.broadcast_to(hip_xy, foot_xy.shape)[:, None, :]
+    r = (foot_xy - np.broadcast_to(hip_xy, foot_xy.shape))[:, None, :]
+    q = other_hips[None, :, :]
+    s = (other_feet - other_hips)[None, :, :]
+
+    def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+        return np.asarray(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
+
+    d1 = cross(r, q - p)
+    d2 = cross(r, q + s - p)
+    d3 = cross(s, p - q)
+    d4 = cross(s, p + r - q)
+    eps = 1e-12
+    hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
+        ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
+    return np.asarray(np.any(hit, axis=1))
+
+
+def score_candidates(
+    ctx: PathContext,
+    preferred_xy: FloatArray,
+    hip_xy: FloatArray,
+    other_hips_xy: FloatArray,
+    other_feet_xy: FloatArray,
+    params: PlannerParams,
+    foot_yaw: float = 0.0,
+) -> Candidates:
+    """Candidate footprints around ``preferred_xy`` with their scores (thesis §3.5.1)."""
+    grids = ctx.grids
+    cell = grids.cell
+    reg = ctx.region
+    pref_rc = grids.rowcol(preferred_xy) - np.array([reg.r0, reg.c0])
+    base = np.rint(pref_rc).astype(np.intp)
+    sub = pref_rc - base  # the preferred footprint's offset inside its cell (cells)
+    rad = params.candidate_radius / cell
+    k = math.ceil(rad) + 1
+    di, dj = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
+    off = np.stack([di.ravel(), dj.ravel()], axis=1)
+    dist_cells = np.hypot(off[:, 0], off[:, 1])
+    off = off[dist_cells <= rad + 1e-9]
+    cells = base[None, :] + off
+    h, w = reg.shape
+    inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
+    cells = cells[inside]
+    off = off[inside]
+    empty = np.zeros(0)
+    if cells.shape[0] == 0:
+        none = np.zeros((0, 2), dtype=np.intp)
+        return Candidates(np.zeros((0, 2)), none, empty, empty, empty, empty, empty, empty)
+    core, dilated, _ = ctx.maps(math.inf)
+    forbidden = core | dilated
+    r, c = cells[:, 0], cells[:, 1]
+    elev = ctx.elevation
+    ok = reg.mask[r, c] & ~forbidden[r, c] & (elev[r, c] > _VOID_BELOW)
+    xy = grids.xy_of(cells[:, 0] + reg.r0 + sub[0], cells[:, 1] + reg.c0 + sub[1])
+    ok &= np.linalg.norm(xy - hip_xy, axis=1) <= params.leg_reach + 1e-9
+    # Landing height: the highest surface under the foot box at its exact offset.
+    half = np.asarray(params.foot_half_extents, dtype=np.float64)
+    land_kernel = _offset_kernel(cell, half, foot_yaw, sub)
+    z = ctx.land_height(cells, land_kernel)
+    max_dz = params.leg_reach if params.max_height_change is None else params.max_height_change
+    ok &= np.abs(z - ctx.start[2]) <= max_dz
+    cells, off, xy, z = cells[ok], off[ok], xy[ok], z[ok]
+    r, c = cells[:, 0], cells[:, 1]
+    # Neighbour criteria on the region, padded as "not free".
+    pad_forb = np.ones((h + 2, w + 2), dtype=bool)
+    pad_forb[1:-1, 1:-1] = forbidden | (elev < _VOID_BELOW)
+    pad_elev = np.full((h + 2, w + 2), -np.inf)
+    pad_elev[1:-1, 1:-1] = elev
+    free = np.zeros(r.shape[0])
+    rim = np.zeros(r.shape[0], dtype=bool)
+    here = elev[r, c]
+    for dr, dc in _NEIGHBOURS:
+        ne = pad_elev[r + 1 + dr, c + 1 + dc]
+        nf = pad_forb[r + 1 + dr, c + 1 + dc]
+        free += (~nf & (np.abs(ne - here) <= params.edge_height)).astype(np.float64)
+        rim |= here - ne > params.edge_height
+    distance = np.clip(1.0 - np.linalg.norm(xy - preferred_xy, axis=1) / params.fixed_distance, 0.0, 1.0)
+    free_score = free / 8.0
+    edge = np.where(rim, params.edge_score, 1.0)
+    crossing = np.where(legs_cross(hip_xy, xy, other_hips_xy, other_feet_xy), 0.0, 1.0)
+    score = distance * free_score * edge * crossing
+    # Best first; ties: nearer the preferred footprint, then row, then column.
+    order = np.lexsort((c, r, np.hypot(off[:, 0], off[:, 1]), -score))
+    return Candidates(xy[order], cells[order], z[order], score[order], distance[order], free_score[order],
+                      edge[order], crossing[order])
+
+
+def _offset_kernel(cell: float, half: FloatArray, yaw: float, sub: FloatArray) -> IntArray:
+    """Cells covered by a foot box whose centre sits ``sub`` (row, col) cells off its cell's
+    centre."""
+    hx, hy = float(half[0]), float(half[1])
+    reach = math.ceil((abs(hx) + abs(hy)) / cell + 1.0)
+    ii, jj = np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1), indexing="ij")
+    centres = np.stack([jj.ravel() * cell, ii.ravel() * cell], axis=1)
+    centre = np.array([sub[1] * cell, sub[0] * cell])
+    hit = _box_overlaps_cells(centres, cell, centre, hx, hy, yaw)
+    off = np.stack([ii.ravel()[hit], jj.ravel()[hit]], axis=1).astype(np.intp)
+    if off.shape[0] == 0:
+        off = np.zeros((1, 2), dtype=np.intp)
+    return off
+
+
+def _other_feet_mask(
+    grids: WindowGrids, feet_xy: FloatArray, half: FloatArray, yaw: float
+) -> BoolArray | None:
+    if feet_xy.shape[0] == 0:
+        return None
+    mask = np.zeros(grids.shape, dtype=bool)
+    n = feet_xy.shape[0]
+    _, r, c = raster_boxes(grids.origin, grids.cell, grids.shape, feet_xy, np.full(n, half[0]),
+                           np.full(n, half[1]), np.full(n, yaw))
+    mask[r, c] = True
+    return mask
+
+
+def slice_levels(ctx: PathContext, slice_size: float | None) -> list[float]:
+    """Slice levels for one plan, lowest first, ending with ``inf`` (no slice).
+
+    Levels are ``z_foot + k * slice_size`` (k >= 1) below the highest surface in the search
+    rectangle; levels that forbid exactly the same cells as the next one are dropped.
+    """
+    if slice_size is None:
+        return [math.inf]
+    elev = ctx.elevation[ctx.region.mask]
+    elev = elev[elev > _VOID_BELOW]
+    top = float(elev.max()) if elev.size else float(ctx.start[2])
+    levels: list[float] = []
+    z0 = float(ctx.start[2])
+    k = 1
+    while z0 + k * slice_size < top and k <= 1000:
+        levels.append(z0 + k * slice_size)
+        k += 1
+    levels.append(math.inf)
+    # Drop a level whose forbidden set equals the next one's (same paths twice).
+    above = [int(np.count_nonzero(elev > lv)) for lv in levels]
+    return [lv for i, lv in enumerate(levels) if i == len(levels) - 1 or above[i] != above[i + 1]]
+
+
+def plan_footstep(
+    grids: WindowGrids,
+    foot_start: npt.ArrayLike,
+    preferred_xy: npt.ArrayLike,
+    hip_xy: npt.ArrayLike,
+    other_hips_xy: npt.ArrayLike,
+    other_feet_xy: npt.ArrayLike,
+    params: PlannerParams,
+    foot_yaw: float = 0.0,
+) -> Couple:
+    """The best couple (footprint, 3D trajectory) for one swinging foot.
+
+    ``grids``: the character's window (:meth:`~.terrain.Environment.window`); ``foot_start``:
+    ``(3,)`` where the foot is now; ``preferred_xy``: ``(2,)`` the controller's preferred
+    footprint; ``hip_xy``: ``(2,)`` this leg's hip (at touch-down); ``other_hips_xy``,
+    ``other_feet_xy``: ``(k, 2)`` the other legs' hips and feet (their feet are forbidden,
+    their legs must not be crossed); ``foot_yaw``: the foot box's yaw. Never raises for an
+    unreachable target; never returns NaN.
+    """
+    start = np.asarray(foot_start, dtype=np.float64).reshape(3)
+    pref = np.asarray(preferred_xy, dtype=np.float64).reshape(2)
+    hip = np.asarray(hip_xy, dtype=np.float64).reshape(2)
+    o_hips = np.asarray(other_hips_xy, dtype=np.float64).reshape(-1, 2)
+    o_feet = np.asarray(other_feet_xy, dtype=np.float64).reshape(-1, 2)
+    safe_start = np.where(np.isfinite(start), start, 0.0)
+    if not (np.all(np.isfinite(start)) and np.all(np.isfinite(pref)) and np.all(np.isfinite(hip))
+            and np.all(np.isfinite(o_hips)) and np.all(np.isfinite(o_feet))):
+        return _fail(safe_start, "non-finite input")
+    if o_hips.shape != o_feet.shape:
+        return _fail(start, "other_hips_xy and other_feet_xy differ in shape")
+    cell = grids.cell
+    half = np.asarray(params.foot_half_extents, dtype=np.float64).reshape(2)
+    start_rc = grids.rowcol(start[:2])
+    pref_rc = grids.rowcol(pref)
+    ny, nx = grids.shape
+    if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
+        return _fail(start, "the foot is outside the window grids")
+    half_width = params.search_half_width
+    if half_width is None:
+        half_width = max(params.candidate_radius, 0.5 * params.leg_reach)
+    foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
+    region = search_region(grids.shape, start_rc, pref_rc, half_width / cell + foot_cells,
+                           params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
+    extra = _other_feet_mask(grids, o_feet, half, foot_yaw)
+    path_params = PathParams(step_height=params.step_height, tension=params.tension)
+    ctx = PathContext(grids, start, region, extra, half, foot_yaw, path_params,
+                      per_target=not params.shared_wavefront)
+    cand = score_candidates(ctx, pref, hip, o_hips, o_feet, params, foot_yaw)
+    valid = cand.score > 0.0
+    n_targets = int(np.count_nonzero(valid))
+    if n_targets == 0:
+        why = ("no candidate footprint: every cell near the preferred footprint is forbidden, "
+               "out of reach, without ground or crosses another leg")
+        return _fail(start, why)
+    order = np.nonzero(valid)[0]
+    if params.max_targets is not None:
+        order = order[: params.max_targets]
+    levels = slice_levels(ctx, params.slice_size)
+    exhaustive = params.exhaustive
+    budget = None if exhaustive else params.max_couples_after_first
+
+    best_score = 0.0
+    best: tuple[int, float, float, FootTrajectory, float] | None = None
+    n_couples = n_paths = after_first = first_valid = 0
+    stop = False
+    for t in order.tolist():
+        t_score = float(cand.score[t])
+        if not exhaustive and best is not None and t_score <= best_score:
+            break  # Appendix E: no couple with this target can beat the best one
+        cell_t = (int(cand.cells[t, 0]), int(cand.cells[t, 1]))
+        for level in levels:
+            path = ctx.path_2d(level, cell_t, cand.xy[t])
+            if path is None:
+                continue
+            n_couples += 1
+            if best is not None:
+                after_first += 1
+            s2 = path_score_2d(path)
+            # Appendix E: build the 3D trajectory only when the 2D bound beats the best couple.
+            if exhaustive or best is None or t_score * s2 > best_score:
+                traj = ctx.lift(path, float(cand.z[t]))
+                n_paths += 1
+                s3 = s2 * vertical_factor(traj, params.step_height)
+                score = t_score * s3
+                if best is None or score > best_score:
+                    if best is None:
+                        first_valid = n_couples
+                    best = (t, s3, level, traj, score)
+                    best_score = score
+            if budget is not None and best is not None and after_first >= budget:
+                stop = True
+                break
+        if stop:
+            break
+
+    counts = {"n_couples": n_couples, "n_paths": n_paths, "n_targets": n_targets,
+              "n_wavefronts": ctx.n_wavefronts, "wavefront_iterations": ctx.wavefront_iterations}
+    if best is None:
+        return _fail(start, "no valid couple: no candidate footprint can be reached from the foot", **counts)
+    t, s3, level, traj, score = best
+    footprint = np.array([cand.xy[t, 0], cand.xy[t, 1], cand.z[t]])
+    return Couple(
+        ok=True,
+        footprint=footprint,
+        trajectory=traj,
+        score=float(score),
+        target_score=float(cand.score[t]),
+        path_score=float(s3),
+        n_couples=n_couples,
+        n_paths=n_paths,
+        message="",
+        n_targets=n_targets,
+        n_wavefronts=ctx.n_wavefronts,
+        wavefront_iterations=ctx.wavefront_iterations,
+        first_valid_couple=first_valid,
+        n_couples_after_first=max(0, n_couples - first_valid),
+        slice_level=None if math.isinf(level) else float(level),
+        target_index=int(t),
+    )

@@ -1,0 +1,746 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""3D foot trajectories through the window grids (thesis §3.4.2, Appendix F).
+
+From a foot's position to a footprint target:
+
+1. **Search rectangle** (:func:`search_region`): an oriented rectangle containing the start
+   and the preferred footprint, as wide as the leg reach allows; nothing outside it is
+   searched.
+2. **Wavefront** (:func:`wavefront`): a distance field over the free cells of the rectangle,
+   grown from one source cell by whole-array relaxation (numpy, no per-cell Python loop).
+   Moves are the 8 neighbours with lengths 1 and √2 (an "octile" wavefront: the naive cells
+   hug the straight line better than a hop-count BFS), and diagonal moves never cut the
+   corner of a forbidden cell. The field is grown from the *foot*, so a single field gives
+   the distance to every candidate footprint at once; the thesis grows one from each target.
+3. **Descent** (:func:`descend`): from a cell, follow the steepest decrease of the field to
+   the source — the naive cells.
+4. **Line of sight** (:func:`segments_clear`, :func:`line_of_sight_reduce`): an all-cells
+   (supercover) Bresenham test, vectorised over many segments, keeps only the naive cells
+   that cannot be skipped — the final cells (waypoints).
+5. **2D curve**: a cardinal (Hermite) spline through the final cells, sampled by arc length
+   and checked against the obstacle map; if it cuts a forbidden cell the tension is lowered
+   (down to 0, the straight segments that the line-of-sight test already proved free).
+6. **Elevation** (:func:`lift_path`): every sample gets the elevation under the foot plus a
+   clearance that ramps from 0 at lift-off and touch-down to the step height; the upper convex
+   hull of these points gives the 3D waypoints; close waypoints are dropped when that keeps the
+   curve clear; a Hermite height profile through the waypoints (never below the hull, see
+   :func:`height_profile`) lifts the 2D curve into the final 3D trajectory.
+
+The result is a :class:`FootTrajectory`: a dense 3D polyline of the curve with its length,
+sampled at constant speed by fractions of its arc length.
+
+Grid coordinates: ``(row, col)`` in a window, cell ``(r, c)`` centred at continuous
+coordinates ``(r, c)``; world xy ↔ grid through :class:`~.terrain.WindowGrids`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from .hermite import HermiteCurve, hermite_basis
+from .hull import upper_hull
+from .terrain import WindowGrids, dilate, foot_kernel, max_filter
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.intp]
+BoolArray = npt.NDArray[np.bool_]
+
+SQRT2 = math.sqrt(2.0)
+#: The 8 moves (d_row, d_col) of the wavefront, with their lengths in cells.
+MOVES: tuple[tuple[int, int], ...] = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+MOVE_LENGTH: tuple[float, ...] = tuple(SQRT2 if dr and dc else 1.0 for dr, dc in MOVES)
+
+
+# ---------------------------------------------------------------------------------------
+# Trajectory
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FootTrajectory:
+    """A foot's 3D swing trajectory.
+
+    ``points``: ``(m, 3)`` dense polyline of the curve (world metres), from the foot's start
+    to the footprint; ``length``: its 3D arc length in metres; ``waypoints``: ``(k, 3)`` the 3D
+    waypoints (upper-hull vertices) the height profile passes through; ``waypoints_2d``:
+    ``(w, 2)`` the final cells of the 2D plan; ``length_2d``: length of the 2D curve;
+    ``arc``: ``(m,)`` 3D arc length at each point; ``arc_2d``: ``(m,)`` arc length of the 2D
+    curve under each point (what the clearance profile is a function of).
+    """
+
+    points: FloatArray
+    length: float
+    waypoints: FloatArray
+    waypoints_2d: FloatArray
+    length_2d: float
+    arc: FloatArray = field(repr=False)
+    arc_2d: FloatArray = field(repr=False)
+
+    @classmethod
+    def from_points(
+        cls, points: FloatArray, waypoints: FloatArray | None = None,
+        waypoints_2d: FloatArray | None = None, length_2d: float | None = None,
+        arc_2d: FloatArray | None = None,
+    ) -> FootTrajectory:
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        arc = np.concatenate([[0.0], np.cumsum(seg)])
+        if arc_2d is None:
+            seg2 = np.linalg.norm(np.diff(pts[:, :2], axis=0), axis=1)
+            arc_2d = np.concatenate([[0.0], np.cumsum(seg2)])
+        if length_2d is None:
+            length_2d = float(arc_2d[-1])
+        return cls(
+            points=pts,
+            length=float(arc[-1]),
+            waypoints=pts[[0, -1]] if waypoints is None else waypoints,
+            waypoints_2d=pts[[0, -1], :2] if waypoints_2d is None else waypoints_2d,
+            length_2d=length_2d,
+            arc=arc,
+            arc_2d=np.asarray(arc_2d, dtype=np.float64),
+        )
+
+    def point_at(self, u: npt.ArrayLike) -> FloatArray:
+        """Points at fractions ``u`` ``(n,)`` of the arc length in [0, 1]: ``(n, 3)``.
+
+        Equal steps of ``u`` are equal distances along the curve (constant speed).
+        """
+        uu = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
+        if self.length <= 0.0:
+            return np.broadcast_to(self.points[0], (*uu.shape, 3)).copy()
+        s = uu * self.length
+        return np.stack([np.interp(s, self.arc, self.points[:, k]) for k in range(3)], axis=-1)
+
+    def tangent_at(self, u: npt.ArrayLike) -> FloatArray:
+        """Unit direction of travel at fractions ``u`` ``(n,)``: ``(n, 3)``."""
+        uu = np.clip(np.asarray(u, dtype=np.float64), 0.0, 1.0)
+        if self.points.shape[0] < 2 or self.length <= 0.0:
+            return np.zeros((*uu.shape, 3))
+        last = self.points.shape[0] - 2
+        seg = np.clip(np.searchsorted(self.arc, uu * self.length, side="right") - 1, 0, last)
+        d = self.points[seg + 1] - self.points[seg]
+        n = np.linalg.norm(d, axis=-1, keepdims=True)
+        return np.asarray(np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), 0.0))
+
+    @property
+    def start(self) -> FloatArray:
+        return self.points[0]
+
+    @property
+    def end(self) -> FloatArray:
+        return self.points[-1]
+
+
+# ---------------------------------------------------------------------------------------
+# Search rectangle
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Region:
+    """A sub-rectangle of a window: rows ``r0 .. r0 + h``, cols ``c0 .. c0 + w``; ``mask``
+    ``(h, w)`` marks the cells inside the (oriented) search rectangle."""
+
+    r0: int
+    c0: int
+    mask: BoolArray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self.mask.shape[0]), int(self.mask.shape[1]))
+
+    def view(self, grid: npt.NDArray[np.generic]) -> npt.NDArray[np.generic]:
+        h, w = self.shape
+        return grid[self.r0 : self.r0 + h, self.c0 : self.c0 + w]
+
+
+def search_region(
+    window_shape: tuple[int, int], start_rc: npt.ArrayLike, end_rc: npt.ArrayLike,
+    half_width: float, end_margin: float, start_margin: float = 2.0,
+) -> Region:
+    """The oriented search rectangle (thesis §3.4.2) in window cells.
+
+    Its axis runs from ``start_rc`` to ``end_rc`` (continuous cell coordinates), extended by
+    ``start_margin`` behind the start and ``end_margin`` beyond the end; ``half_width`` is
+    its half width. All in cells. Clipped to the window.
+    """
+    a = np.asarray(start_rc, dtype=np.float64)
+    b = np.asarray(end_rc, dtype=np.float64)
+    axis = b - a
+    dist = float(np.hypot(*axis))
+    unit = axis / dist if dist > 1e-9 else np.array([0.0, 1.0])
+    perp = np.array([-unit[1], unit[0]])
+    corners = np.array([a + unit * t + perp * s for t in (-start_margin, dist + end_margin)
+                        for s in (-half_width, half_width)])
+    ny, nx = window_shape
+    r0 = max(int(np.floor(corners[:, 0].min())), 0)
+    r1 = min(int(np.ceil(corners[:, 0].max())), ny - 1)
+    c0 = max(int(np.floor(corners[:, 1].min())), 0)
+    c1 = min(int(np.ceil(corners[:, 1].max())), nx - 1)
+    if r1 < r0 or c1 < c0:
+        return Region(0, 0, np.zeros((0, 0), dtype=bool))
+    rr, cc = np.meshgrid(np.arange(r0, r1 + 1), np.arange(c0, c1 + 1), indexing="ij")
+    d = np.stack([rr - a[0], cc - a[1]], axis=-1)
+    along = d @ unit
+    across = np.abs(d @ perp)
+    eps = 1e-9
+    mask = (along >= -start_margin - eps) & (along <= dist + end_margin + eps) & (across <= half_width + eps)
+    return Region(r0, c0, mask)
+
+
+# ---------------------------------------------------------------------------------------
+# Wavefront
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class DistanceField:
+    """Wavefront result over a region: ``dist`` ``(h, w)`` in cells (``inf`` where
+    unreachable), ``parent`` ``(h, w)`` index into :data:`MOVES` of the move that reached each
+    cell (-1 at the source and where unreachable), ``source`` the source cell, ``iterations``
+    the number of whole-array relaxation sweeps."""
+
+    dist: FloatArray
+    parent: npt.NDArray[np.int8]
+    source: tuple[int, int]
+    iterations: int
+
+    def reachable(self, rc: IntArray) -> BoolArray:
+        return np.asarray(np.isfinite(self.dist[rc[..., 0], rc[..., 1]]))
+
+
+def _move_costs(free: BoolArray) -> list[FloatArray]:
+    """Per move, the cost of entering each cell (``inf`` if the move is not allowed)."""
+    h, w = free.shape
+    pad = np.zeros((h + 2, w + 2), dtype=bool)
+    pad[1:-1, 1:-1] = free
+    costs = []
+    for (dr, dc), length in zip(MOVES, MOVE_LENGTH, strict=True):
+        ok = free.copy()
+        if dr and dc:  # no corner cutting: both side cells must be free
+            ok &= pad[1 - dr : h + 1 - dr, 1 : w + 1] & pad[1 : h + 1, 1 - dc : w + 1 - dc]
+        costs.append(np.where(ok, length, np.inf))
+    return costs
+
+
+def wavefront(free: BoolArray, source: tuple[int, int], max_iterations: int | None = None) -> DistanceField:
+    """Octile distance field from ``source`` over the ``free`` cells ``(h, w)``.
+
+    Whole-array relaxation (every move, every cell, per sweep) until nothing changes; each
+    sweep costs a few numpy operations on the region, and the number of sweeps is about the
+    longest path's length in cells. The source is always treated as free.
+    """
+    h, w = free.shape
+    fr = free.copy()
+    fr[source] = True
+    costs = _move_costs(fr)
+    dist = np.full((h + 2, w + 2), np.inf)
+    dist[source[0] + 1, source[1] + 1] = 0.0
+    inner = dist[1:-1, 1:-1]
+    limit = max_iterations if max_iterations is not None else h * w + 1
+    iterations = 0
+    cand = np.empty((h, w))
+    while iterations < limit:
+        before = inner.copy()
+        for (dr, dc), cost in zip(MOVES, costs, strict=True):
+            np.add(dist[1 - dr : h + 1 - dr, 1 - dc : w + 1 - dc], cost, out=cand)
+            np.minimum(inner, cand, out=inner)
+        iterations += 1
+        if np.array_equal(before, inner):
+            break
+    # Parent move of every reached cell: the move that realises its distance.
+    stacked = np.stack([dist[1 - dr : h + 1 - dr, 1 - dc : w + 1 - dc] + cost
+                        for (dr, dc), cost in zip(MOVES, costs, strict=True)])
+    parent = np.argmin(stacked, axis=0).astype(np.int8)
+    parent[~np.isfinite(inner)] = -1
+    parent[source] = -1
+    return DistanceField(inner.copy(), parent, (int(source[0]), int(source[1])), iterations)
+
+
+def octile_field(shape: tuple[int, int], source: tuple[int, int]) -> DistanceField:
+    """The wavefront of an obstacle-free region in closed form (same result, no sweeps)."""
+    h, w = shape
+    rr, cc = np.meshgrid(np.arange(h) - source[0], np.arange(w) - source[1], indexing="ij")
+    ar, ac = np.abs(rr), np.abs(cc)
+    dist = np.maximum(ar, ac) + (SQRT2 - 1.0) * np.minimum(ar, ac)
+    # Arrive diagonally while both offsets are non-zero, then straight.
+    sr, sc = np.sign(rr), np.sign(cc)
+    move_index = {m: k for k, m in enumerate(MOVES)}
+    parent = np.full(shape, -1, dtype=np.int8)
+    for (dr, dc), k in move_index.items():
+        parent[(sr == dr) & (sc == dc)] = k
+    parent[source] = -1
+    return DistanceField(dist.astype(np.float64), parent, (int(source[0]), int(source[1])), 0)
+
+
+def descend(field_: DistanceField, cell: tuple[int, int]) -> IntArray:
+    """Naive cells from ``cell`` down the field to its source: ``(k, 2)`` (row, col).
+
+    Empty if ``cell`` is unreachable.
+    """
+    parent = field_.parent
+    if not np.isfinite(field_.dist[cell]):
+        return np.zeros((0, 2), dtype=np.intp)
+    r, c = int(cell[0]), int(cell[1])
+    out = [(r, c)]
+    par = parent.tolist()
+    limit = parent.size
+    while (r, c) != field_.source and len(out) <= limit:
+        k = par[r][c]
+        if k < 0:
+            break
+        dr, dc = MOVES[k]
+        r, c = r - dr, c - dc
+        out.append((r, c))
+    return np.asarray(out, dtype=np.intp)
+
+
+# ---------------------------------------------------------------------------------------
+# Supercover line of sight
+# ---------------------------------------------------------------------------------------
+def supercover_cells(a: npt.ArrayLike, b: npt.ArrayLike) -> IntArray:
+    """Every cell a segment touches (all-cells Bresenham, thesis Figure 3.21b): ``(k, 2)``.
+
+    ``a``, ``b``: continuous (row, col). A segment passing exactly through a cell corner
+    touches the four cells around it. Unique cells, unordered.
+    """
+    aa = np.asarray(a, dtype=np.float64).reshape(2)
+    pts, mask = _crossing_samples(aa, np.asarray(b, dtype=np.float64).reshape(1, 2))
+    cells = pts[0][mask[0]]
+    return np.unique(cells, axis=0)
+
+
+def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, BoolArray]:
+    """Cells around every grid-line crossing and both ends of segments ``a -> b[i]``.
+
+    Returns ``(cells (m, K*4, 2), valid (m, K*4))``.
+    """
+    d = b - a  # (m, 2)
+    lo = np.minimum(a, b)
+    hi = np.maximum(a, b)
+    first = np.ceil(lo - 0.5)  # first grid line index k with k + 0.5 >= lo
+    last = np.floor(hi - 0.5)
+    count = np.where(np.abs(d) > 1e-12, np.maximum(last - first + 1, 0), 0).astype(np.intp)  # (m, 2)
+    kmax = int(count.max(initial=0))
+    steps = np.arange(kmax)
+    ts = [np.zeros((b.shape[0], 1)), np.ones((b.shape[0], 1))]
+    valid = [np.ones((b.shape[0], 2), dtype=bool)]
+    for axis in (0, 1):
+        line = first[:, axis, None] + steps[None, :] + 0.5  # (m, kmax)
+        dd = np.where(np.abs(d[:, axis]) > 1e-12, d[:, axis], 1.0)[:, None]
+        ts.append(np.clip((line - a[axis]) / dd, 0.0, 1.0))
+        valid.append(steps[None, :] < count[:, axis, None])
+    t = np.concatenate(ts, axis=1)  # (m, K)
+    ok = np.concatenate(valid, axis=1)
+    p = a[None, None, :] + t[..., None] * d[:, None, :]  # (m, K, 2)
+    eps = 1e-7
+    offs = np.array([[-eps, -eps], [-eps, eps], [eps, -eps], [eps, eps]])
+    q = p[:, :, None, :] + offs[None, None, :, :]  # (m, K, 4, 2)
+    cells = np.rint(q).astype(np.intp).reshape(b.shape[0], -1, 2)
+    mask = np.repeat(ok, 4, axis=1)
+    return cells, mask
+
+
+def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> BoolArray:
+    """Line of sight from ``a`` ``(2,)`` to each ``b`` ``(m, 2)`` (continuous row, col).
+
+    True where no cell touched by the segment is ``blocked`` ``(h, w)``; cells outside the
+    grid count as blocked. All segments are tested at once.
+    """
+    aa = np.asarray(a, dtype=np.float64).reshape(2)
+    bb = np.asarray(b, dtype=np.float64).reshape(-1, 2)
+    if bb.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    cells, mask = _crossing_samples(aa, bb)
+    h, w = blocked.shape
+    inside = (cells[..., 0] >= 0) & (cells[..., 0] < h) & (cells[..., 1] >= 0) & (cells[..., 1] < w)
+    r = np.where(inside, cells[..., 0], 0)
+    c = np.where(inside, cells[..., 1], 0)
+    bad = mask & (~inside | blocked[r, c])
+    return np.asarray(~np.any(bad, axis=1))
+
+
+def line_of_sight_reduce(blocked: BoolArray, points: npt.ArrayLike) -> IntArray:
+    """Indices of the points to keep so that consecutive kept points see each other.
+
+    ``points``: ``(n, 2)`` continuous (row, col), from start to end. Greedy: from each kept
+    point jump to the farthest later point in sight (thesis §3.4.2, the final cells).
+    """
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    n = pts.shape[0]
+    keep = [0]
+    i = 0
+    while i < n - 1:
+        clear = segments_clear(blocked, pts[i], pts[i + 1 :])
+        seen = np.nonzero(clear)[0]
+        i = i + 1 + int(seen[-1]) if seen.size else i + 1
+        keep.append(i)
+    return np.asarray(keep, dtype=np.intp)
+
+
+# ---------------------------------------------------------------------------------------
+# Height profile
+# ---------------------------------------------------------------------------------------
+def clearance_profile(s: npt.ArrayLike, length: float, step_height: float, ramp: float) -> FloatArray:
+    """Required clearance above the ground at arc lengths ``s``: 0 at both ends, rising
+    linearly over ``ramp`` metres to ``step_height``."""
+    ss = np.asarray(s, dtype=np.float64)
+    if ramp <= 0.0:
+        return np.full(ss.shape, float(step_height))
+    return np.asarray(step_height * np.clip(np.minimum(ss, length - ss) / ramp, 0.0, 1.0))
+
+
+def height_profile(knots_s: FloatArray, knots_z: FloatArray, s: FloatArray) -> FloatArray:
+    """Hermite height profile through concave waypoints, evaluated at ``s``.
+
+    Interior slopes are the non-uniform Catmull-Rom ones (the chord-weighted mean of the two
+    neighbouring secants), end slopes the end secants. For concave waypoints (an upper hull)
+    each segment's end slopes bracket its secant, which keeps the cubic on or above the chord,
+    so the profile never dips below the hull.
+    """
+    k = knots_s.shape[0]
+    if k == 1:
+        return np.full(s.shape, float(knots_z[0]))
+    h = np.diff(knots_s)
+    h_safe = np.where(h > 1e-12, h, 1e-12)
+    delta = np.diff(knots_z) / h_safe
+    slope = np.empty(k)
+    slope[0] = delta[0]
+    slope[-1] = delta[-1]
+    if k > 2:
+        slope[1:-1] = (knots_z[2:] - knots_z[:-2]) / np.maximum(knots_s[2:] - knots_s[:-2], 1e-12)
+    seg = np.clip(np.searchsorted(knots_s, s, side="right") - 1, 0, k - 2)
+    t = np.clip((s - knots_s[seg]) / h_safe[seg], 0.0, 1.0)
+    w = hermite_basis(t)
+    return np.asarray(
+        w[:, 0] * knots_z[seg] + w[:, 1] * knots_z[seg + 1]
+        + w[:, 2] * h[seg] * slope[seg] + w[:, 3] * h[seg] * slope[seg + 1]
+    )
+
+
+def _hull_waypoints(s: FloatArray, required: FloatArray, min_gap: float) -> IntArray:
+    """Upper-hull vertices of ``(s, required)``, without vertices closer than ``min_gap`` to
+    the previous one when the chord that replaces them still clears every sample."""
+    hull = upper_hull(s, required).tolist()
+    if len(hull) <= 2 or min_gap <= 0.0:
+        return np.asarray(hull, dtype=np.intp)
+    keep = [hull[0]]
+    for pos in range(1, len(hull) - 1):
+        v = hull[pos]
+        if s[v] - s[keep[-1]] >= min_gap:
+            keep.append(v)
+            continue
+        a, c = keep[-1], hull[pos + 1]
+        seg = slice(a, c + 1)
+        chord = required[a] + (required[c] - required[a]) * (s[seg] - s[a]) / max(s[c] - s[a], 1e-12)
+        if np.all(chord >= required[seg] - 1e-9):
+            continue  # removable: the straight chord still clears
+        keep.append(v)
+    keep.append(hull[-1])
+    return np.asarray(keep, dtype=np.intp)
+
+
+# ---------------------------------------------------------------------------------------
+# Paths inside one plan: shared context
+# ---------------------------------------------------------------------------------------
+@dataclass
+class Path2D:
+    """A 2D plan: ``waypoints`` ``(k, 2)`` world xy (final cells, exact ends), dense
+    ``samples`` ``(m, 2)`` of the curve at arc lengths ``arc`` ``(m,)``, its ``length``,
+    total absolute ``turning`` (radians) and the cardinal ``tension`` that cleared."""
+
+    waypoints: FloatArray
+    samples: FloatArray
+    arc: FloatArray
+    length: float
+    turning: float
+    tension: float
+    n_naive: int
+
+
+@dataclass(frozen=True)
+class PathParams:
+    """Path construction knobs: ``step_height`` (clearance, metres), ``tension`` of the 2D
+    cardinal curve, ``sample_spacing`` along curves in cells, ``min_waypoint_gap`` in cells
+    (closer 3D waypoints are merged when safe), ``ramp`` of the clearance at lift-off and
+    touch-down in metres (None: the step height, at least two cells)."""
+
+    step_height: float = 0.1
+    tension: float = 0.5
+    sample_spacing: float = 0.25
+    min_waypoint_gap: float = 1.5
+    ramp: float | None = None
+
+
+class PathContext:
+    """What all paths of one foot share: the search region, the foot kernels, the clearance
+    elevations, the lift-off zone and one cached wavefront per height slice.
+
+    ``grids``: the window; ``start``: ``(3,)`` the foot; ``region``: the search rectangle;
+    ``extra``: ``(ny, nx)`` extra forbidden cells (other feet) or None; ``foot_half_extents``
+    and ``foot_yaw``: the foot's shape; ``per_target``: grow one wavefront per target (the
+    thesis's way) instead of one per slice from the foot.
+    """
+
+    def __init__(
+        self, grids: WindowGrids, start: npt.ArrayLike, region: Region, extra: BoolArray | None,
+        foot_half_extents: npt.ArrayLike, foot_yaw: float, params: PathParams, per_target: bool = False,
+    ) -> None:
+        self.grids = grids
+        self.params = params
+        self.start = np.asarray(start, dtype=np.float64).reshape(3)
+        self.region = region
+        self.per_target = per_target
+        cell = grids.cell
+        self.sweep_kernel = foot_kernel(cell, foot_half_extents, foot_yaw, anywhere_in_cell=True)
+        self.land_kernel = foot_kernel(cell, foot_half_extents, foot_yaw, anywhere_in_cell=False)
+        self.elevation = np.asarray(region.view(grids.elevation), dtype=np.float64)
+        self.clear_elevation = max_filter(self.elevation, self.sweep_kernel)
+        self.land_elevation = max_filter(self.elevation, self.land_kernel)
+        base = np.asarray(region.view(grids.avoid), dtype=bool).copy()
+        if extra is not None:
+            base |= np.asarray(region.view(extra), dtype=bool)
+        self.base_core = base
+        self.outside = ~region.mask
+        start_rc = grids.rowcol(self.start[:2]) - np.array([region.r0, region.c0])
+        self.start_rc = start_rc
+        self.start_cell = (int(np.rint(start_rc[0])), int(np.rint(start_rc[1])))
+        h, w = region.shape
+        inside = 0 <= self.start_cell[0] < h and 0 <= self.start_cell[1] < w
+        self.start_inside = bool(inside)
+        liftoff = np.zeros((h, w), dtype=bool)
+        if inside:
+            rr = self.start_cell[0] + self.sweep_kernel[:, 0]
+            cc = self.start_cell[1] + self.sweep_kernel[:, 1]
+            ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
+            liftoff[rr[ok], cc[ok]] = True
+        self.liftoff = liftoff
+        self._blocked: dict[float, tuple[BoolArray, BoolArray, BoolArray]] = {}
+        self._fields: dict[tuple[float, int, int], DistanceField] = {}
+        self.n_wavefronts = 0
+        self.wavefront_iterations = 0
+        self.ramp = params.ramp if params.ramp is not None else max(params.step_height, 2.0 * cell)
+
+    # -- obstacle maps per slice ------------------------------------------------------------
+    def maps(self, level: float) -> tuple[BoolArray, BoolArray, BoolArray]:
+        """``(core, dilated, blocked)`` for a slice ``level`` (``inf`` = no slice).
+
+        ``core``: forbidden cells; ``dilated``: cells forbidden by the foot enlargement only;
+        ``blocked``: what paths may not cross (both, plus outside the rectangle, minus the
+        lift-off zone around the foot).
+        """
+        hit = self._blocked.get(level)
+        if hit is None:
+            core = self.base_core | (self.elevation > level) if math.isfinite(level) else self.base_core
+            grown = dilate(core, self.sweep_kernel)
+            blocked = (grown | self.outside) & ~self.liftoff
+            hit = (core, grown & ~core, blocked)
+            self._blocked[level] = hit
+        return hit
+
+    def field(self, level: float, source: tuple[int, int] | None = None) -> DistanceField:
+        """Wavefront for a slice, from the foot (default) or from ``source``; cached."""
+        src = self.start_cell if source is None else source
+        key = (level, src[0], src[1])
+        hit = self._fields.get(key)
+        if hit is None:
+            blocked = self.maps(level)[2]
+            hit = octile_field(self.region.shape, src) if not blocked.any() else wavefront(~blocked, src)
+            self.n_wavefronts += 1
+            self.wavefront_iterations += hit.iterations
+            self._fields[key] = hit
+        return hit
+
+    def reachable(self, level: float, cells: IntArray) -> BoolArray:
+        """Which region cells ``(k, 2)`` the foot can reach at this slice (shared wavefront)."""
+        return self.field(level).reachable(cells)
+
+    # -- one 2D plan -----------------------------------------------------------------------
+    def to_world(self, rc: FloatArray) -> FloatArray:
+        g = self.grids
+        return g.xy_of(rc[..., 0] + self.region.r0, rc[..., 1] + self.region.c0)
+
+    def path_2d(
+        self, level: float, target_cell: tuple[int, int], target_xy: FloatArray | None = None
+    ) -> Path2D | None:
+        """The 2D plan from the foot to a region cell at a slice, or None if unreachable.
+
+        ``target_xy`` (world, inside the target cell) ends the plan exactly there instead of at
+        the cell centre."""
+        if not self.start_inside:
+            return None
+        blocked = self.maps(level)[2]
+        if blocked[target_cell]:
+            return None
+        if self.per_target:
+            fld = self.field(level, target_cell)
+            naive = descend(fld, self.start_cell)  # start -> target
+        else:
+            fld = self.field(level)
+            naive = descend(fld, target_cell)[::-1]  # target -> start, reversed
+        if naive.shape[0] == 0:
+            return None
+        pts = np.vstack([self.start_rc[None, :], naive.astype(np.float64)])
+        if target_xy is not None:
+            # End exactly at the target; it replaces its cell's centre when the cell before sees
+            # it (no detour to the centre and back), else the centre stays as a waypoint.
+            end_rc = self.grids.rowcol(np.asarray(target_xy, dtype=np.float64)) - np.array(
+                [self.region.r0, self.region.c0])
+            if segments_clear(blocked, pts[-2], end_rc[None, :])[0]:
+                pts[-1] = end_rc
+            else:
+                pts = np.vstack([pts, end_rc[None, :]])
+        keep = line_of_sight_reduce(blocked, pts)
+        way_rc = pts[keep]
+        waypoints = self.to_world(way_rc)
+        cell = self.grids.cell
+        spacing = self.params.sample_spacing * cell
+        if waypoints.shape[0] >= 2 and np.linalg.norm(waypoints[-1] - waypoints[0]) > 1e-9:
+            # Drop coincident consecutive waypoints (the start inside its own cell centre).
+            step = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
+            keep_w = np.concatenate([[True], step > 1e-9])
+            waypoints = waypoints[keep_w]
+        if waypoints.shape[0] < 2 or np.linalg.norm(waypoints[-1] - waypoints[0]) <= 1e-9:
+            p = waypoints[:1]
+            return Path2D(p, p.copy(), np.zeros(1), 0.0, 0.0, self.params.tension, int(naive.shape[0]))
+        tension = self.params.tension
+        for attempt in range(3):
+            curve = HermiteCurve.cardinal(waypoints, tension=tension, samples_per_segment=16)
+            n = max(2, math.ceil(curve.length / spacing) + 1)
+            arc = np.linspace(0.0, curve.length, n)
+            samples = curve.at_length(arc)
+            rc = self.grids.rowcol(samples) - np.array([self.region.r0, self.region.c0])
+            cells = np.rint(rc).astype(np.intp)
+            h, w = blocked.shape
+            inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
+            ok = inside.all() and not blocked[cells[:, 0], cells[:, 1]].any()
+            if ok:
+                break
+            tension = 0.0 if attempt == 1 else tension * 0.5
+        else:
+            return None
+        return Path2D(waypoints, samples, arc, float(curve.length), _turning(samples), tension,
+                      int(naive.shape[0]))
+
+    # -- lifting to 3D -------------------------------------------------------------------------
+    def land_height(self, cells: IntArray, kernel: IntArray | None = None) -> FloatArray:
+        """Height a foot lands at in region cells ``(k, 2)``: the highest surface under it.
+
+        ``kernel``: the cells the foot covers around its cell (default: a foot at the cell
+        centre)."""
+        elev = self.land_elevation if kernel is None else max_filter(self.elevation, kernel)
+        return np.asarray(elev[cells[:, 0], cells[:, 1]])
+
+    def lift(self, path: Path2D, target_z: float) -> FootTrajectory:
+        """The 3D trajectory over a 2D plan (thesis Figure 3.23)."""
+        prm = self.params
+        z0 = float(self.start[2])
+        if path.length <= 1e-9:
+            return _in_place(self.start, target_z, self._clear_at(path.samples[:1])[0], prm.step_height)
+        s = path.arc
+        ground = self._clear_at(path.samples)
+        ramp = min(self.ramp, 0.5 * path.length)
+        required = ground + clearance_profile(s, path.length, prm.step_height, ramp)
+        required[0] = z0
+        required[-1] = target_z
+        knots = _hull_waypoints(s, required, prm.min_waypoint_gap * self.grids.cell)
+        z = height_profile(s[knots], required[knots], s)
+        z = np.maximum(z, required)  # guards rounding only: the profile is above the hull
+        points = np.column_stack([path.samples, z])
+        way3 = np.column_stack([path.samples[knots], required[knots]])
+        return FootTrajectory.from_points(points, way3, path.waypoints, path.length, s)
+
+    def _clear_at(self, xy: FloatArray) -> FloatArray:
+        rc = np.rint(self.grids.rowcol(xy) - np.array([self.region.r0, self.region.c0])).astype(np.intp)
+        h, w = self.clear_elevation.shape
+        r = np.clip(rc[:, 0], 0, h - 1)
+        c = np.clip(rc[:, 1], 0, w - 1)
+        return np.asarray(self.clear_elevation[r, c])
+
+
+def _turning(samples: FloatArray) -> float:
+    """Total absolute heading change along a 2D polyline, in radians."""
+    d = np.diff(samples, axis=0)
+    n = np.linalg.norm(d, axis=1)
+    d = d[n > 1e-9]
+    if d.shape[0] < 2:
+        return 0.0
+    ang = np.arctan2(d[:, 1], d[:, 0])
+    turn = np.diff(ang)
+    turn = (turn + np.pi) % (2.0 * np.pi) - np.pi
+    return float(np.sum(np.abs(turn)))
+
+
+def _in_place(start: FloatArray, target_z: float, ground: float, step_height: float) -> FootTrajectory:
+    """Lift and put down on the spot: up to the step height above the ground, then down."""
+    top = max(float(start[2]), target_z, ground) + step_height
+    knots_s = np.array([0.0, 0.5, 1.0])
+    knots_z = np.array([float(start[2]), top, target_z])
+    s = np.linspace(0.0, 1.0, 17)
+    z = height_profile(knots_s, knots_z, s)
+    pts = np.column_stack([np.broadcast_to(start[:2], (s.size, 2)), z])
+    return FootTrajectory.from_points(pts, np.column_stack([np.broadcast_to(start[:2], (3, 2)), knots_z]),
+                                      start[None, :2].copy(), 0.0, np.zeros(s.size))
+
+
+# ---------------------------------------------------------------------------------------
+# Scores (thesis §3.5.1: straight, low-curvature trajectories are preferred)
+# ---------------------------------------------------------------------------------------
+def path_score_2d(path: Path2D) -> float:
+    """Score in (0, 1] of a 2D plan: straightness (direct distance / curve length) times
+    ``1 / (1 + turning / 2π)``. 1 for a straight line."""
+    if path.length <= 1e-9:
+        return 1.0
+    direct = float(np.linalg.norm(path.samples[-1] - path.samples[0]))
+    straight = min(1.0, direct / path.length)
+    return straight / (1.0 + path.turning / (2.0 * math.pi))
+
+
+def vertical_factor(traj: FootTrajectory, step_height: float) -> float:
+    """Factor in (0, 1] for the climb of a 3D trajectory: 1 while its length stays within a
+    clean arc's bound (2D length + twice the step height + height change), then the square of
+    that bound over the length: lifting a foot over a tall obstacle costs more than a short
+    detour around it. Never above 1, so a 3D score never beats its 2D bound (Appendix E)."""
+    dz = abs(float(traj.points[-1, 2] - traj.points[0, 2]))
+    if traj.length <= 1e-9:
+        return 1.0
+    return min(1.0, (traj.length_2d + 2.0 * step_height + dz) / traj.length) ** 2
+
+
+# ---------------------------------------------------------------------------------------
+# One-shot convenience
+# ---------------------------------------------------------------------------------------
+def build_path(
+    grids: WindowGrids,
+    start: npt.ArrayLike,
+    target_xy: npt.ArrayLike,
+    params: PathParams | None = None,
+    level: float | None = None,
+    extra: BoolArray | None = None,
+    half_width: float = 0.4,
+    foot_half_extents: npt.ArrayLike | None = None,
+    foot_yaw: float = 0.0,
+) -> FootTrajectory | None:
+    """The 3D trajectory from ``start`` ``(3,)`` to the cell under ``target_xy`` ``(2,)``.
+
+    ``level``: height slice (walk around everything higher), None for no slice;
+    ``half_width``: half width of the search rectangle in metres. Returns None when the target
+    cannot be reached (or is forbidden). The target height is the highest surface under the
+    foot there.
+    """
+    prm = params if params is not None else PathParams()
+    half = grids.foot_half_extents if foot_half_extents is None else foot_half_extents
+    st = np.asarray(start, dtype=np.float64).reshape(3)
+    s_rc = grids.rowcol(st[:2])
+    t_rc = np.rint(grids.rowcol(np.asarray(target_xy, dtype=np.float64).reshape(2)))
+    region = search_region(grids.shape, s_rc, t_rc, half_width / grids.cell, 3.0)
+    if region.mask.size == 0:
+        return None
+    ctx = PathContext(grids, st, region, extra, half, foot_yaw, prm)
+    cell = (int(t_rc[0]) - region.r0, int(t_rc[1]) - region.c0)
+    h, w = region.shape
+    if not (0 <= cell[0] < h and 0 <= cell[1] < w):
+        return None
+    lvl = math.inf if level is None else float(level)
+    path = ctx.path_2d(lvl, cell)
+    if path is None:
+        return None
+    return ctx.lift(path, float(ctx.land_height(np.array([cell]))[0]))

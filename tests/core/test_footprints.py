@@ -1,0 +1,294 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Footprint planning: candidate scores, slices, the best-couple search and its LOD
+(thesis §3.5, §3.7, Appendix E)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from procloco_addon.core.footprints import Couple, PlannerParams, legs_cross, plan_footstep
+from procloco_addon.core.pathing import clearance_profile
+from procloco_addon.core.terrain import (
+    ROLE_AVOID,
+    ROLE_STEP_OVER,
+    Boxes,
+    Environment,
+    Heightmap,
+    WindowGrids,
+    WindowParams,
+    foot_kernel,
+)
+
+WP = WindowParams(n_cells=40, cell=0.07, foot_half_extents=(0.03, 0.03))
+P = PlannerParams(step_height=0.1, slice_size=0.1, leg_reach=0.6, candidate_radius=0.2, fixed_distance=0.3,
+                  foot_half_extents=(0.03, 0.03))
+NO_LEGS = np.zeros((0, 2))
+START = np.array([0.0, 0.0, 0.0])
+HIP = np.array([0.2, 0.25])
+
+
+def flat() -> Heightmap:
+    return Heightmap(np.zeros((13, 13)), np.array([-3.0, -3.0]), 0.5)
+
+
+def crates(rows: list[tuple[float, float, float, float, float, int]]) -> Boxes:
+    """(x, y, sx, sy, height, role) rows, yaw 0, static, on z = 0."""
+    a = np.array(rows, dtype=float).reshape(-1, 6)
+    n = a.shape[0]
+    return Boxes(np.column_stack([a[:, :2], np.zeros(n)]), a[:, 2:5], np.zeros(n), a[:, 5].astype(int),
+                 np.zeros(n, dtype=bool))
+
+
+def window(rows: list[tuple[float, float, float, float, float, int]] | None = None) -> WindowGrids:
+    return Environment(flat(), crates(rows) if rows else None).window(np.array([0.2, 0.0]), WP)
+
+
+def plan(w: WindowGrids, preferred: tuple[float, float], params: PlannerParams = P,
+         start: np.ndarray = START, hip: np.ndarray = HIP, other_hips: np.ndarray = NO_LEGS,
+         other_feet: np.ndarray = NO_LEGS) -> Couple:
+    return plan_footstep(w, start, np.array(preferred), hip, other_hips, other_feet, params)
+
+
+def check_couple(w: WindowGrids, c: Couple, params: PlannerParams, start: np.ndarray,
+                 preferred: np.ndarray, hip: np.ndarray, other_feet: np.ndarray = NO_LEGS) -> None:
+    """Invariants of every valid couple."""
+    assert c.ok
+    assert c.trajectory is not None
+    assert np.all(np.isfinite(c.footprint))
+    assert 0.0 < c.score <= 1.0
+    assert c.score == pytest.approx(c.target_score * c.path_score)
+    # The footprint: not forbidden, not a dilation-only cell, near the preferred one, in reach.
+    rc = tuple(w.cell_of(c.footprint[:2]))
+    assert not w.forbidden[rc]
+    assert not w.dilated[rc]
+    assert np.linalg.norm(c.footprint[:2] - preferred) <= params.candidate_radius + 1e-9
+    assert np.linalg.norm(c.footprint[:2] - hip) <= params.leg_reach + 1e-9
+    assert c.footprint[2] >= w.elevation[rc] - 1e-9
+    # The trajectory: from the foot to the footprint, outside forbidden cells (apart from the
+    # foot's own lift-off cells) and above the elevation map plus the clearance.
+    pts = c.trajectory.points
+    assert np.all(np.isfinite(pts))
+    assert np.allclose(pts[0], start)
+    assert np.allclose(pts[-1], c.footprint)
+    core, dilated = w.obstacle_map(level=c.slice_level)
+    cells = w.cell_of(pts[:, :2])
+    start_rc = w.cell_of(start[:2])
+    liftoff = {tuple(start_rc + k) for k in foot_kernel(w.cell, params.foot_half_extents, 0.0).tolist()}
+    away = np.array([tuple(x) not in liftoff for x in cells.tolist()])
+    assert not np.any(((core | dilated)[cells[:, 0], cells[:, 1]]) & away)
+    if other_feet.shape[0]:
+        feet_cells = {tuple(x) for x in w.cell_of(other_feet).tolist()}
+        assert not any(tuple(x) in feet_cells for x in cells[away].tolist())
+    s = c.trajectory.arc_2d
+    chords = np.sum(np.linalg.norm(np.diff(pts[:, :2], axis=0), axis=1))
+    assert chords - 1e-9 <= s[-1] <= 1.25 * chords + 1e-9  # the curve's arc over its samples' chords
+    assert np.all(np.diff(s) >= 0.0)
+    ramp = min(max(params.step_height, 2 * w.cell), 0.5 * s[-1]) if s[-1] > 0 else 0.0
+    clearance = clearance_profile(s, s[-1], params.step_height, ramp)
+    ground = w.elevation[cells[:, 0], cells[:, 1]]
+    in_start = np.all(cells == start_rc, axis=1)
+    required = np.where(in_start, np.minimum(ground, start[2]), ground + clearance)
+    assert np.all(pts[1:-1, 2] >= required[1:-1] - 1e-9)
+
+
+def test_flat_ground_takes_the_preferred_footprint_with_a_clean_arc() -> None:
+    w = window()
+    pref = np.array([0.33, 0.02])
+    c = plan(w, tuple(pref))
+    check_couple(w, c, P, START, pref, HIP)
+    assert np.allclose(c.footprint, [0.33, 0.02, 0.0])  # exactly the preferred point
+    assert c.target_score == pytest.approx(1.0)
+    assert c.score == pytest.approx(1.0)
+    assert c.n_couples == 1  # nothing can beat a perfect couple
+    pts = c.trajectory.points if c.trajectory else np.zeros((0, 3))
+    direction = pref / np.linalg.norm(pref)
+    assert np.allclose(pts[:, 0] * direction[1] - pts[:, 1] * direction[0], 0.0, atol=1e-9)  # straight
+    top = int(np.argmax(pts[:, 2]))
+    assert np.all(np.diff(pts[: top + 1, 2]) >= -1e-12)
+    assert np.all(np.diff(pts[top:, 2]) <= 1e-12)
+    assert P.step_height <= pts[top, 2] <= 1.5 * P.step_height
+
+
+def test_preferred_footprint_on_a_crate_edge_moves_to_a_comfortable_one() -> None:
+    # Thesis sequence 2: the preferred footprint falls on the rim of a crate.
+    w = window([(0.5, 0.0, 0.4, 0.4, 0.12, ROLE_STEP_OVER)])  # crate spans x in [0.3, 0.7]
+    pref = np.array([0.31, 0.0])
+    c = plan(w, tuple(pref))
+    check_couple(w, c, P, START, pref, HIP)
+    assert np.linalg.norm(c.footprint[:2] - pref) > 0.5 * w.cell  # not the rim cell
+    rc = w.cell_of(c.footprint[:2])
+    block = w.elevation[rc[0] - 1 : rc[0] + 2, rc[1] - 1 : rc[1] + 2]
+    assert np.ptp(block) <= P.edge_height  # all eight neighbours at the same height: comfortable
+    assert c.target_score > 0.5
+
+
+def test_low_crates_are_stepped_over_and_tall_ones_walked_around() -> None:
+    pref = np.array([0.4, 0.0])
+    # Low crate on the way: under every slice, the foot goes straight over it.
+    w = window([(0.2, 0.0, 0.1, 0.3, 0.04, ROLE_STEP_OVER)])
+    c = plan(w, tuple(pref))
+    check_couple(w, c, P, START, pref, HIP)
+    pts = c.trajectory.points if c.trajectory else np.zeros((0, 3))
+    above = np.abs(pts[:, 0] - 0.2) <= 0.05
+    assert np.allclose(pts[:, 1], 0.0, atol=1e-9)
+    assert np.all(pts[above, 2] >= 0.04 + P.step_height - 1e-9)
+    # A tall, narrow post on the way: with slices the foot walks around it ...
+    w = window([(0.2, 0.0, 0.07, 0.07, 0.35, ROLE_STEP_OVER)])
+    c = plan(w, tuple(pref))
+    check_couple(w, c, P, START, pref, HIP)
+    assert c.slice_level is not None
+    pts = c.trajectory.points if c.trajectory else np.zeros((0, 3))
+    assert np.all(w.elevation_at(pts[:, :2]) < 0.35)  # never over the post
+    assert pts[:, 2].max() < 0.35
+    # ... and without slices (the off-screen LOD) it goes over it.
+    c = plan(w, tuple(pref), replace(P, slice_size=None))
+    check_couple(w, c, P, START, pref, HIP)
+    assert c.slice_level is None
+    pts = c.trajectory.points if c.trajectory else np.zeros((0, 3))
+    assert pts[:, 2].max() >= 0.35 + P.step_height - 1e-9
+
+
+def random_scene(seed: int) -> tuple[Environment, WindowGrids, np.random.Generator]:
+    rng = np.random.default_rng(seed)
+    hm = Heightmap(rng.normal(size=(15, 15)) * 0.02, np.array([-2.0, -2.0]), 0.3)
+    n = 14
+    xy = rng.uniform(-0.4, 0.9, (n, 2))
+    b = Boxes(np.column_stack([xy, np.zeros(n)]),
+              np.column_stack([rng.uniform(0.05, 0.3, (n, 2)), rng.uniform(0.02, 0.35, n)]),
+              rng.uniform(0, np.pi, n), rng.choice([ROLE_STEP_OVER, ROLE_AVOID], n, p=[0.7, 0.3]),
+              np.zeros(n, dtype=bool))
+    env = Environment(hm, b)
+    return env, env.window(np.array([0.2, 0.0]), WP), rng
+
+
+def random_foot(env: Environment, w: WindowGrids, rng: np.random.Generator) -> tuple[np.ndarray, ...] | None:
+    core, dil = w.obstacle_map()
+    for _ in range(20):
+        s_xy = rng.uniform(-0.2, 0.2, 2)
+        if not (core | dil)[tuple(w.cell_of(s_xy))]:
+            start = np.array([s_xy[0], s_xy[1], env.height_at(s_xy[None, :])[0]])
+            pref = s_xy + np.array([rng.uniform(0.15, 0.4), rng.uniform(-0.15, 0.15)])
+            hip = s_xy + np.array([0.15, 0.3])
+            other_hips = np.array([[s_xy[0] + 0.3, s_xy[1] + 0.3], [s_xy[0], s_xy[1] + 0.6]])
+            other_feet = other_hips + rng.uniform(-0.3, 0.3, (2, 2)) + np.array([0.0, 0.3])
+            return start, pref, hip, other_hips, other_feet
+    return None
+
+
+@given(st.integers(0, 100_000), st.sampled_from([None, 0.08]))
+def test_pruned_search_returns_the_exhaustive_best_couple(seed: int, slice_size: float | None) -> None:
+    env, w, rng = random_scene(seed)
+    foot = random_foot(env, w, rng)
+    if foot is None:
+        return
+    start, pref, hip, oh, of = foot
+    params = replace(P, slice_size=slice_size)
+    pruned = plan(w, tuple(pref), params, start, hip, oh, of)
+    full = plan(w, tuple(pref), replace(params, exhaustive=True), start, hip, oh, of)
+    assert pruned.ok == full.ok
+    if pruned.ok:
+        check_couple(w, pruned, params, start, pref, hip, of)
+        assert np.allclose(pruned.footprint, full.footprint)
+        assert pruned.score == pytest.approx(full.score, abs=1e-12)
+        assert pruned.slice_level == full.slice_level
+        assert pruned.n_paths <= full.n_paths
+        # One wavefront per (target, slice), the thesis's way, picks the same couple.
+        thesis = plan(w, tuple(pref), replace(params, shared_wavefront=False), start, hip, oh, of)
+        assert np.allclose(thesis.footprint, pruned.footprint)
+        assert thesis.score == pytest.approx(pruned.score, abs=1e-12)
+
+
+@given(st.integers(0, 100_000))
+def test_lod_budgets_stop_early_and_never_return_an_invalid_couple(seed: int) -> None:
+    env, w, rng = random_scene(seed)
+    foot = random_foot(env, w, rng)
+    if foot is None:
+        return
+    start, pref, hip, oh, of = foot
+    results = {}
+    for budget in (0, 1, 3, None):
+        params = replace(P, max_couples_after_first=budget)
+        c = plan(w, tuple(pref), params, start, hip, oh, of)
+        results[budget] = c
+        if not c.ok:
+            assert c.trajectory is None
+            continue
+        check_couple(w, c, params, start, pref, hip, of)
+        if budget is not None:
+            assert c.n_couples_after_first <= budget
+    first = results[0]
+    if first.ok:
+        # Off-screen LOD: stops right at the first valid couple.
+        assert first.n_couples == first.first_valid_couple
+        assert first.n_couples_after_first == 0
+    oks = [results[b].ok for b in (0, 1, 3, None)]
+    assert len(set(oks)) == 1  # a valid couple exists or not, whatever the budget
+    if all(oks):
+        scores = [results[b].score for b in (0, 1, 3, None)]
+        # More search is never worse.
+        assert all(a <= b + 1e-12 for a, b in itertools.pairwise(scores))
+
+
+def test_walled_in_foot_gets_a_clear_no_valid_couple() -> None:
+    ring = [(0.25 * np.cos(a), 0.25 * np.sin(a), 0.12, 0.12, 0.3, ROLE_AVOID)
+            for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)]
+    w = window(ring)
+    c = plan(w, (0.45, 0.0))
+    assert not c.ok
+    assert c.trajectory is None
+    assert "no valid couple" in c.message
+    assert np.allclose(c.footprint, START)
+    assert math.isfinite(c.score)
+    assert c.score == 0.0
+    assert c.n_couples == 0
+    # Nowhere to put the foot at all: a different, equally clear message.
+    w2 = window([(0.45, 0.0, 0.8, 0.8, 0.3, ROLE_AVOID)])
+    c2 = plan(w2, (0.45, 0.0), replace(P, candidate_radius=0.1))
+    assert not c2.ok
+    assert "no candidate footprint" in c2.message
+
+
+def test_bad_numbers_give_a_failed_couple_not_an_exception() -> None:
+    w = window()
+    c = plan_footstep(w, np.array([np.nan, 0.0, 0.0]), np.array([0.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
+    assert not c.ok
+    assert np.all(np.isfinite(c.footprint))
+    assert "non-finite" in c.message
+    far = plan_footstep(w, np.array([50.0, 0.0, 0.0]), np.array([50.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
+    assert not far.ok
+    assert "outside the window" in far.message
+
+
+def test_other_feet_are_forbidden_and_legs_do_not_cross() -> None:
+    w = window()
+    pref = np.array([0.33, 0.0])
+    # Another foot stands on the preferred footprint: the foot lands beside it.
+    other_foot = np.array([[0.33, 0.0]])
+    c = plan(w, tuple(pref), other_hips=np.array([[0.3, -0.3]]), other_feet=other_foot)
+    check_couple(w, c, P, START, pref, HIP, other_foot)
+    assert np.linalg.norm(c.footprint[:2] - other_foot[0]) >= 2 * 0.03
+    # Another leg runs across the line hip -> preferred footprint: that footprint is refused.
+    other_hip = np.array([[0.45, 0.2]])
+    other = np.array([[0.15, -0.1]])
+    assert legs_cross(HIP, pref[None, :], other_hip, other)[0]
+    c = plan(w, tuple(pref), other_hips=other_hip, other_feet=other)
+    check_couple(w, c, P, START, pref, HIP, other)
+    assert not legs_cross(HIP, c.footprint[None, :2], other_hip, other)[0]
+
+
+def test_legs_cross_is_a_proper_segment_intersection() -> None:
+    hip = np.array([0.0, 0.0])
+    feet = np.array([[1.0, 1.0], [1.0, -1.0], [1.0, 0.2]])
+    other_hips = np.array([[0.0, 1.0]])
+    other_feet = np.array([[1.0, 0.0]])
+    assert legs_cross(hip, feet, other_hips, other_feet).tolist() == [True, False, True]
+    # Sharing the hip point is not a crossing.
+    assert not legs_cross(hip, feet[:1], np.zeros((1, 2)), np.array([[1.0, -1.0]]))[0]
+    assert legs_cross(hip, feet, np.zeros((0, 2)), np.zeros((0, 2))).tolist() == [False, False, False]
