@@ -191,7 +191,7 @@ def _look_at(location: np.ndarray, target: np.ndarray) -> tuple[float, float, fl
 
 def _focus_points(objs: Sequence[Any], frames: Sequence[int]) -> np.ndarray:
     scene = bpy.context.scene
-    pts = []
+    pts: list[np.ndarray] = []
     old = scene.frame_current
     for frame in (frames[0], frames[len(frames) // 2], frames[-1]):
         scene.frame_set(frame)

@@ -37,7 +37,7 @@ rotation mode.
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import bpy
@@ -61,6 +61,7 @@ __all__ = [
 ]
 
 _UP = np.array([0.0, 0.0, 1.0])
+FOOT_EXTENT_SHARE = 1.0
 
 
 class RigError(ValueError):
@@ -547,6 +548,8 @@ class RigInfo:
     joints: tuple[np.ndarray, ...]  # per leg (k + 1, 3) rest joints (heads, then the end's tail)
     contact: np.ndarray  # (n_legs, 3) lowest point of each foot (ground contact) at rest
     foot_height: np.ndarray  # (n_legs,) height of the end-effector above its contact point
+    foot_extent: np.ndarray  # (n_legs, 2) half size of each foot's ground print (forward, left)
+    foot_points: tuple[np.ndarray, ...]  # per leg (p, 3) rest points of the foot bones (sole probes)
     world: np.ndarray  # (4, 4) object world matrix
     scale: float
     rest_local: dict[str, np.ndarray] = field(repr=False)  # bone -> (4, 4) armature-space rest
@@ -620,6 +623,8 @@ def read_rig(
     joints = []
     contact = []
     foot_h = []
+    foot_ext = []
+    foot_pts = []
     for leg in legs:
         idx = [rest.index[b] for b in leg.bones]
         pts = np.vstack([heads[idx], tails[idx[-1]][None]])
@@ -633,6 +638,10 @@ def read_rig(
         low = below_a[np.argmin(below_a[:, 2])]
         contact.append(np.array([pts[-1, 0], pts[-1, 1], low[2]]))
         foot_h.append(float(pts[-1, 2] - low[2]))
+        # How far the foot bones reach from the end-effector, along and across the body.
+        rel = below_a[:, :2] - pts[-1, :2]
+        foot_ext.append(np.array([np.abs(rel @ forward[:2]).max(), np.abs(rel @ left[:2]).max()]))
+        foot_pts.append(below_a[1:] if below_a.shape[0] > 1 else np.zeros((0, 3)))
     origin = np.array([j[0] for j in joints]).mean(axis=0)
     body = BodyInfo(origin, forward, left)
 
@@ -654,6 +663,8 @@ def read_rig(
         joints=tuple(joints),
         contact=np.array(contact),
         foot_height=np.array(foot_h),
+        foot_extent=np.array(foot_ext),
+        foot_points=tuple(foot_pts),
         world=rest.world,
         scale=rest.scale,
         rest_local={n: rest.local[i] for i, n in enumerate(rest.names)},
@@ -746,12 +757,15 @@ def morphology_of(info: RigInfo) -> Morphology:
         raise RigError("The hips are not above the feet: the rig must stand on its legs in its rest pose")
     lo, hi = hips[:, :2].min(axis=0), hips[:, :2].max(axis=0)
     reach = float(info.leg_length.mean())
+    # The footprint the planner keeps clear: at least 4 % of the leg, and as far as the foot
+    # bones (toes, paw) reach from the end-effector (its box is centred on the end-effector).
+    foot_half = np.maximum(FOOT_EXTENT_SHARE * info.foot_extent.max(axis=0), 0.04 * reach)
     try:
         return Morphology.from_rest_joints(
             chains,
             [leg.label for leg in info.legs],
             body_box=(0.5 * (lo + hi), 0.5 * (hi - lo) + 0.1 * reach),
-            foot_half_extents=np.full(2, 0.04 * reach),
+            foot_half_extents=foot_half,
         )
     except ValueError as err:
         raise RigError(str(err)) from err
@@ -836,7 +850,52 @@ def _yaw_only(rot: np.ndarray) -> np.ndarray:
     return out
 
 
-def solve_pose(info: RigInfo, body_world: np.ndarray, joints_world: Sequence[np.ndarray]) -> PoseTracks:
+GroundFn = Callable[[int, np.ndarray], np.ndarray]
+
+
+def _foot_pitch(
+    rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pitch ``(F,)`` about each foot's horizontal cross axis that sets its sole on the ground.
+
+    rel: ``(F, P, 3)`` sole points relative to the end-effector ``end`` ``(F, 3)`` (foot at its
+    yaw-turned rest orientation); heights ``(F, P)`` ground under them. The smallest rotation
+    keeping every forward point above the ground: up a slope or onto an edge the toes lift,
+    down a slope they follow it. Points behind the end-effector (heels) are left alone.
+    """
+    d = rel[..., :2].sum(axis=1)
+    d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
+    d = np.divide(d, d_norm, out=np.zeros_like(d), where=d_norm > 1e-12)
+    a = np.einsum("fpi,fi->fp", rel[..., :2], d)  # forward reach of each point
+    b = rel[..., 2]
+    c = heights - end[:, None, 2]
+    radius = np.hypot(a, b)
+    ok = (a > 1e-6 * np.maximum(radius, 1e-12)) & np.isfinite(heights)
+    need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
+    theta = np.where(ok, need, -np.inf).max(axis=1)
+    theta = np.where(np.isfinite(theta), theta, 0.0)
+    return np.clip(theta, -limit, limit), d
+
+
+def _axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations ``(F, 3, 3)`` by ``angle (F,)`` about unit ``axis (F, 3)`` (Rodrigues)."""
+    k = axis
+    kx = np.zeros((*k.shape[:-1], 3, 3))
+    kx[..., 0, 1], kx[..., 0, 2] = -k[..., 2], k[..., 1]
+    kx[..., 1, 0], kx[..., 1, 2] = k[..., 2], -k[..., 0]
+    kx[..., 2, 0], kx[..., 2, 1] = -k[..., 1], k[..., 0]
+    s = np.sin(angle)[..., None, None]
+    c = np.cos(angle)[..., None, None]
+    return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
+
+
+def solve_pose(
+    info: RigInfo,
+    body_world: np.ndarray,
+    joints_world: Sequence[np.ndarray],
+    ground: GroundFn | None = None,
+    max_foot_pitch: float = np.radians(50.0),
+) -> PoseTracks:
     """Pose-bone channels that put the rig where the core says, frame by frame.
 
     body_world: ``(F, 4, 4)`` rigid body-to-world transforms (the body frame of
@@ -846,7 +905,10 @@ def solve_pose(info: RigInfo, body_world: np.ndarray, joints_world: Sequence[np.
     Each leg bone's rotation maps its rest segment onto the simulated one and its rest
     leg-plane normal onto the simulated plane's normal (no added twist; a straight leg keeps
     the body-turned rest normal). The body bone moves rigidly with the body frame; the first
-    foot bone keeps its rest orientation turned by the body's heading.
+    foot bone keeps its rest orientation turned by the body's heading and, when ``ground``
+    is given (``ground(frame_index, xy (n, 2)) -> (n,)`` world heights, ``-inf`` over
+    nothing), pitches about its cross axis so its sole lies on the ground (toes lift onto
+    slopes and edges, up to ``max_foot_pitch``).
     """
     body_world = np.asarray(body_world, dtype=np.float64)
     n_frames = body_world.shape[0]
@@ -892,6 +954,9 @@ def solve_pose(info: RigInfo, body_world: np.ndarray, joints_world: Sequence[np.
         if leg.foot:
             desired[leg.foot[0]] = yaw @ rest_rot[leg.foot[0]]
 
+    if ground is not None:
+        _pitch_feet(info, joints_world, yaw, rest_rot, desired, ground, max_foot_pitch)
+
     bones = info.driven_bones
     # Armature-space pose matrices, parents before children.
     order = _hierarchy_order(info, bones)
@@ -922,6 +987,38 @@ def solve_pose(info: RigInfo, body_world: np.ndarray, joints_world: Sequence[np.
     locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)
     keyed = np.array([b == info.body_bone for b in bones])
     return PoseTracks(bones, rotations, locations, keyed)
+
+
+def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], yaw: np.ndarray,
+                rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
+                limit: float) -> None:
+    """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`)."""
+    legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
+    if not legs:
+        return
+    n_frames = yaw.shape[0]
+    rels, ends = [], []
+    for k in legs:
+        ends.append(np.asarray(joints_world[k], dtype=np.float64)[:, -1])
+        rels.append(np.einsum("fij,pj->fpi", yaw, info.foot_points[k] - info.joints[k][-1]))
+    counts = [r.shape[1] for r in rels]
+    bounds = np.cumsum([0, *counts])
+    turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
+    # Pitching moves the sole points sideways too, onto other ground: a few fixed-point passes
+    # (heights where the pitched points are, the pitch from the rest sole) settle it.
+    for _ in range(3):
+        xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
+                             for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
+        heights = np.stack([np.asarray(ground(f, xy[f]), dtype=np.float64) for f in range(n_frames)])
+        for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
+            theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit)
+            axis = np.cross(np.concatenate([d, np.zeros((n_frames, 1))], axis=1), _UP)
+            axis_n = np.linalg.norm(axis, axis=1, keepdims=True)
+            axis = np.divide(axis, axis_n, out=np.zeros_like(axis), where=axis_n > 1e-12)
+            turns[j] = _axis_rotation(axis, np.where(axis_n[:, 0] > 1e-12, theta, 0.0))
+    for j, k in enumerate(legs):
+        name = info.legs[k].foot[0]
+        desired[name] = turns[j] @ desired[name]
 
 
 def _orthonormal(m: np.ndarray) -> np.ndarray:

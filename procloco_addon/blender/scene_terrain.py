@@ -167,7 +167,7 @@ def _maybe_animated(obj: bpy.types.Object) -> bool:
 def build_environment(
     context: bpy.types.Context,
     objects: Sequence[bpy.types.Object],
-    frames: Sequence[int] = (),
+    frames: Sequence[int] | np.ndarray = (),
     z_offset: float = 0.0,
 ) -> SceneTerrain:
     """Read ``objects`` at the current frame into an Environment of triangle soups.

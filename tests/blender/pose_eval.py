@@ -114,3 +114,35 @@ def inside_any(points: np.ndarray, objects: Sequence[bpy.types.Object], margin: 
             if normal.dot(local - loc) < 0.0 and depth_vec.length > margin:
                 inside[n] = True
     return inside
+
+
+def leg_joints(
+    obj: bpy.types.Object, frames: Sequence[int], legs: Sequence[Sequence[str]]
+) -> list[np.ndarray]:
+    """Per leg (bone names hip to end-effector) the evaluated world joints ``(F, k + 1, 3)``:
+    each bone's head, then the last bone's tail."""
+    names = [b for leg in legs for b in leg]
+    heads, tails = bone_heads_tails(obj, frames, names)
+    out = []
+    k = 0
+    for leg in legs:
+        n = len(leg)
+        out.append(np.concatenate([heads[:, k:k + n], tails[:, k + n - 1:k + n]], axis=1))
+        k += n
+    return out
+
+
+def ray_heights_over_time(
+    frames: Sequence[int], xy: np.ndarray, objects: Sequence[bpy.types.Object]
+) -> np.ndarray:
+    """Ray-cast surface heights under ``xy`` ``(F, n, 2)`` at each frame (moving meshes move): ``(F, n)``."""
+    scene = bpy.context.scene
+    old = scene.frame_current
+    out = np.empty(xy.shape[:2])
+    try:
+        for f, frame in enumerate(frames):
+            scene.frame_set(int(frame))
+            out[f] = ray_heights(xy[f], objects)
+    finally:
+        scene.frame_set(old)
+    return out

@@ -43,7 +43,7 @@ def snapshot() -> dict[str, Any]:
         entry: dict[str, Any] = {
             "action": adt.action.name if adt is not None and adt.action is not None else None,
             # (registered property groups show up in keys() once read on 4.2: not a change)
-            "keys": sorted(k for k in obj.keys() if k not in {"procloco", "procloco_role"}),
+            "keys": sorted(set(obj.keys()) - {"procloco", "procloco_role"}),
             "matrix": np.round(np.array(obj.matrix_world), 9).tolist(),
             "settings": _settings(obj),
             "role": getattr(obj, "procloco_role", None),

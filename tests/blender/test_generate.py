@@ -237,3 +237,203 @@ def test_terrain_panel_shows_the_role_of_a_mesh_and_the_collection_of_a_rig(wolf
     assert draw_panel(panel.PROCLOCO_PT_terrain).has_prop("terrain_collection")
     _select_only(bpy.data.objects["Ground"])
     assert draw_panel(panel.PROCLOCO_PT_terrain).has_prop("procloco_role")
+
+
+# ---------------------------------------------------------------------------------------
+# The motion, measured on the posed rig against the real meshes
+
+
+def _terrain(leg: float, origin: tuple[float, float, float] = (0.0, 0.0, 0.0), yaw: float = 0.0,
+             moving: bool = False) -> dict[str, Any]:
+    """A wavy heightmap mesh sized to a creature of leg length ``leg`` walking towards -Y
+    from the origin, a low crate to step on or over on the way, a tall crate to keep off
+    beside the path, and optionally a crate sliding across the path. Everything hangs from
+    an empty at ``origin`` turned by ``yaw``, so the layout follows a moved, turned rig."""
+    n = 48
+    size = 16.0 * leg
+    xs = np.linspace(-size / 2, size / 2, n)
+    gx, gy = np.meshgrid(xs, xs - 0.3 * size)
+    amp = 0.06 * leg
+    gz = amp * np.sin(gx / (1.3 * leg)) * np.cos(gy / (1.7 * leg))
+    gz[np.hypot(gx, gy) < 1.2 * leg] = 0.0  # the rest pose stands level
+    verts = np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
+    faces = [(i * n + j, i * n + j + 1, (i + 1) * n + j + 1, (i + 1) * n + j)
+             for i in range(n - 1) for j in range(n - 1)]
+    mesh = bpy.data.meshes.new("Heightmap")
+    mesh.from_pydata(verts.tolist(), [], faces)
+    ground = bpy.data.objects.new("Heightmap", mesh)
+    bpy.context.scene.collection.objects.link(ground)
+    ground.procloco_role = "GROUND"
+
+    root = bpy.data.objects.new("TerrainRoot", None)
+    bpy.context.scene.collection.objects.link(root)
+    root.location = origin
+    root.rotation_euler = (0.0, 0.0, yaw)
+    ground.parent = root
+
+    def crate(name: str, xy: tuple[float, float], size3: tuple[float, float, float], role: str) -> Any:
+        bpy.ops.mesh.primitive_cube_add(size=1.0, location=(xy[0], xy[1], 0.5 * size3[2] - 0.02 * leg))
+        obj = bpy.context.active_object
+        obj.name = name
+        obj.scale = size3
+        obj.procloco_role = role
+        obj.parent = root
+        return obj
+
+    low = crate("LowCrate", (0.25 * leg, -1.6 * leg), (1.0 * leg, 0.6 * leg, 0.12 * leg), "STEP_OVER")
+    tall = crate("TallCrate", (1.25 * leg, -2.6 * leg), (0.8 * leg, 0.8 * leg, 1.5 * leg), "AVOID")
+    out = {"ground": ground, "low": low, "tall": tall}
+    if moving:
+        mover = crate("Mover", (-3.0 * leg, -3.2 * leg), (0.6 * leg, 0.6 * leg, 0.1 * leg), "STEP_OVER")
+        mover.keyframe_insert("location", frame=1)
+        mover.location.x = 3.0 * leg
+        mover.keyframe_insert("location", frame=120)
+        out["mover"] = mover
+    bpy.context.view_layer.update()
+    return out
+
+
+def _measure(obj: Any, job: generate.Job, terrain: dict[str, Any]) -> dict[str, float]:
+    """The numbers of "What done means for the motion", from the evaluated rig."""
+    from procloco_addon.core import metrics
+    from tests.blender.pose_eval import bone_heads_tails, leg_joints, ray_heights_over_time
+
+    info = job.info
+    res = job.result
+    frames = [int(f) for f in job.frames]
+    joints = leg_joints(obj, frames, [leg.bones for leg in info.legs])
+    ends = np.stack([j[:, -1] for j in joints], axis=1)  # (F, L, 3)
+    hips = np.stack([j[:, 0] for j in joints], axis=1)
+    leg_len = info.leg_length
+    scale = float(leg_len.mean())
+    # Planted: the end-effector does not move to the next frame.
+    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)
+    planted = np.zeros(ends.shape[:2], dtype=bool)
+    planted[:-1] = step < 1e-3 * scale  # swinging feet move far more per frame
+    planted[-1] = planted[-2]
+    out: dict[str, float] = {}
+    out["slide"] = float(metrics.stance_sliding(ends, ~res.swing).max())
+    # Lowest point of each foot: the end-effector, or the foot bones carrying it.
+    foot_names = [leg.foot[0] if leg.foot else leg.end for leg in info.legs]
+    fh, ft = bone_heads_tails(obj, frames, foot_names)
+    probes = np.concatenate([ends, fh, ft], axis=1)
+    probes = probes - np.concatenate([np.zeros_like(ends), 0 * fh, 0 * ft], axis=1)
+    surfaces = [terrain[k] for k in ("ground", "low", "tall", "mover") if k in terrain]
+    heights = ray_heights_over_time(frames, probes[..., :2], surfaces)
+    over = heights > -np.inf
+    # The end-effector stays foot_height above the ground; the foot bones may touch it.
+    lift = np.concatenate([np.broadcast_to(info.foot_height, ends.shape[:2]),
+                           np.zeros(fh.shape[:2]), np.zeros(ft.shape[:2])], axis=1)
+    depth = np.where(over, heights + lift - probes[..., 2], -np.inf)
+    out["penetration"] = float(depth.max())
+    # Inside the avoided crate (its box, from the object's bounds).
+    # Inside the avoided crate: in its own frame it is the cube [-0.5, 0.5]^3.
+    tall = terrain["tall"]
+    inv = np.linalg.inv(np.array(tall.matrix_world))
+    half = 0.5 * np.array(tall.matrix_world.to_scale())
+    local = ends @ inv[:3, :3].T + inv[:3, 3]
+    depth_in = np.min((0.5 - np.abs(local)) * 2.0 * half, axis=-1)  # metres to the nearest face
+    out["avoid"] = float(max(depth_in.max(), 0.0))
+    # Frames where some foot is over the low crate (standing on it or stepping over it).
+    low = terrain["low"]
+    inv = np.linalg.inv(np.array(low.matrix_world))
+    local = ends @ inv[:3, :3].T + inv[:3, 3]
+    out["over_crate"] = float(np.any(np.all(np.abs(local[..., :2]) < 0.5, axis=-1), axis=1).sum())
+    rest_seg = [np.linalg.norm(np.diff(j, axis=0), axis=1) for j in info.joints]
+    out["bone"] = max(float(np.max(np.abs(np.linalg.norm(np.diff(j, axis=1), axis=-1) - r) / r))
+                      for j, r in zip(joints, rest_seg, strict=True))
+    out["reach"] = float(np.linalg.norm(ends - res.feet, axis=-1).max())
+    out["extension"] = float((np.linalg.norm(ends - hips, axis=-1) / leg_len).max())
+    gait = job.gait
+    # Forced steps (a support moved or became forbidden) are not the gait's: not judged.
+    forced = res.forced | np.roll(res.forced, 1, axis=0) | np.roll(res.forced, -1, axis=0)
+    phase = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, gait.swing_start,
+                                       gait.swing_duration, ignore=forced, first_frame=2)
+    out["forced"] = float(res.forced.any(axis=0).sum())
+    out["phase"] = phase.max_abs
+    out["phase_events"] = phase.n_events
+    out["travel"] = float(np.linalg.norm(res.body[-1, :2, 3] - res.body[0, :2, 3]))
+    out["scale"] = scale
+    return out
+
+
+def _check(m: dict[str, float]) -> None:
+    assert m["slide"] <= 0.002, m
+    assert m["penetration"] <= 0.005, m
+    assert m["avoid"] <= 0.005, m
+    assert m["bone"] < 1e-4, m
+    assert m["reach"] <= 0.01, m
+    assert m["extension"] <= 1.0 + 1e-6, m
+    assert m["phase_events"] > 0, m
+    assert m["phase"] <= 1.0, m
+    assert m["over_crate"] > 0, "the walk never reached the crate"
+
+
+def _generate(obj: Any, frames: int = 120) -> generate.Job:
+    _select_only(obj)
+    _short_range(obj, 1, frames)
+    job = generate.prepare(bpy.context, obj)
+    for _ in generate.simulate(job):
+        pass
+    generate.write(bpy.context, job)
+    return job
+
+
+def _leg_length(obj: Any) -> float:
+    from procloco_addon.blender import rig
+
+    return float(rig.read_rig(obj).leg_length.mean())
+
+
+@pytest.mark.parametrize("kind", ["wolf", "spider"])
+def test_walk_over_heightmap_and_crates_meets_the_motion_thresholds(empty_scene: Any, kind: str) -> None:
+    obj = creatures.BUILDERS[kind](empty_scene, scale=1.0 if kind == "wolf" else 8.0)
+    leg = _leg_length(obj)
+    terrain = _terrain(leg)
+    # Brisk but comfortable speeds (leg lengths per second) for each gait.
+    obj.procloco.speed = (0.8 if kind == "wolf" else 0.5) * leg
+    obj.procloco.step_height = 0.25 * leg
+    job = _generate(obj)
+    m = _measure(obj, job, terrain)
+    assert m["travel"] > (2.5 if kind == "wolf" else 1.6) * leg, m
+    _check(m)
+
+
+def _placed_wolf(scene: Any, scale: float, yaw: float) -> tuple[Any, dict[str, Any], np.ndarray]:
+    """The wolf and its terrain, both scaled by ``scale`` and turned by ``yaw`` about the world
+    origin (the planner's grid lattice is anchored there, so a ×100 world turned by 90° is
+    the same problem on a 100 times coarser lattice)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    loc = scale * turn @ np.array([0.3, -0.2, 0.05])
+    wolf = creatures.build_wolf(scene)
+    wolf.location = tuple(loc)
+    wolf.rotation_euler = (0.0, 0.0, yaw)
+    wolf.scale = (scale, scale, scale)
+    bpy.context.view_layer.update()
+    leg = _leg_length(wolf)
+    terrain = _terrain(leg, origin=tuple(loc), yaw=yaw)
+    wolf.procloco.speed = 0.8 * leg
+    wolf.procloco.step_height = 0.25 * leg
+    return wolf, terrain, np.concatenate([np.concatenate([turn, loc[:, None]], axis=1), [[0, 0, 0, 1]]])
+
+
+def test_scaled_and_rotated_rig_meets_the_same_thresholds(empty_scene: Any) -> None:
+    """A wolf scaled ×100 and turned 90° in a scene scaled and turned alike walks the same
+    walk, to scale, and meets the same absolute thresholds."""
+    feet = {}
+    for scale, yaw in ((1.0, 0.0), (100.0, np.pi / 2)):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        wolf, terrain, placement = _placed_wolf(bpy.context.scene, scale, yaw)
+        leg = _leg_length(wolf)
+        assert leg == pytest.approx(scale * 0.7325, rel=1e-3)
+        job = _generate(wolf)
+        m = _measure(wolf, job, terrain)
+        _check(m)
+        travel = job.result.body[-1, :3, 3] - job.result.body[0, :3, 3]
+        # Facing -Y turned by yaw.
+        assert np.dot(travel[:2], placement[:2, :2] @ np.array([0.0, -1.0])) > 2.5 * leg, m
+        back = np.linalg.inv(placement)
+        feet[scale] = (job.result.feet @ back[:3, :3].T + back[:3, 3]) / scale
+    # Back in the unscaled frame, the two walks are the same to a millimetre.
+    assert np.abs(feet[1.0] - feet[100.0]).max() < 2e-3

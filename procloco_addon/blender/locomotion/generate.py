@@ -308,7 +308,7 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
     t0 = time.perf_counter()
     obj = bpy.data.objects[job.obj_name]
     body_world, joints_world = simulation.world_tracks(job)
-    tracks = rig.solve_pose(job.info, body_world, joints_world)
+    tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job))
     action = actions.new_action(obj)
     frames = job.frames.astype(np.float64)
     try:

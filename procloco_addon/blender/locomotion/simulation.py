@@ -1,0 +1,193 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Running the core character controller for one :class:`~.generate.Job`, frame by frame.
+
+Only glue: the controller (``core.controller``) does the locomotion. This module turns
+the rig settings into per-step commands (speed, heading — constant, turning, or steered
+along a path curve — step height, foot spacing, pelvis physics), moves the scene's animated
+obstacles to each frame before the step, and records what the rig needs per frame: the
+body frame in the world and every leg joint.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ...core.controller import Controller, ControllerParams, StepControls
+from ...core.footprints import PlannerParams
+from ...core.morphology import LegBatch
+from ...core.progression import ProgressionParams, ProgressionState, progression_step
+from ...core.terrain import NO_SURFACE
+
+if TYPE_CHECKING:
+    from .generate import Job
+
+__all__ = ["SimResult", "ground_function", "path_heading", "run", "world_tracks"]
+
+
+@dataclass
+class SimResult:
+    """Per-frame results, ``F`` frames: ``body`` ``(F, 4, 4)`` body-to-world transforms,
+    ``joints`` ``(F, n_legs, s + 1, 3)`` world joints (hip first), ``swing`` ``(F, n_legs)``
+    feet in the air, ``feet`` ``(F, n_legs, 3)`` end-effector targets, ``ik_error``
+    ``(F, n_legs)`` distance from each end-effector to its target; ``needle`` ``(F,)`` the
+    gait needle's phase and ``phase_rate`` ``(F,)`` its speed in cycles per second (the
+    controller speeds it up when the stride would be too long); ``forced`` ``(F, n_legs)``
+    feet taking a forced step (their support moved or became forbidden); ``plan_failed``
+    ``(F, n_legs)`` feet whose footstep plan failed (they stay planted)."""
+
+    body: np.ndarray
+    joints: np.ndarray
+    swing: np.ndarray
+    feet: np.ndarray
+    ik_error: np.ndarray
+    needle: np.ndarray
+    phase_rate: np.ndarray
+    forced: np.ndarray
+    plan_failed: np.ndarray
+
+
+def path_heading(path: np.ndarray, xy: np.ndarray, lookahead: float) -> tuple[float, float]:
+    """Heading toward the point ``lookahead`` metres further along the path than the point
+    of ``path`` ``(n, 3)`` nearest to ``xy`` ``(2,)``; also the distance left to the path's end."""
+    p = path[:, :2]
+    seg = np.diff(p, axis=0)
+    seg_len = np.linalg.norm(seg, axis=1)
+    cum = np.concatenate([[0.0], np.cumsum(seg_len)])
+    t = np.clip(np.einsum("ij,ij->i", xy[None] - p[:-1], seg) / np.maximum(seg_len ** 2, 1e-18), 0.0, 1.0)
+    near = p[:-1] + t[:, None] * seg
+    k = int(np.argmin(np.linalg.norm(near - xy[None], axis=1)))
+    s_here = cum[k] + t[k] * seg_len[k]
+    s_goal = min(s_here + lookahead, cum[-1])
+    j = int(np.clip(np.searchsorted(cum, s_goal) - 1, 0, len(seg) - 1))
+    u = (s_goal - cum[j]) / max(seg_len[j], 1e-18)
+    goal = p[j] + u * seg[j]
+    d = goal - xy
+    if np.linalg.norm(d) < 1e-9:
+        d = seg[-1]
+    return float(np.arctan2(d[1], d[0])), float(cum[-1] - s_here)
+
+
+def _controls(job: Job, legs: LegBatch, speed: float, heading: float) -> StepControls:
+    rest_y = legs.rest_foot[:, 1]
+    spacing = job.foot_offset.copy()
+    spacing[:, 1] += (job.spacing - 1.0) * rest_y
+    return StepControls(
+        speed=np.array([speed]),
+        heading=np.array([heading]),
+        step_height=np.array([job.step_height]),
+        spacing=spacing,
+        pelvis_physics=np.array([job.use_pelvis_physics]),
+        ik=np.array([True]),
+    )
+
+
+def run(job: Job) -> Iterator[float]:
+    """Simulate ``job`` (one controller step per frame after the first); yields the fraction
+    done and stores a :class:`SimResult` in ``job.result``."""
+    legs = LegBatch.stack([job.morphology])
+    n_frames = job.frames.shape[0]
+    terrain = job.terrain
+    terrain.apply_frame(0)
+    origin = job.info.body.origin
+    start_yaw = float(np.arctan2(job.info.body.forward[1], job.info.body.forward[0]))
+    leg_len = float(np.mean(job.info.leg_length))
+    rng = np.random.default_rng(job.seed)
+    progression = ProgressionParams(max_speed=max(job.speed, 0.0))
+    prog_state = ProgressionState.start(1, progression, rng) if job.use_progression else None
+
+    def command(t: float, xy: np.ndarray) -> tuple[float, float]:
+        speed = job.speed
+        if job.path is not None:
+            heading, left = path_heading(job.path, xy, max(leg_len, 0.5 * job.speed))
+            if left < 0.05 * leg_len:
+                speed = 0.0
+            return speed, heading
+        return speed, job.heading + job.turn_rate * t
+
+    speed0, heading0 = command(0.0, origin[:2])
+    if job.path is not None:
+        start_yaw = heading0 if abs(np.angle(np.exp(1j * (heading0 - start_yaw)))) < 0.5 else start_yaw
+    ctl = _controls(job, legs, 0.0 if prog_state is not None else speed0, heading0)
+    # Planning cells and height slices scale with the creature (the core's defaults are
+    # tuned for half-metre legs: 7 cm cells, 10 cm slices), so a rig scaled ×100 plans the
+    # same steps on a 100 times larger terrain.
+    params = ControllerParams(window_cell=0.13 * leg_len, slice_size=0.14 * leg_len)
+    planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
+                            candidate_radius=params.candidate_radius * leg_len,
+                            fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
+    sim = Controller(terrain.environment, legs, [job.gait], origin[None, :2], np.array([start_yaw]), ctl,
+                     params=params, planner=[planner])
+
+    n_legs = legs.n_legs
+    s1 = legs.max_segments + 1
+    body = np.empty((n_frames, 4, 4))
+    joints = np.empty((n_frames, n_legs, s1, 3))
+    swing = np.zeros((n_frames, n_legs), dtype=bool)
+    feet = np.empty((n_frames, n_legs, 3))
+    ik_error = np.zeros((n_frames, n_legs))
+    needle = np.zeros(n_frames)
+    phase_rate = np.zeros(n_frames)
+    forced = np.zeros((n_frames, n_legs), dtype=bool)
+    failed = np.zeros((n_frames, n_legs), dtype=bool)
+
+    def record(f: int) -> None:
+        body[f] = np.eye(4)
+        body[f, :3, :3] = sim.rotations()[0]
+        body[f, :3, 3] = sim.pos[0]
+        res = sim.ik_result
+        assert res is not None
+        joints[f] = res.joints
+        ik_error[f] = res.error
+        swing[f] = sim.swinging
+        feet[f] = sim.foot
+        needle[f] = float(sim.gait.needle[0])
+        phase_rate[f] = float(sim.gait.rate()[0])
+        forced[f] = sim.forced
+        failed[f] = sim.plan_failed
+
+    # The controller's initial pose does not yet keep the hips within reach of the feet (its
+    # reach guard runs in step()): a vanishing step settles frame 0 without moving anything.
+    sim.step(1e-9 * job.dt, ctl)
+    record(0)
+    yield 1.0 / n_frames
+    for f in range(1, n_frames):
+        terrain.apply_frame(f)
+        t = f * job.dt
+        speed, heading = command(t, sim.pos[0, :2])
+        if prog_state is not None:
+            progression = ProgressionParams(max_speed=max(speed, 0.0))
+            prog_state, step = progression_step(prog_state, progression, job.dt, rng)
+            speed = float(step.speed[0])
+        sim.step(job.dt, _controls(job, legs, speed, heading))
+        record(f)
+        yield (f + 1) / n_frames
+    job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed)
+
+
+def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The body frames ``(F, 4, 4)`` and per-leg world joints ``(F, k + 1, 3)`` of a finished job."""
+    res: SimResult = job.result
+    if res is None:
+        raise RuntimeError("the simulation has not run")
+    joints = [res.joints[:, i, : len(leg.bones) + 1] for i, leg in enumerate(job.info.legs)]
+    return res.body, joints
+
+
+def ground_function(job: Job) -> Callable[[int, np.ndarray], np.ndarray]:
+    """``ground(frame_index, xy (n, 2)) -> (n,)``: the scene's surface heights at that frame
+    (moving obstacles where they are then), ``-inf`` over nothing."""
+    terrain = job.terrain
+    current = [-1]
+
+    def ground(f: int, xy: np.ndarray) -> np.ndarray:
+        if f != current[0] and terrain.dynamic_index:
+            terrain.apply_frame(f)
+            current[0] = f
+        h = terrain.environment.height_at(xy) - terrain.z_offset
+        return np.where(h > NO_SURFACE * 0.5, h, -np.inf)
+
+    return ground
