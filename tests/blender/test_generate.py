@@ -437,3 +437,133 @@ def test_scaled_and_rotated_rig_meets_the_same_thresholds(empty_scene: Any) -> N
         feet[scale] = (job.result.feet @ back[:3, :3].T + back[:3, 3]) / scale
     # Back in the unscaled frame, the two walks are the same to a millimetre.
     assert np.abs(feet[1.0] - feet[100.0]).max() < 2e-3
+
+
+# ---------------------------------------------------------------------------------------
+# The operator end to end: Actions kept, determinism, several rigs, paths, cancel
+
+
+def _action_bytes(action: Any, obj: Any) -> dict[tuple[str, int], bytes]:
+    out = {}
+    for ch in actions.channels_of(action, obj):
+        keys = actions.read_channel(action, obj, ch.data_path, ch.index)
+        assert keys is not None
+        out[(ch.data_path, ch.index)] = np.stack(keys).tobytes()
+    return out
+
+
+def test_user_action_survives_generation_and_clear_restores_it(wolf_scene: Any) -> None:
+    pb = wolf_scene.pose.bones["spine.004"]
+    pb.rotation_mode = "XYZ"
+    pb.keyframe_insert("rotation_euler", frame=1)
+    pb.rotation_euler = (0.2, 0.0, 0.0)
+    pb.keyframe_insert("rotation_euler", frame=12)
+    user = wolf_scene.animation_data.action
+    user_keys = _action_bytes(user, wolf_scene)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    generated = wolf_scene.animation_data.action
+    assert generated != user
+    assert generated.name.startswith("Wolf ProcLoco")
+    assert user.name in bpy.data.actions
+    assert _action_bytes(user, wolf_scene) == user_keys, "the user's Action was written to"
+    # Rotations are keyed in each bone's mode: Euler for the body bone, quaternions for the legs.
+    paths = {ch.data_path for ch in actions.channels_of(generated, wolf_scene)}
+    assert 'pose.bones["spine.004"].rotation_euler' in paths
+    assert 'pose.bones["spine.004"].location' in paths
+    assert 'pose.bones["thigh.L"].rotation_quaternion' in paths
+    # Generating again keeps the user's Action as the one to go back to.
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    assert bpy.ops.procloco.clear_generated_action() == {"FINISHED"}
+    assert wolf_scene.animation_data.action == user
+    bpy.context.scene.frame_set(12)
+    euler = tuple(wolf_scene.pose.bones["spine.004"].rotation_euler)
+    assert euler == pytest.approx((0.2, 0.0, 0.0), abs=1e-6)
+
+
+def test_same_seed_gives_byte_identical_actions(wolf_scene: Any) -> None:
+    wolf_scene.procloco.use_progression = True  # the one random effect
+    wolf_scene.procloco.seed = 7
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    first = _action_bytes(wolf_scene.animation_data.action, wolf_scene)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    second = _action_bytes(wolf_scene.animation_data.action, wolf_scene)
+    assert first == second
+    wolf_scene.procloco.seed = 8
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    assert _action_bytes(wolf_scene.animation_data.action, wolf_scene) != first
+
+
+def test_all_selected_rigs_get_their_own_action(wolf_scene: Any) -> None:
+    robot = creatures.build_robot(bpy.context.scene, name="Robot", location=(1.5, 0.0, 0.0))
+    _short_range(robot)
+    robot.select_set(True)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    assert wolf_scene.animation_data.action.name.startswith("Wolf ProcLoco")
+    assert robot.animation_data.action.name.startswith("Robot ProcLoco")
+
+
+def test_follows_a_path_curve(empty_scene: Any) -> None:
+    _ground(size=12.0)
+    wolf = creatures.build_wolf(empty_scene)
+    curve = bpy.data.curves.new("Path", "CURVE")
+    spline = curve.splines.new("POLY")
+    pts = [(0.0, 0.0), (0.0, -1.5), (1.5, -3.0), (3.0, -3.0)]
+    spline.points.add(len(pts) - 1)
+    for p, (x, y) in zip(spline.points, pts, strict=True):
+        p.co = (x, y, 0.0, 1.0)
+    path = bpy.data.objects.new("Path", curve)
+    empty_scene.collection.objects.link(path)
+    wolf.procloco.path = path
+    wolf.procloco.speed = 1.2
+    _select_only(wolf)
+    _short_range(wolf, 1, 120)
+    job = generate.prepare(bpy.context, wolf)
+    for _ in generate.simulate(job):
+        pass
+    body = job.result.body[:, :2, 3]
+    poly = np.array(pts)
+    seg = np.diff(poly, axis=0)
+
+    def distance(p: np.ndarray) -> float:
+        t = np.clip(np.einsum("ij,ij->i", p - poly[:-1], seg) / np.sum(seg ** 2, axis=1), 0, 1)
+        return float(np.min(np.linalg.norm(poly[:-1] + t[:, None] * seg - p, axis=1)))
+
+    # It stays near the path and gets to its far end.
+    assert max(distance(p) for p in body[::10]) < 0.35
+    assert np.linalg.norm(body[-1] - poly[-1]) < 0.6
+
+
+def test_escape_cancels_and_changes_nothing(wolf_scene: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The modal path: Esc after some progress leaves the scene exactly as it was."""
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.locomotion import ops
+    from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
+
+    monkeypatch.setattr(ops, "_TICK_BUDGET_S", 0.0)  # one frame per timer tick
+
+    before = snapshot()
+    me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _jobs=[])
+    for name in ("_prepare", "_all_steps", "_stop", "_finish"):
+        setattr(me, name, getattr(Op, name).__get__(me))
+    wm = SimpleNamespace(progress_update=lambda _v: None, progress_end=lambda: None,
+                         event_timer_remove=lambda _t: None)
+    context = SimpleNamespace(**{k: getattr(bpy.context, k) for k in
+                                 ("scene", "view_layer", "active_object", "selected_objects")},
+                              window_manager=wm, area=None,
+                              evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get)
+    assert me._prepare(context)
+    me._steps = me._all_steps()
+    timer = SimpleNamespace(type="TIMER")
+    for _ in range(3):
+        assert Op.modal(me, context, timer) == {"RUNNING_MODAL"}
+    assert Op.modal(me, context, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert me._steps is None
+    assert snapshot() == before
+    # Left to run, the same modal loop finishes and writes the Action.
+    assert me._prepare(context)
+    me._steps = me._all_steps()
+    results = [Op.modal(me, context, timer) for _ in range(20)]
+    assert results.count({"FINISHED"}) == 1
+    assert wolf_scene.animation_data.action.name.startswith("Wolf ProcLoco")
