@@ -52,21 +52,24 @@ class GaitPresetError(GaitError):
 
 
 # ---------------------------------------------------------------------------- circle helpers
-def in_swing(phase: npt.ArrayLike, start: npt.ArrayLike, duration: npt.ArrayLike) -> BoolArray:
-    """Whether the needle at ``phase`` is inside the swing arc ``[start, start + duration)``."""
-    rel = np.mod(np.asarray(phase, dtype=np.float64) - np.asarray(start, dtype=np.float64), 1.0)
-    return np.asarray(rel < np.asarray(duration, dtype=np.float64))
+_PHASE_EPS = 1e-9  # a needle this close below a sector's start counts as on it (float round-off)
 
 
 def swing_elapsed(phase: npt.ArrayLike, start: npt.ArrayLike) -> FloatArray:
     """Cycle fraction since the sector's start, in ``[0, 1)`` (the swing's age while in swing)."""
-    return np.asarray(np.mod(np.asarray(phase, dtype=np.float64) - np.asarray(start, dtype=np.float64), 1.0))
+    rel = np.mod(np.asarray(phase, dtype=np.float64) - np.asarray(start, dtype=np.float64), 1.0)
+    return np.asarray(np.where(rel > 1.0 - _PHASE_EPS, 0.0, rel))
+
+
+def in_swing(phase: npt.ArrayLike, start: npt.ArrayLike, duration: npt.ArrayLike) -> BoolArray:
+    """Whether the needle at ``phase`` is inside the swing arc ``[start, start + duration)``."""
+    return np.asarray(swing_elapsed(phase, start) < np.asarray(duration, dtype=np.float64) - _PHASE_EPS)
 
 
 def stance_elapsed(phase: npt.ArrayLike, start: npt.ArrayLike, duration: npt.ArrayLike) -> FloatArray:
     """Cycle fraction since the sector's finish (touch-down), in ``[0, 1)``."""
     finish = np.asarray(start, dtype=np.float64) + np.asarray(duration, dtype=np.float64)
-    return np.asarray(np.mod(np.asarray(phase, dtype=np.float64) - finish, 1.0))
+    return swing_elapsed(phase, finish)
 
 
 def transition_direction(
@@ -365,10 +368,10 @@ class GaitManager:
             if phase is None
             else np.mod(np.broadcast_to(np.asarray(phase, dtype=np.float64), (n_chars,)).copy(), 1.0)
         )
-        self.disk_start = np.concatenate([g.swing_start for g in gaits])
-        self.disk_duration = np.concatenate([g.swing_duration for g in gaits])
-        self.cycle_time = np.array([g.cycle_time for g in gaits], dtype=np.float64)
-        self.rate_scale = np.ones(n_chars)
+        self.disk_start: FloatArray = np.concatenate([g.swing_start for g in gaits])
+        self.disk_duration: FloatArray = np.concatenate([g.swing_duration for g in gaits])
+        self.cycle_time: FloatArray = np.array([g.cycle_time for g in gaits], dtype=np.float64)
+        self.rate_scale: FloatArray = np.ones(n_chars)
         self.swing = in_swing(self.needle[self.leg_char], self.disk_start, self.disk_duration)
         # transition state
         self.tr_active = np.zeros(n_chars, dtype=bool)

@@ -168,7 +168,10 @@ def extension(hip: FloatArray, end_effector: FloatArray, leg_length: FloatArray)
 
 
 def target_extension(hip: FloatArray, target: FloatArray, leg_length: FloatArray) -> FloatArray:
-    """Like ``extension`` but for the targets the legs were asked to reach: ``(L,)``."""
+    """Like ``extension`` but for the targets the legs were asked to reach: ``(L,)``.
+
+    An IK with exact bone lengths never *shows* a stretched leg (``extension`` stays <= 1);
+    a target beyond the leg's length is where the motion asked for one."""
     return extension(hip, target, leg_length)
 
 
@@ -238,6 +241,7 @@ def swing_phase_errors(
 
     def err(frames: IntArray, legs: IntArray, boundary: FloatArray) -> FloatArray:
         e = np.mod(nd[frames, legs] - boundary[frames, legs] + 0.5, 1.0) - 0.5
+        e = np.where(np.abs(e) < 1e-9, 0.0, e)  # float round-off at the boundary itself
         return np.asarray(e / np.maximum(stp[frames, legs], 1e-12))
 
     keep_lift = (lift_f >= first_frame) & ~skip[lift_f, lift_l]

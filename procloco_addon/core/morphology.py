@@ -522,19 +522,20 @@ def pentapod(scale: float = 1.0) -> Morphology:
 def quadruped(scale: float = 1.0) -> Morphology:
     """A dog-like quadruped: front legs three segments (upper arm, forearm, hand), hind legs
     three segments (thigh, shin, tarsus); feet under the hips, knees forward, hocks back."""
-    h = 0.5 * scale
     front = [
-        np.array([0.3, 0.1, 0.0]) * scale,
-        np.array([0.28, 0.1, -0.22]) * scale,
-        np.array([0.3, 0.1, -0.42]) * scale,
-        np.array([0.31, 0.1, -h]),
+        np.array([0.3, 0.1, 0.0]),
+        np.array([0.24, 0.1, -0.19]),
+        np.array([0.3, 0.1, -0.38]),
+        np.array([0.31, 0.1, -0.46]),
     ]
     hind = [
-        np.array([-0.3, 0.1, 0.0]) * scale,
-        np.array([-0.24, 0.1, -0.2]) * scale,
-        np.array([-0.34, 0.1, -0.38]) * scale,
-        np.array([-0.33, 0.1, -h]),
+        np.array([-0.3, 0.1, 0.0]),
+        np.array([-0.22, 0.1, -0.18]),
+        np.array([-0.36, 0.1, -0.33]),
+        np.array([-0.33, 0.1, -0.46]),
     ]
+    front = [p * scale for p in front]
+    hind = [p * scale for p in hind]
     mirror = [np.array([1.0, side, 1.0]) for side in (1.0, -1.0)]
     chains = [np.array([p * m for p in leg]) for leg in (front, hind) for m in mirror]
     return Morphology.from_rest_joints(

@@ -49,11 +49,13 @@ BoolArray = npt.NDArray[np.bool_]
 class PelvisPhysicsParams:
     """``gravity`` in m/s² (lower it for a softer, smaller bounce), ``max_substep`` in s,
     ``warmup_cycles``: gait cycles run before the first frame so the particles start on
-    their periodic orbit instead of falling from rest."""
+    their periodic orbit instead of falling from rest; ``centered``: report the bounce
+    around the preferred height (see ``PelvisPhysics.centered_height``)."""
 
     gravity: float = 9.81
     max_substep: float = 1.0 / 240.0
     warmup_cycles: int = 4
+    centered: bool = True
 
 
 def foot_acceleration(
@@ -120,6 +122,19 @@ class PelvisPhysics:
         self.params = params or PelvisPhysicsParams()
         self.height = np.zeros(n)
         self.velocity = np.zeros(n)
+        self.offset = np.zeros(self.n_nodes)
+
+    def centered_height(self) -> FloatArray:
+        """``(n_nodes,)`` node heights minus their running mean offset from the preferred height.
+
+        In the thesis's model ``y_T`` is the height at touch-down, so the orbit's mean sits
+        below (long stances) or above (long flights) it: a hexapod in a tetrapod gait would
+        walk a third of its height lower with physics on. Subtracting the offset (averaged
+        over two cycles) keeps the body at the height the user set and the bounce's shape.
+        """
+        if not self.params.centered:
+            return self.node_height()
+        return self.node_height() - self.offset
 
     def node_height(self) -> FloatArray:
         """``(n_nodes,)`` weighted mean height of each node's particles."""
@@ -139,13 +154,24 @@ class PelvisPhysics:
         rate_leg: FloatArray,
         disk_start: FloatArray,
         disk_duration: FloatArray,
+        nodes: BoolArray | None = None,
     ) -> None:
         """Put every particle on (close to) its periodic orbit at the needle phases given.
 
         A particle is at rest at the end of reception (mid-stance); each one starts there at
         its node's preferred height, then runs ``warmup_cycles`` cycles plus the way round to
-        the current phase (each leg with its own sub-step length).
+        the current phase (each leg with its own sub-step length). ``nodes (n_nodes,)``: only
+        these nodes are reset (default all).
         """
+        if nodes is not None:
+            keep_legs = ~np.asarray(nodes, dtype=bool)[self.leg_node]
+            keep_nodes = ~np.asarray(nodes, dtype=bool)
+            saved = (self.height.copy(), self.velocity.copy(), self.offset.copy())
+            self.reset(preferred_node_height, needle_leg, rate_leg, disk_start, disk_duration)
+            self.height[keep_legs] = saved[0][keep_legs]
+            self.velocity[keep_legs] = saved[1][keep_legs]
+            self.offset[keep_nodes] = saved[2][keep_nodes]
+            return
         self.height = np.asarray(preferred_node_height, dtype=np.float64)[self.leg_node].copy()
         self.velocity = np.zeros_like(self.height)
         period = 1.0 / np.maximum(rate_leg, 1e-9)
@@ -160,6 +186,16 @@ class PelvisPhysics:
         for k in range(n_sub):
             phase = mid_stance + (k + 0.5) * h * rate_leg
             self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        # one more cycle, every leg of a node in step, to measure the orbit's mean offset
+        n_sub = max(1, math.ceil(float(period.max()) / self.params.max_substep))
+        h = period / n_sub
+        pref_node = np.asarray(preferred_node_height, dtype=np.float64)
+        acc = np.zeros(self.n_nodes)
+        for k in range(n_sub):
+            phase = needle_leg + (k + 0.5) * h * rate_leg
+            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+            acc += self.node_height() - pref_node
+        self.offset = acc / n_sub
 
     def _substep(
         self,
@@ -199,12 +235,19 @@ class PelvisPhysics:
         """Advance ``dt`` seconds from needle phases ``needle_leg (N,)`` (at the step's start)
         moving at ``rate_leg (N,)`` cycles/s; returns the node heights ``(n_nodes,)``.
 
-        ``preferred_node_height (n_nodes,)`` is each node's ``y_T`` for this step.
+        ``preferred_node_height (n_nodes,)`` is each node's ``y_T`` for this step. The raw
+        heights are returned; ``centered_height`` gives them around ``y_T``.
         """
         n_sub = max(1, math.ceil(dt / self.params.max_substep - 1e-9))
         h = dt / n_sub
-        preferred = np.asarray(preferred_node_height, dtype=np.float64)[self.leg_node]
+        pref_node = np.asarray(preferred_node_height, dtype=np.float64)
+        preferred = pref_node[self.leg_node]
         for k in range(n_sub):
             phase = needle_leg + (k + 0.5) * h * rate_leg
             self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        # running mean of the offset over about two cycles of each node's legs
+        period = np.zeros(self.n_nodes)
+        np.maximum.at(period, self.leg_node, 1.0 / np.maximum(rate_leg, 1e-9))
+        alpha = 1.0 - np.exp(-dt / np.maximum(2.0 * period, 1e-9))
+        self.offset += alpha * (self.node_height() - pref_node - self.offset)
         return self.node_height()

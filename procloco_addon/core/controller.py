@@ -1,0 +1,805 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The character controller: feet and pelvis of many characters, one step at a time
+(thesis §3.2, §3.6; pelvis pseudo-physics §4.1).
+
+Per step, for all characters at once:
+
+1. **Heading and needle.** The heading turns toward the commanded one at a bounded rate.
+   The gait's needle advances; when the commanded speed would make a stance sweep longer
+   than ``max_stroke`` leg lengths, the needle runs faster (a shorter cycle) so feet keep
+   up with the body instead of over-stretching.
+2. **Pelvis in the ground plane** (§3.2.2): speed along the heading, plus the feet-error
+   feedback (figure 3.9): the mean offset between preferred and chosen footprints, when it
+   exceeds ``feedback_threshold`` leg lengths, is worked off over a cycle.
+3. **Feet** (§3.2.1, figure 3.5). A foot entering swing gets a *preferred footprint*: where
+   the pelvis will be when it lands (speed and heading extrapolated), plus the leg's rest
+   position and the user's spacing offset, plus half the stance sweep forward so the foot
+   passes under its rest position at mid-stance (figures 3.6, 3.7). The footprint planner
+   (``footprints.plan_footstep``) returns the best couple; the foot follows the trajectory at
+   constant speed over the rest of its swing. A swinging foot is re-planned from where it is
+   (sequences 1-3, §3.6) when the commanded heading or speed changed noticeably since its
+   plan, when its spacing changed, or when a moving obstacle now cuts its remaining
+   trajectory or its target. Stance feet are locked; when the support under one moves or
+   becomes forbidden (sequence 4), that foot takes a short forced step to a new footprint.
+4. **Pelvis height, pitch and roll** (§3.2.2, figure 3.8): the upper convex hull of the
+   terrain under the body box and of the planted feet (and the targets of swinging feet),
+   along the body's forward axis for height and pitch and along its left axis for roll;
+   the pelvis sits ``body_thickness`` above it, low-pass filtered over a fraction of a cycle.
+   With pseudo-physics on, that height is the preferred height ``y_T`` of the pogo particles
+   (``pelvis_physics``). Finally, if a leg would have to stretch beyond ``reach_margin`` of
+   its length, the pelvis is lowered just enough ("the pelvis stays above its feet").
+5. **Legs**: IK (``ik.solve_legs``) from the hips to the feet.
+
+Characters may differ in morphology and gait; legs live on one flat axis (``LegBatch``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import numpy.typing as npt
+
+from .footprints import PlannerParams, plan_footstep
+from .gait import Gait, GaitManager
+from .hull import hull_height_and_pitch
+from .ik import IKResult, solve_legs
+from .morphology import LegBatch
+from .pelvis_physics import PelvisPhysics, PelvisPhysicsParams
+from .terrain import NO_SURFACE, Environment, WindowParams
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+_VOID = NO_SURFACE * 0.5
+
+
+def wrap_angle(a: npt.ArrayLike) -> FloatArray:
+    """Angles wrapped to ``[-π, π)``."""
+    return np.asarray(np.mod(np.asarray(a, dtype=np.float64) + np.pi, 2.0 * np.pi) - np.pi)
+
+
+def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> FloatArray:
+    """Body-to-world rotations ``(n, 3, 3)``: yaw about world z, then pitch (nose up
+    positive), then roll (left side up positive) about the body's own axes."""
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cr, sr = np.cos(roll), np.sin(roll)
+    n = yaw.shape[0]
+    rz = np.zeros((n, 3, 3))
+    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = cy, -sy, sy, cy, 1.0
+    # nose up = rotation about -y
+    ry = np.zeros((n, 3, 3))
+    ry[:, 0, 0], ry[:, 0, 2], ry[:, 2, 0], ry[:, 2, 2], ry[:, 1, 1] = cp, -sp, sp, cp, 1.0
+    rx = np.zeros((n, 3, 3))
+    rx[:, 1, 1], rx[:, 1, 2], rx[:, 2, 1], rx[:, 2, 2], rx[:, 0, 0] = cr, -sr, sr, cr, 1.0
+    return np.asarray(rz @ ry @ rx)
+
+
+@dataclass(frozen=True)
+class ControllerParams:
+    """Controller knobs. Lengths marked "× leg" are fractions of the character's mean leg
+    length; times marked "× cycle" fractions of its gait cycle.
+
+    - ``window_cells``, ``window_cell``: the planning window (thesis: 70 cells of 7 cm);
+      ``window_cell=None`` uses 0.13 × leg (7 cm for a half-metre spider leg).
+    - ``slice_size``: height slices of the planner in metres (None: no slices);
+      ``max_couples_after_first``: the planner's LOD budget (None: full search).
+    - ``candidate_radius``, ``fixed_distance`` (× leg): planner search around the preferred
+      footprint; ``max_height_change`` (× leg): highest step up or down a footprint may be.
+    - ``max_stroke`` (× leg): longest stance sweep before the needle speeds up.
+    - ``max_turn_rate``: rad/s.
+    - re-planning thresholds: ``replan_heading`` (rad), ``replan_speed`` (relative),
+      ``replan_spacing`` (× leg); heading/speed/spacing re-plans only before
+      ``replan_until`` of the swing.
+    - ``feedback_threshold`` (× leg) and ``feedback_gain`` (offset share worked off per cycle).
+    - ``reach_margin``: largest hip-to-foot distance allowed, as a share of the leg length.
+    - ``height_time`` (× cycle): time constant of the pelvis height/pitch/roll filter.
+    - ``trajectory_samples``: samples kept of each swing trajectory (constant speed).
+    - ``snap_tolerance`` (× step height): a footprint may be lowered by up to this much onto
+      the exact surface under its point (the planner's grid height is the highest surface
+      under the whole foot box).
+    - ``body_samples``: terrain samples under the body box (along, across).
+    - ``support_tolerance``: metres the support under a planted foot may move before the
+      foot steps again.
+    - ``forced_swing``: duration of a forced step as a share of the leg's swing duration.
+    - ``max_drop`` (× body thickness), ``step_early_reach`` (share of the leg length): a
+      planted foot that would need the pelvis to sink more than ``max_drop`` to stay within
+      ``step_early_reach`` of its hip steps early (a forced step) instead, before the leg is
+      stretched.
+    """
+
+    window_cells: int = 70
+    window_cell: float | None = None
+    slice_size: float | None = 0.1
+    max_couples_after_first: int | None = None
+    candidate_radius: float = 0.25
+    fixed_distance: float = 0.5
+    max_height_change: float = 0.5
+    max_stroke: float = 0.9
+    max_turn_rate: float = 2.0
+    replan_heading: float = 0.15
+    replan_speed: float = 0.25
+    replan_spacing: float = 0.05
+    replan_until: float = 0.6
+    feedback_threshold: float = 0.1
+    feedback_gain: float = 1.0
+    reach_margin: float = 0.97
+    height_time: float = 0.25
+    trajectory_samples: int = 32
+    snap_tolerance: float = 0.5
+    body_samples: tuple[int, int] = (5, 3)
+    support_tolerance: float = 0.002
+    forced_swing: float = 0.6
+    max_drop: float = 0.15
+    step_early_reach: float = 0.92
+    physics: PelvisPhysicsParams = field(default_factory=PelvisPhysicsParams)
+
+
+@dataclass(frozen=True)
+class StepControls:
+    """Commands for one step. ``speed``, ``heading``, ``step_height``: ``(C,)`` (m/s,
+    radians from world +X, metres); ``spacing``: ``(N, 2)`` body-frame xy offset of each foot
+    from its rest position; ``pelvis_physics``: ``(C,)`` bool; ``ik``: ``(C,)`` bool (False
+    skips the IK of a character, e.g. off-screen under LOD)."""
+
+    speed: FloatArray
+    heading: FloatArray
+    step_height: FloatArray
+    spacing: FloatArray
+    pelvis_physics: BoolArray
+    ik: BoolArray
+
+
+@dataclass
+class StepStats:
+    """Planner statistics of one step: plans started, failed, couples and paths evaluated,
+    windows cut, re-plans by cause, forced steps; and seconds per phase."""
+
+    n_plans: int = 0
+    n_failed: int = 0
+    n_couples: int = 0
+    n_paths: int = 0
+    n_windows: int = 0
+    n_replans: int = 0
+    n_forced: int = 0
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+class Controller:
+    """State and step of many characters (see the module docstring).
+
+    ``env``: the environment; ``legs``: every character's legs (``LegBatch``); ``gaits``: one
+    ``Gait`` per character; ``start_xy (C, 2)``, ``start_yaw (C,)``: initial pelvis ground
+    position and heading; ``phase (C,)``: initial needle phases; ``planner``: optional
+    per-character ``PlannerParams`` overrides (LOD); ``controls``: the first step's commands
+    (for the initial planning of feet that start in swing).
+    """
+
+    def __init__(
+        self,
+        env: Environment,
+        legs: LegBatch,
+        gaits: Sequence[Gait],
+        start_xy: npt.ArrayLike,
+        start_yaw: npt.ArrayLike,
+        controls: StepControls,
+        *,
+        phase: npt.ArrayLike | None = None,
+        params: ControllerParams | None = None,
+        planner: Sequence[PlannerParams | None] | None = None,
+    ) -> None:
+        self.env = env
+        self.legs = legs
+        self.params = p = params or ControllerParams()
+        c = legs.n_chars
+        n = legs.n_legs
+        self.n_chars, self.n_legs = c, n
+        self.leg_char = legs.leg_char
+        self.gait = GaitManager(legs.leg_char, gaits, phase)
+        self.time = 0.0
+        mean_leg = np.bincount(legs.leg_char, weights=legs.leg_length, minlength=c) / np.bincount(
+            legs.leg_char, minlength=c
+        )
+        self.char_leg_length = mean_leg
+        self.body_thickness = np.array([m.body_thickness for m in legs.morphologies])
+        self.box_center = np.array([m.body_box_center for m in legs.morphologies])
+        self.box_half = np.array([m.body_box_half for m in legs.morphologies])
+        self.foot_half = np.array([m.foot_half_extents for m in legs.morphologies])
+        self.window_cell = (
+            np.clip(0.065 * mean_leg, 0.005, 0.25)
+            if p.window_cell is None
+            else np.full(c, float(p.window_cell))
+        )
+        self._planner_override = list(planner) if planner is not None else [None] * c
+        rest_vec = legs.rest_foot - legs.hip_offset
+        self.rest_height = -rest_vec[:, 2]
+        self.rest_horizontal = np.linalg.norm(rest_vec[:, :2], axis=1)
+        rest_dist = np.linalg.norm(rest_vec, axis=1)
+        # comfortable reach: never tighter than the rest pose itself
+        self.comfort_reach = np.minimum(
+            np.maximum(p.step_early_reach * legs.leg_length, 1.02 * rest_dist), 0.995 * legs.leg_length
+        )
+        self.guard_reach = np.minimum(
+            np.maximum(p.reach_margin * legs.leg_length, 1.01 * rest_dist), 0.999 * legs.leg_length
+        )
+        self.env_dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
+        # pelvis
+        self.pos = np.zeros((c, 3))
+        self.pos[:, :2] = np.asarray(start_xy, dtype=np.float64).reshape(c, 2)
+        self.yaw = np.broadcast_to(np.asarray(start_yaw, dtype=np.float64), (c,)).copy()
+        self.pitch = np.zeros(c)
+        self.roll = np.zeros(c)
+        self.height_target = np.zeros(c)
+        self.feedback = np.zeros((n, 2))
+        # feet
+        # start as if already walking: a planted foot is where the stance sweep has brought it,
+        # a foot in its swing sector waits at its lift-off spot (no stumble at the first frame)
+        g = self.gait
+        period = g.cycle_time[legs.leg_char]
+        stance_time = (1.0 - g.disk_duration) * period
+        stance_done: FloatArray = np.where(
+            g.swing,
+            1.0,
+            np.mod(g.needle[legs.leg_char] - g.disk_start - g.disk_duration, 1.0) / (1.0 - g.disk_duration),
+        ).astype(np.float64)
+        speed0 = np.asarray(controls.speed, dtype=np.float64)[legs.leg_char]
+        sweep = np.asarray((0.5 - stance_done) * speed0 * stance_time, dtype=np.float64)
+        spacing0 = np.asarray(controls.spacing, dtype=np.float64).reshape(n, 2)
+        rest_xy = np.asarray(
+            legs.rest_foot[:, :2] + spacing0 + np.column_stack([sweep, np.zeros(n)]), dtype=np.float64
+        )
+        foot_xy = self.pos[legs.leg_char, :2] + self._rotate_xy(rest_xy, self.yaw[legs.leg_char])
+        self.foot = np.column_stack([foot_xy, self._surface(foot_xy)])
+        self.support_z = self.foot[:, 2].copy()
+        self.support_target = self.foot[:, 2].copy()
+        self.target = self.foot.copy()
+        self.preferred = self.foot.copy()
+        self.swinging = np.zeros(n, dtype=bool)
+        self.forced = np.zeros(n, dtype=bool)
+        self.forced_elapsed = np.zeros(n)
+        self.forced_duration = np.ones(n)
+        k = p.trajectory_samples
+        self.traj = np.repeat(self.foot[:, None, :], k + 1, axis=1)
+        self.traj_u0 = np.zeros(n)
+        self.plan_heading = np.zeros(n)
+        self.plan_speed = np.zeros(n)
+        self.plan_spacing = np.zeros((n, 2))
+        self.plan_failed = np.zeros(n, dtype=bool)
+        self.angles = legs.rest_angles.copy()
+        self.ik_result: IKResult | None = None
+        # initial pelvis pose from the hull
+        height, pitch, roll = self._hull_pose(controls)
+        self.pitch, self.roll = pitch, roll
+        self.height_target = height
+        self.pos[:, 2] = height
+        self.physics = PelvisPhysics(legs.leg_char, c, params=p.physics)
+        self._physics_on = np.asarray(controls.pelvis_physics, dtype=bool).copy()
+        if np.any(self._physics_on):
+            self.physics.reset(
+                height,
+                self.gait.needle[self.leg_char],
+                self.gait.rate()[self.leg_char],
+                self.gait.disk_start,
+                self.gait.disk_duration,
+            )
+            self.pos[:, 2] = np.where(self._physics_on, self.physics.centered_height(), height)
+        # feet that start inside their swing sector are planned right away
+        self._start_in_swing = np.zeros(n, dtype=bool)
+        start_swing = self.gait.swing.copy()
+        if np.any(start_swing):
+            needle = self.gait.needle[self.leg_char]
+            period = 1.0 / self.gait.rate()[self.leg_char]
+            progress = np.where(
+                start_swing, np.mod(needle - self.gait.disk_start, 1.0) / self.gait.disk_duration, 0.0
+            )
+            swing_time = self.gait.disk_duration * period
+            stance_time = (1.0 - self.gait.disk_duration) * period
+            self._plan(
+                np.flatnonzero(start_swing),
+                controls,
+                progress,
+                (1.0 - progress) * swing_time,
+                stance_time,
+                np.zeros(n),
+                StepStats(),
+                _Timer({}),
+            )
+            self.swinging = start_swing & ~self.plan_failed
+            self._start_in_swing = start_swing & self.plan_failed
+        self._reach_guard()
+        self._solve_ik(controls)
+
+    # ---------------------------------------------------------------- small helpers
+    @staticmethod
+    def _rotate_xy(v: FloatArray, yaw: FloatArray) -> FloatArray:
+        c, s = np.cos(yaw), np.sin(yaw)
+        return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], axis=1)
+
+    def _surface(self, xy: FloatArray) -> FloatArray:
+        h = self.env.height_at(xy)
+        return np.where(h > _VOID, h, 0.0)
+
+    def rotations(self) -> FloatArray:
+        """``(C, 3, 3)`` current body-to-world rotations."""
+        return rotation_matrices(self.yaw, self.pitch, self.roll)
+
+    def hips_world(self, rot: FloatArray | None = None) -> FloatArray:
+        r = self.rotations() if rot is None else rot
+        return self.pos[self.leg_char] + np.einsum("nij,nj->ni", r[self.leg_char], self.legs.hip_offset)
+
+    def planner_params(self, char: int, step_height: float, leg_reach: float | None = None) -> PlannerParams:
+        """The planner settings of a character for this step (``leg_reach``: horizontal
+        distance allowed from the hip reference, default the mean leg length)."""
+        p = self.params
+        leg = float(self.char_leg_length[char])
+        reach = leg if leg_reach is None else float(leg_reach)
+        base = PlannerParams(
+            step_height=float(step_height),
+            slice_size=p.slice_size,
+            leg_reach=reach,
+            candidate_radius=p.candidate_radius * leg,
+            fixed_distance=p.fixed_distance * leg,
+            foot_half_extents=(float(self.foot_half[char, 0]), float(self.foot_half[char, 1])),
+            max_couples_after_first=p.max_couples_after_first,
+            max_height_change=p.max_height_change * leg,
+        )
+        override = self._planner_override[char]
+        if override is None:
+            return base
+        return replace(
+            override,
+            step_height=float(step_height),
+            leg_reach=reach,
+            foot_half_extents=base.foot_half_extents,
+            max_height_change=base.max_height_change,
+        )
+
+    # ---------------------------------------------------------------- the step
+    def step(self, dt: float, ctl: StepControls) -> StepStats:
+        """Advance every character by ``dt`` seconds under the commands ``ctl``."""
+        stats = StepStats()
+        timer = _Timer(stats.seconds)
+        p = self.params
+        lc = self.leg_char
+        self.time += dt
+
+        # 1. heading, needle
+        turn = np.clip(wrap_angle(ctl.heading - self.yaw), -p.max_turn_rate * dt, p.max_turn_rate * dt)
+        self.yaw = wrap_angle(self.yaw + turn)
+        base_rate = 1.0 / self.gait.cycle_time
+        stance_frac = np.zeros(self.n_chars)
+        np.maximum.at(stance_frac, lc, 1.0 - self.gait.disk_duration)
+        stroke = ctl.speed * stance_frac / base_rate
+        rate_scale = np.maximum(1.0, stroke / (p.max_stroke * self.char_leg_length))
+        needle_before = self.gait.needle[lc].copy()
+        gstep = self.gait.advance(dt, rate_scale)
+        rate_leg = self.gait.rate()[lc]
+
+        # 2. pelvis in the ground plane
+        fwd = np.stack([np.cos(self.yaw), np.sin(self.yaw)], axis=1)
+        self.pos[:, :2] += (ctl.speed * dt)[:, None] * fwd
+        self._apply_feedback(dt)
+
+        # 3. feet: landings, forced steps, plans, swing positions
+        timer.lap("rest")
+        landing = (
+            gstep.landed | (self.forced & (self.forced_elapsed + dt >= self.forced_duration))
+        ) & self.swinging
+        # a moving obstacle may have taken the landing spot since the last check: step again
+        bad_landing = landing & self._spot_taken(self.target)
+        self._land(landing & ~bad_landing)
+        self.forced_elapsed = np.where(self.forced, self.forced_elapsed + dt, 0.0)
+        lifted = gstep.lifted | (self._start_in_swing & gstep.swing)
+        self._start_in_swing[:] = False
+        # a normal lift ends a forced step
+        self.forced &= ~gstep.lifted
+        progress = np.where(
+            self.forced, np.clip(self.forced_elapsed / self.forced_duration, 0.0, 1.0), gstep.swing_progress
+        )
+        # where the foot is now: the progress of the previous frame (a new trajectory starts there)
+        step_progress = np.where(
+            self.forced, dt / self.forced_duration, rate_leg * dt / self.gait.disk_duration
+        )
+        start_u = np.clip(progress - step_progress, 0.0, 1.0)
+        swing_time = np.where(self.forced, self.forced_duration, gstep.swing_time)
+        remaining = (1.0 - progress) * swing_time
+        stance_time = gstep.stance_time
+
+        replan = self._replan_needed(ctl, progress, gstep.swing)
+        forced_new = (
+            (self._check_supports() | self._overstretched()) & ~gstep.swing & ~self.forced
+        ) | bad_landing
+        if np.any(forced_new):
+            self.forced |= forced_new
+            self.forced_elapsed[forced_new] = 0.0
+            self.forced_duration[forced_new] = np.maximum(
+                p.forced_swing * gstep.swing_time[forced_new], 2.0 * dt
+            )
+            progress = np.where(forced_new, 0.0, progress)
+            start_u = np.where(forced_new, 0.0, start_u)
+            swing_time = np.where(forced_new, self.forced_duration, swing_time)
+            remaining = np.where(forced_new, self.forced_duration, remaining)
+            stats.n_forced = int(forced_new.sum())
+        # a failed plan is retried while early enough in its swing
+        retry = self.plan_failed & gstep.swing & (progress < 0.5)
+        to_plan = lifted | forced_new | replan | retry
+        stats.n_replans = int((replan & ~lifted).sum())
+        timer.lap("rest")
+        if np.any(to_plan):
+            land_stance = np.where(
+                self.forced,
+                np.clip(gstep.stance_progress + remaining / np.maximum(stance_time, 1e-9), 0.0, 1.0),
+                0.0,
+            )
+            self._plan(
+                np.flatnonzero(to_plan), ctl, start_u, remaining, stance_time, land_stance, stats, timer
+            )
+        active = (gstep.swing | self.forced) & ~self.plan_failed
+        self.swinging = active
+        u = np.clip((progress - self.traj_u0) / np.maximum(1.0 - self.traj_u0, 1e-9), 0.0, 1.0)
+        moving = np.flatnonzero(active)
+        if moving.size:
+            self.foot[moving] = _sample_polyline(self.traj[moving], u[moving])
+            if self.env_dynamic:
+                # an obstacle that moved into a swinging foot pushes it up (the trajectory is
+                # re-planned at the next step)
+                surface = self.env.height_at(self.foot[moving, :2])
+                self.foot[moving, 2] = np.maximum(self.foot[moving, 2], surface)
+        # a gait swing whose plan failed leaves the foot planted
+        self.plan_failed &= gstep.swing | self.forced
+
+        # 4. pelvis height, pitch, roll
+        height, pitch, roll = self._hull_pose(ctl)
+        alpha = 1.0 - np.exp(-dt / np.maximum(p.height_time * self.gait.cycle_time, 1e-6))
+        self.height_target += alpha * (height - self.height_target)
+        self.pitch += alpha * (pitch - self.pitch)
+        self.roll += alpha * (roll - self.roll)
+        physics_on = np.asarray(ctl.pelvis_physics, dtype=bool)
+        switched_on = physics_on & ~self._physics_on
+        if np.any(switched_on):
+            self.physics.reset(
+                self.height_target,
+                needle_before,
+                rate_leg,
+                self.gait.disk_start,
+                self.gait.disk_duration,
+                nodes=switched_on,
+            )
+        self._physics_on = physics_on.copy()
+        z = self.height_target.copy()
+        if np.any(physics_on):
+            timer.lap("rest")
+            self.physics.step(
+                dt, needle_before, rate_leg, self.gait.disk_start, self.gait.disk_duration, self.height_target
+            )
+            z = np.where(physics_on, self.physics.centered_height(), z)
+            timer.lap("physics")
+        self.pos[:, 2] = z
+        self._reach_guard()
+
+        # 5. legs
+        timer.lap("rest")
+        self._solve_ik(ctl)
+        timer.lap("ik")
+        return stats
+
+    # ---------------------------------------------------------------- feet
+    def _land(self, landing: BoolArray) -> None:
+        legs = np.flatnonzero(landing)
+        if legs.size == 0:
+            return
+        self.foot[legs] = self.target[legs]
+        self.support_z[legs] = self._surface(self.target[legs, :2])
+        self.forced[legs] = False
+        self.swinging[legs] = False
+
+    def _replan_needed(self, ctl: StepControls, progress: FloatArray, gait_swing: BoolArray) -> BoolArray:
+        p = self.params
+        swing = self.swinging & (gait_swing | self.forced)
+        leg_len = self.legs.leg_length
+        lc = self.leg_char
+        early = progress < p.replan_until
+        heading = np.abs(wrap_angle(ctl.heading[lc] - self.plan_heading)) > p.replan_heading
+        v, v0 = ctl.speed[lc], self.plan_speed
+        speed = np.abs(v - v0) > np.maximum(p.replan_speed * np.maximum(v, v0), 0.05 * leg_len)
+        spacing = np.linalg.norm(ctl.spacing - self.plan_spacing, axis=1) > p.replan_spacing * leg_len
+        need = swing & early & (heading | speed | spacing)
+        if self.env_dynamic:
+            need |= swing & self._trajectory_blocked(swing, progress)
+        return need
+
+    def _trajectory_blocked(self, swing: BoolArray, progress: FloatArray) -> BoolArray:
+        """Swinging feet whose remaining trajectory or target a moving obstacle now cuts."""
+        legs = np.flatnonzero(swing)
+        out = np.zeros(self.n_legs, dtype=bool)
+        if legs.size == 0:
+            return out
+        k = self.traj.shape[1]
+        u = np.clip(
+            (progress[legs] - self.traj_u0[legs]) / np.maximum(1.0 - self.traj_u0[legs], 1e-9), 0.0, 1.0
+        )
+        ahead = np.linspace(0.0, 1.0, k)[None, :] >= u[:, None]
+        pts = self.traj[legs]
+        flat = pts.reshape(-1, 3)
+        surface = self.env.height_at(flat[:, :2]).reshape(legs.size, k)
+        forbidden = self.env.forbidden_at(flat[:, :2]).reshape(legs.size, k)
+        tol = self.params.support_tolerance
+        cut = ahead & ((surface > pts[..., 2] + tol) | forbidden)
+        # the landing spot itself must still be there
+        land_surface = surface[:, -1]
+        moved = np.abs(land_surface - self.support_target[legs]) > tol
+        out[legs] = cut.any(axis=1) | moved
+        return out
+
+    def _check_supports(self) -> BoolArray:
+        """Planted feet whose support moved, rose into them or became forbidden (thesis
+        sequence 4)."""
+        planted = ~self.swinging
+        out = np.zeros(self.n_legs, dtype=bool)
+        if not self.env_dynamic or not np.any(planted):
+            return out
+        legs = np.flatnonzero(planted)
+        xy = self.foot[legs, :2]
+        surface = self.env.height_at(xy)
+        tol = self.params.support_tolerance
+        buried = surface > self.foot[legs, 2] + tol
+        bad = (np.abs(surface - self.support_z[legs]) > tol) | buried
+        out[legs] = bad | self.env.forbidden_at(xy)
+        # an obstacle that slid under a planted foot lifts it onto its top before it steps off
+        self.foot[legs[buried], 2] = surface[buried]
+        return out
+
+    def _overstretched(self) -> BoolArray:
+        """Planted feet left so far behind (or aside) that keeping them would need the pelvis
+        to drop more than ``max_drop`` of its body thickness: they step early."""
+        planted = ~self.swinging
+        hips = self.hips_world()
+        reach = self.comfort_reach
+        d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
+        top = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
+        need = np.where(d_h < reach, hips[:, 2] - top, np.inf)
+        return np.asarray(planted & (need > self.params.max_drop * self.body_thickness[self.leg_char]))
+
+    def _spot_taken(self, points: FloatArray) -> BoolArray:
+        """Whether a moving obstacle now covers footprints ``points (N, 3)``: ``(N,)``."""
+        if not self.env_dynamic:
+            return np.zeros(self.n_legs, dtype=bool)
+        surface = self.env.height_at(points[:, :2])
+        return np.asarray(
+            (surface > points[:, 2] + self.params.support_tolerance) | self.env.forbidden_at(points[:, :2])
+        )
+
+    def _plan(
+        self,
+        legs: IntArray,
+        ctl: StepControls,
+        start_u: FloatArray,
+        remaining: FloatArray,
+        stance_time: FloatArray,
+        land_stance: FloatArray,
+        stats: StepStats,
+        timer: _Timer,
+    ) -> None:
+        """Plan the best couple of every leg in ``legs``.
+
+        ``start_u (N,)``: the swing progress at which the new trajectory starts (where the
+        foot is now). A failed re-plan of a foot already in the air keeps its trajectory; a
+        failed plan of a foot on the ground leaves it there (``plan_failed``).
+
+        ``remaining (N,)``: seconds left of each swing; ``stance_time (N,)``: the following
+        stance's duration; ``land_stance (N,)``: the stance fraction already gone when the foot
+        lands (0 for a gait swing, more for a forced step in the middle of a stance).
+        """
+        p = self.params
+        lc = self.leg_char
+        legs_data = self.legs
+        c_of = lc[legs]
+        # predicted pelvis pose at each foot's touch-down (speed and heading extrapolated)
+        turn = np.clip(
+            wrap_angle(ctl.heading[c_of] - self.yaw[c_of]),
+            -p.max_turn_rate * remaining[legs],
+            p.max_turn_rate * remaining[legs],
+        )
+        yaw_land = self.yaw[c_of] + turn
+        yaw_mid = self.yaw[c_of] + 0.5 * turn
+        travel = (ctl.speed[c_of] * remaining[legs])[:, None] * np.stack(
+            [np.cos(yaw_mid), np.sin(yaw_mid)], axis=1
+        )
+        pelvis_land = self.pos[c_of, :2] + travel
+        # land so the foot passes under its rest position at mid-stance (figure 3.6, 3.7)
+        sweep = (0.5 - land_stance[legs]) * ctl.speed[c_of] * stance_time[legs]
+        offset = (
+            legs_data.rest_foot[legs, :2] + ctl.spacing[legs] + np.column_stack([sweep, np.zeros(legs.size)])
+        )
+        preferred_xy = pelvis_land + self._rotate_xy(offset, yaw_land)
+        self.preferred[legs, :2] = preferred_xy
+        self.preferred[legs, 2] = self._surface(preferred_xy)
+        # reach is judged from the hips halfway through the coming stance: a footprint within
+        # the reach minus half the sweep stays within reach from touch-down to lift-off
+        rest_stance = (1.0 - land_stance[legs]) * stance_time[legs]
+        pelvis_ref = pelvis_land + (0.5 * ctl.speed[c_of] * rest_stance)[:, None] * np.stack(
+            [np.cos(yaw_land), np.sin(yaw_land)], axis=1
+        )
+        low = self.rest_height[legs] * (1.0 - p.max_drop)
+        horizontal = np.sqrt(np.maximum(self.comfort_reach[legs] ** 2 - low * low, 0.0))
+        reach = np.maximum(
+            horizontal - 0.5 * ctl.speed[c_of] * rest_stance,
+            self.rest_horizontal[legs] + 0.5 * p.candidate_radius * legs_data.leg_length[legs],
+        )
+        hip_offset_xy = legs_data.hip_offset[:, :2]
+        row_of = {int(leg): j for j, leg in enumerate(legs.tolist())}
+        timer.lap("rest")
+        k = p.trajectory_samples
+        u_grid = np.linspace(0.0, 1.0, k + 1)
+        for c in np.unique(c_of).tolist():
+            mine = legs[c_of == c]
+            window = WindowParams(
+                n_cells=p.window_cells,
+                cell=float(self.window_cell[c]),
+                foot_half_extents=(float(self.foot_half[c, 0]), float(self.foot_half[c, 1])),
+                foot_yaw=float(self.yaw[c]),
+            )
+            grids = self.env.window(self.pos[c, :2], window)
+            stats.n_windows += 1
+            timer.lap("maps")
+            sl = legs_data.leg_slice(c)
+            for leg in mine.tolist():
+                j = row_of[leg]
+                params = self.planner_params(c, float(ctl.step_height[c]), float(reach[j]))
+                hips = pelvis_ref[j] + self._rotate_xy(
+                    hip_offset_xy[sl], np.full(sl.stop - sl.start, yaw_land[j])
+                )
+                own = leg - sl.start
+                others = np.ones(sl.stop - sl.start, dtype=bool)
+                others[own] = False
+                other_idx = np.arange(sl.start, sl.stop)[others]
+                # other feet: where they stand, or where swinging ones will land
+                other_feet = np.where(
+                    self.swinging[other_idx, None], self.target[other_idx, :2], self.foot[other_idx, :2]
+                )
+                args = (grids, self.foot[leg], preferred_xy[j], hips[own], hips[others], other_feet)
+                couple = plan_footstep(*args, params, float(yaw_land[j]))
+                if not couple.ok and couple.n_targets == 0:
+                    # every footprint near the preferred one is taken (an obstacle, another
+                    # foot): look twice as far before giving up
+                    wider = replace(
+                        params,
+                        candidate_radius=2.0 * params.candidate_radius,
+                        fixed_distance=2.0 * params.fixed_distance,
+                    )
+                    couple = plan_footstep(*args, wider, float(yaw_land[j]))
+                stats.n_plans += 1
+                stats.n_couples += couple.n_couples
+                stats.n_paths += couple.n_paths
+                if not couple.ok or couple.trajectory is None:
+                    stats.n_failed += 1
+                    if not self.swinging[leg]:
+                        self.plan_failed[leg] = True
+                    continue
+                self.plan_failed[leg] = False
+                samples = couple.trajectory.point_at(u_grid)
+                target = np.asarray(couple.footprint, dtype=np.float64).copy()
+                exact = float(self._surface(target[None, :2])[0])
+                drop = target[2] - exact
+                if -1e-9 <= drop <= p.snap_tolerance * float(ctl.step_height[c]) or exact > target[2]:
+                    # land on the exact surface under the foot's point, easing the change in
+                    # over the second half of the swing
+                    ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
+                    ease = ease * ease * (3.0 - 2.0 * ease)
+                    samples[:, 2] -= drop * ease
+                    target[2] = exact
+                samples[-1] = target
+                self.traj[leg] = samples
+                self.traj_u0[leg] = start_u[leg]
+                self.target[leg] = target
+                self.support_target[leg] = exact
+                self.plan_heading[leg] = ctl.heading[c]
+                self.plan_speed[leg] = ctl.speed[c]
+                self.plan_spacing[leg] = ctl.spacing[leg]
+                self.feedback[leg] = target[:2] - preferred_xy[j]
+            timer.lap("planning")
+
+    def _apply_feedback(self, dt: float) -> None:
+        """Thesis figure 3.9: move the pelvis by the mean footprint error when it matters."""
+        p = self.params
+        c = self.n_chars
+        mean = np.stack(
+            [np.bincount(self.leg_char, weights=self.feedback[:, k], minlength=c) for k in (0, 1)], axis=1
+        )
+        mean = mean / np.bincount(self.leg_char, minlength=c)[:, None]
+        significant = np.linalg.norm(mean, axis=1) > p.feedback_threshold * self.char_leg_length
+        if not np.any(significant):
+            return
+        share = np.clip(p.feedback_gain * dt / self.gait.cycle_time, 0.0, 1.0)
+        move = np.where(significant[:, None], mean * share[:, None], 0.0)
+        self.pos[:, :2] += move
+        # the part worked off is consumed
+        self.feedback -= np.where(
+            significant[self.leg_char, None], self.feedback * share[self.leg_char, None], 0.0
+        )
+
+    # ---------------------------------------------------------------- pelvis
+    def _hull_pose(self, ctl: StepControls) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Hull height (+ body thickness), pitch and roll under each character."""
+        c = self.n_chars
+        na, nc = self.params.body_samples
+        sa = np.linspace(-1.0, 1.0, na)
+        sc = np.linspace(-1.0, 1.0, nc)
+        grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
+        local = self.box_center[:, None, :] + grid[None, :, :] * self.box_half[:, None, :]
+        cy, sy = np.cos(self.yaw)[:, None], np.sin(self.yaw)[:, None]
+        world = self.pos[:, None, :2] + np.stack(
+            [cy * local[..., 0] - sy * local[..., 1], sy * local[..., 0] + cy * local[..., 1]], axis=-1
+        )
+        ground = self.env.height_at(world.reshape(-1, 2)).reshape(c, -1)
+        box_pts = np.concatenate([world, ground[..., None]], axis=-1)
+        box_ok = ground > _VOID
+        # feet: planted feet where they are, swinging feet where they will land
+        feet = np.where(self.swinging[:, None], self.target, self.foot)
+        counts = np.bincount(self.leg_char, minlength=c)
+        width = int(counts.max())
+        slot = np.arange(self.n_legs) - self.legs.leg_start[self.leg_char]
+        feet_pts = np.zeros((c, width, 3))
+        feet_ok = np.zeros((c, width), dtype=bool)
+        feet_pts[self.leg_char, slot] = feet
+        feet_ok[self.leg_char, slot] = True
+        pts = np.concatenate([box_pts, feet_pts], axis=1)
+        ok = np.concatenate([box_ok, feet_ok], axis=1)
+        fwd = np.stack([np.cos(self.yaw), np.sin(self.yaw)], axis=1)
+        left = np.stack([-np.sin(self.yaw), np.cos(self.yaw)], axis=1)
+        height, pitch = hull_height_and_pitch(pts, self.pos[:, :2], fwd, ok)
+        _, roll = hull_height_and_pitch(pts, self.pos[:, :2], left, ok)
+        return height + self.body_thickness, pitch, roll
+
+    def _reach_guard(self) -> None:
+        """Lower a pelvis whose legs would have to stretch past ``reach_margin``."""
+        rot = self.rotations()
+        hips = self.hips_world(rot)
+        reach = self.guard_reach
+        d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
+        allowed = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
+        excess = np.maximum(hips[:, 2] - allowed, 0.0)
+        # a foot too far sideways cannot be helped by lowering (it steps early instead)
+        excess = np.where(d_h < reach, excess, 0.0)
+        drop = np.zeros(self.n_chars)
+        np.maximum.at(drop, self.leg_char, excess)
+        self.pos[:, 2] -= drop
+
+    # ---------------------------------------------------------------- legs
+    def _solve_ik(self, ctl: StepControls) -> None:
+        rot = self.rotations()
+        hips = self.hips_world(rot)
+        mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
+        res = solve_legs(
+            self.legs, hips, rot[self.leg_char], self.foot, self.angles, mask=None if mask.all() else mask
+        )
+        self.angles = res.angles
+        self.ik_result = res
+
+
+def _sample_polyline(samples: FloatArray, u: FloatArray) -> FloatArray:
+    """Points at parameters ``u (m,)`` in [0, 1] of polylines ``(m, k + 1, 3)`` sampled at
+    uniform parameters (linear interpolation)."""
+    k = samples.shape[1] - 1
+    x = np.clip(u, 0.0, 1.0) * k
+    i = np.minimum(np.floor(x).astype(np.int64), k - 1)
+    f = (x - i)[:, None]
+    rows = np.arange(samples.shape[0])
+    return np.asarray(samples[rows, i] * (1.0 - f) + samples[rows, i + 1] * f)
+
+
+class _Timer:
+    """Accumulates wall-clock seconds into named phases."""
+
+    def __init__(self, into: dict[str, float]) -> None:
+        self.into = into
+        self.last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.into[name] = self.into.get(name, 0.0) + now - self.last
+        self.last = now

@@ -1,0 +1,495 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The system loop (thesis §3.1, §3.6): many characters stepped together, per-frame arrays out.
+
+``Simulation`` wires the controller (``controller.Controller``: gait manager, feet,
+planner, pelvis, pseudo-physics, IK) to user-level commands:
+
+- ``Controls``: speed, heading *or* a polyline path to follow, step height, per-leg spacing
+  (relative foot positions), pelvis physics on/off, IK on/off; constant, or a function of
+  time for scheduled changes;
+- ``GaitChange``: a new gait for some characters at a given time, reached over a
+  transition time (thesis §3.3).
+
+``Simulation.run`` returns a ``SimResult``: pelvis transforms, every leg joint's world
+position, leg-plane normals, joint angles, contact flags, chosen and preferred footprints,
+the needles and disks, and per-step planner statistics and timings. Frame 0 is the state
+before the first step; frame ``f`` is after ``f`` steps of ``dt`` seconds.
+
+The result is deterministic: the same inputs (and ``seed``, used only for ``phase="random"``)
+give identical arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from . import metrics as mx
+from .controller import Controller, ControllerParams, StepControls, StepStats, wrap_angle
+from .footprints import PlannerParams
+from .gait import Gait
+from .morphology import LegBatch, Morphology
+from .terrain import ROLE_AVOID, Environment
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class Controls:
+    """What the user asks for; scalars apply to every character, arrays are ``(C,)``.
+
+    - ``speed``: m/s along the heading (or the path).
+    - ``heading``: radians from world +X, counter-clockwise; None keeps the start heading.
+    - ``path``: one ``(k, 2)`` world polyline per character (or None for a character that
+      uses ``heading``); the character walks along it and stops at its end.
+    - ``step_height``: metres of clearance of a swinging foot.
+    - ``spacing``: ``(N, 2)`` body-frame xy offset of each foot from its rest position
+      (thesis figure 3.7); None for none.
+    - ``pelvis_physics``: pogo-particle pelvis height (thesis §4.1).
+    - ``ik``: solve the legs (LOD: False for characters nobody sees).
+    """
+
+    speed: float | npt.ArrayLike = 0.3
+    heading: float | npt.ArrayLike | None = None
+    path: Sequence[npt.ArrayLike | None] | None = None
+    step_height: float | npt.ArrayLike = 0.05
+    spacing: npt.ArrayLike | None = None
+    pelvis_physics: bool | npt.ArrayLike = False
+    ik: bool | npt.ArrayLike = True
+
+
+@dataclass(frozen=True)
+class GaitChange:
+    """At ``time`` seconds, start moving characters ``chars`` (None: all) toward ``gait``
+    (one ``Gait`` for all of them, or one per character) over ``transition_time`` seconds."""
+
+    time: float
+    gait: Gait | Sequence[Gait]
+    chars: Sequence[int] | None = None
+    transition_time: float = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class SimResult:
+    """Per-frame arrays of a run (``F`` frames, ``C`` characters, ``N`` legs, ``s`` segments).
+
+    - ``time (F,)``; ``dt``.
+    - ``pelvis_position (F, C, 3)``, ``pelvis_rotation (F, C, 3, 3)`` (body to world),
+      ``yaw``, ``pitch``, ``roll`` ``(F, C)``.
+    - ``joints (F, N, s + 1, 3)`` hip, inner joints, end effector (rows past a leg's end
+      repeat its end effector); ``plane_normal (F, N, 3)``; ``angles (F, N, s)``.
+    - ``foot (F, N, 3)``: where the controller put each foot (the IK target).
+    - ``contact (F, N)``: planted; ``forced (F, N)``: in a forced step (support moved);
+      ``plan_failed (F, N)``: a swing the planner could not serve (the foot stayed down).
+    - ``ground (F, N)``: the highest surface under each end effector at that frame (moving
+      obstacles where they were then), for penetration checks.
+    - ``footprint (F, N, 3)``: the chosen footprint of each foot's current or last swing;
+      ``preferred (F, N, 3)``: the controller's preferred footprint for it.
+    - ``needle (F, C)``, ``phase_step (F, C)`` (needle advance of the step into the frame),
+      ``disk_start``, ``disk_duration`` ``(F, N)``.
+    - ``stats``: per-step counters ``(F,)`` (``n_plans``, ``n_failed``, ``n_couples``,
+      ``n_paths``, ``n_windows``, ``n_replans``, ``n_forced``); ``seconds``: per-phase times
+      ``(F,)`` (``maps``, ``planning``, ``ik``, ``physics``, ``rest``).
+    """
+
+    dt: float
+    legs: LegBatch
+    time: FloatArray
+    pelvis_position: FloatArray
+    pelvis_rotation: FloatArray
+    yaw: FloatArray
+    pitch: FloatArray
+    roll: FloatArray
+    joints: FloatArray
+    plane_normal: FloatArray
+    angles: FloatArray
+    foot: FloatArray
+    contact: BoolArray
+    forced: BoolArray
+    plan_failed: BoolArray
+    ground: FloatArray
+    footprint: FloatArray
+    preferred: FloatArray
+    needle: FloatArray
+    phase_step: FloatArray
+    disk_start: FloatArray
+    disk_duration: FloatArray
+    stats: dict[str, IntArray] = field(default_factory=dict)
+    seconds: dict[str, FloatArray] = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.time.shape[0])
+
+    @property
+    def leg_char(self) -> IntArray:
+        return self.legs.leg_char
+
+    @property
+    def end_effector(self) -> FloatArray:
+        """``(F, N, 3)`` end-effector positions from the joints."""
+        return self.joints[:, np.arange(self.legs.n_legs), self.legs.n_segments]
+
+    @property
+    def hips(self) -> FloatArray:
+        return self.joints[:, :, 0]
+
+
+class _PathFollower:
+    """Heading toward a look-ahead point on a polyline; speed eases to 0 at its end."""
+
+    def __init__(self, points: FloatArray, lookahead: float, stop_distance: float) -> None:
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        if pts.shape[0] < 2:
+            raise ValueError("a path needs at least two points")
+        seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        keep = np.concatenate([[True], seg > 1e-12])
+        pts = pts[keep]
+        if pts.shape[0] < 2:
+            raise ValueError("the path has no length")
+        self.points = pts
+        self.arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        self.length = float(self.arc[-1])
+        self.lookahead = lookahead
+        self.stop_distance = stop_distance
+        self.s = 0.0
+
+    def point(self, s: float) -> FloatArray:
+        s = float(np.clip(s, 0.0, self.length))
+        return np.array(
+            [np.interp(s, self.arc, self.points[:, 0]), np.interp(s, self.arc, self.points[:, 1])]
+        )
+
+    def start_heading(self) -> float:
+        d = self.points[1] - self.points[0]
+        return float(np.arctan2(d[1], d[0]))
+
+    def command(self, xy: FloatArray, heading: float) -> tuple[float, float]:
+        """``(heading, speed factor)`` for a character at ``xy``."""
+        # project on the segments near the current progress (never backwards)
+        a = self.points[:-1]
+        b = self.points[1:]
+        ab = b - a
+        t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
+        proj = a + t[:, None] * ab
+        dist = np.linalg.norm(proj - xy, axis=1)
+        s_proj = self.arc[:-1] + t * np.linalg.norm(ab, axis=1)
+        window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * self.lookahead + 1e-9)
+        if np.any(window):
+            best = np.flatnonzero(window)[np.argmin(dist[window])]
+            self.s = max(self.s, float(s_proj[best]))
+        remaining = self.length - self.s
+        goal = self.point(self.s + self.lookahead)
+        d = goal - xy
+        head = float(np.arctan2(d[1], d[0])) if np.linalg.norm(d) > 1e-6 else heading
+        # the square root stops in finite time (a linear ramp only approaches the end)
+        factor = float(np.sqrt(np.clip(remaining / max(self.stop_distance, 1e-9), 0.0, 1.0)))
+        if remaining < 1e-3 * self.stop_distance:
+            factor = 0.0
+        return head, factor
+
+
+class Simulation:
+    """Many characters walking in one environment.
+
+    ``morphologies``: one per character; ``gaits``: one per character (or one for all);
+    ``start_xy``: ``(C, 2)`` initial pelvis ground positions (default: the start of each
+    path, else the origin); ``start_yaw``: ``(C,)`` or scalar (default: along the path);
+    ``controls``: ``Controls`` or ``f(time) -> Controls``; ``gait_changes``: scheduled
+    ``GaitChange``s; ``phase``: ``(C,)`` initial needle phases, ``"random"`` (seeded by
+    ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams`` (LOD).
+    """
+
+    def __init__(
+        self,
+        env: Environment,
+        morphologies: Sequence[Morphology],
+        gaits: Gait | Sequence[Gait],
+        *,
+        start_xy: npt.ArrayLike | None = None,
+        start_yaw: npt.ArrayLike | None = None,
+        controls: Controls | Callable[[float], Controls] | None = None,
+        gait_changes: Sequence[GaitChange] = (),
+        dt: float = 1.0 / 30.0,
+        phase: npt.ArrayLike | Literal["random"] | None = None,
+        seed: int = 0,
+        params: ControllerParams | None = None,
+        planner: Sequence[PlannerParams | None] | None = None,
+    ) -> None:
+        if not dt > 0.0:
+            raise ValueError("dt must be positive")
+        self.env = env
+        self.dt = float(dt)
+        self.legs = LegBatch.stack(morphologies)
+        c = self.legs.n_chars
+        gait_list = [gaits] * c if isinstance(gaits, Gait) else list(gaits)
+        if len(gait_list) != c:
+            raise ValueError(f"{len(gait_list)} gaits for {c} characters")
+        self._controls = controls if controls is not None else Controls()
+        first = self._controls(0.0) if callable(self._controls) else self._controls
+        self._followers: list[_PathFollower | None] = [None] * c
+        leg_len = np.bincount(self.legs.leg_char, weights=self.legs.leg_length, minlength=c) / np.bincount(
+            self.legs.leg_char, minlength=c
+        )
+        self._leg_len = leg_len
+        if first.path is not None:
+            self._set_paths(first.path)
+        xy = np.zeros((c, 2))
+        yaw = np.zeros(c)
+        for i, f in enumerate(self._followers):
+            if f is not None:
+                xy[i] = f.points[0]
+                yaw[i] = f.start_heading()
+        if start_xy is not None:
+            xy = np.asarray(start_xy, dtype=np.float64).reshape(c, 2).copy()
+        if start_yaw is not None:
+            yaw = np.broadcast_to(np.asarray(start_yaw, dtype=np.float64), (c,)).copy()
+        elif first.heading is not None:
+            yaw = np.where(
+                [f is None for f in self._followers],
+                np.broadcast_to(np.asarray(first.heading, dtype=np.float64), (c,)),
+                yaw,
+            )
+        if isinstance(phase, str):
+            if phase != "random":
+                raise ValueError("phase must be an array, 'random' or None")
+            phase_arr = np.random.default_rng(seed).uniform(0.0, 1.0, c)
+        else:
+            phase_arr = (
+                np.zeros(c)
+                if phase is None
+                else np.broadcast_to(np.asarray(phase, dtype=np.float64), (c,)).copy()
+            )
+        self._start_yaw = yaw.copy()
+        self._held_heading: FloatArray | None = None
+        self._changes = sorted(gait_changes, key=lambda g: g.time)
+        self._next_change = 0
+        step0 = self._resolve(first, xy, yaw)
+        self.controller = Controller(
+            env, self.legs, gait_list, xy, yaw, step0, phase=phase_arr, params=params, planner=planner
+        )
+        self.time = 0.0
+        self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
+        self._stats: list[StepStats] = []
+        self._record(StepStats())
+
+    # ---------------------------------------------------------------- controls
+    def _set_paths(self, paths: Sequence[npt.ArrayLike | None]) -> None:
+        c = self.legs.n_chars
+        if len(paths) != c:
+            raise ValueError(f"{len(paths)} paths for {c} characters")
+        for i, pts in enumerate(paths):
+            if pts is None:
+                self._followers[i] = None
+                continue
+            arr = np.asarray(pts, dtype=np.float64)
+            f = self._followers[i]
+            if f is None or f.points.shape != arr.reshape(-1, 2).shape or not np.allclose(f.points, arr):
+                self._followers[i] = _PathFollower(
+                    arr, lookahead=1.0 * self._leg_len[i], stop_distance=0.5 * self._leg_len[i]
+                )
+
+    def _resolve(self, ctl: Controls, xy: FloatArray, yaw: FloatArray) -> StepControls:
+        c = self.legs.n_chars
+        n = self.legs.n_legs
+        speed = np.broadcast_to(np.asarray(ctl.speed, dtype=np.float64), (c,)).copy()
+        if ctl.heading is None:
+            # no heading asked: keep the last one (the start heading at first)
+            heading = (self._start_yaw if self._held_heading is None else self._held_heading).copy()
+        else:
+            heading = np.broadcast_to(np.asarray(ctl.heading, dtype=np.float64), (c,)).copy()
+        if ctl.path is not None:
+            self._set_paths(ctl.path)
+        for i, f in enumerate(self._followers):
+            if f is not None:
+                h, factor = f.command(xy[i], float(yaw[i]))
+                heading[i] = h
+                speed[i] *= factor
+        self._held_heading = heading.copy()
+        spacing = (
+            np.zeros((n, 2))
+            if ctl.spacing is None
+            else np.asarray(ctl.spacing, dtype=np.float64).reshape(n, 2)
+        )
+        return StepControls(
+            speed=speed,
+            heading=wrap_angle(heading),
+            step_height=np.broadcast_to(np.asarray(ctl.step_height, dtype=np.float64), (c,)).copy(),
+            spacing=spacing,
+            pelvis_physics=np.broadcast_to(np.asarray(ctl.pelvis_physics, dtype=bool), (c,)).copy(),
+            ik=np.broadcast_to(np.asarray(ctl.ik, dtype=bool), (c,)).copy(),
+        )
+
+    # ---------------------------------------------------------------- stepping
+    def step(self, controls: Controls | None = None) -> StepStats:
+        """One step of ``dt``; ``controls`` overrides the simulation's own for this step."""
+        ctl_user = (
+            controls
+            if controls is not None
+            else (self._controls(self.time) if callable(self._controls) else self._controls)
+        )
+        ctrl = self.controller
+        while (
+            self._next_change < len(self._changes)
+            and self._changes[self._next_change].time <= self.time + 1e-12
+        ):
+            change = self._changes[self._next_change]
+            chars = list(range(self.legs.n_chars)) if change.chars is None else list(change.chars)
+            g = [change.gait] * len(chars) if isinstance(change.gait, Gait) else list(change.gait)
+            ctrl.gait.start_transition(chars, g, change.transition_time)
+            self._next_change += 1
+        step_ctl = self._resolve(ctl_user, ctrl.pos[:, :2], ctrl.yaw)
+        stats = ctrl.step(self.dt, step_ctl)
+        self.time += self.dt
+        self._record(stats)
+        return stats
+
+    def run(self, n_steps: int, on_step: Callable[[Simulation], None] | None = None) -> SimResult:
+        """Run ``n_steps`` steps (calling ``on_step(self)`` before each, e.g. to move
+        obstacles) and return every frame recorded so far."""
+        for _ in range(int(n_steps)):
+            if on_step is not None:
+                on_step(self)
+            self.step()
+        return self.result()
+
+    def _record(self, stats: StepStats) -> None:
+        ctrl = self.controller
+        res = ctrl.ik_result
+        assert res is not None
+        prev_needle = np.asarray(
+            self._frames[-1]["needle"] if self._frames else ctrl.gait.needle, dtype=np.float64
+        )
+        self._frames.append(
+            {
+                "pos": ctrl.pos.copy(),
+                "rot": ctrl.rotations(),
+                "yaw": ctrl.yaw.copy(),
+                "pitch": ctrl.pitch.copy(),
+                "roll": ctrl.roll.copy(),
+                "joints": res.joints.copy(),
+                "normal": res.plane_normal.copy(),
+                "angles": res.angles.copy(),
+                "foot": ctrl.foot.copy(),
+                "contact": ~ctrl.swinging,
+                "forced": ctrl.forced.copy(),
+                "failed": ctrl.plan_failed.copy(),
+                "ground": self.env.height_at(
+                    res.joints[np.arange(self.legs.n_legs), self.legs.n_segments, :2]
+                ),
+                "footprint": ctrl.target.copy(),
+                "preferred": ctrl.preferred.copy(),
+                "needle": ctrl.gait.needle.copy(),
+                "phase_step": np.mod(ctrl.gait.needle - prev_needle, 1.0),
+                "disk_start": ctrl.gait.disk_start.copy(),
+                "disk_duration": ctrl.gait.disk_duration.copy(),
+            }
+        )
+        self._stats.append(stats)
+
+    def result(self) -> SimResult:
+        """Everything recorded so far as a ``SimResult``."""
+        fr = self._frames
+
+        def stack(key: str) -> npt.NDArray[np.generic]:
+            return np.stack([f[key] for f in fr])
+
+        names = ("n_plans", "n_failed", "n_couples", "n_paths", "n_windows", "n_replans", "n_forced")
+        stats = {k: np.array([getattr(s, k) for s in self._stats], dtype=np.int64) for k in names}
+        phases = ("maps", "planning", "ik", "physics", "rest")
+        seconds = {k: np.array([s.seconds.get(k, 0.0) for s in self._stats]) for k in phases}
+        return SimResult(
+            dt=self.dt,
+            legs=self.legs,
+            time=np.arange(len(fr)) * self.dt,
+            pelvis_position=stack("pos").astype(np.float64),
+            pelvis_rotation=stack("rot").astype(np.float64),
+            yaw=stack("yaw").astype(np.float64),
+            pitch=stack("pitch").astype(np.float64),
+            roll=stack("roll").astype(np.float64),
+            joints=stack("joints").astype(np.float64),
+            plane_normal=stack("normal").astype(np.float64),
+            angles=stack("angles").astype(np.float64),
+            foot=stack("foot").astype(np.float64),
+            contact=stack("contact").astype(bool),
+            forced=stack("forced").astype(bool),
+            plan_failed=stack("failed").astype(bool),
+            ground=stack("ground").astype(np.float64),
+            footprint=stack("footprint").astype(np.float64),
+            preferred=stack("preferred").astype(np.float64),
+            needle=stack("needle").astype(np.float64),
+            phase_step=stack("phase_step").astype(np.float64),
+            disk_start=stack("disk_start").astype(np.float64),
+            disk_duration=stack("disk_duration").astype(np.float64),
+            stats=stats,
+            seconds=seconds,
+        )
+
+
+def check_motion(
+    result: SimResult, env: Environment, *, settle: float = 0.0, chars: Sequence[int] | None = None
+) -> mx.MotionReport:
+    """Measure a result against ``DESIGN.md``'s thresholds (``metrics``).
+
+    Penetration uses the ground recorded under each foot at each frame (so moving obstacles
+    count where they were); static avoided boxes are also checked for feet entering them
+    from the side.
+
+    ``settle``: seconds at the start not judged for gait phases (a gait transition or the
+    first swings); ``chars``: only these characters' legs (default all). Frames of forced
+    steps and failed plans are not judged for gait phases.
+    """
+    legs = result.legs
+    leg_sel = np.arange(legs.n_legs) if chars is None else np.flatnonzero(np.isin(legs.leg_char, list(chars)))
+    end = result.end_effector[:, leg_sel]
+    hips = result.hips[:, leg_sel]
+    contact = result.contact[:, leg_sel]
+    seg = legs.segment_lengths[leg_sel]
+    nseg = legs.n_segments[leg_sel]
+    leg_len = legs.leg_length[leg_sel]
+    target = result.foot[:, leg_sel]
+    depth = result.ground[:, leg_sel] - end[..., 2]
+    boxes = env.boxes
+    # moving boxes are judged by the per-frame ground (their top), static ones also from the side
+    avoid = (boxes.role == ROLE_AVOID) & ~boxes.dynamic
+    intrusion = 0.0
+    if np.any(avoid):
+        flat = end.reshape(-1, 3)
+        intrusion = float(
+            mx.box_intrusion(flat, boxes.center[avoid], boxes.size[avoid], boxes.yaw[avoid]).max()
+        )
+    reachable = np.linalg.norm(target - hips, axis=2) <= leg_len[None, :] * (1.0 - 1e-6)
+    skip = result.forced[:, leg_sel] | result.plan_failed[:, leg_sel]
+    skip = skip | np.vstack([skip[:1], skip[:-1]])
+    lc = legs.leg_char[leg_sel]
+    phase = mx.swing_phase_errors(
+        contact,
+        result.needle[:, lc],
+        result.phase_step[:, lc],
+        result.disk_start[:, leg_sel],
+        result.disk_duration[:, leg_sel],
+        ignore=skip,
+        first_frame=max(1, int(np.ceil(settle / result.dt))),
+    )
+    notes = []
+    if result.plan_failed[:, leg_sel].any():
+        notes.append(f"planner failures: {int(result.stats['n_failed'].sum())}")
+    return mx.MotionReport(
+        stance_slide=mx.stance_sliding(end, contact),
+        penetration=float(max(depth.max(), 0.0)),
+        avoid_intrusion=intrusion,
+        bone_length_error=mx.bone_length_error(result.joints[:, leg_sel], seg, nseg),
+        joint_limit_excess=mx.joint_limit_excess(
+            result.angles[:, leg_sel], legs.joint_min[leg_sel], legs.joint_max[leg_sel]
+        ),
+        reach_error=mx.reach_error(end, target, reachable),
+        extension=mx.target_extension(hips, target, leg_len),
+        phase=phase,
+        notes=tuple(notes),
+    )

@@ -1,0 +1,289 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The system loop: creatures on the terrains of the issue, judged by ``metrics``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from procloco_addon.core import morphology as morph
+from procloco_addon.core.controller import ControllerParams
+from procloco_addon.core.gait import find_gait_preset
+from procloco_addon.core.sim import Controls, GaitChange, SimResult, Simulation, check_motion
+from procloco_addon.core.terrain import ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Boxes, Environment, Heightmap
+
+
+def flat(size: float = 8.0) -> Environment:
+    n = int(size / 0.05)
+    return Environment(Heightmap(np.zeros((n, n)), np.array([-size / 2, -size / 2]), 0.05))
+
+
+def slope(grade: float) -> Environment:
+    """Flat for x < 0, then rising ``grade`` metres per metre along +x."""
+    x = np.arange(-3.0, 8.0, 0.05)
+    y = np.arange(-3.0, 3.0, 0.05)
+    gx, gy = np.meshgrid(x, y)
+    return Environment(
+        Heightmap(grade * np.maximum(gx, 0.0) + 0.01 * np.sin(2.0 * gy), np.array([x[0], y[0]]), 0.05)
+    )
+
+
+def stairs(
+    rise: float = 0.08, run: float = 0.35, n: int = 6, x0: float = 0.8, end: float = 8.0
+) -> Environment:
+    """A flight of ``n`` steps starting at ``x0`` up to a plateau (boxes of role ground)."""
+    base = Heightmap(np.zeros((120, 240)), np.array([-3.0, -3.0]), 0.05)
+    starts = x0 + run * np.arange(n)
+    center = np.column_stack([(starts + end) / 2, np.zeros(n), np.zeros(n)])
+    size = np.column_stack([end - starts, np.full(n, 3.0), rise * (np.arange(n) + 1)])
+    return Environment(base, Boxes(center, size, np.zeros(n), np.full(n, ROLE_GROUND), np.zeros(n, bool)))
+
+
+def bumpy_with_crates() -> tuple[Environment, np.ndarray]:
+    """A heightmap with a low crate to step on, a tall crate to walk around, a moving low
+    crate and another static one. Returns the environment and the boxes' start centres."""
+    x = np.arange(-3.0, 6.0, 0.05)
+    y = np.arange(-3.0, 3.0, 0.05)
+    gx, gy = np.meshgrid(x, y)
+    heights = 0.06 * np.sin(gx * 1.3) * np.cos(gy * 1.1) + 0.03 * np.sin(2.7 * gx + 0.5)
+    hm = Heightmap(heights, np.array([x[0], y[0]]), 0.05)
+    centers = np.array([[0.8, 0.3, 0.0], [1.5, -0.35, 0.0], [2.2, 0.0, 0.0], [1.2, -1.0, 0.0]])
+    centers[:, 2] = hm.sample(centers[:, :2]) - 0.01
+    boxes = Boxes(
+        centers,
+        np.array([[0.25, 0.25, 0.06], [0.2, 0.2, 0.3], [0.3, 0.2, 0.05], [0.2, 0.2, 0.05]]),
+        np.array([0.3, 0.0, 0.5, 0.0]),
+        np.array([ROLE_STEP_OVER, ROLE_AVOID, ROLE_STEP_OVER, ROLE_STEP_OVER]),
+        np.array([False, False, True, False]),
+    )
+    return Environment(hm, boxes), centers
+
+
+def _assert_motion_ok(res: SimResult, env: Environment, settle: float = 0.0) -> None:
+    report = check_motion(res, env, settle=settle)
+    assert report.passed, report.failures()
+    assert report.phase is not None
+    assert report.phase.n_events > 0
+
+
+def test_spider_on_flat_ground_walks_cleanly_and_periodically() -> None:
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    env = flat()
+    # one cycle of travel (0.21 m) is a whole number of planning cells, so the windows repeat
+    sim = Simulation(
+        env,
+        [m],
+        gait,
+        controls=Controls(speed=0.3, heading=0.0, step_height=0.05),
+        params=ControllerParams(window_cell=0.035),
+    )
+    res = sim.run(90)
+    _assert_motion_ok(res, sim.env)
+    # it went where it was sent, at the speed asked
+    np.testing.assert_allclose(res.pelvis_position[-1, 0, :2], [0.3 * 90 / 30, 0.0], atol=1e-9)
+    # flat, straight, effects off: constant height and attitude
+    assert np.ptp(res.pelvis_position[:, 0, 2]) < 1e-9
+    assert np.abs(res.pitch).max() < 1e-9
+    assert np.abs(res.roll).max() < 1e-9
+    # periodic: one cycle later every footprint and contact repeats, moved by one cycle of
+    # travel; the swing curves repeat to a few millimetres (the planner's grid paths)
+    cycle = round(0.7 * 30)
+    shift = np.array([0.3 * 0.7, 0.0, 0.0])
+    np.testing.assert_allclose(res.footprint[cycle:], res.footprint[:-cycle] + shift, atol=1e-9)
+    assert np.array_equal(res.contact[cycle:], res.contact[:-cycle])
+    np.testing.assert_allclose(res.foot[cycle:], res.foot[:-cycle] + shift, atol=0.005)
+    # every foot lifted as often as the circles say, and its swing reached the step height
+    lifts = (res.contact[:-1] & ~res.contact[1:]).sum(axis=0)
+    assert np.all(lifts >= 4)
+    assert res.end_effector[..., 2].max(axis=0).min() == pytest.approx(0.05, abs=0.005)
+
+
+def test_same_inputs_give_identical_arrays() -> None:
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    env, _ = bumpy_with_crates()
+
+    def run(seed: int) -> SimResult:
+        sim = Simulation(
+            env,
+            [m, m],
+            gait,
+            start_xy=[[0.0, 0.0], [0.0, -1.6]],
+            phase="random",
+            seed=seed,
+            controls=Controls(speed=0.3, heading=0.0, step_height=0.05),
+        )
+        return sim.run(40)
+
+    a, b, c = run(7), run(7), run(8)
+    for name in ("pelvis_position", "pelvis_rotation", "joints", "contact", "footprint", "needle"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert not np.array_equal(a.needle, c.needle)
+
+
+def test_spider_on_a_heightmap_with_static_and_moving_crates() -> None:
+    env, centers = bumpy_with_crates()
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    sim = Simulation(env, [m], gait, controls=Controls(speed=0.3, heading=0.0, step_height=0.05))
+
+    def move(s: Simulation) -> None:
+        t = s.time
+        env.move_boxes(
+            np.array([2]), np.array([[2.2, 0.4 * np.sin(0.8 * t), centers[2, 2]]]), np.array([0.5 + 0.3 * t])
+        )
+
+    res = sim.run(300, on_step=move)
+    _assert_motion_ok(res, env)
+    assert res.pelvis_position[-1, 0, 0] == pytest.approx(3.0, abs=0.05)
+    # the body followed the terrain: pelvis height over the hull moves with the bumps
+    assert np.ptp(res.pelvis_position[:, 0, 2]) > 0.05
+    # feet stood on the low crate (its top), never inside the tall one
+    planted = res.contact[1:] & ~res.contact[:-1]
+    landed = res.footprint[1:][planted]
+    low = env.boxes
+    on_low = (np.abs(landed[:, 0] - 0.8) < 0.1) & (np.abs(landed[:, 1] - 0.3) < 0.1)
+    assert np.any(on_low)
+    np.testing.assert_allclose(landed[on_low, 2], low.center[0, 2] + 0.06, atol=1e-6)
+    assert res.stats["n_failed"].sum() == 0
+
+
+def test_pentapod_robot_goes_uphill() -> None:
+    m = morph.pentapod()
+    gait = find_gait_preset("pentapod_robot").gait(m.labels)
+    grade = 0.25
+    env = slope(grade)
+    sim = Simulation(env, [m], gait, controls=Controls(speed=0.2, heading=0.0, step_height=0.05))
+    res = sim.run(240)
+    _assert_motion_ok(res, env)
+    x = res.pelvis_position[:, 0, 0]
+    z = res.pelvis_position[:, 0, 2]
+    on_slope = x > 0.6
+    assert on_slope.sum() > 40
+    # the pelvis climbs with the slope, body thickness above it, and pitches nose up with it
+    np.testing.assert_allclose(z[on_slope] - grade * x[on_slope], m.body_thickness, atol=0.03)
+    np.testing.assert_allclose(res.pitch[on_slope, 0], np.arctan(grade), atol=0.05)
+
+
+def test_quadruped_climbs_stairs() -> None:
+    m = morph.quadruped()
+    gait = find_gait_preset("quadruped_walk").gait(m.labels)
+    rise = 0.08
+    env = stairs(rise=rise)
+    sim = Simulation(env, [m], gait, controls=Controls(speed=0.5, heading=0.0, step_height=0.08))
+    res = sim.run(300)
+    _assert_motion_ok(res, env)
+    # from the ground to the plateau six steps up
+    assert res.pelvis_position[-1, 0, 2] == pytest.approx(6 * rise + m.body_thickness, abs=0.02)
+    # every footprint is on a step's top, not on an edge halfway
+    planted = res.contact[1:] & ~res.contact[:-1]
+    z = res.footprint[1:][planted][:, 2]
+    np.testing.assert_allclose(z / rise, np.round(z / rise), atol=1e-6)
+    assert len(np.unique(np.round(z / rise))) == 7
+
+
+def test_biped_on_flat_ground() -> None:
+    m = morph.biped()
+    preset = find_gait_preset("biped_walk")
+    gait = preset.gait(m.labels)
+    env = flat()
+    speed = preset.speed * float(m.leg_length.mean()) * 0.8
+    sim = Simulation(env, [m], gait, controls=Controls(speed=speed, heading=0.0, step_height=0.07))
+    res = sim.run(120)
+    _assert_motion_ok(res, env)
+    # feet alternate: never both in the air
+    assert not np.any((~res.contact).all(axis=1))
+
+
+def test_gait_transitions_walk_trot_gallop_without_popping() -> None:
+    m = morph.quadruped()
+    walk = find_gait_preset("quadruped_walk").gait(m.labels)
+    trot = find_gait_preset("quadruped_trot").gait(m.labels)
+    gallop = find_gait_preset("quadruped_rotary_gallop").gait(m.labels)
+    env = flat(20.0)
+    changes = [GaitChange(2.0, trot, transition_time=1.0), GaitChange(5.0, gallop, transition_time=1.0)]
+
+    def controls(t: float) -> Controls:
+        speed = 0.4 if t < 2.0 else (0.6 if t < 5.0 else 0.9)
+        return Controls(speed=speed, heading=0.0, step_height=0.06)
+
+    sim = Simulation(env, [m], walk, controls=controls, gait_changes=changes)
+    res = sim.run(300)
+    _assert_motion_ok(res, env)
+    # no foot pops: a foot moves at most a plausible swing speed in one frame
+    step = np.linalg.norm(np.diff(res.foot, axis=0), axis=2)
+    assert step.max() < 0.1
+    # after each transition (plus one cycle), the disks are the target gait's
+    frame = round(4.5 * 30)
+    np.testing.assert_allclose(res.disk_start[frame], trot.swing_start)
+    np.testing.assert_allclose(res.disk_duration[frame], trot.swing_duration)
+    np.testing.assert_allclose(res.disk_start[-1], gallop.swing_start)
+    # and the measured lift-offs follow them: the gallop's rotary footfall order in the last second
+    lifts = res.contact[:-1] & ~res.contact[1:]
+    tail = lifts[-30:]
+    frames, legs = np.nonzero(tail)
+    needle = res.needle[-30:, 0][frames]
+    errors = np.mod(needle - gallop.swing_start[legs] + 0.5, 1.0) - 0.5
+    assert np.abs(errors).max() <= res.phase_step[-1, 0] + 1e-9
+
+
+def test_pelvis_physics_off_is_flat_and_on_bounces_periodically() -> None:
+    m = morph.hexapod()
+    gait = find_gait_preset("hexapod_tetrapod").gait(m.labels)
+    env = flat()
+    heights = {}
+    for on in (False, True):
+        ctl = Controls(speed=0.15, heading=0.0, step_height=0.03, pelvis_physics=on)
+        sim = Simulation(env, [m], gait, controls=ctl, dt=1.0 / 40.0)  # a cycle is 30 frames
+        res = sim.run(160)
+        _assert_motion_ok(res, env)
+        heights[on] = res.pelvis_position[:, 0, 2]
+    assert np.ptp(heights[False]) < 1e-9
+    bounce = heights[True][40:]  # after the running mean of the offset has settled
+    assert np.ptp(bounce) > 0.003
+    # centred on the height the body has without physics
+    assert bounce.mean() == pytest.approx(heights[False][0], abs=0.002)
+    # three swing groups a third of a cycle apart: the bounce repeats every third of a cycle
+    third = round(gait.cycle_time * 40 / 3)
+    assert np.abs(bounce[third:] - bounce[:-third]).max() < 0.1 * np.ptp(bounce)
+
+
+def test_following_a_polyline_path_and_stopping_at_its_end() -> None:
+    m = morph.hexapod()
+    gait = find_gait_preset("hexapod_tripod").gait(m.labels)
+    env = flat()
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [1.6, 0.6], [1.6, 1.4]])
+    sim = Simulation(env, [m], gait, controls=Controls(speed=0.3, path=[path], step_height=0.03))
+    res = sim.run(330)
+    _assert_motion_ok(res, env)
+    xy = res.pelvis_position[:, 0, :2]
+    # close to the path all along (distance to the nearest segment)
+    a, b = path[:-1], path[1:]
+    ab = b - a
+    t = np.clip(np.einsum("fsk,sk->fs", xy[:, None, :] - a[None], ab) / np.einsum("sk,sk->s", ab, ab), 0, 1)
+    dist = np.linalg.norm(a[None] + t[..., None] * ab[None] - xy[:, None, :], axis=2).min(axis=1)
+    assert dist.max() < 0.15
+    # it arrived and stopped
+    np.testing.assert_allclose(xy[-1], path[-1], atol=0.12)
+    assert np.linalg.norm(xy[-1] - xy[-15]) < 1e-6
+    assert res.yaw[-1, 0] == pytest.approx(np.pi / 2, abs=0.15)
+
+
+def test_speed_and_heading_changes_replan_swinging_feet() -> None:
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    env = flat()
+
+    def controls(t: float) -> Controls:
+        # changes while some feet are early in their swing (needle at 0.71 and 0.14)
+        return Controls(speed=0.15 if t < 1.2 else 0.35, heading=0.0 if t < 2.2 else 0.8, step_height=0.05)
+
+    sim = Simulation(env, [m], gait, controls=controls)
+    res = sim.run(120)
+    _assert_motion_ok(res, env)
+    replans = res.stats["n_replans"]
+    assert replans[:36].sum() == 0
+    assert replans[36:38].sum() > 0  # speed change (thesis sequence 3)
+    assert replans[66:68].sum() > 0  # heading change
+    assert res.yaw[-1, 0] == pytest.approx(0.8, abs=1e-6)
