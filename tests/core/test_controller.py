@@ -190,7 +190,7 @@ def test_feet_feedback_moves_the_pelvis_only_when_significant() -> None:
 
 
 def test_reach_guard_lowers_the_pelvis_to_keep_legs_within_reach() -> None:
-    ctrl, legs = _spider_controller(_flat())
+    ctrl, _ = _spider_controller(_flat())
     ctrl.foot[0, 2] -= 0.3  # a foot in a hole
     ctrl._reach_guard()
     hips = ctrl.hips_world()
