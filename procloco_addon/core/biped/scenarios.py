@@ -1,0 +1,101 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Test worlds for the biped planner, after the biped thesis' evaluation (§4.1).
+
+* ``corridor`` — a straight 2 m wide walkway;
+* ``curve`` — a curved walkway (a ring sector);
+* ``turns`` — a walkway with a sequence of bends ending on a curved platform, walking
+  only (the thesis' "Turns");
+* ``jumps`` — walk, bend, run, jump a gap, sharp bend, jump a second gap, stop (the
+  thesis' "Jumps"): three platforms, so the only route jumps twice.
+
+Used by the tests, the benchmark and the example scene; all flat (z = 0) unless stated.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .surface import WalkableSurface, arc_band, rectangle
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A walkable world with a start pose and a goal."""
+
+    name: str
+    polygons: tuple[FloatArray, ...]
+    start_pos: FloatArray
+    start_yaw: float
+    goal: FloatArray
+    allow_run: bool = True
+    gaps: tuple[FloatArray, ...] = ()
+
+    def surface(self, cell: float = 0.05) -> WalkableSurface:
+        return WalkableSurface.from_polygons(list(self.polygons), cell=cell)
+
+
+def _box(x0: float, x1: float, y0: float, y1: float, z: float = 0.0) -> FloatArray:
+    return rectangle((0.5 * (x0 + x1), 0.5 * (y0 + y1), z), (x1 - x0, y1 - y0))
+
+
+def _strip(points: Sequence[tuple[float, float]], width: float, z: float = 0.0) -> list[FloatArray]:
+    """A walkway of the given width along a polyline: a rectangle per segment and an
+    octagon at each inner corner to fill the joint."""
+    polys = []
+    pts = np.asarray(points, dtype=float)
+    for a, b in itertools.pairwise(pts):
+        d = b - a
+        length = float(np.linalg.norm(d))
+        c = 0.5 * (a + b)
+        polys.append(rectangle((c[0], c[1], z), (length, width), float(np.arctan2(d[1], d[0]))))
+    for p in pts[1:-1]:
+        ang = np.linspace(0.0, 2 * np.pi, 9)[:-1] + np.pi / 8
+        r = 0.5 * width / np.cos(np.pi / 8)
+        polys.append(np.column_stack((p[0] + r * np.cos(ang), p[1] + r * np.sin(ang), np.full(8, z))))
+    return polys
+
+
+def corridor() -> Scenario:
+    return Scenario(
+        "corridor", (_box(-1.0, 13.0, -1.0, 1.0),), np.array([0.0, 0.0, 0.0]), 0.0, np.array([11.0, 0.3])
+    )
+
+
+def curve() -> Scenario:
+    band = arc_band((0.0, 5.0, 0.0), 4.2, 5.8, -np.pi / 2 - 0.15, 0.35 * np.pi, n=32)
+    return Scenario(
+        "curve",
+        tuple(band),
+        np.array([0.0, 0.0, 0.0]),
+        0.0,
+        np.array([5.0 * np.cos(0.3 * np.pi), 5.0 + 5.0 * np.sin(0.3 * np.pi)]),
+    )
+
+
+def turns() -> Scenario:
+    path = [(-1.0, 0.0), (4.0, 0.0), (7.0, 2.5), (10.0, 2.5), (12.5, 0.0), (15.0, 0.0)]
+    polys = _strip(path, 1.6)
+    polys += arc_band((15.0, 4.0, 0.0), 3.2, 4.8, -np.pi / 2 - 0.05, 0.25 * np.pi, n=24)
+    goal_angle = 0.2 * np.pi
+    goal = np.array([15.0 + 4.0 * np.cos(goal_angle), 4.0 + 4.0 * np.sin(goal_angle)])
+    return Scenario("turns", tuple(polys), np.array([0.0, 0.0, 0.0]), 0.0, goal, allow_run=False)
+
+
+def jumps() -> Scenario:
+    a = [_box(-1.0, 9.0, -1.0, 1.0), _box(7.0, 9.0, -1.0, 7.0)]
+    b = [_box(7.0, 9.0, 8.3, 11.0), _box(2.0, 9.0, 9.0, 11.0)]
+    c = [_box(-5.0, 0.7, 9.0, 11.0)]
+    gaps = (_box(7.0, 9.0, 7.0, 8.3), _box(0.7, 2.0, 9.0, 11.0))
+    return Scenario(
+        "jumps", tuple(a + b + c), np.array([0.0, 0.0, 0.0]), 0.0, np.array([-3.5, 10.0]), gaps=gaps
+    )
+
+
+SCENARIOS = {"corridor": corridor, "curve": curve, "turns": turns, "jumps": jumps}

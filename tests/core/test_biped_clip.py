@@ -1,0 +1,166 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Biped skeleton, clips, contact detection, the clip synthesiser and the clip database."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from procloco_addon.core.biped import quat, synth
+from procloco_addon.core.biped.clip import Clip, ClipRole, contact_runs, detect_contacts, extract_cycle
+from procloco_addon.core.biped.database import ClipDatabase
+from procloco_addon.core.biped.skeleton import LEFT, RIGHT, LegJoints, Skeleton, forward_kinematics
+
+
+@pytest.fixture(scope="module")
+def skel() -> Skeleton:
+    return synth.make_skeleton()
+
+
+@pytest.fixture(scope="module")
+def clips(skel: Skeleton) -> list[Clip]:
+    return synth.standard_library(skel)
+
+
+@pytest.fixture(scope="module")
+def db(skel: Skeleton, clips: list[Clip]) -> ClipDatabase:
+    return ClipDatabase(skel, clips)
+
+
+def _held_point_drift(clip: Clip, skel: Skeleton) -> float:
+    """Largest frame-to-frame motion of a planted foot's lower point (same point both frames)."""
+    pts = clip.foot_points_world(skel)
+    assert clip.contacts is not None
+    worst = 0.0
+    for side in (LEFT, RIGHT):
+        low = np.argmin(pts[:, side, :, 2], axis=1)
+        p = pts[np.arange(len(pts)), side, low]
+        same = clip.contacts[1:, side] & clip.contacts[:-1, side] & (low[1:] == low[:-1])
+        if np.any(same):
+            worst = max(worst, float(np.linalg.norm(np.diff(p[:, :2], axis=0)[same], axis=1).max()))
+    return worst
+
+
+def test_skeleton_rejects_bad_legs() -> None:
+    good = synth.make_skeleton()
+    with pytest.raises(ValueError, match="knee must be a child"):
+        Skeleton(
+            good.names,
+            good.parents,
+            good.offsets,
+            dataclasses.replace(good.left, knee=good.left.ankle),
+            good.right,
+        )
+    offsets = good.offsets.copy()
+    offsets[good.left.knee] = 0.0
+    with pytest.raises(ValueError, match="zero-length"):
+        Skeleton(good.names, good.parents, offsets, good.left, good.right)
+    with pytest.raises(ValueError, match="descendants of the ankle"):
+        Skeleton(
+            good.names,
+            good.parents,
+            good.offsets,
+            LegJoints(
+                good.left.hip, good.left.knee, good.left.ankle, heel=good.right.heel, toe=good.left.toe
+            ),
+            good.right,
+        )
+
+
+def test_forward_kinematics_keeps_bone_lengths(skel: Skeleton) -> None:
+    rot = quat.normalize(np.random.default_rng(0).normal(size=(20, skel.n_joints, 4)))
+    pos, _ = forward_kinematics(skel, rot, np.zeros((20, 3)))
+    lengths = np.linalg.norm(pos[:, 1:] - pos[:, skel.parents[1:]], axis=-1)
+    assert np.allclose(lengths, np.linalg.norm(skel.offsets[1:], axis=1))
+
+
+def test_synthesised_clips_plant_their_feet(skel: Skeleton, clips: list[Clip]) -> None:
+    roles = {c.role for c in clips}
+    assert roles == set(ClipRole)
+    for clip in clips:
+        assert _held_point_drift(clip, skel) < 1e-6, clip.name
+        pts = clip.foot_points_world(skel)
+        assert pts[..., 2].min() > -1e-6, clip.name  # never below the ground
+
+
+def test_synthesised_legs_reach_without_stretching(skel: Skeleton, clips: list[Clip]) -> None:
+    for clip in clips:
+        pos, _ = forward_kinematics(skel, clip.joint_rot, clip.pelvis_pos)
+        for side in (LEFT, RIGHT):
+            leg = skel.leg(side)
+            d = np.linalg.norm(pos[:, leg.ankle] - pos[:, leg.hip], axis=1)
+            assert d.max() <= skel.thigh_length[side] + skel.shin_length[side] + 1e-9, clip.name
+
+
+def test_detected_contacts_match_the_synthesised_ones(skel: Skeleton, clips: list[Clip]) -> None:
+    for clip in clips:
+        assert clip.contacts is not None
+        detected = detect_contacts(clip.foot_points_world(skel), clip.dt)
+        for side in (LEFT, RIGHT):
+            # A touchdown on the very last frame has no speed to judge by: leave it out.
+            last = clip.n_frames - 1
+            truth = [r for r in contact_runs(clip.contacts[:, side]) if r[0] < last - 1]
+            found = [r for r in contact_runs(detected[:, side]) if r[0] < last - 1]
+            assert len(found) == len(truth), (clip.name, side)
+            for (a, b), (c, d) in zip(truth, found, strict=True):
+                assert abs(a - c) <= 3, (clip.name, side)
+                assert abs(b - d) <= 3, (clip.name, side)
+
+
+@pytest.mark.parametrize("radius", [1.6, 4.0, -1.6, -4.0])
+def test_walk_on_an_arc_has_curvature_one_over_radius(db: ClipDatabase, radius: float) -> None:
+    role = next(r for r, rad in synth.WALK_RADII.items() if rad == radius)
+    info = next(i for i in db.infos if i.role is role)
+    assert info.curvature == pytest.approx(1.0 / radius, rel=0.01)
+
+
+def test_database_contact_intervals_are_in_normal_form(db: ClipDatabase) -> None:
+    for info in db.by_role("walk", "run", "jump"):
+        assert info.right_start.td == 0.0
+        assert 0.2 < info.left_step.td < 0.8
+        sides = [iv.side for iv in info.intervals]
+        assert sides == [RIGHT, LEFT], info.name
+    start = db.first("start")
+    assert start is not None
+    # Standing: both feet down at phase 0, the left steps first.
+    assert [(iv.side, iv.td == 0.0) for iv in start.intervals] == [(LEFT, True), (RIGHT, True), (LEFT, False)]
+
+
+def test_database_footprints_match_the_clip(db: ClipDatabase, skel: Skeleton) -> None:
+    info = next(i for i in db.infos if i.role is ClipRole.WALK_FORWARD)
+    rs, ls = info.right_start, info.left_step
+    w = synth.WALK
+    assert rs.pos[1] == pytest.approx(-0.5 * w.step_width, abs=1e-3)
+    assert ls.pos[1] == pytest.approx(0.5 * w.step_width, abs=1e-3)
+    assert ls.pos[0] - rs.pos[0] == pytest.approx(0.5 * w.speed * w.cycle, abs=2e-3)
+    assert info.end_right_pos[0] - rs.pos[0] == pytest.approx(w.speed * w.cycle, abs=2e-3)
+
+
+def test_extract_cycle_cuts_one_stride(skel: Skeleton) -> None:
+    base = synth.gait_clip(skel, synth.WALK, 0.0, ClipRole.WALK_FORWARD)
+    # Two strides recorded from the middle of a stride, without contacts.
+    n = base.n_frames - 1
+    shift = n // 3
+    idx = (np.arange(2 * n + 1) + shift) % n
+    loops = (np.arange(2 * n + 1) + shift) // n
+    step = base.root_pos[-1] - base.root_pos[0]
+    long = Clip(
+        "rec",
+        ClipRole.WALK_FORWARD,
+        base.dt,
+        base.root_pos[idx] + loops[:, None] * step,
+        base.root_yaw[idx],
+        base.pelvis_pos[idx],
+        base.joint_rot[idx],
+    )
+    cut = extract_cycle(long, skel)
+    assert cut.n_frames == pytest.approx(base.n_frames, abs=3)
+    assert cut.contacts is not None
+    assert cut.contacts[0, RIGHT]
+    assert cut.contacts[-1, RIGHT]
+    assert not cut.contacts[-2, RIGHT]
+    assert np.allclose(cut.root_pos[0], 0.0)
+    with pytest.raises(ValueError, match="no complete right-foot stride"):
+        extract_cycle(dataclasses.replace(long, contacts=np.zeros((long.n_frames, 2), bool)), skel)

@@ -1,0 +1,84 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Walkable surfaces: heights, islands separated by gaps, fitting and snapping."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from procloco_addon.core.biped.surface import WalkableSurface, arc_band, rectangle
+
+
+@pytest.fixture(scope="module")
+def two_platforms() -> WalkableSurface:
+    # Two 4 x 2 m platforms with a 1 m gap between x = 4 and x = 5; the second one 0.1 m higher.
+    return WalkableSurface.from_polygons(
+        [rectangle((2.0, 0.0, 0.0), (4.0, 2.0)), rectangle((7.0, 0.0, 0.1), (4.0, 2.0))]
+    )
+
+
+def test_heights_are_exact_on_a_slope() -> None:
+    tri = np.array([[[0.0, 0.0, 0.0], [4.0, 0.0, 1.0], [0.0, 4.0, 0.5]]])
+    surf = WalkableSurface.from_triangles(tri)
+    pts = np.array([[1.0, 1.0], [2.0, 0.5], [0.3, 3.0]])
+    expected = pts[:, 0] * 0.25 + pts[:, 1] * 0.125
+    assert np.allclose(surf.height_at(pts), expected, atol=1e-12)
+    assert np.isnan(surf.height_at(np.array([[3.9, 3.9]])))[0]
+
+
+def test_a_gap_separates_islands(two_platforms: WalkableSurface) -> None:
+    isl = two_platforms.island_at(np.array([[1.0, 0.0], [4.5, 0.0], [8.0, 0.0]]))
+    assert isl[0] >= 0
+    assert isl[2] >= 0
+    assert isl[0] != isl[2]
+    assert isl[1] == -1
+
+
+def test_a_step_higher_than_max_step_separates_islands() -> None:
+    surf = WalkableSurface.from_polygons(
+        [rectangle((1.0, 0.0, 0.0), (2.0, 2.0)), rectangle((3.0, 0.0, 0.5), (2.0, 2.0))], max_step=0.2
+    )
+    isl = surf.island_at(np.array([[0.5, 0.0], [3.5, 0.0]]))
+    assert isl[0] != isl[1]
+
+
+def test_fits_keeps_a_margin_from_edges(two_platforms: WalkableSurface) -> None:
+    m = two_platforms.margin
+    xs = np.array([[4.0 - 0.5 * m, 0.0], [4.0 - 2.0 * m, 0.0], [2.0, 1.0 - 0.5 * m], [2.0, 0.0]])
+    assert two_platforms.fits(xs).tolist() == [False, True, False, True]
+    assert two_platforms.supported(xs).all()
+
+
+def test_snap_stays_on_its_island(two_platforms: WalkableSurface) -> None:
+    near_far_side = np.array([[4.9, 0.0, 0.0]])  # in the gap, closer to the second platform
+    island_a = two_platforms.island_at(np.array([[1.0, 0.0]]))
+    snapped = two_platforms.snap(near_far_side, island_a)
+    assert snapped[0, 0] < 4.0 - two_platforms.margin + 1e-9
+    assert two_platforms.fits(snapped).all()
+    assert snapped[0, 2] == pytest.approx(0.0)
+    free = two_platforms.snap(near_far_side)  # no island given: the nearest one
+    assert free[0, 0] > 5.0
+    assert free[0, 2] == pytest.approx(0.1)
+
+
+def test_snap_keeps_points_that_fit(two_platforms: WalkableSurface) -> None:
+    pts = np.array([[1.0, 0.3, 5.0], [7.5, -0.2, -3.0]])
+    snapped = two_platforms.snap(pts)
+    assert np.allclose(snapped[:, :2], pts[:, :2])
+    assert np.allclose(snapped[:, 2], [0.0, 0.1])
+
+
+def test_arc_band_is_one_island() -> None:
+    surf = WalkableSurface.from_polygons(arc_band((0.0, 0.0, 0.0), 3.0, 4.0, 0.0, np.pi, n=16))
+    ang = np.linspace(0.1, np.pi - 0.1, 20)
+    pts = np.column_stack((3.5 * np.cos(ang), 3.5 * np.sin(ang)))
+    isl = surf.island_at(pts)
+    assert (isl >= 0).all()
+    assert len(set(isl.tolist())) == 1
+    assert surf.fits(pts).all()
+    assert not surf.supported(np.array([[0.0, 2.0]]))[0]
+
+
+def test_rejects_empty_input() -> None:
+    with pytest.raises(ValueError, match="at least one triangle"):
+        WalkableSurface.from_triangles(np.zeros((0, 3, 3)))
