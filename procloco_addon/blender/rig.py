@@ -641,7 +641,12 @@ def read_rig(
         # How far the foot bones reach from the end-effector, along and across the body.
         rel = below_a[:, :2] - pts[-1, :2]
         foot_ext.append(np.array([np.abs(rel @ forward[:2]).max(), np.abs(rel @ left[:2]).max()]))
-        foot_pts.append(below_a[1:] if below_a.shape[0] > 1 else np.zeros((0, 3)))
+        # Sole probes: the foot points reaching furthest from the end-effector (toe tips, heel).
+        probes = below_a[1:]
+        if probes.shape[0] > 6:
+            far = np.argsort(-np.linalg.norm(probes[:, :2] - pts[-1, :2], axis=1), kind="stable")[:6]
+            probes = probes[np.sort(far)]
+        foot_pts.append(probes)
     origin = np.array([j[0] for j in joints]).mean(axis=0)
     body = BodyInfo(origin, forward, left)
 
@@ -850,7 +855,8 @@ def _yaw_only(rot: np.ndarray) -> np.ndarray:
     return out
 
 
-GroundFn = Callable[[int, np.ndarray], np.ndarray]
+#: ``ground(frame_index (n,), xy (n, 2)) -> (n,)`` world surface heights, ``-inf`` over nothing.
+GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _foot_pitch(
@@ -906,9 +912,8 @@ def solve_pose(
     leg-plane normal onto the simulated plane's normal (no added twist; a straight leg keeps
     the body-turned rest normal). The body bone moves rigidly with the body frame; the first
     foot bone keeps its rest orientation turned by the body's heading and, when ``ground``
-    is given (``ground(frame_index, xy (n, 2)) -> (n,)`` world heights, ``-inf`` over
-    nothing), pitches about its cross axis so its sole lies on the ground (toes lift onto
-    slopes and edges, up to ``max_foot_pitch``).
+    is given (:data:`GroundFn`), pitches about its cross axis so its sole lies on the ground
+    (toes lift onto slopes and edges, up to ``max_foot_pitch``).
     """
     body_world = np.asarray(body_world, dtype=np.float64)
     n_frames = body_world.shape[0]
@@ -993,6 +998,7 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], yaw: np.ndarr
                 rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
                 limit: float) -> None:
     """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`)."""
+    dynamic = bool(getattr(ground, "dynamic", True))
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
     if not legs:
         return
@@ -1009,7 +1015,13 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], yaw: np.ndarr
     for _ in range(3):
         xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
                              for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
-        heights = np.stack([np.asarray(ground(f, xy[f]), dtype=np.float64) for f in range(n_frames)])
+        # Planted feet query the same places frame after frame: ask once per distinct place.
+        frame_of = np.repeat(np.arange(n_frames), xy.shape[1])
+        flat = xy.reshape(-1, 2)
+        key = frame_of if dynamic else np.zeros_like(frame_of)
+        uniq, inverse = np.unique(np.column_stack([key, flat]), axis=0, return_inverse=True)
+        found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
+        heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
         for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
             theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit)
             axis = np.cross(np.concatenate([d, np.zeros((n_frames, 1))], axis=1), _UP)

@@ -177,17 +177,24 @@ def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:
     return res.body, joints
 
 
-def ground_function(job: Job) -> Callable[[int, np.ndarray], np.ndarray]:
-    """``ground(frame_index, xy (n, 2)) -> (n,)``: the scene's surface heights at that frame
-    (moving obstacles where they are then), ``-inf`` over nothing."""
+def ground_function(job: Job) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    """``ground(frame_index (n,), xy (n, 2)) -> (n,)``: the scene's surface heights at those
+    frames (moving obstacles where they are then), ``-inf`` over nothing."""
     terrain = job.terrain
-    current = [-1]
 
-    def ground(f: int, xy: np.ndarray) -> np.ndarray:
-        if f != current[0] and terrain.dynamic_index:
-            terrain.apply_frame(f)
-            current[0] = f
+    def heights(xy: np.ndarray) -> np.ndarray:
         h = terrain.environment.height_at(xy) - terrain.z_offset
         return np.where(h > NO_SURFACE * 0.5, h, -np.inf)
 
+    def ground(frame_index: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        if not terrain.dynamic_index:
+            return heights(xy)
+        out = np.empty(xy.shape[0])
+        for f in np.unique(frame_index):
+            terrain.apply_frame(int(f))
+            pick = frame_index == f
+            out[pick] = heights(xy[pick])
+        return out
+
+    ground.dynamic = bool(terrain.dynamic_index)  # type: ignore[attr-defined]
     return ground
