@@ -325,24 +325,34 @@ def play(
     g = np.clip(np.searchsorted(u_grid, u, side="right") - 1, 0, len(u_grid) - 2)
     a = ((u - u_grid[g]) / (u_grid[g + 1] - u_grid[g]))[:, None]
     weights = w_grid[g] * (1 - a) + w_grid[g + 1] * a
-    # Phases now and at the next frame, per column.
+    # Only the (frame, column) pairs with a weight are sampled: a frame blends a handful of
+    # clips, not all of them. Pairs come frame by frame (np.nonzero is row-major), so the
+    # weighted sums over each frame's clips are np.add.reduceat over the pairs.
+    rows, cols = np.nonzero(weights > 0.0)
+    w = weights[rows, cols]
+    starts = np.flatnonzero(np.concatenate(([True], rows[1:] != rows[:-1])))
+
+    def blend(values: FloatArray) -> FloatArray:
+        """Weighted sum per frame of per-pair values ``(M, ...)`` → ``(F, ...)``."""
+        return np.add.reduceat(w.reshape((-1,) + (1,) * (values.ndim - 1)) * values, starts, axis=0)
+
+    # Phases now and at the next frame, per pair.
     u_next = np.concatenate((u[1:], u[-1:]))
-    base = np.clip(np.floor(u).astype(np.int64), 0, n_seg - 1)
-    looping = col_seg < 0
-    ph = np.where(looping, (u - base)[:, None], np.clip(u[:, None] - col_seg[None, :], 0.0, 1.0))
-    ph_next = np.where(
-        looping, (u_next - base)[:, None], np.clip(u_next[:, None] - col_seg[None, :], 0.0, 1.0)
-    )
-    cidx = np.broadcast_to(col_clip, ph.shape)
+    seg = col_seg[cols]
+    looping = seg < 0
+    base = np.clip(np.floor(u).astype(np.int64), 0, n_seg - 1)[rows]
+    ph = np.where(looping, u[rows] - base, np.clip(u[rows] - seg, 0.0, 1.0))
+    ph_next = np.where(looping, u_next[rows] - base, np.clip(u_next[rows] - seg, 0.0, 1.0))
+    cidx = col_clip[cols]
+    ph_pose = np.minimum(ph, 1.0)
 
     r0, y0 = db.sample_root(cidx, ph)
     r1, y1 = db.sample_root(cidx, ph_next)
-    naive_dyaw = np.sum(weights * (y1 - y0), axis=1)
+    naive_dyaw = blend(y1 - y0)
 
     # Blended pose and its forward kinematics in the character frame.
-    q = db.sample("joint_rot", cidx, np.minimum(ph, 1.0))
-    joint_rot = quat.normalize(np.einsum("fc,fcjk->fjk", weights, q))
-    pelvis_pos = np.einsum("fc,fck->fk", weights, db.sample("pelvis_pos", cidx, np.minimum(ph, 1.0)))
+    joint_rot = quat.normalize(blend(db.sample("joint_rot", cidx, ph_pose)))
+    pelvis_pos = blend(db.sample("pelvis_pos", cidx, ph_pose))
     jpos, jrot = forward_kinematics(skel, joint_rot, pelvis_pos)
     pts_local = foot_points(skel, jpos)  # (F, 2, 2, 3)
     fr = np.arange(n)
@@ -352,8 +362,7 @@ def play(
         # Each clip's own motion of the foot points over this frame, in the character frame.
         p0 = db.sample_points(cidx, ph)
         p1 = db.sample_points(cidx, ph_next)
-        d = quat.rot2(-y0[..., None, None], p1 - p0)  # (F, C', 2, 2, 3)
-        disp = np.einsum("fc,fcabk->fabk", weights, d)
+        disp = blend(quat.rot2(-y0[:, None, None], p1 - p0))  # (F, 2, 2, 3)
         low = np.argmin(pts_local[..., 2], axis=2)  # (F, 2): heel (0) or toe (1), per foot
         p_now = np.stack([pts_local[fr, s, low[:, s]] for s in (LEFT, RIGHT)], axis=1)  # (F, 2, 3)
         p_nxt = np.stack([pts_local[nxt, s, low[:, s]] for s in (LEFT, RIGHT)], axis=1)
@@ -365,16 +374,14 @@ def play(
         al = alpha[:, None]
         # With no foot on the ground (a run's flight) nothing anchors the blend point: the
         # root then moves as the clips' roots do.
-        support = np.einsum("fc,fcs->fs", weights, db.sample("contact", cidx, np.minimum(ph, 1.0))).max(
-            axis=1
-        )
+        support = blend(db.sample("contact", cidx, ph_pose)).max(axis=1)
         # Heading: the same rule for rotations. The feet's headings change, in each clip, by
         # the clip's own turn; the root turns so that the blend point's foot heading changes
         # by the blended amount, whatever the change of weights does to the pose.
         wrap = ph_next > 1.0
-        lam0 = db.sample("foot_yaw", cidx, np.minimum(ph, 1.0))
+        lam0 = db.sample("foot_yaw", cidx, ph_pose)
         lam1 = db.sample("foot_yaw", cidx, np.where(wrap, ph_next - 1.0, ph_next))
-        d_psi = np.einsum("fc,fcs->fs", weights, (y1 - y0)[..., None] + quat.wrap_angle(lam1 - lam0))
+        d_psi = blend((y1 - y0)[:, None] + quat.wrap_angle(lam1 - lam0))
         head = pts_local[:, :, 1, :2] - pts_local[:, :, 0, :2]
         lam = np.arctan2(head[..., 1], head[..., 0])  # (F, 2)
         d_lam = quat.wrap_angle(lam[nxt] - lam)
@@ -389,7 +396,7 @@ def play(
     root_yaw = plan.start_yaw + np.concatenate(([0.0], np.cumsum(dyaw[:-1])))
 
     # The plain weighted mean of the clips' root displacements.
-    naive = quat.rot2(root_yaw, np.einsum("fc,fck->fk", weights, quat.rot2(-y0, r1 - r0)))
+    naive = quat.rot2(root_yaw, blend(quat.rot2(-y0, r1 - r0)))
     if blend_point:
         s_now = p_now[:, LEFT] + al * (p_now[:, RIGHT] - p_now[:, LEFT])
         s_nxt = p_nxt[:, LEFT] + al * (p_nxt[:, RIGHT] - p_nxt[:, LEFT])

@@ -87,5 +87,7 @@ def refine(
         pos, yaw = refine_step(orig_pos, orig_yaw, pos, yaw, fixed)
         if surface is not None:
             move = ~fixed
-            pos[move] = surface.snap(pos[move], island[move])
+            pos[move] = surface.snap(pos[move], island[move], exact=False)
+    if surface is not None and iterations > 0:
+        pos[~fixed, 2] = surface.snap(pos[~fixed], island[~fixed])[:, 2]  # exact heights
     return pos, yaw

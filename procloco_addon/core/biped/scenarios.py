@@ -88,14 +88,16 @@ def turns() -> Scenario:
     return Scenario("turns", tuple(polys), np.array([0.0, 0.0, 0.0]), 0.0, goal, allow_run=False)
 
 
-def jumps() -> Scenario:
-    a = [_box(-1.0, 9.0, -1.0, 1.0), _box(7.0, 9.0, -1.0, 7.0)]
-    b = [_box(7.0, 9.0, 8.3, 11.0), _box(2.0, 9.0, 9.0, 11.0)]
-    c = [_box(-5.0, 0.7, 9.0, 11.0)]
-    gaps = (_box(7.0, 9.0, 7.0, 8.3), _box(0.7, 2.0, 9.0, 11.0))
-    return Scenario(
-        "jumps", tuple(a + b + c), np.array([0.0, 0.0, 0.0]), 0.0, np.array([-3.5, 10.0]), gaps=gaps
-    )
+def jumps(length: float = 1.0) -> Scenario:
+    """Three platforms: an L, a second L across a 1.3 m gap, a last one across another 1.3 m
+    gap. ``length`` stretches the walkways (not the gaps)."""
+    a, y0 = 9.0 * length, 7.0 * length
+    first = [_box(-1.0, a, -1.0, 1.0), _box(a - 2.0, a, -1.0, y0)]
+    second = [_box(a - 2.0, a, y0 + 1.3, y0 + 4.0), _box(2.0, a, y0 + 2.0, y0 + 4.0)]
+    third = [_box(-5.0 * length, 0.7, y0 + 2.0, y0 + 4.0)]
+    gaps = (_box(a - 2.0, a, y0, y0 + 1.3), _box(0.7, 2.0, y0 + 2.0, y0 + 4.0))
+    goal = np.array([-3.5 * length, y0 + 3.0])
+    return Scenario("jumps", tuple(first + second + third), np.array([0.0, 0.0, 0.0]), 0.0, goal, gaps=gaps)
 
 
 SCENARIOS = {"corridor": corridor, "curve": curve, "turns": turns, "jumps": jumps}

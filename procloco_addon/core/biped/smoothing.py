@@ -79,6 +79,8 @@ def smooth_footprints(
             q[idx] = smooth_rotations(q[idx], fixed[idx])
         if surface is not None:
             move = ~fixed
-            pos[move] = surface.snap(pos[move], island[move])
+            pos[move] = surface.snap(pos[move], island[move], exact=False)
+    if surface is not None and iterations > 0:
+        pos[~fixed, 2] = surface.snap(pos[~fixed], island[~fixed])[:, 2]  # exact heights
     new_yaw = yaw + quat.wrap_angle(quat.yaw_of(q) - yaw)
     return pos, new_yaw

@@ -21,6 +21,7 @@ over a path) keep only the highest one, the same model as the terrain elevation 
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -122,6 +123,16 @@ class WalkableSurface:
         """Whether each point is over some walkable surface."""
         return self.island_at(xy) >= 0
 
+    @functools.cached_property
+    def _inner_cells(self) -> dict[int, FloatArray]:
+        """Centres of the cells a footprint fits in, per island (``-1``: all of them)."""
+        idx = np.argwhere(self.inner)
+        isl = self.island[idx[:, 0], idx[:, 1]]
+        centres = self.origin + (idx + 0.5) * self.cell
+        out = {int(k): centres[isl == k] for k in np.unique(isl)}
+        out[-1] = centres
+        return out
+
     # -- exact geometry -----------------------------------------------------------------------
 
     def height_at(self, xy: FloatArray) -> FloatArray:
@@ -155,13 +166,15 @@ class WalkableSurface:
         out = np.where(best <= 0.5, out, np.nan)
         return out.reshape(shape)
 
-    def snap(self, points: FloatArray, island: IntArray | None = None) -> FloatArray:
+    def snap(self, points: FloatArray, island: IntArray | None = None, exact: bool = True) -> FloatArray:
         """Closest footprint position to each point, on its island, ``margin`` inside edges.
 
         ``points`` is ``(N, 3)``; ``island`` ``(N,)`` says which platform each point must stay
         on (``None``: the one under it, or the nearest). A point that already fits keeps its
         ``x, y`` and gets the exact surface height; any other moves to the nearest fitting
         raster cell of its island (thesis §3.3: "snap to the closest point on the surface").
+        ``exact=False`` takes heights from the raster (exact on flat ground, cheaper), for
+        the inner iterations of smoothing and refinement.
         """
         pts = np.array(points, dtype=float).reshape(-1, 3)
         if island is None:
@@ -171,19 +184,16 @@ class WalkableSurface:
         fits = ok & self.inner[ix, iy] & (self.island[ix, iy] == island)
         need = np.flatnonzero(~fits)
         if len(need):
-            inner_idx = np.argwhere(self.inner)
-            inner_isl = self.island[inner_idx[:, 0], inner_idx[:, 1]]
-            centres = self.origin + (inner_idx + 0.5) * self.cell
+            cells = self._inner_cells
             for i in need:
-                target = island[i]
-                sel = inner_isl == target if target >= 0 else np.ones(len(inner_isl), bool)
-                if not np.any(sel):
-                    sel = np.ones(len(inner_isl), bool)
-                c = centres[sel]
-                d2 = np.sum((c - pts[i, :2]) ** 2, axis=1)
-                pts[i, :2] = c[int(np.argmin(d2))]
-        z = self.height_at(pts[:, :2])
-        pts[:, 2] = np.where(np.isfinite(z), z, self.raster_height(pts[:, :2]))
+                centres = cells.get(int(island[i]))
+                if centres is None:
+                    centres = cells[-1]
+                d2 = np.sum((centres - pts[i, :2]) ** 2, axis=1)
+                pts[i, :2] = centres[int(np.argmin(d2))]
+        raster = self.raster_height(pts[:, :2])
+        z = self.height_at(pts[:, :2]) if exact else raster
+        pts[:, 2] = np.where(np.isfinite(z), z, raster)
         return pts
 
 
