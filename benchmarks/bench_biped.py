@@ -31,9 +31,11 @@ import platform
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
@@ -45,6 +47,8 @@ from procloco_addon.core.biped.ik import IKSettings, solve
 from procloco_addon.core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from procloco_addon.core.biped.scenarios import Scenario, jumps, turns
 from procloco_addon.core.biped.skeleton import RIGHT
+
+FloatArray = NDArray[np.float64]
 
 THESIS = {  # table 4.1, milliseconds
     "Jumps": {
@@ -137,7 +141,9 @@ def stage_table(results: dict[str, tuple[BipedMotion, dict[str, float]]]) -> Non
         print(line)
 
 
-def swivel_table(db: ClipDatabase, motion: BipedMotion, surf_height: object, repeat: int) -> None:
+def swivel_table(
+    db: ClipDatabase, motion: BipedMotion, surf_height: Callable[[FloatArray], FloatArray], repeat: int
+) -> None:
     pb = motion.playback
     body_pos = motion.ik.root_pos - motion.ik.body_offset
     body_yaw = motion.ik.root_yaw - motion.ik.body_turn
@@ -150,7 +156,7 @@ def swivel_table(db: ClipDatabase, motion: BipedMotion, surf_height: object, rep
             t0 = time.perf_counter()
             res = solve(
                 db.skeleton, pb, body_pos, body_yaw, fp.pos, fp.yaw, IKSettings(swivel=method), surf_height
-            )  # type: ignore[arg-type]
+            )
             times.append(time.perf_counter() - t0)
         results[method] = (1e3 * statistics.median(times), res.swivel_cost)
     base = results["search"][1]
