@@ -156,8 +156,9 @@ class StepControls:
 
 @dataclass
 class StepStats:
-    """Planner statistics of one step: plans started, failed, couples and paths evaluated,
-    windows cut, re-plans by cause, forced steps; and seconds per phase."""
+    """Planner statistics of one step: plans, failed plans, couples and paths evaluated,
+    windows cut, re-plans, forced steps, plans retried without the other feet and slices
+    (``n_relaxed``), straight fallback steps (``n_fallback``); and seconds per phase."""
 
     n_plans: int = 0
     n_failed: int = 0
@@ -166,6 +167,8 @@ class StepStats:
     n_windows: int = 0
     n_replans: int = 0
     n_forced: int = 0
+    n_relaxed: int = 0
+    n_fallback: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
 
 
@@ -265,6 +268,10 @@ class Controller:
         k = p.trajectory_samples
         self.traj = np.repeat(self.foot[:, None, :], k + 1, axis=1)
         self.traj_u0 = np.zeros(n)
+        # what was under each trajectory sample when it was planned (moving obstacles are
+        # judged against it)
+        self.traj_ground = np.zeros((n, k + 1))
+        self.traj_forbidden = np.zeros((n, k + 1), dtype=bool)
         self.plan_heading = np.zeros(n)
         self.plan_speed = np.zeros(n)
         self.plan_spacing = np.zeros((n, 2))
@@ -424,9 +431,8 @@ class Controller:
             swing_time = np.where(forced_new, self.forced_duration, swing_time)
             remaining = np.where(forced_new, self.forced_duration, remaining)
             stats.n_forced = int(forced_new.sum())
-        # a failed plan is retried while early enough in its swing
-        retry = self.plan_failed & gstep.swing & (progress < 0.5)
-        to_plan = lifted | forced_new | replan | retry
+        # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
+        to_plan = lifted | forced_new | replan
         stats.n_replans = int((replan & ~lifted).sum())
         timer.lap("rest")
         if np.any(to_plan):
@@ -528,7 +534,9 @@ class Controller:
         surface = self.env.height_at(flat[:, :2]).reshape(legs.size, k)
         forbidden = self.env.forbidden_at(flat[:, :2]).reshape(legs.size, k)
         tol = self.params.support_tolerance
-        cut = ahead & ((surface > pts[..., 2] + tol) | forbidden)
+        # only what changed since the plan counts: something rose into the path, or became forbidden
+        risen = (surface > self.traj_ground[legs] + tol) & (surface > pts[..., 2] + tol)
+        cut = ahead & (risen | (forbidden & ~self.traj_forbidden[legs]))
         # the landing spot itself must still be there
         land_surface = surface[:, -1]
         moved = np.abs(land_surface - self.support_target[legs]) > tol
@@ -635,6 +643,7 @@ class Controller:
         timer.lap("rest")
         k = p.trajectory_samples
         u_grid = np.linspace(0.0, 1.0, k + 1)
+        done: list[tuple[int, int, int, FloatArray, FloatArray]] = []
         for c in np.unique(c_of).tolist():
             mine = legs[c_of == c]
             window = WindowParams(
@@ -672,36 +681,99 @@ class Controller:
                         fixed_distance=2.0 * params.fixed_distance,
                     )
                     couple = plan_footstep(*args, wider, float(yaw_land[j]))
+                if not couple.ok and self.forced[leg]:
+                    # a foot that must move, crowded by the other feet or boxed in by slices:
+                    # try without them
+                    relaxed = replace(
+                        params,
+                        candidate_radius=2.0 * params.candidate_radius,
+                        fixed_distance=2.0 * params.fixed_distance,
+                        slice_size=None,
+                    )
+                    none = np.zeros((0, 2))
+                    couple = plan_footstep(
+                        grids,
+                        self.foot[leg],
+                        preferred_xy[j],
+                        hips[own],
+                        none,
+                        none,
+                        relaxed,
+                        float(yaw_land[j]),
+                    )
+                    stats.n_relaxed += 1
                 stats.n_plans += 1
                 stats.n_couples += couple.n_couples
                 stats.n_paths += couple.n_paths
-                if not couple.ok or couple.trajectory is None:
+                if couple.ok and couple.trajectory is not None:
+                    samples = couple.trajectory.point_at(u_grid)
+                    target = np.asarray(couple.footprint, dtype=np.float64).copy()
+                elif self.forced[leg] and not self.swinging[leg]:
+                    # a foot that must move (left behind, or its support gone) and that the
+                    # planner cannot serve steps straight to its preferred spot
+                    samples, target = self._straight_step(
+                        self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c])
+                    )
+                    stats.n_failed += 1
+                    stats.n_fallback += 1
+                else:
                     stats.n_failed += 1
                     if not self.swinging[leg]:
                         self.plan_failed[leg] = True
                     continue
                 self.plan_failed[leg] = False
-                samples = couple.trajectory.point_at(u_grid)
-                target = np.asarray(couple.footprint, dtype=np.float64).copy()
-                exact = float(self._surface(target[None, :2])[0])
-                drop = target[2] - exact
-                if -1e-9 <= drop <= p.snap_tolerance * float(ctl.step_height[c]) or exact > target[2]:
-                    # land on the exact surface under the foot's point, easing the change in
-                    # over the second half of the swing
-                    ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
-                    ease = ease * ease * (3.0 - 2.0 * ease)
-                    samples[:, 2] -= drop * ease
-                    target[2] = exact
-                samples[-1] = target
-                self.traj[leg] = samples
-                self.traj_u0[leg] = start_u[leg]
-                self.target[leg] = target
-                self.support_target[leg] = exact
-                self.plan_heading[leg] = ctl.heading[c]
-                self.plan_speed[leg] = ctl.speed[c]
-                self.plan_spacing[leg] = ctl.spacing[leg]
-                self.feedback[leg] = target[:2] - preferred_xy[j]
+                done.append((leg, j, c, samples, target))
             timer.lap("planning")
+        if not done:
+            return
+        # every new trajectory at once: land on the exact surface under the foot's point
+        # (the planner's grid height is the highest point under the whole foot box), easing
+        # the change in over the second half of the swing
+        leg_ids = np.array([d[0] for d in done])
+        rows = np.array([d[1] for d in done])
+        chars = np.array([d[2] for d in done])
+        samples_all = np.stack([d[3] for d in done])
+        targets = np.stack([d[4] for d in done])
+        exact = self._surface(targets[:, :2])
+        drop = targets[:, 2] - exact
+        snap = ((drop >= -1e-9) & (drop <= p.snap_tolerance * ctl.step_height[chars])) | (
+            exact > targets[:, 2]
+        )
+        ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
+        ease = ease * ease * (3.0 - 2.0 * ease)
+        samples_all[..., 2] -= np.where(snap, drop, 0.0)[:, None] * ease[None, :]
+        targets[:, 2] = np.where(snap, exact, targets[:, 2])
+        samples_all[:, -1] = targets
+        self.traj[leg_ids] = samples_all
+        if self.env_dynamic:
+            flat = samples_all[..., :2].reshape(-1, 2)
+            self.traj_ground[leg_ids] = self.env.height_at(flat).reshape(leg_ids.size, -1)
+            self.traj_forbidden[leg_ids] = self.env.forbidden_at(flat).reshape(leg_ids.size, -1)
+        self.traj_u0[leg_ids] = start_u[leg_ids]
+        self.target[leg_ids] = targets
+        self.support_target[leg_ids] = exact
+        self.plan_heading[leg_ids] = ctl.heading[chars]
+        self.plan_speed[leg_ids] = ctl.speed[chars]
+        self.plan_spacing[leg_ids] = ctl.spacing[leg_ids]
+        self.feedback[leg_ids] = targets[:, :2] - preferred_xy[rows]
+        timer.lap("rest")
+
+    def _straight_step(
+        self, start: FloatArray, target_xy: FloatArray, u: FloatArray, step_height: float
+    ) -> tuple[FloatArray, FloatArray]:
+        """Last resort when the planner finds no couple: a straight arc to ``target_xy``,
+        lifted ``step_height`` above everything under it (it may pass over an avoided box)."""
+        xy = start[None, :2] + u[:, None] * (target_xy - start[:2])[None, :]
+        surface = self.env.height_at(xy)
+        end_z = float(surface[-1]) if surface[-1] > _VOID else float(start[2])
+        base = start[2] + u * (end_z - start[2])
+        surface = np.where(surface > _VOID, surface, base)
+        lift = max(float(np.max(surface - base)), 0.0) + step_height
+        z = base + 4.0 * u * (1.0 - u) * lift
+        inner = (u > 0.0) & (u < 1.0)
+        z[inner] = np.maximum(z[inner], surface[inner] + 0.25 * step_height)
+        samples = np.column_stack([xy, z])
+        return samples, np.array([target_xy[0], target_xy[1], end_z])
 
     def _apply_feedback(self, dt: float) -> None:
         """Thesis figure 3.9: move the pelvis by the mean footprint error when it matters."""
@@ -751,8 +823,14 @@ class Controller:
         ok = np.concatenate([box_ok, feet_ok], axis=1)
         fwd = np.stack([np.cos(self.yaw), np.sin(self.yaw)], axis=1)
         left = np.stack([-np.sin(self.yaw), np.cos(self.yaw)], axis=1)
-        height, pitch = hull_height_and_pitch(pts, self.pos[:, :2], fwd, ok)
-        _, roll = hull_height_and_pitch(pts, self.pos[:, :2], left, ok)
+        # both slices (forward for height and pitch, left for roll) in one batched call
+        both_h, both_a = hull_height_and_pitch(
+            np.concatenate([pts, pts]),
+            np.concatenate([self.pos[:, :2], self.pos[:, :2]]),
+            np.concatenate([fwd, left]),
+            np.concatenate([ok, ok]),
+        )
+        height, pitch, roll = both_h[:c], both_a[:c], both_a[c:]
         return height + self.body_thickness, pitch, roll
 
     def _reach_guard(self) -> None:

@@ -9,7 +9,8 @@ A leg is solved in two stages (joint model in ``morphology``):
    in the plane). Knees therefore keep bending the way they do at rest and never flip.
 2. the planar chain. Two-segment legs use the closed-form law-of-cosines solution. Longer
    legs start from a shape-preserving guess (the rest bend scaled by one factor found by
-   bisection, so the leg keeps its silhouette and the pose depends on the target only),
+   safeguarded Newton iterations, so the leg keeps its silhouette and the pose depends on
+   the target only),
    then run CCD sweeps with per-joint limits (the thesis's solver) and finish with a few
    damped-least-squares iterations with an active set of limits, which get out of the
    straight-leg and joint-on-limit stalls where CCD alone stops short. Joint positions are
@@ -96,13 +97,15 @@ def solve_bend(
     rest: FloatArray,
     *,
     max_bend: float = 3.0,
-    iterations: int = 34,
+    iterations: int = 40,
+    tolerance: float = 1e-10,
 ) -> FloatArray:
     """Shape-preserving start for chains of any length; returns angles ``(N, s)``.
 
     The hinges take ``κ`` times their rest angles (clamped to their limits; a leg straight at
     rest bends toward the side its limits allow), with one ``κ ∈ [0, max_bend]`` per leg
-    found by bisection so the chain's reach equals the target distance; the hip pitch then
+    found by safeguarded Newton iterations (bisection whenever a step would leave the bracket)
+    so the chain's reach equals the target distance; the hip pitch then
     aims the chain at the target. The leg keeps its rest silhouette, only more or less
     folded, and the pose depends on the target alone (no drift from frame to frame).
     Targets closer than the most folded pose stay at ``κ = max_bend``; beyond reach the leg
@@ -122,21 +125,40 @@ def solve_bend(
         hinge[straight] = default[straight]
     dist = np.sqrt(np.einsum("ij,ij->i", target, target))
 
-    def reach(kappa: FloatArray) -> tuple[FloatArray, FloatArray]:
-        th = np.clip(kappa[:, None] * hinge, lo, hi)
+    def reach(kappa: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Joint angles, reach and d(reach)/dκ of the chain bent by ``kappa``."""
+        raw = kappa[:, None] * hinge
+        th = np.clip(raw, lo, hi)
         th[:, 0] = 0.0
-        end = forward_planar(th, lengths)[rows, n_segments]
-        return th, np.sqrt(np.einsum("ij,ij->i", end, end))
+        free = (raw > lo) & (raw < hi)
+        dth = np.where(free, hinge, 0.0)
+        phi = np.cumsum(th, axis=1)
+        dphi = np.cumsum(dth, axis=1)
+        c, sn = np.cos(phi), np.sin(phi)
+        end = np.stack([(lengths * c).sum(axis=1), (lengths * sn).sum(axis=1)], axis=1)
+        dend = np.stack([-(lengths * dphi * sn).sum(axis=1), (lengths * dphi * c).sum(axis=1)], axis=1)
+        r = np.sqrt(np.einsum("ij,ij->i", end, end))
+        dr = np.einsum("ij,ij->i", end, dend) / np.maximum(r, 1e-12)
+        return th, r, dr
 
+    # safeguarded Newton on κ: the reach shrinks as the leg folds, so [k_lo, k_hi] brackets
+    # the answer and a Newton step that leaves it is replaced by bisection
     k_lo = np.zeros(n)  # straight: longest reach
     k_hi = np.full(n, max_bend)
+    kappa = np.ones(n)
+    tol = tolerance * lengths.sum(axis=1)
     for _ in range(iterations):
-        mid = 0.5 * (k_lo + k_hi)
-        _, r = reach(mid)
-        too_long = r > dist
-        k_lo = np.where(too_long, mid, k_lo)
-        k_hi = np.where(too_long, k_hi, mid)
-    th, _ = reach(0.5 * (k_lo + k_hi))
+        _, r, dr = reach(kappa)
+        f = r - dist
+        done = np.abs(f) <= tol
+        if np.all(done):
+            break
+        k_lo = np.where(f > 0.0, kappa, k_lo)
+        k_hi = np.where(f > 0.0, k_hi, kappa)
+        newton = kappa - f / np.where(dr < -1e-12, dr, -1.0)
+        ok = (dr < -1e-12) & (newton >= k_lo) & (newton <= k_hi)
+        kappa = np.where(done, kappa, np.where(ok, newton, 0.5 * (k_lo + k_hi)))
+    th, _, _ = reach(kappa)
     end = forward_planar(th, lengths)[rows, n_segments]
     th[:, 0] = np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(end[:, 1], end[:, 0])
     th[:, 0] = wrap_to_limits(th[:, 0], lo[:, 0], hi[:, 0])

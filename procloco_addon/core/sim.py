@@ -94,7 +94,8 @@ class SimResult:
     - ``needle (F, C)``, ``phase_step (F, C)`` (needle advance of the step into the frame),
       ``disk_start``, ``disk_duration`` ``(F, N)``.
     - ``stats``: per-step counters ``(F,)`` (``n_plans``, ``n_failed``, ``n_couples``,
-      ``n_paths``, ``n_windows``, ``n_replans``, ``n_forced``); ``seconds``: per-phase times
+      ``n_paths``, ``n_windows``, ``n_replans``, ``n_forced``, ``n_relaxed``, ``n_fallback``);
+      ``seconds``: per-phase times
       ``(F,)`` (``maps``, ``planning``, ``ik``, ``physics``, ``rest``).
     """
 
@@ -400,7 +401,17 @@ class Simulation:
         def stack(key: str) -> npt.NDArray[np.generic]:
             return np.stack([f[key] for f in fr])
 
-        names = ("n_plans", "n_failed", "n_couples", "n_paths", "n_windows", "n_replans", "n_forced")
+        names = (
+            "n_plans",
+            "n_failed",
+            "n_couples",
+            "n_paths",
+            "n_windows",
+            "n_replans",
+            "n_forced",
+            "n_relaxed",
+            "n_fallback",
+        )
         stats = {k: np.array([getattr(s, k) for s in self._stats], dtype=np.int64) for k in names}
         phases = ("maps", "planning", "ik", "physics", "rest")
         seconds = {k: np.array([s.seconds.get(k, 0.0) for s in self._stats]) for k in phases}
