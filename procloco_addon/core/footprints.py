@@ -36,6 +36,7 @@ plan is a :class:`Couple` with ``ok=False`` and a ``message``.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -49,7 +50,7 @@ FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
 
-_NEIGHBOURS = ((-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1))
+_NEIGHBOURS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)])
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,8 @@ class PlannerParams:
     the foot (True) or one per target and slice (False, the thesis's way).
     ``exhaustive``: evaluate every couple fully (reference for tests; ignores the LOD budget).
     ``max_targets``: cap on the number of candidates considered (best first), None for all.
+    ``los_shortcut``: build no wavefront for a target in plain sight of the foot (the straight
+    line is what the wavefront and line-of-sight steps would give anyway).
     """
 
     step_height: float = 0.1
@@ -89,6 +92,7 @@ class PlannerParams:
     shared_wavefront: bool = True
     exhaustive: bool = False
     max_targets: int | None = None
+    los_shortcut: bool = True
 
     def __post_init__(self) -> None:
         if self.slice_size is not None and not self.slice_size > 0.0:
@@ -193,12 +197,7 @@ def score_candidates(
     pref_rc = grids.rowcol(preferred_xy) - np.array([reg.r0, reg.c0])
     base = np.rint(pref_rc).astype(np.intp)
     sub = pref_rc - base  # the preferred footprint's offset inside its cell (cells)
-    rad = params.candidate_radius / cell
-    k = math.ceil(rad) + 1
-    di, dj = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
-    off = np.stack([di.ravel(), dj.ravel()], axis=1)
-    dist_cells = np.hypot(off[:, 0], off[:, 1])
-    off = off[dist_cells <= rad + 1e-9]
+    off = _disc_offsets(round(params.candidate_radius / cell, 9))
     cells = base[None, :] + off
     h, w = reg.shape
     inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
@@ -217,7 +216,8 @@ def score_candidates(
     ok &= np.linalg.norm(xy - hip_xy, axis=1) <= params.leg_reach + 1e-9
     # Landing height: the highest surface under the foot box at its exact offset.
     half = np.asarray(params.foot_half_extents, dtype=np.float64)
-    land_kernel = _offset_kernel(cell, half, foot_yaw, sub)
+    land_kernel = _offset_kernel(cell, float(half[0]), float(half[1]), float(foot_yaw),
+                                 round(float(sub[0]), 9), round(float(sub[1]), 9))
     z = ctx.land_height(cells, land_kernel)
     max_dz = params.leg_reach if params.max_height_change is None else params.max_height_change
     ok &= np.abs(z - ctx.start[2]) <= max_dz
@@ -228,14 +228,12 @@ def score_candidates(
     pad_forb[1:-1, 1:-1] = forbidden | (elev < _VOID_BELOW)
     pad_elev = np.full((h + 2, w + 2), -np.inf)
     pad_elev[1:-1, 1:-1] = elev
-    free = np.zeros(r.shape[0])
-    rim = np.zeros(r.shape[0], dtype=bool)
-    here = elev[r, c]
-    for dr, dc in _NEIGHBOURS:
-        ne = pad_elev[r + 1 + dr, c + 1 + dc]
-        nf = pad_forb[r + 1 + dr, c + 1 + dc]
-        free += (~nf & (np.abs(ne - here) <= params.edge_height)).astype(np.float64)
-        rim |= here - ne > params.edge_height
+    here = elev[r, c][:, None]
+    nr = r[:, None] + 1 + _NEIGHBOURS[None, :, 0]
+    nc = c[:, None] + 1 + _NEIGHBOURS[None, :, 1]
+    ne = pad_elev[nr, nc]  # (k, 8)
+    free = np.count_nonzero(~pad_forb[nr, nc] & (np.abs(ne - here) <= params.edge_height), axis=1)
+    rim = np.any(here - ne > params.edge_height, axis=1)
     distance = np.clip(1.0 - np.linalg.norm(xy - preferred_xy, axis=1) / params.fixed_distance, 0.0, 1.0)
     free_score = free / 8.0
     edge = np.where(rim, params.edge_score, 1.0)
@@ -247,18 +245,30 @@ def score_candidates(
                       edge[order], crossing[order])
 
 
-def _offset_kernel(cell: float, half: FloatArray, yaw: float, sub: FloatArray) -> IntArray:
-    """Cells covered by a foot box whose centre sits ``sub`` (row, col) cells off its cell's
+@functools.lru_cache(maxsize=64)
+def _disc_offsets(radius_cells: float) -> IntArray:
+    """Cell offsets ``(k, 2)`` within ``radius_cells`` of (0, 0)."""
+    k = math.ceil(radius_cells) + 1
+    di, dj = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
+    off = np.stack([di.ravel(), dj.ravel()], axis=1).astype(np.intp)
+    off = off[np.hypot(off[:, 0], off[:, 1]) <= radius_cells + 1e-9]
+    off.setflags(write=False)
+    return off
+
+
+@functools.lru_cache(maxsize=1024)
+def _offset_kernel(cell: float, hx: float, hy: float, yaw: float, sub_r: float, sub_c: float) -> IntArray:
+    """Cells covered by a foot box whose centre sits ``(sub_r, sub_c)`` cells off its cell's
     centre."""
-    hx, hy = float(half[0]), float(half[1])
     reach = math.ceil((abs(hx) + abs(hy)) / cell + 1.0)
     ii, jj = np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1), indexing="ij")
     centres = np.stack([jj.ravel() * cell, ii.ravel() * cell], axis=1)
-    centre = np.array([sub[1] * cell, sub[0] * cell])
+    centre = np.array([sub_c * cell, sub_r * cell])
     hit = _box_overlaps_cells(centres, cell, centre, hx, hy, yaw)
     off = np.stack([ii.ravel()[hit], jj.ravel()[hit]], axis=1).astype(np.intp)
     if off.shape[0] == 0:
         off = np.zeros((1, 2), dtype=np.intp)
+    off.setflags(write=False)
     return off
 
 
@@ -275,17 +285,19 @@ def _other_feet_mask(
     return mask
 
 
-def slice_levels(ctx: PathContext, slice_size: float | None) -> list[float]:
+def slice_levels(ctx: PathContext, slice_size: float | None, ceiling: float = math.inf) -> list[float]:
     """Slice levels for one plan, lowest first, ending with ``inf`` (no slice).
 
     Levels are ``z_foot + k * slice_size`` (k >= 1) below the highest surface in the search
-    rectangle; levels that forbid exactly the same cells as the next one are dropped.
+    rectangle and below ``ceiling`` (higher slices only add ways over taller things, which the
+    last pass already tries); levels that forbid exactly the same cells as the next one are
+    dropped.
     """
     if slice_size is None:
         return [math.inf]
     elev = ctx.elevation[ctx.region.mask]
     elev = elev[elev > _VOID_BELOW]
-    top = float(elev.max()) if elev.size else float(ctx.start[2])
+    top = min(float(elev.max()) if elev.size else float(ctx.start[2]), ceiling)
     levels: list[float] = []
     z0 = float(ctx.start[2])
     k = 1
@@ -342,7 +354,8 @@ def plan_footstep(
     region = search_region(grids.shape, start_rc, pref_rc, half_width / cell + foot_cells,
                            params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
     extra = _other_feet_mask(grids, o_feet, half, foot_yaw)
-    path_params = PathParams(step_height=params.step_height, tension=params.tension)
+    path_params = PathParams(step_height=params.step_height, tension=params.tension,
+                             los_shortcut=params.los_shortcut)
     ctx = PathContext(grids, start, region, extra, half, foot_yaw, path_params,
                       per_target=not params.shared_wavefront)
     cand = score_candidates(ctx, pref, hip, o_hips, o_feet, params, foot_yaw)
@@ -355,7 +368,8 @@ def plan_footstep(
     order = np.nonzero(valid)[0]
     if params.max_targets is not None:
         order = order[: params.max_targets]
-    levels = slice_levels(ctx, params.slice_size)
+    reach_up = params.leg_reach if params.max_height_change is None else params.max_height_change
+    levels = slice_levels(ctx, params.slice_size, float(start[2]) + reach_up)
     exhaustive = params.exhaustive
     budget = None if exhaustive else params.max_couples_after_first
 

@@ -43,7 +43,7 @@ import numpy.typing as npt
 
 from .hermite import HermiteCurve, hermite_basis
 from .hull import upper_hull
-from .terrain import WindowGrids, dilate, foot_kernel, max_filter
+from .terrain import WindowGrids, dilate, foot_kernel
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -461,13 +461,15 @@ class PathParams:
     """Path construction knobs: ``step_height`` (clearance, metres), ``tension`` of the 2D
     cardinal curve, ``sample_spacing`` along curves in cells, ``min_waypoint_gap`` in cells
     (closer 3D waypoints are merged when safe), ``ramp`` of the clearance at lift-off and
-    touch-down in metres (None: the step height, at least two cells)."""
+    touch-down in metres (None: the step height, at least two cells); ``los_shortcut``: skip
+    the wavefront when the target is in sight from the foot (same result, faster)."""
 
     step_height: float = 0.1
     tension: float = 0.5
     sample_spacing: float = 0.25
     min_waypoint_gap: float = 1.5
     ramp: float | None = None
+    los_shortcut: bool = True
 
 
 class PathContext:
@@ -493,8 +495,6 @@ class PathContext:
         self.sweep_kernel = foot_kernel(cell, foot_half_extents, foot_yaw, anywhere_in_cell=True)
         self.land_kernel = foot_kernel(cell, foot_half_extents, foot_yaw, anywhere_in_cell=False)
         self.elevation = np.asarray(region.view(grids.elevation), dtype=np.float64)
-        self.clear_elevation = max_filter(self.elevation, self.sweep_kernel)
-        self.land_elevation = max_filter(self.elevation, self.land_kernel)
         base = np.asarray(region.view(grids.avoid), dtype=bool).copy()
         if extra is not None:
             base |= np.asarray(region.view(extra), dtype=bool)
@@ -570,64 +570,84 @@ class PathContext:
         blocked = self.maps(level)[2]
         if blocked[target_cell]:
             return None
-        if self.per_target:
-            fld = self.field(level, target_cell)
-            naive = descend(fld, self.start_cell)  # start -> target
-        else:
-            fld = self.field(level)
-            naive = descend(fld, target_cell)[::-1]  # target -> start, reversed
-        if naive.shape[0] == 0:
-            return None
-        pts = np.vstack([self.start_rc[None, :], naive.astype(np.float64)])
+        offset = np.array([self.region.r0, self.region.c0])
         if target_xy is not None:
-            # End exactly at the target; it replaces its cell's centre when the cell before sees
-            # it (no detour to the centre and back), else the centre stays as a waypoint.
-            end_rc = self.grids.rowcol(np.asarray(target_xy, dtype=np.float64)) - np.array(
-                [self.region.r0, self.region.c0])
-            if segments_clear(blocked, pts[-2], end_rc[None, :])[0]:
-                pts[-1] = end_rc
+            end_rc = self.grids.rowcol(np.asarray(target_xy, dtype=np.float64)) - offset
+        else:
+            end_rc = np.asarray(target_cell, dtype=np.float64)
+        if self.params.los_shortcut and segments_clear(blocked, self.start_rc, end_rc[None, :])[0]:
+            # The target is in sight: the wavefront, its descent and the line-of-sight reduction
+            # would keep exactly these two points (the greedy reduction jumps to the farthest
+            # visible point), so skip them.
+            way_rc = np.vstack([self.start_rc, end_rc])
+            n_naive = 0
+        else:
+            if self.per_target:
+                fld = self.field(level, target_cell)
+                naive = descend(fld, self.start_cell)  # start -> target
             else:
-                pts = np.vstack([pts, end_rc[None, :]])
-        keep = line_of_sight_reduce(blocked, pts)
-        way_rc = pts[keep]
+                fld = self.field(level)
+                naive = descend(fld, target_cell)[::-1]  # target -> start, reversed
+            if naive.shape[0] == 0:
+                return None
+            n_naive = int(naive.shape[0])
+            pts = np.vstack([self.start_rc[None, :], naive.astype(np.float64)])
+            if target_xy is not None:
+                # End exactly at the target; it replaces its cell's centre when the cell before
+                # sees it (no detour to the centre and back), else the centre stays a waypoint.
+                if segments_clear(blocked, pts[-2], end_rc[None, :])[0]:
+                    pts[-1] = end_rc
+                else:
+                    pts = np.vstack([pts, end_rc[None, :]])
+            way_rc = pts[line_of_sight_reduce(blocked, pts)]
         waypoints = self.to_world(way_rc)
-        cell = self.grids.cell
-        spacing = self.params.sample_spacing * cell
-        if waypoints.shape[0] >= 2 and np.linalg.norm(waypoints[-1] - waypoints[0]) > 1e-9:
-            # Drop coincident consecutive waypoints (the start inside its own cell centre).
-            step = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
-            keep_w = np.concatenate([[True], step > 1e-9])
-            waypoints = waypoints[keep_w]
-        if waypoints.shape[0] < 2 or np.linalg.norm(waypoints[-1] - waypoints[0]) <= 1e-9:
+        spacing = self.params.sample_spacing * self.grids.cell
+        # Drop coincident consecutive waypoints (the start on its own cell centre).
+        step = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
+        waypoints = waypoints[np.concatenate([[True], step > 1e-9])]
+        if waypoints.shape[0] < 2:
             p = waypoints[:1]
-            return Path2D(p, p.copy(), np.zeros(1), 0.0, 0.0, self.params.tension, int(naive.shape[0]))
+            return Path2D(p, p.copy(), np.zeros(1), 0.0, 0.0, self.params.tension, n_naive)
+        h, w = blocked.shape
         tension = self.params.tension
         for attempt in range(3):
-            curve = HermiteCurve.cardinal(waypoints, tension=tension, samples_per_segment=16)
-            n = max(2, math.ceil(curve.length / spacing) + 1)
-            arc = np.linspace(0.0, curve.length, n)
-            samples = curve.at_length(arc)
-            rc = self.grids.rowcol(samples) - np.array([self.region.r0, self.region.c0])
-            cells = np.rint(rc).astype(np.intp)
-            h, w = blocked.shape
+            if waypoints.shape[0] == 2:  # a straight segment, whatever the tension
+                length = float(np.linalg.norm(waypoints[1] - waypoints[0]))
+                arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
+                samples = waypoints[0] + (waypoints[1] - waypoints[0]) * (arc / length)[:, None]
+            else:
+                curve = HermiteCurve.cardinal(waypoints, tension=tension, samples_per_segment=16)
+                length = curve.length
+                arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
+                samples = curve.at_length(arc)
+            cells = np.rint(self.grids.rowcol(samples) - offset).astype(np.intp)
             inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
-            ok = inside.all() and not blocked[cells[:, 0], cells[:, 1]].any()
-            if ok:
+            if inside.all() and not blocked[cells[:, 0], cells[:, 1]].any():
                 break
             tension = 0.0 if attempt == 1 else tension * 0.5
         else:
             return None
-        return Path2D(waypoints, samples, arc, float(curve.length), _turning(samples), tension,
-                      int(naive.shape[0]))
+        return Path2D(waypoints, samples, arc, float(length), _turning(samples), tension, n_naive)
 
     # -- lifting to 3D -------------------------------------------------------------------------
+    def kernel_max(self, cells: IntArray, kernel: IntArray) -> FloatArray:
+        """Highest elevation over ``kernel`` offsets around region cells ``(k, 2)``: ``(k,)``.
+
+        Reads the whole window, so cells near the region's border see past it."""
+        g = self.grids.elevation
+        ny, nx = g.shape
+        rr = cells[:, 0, None] + (self.region.r0 + kernel[None, :, 0])
+        cc = cells[:, 1, None] + (self.region.c0 + kernel[None, :, 1])
+        ok = (rr >= 0) & (rr < ny) & (cc >= 0) & (cc < nx)
+        vals = np.where(ok, g[np.clip(rr, 0, ny - 1), np.clip(cc, 0, nx - 1)], -np.inf)
+        return np.asarray(vals.max(axis=1))
+
     def land_height(self, cells: IntArray, kernel: IntArray | None = None) -> FloatArray:
         """Height a foot lands at in region cells ``(k, 2)``: the highest surface under it.
 
         ``kernel``: the cells the foot covers around its cell (default: a foot at the cell
         centre)."""
-        elev = self.land_elevation if kernel is None else max_filter(self.elevation, kernel)
-        return np.asarray(elev[cells[:, 0], cells[:, 1]])
+        return self.kernel_max(cells, self.land_kernel if kernel is None else kernel)
 
     def lift(self, path: Path2D, target_z: float) -> FootTrajectory:
         """The 3D trajectory over a 2D plan (thesis Figure 3.23)."""
@@ -649,11 +669,10 @@ class PathContext:
         return FootTrajectory.from_points(points, way3, path.waypoints, path.length, s)
 
     def _clear_at(self, xy: FloatArray) -> FloatArray:
+        """What a foot swinging over each point must clear: the highest surface under the foot
+        anywhere in that point's cell."""
         rc = np.rint(self.grids.rowcol(xy) - np.array([self.region.r0, self.region.c0])).astype(np.intp)
-        h, w = self.clear_elevation.shape
-        r = np.clip(rc[:, 0], 0, h - 1)
-        c = np.clip(rc[:, 1], 0, w - 1)
-        return np.asarray(self.clear_elevation[r, c])
+        return self.kernel_max(rc, self.sweep_kernel)
 
 
 def _turning(samples: FloatArray) -> float:
@@ -696,13 +715,39 @@ def path_score_2d(path: Path2D) -> float:
 
 def vertical_factor(traj: FootTrajectory, step_height: float) -> float:
     """Factor in (0, 1] for the climb of a 3D trajectory: 1 while its length stays within a
-    clean arc's bound (2D length + twice the step height + height change), then the square of
-    that bound over the length: lifting a foot over a tall obstacle costs more than a short
-    detour around it. Never above 1, so a 3D score never beats its 2D bound (Appendix E)."""
-    dz = abs(float(traj.points[-1, 2] - traj.points[0, 2]))
+    clean arc's bound on flat ground (2D length + twice the step height), then the square of
+    that bound over the length: lifting a foot onto or over a tall obstacle costs more than a
+    short detour around it. Never above 1, so a 3D score never beats its 2D bound
+    (Appendix E)."""
     if traj.length <= 1e-9:
         return 1.0
-    return min(1.0, (traj.length_2d + 2.0 * step_height + dz) / traj.length) ** 2
+    return min(1.0, (traj.length_2d + 2.0 * step_height) / traj.length) ** 2
+
+
+# ---------------------------------------------------------------------------------------
+# Re-validation (thesis §3.2.1: the controller checks running swings every step)
+# ---------------------------------------------------------------------------------------
+def trajectory_valid(
+    grids: WindowGrids, traj: FootTrajectory, u_from: float = 0.0, tolerance: float = 0.005
+) -> bool:
+    """Whether the rest of a swing, from fraction ``u_from`` of its length on, is still clear
+    in ``grids`` (rebuilt after obstacles moved).
+
+    Invalid when a remaining point lies in a cell covered by an avoided obstacle, or more than
+    ``tolerance`` metres below the elevation map (something moved into the way or onto the
+    footprint). Points in the foot's starting cell are not checked (the foot lifts off from
+    there); points outside the window are not judged.
+    """
+    pts = traj.points
+    sel = traj.arc >= u_from * traj.length - 1e-12
+    sel[-1] = True
+    p = pts[sel]
+    rc = grids.cell_of(p[:, :2])
+    ok = grids.inside(rc) & ~np.all(rc == grids.cell_of(pts[0, :2]), axis=1)
+    r, c = rc[ok, 0], rc[ok, 1]
+    if np.any(grids.avoid[r, c]):
+        return False
+    return bool(np.all(p[ok, 2] >= grids.elevation[r, c] - tolerance))
 
 
 # ---------------------------------------------------------------------------------------

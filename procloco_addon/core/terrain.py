@@ -30,6 +30,7 @@ Coordinates: world metres, Z up. Grid arrays are indexed ``[row, col]`` = ``[y, 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -190,6 +191,11 @@ def foot_kernel(
     cell centre (what a landing foot covers). Always contains ``(0, 0)``.
     """
     hx, hy = (float(v) for v in np.asarray(half_extents, dtype=np.float64).reshape(2))
+    return _foot_kernel(float(cell), hx, hy, float(yaw), bool(anywhere_in_cell))
+
+
+@functools.lru_cache(maxsize=512)
+def _foot_kernel(cell: float, hx: float, hy: float, yaw: float, anywhere_in_cell: bool) -> IntArray:
     if anywhere_in_cell:
         grow = 0.5 * cell * (abs(math.cos(yaw)) + abs(math.sin(yaw)))
         hx, hy = hx + grow, hy + grow
@@ -204,6 +210,7 @@ def foot_kernel(
     off = np.stack([ii.ravel()[hit], jj.ravel()[hit]], axis=1).astype(np.intp)
     if not np.any((off[:, 0] == 0) & (off[:, 1] == 0)):
         off = np.vstack([off, np.zeros((1, 2), dtype=np.intp)])
+    off.setflags(write=False)  # shared by the cache
     return off
 
 

@@ -26,6 +26,7 @@ from procloco_addon.core.pathing import (
     octile_field,
     segments_clear,
     supercover_cells,
+    trajectory_valid,
     wavefront,
 )
 from procloco_addon.core.terrain import (
@@ -304,3 +305,25 @@ def test_height_profile_never_dips_below_the_hull(seed: int) -> None:
     chord = np.interp(fine, s[idx], z[idx])
     assert np.all(prof >= chord - 1e-12)
     assert np.allclose(height_profile(s[idx], z[idx], s[idx]), z[idx])
+
+
+def test_running_swings_are_invalidated_when_an_obstacle_moves_into_them() -> None:
+    boxes = Boxes(np.array([[0.3, 1.0, 0.0]]), np.array([[0.1, 0.1, 0.2]]), np.zeros(1),
+                  np.array([ROLE_AVOID]), np.array([True]))
+    env = Environment(flat(), boxes)
+    w = env.window(np.zeros(2), PARAMS)
+    start = np.array([0.0, 0.0, 0.0])
+    traj = build_path(w, start, np.array([0.42, 0.0]))
+    assert traj is not None
+    assert trajectory_valid(w, traj)
+    # The crate slides across the middle of the path: the swing must be re-planned ...
+    env.move_boxes(np.array([0]), np.array([[0.21, 0.0, 0.0]]), np.zeros(1))
+    moved = env.window(np.zeros(2), PARAMS)
+    assert not trajectory_valid(moved, traj)
+    # ... unless the foot is already past it.
+    assert trajectory_valid(moved, traj, u_from=0.9)
+    # A step-over crate onto the footprint, higher than the planned landing, also invalidates.
+    env2 = Environment(flat(), Boxes(np.array([[0.42, 0.0, 0.0]]), np.array([[0.1, 0.1, 0.05]]), np.zeros(1),
+                                     np.array([ROLE_STEP_OVER]), np.array([True])))
+    assert not trajectory_valid(env2.window(np.zeros(2), PARAMS), traj)
+    assert trajectory_valid(env2.window(np.zeros(2), PARAMS), traj, tolerance=0.06)
