@@ -20,14 +20,22 @@ From a foot's position to a footprint target:
 5. **2D curve**: a cardinal (Hermite) spline through the final cells, sampled by arc length
    and checked against the obstacle map; if it cuts a forbidden cell the tension is lowered
    (down to 0, the straight segments that the line-of-sight test already proved free).
-6. **Elevation** (:func:`lift_path`): every sample gets the elevation under the foot plus a
-   clearance that ramps from 0 at lift-off and touch-down to the step height; the upper convex
-   hull of these points gives the 3D waypoints; close waypoints are dropped when that keeps the
-   curve clear; a Hermite height profile through the waypoints (never below the hull, see
-   :func:`height_profile`) lifts the 2D curve into the final 3D trajectory.
+6. **Elevation** (:meth:`PathContext.lift`): every sample gets the elevation under the foot
+   plus a clearance that ramps from 0 at lift-off and touch-down to the step height; the upper
+   convex hull of these points gives the 3D waypoints; close waypoints are dropped when that
+   keeps the curve clear; a Hermite height profile through the waypoints (never below the
+   hull, see :func:`height_profile`) lifts the 2D curve into the final 3D trajectory. The
+   thesis passes a 3D Hermite curve through the 3D waypoints; lifting the already checked 2D
+   curve instead keeps the ground-plane path exactly where the obstacle map was checked, and
+   the height profile provably above the clearance, so no sample can end up in a forbidden
+   cell or under the elevation map.
+
+When the target is in plain sight of the foot (supercover test of the straight segment) steps
+2–4 are skipped: they would keep exactly the two end points (``PathParams.los_shortcut``).
 
 The result is a :class:`FootTrajectory`: a dense 3D polyline of the curve with its length,
-sampled at constant speed by fractions of its arc length.
+sampled at constant speed by fractions of its arc length. :func:`trajectory_valid` tells the
+controller whether a running swing is still clear after obstacles moved (thesis §3.2.1).
 
 Grid coordinates: ``(row, col)`` in a window, cell ``(r, c)`` centred at continuous
 coordinates ``(r, c)``; world xy ↔ grid through :class:`~.terrain.WindowGrids`.

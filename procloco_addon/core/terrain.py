@@ -875,6 +875,8 @@ class Environment:
                 near_all.append(d_sorted[sl][ok])
             self._cache_moving_boxes(cell, np.unique(np.concatenate(near_all)))
         moving_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic and soup.faces.shape[0]]
+        soup_box = {i: (self._soup_triangles(i)[1].min(axis=0), self._soup_triangles(i)[2].max(axis=0))
+                    for i in moving_soups}
         half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
         out: list[WindowGrids] = []
         for w in range(ctr.shape[0]):
@@ -895,8 +897,8 @@ class Environment:
                     avoid_rows.append(r)
                     avoid_cols.append(c)
             for i in moving_soups:
-                v = self._soups[i].vertices[:, :2]
-                if np.all(v.max(axis=0) >= lo_w[w]) and np.all(v.min(axis=0) <= hi_w[w]):
+                s_lo, s_hi = soup_box[i]
+                if np.all(s_hi >= lo_w[w]) and np.all(s_lo <= hi_w[w]):
                     r, c, z = self._moving_soup_cells(cell, i)
                     rows.append(r)
                     cols.append(c)
