@@ -172,25 +172,26 @@ def search_region(
     ``start_margin`` behind the start and ``end_margin`` beyond the end; ``half_width`` is
     its half width. All in cells. Clipped to the window.
     """
-    a = np.asarray(start_rc, dtype=np.float64)
-    b = np.asarray(end_rc, dtype=np.float64)
-    axis = b - a
-    dist = float(np.hypot(*axis))
-    unit = axis / dist if dist > 1e-9 else np.array([0.0, 1.0])
-    perp = np.array([-unit[1], unit[0]])
-    corners = np.array([a + unit * t + perp * s for t in (-start_margin, dist + end_margin)
-                        for s in (-half_width, half_width)])
+    a0, a1 = (float(v) for v in np.asarray(start_rc, dtype=np.float64).reshape(2))
+    b0, b1 = (float(v) for v in np.asarray(end_rc, dtype=np.float64).reshape(2))
+    dist = math.hypot(b0 - a0, b1 - a1)
+    u0, u1 = ((b0 - a0) / dist, (b1 - a1) / dist) if dist > 1e-9 else (0.0, 1.0)
+    p0, p1 = -u1, u0
+    span = ((t, q) for t in (-start_margin, dist + end_margin) for q in (-half_width, half_width))
+    corners = [(a0 + u0 * t + p0 * q, a1 + u1 * t + p1 * q) for t, q in span]
+    rows = [r for r, _ in corners]
+    cols = [c for _, c in corners]
     ny, nx = window_shape
-    r0 = max(int(np.floor(corners[:, 0].min())), 0)
-    r1 = min(int(np.ceil(corners[:, 0].max())), ny - 1)
-    c0 = max(int(np.floor(corners[:, 1].min())), 0)
-    c1 = min(int(np.ceil(corners[:, 1].max())), nx - 1)
+    r0 = max(math.floor(min(rows)), 0)
+    r1 = min(math.ceil(max(rows)), ny - 1)
+    c0 = max(math.floor(min(cols)), 0)
+    c1 = min(math.ceil(max(cols)), nx - 1)
     if r1 < r0 or c1 < c0:
         return Region(0, 0, np.zeros((0, 0), dtype=bool))
-    rr, cc = np.meshgrid(np.arange(r0, r1 + 1), np.arange(c0, c1 + 1), indexing="ij")
-    d = np.stack([rr - a[0], cc - a[1]], axis=-1)
-    along = d @ unit
-    across = np.abs(d @ perp)
+    dr = (np.arange(r0, r1 + 1) - a0)[:, None]
+    dc = (np.arange(c0, c1 + 1) - a1)[None, :]
+    along = dr * u0 + dc * u1
+    across = np.abs(dr * p0 + dc * p1)
     eps = 1e-9
     mask = (along >= -start_margin - eps) & (along <= dist + end_margin + eps) & (across <= half_width + eps)
     return Region(r0, c0, mask)
@@ -357,6 +358,9 @@ def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> Bo
     bb = np.asarray(b, dtype=np.float64).reshape(-1, 2)
     if bb.shape[0] == 0:
         return np.zeros(0, dtype=bool)
+    if bb.shape[0] == 1:  # one segment: the same samples, without numpy's per-call overhead
+        return np.array([_one_segment_clear(blocked, float(aa[0]), float(aa[1]), float(bb[0, 0]),
+                                            float(bb[0, 1]))])
     cells, mask = _crossing_samples(aa, bb)
     h, w = blocked.shape
     inside = (cells[..., 0] >= 0) & (cells[..., 0] < h) & (cells[..., 1] >= 0) & (cells[..., 1] < w)
@@ -364,6 +368,35 @@ def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> Bo
     c = np.where(inside, cells[..., 1], 0)
     bad = mask & (~inside | blocked[r, c])
     return np.asarray(~np.any(bad, axis=1))
+
+
+def _one_segment_clear(blocked: BoolArray, a0: float, a1: float, b0: float, b1: float) -> bool:
+    """:func:`segments_clear` for a single segment, in plain Python floats (same samples and
+    the same arithmetic as :func:`_crossing_samples`, so both always agree)."""
+    h, w = blocked.shape
+    d0 = b0 - a0
+    d1 = b1 - a1
+    ts = [0.0, 1.0]
+    for start, delta, lo, hi in ((a0, d0, min(a0, b0), max(a0, b0)), (a1, d1, min(a1, b1), max(a1, b1))):
+        if abs(delta) <= 1e-12:
+            continue
+        first = math.ceil(lo - 0.5)
+        for k in range(first, math.floor(hi - 0.5) + 1):
+            t = (float(k) + 0.5 - start) / delta
+            ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
+    eps = 1e-7
+    for t in ts:
+        p0 = a0 + t * d0
+        p1 = a1 + t * d1
+        for o0 in (-eps, eps):
+            r = round(p0 + o0)
+            if r < 0 or r >= h:
+                return False
+            for o1 in (-eps, eps):
+                c = round(p1 + o1)
+                if c < 0 or c >= w or blocked[r, c]:
+                    return False
+    return True
 
 
 def line_of_sight_reduce(blocked: BoolArray, points: npt.ArrayLike) -> IntArray:

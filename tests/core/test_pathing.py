@@ -327,3 +327,16 @@ def test_running_swings_are_invalidated_when_an_obstacle_moves_into_them() -> No
                                      np.array([ROLE_STEP_OVER]), np.array([True])))
     assert not trajectory_valid(env2.window(np.zeros(2), PARAMS), traj)
     assert trajectory_valid(env2.window(np.zeros(2), PARAMS), traj, tolerance=0.06)
+
+
+@given(st.integers(0, 100_000), st.booleans())
+def test_one_segment_and_batched_line_of_sight_agree(seed: int, on_lattice: bool) -> None:
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((12, 12)) < 0.15
+    ends = rng.uniform(-1.0, 12.0, (8, 2))
+    if on_lattice:  # exact half cells: segments through corners and along cell borders
+        ends = np.round(ends * 2.0) / 2.0
+    a = ends[0]
+    batched = segments_clear(blocked, a, ends[1:])
+    single = [segments_clear(blocked, a, e[None, :])[0] for e in ends[1:]]
+    assert batched.tolist() == single
