@@ -116,6 +116,17 @@ def test_flat_ground_takes_the_preferred_footprint_with_a_clean_arc() -> None:
     assert P.step_height <= pts[top, 2] <= 1.5 * P.step_height
 
 
+def test_stepping_in_place_lifts_the_foot_and_puts_it_back() -> None:
+    w = window()
+    c = plan(w, (0.0, 0.0))
+    check_couple(w, c, P, START, np.zeros(2), HIP)
+    assert np.allclose(c.footprint, START)
+    traj = c.trajectory
+    assert traj is not None
+    assert traj.length == pytest.approx(2 * P.step_height)
+    assert np.allclose(traj.point_at(np.array([0.5]))[0], [0.0, 0.0, P.step_height])
+
+
 def test_preferred_footprint_on_a_crate_edge_moves_to_a_comfortable_one() -> None:
     # Thesis sequence 2: the preferred footprint falls on the rim of a crate.
     w = window([(0.5, 0.0, 0.4, 0.4, 0.12, ROLE_STEP_OVER)])  # crate spans x in [0.3, 0.7]
