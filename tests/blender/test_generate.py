@@ -567,3 +567,30 @@ def test_escape_cancels_and_changes_nothing(wolf_scene: Any, monkeypatch: pytest
     results = [Op.modal(me, context, timer) for _ in range(20)]
     assert results.count({"FINISHED"}) == 1
     assert wolf_scene.animation_data.action.name.startswith("Wolf ProcLoco")
+
+
+def test_burst_progression_and_gait_randomizer(empty_scene: Any) -> None:
+    """Burst-like speed with stalls (thesis §4.3), a new random gait at each stall; the feet
+    still plant without sliding."""
+    _ground(size=12.0)
+    spider = creatures.build_spider(empty_scene, scale=8.0)
+    leg = _leg_length(spider)
+    s = spider.procloco
+    s.speed = 0.5 * leg
+    s.step_height = 0.2 * leg
+    s.use_progression = True
+    s.use_gait_randomizer = True
+    s.seed = 3
+    job = _generate(spider, frames=120)
+    body = job.result.body[:, :2, 3]
+    speed = np.linalg.norm(np.diff(body, axis=0), axis=1) / job.dt
+    assert speed.max() > 0.6 * s.speed
+    assert speed[12:].min() < 0.05 * s.speed, "no stall in five seconds"
+    disks = job.result.disk_start
+    assert np.abs(disks[-1] - disks[0]).max() > 0.05, "the gait never changed"
+    from procloco_addon.core import metrics
+    from tests.blender.pose_eval import leg_joints
+
+    joints = leg_joints(spider, [int(f) for f in job.frames], [leg.bones for leg in job.info.legs])
+    ends = np.stack([j[:, -1] for j in joints], axis=1)
+    assert metrics.stance_sliding(ends, ~job.result.swing).max() <= 0.002

@@ -222,7 +222,6 @@ class Job:
     foot_offset: np.ndarray  # (n_legs, 2) body-frame offsets of the preferred footprints
     seed: int
     use_pelvis_physics: bool
-    use_spine: bool
     use_progression: bool
     use_gait_randomizer: bool
     warnings: list[str] = field(default_factory=list)
@@ -280,7 +279,6 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         foot_offset=_offsets_of(obj, info.legs, from_settings),
         seed=int(settings.seed),
         use_pelvis_physics=bool(settings.use_pelvis_physics),
-        use_spine=bool(settings.use_spine),
         use_progression=bool(settings.use_progression),
         use_gait_randomizer=bool(settings.use_gait_randomizer),
         warnings=list(info.warnings),

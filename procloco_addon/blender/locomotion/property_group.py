@@ -177,16 +177,6 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         description="The pelvis bobs with the feet's push and landing (thesis §4.1)",
         default=True,
     )
-    use_spine: BoolProperty(
-        name="Flexible Spine",
-        description="The spine bends along the path instead of turning rigidly (thesis §4.2)",
-        default=True,
-    )
-    use_visual_yaw: BoolProperty(
-        name="Spine Sway",
-        description="The spine sways with the feet (thesis §4.4)",
-        default=False,
-    )
     use_progression: BoolProperty(
         name="Burst Progression",
         description="Burst-like speed with stalls, like insects (thesis §4.3)",

@@ -19,7 +19,7 @@ import numpy as np
 from ...core.controller import Controller, ControllerParams, StepControls
 from ...core.footprints import PlannerParams
 from ...core.morphology import LegBatch
-from ...core.progression import ProgressionParams, ProgressionState, progression_step
+from ...core.progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
 from ...core.terrain import NO_SURFACE
 
 if TYPE_CHECKING:
@@ -37,7 +37,8 @@ class SimResult:
     gait needle's phase and ``phase_rate`` ``(F,)`` its speed in cycles per second (the
     controller speeds it up when the stride would be too long); ``forced`` ``(F, n_legs)``
     feet taking a forced step (their support moved or became forbidden); ``plan_failed``
-    ``(F, n_legs)`` feet whose footstep plan failed (they stay planted)."""
+    ``(F, n_legs)`` feet whose footstep plan failed (they stay planted); ``disk_start``
+    ``(F, n_legs)`` each leg's swing start on the gait circle (changes with gait transitions)."""
 
     body: np.ndarray
     joints: np.ndarray
@@ -48,6 +49,7 @@ class SimResult:
     phase_rate: np.ndarray
     forced: np.ndarray
     plan_failed: np.ndarray
+    disk_start: np.ndarray
 
 
 def path_heading(path: np.ndarray, xy: np.ndarray, lookahead: float) -> tuple[float, float]:
@@ -98,6 +100,10 @@ def run(job: Job) -> Iterator[float]:
     rng = np.random.default_rng(job.seed)
     progression = ProgressionParams(max_speed=max(job.speed, 0.0))
     prog_state = ProgressionState.start(1, progression, rng) if job.use_progression else None
+    gait = job.gait
+    if job.use_gait_randomizer and not job.use_progression:
+        # Thesis §4.3: without stalls the randomizer only draws the gait the creature starts with.
+        gait = initial_gaits([legs.n_legs], rng)[0].to_gait(job.gait.cycle_time, "Random gait")
 
     def command(t: float, xy: np.ndarray) -> tuple[float, float]:
         speed = job.speed
@@ -119,7 +125,7 @@ def run(job: Job) -> Iterator[float]:
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
-    sim = Controller(terrain.environment, legs, [job.gait], origin[None, :2], np.array([start_yaw]), ctl,
+    sim = Controller(terrain.environment, legs, [gait], origin[None, :2], np.array([start_yaw]), ctl,
                      params=params, planner=[planner])
 
     n_legs = legs.n_legs
@@ -133,6 +139,7 @@ def run(job: Job) -> Iterator[float]:
     phase_rate = np.zeros(n_frames)
     forced = np.zeros((n_frames, n_legs), dtype=bool)
     failed = np.zeros((n_frames, n_legs), dtype=bool)
+    disk_start = np.zeros((n_frames, n_legs))
 
     def record(f: int) -> None:
         body[f] = np.eye(4)
@@ -148,6 +155,7 @@ def run(job: Job) -> Iterator[float]:
         phase_rate[f] = float(sim.gait.rate()[0])
         forced[f] = sim.forced
         failed[f] = sim.plan_failed
+        disk_start[f] = sim.gait.disk_start
 
     # The controller's initial pose does not yet keep the hips within reach of the feet (its
     # reach guard runs in step()): a vanishing step settles frame 0 without moving anything.
@@ -160,12 +168,16 @@ def run(job: Job) -> Iterator[float]:
         speed, heading = command(t, sim.pos[0, :2])
         if prog_state is not None:
             progression = ProgressionParams(max_speed=max(speed, 0.0))
-            prog_state, step = progression_step(prog_state, progression, job.dt, rng)
-            speed = float(step.speed[0])
+            prog_state, effects = effects_step(prog_state, progression, job.dt, rng, [legs.n_legs],
+                                               randomize_gait=job.use_gait_randomizer)
+            speed = float(effects.progression.speed[0])
+            if 0 in effects.new_gaits:  # a stall: the next burst walks with a new random gait
+                new = effects.new_gaits[0].to_gait(job.gait.cycle_time, "Random gait")
+                sim.gait.start_transition([0], [new], 0.5 * job.gait.cycle_time)
         sim.step(job.dt, _controls(job, legs, speed, heading))
         record(f)
         yield (f + 1) / n_frames
-    job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed)
+    job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed, disk_start)
 
 
 def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:
