@@ -177,7 +177,8 @@ def run(job: Job) -> Iterator[float]:
         sim.step(job.dt, _controls(job, legs, speed, heading))
         record(f)
         yield (f + 1) / n_frames
-    job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed, disk_start)
+    job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed,
+                           disk_start)
 
 
 def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:
