@@ -140,6 +140,16 @@ class ControllerParams:
 
 
 @dataclass(frozen=True)
+class PlannerLOD:
+    """A character's planner level of detail (thesis §3.7): couples evaluated after the first
+    valid one (None: full search, 0: stop at the first) and the height-slice size in metres
+    (None: no slices, go over everything)."""
+
+    max_couples_after_first: int | None = None
+    slice_size: float | None = 0.1
+
+
+@dataclass(frozen=True)
 class StepControls:
     """Commands for one step. ``speed``, ``heading``, ``step_height``: ``(C,)`` (m/s,
     radians from world +X, metres); ``spacing``: ``(N, 2)`` body-frame xy offset of each foot
@@ -178,8 +188,10 @@ class Controller:
     ``env``: the environment; ``legs``: every character's legs (``LegBatch``); ``gaits``: one
     ``Gait`` per character; ``start_xy (C, 2)``, ``start_yaw (C,)``: initial pelvis ground
     position and heading; ``phase (C,)``: initial needle phases; ``planner``: optional
-    per-character ``PlannerParams`` overrides (LOD); ``controls``: the first step's commands
-    (for the initial planning of feet that start in swing).
+    per-character ``PlannerParams`` (replacing the derived ones except step height, reach,
+    foot size and height change); ``lod``: optional per-character ``PlannerLOD``;
+    ``controls``: the first step's commands (for the initial planning of feet that start in
+    swing).
     """
 
     def __init__(
@@ -194,6 +206,7 @@ class Controller:
         phase: npt.ArrayLike | None = None,
         params: ControllerParams | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
+        lod: Sequence[PlannerLOD | None] | None = None,
     ) -> None:
         self.env = env
         self.legs = legs
@@ -218,6 +231,7 @@ class Controller:
             else np.full(c, float(p.window_cell))
         )
         self._planner_override = list(planner) if planner is not None else [None] * c
+        self.lod: list[PlannerLOD | None] = list(lod) if lod is not None else [None] * c
         rest_vec = legs.rest_foot - legs.hip_offset
         self.rest_height = -rest_vec[:, 2]
         self.rest_horizontal = np.linalg.norm(rest_vec[:, :2], axis=1)
@@ -344,14 +358,17 @@ class Controller:
         p = self.params
         leg = float(self.char_leg_length[char])
         reach = leg if leg_reach is None else float(leg_reach)
+        level = self.lod[char]
         base = PlannerParams(
             step_height=float(step_height),
-            slice_size=p.slice_size,
+            slice_size=p.slice_size if level is None else level.slice_size,
             leg_reach=reach,
             candidate_radius=p.candidate_radius * leg,
             fixed_distance=p.fixed_distance * leg,
             foot_half_extents=(float(self.foot_half[char, 0]), float(self.foot_half[char, 1])),
-            max_couples_after_first=p.max_couples_after_first,
+            max_couples_after_first=p.max_couples_after_first
+            if level is None
+            else level.max_couples_after_first,
             max_height_change=p.max_height_change * leg,
         )
         override = self._planner_override[char]
@@ -796,7 +813,13 @@ class Controller:
 
     # ---------------------------------------------------------------- pelvis
     def _hull_pose(self, ctl: StepControls) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Hull height (+ body thickness), pitch and roll under each character."""
+        """Hull height (+ body thickness), pitch and roll under each character.
+
+        Thesis figure 3.8 works on a vertical slice along the body: the terrain under the body
+        box is sampled on a grid and reduced to its highest point across the body at each
+        position along it (and along the body at each position across it, for roll), then the
+        planted feet (and the targets of swinging ones) are added.
+        """
         c = self.n_chars
         na, nc = self.params.body_samples
         sa = np.linspace(-1.0, 1.0, na)
@@ -804,31 +827,69 @@ class Controller:
         grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
         local = self.box_center[:, None, :] + grid[None, :, :] * self.box_half[:, None, :]
         cy, sy = np.cos(self.yaw)[:, None], np.sin(self.yaw)[:, None]
-        world = self.pos[:, None, :2] + np.stack(
-            [cy * local[..., 0] - sy * local[..., 1], sy * local[..., 0] + cy * local[..., 1]], axis=-1
+
+        def to_world(loc: FloatArray) -> FloatArray:
+            return np.asarray(
+                self.pos[:, None, :2]
+                + np.stack(
+                    [cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1
+                )
+            )
+
+        ground = self.env.height_at(to_world(local).reshape(-1, 2)).reshape(c, na, nc)
+        ground = np.where(ground > _VOID, ground, -np.inf)
+        along_z = ground.max(axis=2)  # (c, na)
+        across_z = ground.max(axis=1)  # (c, nc)
+        along_local = np.stack(
+            [
+                self.box_center[:, None, 0] + sa[None, :] * self.box_half[:, None, 0],
+                np.broadcast_to(self.box_center[:, None, 1], (c, na)),
+            ],
+            axis=-1,
         )
-        ground = self.env.height_at(world.reshape(-1, 2)).reshape(c, -1)
-        box_pts = np.concatenate([world, ground[..., None]], axis=-1)
-        box_ok = ground > _VOID
+        across_local = np.stack(
+            [
+                np.broadcast_to(self.box_center[:, None, 0], (c, nc)),
+                self.box_center[:, None, 1] + sc[None, :] * self.box_half[:, None, 1],
+            ],
+            axis=-1,
+        )
+        width = max(na, nc)
+
+        def padded(loc: FloatArray, z: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+            pts = np.zeros((c, width, 3))
+            ok = np.zeros((c, width), dtype=bool)
+            k = loc.shape[1]
+            pts[:, :k, :2] = to_world(loc)
+            pts[:, :k, 2] = np.where(np.isfinite(z), z, 0.0)
+            ok[:, :k] = np.isfinite(z)
+            return pts, ok
+
+        along_pts, along_ok = padded(along_local, along_z)
+        across_pts, across_ok = padded(across_local, across_z)
         # feet: planted feet where they are, swinging feet where they will land
         feet = np.where(self.swinging[:, None], self.target, self.foot)
-        counts = np.bincount(self.leg_char, minlength=c)
-        width = int(counts.max())
+        n_feet = int(np.bincount(self.leg_char, minlength=c).max())
         slot = np.arange(self.n_legs) - self.legs.leg_start[self.leg_char]
-        feet_pts = np.zeros((c, width, 3))
-        feet_ok = np.zeros((c, width), dtype=bool)
+        feet_pts = np.zeros((c, n_feet, 3))
+        feet_ok = np.zeros((c, n_feet), dtype=bool)
         feet_pts[self.leg_char, slot] = feet
         feet_ok[self.leg_char, slot] = True
-        pts = np.concatenate([box_pts, feet_pts], axis=1)
-        ok = np.concatenate([box_ok, feet_ok], axis=1)
         fwd = np.stack([np.cos(self.yaw), np.sin(self.yaw)], axis=1)
         left = np.stack([-np.sin(self.yaw), np.cos(self.yaw)], axis=1)
         # both slices (forward for height and pitch, left for roll) in one batched call
         both_h, both_a = hull_height_and_pitch(
-            np.concatenate([pts, pts]),
+            np.concatenate(
+                [
+                    np.concatenate([along_pts, feet_pts], axis=1),
+                    np.concatenate([across_pts, feet_pts], axis=1),
+                ]
+            ),
             np.concatenate([self.pos[:, :2], self.pos[:, :2]]),
             np.concatenate([fwd, left]),
-            np.concatenate([ok, ok]),
+            np.concatenate(
+                [np.concatenate([along_ok, feet_ok], axis=1), np.concatenate([across_ok, feet_ok], axis=1)]
+            ),
         )
         height, pitch, roll = both_h[:c], both_a[:c], both_a[c:]
         return height + self.body_thickness, pitch, roll

@@ -145,12 +145,18 @@ def solve_bend(
     # the answer and a Newton step that leaves it is replaced by bisection
     k_lo = np.zeros(n)  # straight: longest reach
     k_hi = np.full(n, max_bend)
-    kappa = np.ones(n)
     tol = tolerance * lengths.sum(axis=1)
+    # out of reach either way: straight, or folded as far as allowed
+    _, r_straight, _ = reach(k_lo)
+    _, r_folded, _ = reach(k_hi)
+    too_far = r_straight <= dist
+    too_close = r_folded >= dist
+    kappa = np.where(too_far, 0.0, np.where(too_close, max_bend, 1.0))
+    settled = too_far | too_close
     for _ in range(iterations):
         _, r, dr = reach(kappa)
         f = r - dist
-        done = np.abs(f) <= tol
+        done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
         if np.all(done):
             break
         k_lo = np.where(f > 0.0, kappa, k_lo)
@@ -368,13 +374,26 @@ def solve_legs(
             legs.joint_max[idx],
         )
         start = solve_bend(*args, legs.rest_angles[idx]) if init is None or shape_preserving else theta0[idx]
-        ccd = solve_ccd(*args, start, max_sweeps=max_sweeps, tolerance=tolerance)
-        refined = solve_dls(*args, ccd, max_iterations=polish_iterations, tolerance=tolerance)
-        # out of reach, the straight start is already the closest pose: keep the better one
         rows_i = np.arange(idx.size)
         err_start = np.linalg.norm(forward_planar(start, args[1])[rows_i, args[2]] - args[0], axis=1)
-        err_refined = np.linalg.norm(forward_planar(refined, args[1])[rows_i, args[2]] - args[0], axis=1)
-        theta[idx] = np.where((err_start <= err_refined)[:, None], start, refined)
+        theta[idx] = start
+        # CCD and the polish only where the start misses (joint limits, odd targets)
+        miss = np.flatnonzero(err_start > tolerance)
+        if miss.size:
+            t_m, len_m, nseg_m = args[0][miss], args[1][miss], args[2][miss]
+            lo_m, hi_m = args[3][miss], args[4][miss]
+            ccd = solve_ccd(
+                t_m, len_m, nseg_m, lo_m, hi_m, start[miss], max_sweeps=max_sweeps, tolerance=tolerance
+            )
+            refined = solve_dls(
+                t_m, len_m, nseg_m, lo_m, hi_m, ccd, max_iterations=polish_iterations, tolerance=tolerance
+            )
+            err_refined = np.linalg.norm(
+                forward_planar(refined, len_m)[np.arange(miss.size), nseg_m] - t_m, axis=1
+            )
+            # out of reach, the straight start is already the closest pose: keep the better one
+            better = err_refined < err_start[miss]
+            theta[idx[miss[better]]] = refined[better]
 
     pts = forward_planar(theta, legs.segment_lengths)
     joints_body = pts[..., 0:1] * a[:, None, :] + pts[..., 1:2] * b[:, None, :]

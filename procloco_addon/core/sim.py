@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import metrics as mx
-from .controller import Controller, ControllerParams, StepControls, StepStats, wrap_angle
+from .controller import Controller, ControllerParams, PlannerLOD, StepControls, StepStats, wrap_angle
 from .footprints import PlannerParams
 from .gait import Gait
 from .morphology import LegBatch, Morphology
@@ -204,7 +204,8 @@ class Simulation:
     path, else the origin); ``start_yaw``: ``(C,)`` or scalar (default: along the path);
     ``controls``: ``Controls`` or ``f(time) -> Controls``; ``gait_changes``: scheduled
     ``GaitChange``s; ``phase``: ``(C,)`` initial needle phases, ``"random"`` (seeded by
-    ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams`` (LOD).
+    ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams``;
+    ``lod``: optional per-character ``PlannerLOD`` (thesis §3.7).
     """
 
     def __init__(
@@ -222,6 +223,7 @@ class Simulation:
         seed: int = 0,
         params: ControllerParams | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
+        lod: Sequence[PlannerLOD | None] | None = None,
     ) -> None:
         if not dt > 0.0:
             raise ValueError("dt must be positive")
@@ -273,7 +275,16 @@ class Simulation:
         self._next_change = 0
         step0 = self._resolve(first, xy, yaw)
         self.controller = Controller(
-            env, self.legs, gait_list, xy, yaw, step0, phase=phase_arr, params=params, planner=planner
+            env,
+            self.legs,
+            gait_list,
+            xy,
+            yaw,
+            step0,
+            phase=phase_arr,
+            params=params,
+            planner=planner,
+            lod=lod,
         )
         self.time = 0.0
         self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
