@@ -176,6 +176,12 @@ def test_refuses_when_every_leg_is_disabled(wolf_scene: Any) -> None:
     _refused("Every leg of 'Wolf' is disabled")
 
 
+def test_refuses_duplicate_leg_labels(wolf_scene: Any) -> None:
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    wolf_scene.procloco.legs[1].label = "L1"
+    _refused("share the label L1")
+
+
 def test_one_bad_rig_among_selected_rigs_changes_nothing(wolf_scene: Any) -> None:
     other = creatures.build_robot(bpy.context.scene, name="Robot", location=(2.0, 0.0, 0.0))
     _short_range(other, 30, 5)

@@ -63,9 +63,15 @@ def settings_legs(obj: bpy.types.Object) -> list[rig.LegChain] | None:
         if not item.enabled:
             continue
         label = item.label or item.name
+        if not label:
+            raise GenerateError(f"A leg of '{obj.name}' has no label: name it (L1, R1, ...) in Rig & Legs")
         legs.append(rig.leg_from_bones(obj, item.hip, item.end, label))
     if not legs:
         raise GenerateError(f"Every leg of '{obj.name}' is disabled: enable at least one in Rig & Legs")
+    labels = [leg.label for leg in legs]
+    twice = sorted({lb for lb in labels if labels.count(lb) > 1})
+    if twice:
+        raise GenerateError(f"Legs of '{obj.name}' share the label {', '.join(twice)}: labels must be unique")
     return legs
 
 
