@@ -233,9 +233,8 @@ def main() -> None:
         )
     by = {r.name: r.step_s for r in results}
     print()
-    print(
-        f"RESULT crowd step_s_lod={by['LOD']:.4f} step_s_zlod={by['LOD zoomed']:.4f} step_s_nolod={by['No LOD']:.4f}"
-    )
+    lod, zlod, nolod = by["LOD"], by["LOD zoomed"], by["No LOD"]
+    print(f"RESULT crowd step_s_lod={lod:.4f} step_s_zlod={zlod:.4f} step_s_nolod={nolod:.4f}")
 
 
 if __name__ == "__main__":
