@@ -550,6 +550,9 @@ class RigInfo:
     foot_height: np.ndarray  # (n_legs,) height of the end-effector above its contact point
     foot_extent: np.ndarray  # (n_legs, 2) half size of each foot's ground print (forward, left)
     foot_points: tuple[np.ndarray, ...]  # per leg (p, 3) rest points of the foot bones (sole probes)
+    # Per leg: (target bone, joint index) when an IK constraint on the leg pulls the chain to
+    # a bone of this rig; that bone is keyed so the joint reaches the simulated position.
+    ik_targets: tuple[tuple[str, int] | None, ...]
     world: np.ndarray  # (4, 4) object world matrix
     scale: float
     rest_local: dict[str, np.ndarray] = field(repr=False)  # bone -> (4, 4) armature-space rest
@@ -567,6 +570,7 @@ class RigInfo:
         for leg in self.legs:
             names += list(leg.bones)
             names += list(leg.foot[:1])
+        names += [t[0] for t in self.ik_targets if t is not None]
         return tuple(dict.fromkeys(names))
 
 
@@ -614,7 +618,9 @@ def read_rig(
     spine = _spine_between(rest, body_idx, hip_idx)
 
     basis = _current_basis(obj)
+    ik_targets = [_ik_target(obj, rest, leg) for leg in legs]
     driven = {rest.index[b] for leg in legs for b in (*leg.bones, *leg.foot[:1])} | {body_idx}
+    driven |= {rest.index[t[0]] for t in ik_targets if t is not None}
     posed_local = _posed_rest(rest, basis, driven)
     heads = _apply(rest.world, posed_local[:, :3, 3])
     tails = _apply(rest.world, posed_local[:, :3, 3] + posed_local[:, :3, 1]
@@ -651,10 +657,12 @@ def read_rig(
     body = BodyInfo(origin, forward, left)
 
     warnings = []
+    handled = {t[0] for t in ik_targets if t is not None}
     for name in sorted(rest.names[i] for i in driven):
         pb = obj.pose.bones[name]
         bad = [c.type for c in pb.constraints
-               if c.enabled and c.influence > 0.0 and c.type in _OVERRIDING_CONSTRAINTS]
+               if c.enabled and c.influence > 0.0 and c.type in _OVERRIDING_CONSTRAINTS
+               and not (c.type == "IK" and c.target == obj and c.subtarget in handled)]
         if bad:
             warnings.append(f"bone '{name}' has {', '.join(sorted(set(bad)))} constraints that override the "
                             "generated keys")
@@ -670,6 +678,7 @@ def read_rig(
         foot_height=np.array(foot_h),
         foot_extent=np.array(foot_ext),
         foot_points=tuple(foot_pts),
+        ik_targets=tuple(ik_targets),
         world=rest.world,
         scale=rest.scale,
         rest_local={n: rest.local[i] for i, n in enumerate(rest.names)},
@@ -678,6 +687,24 @@ def read_rig(
         basis=basis,
         warnings=tuple(warnings),
     )
+
+
+def _ik_target(obj: bpy.types.Object, rest: _Rest, leg: LegChain) -> tuple[str, int] | None:
+    """The bone an enabled IK constraint on ``leg`` pulls the chain to, and the index of the
+    joint it pulls (the constrained bone's tail, or its head with "Use Tail" off)."""
+    chain = set(leg.bones)
+    for k, name in enumerate(leg.bones):
+        for c in obj.pose.bones[name].constraints:
+            if c.type != "IK" or not c.enabled or c.influence <= 0.0 or c.target != obj:
+                continue
+            target = c.subtarget
+            if target not in rest.index or target in chain:
+                continue
+            # A target that moves with the chain itself would be a dependency cycle.
+            if any(rest.names[a] in chain for a in rest.ancestors(rest.index[target])):
+                continue
+            return target, (k + 1 if c.use_tail else k)
+    return None
 
 
 def _descendants(rest: _Rest, i: int) -> list[int]:
@@ -959,6 +986,16 @@ def solve_pose(
         if leg.foot:
             desired[leg.foot[0]] = yaw @ rest_rot[leg.foot[0]]
 
+    # Bones that IK constraints pull the legs to: placed where the simulated joint is,
+    # turned with the body's heading.
+    moved_heads: dict[str, np.ndarray] = {info.body_bone: body_head}
+    for k, target in enumerate(info.ik_targets):
+        if target is None:
+            continue
+        bone, joint = target
+        desired[bone] = yaw @ rest_rot[bone]
+        moved_heads[bone] = np.asarray(joints_world[k], dtype=np.float64)[:, joint]
+
     if ground is not None:
         _pitch_feet(info, joints_world, yaw, rest_rot, desired, ground, max_foot_pitch)
 
@@ -977,8 +1014,8 @@ def solve_pose(
         if name in desired:
             target = np.empty((n_frames, 4, 4))
             target[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
-            if name == info.body_bone:
-                target[:, :3, 3] = _apply(w_inv, body_head)
+            if name in moved_heads:
+                target[:, :3, 3] = _apply(w_inv, moved_heads[name])
             else:
                 target[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
             target[:, 3] = (0.0, 0.0, 0.0, 1.0)
@@ -990,7 +1027,7 @@ def solve_pose(
 
     rotations = np.stack([matrix_to_quaternion(_orthonormal(basis_out[b][:, :3, :3])) for b in bones], axis=1)
     locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)
-    keyed = np.array([b == info.body_bone for b in bones])
+    keyed = np.array([b in moved_heads for b in bones])
     return PoseTracks(bones, rotations, locations, keyed)
 
 

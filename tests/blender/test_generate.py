@@ -600,3 +600,40 @@ def test_burst_progression_and_gait_randomizer(empty_scene: Any) -> None:
     joints = leg_joints(spider, [int(f) for f in job.frames], [leg.bones for leg in job.info.legs])
     ends = np.stack([j[:, -1] for j in joints], axis=1)
     assert metrics.stance_sliding(ends, ~job.result.swing).max() <= 0.002
+
+
+def test_legs_driven_by_ik_constraints_follow_their_keyed_targets(empty_scene: Any) -> None:
+    """A rig whose legs hang on IK constraints: ProcLoco keys the IK targets, and Blender's
+    own IK puts the feet where the simulation planted them."""
+    from procloco_addon.blender import rig
+    from procloco_addon.core import metrics
+    from tests.blender.pose_eval import leg_joints
+
+    _ground(size=12.0)
+    robot = creatures.build_robot(empty_scene)
+    legs = rig.detect_legs(robot)
+    _select_only(robot)
+    bpy.ops.object.mode_set(mode="EDIT")
+    eb = robot.data.edit_bones
+    for leg in legs:
+        target = eb.new(f"IK_{leg.label}")
+        target.head = eb[leg.end].tail
+        target.tail = target.head + type(target.head)((0.0, -0.05, 0.0))
+        target.parent = eb["Body"].parent  # the root: None here, a leaf beside each foot
+    bpy.ops.object.mode_set(mode="OBJECT")
+    for leg in legs:
+        c = robot.pose.bones[leg.end].constraints.new("IK")
+        c.target, c.subtarget, c.chain_count = robot, f"IK_{leg.label}", len(leg.bones)
+    job = _generate(robot, frames=60)
+    assert [t[0] if t else None for t in job.info.ik_targets] == [f"IK_{leg.label}" for leg in legs]
+    assert not job.warnings, "handled IK constraints are not reported as overriding"
+    joints = leg_joints(robot, [int(f) for f in job.frames], [leg.bones for leg in job.info.legs])
+    ends = np.stack([j[:, -1] for j in joints], axis=1)
+    assert np.linalg.norm(ends - job.result.feet, axis=-1).max() <= 0.01
+    assert metrics.stance_sliding(ends, ~job.result.swing).max() <= 0.002
+    assert float(np.ptp(ends[:, 0, 1])) > 0.3, "the feet walked"
+    # The targets themselves were keyed onto the planted and swinging feet.
+    from tests.blender.pose_eval import bone_heads_tails
+
+    heads, _tails = bone_heads_tails(robot, [int(f) for f in job.frames], [f"IK_{leg.label}" for leg in legs])
+    assert np.linalg.norm(heads - job.result.feet, axis=-1).max() <= 1e-4
