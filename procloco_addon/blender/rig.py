@@ -1012,14 +1012,14 @@ def solve_pose(
         else:
             base = pose[parent] @ (np.linalg.inv(info.rest_local[parent]) @ rest_l)[None]
         if name in desired:
-            target = np.empty((n_frames, 4, 4))
-            target[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
+            want = np.empty((n_frames, 4, 4))
+            want[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
             if name in moved_heads:
-                target[:, :3, 3] = _apply(w_inv, moved_heads[name])
+                want[:, :3, 3] = _apply(w_inv, moved_heads[name])
             else:
-                target[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
-            target[:, 3] = (0.0, 0.0, 0.0, 1.0)
-            basis = np.linalg.inv(base) @ target
+                want[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
+            want[:, 3] = (0.0, 0.0, 0.0, 1.0)
+            basis = np.linalg.inv(base) @ want
             basis_out[name] = basis
             pose[name] = base @ basis
         else:
