@@ -1012,14 +1012,14 @@ def solve_pose(
         else:
             base = pose[parent] @ (np.linalg.inv(info.rest_local[parent]) @ rest_l)[None]
         if name in desired:
-            want = np.empty((n_frames, 4, 4))
-            want[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
+            goal = np.empty((n_frames, 4, 4))
+            goal[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
             if name in moved_heads:
-                want[:, :3, 3] = _apply(w_inv, moved_heads[name])
+                goal[:, :3, 3] = _apply(w_inv, moved_heads[name])
             else:
-                want[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
-            want[:, 3] = (0.0, 0.0, 0.0, 1.0)
-            basis = np.linalg.inv(base) @ want
+                goal[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
+            goal[:, 3] = (0.0, 0.0, 0.0, 1.0)
+            basis = np.linalg.inv(base) @ goal
             basis_out[name] = basis
             pose[name] = base @ basis
         else:
