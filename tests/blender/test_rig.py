@@ -272,3 +272,17 @@ def test_knee_plane_kept_without_twist(empty_scene: Any) -> None:
             twist_now = np.arctan2(np.einsum("fi,fi->f", m[:, :, 0], f_now[:, :, 2]),
                                    np.einsum("fi,fi->f", m[:, :, 0], f_now[:, :, 1]))
             assert np.allclose(twist_now, twist_rest, atol=1e-4), name
+
+
+def test_numbered_legs_without_sides_get_sides_from_where_they_are(empty_scene: Any) -> None:
+    """``Leg1 > Leg1.001 > Leg1.002``, ..., ``Leg5``: names say "leg" and a number only."""
+    arm = creatures.build_robot(empty_scene)
+    renamed = {}
+    for n, chain in enumerate(creatures.ROBOT_LEGS, start=1):
+        for k, name in enumerate(chain):
+            new = f"Leg{n}" if k == 0 else f"Leg{n}.{k:03d}"
+            arm.data.bones[name].name = new
+            renamed[new] = name
+    legs = rig.detect_legs(arm)
+    got = {leg.label: tuple(renamed[b] for b in leg.bones) for leg in legs}
+    assert got == {label: chain for label, (chain, _foot) in EXPECTED["robot"].items()}
