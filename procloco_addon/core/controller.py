@@ -96,7 +96,8 @@ class ControllerParams:
       ``replan_spacing`` (× leg); heading/speed/spacing re-plans only before
       ``replan_until`` of the swing.
     - ``feedback_threshold`` (× leg) and ``feedback_gain`` (offset share worked off per cycle).
-    - ``reach_margin``: largest hip-to-foot distance allowed, as a share of the leg length.
+    - ``reach_margin``: largest hip-to-foot distance allowed, as a share of the leg length;
+      the pelvis sinks to keep it, by at most ``guard_max_drop`` (× body thickness).
     - ``height_time`` (× cycle): time constant of the pelvis height/pitch/roll filter.
     - ``trajectory_samples``: samples kept of each swing trajectory (constant speed).
     - ``snap_tolerance`` (× step height): a footprint may be lowered by up to this much onto
@@ -136,6 +137,7 @@ class ControllerParams:
     forced_swing: float = 0.6
     max_drop: float = 0.15
     step_early_reach: float = 0.92
+    guard_max_drop: float = 0.5
     physics: PelvisPhysicsParams = field(default_factory=PelvisPhysicsParams)
 
 
@@ -290,6 +292,7 @@ class Controller:
         self.plan_speed = np.zeros(n)
         self.plan_spacing = np.zeros((n, 2))
         self.plan_failed = np.zeros(n, dtype=bool)
+        self.restarts = np.zeros(n, dtype=np.int64)  # steps started again because the spot was taken
         self.angles = legs.rest_angles.copy()
         self.ik_result: IKResult | None = None
         # initial pelvis pose from the hull
@@ -414,7 +417,8 @@ class Controller:
             gstep.landed | (self.forced & (self.forced_elapsed + dt >= self.forced_duration))
         ) & self.swinging
         # a moving obstacle may have taken the landing spot since the last check: step again
-        bad_landing = landing & self._spot_taken(self.target)
+        bad_landing = landing & self._spot_taken(self.target) & (self.restarts < 2)
+        self.restarts = np.where(bad_landing, self.restarts + 1, np.where(landing, 0, self.restarts))
         self._land(landing & ~bad_landing)
         self.forced_elapsed = np.where(self.forced, self.forced_elapsed + dt, 0.0)
         lifted = gstep.lifted | (self._start_in_swing & gstep.swing)
@@ -590,13 +594,13 @@ class Controller:
         return np.asarray(planted & (need > self.params.max_drop * self.body_thickness[self.leg_char]))
 
     def _spot_taken(self, points: FloatArray) -> BoolArray:
-        """Whether a moving obstacle now covers footprints ``points (N, 3)``: ``(N,)``."""
+        """Whether a moving obstacle now covers footprints ``points (N, 3)`` (rose above them
+        or made them forbidden since they were planned): ``(N,)``."""
         if not self.env_dynamic:
             return np.zeros(self.n_legs, dtype=bool)
         surface = self.env.height_at(points[:, :2])
-        return np.asarray(
-            (surface > points[:, 2] + self.params.support_tolerance) | self.env.forbidden_at(points[:, :2])
-        )
+        newly_forbidden = self.env.forbidden_at(points[:, :2]) & ~self.traj_forbidden[:, -1]
+        return np.asarray((surface > points[:, 2] + self.params.support_tolerance) | newly_forbidden)
 
     def _plan(
         self,
@@ -778,8 +782,20 @@ class Controller:
     def _straight_step(
         self, start: FloatArray, target_xy: FloatArray, u: FloatArray, step_height: float
     ) -> tuple[FloatArray, FloatArray]:
-        """Last resort when the planner finds no couple: a straight arc to ``target_xy``,
-        lifted ``step_height`` above everything under it (it may pass over an avoided box)."""
+        """Last resort when the planner finds no couple: a straight arc to ``target_xy`` (or
+        the nearest spot around it outside avoided obstacles), lifted ``step_height`` above
+        everything under it (it may pass over an avoided box)."""
+        if self.env.forbidden_at(target_xy[None])[0]:
+            reach = float(np.linalg.norm(target_xy - start[:2])) + 1e-3
+            ring = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+            radii = np.linspace(0.1, 1.0, 6) * reach
+            spots = target_xy[None, None, :] + radii[:, None, None] * np.stack(
+                [np.cos(ring), np.sin(ring)], axis=1
+            )
+            spots = spots.reshape(-1, 2)
+            free = ~self.env.forbidden_at(spots) & (self.env.height_at(spots) > _VOID)
+            if np.any(free):
+                target_xy = spots[int(np.flatnonzero(free)[0])]
         xy = start[None, :2] + u[:, None] * (target_xy - start[:2])[None, :]
         surface = self.env.height_at(xy)
         end_z = float(surface[-1]) if surface[-1] > _VOID else float(start[2])
@@ -902,11 +918,10 @@ class Controller:
         d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
         allowed = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         excess = np.maximum(hips[:, 2] - allowed, 0.0)
-        # a foot too far sideways cannot be helped by lowering (it steps early instead)
-        excess = np.where(d_h < reach, excess, 0.0)
         drop = np.zeros(self.n_chars)
         np.maximum.at(drop, self.leg_char, excess)
-        self.pos[:, 2] -= drop
+        # bounded (a foot beyond any help steps early instead), and continuous in the feet
+        self.pos[:, 2] -= np.minimum(drop, self.params.guard_max_drop * self.body_thickness)
 
     # ---------------------------------------------------------------- legs
     def _solve_ik(self, ctl: StepControls) -> None:

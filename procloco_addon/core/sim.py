@@ -476,6 +476,7 @@ def check_motion(
     nseg = legs.n_segments[leg_sel]
     leg_len = legs.leg_length[leg_sel]
     target = result.foot[:, leg_sel]
+    body_up = result.pelvis_rotation[:, legs.leg_char[leg_sel]][..., 2]
     depth = result.ground[:, leg_sel] - end[..., 2]
     boxes = env.boxes
     # moving boxes are judged by the per-frame ground (their top), static ones also from the side
@@ -507,8 +508,11 @@ def check_motion(
         penetration=float(max(depth.max(), 0.0)),
         avoid_intrusion=intrusion,
         bone_length_error=mx.bone_length_error(result.joints[:, leg_sel], seg, nseg),
+        # angles measured from the posed joints, not taken from the solver's bookkeeping
         joint_limit_excess=mx.joint_limit_excess(
-            result.angles[:, leg_sel], legs.joint_min[leg_sel], legs.joint_max[leg_sel]
+            mx.joint_angles(result.joints[:, leg_sel], result.plane_normal[:, leg_sel], body_up, nseg),
+            legs.joint_min[leg_sel],
+            legs.joint_max[leg_sel],
         ),
         reach_error=mx.reach_error(end, target, reachable),
         extension=mx.target_extension(hips, target, leg_len),
