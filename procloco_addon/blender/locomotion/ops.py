@@ -133,7 +133,7 @@ class PROCLOCO_OT_generate_locomotion(bpy.types.Operator):
     def _finish(self, context: Any) -> set[str]:
         try:
             made = [generate.write(context, job) for job in self._jobs]
-        except (actions.ActionError, rig.RigError, ValueError) as err:
+        except (actions.ActionError, rig.RigError, ValueError, KeyError) as err:
             self.report({"ERROR"}, f"Could not write the Action: {err}")
             return {"CANCELLED"}
         for job in self._jobs:
