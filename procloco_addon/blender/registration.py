@@ -14,6 +14,10 @@ from typing import Any
 import bpy
 
 from . import cli
+from .biped import ops as biped_ops
+from .biped import panel as biped_panel
+from .biped import property_group as biped_props
+from .biped import ui_list as biped_ui_list
 from .gait import handler as gait_handler
 from .gait import ops as gait_ops
 from .gait import panel as gait_panel
@@ -32,6 +36,13 @@ CLASSES: tuple[type, ...] = (
     locomotion_ops.PROCLOCO_OT_clear_generated_action,
     locomotion_ui_list.PROCLOCO_UL_legs,
     gait_props.PROCLOCO_PG_gait_view,
+    biped_props.PROCLOCO_PG_biped_clip,
+    biped_props.PROCLOCO_PG_biped_settings,
+    biped_ops.PROCLOCO_OT_plan_biped_footsteps,
+    biped_ops.PROCLOCO_OT_add_biped_clip,
+    biped_ops.PROCLOCO_OT_remove_biped_clip,
+    biped_ops.PROCLOCO_OT_make_biped_clips,
+    biped_ui_list.PROCLOCO_UL_biped_clips,
     # The sidebar tab's parent panel before every feature's sub-panels.
     ui_main.PROCLOCO_PT_main,
     gait_ops.PROCLOCO_MT_gait_presets,
@@ -44,6 +55,7 @@ CLASSES: tuple[type, ...] = (
     gait_panel.PROCLOCO_PT_gait,
     locomotion_panel.PROCLOCO_PT_locomotion,
     locomotion_panel.PROCLOCO_PT_terrain,
+    biped_panel.PROCLOCO_PT_biped,
     ui_main.PROCLOCO_PT_effects,
     ui_main.PROCLOCO_PT_generate,
 )
@@ -56,6 +68,7 @@ PROPERTIES: tuple[tuple[type, str, Any], ...] = (
 # (owner ID type, attribute name, property group class)
 POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco", locomotion_props.PROCLOCO_PG_rig_settings),
+    (bpy.types.Object, "procloco_biped", biped_props.PROCLOCO_PG_biped_settings),
     (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 

@@ -82,3 +82,22 @@ def test_arc_band_is_one_island() -> None:
 def test_rejects_empty_input() -> None:
     with pytest.raises(ValueError, match="at least one triangle"):
         WalkableSurface.from_triangles(np.zeros((0, 3, 3)))
+
+
+def test_blocked_triangles_cut_the_ground() -> None:
+    ground = rectangle((0.0, 0.0, 0.0), (6.0, 6.0))
+    crate = rectangle((0.0, 0.0, 0.5), (1.0, 1.0))  # the top of a crate to keep off
+    surf = WalkableSurface.from_triangles(
+        np.array([[ground[0], ground[1], ground[2]], [ground[0], ground[2], ground[3]]]),
+        blocked=np.array([[crate[0], crate[1], crate[2]], [crate[0], crate[2], crate[3]]]),
+    )
+    assert not surf.supported(np.array([[0.0, 0.0]]))[0]
+    assert surf.supported(np.array([[2.0, 0.0]]))[0]
+    assert not surf.fits(np.array([[0.55, 0.0]]))[0]  # too close to the crate for a foot
+
+
+def test_bounds_limit_the_raster() -> None:
+    big = rectangle((0.0, 0.0, 0.0), (1000.0, 1000.0))
+    surf = WalkableSurface.from_polygons([big], bounds=(-5.0, -5.0, 5.0, 5.0))
+    assert max(surf.z.shape) <= 10.0 / surf.cell + 2
+    assert surf.height_at(np.array([[1.0, 1.0]]))[0] == pytest.approx(0.0)

@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -56,13 +57,22 @@ class WalkableSurface:
 
     @classmethod
     def from_triangles(
-        cls, triangles: FloatArray, cell: float = 0.05, margin: float = 0.12, max_step: float = 0.2
+        cls,
+        triangles: FloatArray,
+        cell: float = 0.05,
+        margin: float = 0.12,
+        max_step: float = 0.2,
+        blocked: FloatArray | None = None,
+        bounds: tuple[float, float, float, float] | None = None,
     ) -> WalkableSurface:
         """Surface from ``(T, 3, 3)`` triangles (any winding; vertical ones are ignored).
 
         ``cell`` is the raster resolution, ``margin`` how far inside an edge a footprint
         centre must stay (about half a foot length), ``max_step`` the height difference
         between neighbouring cells above which they are not connected (a ledge or a wall).
+        ``blocked (B, 3, 3)``: triangles of obstacles to keep off; the ground under them
+        (seen from above) is not walkable. ``bounds (x0, y0, x1, y1)`` limits the raster to
+        a region (a large ground plane need not be rasterised far from the character).
         """
         tris = np.asarray(triangles, dtype=float).reshape(-1, 3, 3)
         if len(tris) == 0:
@@ -71,14 +81,25 @@ class WalkableSurface:
             raise ValueError("cell and max_step must be positive and margin non-negative")
         lo = tris[:, :, :2].min(axis=(0, 1)) - (margin + 2 * cell)
         hi = tris[:, :, :2].max(axis=(0, 1)) + (margin + 2 * cell)
+        if bounds is not None:
+            lo = np.maximum(lo, np.array(bounds[:2], dtype=float))
+            hi = np.minimum(hi, np.array(bounds[2:], dtype=float))
+            if np.any(hi <= lo):
+                raise ValueError("no walkable triangle lies inside the bounds")
         nx, ny = (np.ceil((hi - lo) / cell).astype(int) + 1).tolist()
         z, tri_id = _rasterise(tris, lo, cell, nx, ny)
+        if blocked is not None and len(blocked):
+            bz, _ = _rasterise(np.asarray(blocked, dtype=float).reshape(-1, 3, 3), lo, cell, nx, ny)
+            gone = np.isfinite(bz)
+            z = np.where(gone, np.nan, z)
+            tri_id = np.where(gone, -1, tri_id)
         island = _label_islands(z, max_step)
-        inner = _erode(island, margin, cell)
+        # One cell of slack: an edge may lie anywhere inside its boundary cell.
+        inner = _erode(island, margin + cell, cell)
         return cls(tris, float(cell), lo, z, island, inner, tri_id, float(margin), float(max_step))
 
     @classmethod
-    def from_polygons(cls, polygons: Sequence[FloatArray], **kwargs: float) -> WalkableSurface:
+    def from_polygons(cls, polygons: Sequence[FloatArray], **kwargs: Any) -> WalkableSurface:
         """Surface from convex polygons, each ``(k, 3)`` vertices in order (fan-triangulated)."""
         tris: list[FloatArray] = []
         for poly in polygons:

@@ -88,6 +88,44 @@ class Gait:
     arm_swing: float
     forward_lean: float
 
+    def scaled(self, k: float) -> Gait:
+        """The same gait for a body ``k`` times as large (lengths and speeds times ``k``)."""
+        return replace(
+            self,
+            speed=self.speed * k,
+            step_width=self.step_width * k,
+            step_height=self.step_height * k,
+            pelvis_height=self.pelvis_height * k,
+            bob=self.bob * k,
+            sway=self.sway * k,
+        )
+
+
+#: Leg length (thigh + shin) and standing pelvis height of :func:`make_skeleton` at scale 1,
+#: the body the gaits below are written for.
+REFERENCE_LEG = 0.86
+REFERENCE_STAND = 0.99
+
+
+def body_scale(skel: Skeleton) -> float:
+    """How large ``skel`` is compared with the reference body (ratio of leg lengths)."""
+    return float(np.mean(skel.thigh_length + skel.shin_length)) / REFERENCE_LEG
+
+
+def standing_height(skel: Skeleton) -> float:
+    """Height of the pelvis joint above the ground when standing, knees barely bent."""
+    return float(skel.offsets[0][2]) - 0.02 * body_scale(skel)
+
+
+def fit_gait(gait: Gait, skel: Skeleton, step_width: float | None = None) -> Gait:
+    """``gait`` (written for the reference body) fitted to ``skel``: scaled by its leg length,
+    the pelvis as far below this skeleton's rest height as the reference's below its own,
+    and the feet ``step_width`` apart when given."""
+    k = body_scale(skel)
+    g = gait.scaled(k)
+    g = replace(g, pelvis_height=float(skel.offsets[0][2]) - k * (REFERENCE_STAND - gait.pelvis_height))
+    return replace(g, step_width=step_width) if step_width is not None else g
+
 
 WALK = Gait(
     speed=1.2,
@@ -216,6 +254,44 @@ def _min_filter_then_mean(x: FloatArray, k: int, periodic: bool) -> FloatArray:
     return np.convolve(mp, np.ones(k) / k, mode="valid")[: len(x)]
 
 
+def _children(skel: Skeleton, j: int) -> list[int]:
+    return [int(c) for c in np.flatnonzero(skel.parents == j)]
+
+
+def spine_chain(skel: Skeleton) -> list[int]:
+    """The joints from the pelvis up to the head: at each joint, the child that reaches
+    highest (in the rest pose), leaving out the legs. Empty when the pelvis has no such child."""
+    rest, _ = forward_kinematics(skel, quat.identity((skel.n_joints,)), skel.offsets[0])
+    legs = {skel.left.hip, skel.right.hip}
+    chain: list[int] = []
+    j = 0
+    while True:
+        kids = [c for c in _children(skel, j) if c not in legs and rest[c, 2] >= rest[j, 2] - 1e-9]
+        if not kids:
+            return chain
+        j = max(kids, key=lambda c: rest[c, 2])
+        chain.append(j)
+
+
+def hanging_arms(skel: Skeleton) -> tuple[tuple[int, int], tuple[int, int]]:
+    """``(upper, lower)`` joints of the left and right arms when the arms hang down at rest
+    (bones named ``upper_arm``/``forearm`` with ``.L``/``.R``); ``-1`` where there is none.
+    Arms held out (a T pose) are left alone: a swing about the body's side axis would wave
+    them."""
+    rest, _ = forward_kinematics(skel, quat.identity((skel.n_joints,)), skel.offsets[0])
+    out = []
+    for tag in ("L", "R"):
+        upper = next((i for i, n in enumerate(skel.names) if n.lower() == f"upper_arm.{tag.lower()}"), -1)
+        lower = next((i for i, n in enumerate(skel.names) if n.lower() == f"forearm.{tag.lower()}"), -1)
+        if upper >= 0 and lower >= 0 and skel.parents[lower] == upper:
+            d = rest[lower] - rest[upper]
+            if d[2] < -0.7 * np.linalg.norm(d):
+                out.append((upper, lower))
+                continue
+        out.append((-1, -1))
+    return out[0], out[1]
+
+
 def _assemble(
     skel: Skeleton,
     name: str,
@@ -321,23 +397,21 @@ def _assemble(
         joint_rot[:, leg.ankle] = quat.mul(quat.conj(shin_c), foot_c)
 
     # Spine counter-twist, head stays level; arms swing against the legs.
-    names = skel.names
     y_axis = np.array([0.0, 1.0, 0.0])
-    if "spine" in names:
-        joint_rot[:, names.index("spine")] = quat.from_yaw(-0.6 * twist)
-    if "chest" in names:
-        joint_rot[:, names.index("chest")] = quat.from_yaw(-0.5 * twist)
-    if "head" in names:
-        joint_rot[:, names.index("head")] = quat.mul(
+    chain = spine_chain(skel)
+    for i, j in enumerate(chain[:-1]):
+        joint_rot[:, j] = quat.from_yaw(-(0.6 if i == 0 else 0.5 / max(len(chain) - 2, 1)) * twist)
+    if chain:
+        joint_rot[:, chain[-1]] = quat.mul(
             quat.from_axis_angle(np.array([1.0, 0.0, 0.0]), -0.6 * roll), quat.from_axis_angle(y_axis, -pitch)
         )
-    for tag, sign in (("L", 1.0), ("R", -1.0)):
-        if f"upper_arm.{tag}" in names:
-            swing = sign * arm_swing * np.sin(arm_phase)
-            joint_rot[:, names.index(f"upper_arm.{tag}")] = quat.from_axis_angle(y_axis, -swing)
-            joint_rot[:, names.index(f"forearm.{tag}")] = quat.from_axis_angle(
-                y_axis, np.full(n, -0.35 - 0.6 * arm_swing)
-            )
+    for sign, (upper, lower) in zip((1.0, -1.0), hanging_arms(skel), strict=True):
+        if upper < 0:
+            continue
+        swing = sign * arm_swing * np.sin(arm_phase)
+        joint_rot[:, upper] = quat.from_axis_angle(y_axis, -swing)
+        if lower >= 0:
+            joint_rot[:, lower] = quat.from_axis_angle(y_axis, np.full(n, -0.35 - 0.6 * arm_swing))
     contact = np.column_stack(contacts).astype(bool)
     return Clip(name, role, dt, root_pos, root_yaw, pelvis_pos, quat.hemisphere(joint_rot), contact)
 
@@ -422,13 +496,20 @@ def gait_clip(
 
 
 def jump_clip(
-    skel: Skeleton, run: Gait = RUN, length: float = 2.6, fps: float = 60.0, role: ClipRole = ClipRole.JUMP
+    skel: Skeleton,
+    run: Gait = RUN,
+    length: float | None = None,
+    fps: float = 60.0,
+    role: ClipRole = ClipRole.JUMP,
 ) -> Clip:
     """A running jump: right stance, left take-off stance, a long flight, right landing.
 
-    ``length`` is the distance between the take-off (left) and landing (right) footprints.
-    Starts and ends at a right touchdown at running speed, like a run stride.
+    ``length`` is the distance between the take-off (left) and landing (right) footprints
+    (default 2.6 m for the reference body, scaled with the skeleton). Starts and ends at a
+    right touchdown at running speed, like a run stride.
     """
+    k = body_scale(skel)
+    length = 2.6 * k if length is None else length
     T_run = run.cycle
     stance = run.duty * T_run
     v = run.speed
@@ -446,11 +527,11 @@ def jump_clip(
     r0 = _plant(run, 0.0, stance, np.array([v * 0.5 * stance, -w, 0.0]), 0.0)
     r_prev = _plant(run, -T_run, -T_run + stance, np.array([v * (0.5 * stance - T_run), -w, 0.0]), 0.0)
     r_land = _plant(run, T, T + stance, np.array([v * t_land_mid, -w, 0.0]), 0.0)
-    r0 = replace(r0, swing_height=0.3, swing_ease=0.0)
+    r0 = replace(r0, swing_height=0.3 * k, swing_ease=0.0)
     l_prev = _plant(
         run, t_left - T_run, t_left - T_run + stance, np.array([v * (left_mid - T_run), w, 0.0]), 0.0
     )
-    l_take = _plant(run, t_left, t_takeoff, np.array([v * left_mid, w, 0.0]), 0.0, height=0.3)
+    l_take = _plant(run, t_left, t_takeoff, np.array([v * left_mid, w, 0.0]), 0.0, height=0.3 * k)
     l_take = replace(l_take, swing_ease=0.0)
     l_next = _plant(
         run,
@@ -467,7 +548,9 @@ def jump_clip(
     air = (t > t_takeoff) & (t < T)
     ta = t[air] - t_takeoff
     z[air] += vz * ta - 0.5 * GRAVITY * ta**2
-    crouch = 0.05 * np.exp(-(((t - t_takeoff + 0.1) / 0.08) ** 2)) + 0.04 * np.exp(-(((t - T) / 0.08) ** 2))
+    crouch = k * (
+        0.05 * np.exp(-(((t - t_takeoff + 0.1) / 0.08) ** 2)) + 0.04 * np.exp(-(((t - T) / 0.08) ** 2))
+    )
     z -= crouch
     phase = 2 * np.pi * np.minimum(t, t_takeoff) / T_run
     pitch = np.full(n, run.forward_lean) + 0.15 * np.exp(-(((t - t_takeoff) / 0.15) ** 2))
@@ -507,14 +590,16 @@ def start_clip(skel: Skeleton, walk: Gait = WALK, fps: float = 60.0) -> Clip:
     x = (3 * s**2 - 2 * s**3) * x_end + (s**3 - s**2) * walk.speed * T
     xy = np.column_stack((x, np.zeros(n)))
     yaw = np.zeros(n)
-    l_stand = _plant(walk, -1.0, 0.12, np.array([0.0, w, 0.0]), 0.0, height=0.05)
+    k = body_scale(skel)
+    stand = standing_height(skel)
+    l_stand = _plant(walk, -1.0, 0.12, np.array([0.0, w, 0.0]), 0.0, height=0.05 * k)
     l_stand = replace(l_stand, toe_pitch=0.2, toe_phase=0.1)
     l0 = _plant(walk, 0.55, 0.55 + walk.duty * walk.cycle, np.array([x_l0, w, 0.0]), 0.0)
     r_stand = _plant(walk, -1.0, 0.62, np.array([0.0, -w, 0.0]), 0.0)
     r_stand = replace(r_stand, toe_phase=0.18)
     r1 = _plant(walk, T, T + walk.duty * walk.cycle, np.array([x_r1, -w, 0.0]), 0.0)
     ramp = s * s * (3 - 2 * s)
-    pelvis_z = 0.97 + (walk.pelvis_height - 0.97) * ramp
+    pelvis_z = stand + (walk.pelvis_height - stand) * ramp
     phase = 2 * np.pi * (t - T) / walk.cycle
     sway = walk.sway * np.sin(np.pi * s) * 0.8
     clip = _assemble(
@@ -555,7 +640,9 @@ def stop_clip(skel: Skeleton, walk: Gait = WALK, fps: float = 60.0) -> Clip:
     yaw = np.zeros(n)
     l_lift = (0.5 + walk.duty - 1.0) * walk.cycle
     l_prev = _plant(walk, l_lift - walk.duty * walk.cycle, l_lift, np.array([lead - step, w, 0.0]), 0.0)
-    l_end = _plant(walk, 0.58, T + 1.0, np.array([lead, w, 0.0]), 0.0, height=0.05)
+    k = body_scale(skel)
+    stand = standing_height(skel)
+    l_end = _plant(walk, 0.58, T + 1.0, np.array([lead, w, 0.0]), 0.0, height=0.05 * k)
     l_end = replace(l_end, toe_phase=1e-3, toe_pitch=0.0, heel_pitch=0.1)
     r0 = _plant(walk, 0.0, T + 1.0, np.array([lead, -w, 0.0]), 0.0)
     r0 = replace(
@@ -565,7 +652,7 @@ def stop_clip(skel: Skeleton, walk: Gait = WALK, fps: float = 60.0) -> Clip:
         heel_phase=walk.heel_phase * walk.duty * walk.cycle / (r0.lo - r0.td),
     )
     ramp = 1.0 - s * s * (3 - 2 * s)
-    pelvis_z = 0.97 + (walk.pelvis_height - 0.97) * ramp
+    pelvis_z = stand + (walk.pelvis_height - stand) * ramp
     phase = 2 * np.pi * t / walk.cycle
     sway = walk.sway * np.sin(np.pi * s) * 0.8
     return _assemble(
@@ -604,7 +691,8 @@ def idle_clip(skel: Skeleton, walk: Gait = WALK, duration: float = 2.0, fps: flo
         [replace(feet[1][0], toe_phase=1e-3, toe_pitch=0.0)],
     )
     phase = 2 * np.pi * t / duration
-    sway = 0.012 * np.sin(phase)
+    k = body_scale(skel)
+    sway = 0.012 * k * np.sin(phase)
     zeros = np.zeros(n)
     return _assemble(
         skel,
@@ -614,7 +702,7 @@ def idle_clip(skel: Skeleton, walk: Gait = WALK, duration: float = 2.0, fps: flo
         t,
         xy,
         yaw,
-        np.full(n, 0.965) + 0.004 * np.cos(2 * phase),
+        np.full(n, standing_height(skel) - 0.005 * k) + 0.004 * k * np.cos(2 * phase),
         sway,
         -0.3 * sway,
         zeros,
@@ -641,21 +729,29 @@ def standard_library(
     fps: float = 60.0,
     run: bool = True,
     jump: bool = True,
-    walk_gait: Gait = WALK,
-    run_gait: Gait = RUN,
+    walk_gait: Gait | None = None,
+    run_gait: Gait | None = None,
+    step_width: float | None = None,
 ) -> list[Clip]:
     """Every role: start, stop, idle, five walks (radii ±1.6 m, ±4 m, straight), three runs
-    (±4 m, straight) and a running jump."""
+    (±4 m, straight) and a running jump.
+
+    Gaits default to :data:`WALK` and :data:`RUN` fitted to ``skel`` (:func:`fit_gait`),
+    turning radii scale with it too; ``step_width`` sets how far apart the feet walk.
+    """
+    k = body_scale(skel)
+    walk_gait = walk_gait or fit_gait(WALK, skel, step_width)
+    run_gait = run_gait or fit_gait(RUN, skel, None if step_width is None else 0.7 * step_width)
     clips = [
         start_clip(skel, walk_gait, fps),
         stop_clip(skel, walk_gait, fps),
         idle_clip(skel, walk_gait, fps=fps),
     ]
     for role, radius in WALK_RADII.items():
-        clips.append(gait_clip(skel, walk_gait, 1.0 / radius, role, fps=fps))
+        clips.append(gait_clip(skel, walk_gait, 1.0 / (k * radius), role, fps=fps))
     if run:
         for role, radius in RUN_RADII.items():
-            clips.append(gait_clip(skel, run_gait, 1.0 / radius, role, fps=fps))
+            clips.append(gait_clip(skel, run_gait, 1.0 / (k * radius), role, fps=fps))
     if jump:
         clips.append(jump_clip(skel, run_gait, fps=fps))
     return clips

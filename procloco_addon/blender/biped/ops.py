@@ -1,0 +1,429 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Operators of the biped feature.
+
+* **Plan Biped Footsteps** (``procloco.plan_biped_footsteps``): walks the rig from where it
+  stands to the goal object over the scene's walkable surfaces, with the clips of its clip
+  list, and writes the motion as a new Action (the previous one is remembered). In the UI
+  it runs modal: the planning happens in a worker thread (the core is numpy only), the
+  status bar shows progress, Esc cancels and nothing is written. In background mode and
+  from scripts it runs straight through.
+* **Add / Remove Biped Clip**: edit the clip list.
+* **Make Example Clips** (``procloco.make_biped_clips``): synthesises a full clip set
+  (start, stop, idle, walks on arcs, runs, a jump) fitted to the rig and adds it to the
+  list, so the planner works without motion capture.
+
+Every operator refuses bad input with ``report({"ERROR"}, ...)`` and ``{"CANCELLED"}``,
+having changed nothing.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import bpy
+import numpy as np
+
+from ...core.biped import quat, synth
+from ...core.biped.clip import Clip, ClipRole
+from ...core.biped.database import ClipDatabase
+from ...core.biped.graph import GraphSettings, PlanCancelled, PlanningError
+from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
+from ...core.biped.skeleton import LEFT, forward_kinematics
+from ...core.biped.surface import WalkableSurface
+from .. import actions
+from . import bridge
+
+__all__ = [
+    "PROCLOCO_OT_add_biped_clip",
+    "PROCLOCO_OT_make_biped_clips",
+    "PROCLOCO_OT_plan_biped_footsteps",
+    "PROCLOCO_OT_remove_biped_clip",
+    "PlanJob",
+    "finish",
+    "prepare",
+    "run",
+]
+
+
+def _poll_rig(cls: Any, context: Any, what: str) -> bool:
+    obj = getattr(context, "active_object", None)
+    if obj is None or obj.type != "ARMATURE":
+        cls.poll_message_set(f"Select the biped's armature {what}")
+        return False
+    if getattr(context, "mode", "OBJECT") not in {"OBJECT", "POSE"}:
+        cls.poll_message_set("Leave edit mode first")
+        return False
+    return True
+
+
+# ---------------------------------------------------------------------------------------
+# Plan Biped Footsteps: prepare (Blender) / run (core, any thread) / finish (Blender)
+
+
+@dataclass
+class PlanJob:
+    """Everything one planning needs, read from Blender by :func:`prepare`."""
+
+    obj_name: str
+    brig: bridge.BipedRig
+    db: ClipDatabase
+    surface: WalkableSurface
+    start_pos: np.ndarray
+    start_yaw: float
+    goal: np.ndarray
+    goal_yaw: float | None
+    settings: PlannerSettings
+    seed: int
+    start_frame: int
+    cancel: threading.Event = field(default_factory=threading.Event)
+    progress: float = 0.0
+    stage: str = "reading clips"
+    result: BipedMotion | None = None
+    error: str | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _used_clips(settings: Any) -> list[tuple[bpy.types.Action, ClipRole]]:
+    return [
+        (item.action, ClipRole(item.role)) for item in settings.clips if item.use and item.action is not None
+    ]
+
+
+def prepare(context: bpy.types.Context, obj: bpy.types.Object) -> PlanJob:
+    """Read the rig, its clips, the goal and the walkable surface. Raises
+    :class:`bridge.BipedError` with a message for the user; changes nothing."""
+    t0 = time.perf_counter()
+    if obj is None or obj.type != "ARMATURE":
+        raise bridge.BipedError("The active object is not an armature: select the biped rig")
+    settings = obj.procloco_biped
+    tagged = _used_clips(settings)
+    if not tagged:
+        raise bridge.BipedError(
+            "No clips are tagged: add the rig's Actions to the biped clip list with their "
+            "roles, or click Make Example Clips"
+        )
+    families = {role.family for _, role in tagged}
+    missing = [
+        name for name, fam in (("Start", "start"), ("Stop", "stop"), ("Walk", "walk")) if fam not in families
+    ]
+    if missing:
+        raise bridge.BipedError(f"The clip list needs at least a {', a '.join(missing)} clip")
+    goal_obj = settings.goal
+    if goal_obj is None:
+        raise bridge.BipedError("Set a goal object: the character walks to it")
+    if goal_obj == obj:
+        raise bridge.BipedError("The goal cannot be the rig itself")
+    brig = bridge.biped_rig(obj)
+    clips: list[Clip] = []
+    for action, role in tagged:
+        clips.append(bridge.read_clip(context, obj, brig, action, role))
+    try:
+        db = ClipDatabase(brig.skeleton, clips)
+    except ValueError as err:
+        raise bridge.BipedError(f"The clips cannot be used together: {err}") from err
+    gm = np.array(goal_obj.matrix_world, dtype=np.float64)
+    goal = gm[:3, 3].copy()
+    goal_yaw = None
+    if settings.use_goal_heading:
+        front = -gm[:3, 1]
+        if np.hypot(front[0], front[1]) < 1e-6:
+            raise bridge.BipedError(
+                f"The goal '{goal_obj.name}' faces straight up or down: turn it to set a heading"
+            )
+        goal_yaw = float(np.arctan2(front[1], front[0]))
+    rest, _ = forward_kinematics(
+        brig.skeleton, quat.identity((brig.skeleton.n_joints,)), brig.skeleton.offsets[0]
+    )
+    leg = brig.skeleton.leg(LEFT)
+    foot_length = float(np.linalg.norm(rest[leg.toe, :2] - rest[leg.heel, :2]))
+    surface = bridge.walkable_surface(
+        context,
+        obj,
+        brig,
+        obj.procloco.terrain_collection,
+        brig.root0,
+        goal,
+        float(settings.max_slope),
+        0.5 * foot_length,
+    )
+    k = synth.body_scale(brig.skeleton)
+    scene = context.scene
+    fps = scene.render.fps / scene.render.fps_base
+    graph = GraphSettings(
+        cell=0.1 * k,
+        position_tolerance=0.1 * k,
+        max_step_height=0.2 * k,
+        goal_radius=0.25 * k,
+        field_cell=0.2 * k,
+    )
+    core_settings = PlannerSettings(
+        dt=1.0 / fps,
+        graph=graph,
+        crossfade=float(settings.crossfade),
+        blend_groups=bool(settings.use_blend_groups),
+        allow_run=bool(settings.allow_run),
+        sigma=float(settings.speed_change),
+    )
+    start_frame = scene.frame_start if settings.use_scene_start else int(settings.start_frame)
+    job = PlanJob(
+        obj.name,
+        brig,
+        db,
+        surface,
+        brig.root0.copy(),
+        brig.yaw0,
+        goal,
+        goal_yaw,
+        core_settings,
+        int(settings.seed),
+        int(start_frame),
+    )
+    job.timings["read_s"] = time.perf_counter() - t0
+    return job
+
+
+def run(job: PlanJob) -> None:
+    """Plan (core only: safe in a worker thread). Sets ``job.result`` or ``job.error``."""
+    t0 = time.perf_counter()
+
+    def progress(fraction: float, stage: str) -> bool:
+        job.progress = fraction
+        job.stage = stage
+        return not job.cancel.is_set()
+
+    try:
+        job.result = plan_biped(
+            job.db,
+            job.surface,
+            job.start_pos,
+            job.start_yaw,
+            job.goal,
+            job.goal_yaw,
+            job.settings,
+            np.random.default_rng(job.seed),
+            progress,
+        )
+    except PlanCancelled:
+        job.error = "cancelled"
+    except PlanningError as err:
+        msg = str(err)
+        job.error = msg[:1].upper() + msg[1:]
+    job.timings["plan_s"] = time.perf_counter() - t0
+
+
+def finish(context: bpy.types.Context, job: PlanJob) -> bpy.types.Action:
+    """Write the planned motion as a new Action on the rig and assign it."""
+    assert job.result is not None
+    obj = bpy.data.objects[job.obj_name]
+    return bridge.write_motion(obj, job.brig, job.result, job.start_frame)
+
+
+class PROCLOCO_OT_plan_biped_footsteps(bpy.types.Operator):
+    """Plan the biped's footsteps to the goal over the scene's surfaces and write the walk as a new Action"""
+
+    bl_idname = "procloco.plan_biped_footsteps"
+    bl_label = "Plan Biped Footsteps"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    _timer: Any = None
+    _job: PlanJob | None = None
+    _thread: threading.Thread | None = None
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        if not _poll_rig(cls, context, "to plan for"):
+            return False
+        settings = context.active_object.procloco_biped
+        if settings.goal is None:
+            cls.poll_message_set("Set a goal object in the Biped panel")
+            return False
+        return True
+
+    def _prepare(self, context: Any) -> bool:
+        try:
+            self._job = prepare(context, context.active_object)
+        except bridge.BipedError as err:
+            self.report({"ERROR"}, str(err))
+            return False
+        return True
+
+    def _finish(self, context: Any) -> set[str]:
+        job = self._job
+        assert job is not None
+        if job.error is not None:
+            self.report({"ERROR"}, job.error)
+            return {"CANCELLED"}
+        try:
+            action = finish(context, job)
+        except (actions.ActionError, ValueError) as err:
+            self.report({"ERROR"}, f"Could not write the Action: {err}")
+            return {"CANCELLED"}
+        for warning in job.brig.warnings:
+            self.report({"WARNING"}, warning)
+        motion = job.result
+        assert motion is not None
+        self.report(
+            {"INFO"},
+            f"Planned {len(motion.footprints)} footprints over {motion.n_frames} frames: '{action.name}'",
+        )
+        return {"FINISHED"}
+
+    def execute(self, context: Any) -> set[str]:
+        if not self._prepare(context):
+            return {"CANCELLED"}
+        assert self._job is not None
+        if bpy.app.background:
+            print(f"ProcLoco: planning the footsteps of {self._job.obj_name}", flush=True)
+        run(self._job)
+        return self._finish(context)
+
+    def invoke(self, context: Any, event: Any) -> set[str]:
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        if not self._prepare(context):
+            return {"CANCELLED"}
+        self._thread = threading.Thread(target=run, args=(self._job,), daemon=True)
+        self._thread.start()
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.05, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _stop(self, context: Any) -> None:
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        if context.area is not None:
+            context.area.header_text_set(None)
+
+    def modal(self, context: Any, event: Any) -> set[str]:
+        job = self._job
+        if job is None:
+            return {"CANCELLED"}
+        if event.type == "ESC":
+            job.cancel.set()
+            self._stop(context)
+            self.report({"WARNING"}, "Planning cancelled: nothing was changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        context.window_manager.progress_update(int(100 * job.progress))
+        if context.area is not None:
+            context.area.header_text_set(
+                f"ProcLoco biped: {job.stage} {int(100 * job.progress)}% (Esc to cancel)"
+            )
+        if self._thread is not None and self._thread.is_alive():
+            return {"RUNNING_MODAL"}
+        self._stop(context)
+        return self._finish(context)
+
+    def cancel(self, context: Any) -> None:
+        if self._job is not None:
+            self._job.cancel.set()
+        self._stop(context)
+
+
+# ---------------------------------------------------------------------------------------
+# Clip list
+
+
+class PROCLOCO_OT_add_biped_clip(bpy.types.Operator):
+    """Add a clip to the biped's clip list (the rig's current Action, when it is not listed yet)"""
+
+    bl_idname = "procloco.add_biped_clip"
+    bl_label = "Add Biped Clip"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        return _poll_rig(cls, context, "whose clips to list")
+
+    def execute(self, context: Any) -> set[str]:
+        obj = context.active_object
+        settings = obj.procloco_biped
+        item = settings.clips.add()
+        adt = obj.animation_data
+        current = adt.action if adt is not None else None
+        if (
+            current is not None
+            and not actions.is_generated(current)
+            and all(c.action != current for c in settings.clips)
+        ):
+            item.action = current
+        settings.active_clip_index = len(settings.clips) - 1
+        return {"FINISHED"}
+
+
+class PROCLOCO_OT_remove_biped_clip(bpy.types.Operator):
+    """Remove the selected clip from the biped's clip list (the Action itself is kept)"""
+
+    bl_idname = "procloco.remove_biped_clip"
+    bl_label = "Remove Biped Clip"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        if not _poll_rig(cls, context, "whose clips to list"):
+            return False
+        settings = context.active_object.procloco_biped
+        if not 0 <= settings.active_clip_index < len(settings.clips):
+            cls.poll_message_set("Select a clip in the list")
+            return False
+        return True
+
+    def execute(self, context: Any) -> set[str]:
+        settings = context.active_object.procloco_biped
+        settings.clips.remove(settings.active_clip_index)
+        settings.active_clip_index = max(0, min(settings.active_clip_index, len(settings.clips) - 1))
+        return {"FINISHED"}
+
+
+class PROCLOCO_OT_make_biped_clips(bpy.types.Operator):
+    """Synthesise clips for this rig (start, stop, idle, walks, runs, a jump) as new Actions and list them"""
+
+    bl_idname = "procloco.make_biped_clips"
+    bl_label = "Make Example Clips"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    runs: bpy.props.BoolProperty(name="Runs", default=True, description="Also make running clips")
+    jump: bpy.props.BoolProperty(name="Jump", default=True, description="Also make a running jump")
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        return _poll_rig(cls, context, "to make clips for")
+
+    def execute(self, context: Any) -> set[str]:
+        obj = context.active_object
+        try:
+            brig = bridge.biped_rig(obj)
+            scene = context.scene
+            fps = scene.render.fps / scene.render.fps_base
+            clips = synth.standard_library(
+                brig.skeleton, fps=fps, run=self.runs, jump=self.jump, step_width=brig.step_width
+            )
+        except (bridge.BipedError, AssertionError, ValueError) as err:
+            self.report({"ERROR"}, f"Could not make clips for '{obj.name}': {err}")
+            return {"CANCELLED"}
+        made: list[bpy.types.Action] = []
+        try:
+            made.extend(bridge.write_clip_action(obj, brig, clip) for clip in clips)
+        except (actions.ActionError, ValueError) as err:
+            for action in made:
+                bpy.data.actions.remove(action)
+            self.report({"ERROR"}, f"Could not write the clips: {err}")
+            return {"CANCELLED"}
+        settings = obj.procloco_biped
+        for action, clip in zip(made, clips, strict=True):
+            action.use_fake_user = True  # listed clips are not assigned to anything
+            item = settings.clips.add()
+            item.action = action
+            item.role = clip.role.value
+        settings.active_clip_index = len(settings.clips) - 1
+        self.report({"INFO"}, f"Made {len(made)} clips for '{obj.name}'")
+        return {"FINISHED"}
