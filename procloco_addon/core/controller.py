@@ -36,7 +36,7 @@ Characters may differ in morphology and gait; legs live on one flat axis (``LegB
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -107,6 +107,8 @@ class ControllerParams:
     - ``support_tolerance``: metres the support under a planted foot may move before the
       foot steps again.
     - ``forced_swing``: duration of a forced step as a share of the leg's swing duration.
+    - ``clock``: the clock of the per-phase timings in ``StepStats.seconds`` (wall time; a
+      benchmark on a shared machine may pass ``time.process_time``).
     - ``max_drop`` (× body thickness), ``step_early_reach`` (share of the leg length): a
       planted foot that would need the pelvis to sink more than ``max_drop`` to stay within
       ``step_early_reach`` of its hip steps early (a forced step) instead, before the leg is
@@ -138,6 +140,7 @@ class ControllerParams:
     max_drop: float = 0.15
     step_early_reach: float = 0.92
     guard_max_drop: float = 0.5
+    clock: Callable[[], float] = time.perf_counter
     physics: PelvisPhysicsParams = field(default_factory=PelvisPhysicsParams)
 
 
@@ -389,7 +392,7 @@ class Controller:
     def step(self, dt: float, ctl: StepControls) -> StepStats:
         """Advance every character by ``dt`` seconds under the commands ``ctl``."""
         stats = StepStats()
-        timer = _Timer(stats.seconds)
+        timer = _Timer(stats.seconds, self.params.clock)
         p = self.params
         lc = self.leg_char
         self.time += dt
@@ -947,13 +950,14 @@ def _sample_polyline(samples: FloatArray, u: FloatArray) -> FloatArray:
 
 
 class _Timer:
-    """Accumulates wall-clock seconds into named phases."""
+    """Accumulates seconds of ``clock`` (wall time by default) into named phases."""
 
-    def __init__(self, into: dict[str, float]) -> None:
+    def __init__(self, into: dict[str, float], clock: Callable[[], float] = time.perf_counter) -> None:
         self.into = into
-        self.last = time.perf_counter()
+        self.clock = clock
+        self.last = clock()
 
     def lap(self, name: str) -> None:
-        now = time.perf_counter()
+        now = self.clock()
         self.into[name] = self.into.get(name, 0.0) + now - self.last
         self.last = now
