@@ -420,7 +420,7 @@ class Controller:
             gstep.landed | (self.forced & (self.forced_elapsed + dt >= self.forced_duration))
         ) & self.swinging
         # a moving obstacle may have taken the landing spot since the last check: step again
-        bad_landing = landing & self._spot_taken(self.target) & (self.restarts < 2)
+        bad_landing = self._spot_taken(self.target, landing) & (self.restarts < 2)
         self.restarts = np.where(bad_landing, self.restarts + 1, np.where(landing, 0, self.restarts))
         self._land(landing & ~bad_landing)
         self.forced_elapsed = np.where(self.forced, self.forced_elapsed + dt, 0.0)
@@ -548,19 +548,22 @@ class Controller:
         out = np.zeros(self.n_legs, dtype=bool)
         if legs.size == 0:
             return out
-        k = self.traj.shape[1]
+        k_all = self.traj.shape[1]
+        # every other sample (and the landing one): a few centimetres apart on a stride
+        cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
+        k = cols.size
         u = np.clip(
             (progress[legs] - self.traj_u0[legs]) / np.maximum(1.0 - self.traj_u0[legs], 1e-9), 0.0, 1.0
         )
-        ahead = np.linspace(0.0, 1.0, k)[None, :] >= u[:, None]
-        pts = self.traj[legs]
+        ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
+        pts = self.traj[legs][:, cols]
         flat = pts.reshape(-1, 3)
         surface = self.env.height_at(flat[:, :2]).reshape(legs.size, k)
         forbidden = self.env.forbidden_at(flat[:, :2]).reshape(legs.size, k)
         tol = self.params.support_tolerance
         # only what changed since the plan counts: something rose into the path, or became forbidden
-        risen = (surface > self.traj_ground[legs] + tol) & (surface > pts[..., 2] + tol)
-        cut = ahead & (risen | (forbidden & ~self.traj_forbidden[legs]))
+        risen = (surface > self.traj_ground[legs][:, cols] + tol) & (surface > pts[..., 2] + tol)
+        cut = ahead & (risen | (forbidden & ~self.traj_forbidden[legs][:, cols]))
         # the landing spot itself must still be there
         land_surface = surface[:, -1]
         moved = np.abs(land_surface - self.support_target[legs]) > tol
@@ -596,14 +599,18 @@ class Controller:
         need = np.where(d_h < reach, hips[:, 2] - top, np.inf)
         return np.asarray(planted & (need > self.params.max_drop * self.body_thickness[self.leg_char]))
 
-    def _spot_taken(self, points: FloatArray) -> BoolArray:
-        """Whether a moving obstacle now covers footprints ``points (N, 3)`` (rose above them
-        or made them forbidden since they were planned): ``(N,)``."""
-        if not self.env_dynamic:
-            return np.zeros(self.n_legs, dtype=bool)
-        surface = self.env.height_at(points[:, :2])
-        newly_forbidden = self.env.forbidden_at(points[:, :2]) & ~self.traj_forbidden[:, -1]
-        return np.asarray((surface > points[:, 2] + self.params.support_tolerance) | newly_forbidden)
+    def _spot_taken(self, points: FloatArray, which: BoolArray) -> BoolArray:
+        """Whether a moving obstacle now covers the footprints ``points (N, 3)`` of legs
+        ``which (N,)`` (rose above them or made them forbidden since they were planned)."""
+        out = np.zeros(self.n_legs, dtype=bool)
+        legs = np.flatnonzero(which)
+        if not self.env_dynamic or legs.size == 0:
+            return out
+        xy = points[legs, :2]
+        surface = self.env.height_at(xy)
+        newly_forbidden = self.env.forbidden_at(xy) & ~self.traj_forbidden[legs, -1]
+        out[legs] = (surface > points[legs, 2] + self.params.support_tolerance) | newly_forbidden
+        return out
 
     def _plan(
         self,
