@@ -19,7 +19,9 @@ Then three comparisons that justify choices made beyond the thesis:
   at mid-stance, with the blend point and with the naive weighted root motion;
 * the heading anchor: how much planted feet pivot during playback of the Jumps plan with
   the root turned to keep the blend point's foot heading, and with the thesis' blended
-  rotation increments only.
+  rotation increments only;
+* footprint re-spacing (the thesis' future work): how well the footprints' strides fit the
+  blended clips, and how far the legs must correct the clips, with and without it.
 
 Ends with ``RESULT biped total_ms=<ms> per_frame_ms=<ms> search_ms=<ms>`` for Jumps.
 """
@@ -45,7 +47,8 @@ from procloco_addon.core.biped.clip import ClipRole
 from procloco_addon.core.biped.database import ClipDatabase
 from procloco_addon.core.biped.ik import IKSettings, solve
 from procloco_addon.core.biped.planner import BipedMotion, PlannerSettings, plan_biped
-from procloco_addon.core.biped.scenarios import Scenario, jumps, turns
+from procloco_addon.core.biped.respace import clip_strides
+from procloco_addon.core.biped.scenarios import Scenario, corridor, curve, jumps, turns
 from procloco_addon.core.biped.skeleton import RIGHT
 
 FloatArray = NDArray[np.float64]
@@ -190,6 +193,47 @@ def blend_point_table(db: ClipDatabase) -> None:
         print(f"{other.value.lower():<28}{drift[0]:>11.2f} mm{drift[1]:>11.2f} mm")
 
 
+def respace_table(db: ClipDatabase) -> None:
+    """Strides that fit their clips: with and without adding/removing footprints."""
+    strides = clip_strides(db)
+    print(f"\n{'footprint re-spacing':<22}{'footprints':>11}{'stride misfit':>15}{'leg correction':>16}")
+    for name, sc in (
+        ("Jumps", jumps(1.25)),
+        ("Turns", turns()),
+        ("curve", curve()),
+        ("corridor", corridor()),
+    ):
+        surf = sc.surface()
+        for on in (False, True):
+            m = plan_biped(
+                db,
+                surf,
+                sc.start_pos,
+                sc.start_yaw,
+                sc.goal,
+                rng=np.random.default_rng(0),
+                settings=PlannerSettings(allow_run=sc.allow_run, respace=on),
+            )
+            fp = m.footprints
+            fam = [db.infos[int(c)].role.family for c in m.clips]
+            right = [
+                int(np.flatnonzero((fp.segment == k) & (fp.side == RIGHT))[0]) for k in range(len(m.clips))
+            ]
+            misfit = []
+            for k in range(len(m.clips) - 1):
+                if fam[k] in ("walk", "run"):
+                    want = np.linalg.norm(fp.pos[right[k + 1], :2] - fp.pos[right[k], :2])
+                    misfit.append(abs(np.log(want / (m.weights[k, m.weights.shape[1] // 2] @ strides))))
+            pb = m.playback
+            pts = m.root_pos[:, None, None, :] + quat.rot2(m.root_yaw[:, None, None], pb.points_local)
+            f, s = np.nonzero(m.ik.ik_point >= 0)
+            err = np.linalg.norm(pts[f, s, m.ik.ik_point[f, s]] - m.ik_targets[f, s], axis=1)
+            label = f"{name} {'on' if on else 'off'}"
+            print(f"{label:<22}{len(fp):>11}{100 * np.mean(misfit):>13.1f} %{100 * err.mean():>13.2f} cm")
+    print("  misfit: mean |log(footprint stride / blended clips' stride)| over walk/run strides")
+    print("  leg correction: mean distance the legs move a planted point from where the played clips put it")
+
+
 def heading_table(db: ClipDatabase, motion: BipedMotion) -> None:
     pb0 = motion.playback
     plan = Plan(motion.clips, motion.weights, pb0.root_pos[0], float(pb0.root_yaw[0]))
@@ -238,6 +282,7 @@ def main() -> None:
     swivel_table(db, results["Jumps"][0], sc.surface().height_at, args.repeat)
     blend_point_table(db)
     heading_table(db, results["Jumps"][0])
+    respace_table(db)
     motion, med = results["Jumps"]
     goal = float(np.linalg.norm(motion.root_pos[-1, :2] - sc.goal[:2]))
     print(

@@ -6,7 +6,9 @@
 3. **Play** the clips (§3.4) and **refine** the footprints towards the clips' own (§3.5).
 4. Carry the played **body trajectory** onto the desired footprints (§3.6).
 5. **Blend groups** (§3.7): walks and runs become one group blended by the path's
-   curvature τ and the walk/run parameter s; play again, refine again, carry again.
+   curvature τ and the walk/run parameter s; strides whose count no longer fits the
+   blended clips are laid out again (:mod:`.respace`, the thesis' future work); play
+   again, refine again, carry again.
 6. **IK** (§3.8): body offset, then the legs, holding the lower of heel and toe.
 
 :func:`plan_biped` returns every frame's root, pelvis and joint rotations plus the
@@ -38,6 +40,7 @@ from .graph import (
 )
 from .ik import IKResult, IKSettings, solve
 from .refine import refine
+from .respace import respace
 from .skeleton import LEFT, RIGHT
 from .smoothing import smooth_footprints
 from .surface import WalkableSurface
@@ -57,7 +60,11 @@ class PlannerSettings:
     ``curvature_window`` the time before and after a frame of the three-point curvature;
     ``curvature_spacing`` the knot spacing of its B-spline low-pass (§3.7.1).
     ``blend_groups=False`` keeps the graph's clips (with cross-fades only);
-    ``allow_run=False`` keeps s = 0 (the thesis' Turns scenario).
+    ``allow_run=False`` keeps s = 0 (the thesis' Turns scenario). ``respace`` adds or removes
+    strides where the blended clips' stride does not fit the footprints (measured in
+    ``benchmarks/bench_biped.py``: it halves the mismatch and the legs' correction).
+    ``tau_from_smoothed`` measures the curvature on the smoothed footprints rather than on
+    the first refinement's, which inherits the zig-zag of the graph's discrete clips.
     """
 
     dt: float = 1.0 / 60.0
@@ -71,6 +78,7 @@ class PlannerSettings:
     curvature_spacing: float = 1.0
     sigma: float = 2.0
     tau_from_smoothed: bool = True
+    respace: bool = True
     ik: IKSettings = field(default_factory=IKSettings)
 
 
@@ -100,6 +108,7 @@ class BipedMotion:
     expansions: int
     playback: Playback
     ik: IKResult
+    respaced: tuple[tuple[int, int, int], ...] = ()
 
     @property
     def n_frames(self) -> int:
@@ -249,6 +258,7 @@ def plan_biped(
         want_pos, want.yaw, want.side, fixed, island, surface, settings.smoothing_iterations
     )
     smooth_pos, smooth_yaw = want_pos, want_yaw_arr
+    respaced: tuple[tuple[int, int, int], ...] = ()
     clock.lap("smoothing")
 
     # 3-4. Play, refine, carry the body.
@@ -288,6 +298,16 @@ def plan_biped(
             return speed_parameter(u, fu, fs, settings.sigma)
 
         plan = Plan(plan.clips, _group_weights(db, plan, tau_u, s_u), plan.start_pos, plan.start_yaw)
+        if settings.respace:
+            smoothed = Footprints(
+                want.side, want.segment, want.u_td, want.u_lo, smooth_pos, smooth_yaw, want.time
+            )
+            spaced, island = respace(db, plan, smoothed, surface, island)
+            plan = spaced.plan
+            smooth_pos, smooth_yaw = spaced.footprints.pos, spaced.footprints.yaw
+            fixed = np.zeros(len(smooth_pos), dtype=bool)
+            fixed[:2] = fixed[-2:] = True
+            respaced = spaced.changes
         clock.lap("blend_groups")
         _check(progress, 0.65, "playback")
         pb = play(db, plan, settings.dt, settings.crossfade)
@@ -327,6 +347,7 @@ def plan_biped(
         path.expansions,
         pb,
         result,
+        respaced,
     )
 
 
