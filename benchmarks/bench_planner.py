@@ -16,8 +16,9 @@ after the first valid one, 15 cm slices), no LOD (full best-couple search with 1
 and every couple (exhaustive). Then the wavefront comparison the issue asks for, with the
 line-of-sight shortcut off so that every couple needs a wavefront: one wavefront per slice
 grown from the foot against one per (target, slice) as the thesis does, in the pruned and in
-the exhaustive search. Times are the best of ``--repeat`` rounds in which the settings take
-turns (the machine is shared). Ends with
+the exhaustive search. Times are CPU time of this process (single-threaded; the machine is
+shared, so wall time varies with the neighbours' load), the best of ``--repeat`` rounds in
+which the settings take turns. Ends with
 ``RESULT planner plans_per_s_lod=<n> plans_per_s_nolod=<n>``.
 """
 
@@ -105,11 +106,11 @@ def make_situations(scene: CrowdScene, centres: FloatArray, headings: FloatArray
 def run_plans(
     grids: list[WindowGrids], sits: list[Situation], params: PlannerParams
 ) -> tuple[float, list[Couple]]:
-    """Wall time of one run over all situations, and its results."""
-    t0 = time.perf_counter()
+    """CPU time of this process for one run over all situations, and its results."""
+    t0 = time.process_time()
     res = [plan_footstep(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, params,
                          s.yaw) for s in sits]
-    return time.perf_counter() - t0, res
+    return time.process_time() - t0, res
 
 
 def mean(values: list[int]) -> float:
@@ -131,16 +132,16 @@ def main(argv: list[str] | None = None) -> int:
     wp = WindowParams(n_cells=70, cell=0.07, foot_half_extents=FOOT_HALF)
 
     # Window preparation: first step fills the static tile cache, later steps reuse it.
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     grids = scene.env.windows(centres, wp)
-    t_first = time.perf_counter() - t0
+    t_first = time.process_time() - t0
     steps = 10
     t_steps = []
     for _ in range(steps):
         scene.advance(1.0 / 30.0)
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         grids = scene.env.windows(centres, wp)
-        t_steps.append(time.perf_counter() - t0)
+        t_steps.append(time.process_time() - t0)
     t_window = float(np.median(t_steps))
 
     rng = np.random.default_rng(args.seed + 2)

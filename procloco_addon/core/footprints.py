@@ -404,6 +404,10 @@ def plan_footstep(
             if budget is not None and best is not None and after_first >= budget:
                 stop = True
                 break
+            if path.in_sight:
+                # A straight line clear at this slice is clear at every higher one: the same
+                # couple again, which cannot beat itself.
+                break
         if stop:
             break
 

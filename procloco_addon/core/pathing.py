@@ -486,7 +486,9 @@ def _hull_waypoints(s: FloatArray, required: FloatArray, min_gap: float) -> IntA
 class Path2D:
     """A 2D plan: ``waypoints`` ``(k, 2)`` world xy (final cells, exact ends), dense
     ``samples`` ``(m, 2)`` of the curve at arc lengths ``arc`` ``(m,)``, its ``length``,
-    total absolute ``turning`` (radians) and the cardinal ``tension`` that cleared."""
+    total absolute ``turning`` (radians) and the cardinal ``tension`` that cleared;
+    ``in_sight``: the target was in plain sight of the foot (the plan is the straight line,
+    and stays so at every higher slice)."""
 
     waypoints: FloatArray
     samples: FloatArray
@@ -495,6 +497,7 @@ class Path2D:
     turning: float
     tension: float
     n_naive: int
+    in_sight: bool = False
 
 
 @dataclass(frozen=True)
@@ -521,6 +524,10 @@ class PathContext:
     ``extra``: ``(ny, nx)`` extra forbidden cells (other feet) or None; ``foot_half_extents``
     and ``foot_yaw``: the foot's shape; ``per_target``: grow one wavefront per target (the
     thesis's way) instead of one per slice from the foot.
+
+    The *lift-off zone* is never blocked for paths: the cells the foot covers where it stands,
+    and, when it stands on or against an avoided obstacle (one that moved under it), that
+    obstacle's cells, so that the foot can leave it.
     """
 
     def __init__(
@@ -553,6 +560,12 @@ class PathContext:
             cc = self.start_cell[1] + self.sweep_kernel[:, 1]
             ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
             liftoff[rr[ok], cc[ok]] = True
+            avoid_grown = dilate(np.asarray(region.view(grids.avoid), dtype=bool), self.sweep_kernel)
+            if avoid_grown[self.start_cell]:
+                # The foot stands on or against an avoided obstacle (it moved under the foot):
+                # let it leave across that obstacle's cells rather than be stuck.
+                escape = wavefront(avoid_grown & region.mask, self.start_cell)
+                liftoff |= np.isfinite(escape.dist)
         self.liftoff = liftoff
         self._blocked: dict[float, tuple[BoolArray, BoolArray, BoolArray]] = {}
         self._fields: dict[tuple[float, int, int], DistanceField] = {}
@@ -616,7 +629,12 @@ class PathContext:
             end_rc = self.grids.rowcol(np.asarray(target_xy, dtype=np.float64)) - offset
         else:
             end_rc = np.asarray(target_cell, dtype=np.float64)
-        if self.params.los_shortcut and segments_clear(blocked, self.start_rc, end_rc[None, :])[0]:
+        if not self.per_target:
+            cached = self._fields.get((level, self.start_cell[0], self.start_cell[1]))
+            if cached is not None and not np.isfinite(cached.dist[target_cell]):
+                return None  # known unreachable at this slice
+        in_sight = bool(segments_clear(blocked, self.start_rc, end_rc[None, :])[0])
+        if self.params.los_shortcut and in_sight:
             # The target is in sight: the wavefront, its descent and the line-of-sight reduction
             # would keep exactly these two points (the greedy reduction jumps to the farthest
             # visible point), so skip them.
@@ -648,7 +666,7 @@ class PathContext:
         waypoints = waypoints[np.concatenate([[True], step > 1e-9])]
         if waypoints.shape[0] < 2:
             p = waypoints[:1]
-            return Path2D(p, p.copy(), np.zeros(1), 0.0, 0.0, self.params.tension, n_naive)
+            return Path2D(p, p.copy(), np.zeros(1), 0.0, 0.0, self.params.tension, n_naive, in_sight)
         h, w = blocked.shape
         tension = self.params.tension
         for attempt in range(3):
@@ -668,7 +686,7 @@ class PathContext:
             tension = 0.0 if attempt == 1 else tension * 0.5
         else:
             return None
-        return Path2D(waypoints, samples, arc, float(length), _turning(samples), tension, n_naive)
+        return Path2D(waypoints, samples, arc, float(length), _turning(samples), tension, n_naive, in_sight)
 
     # -- lifting to 3D -------------------------------------------------------------------------
     def kernel_max(self, cells: IntArray, kernel: IntArray) -> FloatArray:

@@ -266,6 +266,21 @@ def test_walled_in_foot_gets_a_clear_no_valid_couple() -> None:
     assert "no candidate footprint" in c2.message
 
 
+def test_a_foot_on_an_avoided_crate_that_moved_under_it_can_step_off() -> None:
+    w = window([(0.0, 0.0, 0.3, 0.3, 0.15, ROLE_AVOID)])
+    start = np.array([0.0, 0.0, 0.15])  # standing on its top
+    pref = np.array([0.4, 0.0])
+    c = plan(w, tuple(pref), start=start)
+    assert c.ok
+    assert c.trajectory is not None
+    assert not w.forbidden[tuple(w.cell_of(c.footprint[:2]))]
+    assert not w.dilated[tuple(w.cell_of(c.footprint[:2]))]
+    pts = c.trajectory.points
+    on_crate = w.forbidden[w.cell_of(pts[:, :2])[:, 0], w.cell_of(pts[:, :2])[:, 1]]
+    assert np.all(pts[on_crate, 2] >= 0.15 - 1e-9)  # never through the crate
+    assert np.all(np.diff(on_crate.astype(int)) <= 0)  # leaves it once, never comes back
+
+
 def test_bad_numbers_give_a_failed_couple_not_an_exception() -> None:
     w = window()
     c = plan_footstep(w, np.array([np.nan, 0.0, 0.0]), np.array([0.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
