@@ -236,7 +236,20 @@ def _box_overlaps_cells(
 
 
 def dilate(mask: BoolArray, offsets: IntArray) -> BoolArray:
-    """Binary dilation of ``mask`` ``(h, w)`` by the cell ``offsets`` ``(k, 2)``."""
+    """Binary dilation of ``mask`` ``(h, w)`` by the cell ``offsets`` ``(k, 2)``.
+
+    A kernel that fills its bounding rectangle is applied as a row pass then a column pass
+    (``(a - 1) + (b - 1)`` shifted ORs instead of ``a * b - 1``)."""
+    r_lo, c_lo = (int(v) for v in offsets.min(axis=0))
+    r_hi, c_hi = (int(v) for v in offsets.max(axis=0))
+    if offsets.shape[0] == (r_hi - r_lo + 1) * (c_hi - c_lo + 1) and offsets.shape[0] > 4:
+        rows = np.array([[di, 0] for di in range(r_lo, r_hi + 1)], dtype=np.intp)
+        cols = np.array([[0, dj] for dj in range(c_lo, c_hi + 1)], dtype=np.intp)
+        return _dilate_shifts(_dilate_shifts(mask, rows), cols)
+    return _dilate_shifts(mask, offsets)
+
+
+def _dilate_shifts(mask: BoolArray, offsets: IntArray) -> BoolArray:
     out = mask.copy()
     h, w = mask.shape
     for di, dj in offsets.tolist():
@@ -501,9 +514,7 @@ class WindowGrids:
     def rowcol(self, xy: npt.ArrayLike) -> FloatArray:
         """Continuous (row, col) coordinates of world points ``(..., 2)``: ``(..., 2)``."""
         p = np.asarray(xy, dtype=np.float64)
-        rows = (p[..., 1] - self.origin[1]) / self.cell
-        cols = (p[..., 0] - self.origin[0]) / self.cell
-        return np.stack([rows, cols], axis=-1)
+        return np.asarray((p[..., ::-1] - self.origin[::-1]) / self.cell)
 
     def cell_of(self, xy: npt.ArrayLike) -> IntArray:
         """Integer (row, col) of the cell containing each point ``(..., 2)``."""
