@@ -281,3 +281,44 @@ def test_panel_draws_the_clip_list_and_the_plan_button(walk_scene: Any) -> None:
     row = draw_ui_list_item(ui_list.PROCLOCO_UL_biped_clips, settings, settings.clips[0])
     assert row.has_prop("role")
     assert settings.clips[0].action.name in row.texts()
+
+
+def test_same_seed_same_action(walk_scene: Any) -> None:
+    rig = walk_scene
+    assert bpy.ops.procloco.plan_biped_footsteps() == {"FINISHED"}
+    first = rig.animation_data.action
+    assert bpy.ops.procloco.plan_biped_footsteps() == {"FINISHED"}
+    second = rig.animation_data.action
+    assert second != first
+    channels = actions.channels_of(first, rig)
+    assert channels == actions.channels_of(second, rig)
+    for ch in channels:
+        a = actions.read_channel(first, rig, ch.data_path, ch.index)
+        b = actions.read_channel(second, rig, ch.data_path, ch.index)
+        assert a is not None
+        assert b is not None
+        assert np.array_equal(a[1], b[1])
+
+
+def test_the_multi_legged_engine_records_a_walk_clip(empty_scene: Any) -> None:
+    # Generate Locomotion (the multi-legged engine, biped walk preset) writes a walk on the
+    # rig; tagged as a clip, it reads back as one stride from a right touchdown.
+    _plane("Floor", (6.0, 30.0), (0.0, -10.0, 0.0))
+    rig = _human(clips=False)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 72
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    rig.procloco.speed = 1.2
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    walk = rig.animation_data.action
+    brig = bridge.biped_rig(rig)
+    clip = bridge.read_clip(bpy.context, rig, brig, walk, ClipRole.WALK_FORWARD)
+    assert clip.contacts is not None
+    assert clip.contacts[0, 1]
+    assert clip.contacts[-1, 1]
+    assert not clip.contacts[:, 1].all()
+    from procloco_addon.core.biped.database import ClipDatabase
+
+    info = ClipDatabase(brig.skeleton, [clip]).infos[0]
+    assert info.speed == pytest.approx(1.2, rel=0.15)
+    assert abs(info.curvature) < 0.05

@@ -164,3 +164,29 @@ def test_extract_cycle_cuts_one_stride(skel: Skeleton) -> None:
     assert np.allclose(cut.root_pos[0], 0.0)
     with pytest.raises(ValueError, match="no complete right-foot stride"):
         extract_cycle(dataclasses.replace(long, contacts=np.zeros((long.n_frames, 2), bool)), skel)
+
+
+def test_clips_fit_a_larger_skeleton() -> None:
+    big = synth.make_skeleton(1.4)
+    assert synth.body_scale(big) == pytest.approx(1.4)
+    clips = synth.standard_library(big)
+    for clip in clips:
+        assert _held_point_drift(clip, big) < 1e-6, clip.name
+    db = ClipDatabase(big, clips)
+    walk_left = next(i for i in db.infos if i.role is ClipRole.WALK_LEFT)
+    assert walk_left.curvature == pytest.approx(1.0 / (1.6 * 1.4), rel=0.01)
+    walk = next(i for i in db.infos if i.role is ClipRole.WALK_FORWARD)
+    assert walk.speed == pytest.approx(synth.WALK.speed * 1.4, rel=0.01)
+    # The pelvis as far below the rest height as the reference body's, scaled.
+    gait = synth.fit_gait(synth.WALK, big)
+    assert big.offsets[0][2] - gait.pelvis_height == pytest.approx(
+        1.4 * (synth.REFERENCE_STAND - synth.WALK.pelvis_height)
+    )
+
+
+def test_spine_and_arms_are_found_by_shape() -> None:
+    skel = synth.make_skeleton()
+    assert [skel.names[j] for j in synth.spine_chain(skel)] == ["spine", "chest", "head"]
+    (lu, _ll), (_ru, rl) = synth.hanging_arms(skel)
+    assert skel.names[lu] == "upper_arm.L"
+    assert skel.names[rl] == "forearm.R"

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import bpy
 import numpy as np
+from mathutils import Matrix
 
 from ... import core as _core  # noqa: F401  (the core package must import without bpy)
 from ...core.biped import quat
@@ -157,8 +158,16 @@ def biped_rig(obj: bpy.types.Object) -> BipedRig:
     head_w = rest_head @ world[:3, :3].T + world[:3, 3]
     fwd = info.body.forward
     yaw0 = float(np.arctan2(fwd[1], fwd[0]))
-    ground = float(np.min(info.contact[:, 2]))
-    root0 = np.array([info.body.origin[0], info.body.origin[1], ground])
+    # Rest geometry only (never the current pose, so that planning twice gives the same walk):
+    # each foot's lowest rest point, the hips' centroid.
+    tail_w = np.array([np.array(bones[n].tail_local) for n in order]) @ world[:3, :3].T + world[:3, 3]
+    foot_ground = []
+    for leg in info.legs:
+        sub = [j_of[b.name] for f in leg.foot if f in j_of for b in _subtree(bones[f])]
+        foot_ground.append(float(min(head_w[sub, 2].min(), tail_w[sub, 2].min())) if sub else 0.0)
+    ground = float(min(foot_ground))
+    hips = np.array([head_w[j_of[leg.bones[0]]] for leg in info.legs])
+    root0 = np.array([hips[:, 0].mean(), hips[:, 1].mean(), ground])
     to_body = _rz(-yaw0)
 
     parents = [-1] + [j_of[bones[n].parent.name] for n in order[1:]]
@@ -168,7 +177,7 @@ def biped_rig(obj: bpy.types.Object) -> BipedRig:
     leg_joints = {}
     for side, i in ((LEFT, lefts[0]), (RIGHT, rights[0])):
         leg = info.legs[i]
-        g = float(info.contact[i, 2])
+        g = foot_ground[i]
         foot = [j_of[b] for b in leg.foot if b in j_of]
         if not foot:
             raise BipedError(f"Leg {leg.label}: its foot bones are not under the body bone '{body}'")
@@ -208,7 +217,8 @@ def biped_rig(obj: bpy.types.Object) -> BipedRig:
         )
     except ValueError as err:
         raise BipedError(f"'{obj.name}': {err}") from err
-    width = float(abs((info.contact[lefts[0]] - info.contact[rights[0]]) @ info.body.left))
+    ankles = [head_w[j_of[info.legs[i].foot[0]]] for i in (lefts[0], rights[0])]
+    width = float(abs((ankles[0] - ankles[1]) @ info.body.left))
     parent_pose = parent_rest = None
     body_parent = bones[body].parent
     if body_parent is not None:
@@ -230,6 +240,13 @@ def biped_rig(obj: bpy.types.Object) -> BipedRig:
         max(width, 0.05 * scale),
         tuple(info.warnings),
     )
+
+
+def _subtree(bone: bpy.types.Bone) -> list[bpy.types.Bone]:
+    out = [bone]
+    for child in bone.children:
+        out.extend(_subtree(child))
+    return out
 
 
 def _descendant_indices(bones: bpy.types.ArmatureBones, name: str, index: dict[str, int]) -> set[int]:
@@ -418,6 +435,10 @@ def read_clip(
     try:
         actions.assign_action(obj, action)
         obj.animation_data.use_nla = False
+        # Bones the clip does not key are at rest in the clip, whatever the rig's pose was.
+        rest = Matrix.Identity(4)
+        for pb in obj.pose.bones:
+            pb.matrix_basis = rest
         pose = _pose_matrices(context, obj, brig, frames)
     except actions.ActionError as err:
         raise BipedError(str(err)) from err
