@@ -19,12 +19,16 @@ starts (or restarts) a swing:
 3. **Height slices** (§3.5.2, Figure 3.25): for slice levels ``z_foot + k * slice_size``
    every cell higher than the level is forbidden, so paths walk around it and over everything
    lower; the last pass has no slice and goes over everything. ``slice_size=None``: only that
-   last pass.
+   last pass. Levels stop at the leg's reach above the foot and at the highest surface in the
+   search rectangle; levels forbidding the same cells are merged.
 4. **Best couple with partial scores** (Appendix E): targets by decreasing score; the search
    stops at the first target whose score cannot beat the best couple (path scores are at most
    1); a couple's 2D score bounds its 3D score, so the 3D trajectory is only built when the 2D
-   bound beats the best couple. The result equals the exhaustive search's (ties go to the
-   earlier couple in the same order), which ``exhaustive=True`` runs for checking.
+   bound beats the best couple. A target in plain sight at some slice is not tried again at
+   higher slices (the same straight couple). The result equals the exhaustive search's (ties
+   go to the earlier couple in the same order), which ``exhaustive=True`` runs for checking.
+   Path scores (:mod:`.pathing`): straightness × ``1 / (1 + turning / 2π)`` in 2D, times a
+   climbing factor in 3D (the square of a clean arc's length bound over the length).
 5. **LOD** (§3.7): ``max_couples_after_first`` limits the couples evaluated once a valid
    couple exists (0: stop at the first valid couple); ``slice_size`` (None = no slices).
 
