@@ -217,7 +217,9 @@ def run(job: PlanJob) -> None:
 def finish(context: bpy.types.Context, job: PlanJob) -> bpy.types.Action:
     """Write the planned motion as a new Action on the rig and assign it."""
     assert job.result is not None
-    obj = bpy.data.objects[job.obj_name]
+    obj = bpy.data.objects.get(job.obj_name)
+    if obj is None or obj.type != "ARMATURE":
+        raise bridge.BipedError(f"The rig '{job.obj_name}' is gone: nothing was written")
     return bridge.write_motion(obj, job.brig, job.result, job.start_frame)
 
 
@@ -258,6 +260,9 @@ class PROCLOCO_OT_plan_biped_footsteps(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             action = finish(context, job)
+        except bridge.BipedError as err:
+            self.report({"ERROR"}, str(err))
+            return {"CANCELLED"}
         except (actions.ActionError, ValueError) as err:
             self.report({"ERROR"}, f"Could not write the Action: {err}")
             return {"CANCELLED"}
@@ -265,9 +270,10 @@ class PROCLOCO_OT_plan_biped_footsteps(bpy.types.Operator):
             self.report({"WARNING"}, warning)
         motion = job.result
         assert motion is not None
+        last = job.start_frame + motion.n_frames - 1
         self.report(
             {"INFO"},
-            f"Planned {len(motion.footprints)} footprints over {motion.n_frames} frames: '{action.name}'",
+            f"Planned {len(motion.footprints)} footprints, frames {job.start_frame}-{last}: '{action.name}'",
         )
         return {"FINISHED"}
 
