@@ -198,7 +198,7 @@ def respace_table(db: ClipDatabase) -> None:
     strides = clip_strides(db)
     print(f"\n{'footprint re-spacing':<22}{'footprints':>11}{'stride misfit':>15}{'leg correction':>16}")
     for name, sc in (
-        ("Jumps", jumps(1.25)),
+        ("Jumps", jumps(1.3)),
         ("Turns", turns()),
         ("curve", curve()),
         ("corridor", corridor()),
@@ -274,11 +274,11 @@ def main() -> None:
     )
     settings = PlannerSettings(dt=1.0 / args.fps)
     results = {
-        "Jumps": run(db, jumps(1.25), settings, args.repeat),
+        "Jumps": run(db, jumps(1.3), settings, args.repeat),
         "Turns": run(db, turns(), PlannerSettings(dt=1.0 / args.fps, allow_run=False), args.repeat),
     }
     stage_table(results)
-    sc = jumps(1.25)
+    sc = jumps(1.3)
     swivel_table(db, results["Jumps"][0], sc.surface().height_at, args.repeat)
     blend_point_table(db)
     heading_table(db, results["Jumps"][0])
