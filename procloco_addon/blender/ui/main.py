@@ -55,6 +55,7 @@ EFFECTS: tuple[tuple[str, str], ...] = (
 GENERATE_OPERATORS: tuple[tuple[str, str, str], ...] = (
     ("procloco.generate_locomotion", "Generate Locomotion", "ARMATURE_DATA"),
     ("procloco.bake_secondary_motion", "Bake Secondary Motion", "FORCE_HARMONIC"),
+    ("procloco.plan_biped_footsteps", "Plan Biped Footsteps", "MOD_DYNAMICPAINT"),
     ("procloco.clear_generated_action", "Clear Generated Action", "X"),
 )
 
