@@ -526,8 +526,8 @@ class PathContext:
     thesis's way) instead of one per slice from the foot.
 
     The *lift-off zone* is never blocked for paths: the cells the foot covers where it stands,
-    and, when it stands on or against an avoided obstacle (one that moved under it), that
-    obstacle's cells, so that the foot can leave it.
+    and, when it stands on an avoided obstacle (one that moved under it), that obstacle's cells
+    and their enlargement, so that the foot can leave it.
     """
 
     def __init__(
@@ -560,10 +560,11 @@ class PathContext:
             cc = self.start_cell[1] + self.sweep_kernel[:, 1]
             ok = (rr >= 0) & (rr < h) & (cc >= 0) & (cc < w)
             liftoff[rr[ok], cc[ok]] = True
-            avoid_grown = dilate(np.asarray(region.view(grids.avoid), dtype=bool), self.sweep_kernel)
-            if avoid_grown[self.start_cell]:
-                # The foot stands on or against an avoided obstacle (it moved under the foot):
-                # let it leave across that obstacle's cells rather than be stuck.
+            avoid = np.asarray(region.view(grids.avoid), dtype=bool)
+            if avoid[self.start_cell]:
+                # The foot stands on an avoided obstacle (it moved under the foot): let it leave
+                # across that obstacle's cells rather than be stuck there.
+                avoid_grown = dilate(avoid, self.sweep_kernel)
                 escape = wavefront(avoid_grown & region.mask, self.start_cell)
                 liftoff |= np.isfinite(escape.dist)
         self.liftoff = liftoff

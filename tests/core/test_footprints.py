@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from procloco_addon.core.footprints import Couple, PlannerParams, legs_cross, plan_footstep
-from procloco_addon.core.pathing import clearance_profile
+from procloco_addon.core.pathing import clearance_profile, wavefront
 from procloco_addon.core.terrain import (
     ROLE_AVOID,
     ROLE_STEP_OVER,
@@ -23,6 +23,7 @@ from procloco_addon.core.terrain import (
     Heightmap,
     WindowGrids,
     WindowParams,
+    dilate,
     foot_kernel,
 )
 
@@ -52,13 +53,14 @@ def window(rows: list[tuple[float, float, float, float, float, int]] | None = No
 
 def plan(w: WindowGrids, preferred: tuple[float, float], params: PlannerParams = P,
          start: np.ndarray = START, hip: np.ndarray = HIP, other_hips: np.ndarray = NO_LEGS,
-         other_feet: np.ndarray = NO_LEGS) -> Couple:
-    return plan_footstep(w, start, np.array(preferred), hip, other_hips, other_feet, params)
+         other_feet: np.ndarray = NO_LEGS, yaw: float = 0.0) -> Couple:
+    return plan_footstep(w, start, np.array(preferred), hip, other_hips, other_feet, params, yaw)
 
 
 def check_couple(w: WindowGrids, c: Couple, params: PlannerParams, start: np.ndarray,
-                 preferred: np.ndarray, hip: np.ndarray, other_feet: np.ndarray = NO_LEGS) -> None:
-    """Invariants of every valid couple."""
+                 preferred: np.ndarray, hip: np.ndarray, other_feet: np.ndarray = NO_LEGS,
+                 yaw: float = 0.0) -> None:
+    """Invariants of every valid couple (foot box ``params.foot_half_extents`` at ``yaw``)."""
     assert c.ok
     assert c.trajectory is not None
     assert np.all(np.isfinite(c.footprint))
@@ -66,8 +68,9 @@ def check_couple(w: WindowGrids, c: Couple, params: PlannerParams, start: np.nda
     assert c.score == pytest.approx(c.target_score * c.path_score)
     # The footprint: not forbidden, not a dilation-only cell, near the preferred one, in reach.
     rc = tuple(w.cell_of(c.footprint[:2]))
-    assert not w.forbidden[rc]
-    assert not w.dilated[rc]
+    forbidden, dilated_only = w.obstacle_map(foot_half_extents=params.foot_half_extents, foot_yaw=yaw)
+    assert not forbidden[rc]
+    assert not dilated_only[rc]
     assert np.linalg.norm(c.footprint[:2] - preferred) <= params.candidate_radius + 1e-9
     assert np.linalg.norm(c.footprint[:2] - hip) <= params.leg_reach + 1e-9
     assert c.footprint[2] >= w.elevation[rc] - 1e-9
@@ -77,10 +80,15 @@ def check_couple(w: WindowGrids, c: Couple, params: PlannerParams, start: np.nda
     assert np.all(np.isfinite(pts))
     assert np.allclose(pts[0], start)
     assert np.allclose(pts[-1], c.footprint)
-    core, dilated = w.obstacle_map(level=c.slice_level)
+    core, dilated = w.obstacle_map(level=c.slice_level, foot_half_extents=params.foot_half_extents,
+                                   foot_yaw=yaw)
     cells = w.cell_of(pts[:, :2])
     start_rc = w.cell_of(start[:2])
-    liftoff = {tuple(start_rc + k) for k in foot_kernel(w.cell, params.foot_half_extents, 0.0).tolist()}
+    kernel = foot_kernel(w.cell, params.foot_half_extents, yaw)
+    liftoff = {tuple(start_rc + k) for k in kernel.tolist()}
+    if w.avoid[tuple(start_rc)]:  # standing on an avoided obstacle: may cross it to leave
+        escape = wavefront(dilate(w.avoid, kernel), (int(start_rc[0]), int(start_rc[1])))
+        liftoff |= {tuple(x) for x in np.argwhere(np.isfinite(escape.dist)).tolist()}
     away = np.array([tuple(x) not in liftoff for x in cells.tolist()])
     assert not np.any(((core | dilated)[cells[:, 0], cells[:, 1]]) & away)
     if other_feet.shape[0]:
@@ -200,20 +208,29 @@ def test_pruned_search_returns_the_exhaustive_best_couple(seed: int, slice_size:
     if foot is None:
         return
     start, pref, hip, oh, of = foot
-    params = replace(P, slice_size=slice_size)
-    pruned = plan(w, tuple(pref), params, start, hip, oh, of)
-    full = plan(w, tuple(pref), replace(params, exhaustive=True), start, hip, oh, of)
+    # A long foot, turned: the enlargement of obstacles follows its shape and yaw.
+    params = replace(P, slice_size=slice_size, foot_half_extents=(0.05, 0.02))
+    yaw = float(rng.uniform(-np.pi, np.pi))
+    pruned = plan(w, tuple(pref), params, start, hip, oh, of, yaw)
+    full = plan(w, tuple(pref), replace(params, exhaustive=True), start, hip, oh, of, yaw)
     assert pruned.ok == full.ok
     if pruned.ok:
-        check_couple(w, pruned, params, start, pref, hip, of)
+        check_couple(w, pruned, params, start, pref, hip, of, yaw)
         assert np.allclose(pruned.footprint, full.footprint)
         assert pruned.score == pytest.approx(full.score, abs=1e-12)
         assert pruned.slice_level == full.slice_level
         assert pruned.n_paths <= full.n_paths
-        # One wavefront per (target, slice), the thesis's way, picks the same couple.
-        thesis = plan(w, tuple(pref), replace(params, shared_wavefront=False), start, hip, oh, of)
-        assert np.allclose(thesis.footprint, pruned.footprint)
-        assert thesis.score == pytest.approx(pruned.score, abs=1e-12)
+        # One wavefront per (target, slice), grown from the target as in the thesis: as valid.
+        # (Shortest grid paths are not unique: descending from the other end may pick another
+        # one of them, so its curve and score can differ slightly.)
+        thesis = plan(w, tuple(pref), replace(params, shared_wavefront=False), start, hip, oh, of, yaw)
+        assert thesis.ok
+        check_couple(w, thesis, params, start, pref, hip, of, yaw)
+        # The foot box does not overlap an avoided obstacle where it lands.
+        c, s = np.cos(yaw), np.sin(yaw)
+        u, v = (a.ravel() for a in np.meshgrid(np.linspace(-0.05, 0.05, 7), np.linspace(-0.02, 0.02, 5)))
+        box = pruned.footprint[:2] + np.column_stack([c * u - s * v, s * u + c * v])
+        assert not env.forbidden_at(box).any()
 
 
 @given(st.integers(0, 100_000))
