@@ -30,6 +30,20 @@ Per step, for all characters at once:
    its length, the pelvis is lowered just enough ("the pelvis stays above its feet").
 5. **Legs**: IK (``ik.solve_legs``) from the hips to the feet.
 
+**Flexible spine** (thesis §4.2, §4.4; ``core.spine``), per character: a character whose
+morphology has a spine and which is given ``SpineParams`` walks on its *virtual pelvis
+nodes* instead of one rigid pelvis. Steps 1-2 of the spine replace the heading and the
+ground-plane motion (the head turns, the other nodes follow it on the previous spine); each
+foot is planned in the frame of its own node, predicted along the spine to where the node
+will be when the foot lands; every node gets its own hull height (``spine.terrain_guides``)
+and, with pseudo-physics on, its own pogo particles (the legs hanging from it; the head
+node, without legs, keeps its guide), its own pitch (environment averaged with the pitch
+its feet induce) and, with visual yaw, the sway of §4.4; step 4 draws the spine as a
+Hermite curve sampled at the bones' lengths and repeats it on guides moved toward the feet
+while a leg cannot reach (``spine.repeat_for_reach``, in place of the pelvis reach guard).
+The hips ride with their node (or the spine bone that carries them) and the IK poses each
+leg in that frame. Characters without ``SpineParams`` move exactly as described above.
+
 Characters may differ in morphology and gait; legs live on one flat axis (``LegBatch``).
 """
 
@@ -48,6 +62,21 @@ from .hull import hull_height_and_pitch
 from .ik import IKResult, solve_legs
 from .morphology import LegBatch
 from .pelvis_physics import PelvisPhysics, PelvisPhysicsParams
+from .spine import (
+    SpineModel,
+    SpineParams,
+    SpinePlan,
+    SpinePose,
+    SpineState,
+    build_spine,
+    hip_positions,
+    leg_frames,
+    node_pitch,
+    plan_spine,
+    repeat_for_reach,
+    terrain_guides,
+    visual_yaw,
+)
 from .terrain import NO_SURFACE, Environment, WindowParams
 
 FloatArray = npt.NDArray[np.float64]
@@ -187,6 +216,24 @@ class StepStats:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
+@dataclass(eq=False)
+class _SpineGroup:
+    """Characters stepped together through the spine functions: one shared ``SpineModel``
+    and ``SpineParams``. ``chars (g,)``; ``legs (g, L)`` flat leg rows; ``nodes (g, K)`` flat
+    pelvis-node rows; ``plan``/``pose``: the last steps 1-2 and step 4; ``height``,
+    ``pitch (g, K)``: each node's filtered preferred height and pitch (deviation from rest)."""
+
+    model: SpineModel
+    params: SpineParams
+    chars: IntArray
+    legs: IntArray
+    nodes: IntArray
+    plan: SpinePlan
+    pose: SpinePose | None = None
+    height: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    pitch: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+
+
 class Controller:
     """State and step of many characters (see the module docstring).
 
@@ -196,7 +243,8 @@ class Controller:
     per-character ``PlannerParams`` (replacing the derived ones except step height, reach,
     foot size and height change); ``lod``: optional per-character ``PlannerLOD``;
     ``controls``: the first step's commands (for the initial planning of feet that start in
-    swing).
+    swing); ``spine``: optional per-character ``SpineParams`` (None: a rigid body) for
+    characters whose morphology has a spine (``Morphology.with_spine``).
     """
 
     def __init__(
@@ -212,6 +260,7 @@ class Controller:
         params: ControllerParams | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
+        spine: Sequence[SpineParams | None] | None = None,
     ) -> None:
         self.env = env
         self.legs = legs
@@ -220,6 +269,7 @@ class Controller:
         n = legs.n_legs
         self.n_chars, self.n_legs = c, n
         self.leg_char = legs.leg_char
+        self._setup_nodes(spine)
         self.gait = GaitManager(legs.leg_char, gaits, phase)
         self.time = 0.0
         mean_leg = np.bincount(legs.leg_char, weights=legs.leg_length, minlength=c) / np.bincount(
@@ -303,17 +353,22 @@ class Controller:
         self.pitch, self.roll = pitch, roll
         self.height_target = height
         self.pos[:, 2] = height
-        self.physics = PelvisPhysics(legs.leg_char, c, params=p.physics)
+        self.physics = PelvisPhysics(self.leg_node, self.n_nodes, params=p.physics)
         self._physics_on = np.asarray(controls.pelvis_physics, dtype=bool).copy()
+        pref_nodes = self._spine_start(height)
         if np.any(self._physics_on):
             self.physics.reset(
-                height,
+                pref_nodes,
                 self.gait.needle[self.leg_char],
                 self.gait.rate()[self.leg_char],
                 self.gait.disk_start,
                 self.gait.disk_duration,
             )
-            self.pos[:, 2] = np.where(self._physics_on, self.physics.centered_height(), height)
+            centered = self.physics.centered_height()
+            self.pos[:, 2] = np.where(self._physics_on, centered[self.node_start[:-1]], height)
+            pref_nodes = np.where(self._physics_on[self.node_char], centered, pref_nodes)
+        if self.spine_groups:
+            self._spine_pose(pref_nodes, self._physics_on)
         # feet that start inside their swing sector are planned right away
         self._start_in_swing = np.zeros(n, dtype=bool)
         start_swing = self.gait.swing.copy()
@@ -355,8 +410,98 @@ class Controller:
         return rotation_matrices(self.yaw, self.pitch, self.roll)
 
     def hips_world(self, rot: FloatArray | None = None) -> FloatArray:
+        """``(N, 3)`` world hips: the rigid body's, or where the spine put them."""
         r = self.rotations() if rot is None else rot
-        return self.pos[self.leg_char] + np.einsum("nij,nj->ni", r[self.leg_char], self.legs.hip_offset)
+        hips = self.pos[self.leg_char] + np.einsum("nij,nj->ni", r[self.leg_char], self.legs.hip_offset)
+        if self.spine_groups:
+            hips[self.spine_legs] = self._spine_hips[self.spine_legs]
+        return np.asarray(hips)
+
+    def leg_rotations(self) -> FloatArray:
+        """``(N, 3, 3)`` body-to-world rotation of the body part each leg hangs from: the
+        pelvis, or the leg's spine node (or carrier bone)."""
+        rot = self.rotations()[self.leg_char]
+        if self.spine_groups:
+            rot[self.spine_legs] = self._spine_leg_rot[self.spine_legs]
+        return np.asarray(rot)
+
+    def spine_joints(self) -> FloatArray:
+        """``(C, J, 3)`` world spine joints (head first) of every character, ``J`` the most
+        joints of any spine; rows past a spine's end repeat its last joint, characters
+        without a spine hold their pelvis position."""
+        out = np.repeat(self.pos[:, None, :], self.max_spine_joints, axis=1)
+        for g in self.spine_groups:
+            if g.pose is None:
+                continue
+            j = g.model.n_joints
+            out[g.chars, :j] = g.pose.joints
+            out[g.chars, j:] = g.pose.joints[:, -1:]
+        return out
+
+    def spine_rotations(self) -> FloatArray:
+        """``(C, J - 1, 3, 3)`` rotation of every spine bone from its rest (body-frame)
+        direction to the world (``SpinePose.bone_rotation``); identity past a spine's end and
+        for characters without a spine."""
+        out = np.zeros((self.n_chars, max(self.max_spine_joints - 1, 0), 3, 3))
+        out[:] = np.eye(3)
+        for g in self.spine_groups:
+            if g.pose is not None:
+                out[g.chars, : g.model.n_joints - 1] = g.pose.bone_rotation
+        return out
+
+    # ---------------------------------------------------------------- spine set-up
+    def _setup_nodes(self, spine: Sequence[SpineParams | None] | None) -> None:
+        """Pelvis nodes (one per rigid character, ``K`` per spine) and the spine groups."""
+        c, lc = self.n_chars, self.leg_char
+        params = list(spine) if spine is not None else [None] * c
+        if len(params) != c:
+            raise ValueError(f"{len(params)} spine settings for {c} characters")
+        self.spine_params = params
+        self.has_spine = np.array([sp is not None for sp in params], dtype=bool)
+        counts = np.ones(c, dtype=np.int64)
+        groups: dict[tuple[int, SpineParams], list[int]] = {}
+        models: dict[int, SpineModel] = {}
+        for i, sp in enumerate(params):
+            if sp is None:
+                continue
+            model = self.legs.morphologies[i].spine
+            if model is None:
+                raise ValueError(f"character {i} has spine settings but its morphology has no spine")
+            counts[i] = model.n_keys
+            models[id(model)] = model
+            groups.setdefault((id(model), sp), []).append(i)
+        self.node_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        self.n_nodes = int(self.node_start[-1])
+        self.node_char = np.repeat(np.arange(c), counts)
+        local = np.where(self.has_spine[lc], self.legs.pelvis_node, 0)
+        self.leg_node = (self.node_start[lc] + local).astype(np.int64)
+        self.spine_legs = np.flatnonzero(self.has_spine[lc])
+        self.max_spine_joints = max((m.n_joints for m in models.values()), default=0)
+        self._spine_hips = np.zeros((self.n_legs, 3))
+        self._spine_leg_rot = np.zeros((self.n_legs, 3, 3))
+        self.spine_groups: list[_SpineGroup] = []
+        for (mid, sp), chars in groups.items():
+            model = models[mid]
+            ch = np.array(chars, dtype=np.int64)
+            start = self.legs.leg_start
+            leg_rows = np.stack([np.arange(start[i], start[i + 1]) for i in chars])
+            nodes = self.node_start[ch][:, None] + np.arange(model.n_keys)[None, :]
+            empty = SpinePlan(np.zeros((ch.size, model.n_keys, 2)), np.zeros((ch.size, model.n_keys)),
+                              np.zeros((ch.size, model.n_keys)), np.zeros(ch.size), np.zeros(ch.size))
+            self.spine_groups.append(_SpineGroup(model, sp, ch, leg_rows, nodes, empty))
+
+    def _spine_start(self, height: FloatArray) -> FloatArray:
+        """Spines at rest where the bodies stand; returns every node's preferred height
+        ``(n_nodes,)`` (the rigid characters' hull heights ``height (C,)`` for theirs)."""
+        pref = np.asarray(height, dtype=np.float64)[self.node_char].copy()
+        for g in self.spine_groups:
+            state = SpineState.at_rest(g.model, self.pos[g.chars, :2], self.yaw[g.chars])
+            g.plan = plan_spine(g.model, state, g.params, self.yaw[g.chars], 0.0, 0.0)
+            h, env_pitch = terrain_guides(g.model, g.plan, self.env.height_at, self._support_feet()[g.legs])
+            g.height = h
+            g.pitch = node_pitch(g.model, g.plan, h, env_pitch, self._support_feet()[g.legs], g.params)
+            pref[g.nodes] = h
+        return pref
 
     def planner_params(self, char: int, step_height: float, leg_reach: float | None = None) -> PlannerParams:
         """The planner settings of a character for this step (``leg_reach``: horizontal
@@ -409,9 +554,13 @@ class Controller:
         gstep = self.gait.advance(dt, rate_scale)
         rate_leg = self.gait.rate()[lc]
 
-        # 2. pelvis in the ground plane
+        # 2. pelvis in the ground plane (spines: steps 1-2 of thesis §4.2)
         fwd = np.stack([np.cos(self.yaw), np.sin(self.yaw)], axis=1)
         self.pos[:, :2] += (ctl.speed * dt)[:, None] * fwd
+        if self.spine_groups:
+            timer.lap("rest")
+            self._spine_advance(ctl, dt)
+            timer.lap("spine")
         self._apply_feedback(dt)
 
         # 3. feet: landings, forced steps, plans, swing positions
@@ -482,33 +631,48 @@ class Controller:
         # a gait swing whose plan failed leaves the foot planted
         self.plan_failed &= gstep.swing | self.forced
 
-        # 4. pelvis height, pitch, roll
-        height, pitch, roll = self._hull_pose(ctl)
+        # 4. pelvis height, pitch, roll (spines: per node, steps 3-4 of thesis §4.2)
         alpha = 1.0 - np.exp(-dt / np.maximum(p.height_time * self.gait.cycle_time, 1e-6))
-        self.height_target += alpha * (height - self.height_target)
-        self.pitch += alpha * (pitch - self.pitch)
-        self.roll += alpha * (roll - self.roll)
+        rigid = None if not self.spine_groups else np.flatnonzero(~self.has_spine)
+        if rigid is None or rigid.size:
+            height, pitch, roll = self._hull_pose(ctl, rigid)
+            sel = slice(None) if rigid is None else rigid
+            a = alpha[sel]
+            self.height_target[sel] += a * (height - self.height_target[sel])
+            self.pitch[sel] += a * (pitch - self.pitch[sel])
+            self.roll[sel] += a * (roll - self.roll[sel])
+        pref = self.height_target
+        if self.spine_groups:
+            timer.lap("rest")
+            pref = self._spine_guides(alpha)
+            timer.lap("spine")
         physics_on = np.asarray(ctl.pelvis_physics, dtype=bool)
         switched_on = physics_on & ~self._physics_on
         if np.any(switched_on):
             self.physics.reset(
-                self.height_target,
+                pref,
                 needle_before,
                 rate_leg,
                 self.gait.disk_start,
                 self.gait.disk_duration,
-                nodes=switched_on,
+                nodes=switched_on[self.node_char],
             )
         self._physics_on = physics_on.copy()
-        z = self.height_target.copy()
+        z = pref.copy()
         if np.any(physics_on):
             timer.lap("rest")
-            self.physics.step(
-                dt, needle_before, rate_leg, self.gait.disk_start, self.gait.disk_duration, self.height_target
-            )
-            z = np.where(physics_on, self.physics.centered_height(), z)
+            g_start, g_duration = self.gait.disk_start, self.gait.disk_duration
+            self.physics.step(dt, needle_before, rate_leg, g_start, g_duration, pref)
+            z = np.where(physics_on[self.node_char], self.physics.centered_height(), z)
             timer.lap("physics")
-        self.pos[:, 2] = z
+        if self.spine_groups:
+            if rigid is not None and rigid.size:
+                self.pos[rigid, 2] = z[self.node_start[rigid]]
+            timer.lap("rest")
+            self._spine_pose(z, physics_on)
+            timer.lap("spine")
+        else:
+            self.pos[:, 2] = z
         self._reach_guard()
 
         # 5. legs
@@ -516,6 +680,141 @@ class Controller:
         self._solve_ik(ctl)
         timer.lap("ik")
         return stats
+
+    # ---------------------------------------------------------------- spine
+    def _support_feet(self) -> FloatArray:
+        """``(N, 3)`` feet as the body rests on them: planted ones where they stand,
+        swinging ones where they will land."""
+        return np.asarray(np.where(self.swinging[:, None], self.target, self.foot))
+
+    def _body_from_plan(self, g: _SpineGroup) -> None:
+        """The body frame of spine characters from their anchor node on the ground plane
+        (the pelvis the planner windows and the records refer to)."""
+        m = g.model
+        k = m.anchor_key
+        yaw = wrap_angle(g.plan.key_heading[:, k] - m.rest_key_heading[k])
+        self.yaw[g.chars] = yaw
+        rest = np.broadcast_to(m.key_rest[k, :2], (yaw.size, 2))
+        self.pos[g.chars, :2] = g.plan.key_xy[:, k] - self._rotate_xy(rest, yaw)
+
+    def _spine_advance(self, ctl: StepControls, dt: float) -> None:
+        """Steps 1-2 (thesis §4.2.1-4.2.2): the head turns toward the commanded heading and
+        moves ``speed * dt``; the other nodes follow on the previous spine. Hips move with
+        their node in the ground plane until step 4 places them."""
+        for g in self.spine_groups:
+            old = g.plan.key_xy
+            g.plan = plan_spine(
+                g.model, SpineState(old), g.params, ctl.heading[g.chars], ctl.speed[g.chars] * dt, dt
+            )
+            shift = g.plan.key_xy - old
+            self._spine_hips[g.legs, :2] += shift[:, g.model.leg_key]
+            self._body_from_plan(g)
+
+    def _spine_guides(self, alpha: FloatArray) -> FloatArray:
+        """Step 3 (thesis §4.2.3): each node's preferred height (its hull slice plus its rest
+        height) and pitch (environment and feet), low-pass filtered like the rigid pelvis.
+        Returns every node's preferred height ``(n_nodes,)`` (rigid characters: their hull
+        height)."""
+        pref = self.height_target[self.node_char].copy()
+        support = self._support_feet()
+        for g in self.spine_groups:
+            feet = support[g.legs]
+            height, env_pitch = terrain_guides(g.model, g.plan, self.env.height_at, feet)
+            a = alpha[g.chars][:, None]
+            g.height = g.height + a * (height - g.height)
+            pitch = node_pitch(g.model, g.plan, g.height, env_pitch, feet, g.params)
+            g.pitch = g.pitch + a * (pitch - g.pitch)
+            pref[g.nodes] = g.height
+        return pref
+
+    def _spine_pose(self, node_z: FloatArray, physics_on: BoolArray) -> None:
+        """Step 4 (thesis §4.2.4): the spine curve through the nodes at ``node_z
+        (n_nodes,)`` (nodes without legs keep their guide), turned by the visual yaw (§4.4),
+        repeated on guides pulled toward the feet while a leg cannot reach; then the hips,
+        leg frames and body frame of every spine character."""
+        for g in self.spine_groups:
+            m = g.model
+            has_legs = np.bincount(m.leg_key, minlength=m.n_keys) > 0
+            z = np.where(physics_on[g.chars][:, None] & has_legs[None, :], node_z[g.nodes], g.height)
+            yaw = g.plan.key_heading
+            if g.params.visual_yaw:
+                yaw = yaw + visual_yaw(m, g.plan, self.foot[g.legs], g.params)
+            guide = np.concatenate([g.plan.key_xy, z[..., None]], axis=-1)
+            pose = build_spine(m, guide, yaw, g.pitch)
+            # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
+            shift = self.params.guard_max_drop * float(self.body_thickness[g.chars[0]])
+            pose = repeat_for_reach(m, pose, self.foot[g.legs], self.guard_reach[g.legs[0]], iterations=6,
+                                    max_shift=shift)
+            g.pose = pose
+            self._spine_hips[g.legs] = hip_positions(m, pose)
+            self._spine_leg_rot[g.legs] = leg_frames(m, pose)
+            aj = int(m.key_joint[m.anchor_key])
+            frame = pose.joint_frame[:, aj]
+            self.pos[g.chars] = pose.joints[:, aj] - np.einsum("cij,j->ci", frame, m.joint_rest[aj])
+            self.yaw[g.chars] = np.arctan2(frame[:, 1, 0], frame[:, 0, 0])
+            self.pitch[g.chars] = np.arctan2(frame[:, 2, 0], np.hypot(frame[:, 0, 0], frame[:, 1, 0]))
+            self.roll[g.chars] = 0.0
+            self.height_target[g.chars] = self.pos[g.chars, 2]
+
+    def _landing_refs(
+        self, legs: IntArray, ctl: StepControls, remaining: FloatArray
+    ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """Where the body part each leg in ``legs`` hangs from will be when the foot lands
+        ``remaining (N,)`` seconds from now: ground position ``(m, 2)``, heading ``(m,)``, and
+        that part's rest position ``(m, 3)`` and rest heading ``(m,)`` in the body frame.
+
+        A rigid pelvis is extrapolated with its speed and bounded turn. A spine node moves
+        along the spine it is on (the nodes follow the head's path, thesis §4.2.2) and past
+        the head along the head's own extrapolated arc."""
+        p = self.params
+        c_of = self.leg_char[legs]
+        turn = np.clip(
+            wrap_angle(ctl.heading[c_of] - self.yaw[c_of]),
+            -p.max_turn_rate * remaining[legs],
+            p.max_turn_rate * remaining[legs],
+        )
+        yaw_land = self.yaw[c_of] + turn
+        yaw_mid = self.yaw[c_of] + 0.5 * turn
+        travel = (ctl.speed[c_of] * remaining[legs])[:, None] * np.stack(
+            [np.cos(yaw_mid), np.sin(yaw_mid)], axis=1
+        )
+        ref_xy = self.pos[c_of, :2] + travel
+        ref_rest = np.zeros((legs.size, 3))
+        rest_yaw = np.zeros(legs.size)
+        for g in self.spine_groups:
+            rows = np.flatnonzero(np.isin(c_of, g.chars))
+            if rows.size == 0:
+                continue
+            m, plan = g.model, g.plan
+            chars = c_of[rows]
+            r = np.searchsorted(g.chars, chars)
+            k = m.leg_key[legs[rows] - self.legs.leg_start[chars]]
+            xy = plan.key_xy[r]  # (m, K, 2)
+            heading = plan.key_heading[r]
+            arc = np.concatenate([np.zeros((rows.size, 1)),
+                                  np.cumsum(np.linalg.norm(np.diff(xy, axis=1), axis=2), axis=1)], axis=1)
+            speed = ctl.speed[chars]
+            dist = speed * remaining[legs[rows]]
+            at = np.arange(rows.size)
+            s = arc[at, k] - dist
+            # on the spine: between node i and node i + 1
+            i = np.clip(np.sum(arc[:, 1:-1] < s[:, None], axis=1), 0, m.n_keys - 2)
+            span = arc[at, i + 1] - arc[at, i]
+            f = np.clip((s - arc[at, i]) / np.maximum(span, 1e-12), 0.0, 1.0)
+            on_xy = xy[at, i] + f[:, None] * (xy[at, i + 1] - xy[at, i])
+            on_yaw = heading[at, i] + f * wrap_angle(heading[at, i + 1] - heading[at, i])
+            # past the head: the head's arc toward the commanded heading
+            ahead = np.maximum(-s, 0.0)
+            limit = g.params.turn_rate * ahead / np.maximum(speed, 1e-9)
+            head_turn = np.clip(wrap_angle(ctl.heading[chars] - plan.steer_heading[r]), -limit, limit)
+            mid = heading[:, 0] + 0.5 * head_turn
+            past_xy = xy[:, 0] + ahead[:, None] * np.stack([np.cos(mid), np.sin(mid)], axis=1)
+            past = s < 0.0
+            ref_xy[rows] = np.where(past[:, None], past_xy, on_xy)
+            yaw_land[rows] = np.where(past, heading[:, 0] + head_turn, on_yaw)
+            ref_rest[rows] = m.key_rest[k]
+            rest_yaw[rows] = m.rest_key_heading[k]
+        return ref_xy, yaw_land, ref_rest, rest_yaw
 
     # ---------------------------------------------------------------- feet
     def _land(self, landing: BoolArray) -> None:
@@ -637,24 +936,17 @@ class Controller:
         lc = self.leg_char
         legs_data = self.legs
         c_of = lc[legs]
-        # predicted pelvis pose at each foot's touch-down (speed and heading extrapolated)
-        turn = np.clip(
-            wrap_angle(ctl.heading[c_of] - self.yaw[c_of]),
-            -p.max_turn_rate * remaining[legs],
-            p.max_turn_rate * remaining[legs],
-        )
-        yaw_land = self.yaw[c_of] + turn
-        yaw_mid = self.yaw[c_of] + 0.5 * turn
-        travel = (ctl.speed[c_of] * remaining[legs])[:, None] * np.stack(
-            [np.cos(yaw_mid), np.sin(yaw_mid)], axis=1
-        )
-        pelvis_land = self.pos[c_of, :2] + travel
+        # predicted pelvis (or spine node) pose at each foot's touch-down
+        pelvis_land, yaw_land, ref_rest, rest_yaw = self._landing_refs(legs, ctl, remaining)
         # land so the foot passes under its rest position at mid-stance (figure 3.6, 3.7)
         sweep = (0.5 - land_stance[legs]) * ctl.speed[c_of] * stance_time[legs]
         offset = (
-            legs_data.rest_foot[legs, :2] + ctl.spacing[legs] + np.column_stack([sweep, np.zeros(legs.size)])
+            legs_data.rest_foot[legs, :2]
+            - ref_rest[:, :2]
+            + ctl.spacing[legs]
+            + np.column_stack([sweep, np.zeros(legs.size)])
         )
-        preferred_xy = pelvis_land + self._rotate_xy(offset, yaw_land)
+        preferred_xy = pelvis_land + self._rotate_xy(offset, yaw_land - rest_yaw)
         self.preferred[legs, :2] = preferred_xy
         self.preferred[legs, 2] = self._surface(preferred_xy)
         # reach is judged from the hips halfway through the coming stance: a footprint within
@@ -691,7 +983,8 @@ class Controller:
                 j = row_of[leg]
                 params = self.planner_params(c, float(ctl.step_height[c]), float(reach[j]))
                 hips = pelvis_ref[j] + self._rotate_xy(
-                    hip_offset_xy[sl], np.full(sl.stop - sl.start, yaw_land[j])
+                    hip_offset_xy[sl] - ref_rest[j, :2],
+                    np.full(sl.stop - sl.start, yaw_land[j] - rest_yaw[j]),
                 )
                 own = leg - sl.start
                 others = np.ones(sl.stop - sl.start, dtype=bool)
@@ -832,31 +1125,50 @@ class Controller:
         share = np.clip(p.feedback_gain * dt / self.gait.cycle_time, 0.0, 1.0)
         move = np.where(significant[:, None], mean * share[:, None], 0.0)
         self.pos[:, :2] += move
+        for g in self.spine_groups:
+            shift = move[g.chars]
+            g.plan.key_xy[...] += shift[:, None, :]
+            self._spine_hips[g.legs, :2] += shift[:, None, :]
         # the part worked off is consumed
         self.feedback -= np.where(
             significant[self.leg_char, None], self.feedback * share[self.leg_char, None], 0.0
         )
 
     # ---------------------------------------------------------------- pelvis
-    def _hull_pose(self, ctl: StepControls) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Hull height (+ body thickness), pitch and roll under each character.
+    def _hull_pose(
+        self, ctl: StepControls, chars: IntArray | None = None
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Hull height (+ body thickness), pitch and roll under each character (or only
+        under ``chars``; the results are then ``(len(chars),)``).
 
         Thesis figure 3.8 works on a vertical slice along the body: the terrain under the body
         box is sampled on a grid and reduced to its highest point across the body at each
         position along it (and along the body at each position across it, for roll), then the
         planted feet (and the targets of swinging ones) are added.
         """
-        c = self.n_chars
+        if chars is None:
+            pos, yaw, box_center, box_half = self.pos, self.yaw, self.box_center, self.box_half
+            thickness = self.body_thickness
+            leg_rows = np.arange(self.n_legs)
+            row_of = np.arange(self.n_chars)
+        else:
+            pos, yaw = self.pos[chars], self.yaw[chars]
+            box_center, box_half = self.box_center[chars], self.box_half[chars]
+            thickness = self.body_thickness[chars]
+            leg_rows = np.flatnonzero(np.isin(self.leg_char, chars))
+            row_of = np.full(self.n_chars, -1)
+            row_of[chars] = np.arange(len(chars))
+        c = pos.shape[0]
         na, nc = self.params.body_samples
         sa = np.linspace(-1.0, 1.0, na)
         sc = np.linspace(-1.0, 1.0, nc)
         grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
-        local = self.box_center[:, None, :] + grid[None, :, :] * self.box_half[:, None, :]
-        cy, sy = np.cos(self.yaw)[:, None], np.sin(self.yaw)[:, None]
+        local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
+        cy, sy = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
 
         def to_world(loc: FloatArray) -> FloatArray:
             return np.asarray(
-                self.pos[:, None, :2]
+                pos[:, None, :2]
                 + np.stack(
                     [cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1
                 )
@@ -868,15 +1180,15 @@ class Controller:
         across_z = ground.max(axis=1)  # (c, nc)
         along_local = np.stack(
             [
-                self.box_center[:, None, 0] + sa[None, :] * self.box_half[:, None, 0],
-                np.broadcast_to(self.box_center[:, None, 1], (c, na)),
+                box_center[:, None, 0] + sa[None, :] * box_half[:, None, 0],
+                np.broadcast_to(box_center[:, None, 1], (c, na)),
             ],
             axis=-1,
         )
         across_local = np.stack(
             [
-                np.broadcast_to(self.box_center[:, None, 0], (c, nc)),
-                self.box_center[:, None, 1] + sc[None, :] * self.box_half[:, None, 1],
+                np.broadcast_to(box_center[:, None, 0], (c, nc)),
+                box_center[:, None, 1] + sc[None, :] * box_half[:, None, 1],
             ],
             axis=-1,
         )
@@ -894,15 +1206,16 @@ class Controller:
         along_pts, along_ok = padded(along_local, along_z)
         across_pts, across_ok = padded(across_local, across_z)
         # feet: planted feet where they are, swinging feet where they will land
-        feet = np.where(self.swinging[:, None], self.target, self.foot)
-        n_feet = int(np.bincount(self.leg_char, minlength=c).max())
-        slot = np.arange(self.n_legs) - self.legs.leg_start[self.leg_char]
+        owner = self.leg_char[leg_rows]
+        feet = np.where(self.swinging[leg_rows, None], self.target[leg_rows], self.foot[leg_rows])
+        n_feet = int(np.bincount(row_of[owner], minlength=c).max())
+        slot = leg_rows - self.legs.leg_start[owner]
         feet_pts = np.zeros((c, n_feet, 3))
         feet_ok = np.zeros((c, n_feet), dtype=bool)
-        feet_pts[self.leg_char, slot] = feet
-        feet_ok[self.leg_char, slot] = True
-        fwd = np.stack([np.cos(self.yaw), np.sin(self.yaw)], axis=1)
-        left = np.stack([-np.sin(self.yaw), np.cos(self.yaw)], axis=1)
+        feet_pts[row_of[owner], slot] = feet
+        feet_ok[row_of[owner], slot] = True
+        fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
+        left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=1)
         # both slices (forward for height and pitch, left for roll) in one batched call
         both_h, both_a = hull_height_and_pitch(
             np.concatenate(
@@ -911,14 +1224,14 @@ class Controller:
                     np.concatenate([across_pts, feet_pts], axis=1),
                 ]
             ),
-            np.concatenate([self.pos[:, :2], self.pos[:, :2]]),
+            np.concatenate([pos[:, :2], pos[:, :2]]),
             np.concatenate([fwd, left]),
             np.concatenate(
                 [np.concatenate([along_ok, feet_ok], axis=1), np.concatenate([across_ok, feet_ok], axis=1)]
             ),
         )
         height, pitch, roll = both_h[:c], both_a[:c], both_a[c:]
-        return height + self.body_thickness, pitch, roll
+        return height + thickness, pitch, roll
 
     def _reach_guard(self) -> None:
         """Lower a pelvis whose legs would have to stretch past ``reach_margin``."""
@@ -928,6 +1241,9 @@ class Controller:
         d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
         allowed = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         excess = np.maximum(hips[:, 2] - allowed, 0.0)
+        if self.spine_groups:
+            # spines keep their legs within reach in step 4 (repeat_for_reach)
+            excess[self.spine_legs] = 0.0
         drop = np.zeros(self.n_chars)
         np.maximum.at(drop, self.leg_char, excess)
         # bounded (a foot beyond any help steps early instead), and continuous in the feet
@@ -937,9 +1253,10 @@ class Controller:
     def _solve_ik(self, ctl: StepControls) -> None:
         rot = self.rotations()
         hips = self.hips_world(rot)
+        leg_rot = self.leg_rotations() if self.spine_groups else rot[self.leg_char]
         mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
         res = solve_legs(
-            self.legs, hips, rot[self.leg_char], self.foot, self.angles, mask=None if mask.all() else mask
+            self.legs, hips, leg_rot, self.foot, self.angles, mask=None if mask.all() else mask
         )
         self.angles = res.angles
         self.ik_result = res

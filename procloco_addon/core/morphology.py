@@ -17,15 +17,22 @@ limited per joint by ``joint_min``/``joint_max``.
 ``Morphology`` describes one character. ``LegBatch`` stacks many characters' legs into one
 flat leg axis (``leg_char`` says whose leg each row is) so that the IK, the gait and the
 pelvis physics run over every leg of every character with one set of numpy calls.
+
+A character may also have a flexible spine (thesis §4.2, ``core.spine``): its body is then
+split into *virtual pelvis nodes* — the head node, which carries no legs, and one node per
+girdle — joined by the spine's joints. :meth:`Morphology.with_spine` adds one; each leg's
+``pelvis_node`` is then the key node it hangs from.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
+
+from .spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT, SpineModel
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -84,11 +91,14 @@ class Morphology:
       hinges); padded entries are 0.
     - ``yaw_weight``: ``(n,)`` 1 when the leg plane yaws with the foot (splayed legs), 0 when
       it keeps its rest orientation (legs under the hip).
-    - ``pelvis_node``: ``(n,)`` index of the pelvis node the hip belongs to (0: the pelvis).
+    - ``pelvis_node``: ``(n,)`` index of the pelvis node the hip belongs to: 0 (the one
+      pelvis) without a spine; with one, the spine's key node (1 .. K - 1; node 0 is the head).
     - ``body_box_center``, ``body_box_half``: ``(2,)`` projected body box in the xy plane.
     - ``body_thickness``: height of the pelvis origin above the terrain's upper hull when
       standing (thesis figure 3.8); defaults to the rest height above the feet.
     - ``foot_half_extents``: ``(2,)`` half size of the projected foot shape (x along the foot).
+    - ``spine``: the flexible spine (``core.spine.SpineModel``, in this body frame), or None
+      for a rigid body; see :meth:`with_spine`.
     """
 
     labels: tuple[str, ...]
@@ -104,6 +114,7 @@ class Morphology:
     body_box_half: FloatArray
     body_thickness: float
     foot_half_extents: FloatArray
+    spine: SpineModel | None = None
 
     # ------------------------------------------------------------------ derived values
     @property
@@ -135,6 +146,43 @@ class Morphology:
         return chain_angles(
             self.rest_joints, self.plane_normal, np.broadcast_to(_UP, (self.n_legs, 3)), self.n_segments
         )
+
+    def with_spine(
+        self,
+        joint_rest: npt.ArrayLike,
+        *,
+        key_joint: npt.ArrayLike | None = None,
+        leg_key: npt.ArrayLike | None = None,
+        leg_bone: npt.ArrayLike | None = None,
+        joint_yaw_limit: float = DEFAULT_JOINT_YAW_LIMIT,
+        joint_pitch_limit: float = DEFAULT_JOINT_PITCH_LIMIT,
+        anchor_key: int | None = None,
+    ) -> Morphology:
+        """This morphology with a flexible spine (thesis §4.2).
+
+        ``joint_rest``: ``(J, 3)`` spine joints in the body frame, from the head (0) to the
+        back. Without ``key_joint``/``leg_key`` the virtual pelvis nodes are found from the
+        legs (each leg hangs from the spine joint nearest its hip; ``SpineModel.from_legs``);
+        otherwise ``key_joint`` ``(K,)`` lists the joints that are nodes (0 first, ``J - 1``
+        last) and ``leg_key`` ``(n,)`` the node of each leg. ``leg_bone`` ``(n,)``: the spine
+        bone each hip rides with (see ``SpineModel``). Limits are per joint, in radians.
+        Raises :class:`MorphologyError` for a spine that cannot carry these legs.
+        """
+        try:
+            if key_joint is None or leg_key is None:
+                model = SpineModel.from_legs(
+                    joint_rest, self.hip_offset, self.rest_foot, joint_yaw_limit=joint_yaw_limit,
+                    joint_pitch_limit=joint_pitch_limit, anchor_key=anchor_key,
+                )
+            else:
+                model = SpineModel.build(
+                    joint_rest, key_joint, leg_key, self.hip_offset, self.rest_foot,
+                    joint_yaw_limit=joint_yaw_limit, joint_pitch_limit=joint_pitch_limit,
+                    anchor_key=anchor_key, leg_bone=leg_bone,
+                )
+        except ValueError as err:
+            raise MorphologyError(f"spine: {err}") from None
+        return replace(self, spine=model, pelvis_node=model.leg_key.copy())
 
     def leg_index(self, label: str) -> int:
         try:
@@ -519,9 +567,13 @@ def pentapod(scale: float = 1.0) -> Morphology:
     )
 
 
-def quadruped(scale: float = 1.0) -> Morphology:
+def quadruped(scale: float = 1.0, spine: bool = False) -> Morphology:
     """A dog-like quadruped: front legs three segments (upper arm, forearm, hand), hind legs
-    three segments (thigh, shin, tarsus); feet under the hips, knees forward, hocks back."""
+    three segments (thigh, shin, tarsus); feet under the hips, knees forward, hocks back.
+
+    ``spine``: with a flexible spine of 7 joints (head and neck carried forward and up,
+    shoulders, back, hips): 3 virtual pelvis nodes (head, shoulders, hips), as the thesis's
+    wolf (§4.4)."""
     front = [
         np.array([0.3, 0.1, 0.0]),
         np.array([0.24, 0.1, -0.19]),
@@ -538,12 +590,42 @@ def quadruped(scale: float = 1.0) -> Morphology:
     hind = [p * scale for p in hind]
     mirror = [np.array([1.0, side, 1.0]) for side in (1.0, -1.0)]
     chains = [np.array([p * m for p in leg]) for leg in (front, hind) for m in mirror]
-    return Morphology.from_rest_joints(
+    body = Morphology.from_rest_joints(
         chains,
         leg_labels(4),
         body_box=(np.zeros(2), np.array([0.4, 0.12]) * scale),
         foot_half_extents=np.array([0.03, 0.025]) * scale,
     )
+    if not spine:
+        return body
+    xs = np.array([0.6, 0.45, 0.3, 0.15, 0.0, -0.15, -0.3])
+    joints = np.column_stack([xs, np.zeros(7), np.array([0.1, 0.03, 0, 0, 0, 0, 0])]) * scale
+    return body.with_spine(joints)
+
+
+def lizard(scale: float = 1.0, spine: bool = True) -> Morphology:
+    """A sprawling lizard (thesis figure 4.15): four legs of three segments reaching out to
+    the sides, and (``spine``) a spine of 9 joints with 3 virtual pelvis nodes (head,
+    shoulders, hips). About 0.6 × scale long from the snout to the hips."""
+    chains = []
+    for x, azimuth in ((0.14, 70.0), (-0.14, 105.0)):
+        for side in (1.0, -1.0):
+            hip = np.array([x, side * 0.04, 0.0]) * scale
+            lengths = [0.09 * scale, 0.085 * scale, 0.06 * scale]
+            chain = _radial_leg(hip, side * azimuth, lengths, [12.0, -45.0, -80.0])
+            chains.append(_drop_to_ground(chain, 0.09 * scale))
+    body = Morphology.from_rest_joints(
+        chains,
+        leg_labels(4),
+        body_box=(np.zeros(2), np.array([0.3, 0.06]) * scale),
+        foot_half_extents=np.array([0.015, 0.015]) * scale,
+    )
+    if not spine:
+        return body
+    xs = np.linspace(0.45, -0.14, 9)
+    joints = np.column_stack([xs, np.zeros(9), np.zeros(9)]) * scale
+    joints[0, 2] = 0.01 * scale
+    return body.with_spine(joints)
 
 
 def biped(scale: float = 1.0) -> Morphology:

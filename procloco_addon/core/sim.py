@@ -12,7 +12,9 @@ planner, pelvis, pseudo-physics, IK) to user-level commands:
 
 ``Simulation.run`` returns a ``SimResult``: pelvis transforms, every leg joint's world
 position, leg-plane normals, joint angles, contact flags, chosen and preferred footprints,
-the needles and disks, and per-step planner statistics and timings. Frame 0 is the state
+the needles and disks, the spine joints and bone rotations of characters walking with a
+flexible spine (``spine=SpineParams(...)``, thesis §4.2), and per-step planner statistics
+and timings. Frame 0 is the state
 before the first step; frame ``f`` is after ``f`` steps of ``dt`` seconds.
 
 The result is deterministic: the same inputs (and ``seed``, used only for ``phase="random"``)
@@ -33,6 +35,7 @@ from .controller import Controller, ControllerParams, PlannerLOD, StepControls, 
 from .footprints import PlannerParams
 from .gait import Gait
 from .morphology import LegBatch, Morphology
+from .spine import SpineParams
 from .terrain import ROLE_AVOID, Environment
 
 FloatArray = npt.NDArray[np.float64]
@@ -93,10 +96,17 @@ class SimResult:
       ``preferred (F, N, 3)``: the controller's preferred footprint for it.
     - ``needle (F, C)``, ``phase_step (F, C)`` (needle advance of the step into the frame),
       ``disk_start``, ``disk_duration`` ``(F, N)``.
+    - ``leg_frame (F, N, 3, 3)``: body-to-world rotation of what each leg hangs from (the
+      pelvis, or its spine node or carrier bone).
+    - ``spine_joints (F, C, J, 3)``: world spine joints, head first (``J`` the longest spine;
+      rows past a spine's end repeat its last joint; characters without a spine hold their
+      pelvis position); ``spine_rotation (F, C, J - 1, 3, 3)``: each spine bone's rotation
+      from its rest (body-frame) direction to the world (identity where there is no bone);
+      ``spine_n_joints (C,)``: joints of each character's spine (0 without one).
     - ``stats``: per-step counters ``(F,)`` (``n_plans``, ``n_failed``, ``n_couples``,
       ``n_paths``, ``n_windows``, ``n_replans``, ``n_forced``, ``n_relaxed``, ``n_fallback``);
       ``seconds``: per-phase times
-      ``(F,)`` (``maps``, ``planning``, ``ik``, ``physics``, ``rest``).
+      ``(F,)`` (``maps``, ``planning``, ``ik``, ``physics``, ``spine``, ``rest``).
     """
 
     dt: float
@@ -121,6 +131,10 @@ class SimResult:
     phase_step: FloatArray
     disk_start: FloatArray
     disk_duration: FloatArray
+    leg_frame: FloatArray
+    spine_joints: FloatArray
+    spine_rotation: FloatArray
+    spine_n_joints: IntArray
     stats: dict[str, IntArray] = field(default_factory=dict)
     seconds: dict[str, FloatArray] = field(default_factory=dict)
 
@@ -205,7 +219,9 @@ class Simulation:
     ``controls``: ``Controls`` or ``f(time) -> Controls``; ``gait_changes``: scheduled
     ``GaitChange``s; ``phase``: ``(C,)`` initial needle phases, ``"random"`` (seeded by
     ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams``;
-    ``lod``: optional per-character ``PlannerLOD`` (thesis §3.7).
+    ``lod``: optional per-character ``PlannerLOD`` (thesis §3.7); ``spine``: ``SpineParams``
+    for every character (or one per character, None for a rigid body) walking with the
+    flexible spine of its morphology (``Morphology.with_spine``; thesis §4.2, §4.4).
     """
 
     def __init__(
@@ -224,6 +240,7 @@ class Simulation:
         params: ControllerParams | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
+        spine: SpineParams | Sequence[SpineParams | None] | None = None,
     ) -> None:
         if not dt > 0.0:
             raise ValueError("dt must be positive")
@@ -285,6 +302,7 @@ class Simulation:
             params=params,
             planner=planner,
             lod=lod,
+            spine=[spine] * c if isinstance(spine, SpineParams) else spine,
         )
         self.time = 0.0
         self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
@@ -401,6 +419,9 @@ class Simulation:
                 "phase_step": np.mod(ctrl.gait.needle - prev_needle, 1.0),
                 "disk_start": ctrl.gait.disk_start.copy(),
                 "disk_duration": ctrl.gait.disk_duration.copy(),
+                "leg_frame": ctrl.leg_rotations(),
+                "spine_joints": ctrl.spine_joints(),
+                "spine_rotation": ctrl.spine_rotations(),
             }
         )
         self._stats.append(stats)
@@ -424,7 +445,7 @@ class Simulation:
             "n_fallback",
         )
         stats = {k: np.array([getattr(s, k) for s in self._stats], dtype=np.int64) for k in names}
-        phases = ("maps", "planning", "ik", "physics", "rest")
+        phases = ("maps", "planning", "ik", "physics", "spine", "rest")
         seconds = {k: np.array([s.seconds.get(k, 0.0) for s in self._stats]) for k in phases}
         return SimResult(
             dt=self.dt,
@@ -449,6 +470,14 @@ class Simulation:
             phase_step=stack("phase_step").astype(np.float64),
             disk_start=stack("disk_start").astype(np.float64),
             disk_duration=stack("disk_duration").astype(np.float64),
+            leg_frame=stack("leg_frame").astype(np.float64),
+            spine_joints=stack("spine_joints").astype(np.float64),
+            spine_rotation=stack("spine_rotation").astype(np.float64),
+            spine_n_joints=np.array(
+                [m.spine.n_joints if m.spine is not None and sp is not None else 0
+                 for m, sp in zip(self.legs.morphologies, self.controller.spine_params, strict=True)],
+                dtype=np.int64,
+            ),
             stats=stats,
             seconds=seconds,
         )
@@ -476,7 +505,7 @@ def check_motion(
     nseg = legs.n_segments[leg_sel]
     leg_len = legs.leg_length[leg_sel]
     target = result.foot[:, leg_sel]
-    body_up = result.pelvis_rotation[:, legs.leg_char[leg_sel]][..., 2]
+    body_up = result.leg_frame[:, leg_sel][..., 2]
     depth = result.ground[:, leg_sel] - end[..., 2]
     boxes = env.boxes
     # moving boxes are judged by the per-frame ground (their top), static ones also from the side

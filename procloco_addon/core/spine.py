@@ -37,7 +37,7 @@ body frame is x forward, y left, z up; rest positions are in it.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import numpy.typing as npt
@@ -151,6 +151,10 @@ class SpineModel:
     - ``anchor_key``: the key node whose final position is exactly its guide; the chain is
       rebuilt from there in both directions (normally the rig's root, the hips).
     - ``slice_margin``: how far past the head and the back node the ground is sampled.
+    - ``leg_bone``: ``(L,)`` optional: the spine bone each leg's hip rides with (bone ``b``
+      joins joints ``b`` and ``b + 1``; the hip turns with its rotation about joint ``b + 1``,
+      the bone's end toward the back, as a rig's child bone turns with its parent); ``-1``
+      (the default) makes the hip ride with the frame of its key node instead.
 
     Derived (filled in by the constructor): ``bone_length`` ``(J - 1,)``, ``bone_dir``
     ``(J - 1, 3)`` (unit, head to back), ``key_chord`` ``(K - 1,)`` horizontal distances
@@ -168,6 +172,7 @@ class SpineModel:
     joint_pitch_limit: FloatArray
     anchor_key: int
     slice_margin: float
+    leg_bone: IntArray | None = None
     bone_length: FloatArray = field(init=False)
     bone_dir: FloatArray = field(init=False)
     key_chord: FloatArray = field(init=False)
@@ -178,6 +183,9 @@ class SpineModel:
     joint_fraction: FloatArray = field(init=False)
     rest_chord_yaw: FloatArray = field(init=False)
     rest_chord_pitch: FloatArray = field(init=False)
+    leg_pivot: IntArray = field(init=False)
+    leg_on_bone: npt.NDArray[np.bool_] = field(init=False)
+    leg_bone_row: IntArray = field(init=False)
 
     @property
     def n_joints(self) -> int:
@@ -224,9 +232,17 @@ class SpineModel:
             return arr
 
         set_ = object.__setattr__
+        carrier = (np.full(n_l, -1, dtype=np.int64) if self.leg_bone is None
+                   else np.asarray(self.leg_bone, dtype=np.int64).reshape(-1).copy())
+        if carrier.shape != (n_l,) or np.any(carrier < -1) or np.any(carrier >= n_j - 1):
+            raise ValueError(f"leg_bone must hold one bone index in -1 .. {n_j - 2} per leg")
         set_(self, "joint_rest", joints)
         set_(self, "key_joint", key)
         set_(self, "leg_key", leg_key)
+        set_(self, "leg_bone", carrier)
+        set_(self, "leg_pivot", np.where(carrier >= 0, carrier + 1, key[leg_key]).astype(np.int64))
+        set_(self, "leg_on_bone", carrier >= 0)
+        set_(self, "leg_bone_row", np.maximum(carrier, 0))
         set_(self, "hip_rest", np.asarray(self.hip_rest, dtype=np.float64).reshape(n_l, 3))
         set_(self, "foot_rest", np.asarray(self.foot_rest, dtype=np.float64).reshape(n_l, 3))
         set_(self, "node_yaw_limit", per("node_yaw_limit", self.node_yaw_limit, n_k))
@@ -283,6 +299,7 @@ class SpineModel:
         node_yaw_limit: npt.ArrayLike | None = None,
         anchor_key: int | None = None,
         slice_margin: float | None = None,
+        leg_bone: npt.ArrayLike | None = None,
     ) -> SpineModel:
         """A spine model with defaults derived from the rest pose.
 
@@ -319,6 +336,7 @@ class SpineModel:
             joint_pitch_limit=np.broadcast_to(np.asarray(joint_pitch_limit, dtype=np.float64), (n_j,)),
             anchor_key=int(anchor_key),
             slice_margin=float(slice_margin),
+            leg_bone=None if leg_bone is None else np.asarray(leg_bone, dtype=np.int64),
         )
 
     @classmethod
@@ -639,7 +657,8 @@ def terrain_guides(
         fwd = np.stack([np.cos(plan.key_heading), np.sin(plan.key_heading)], axis=-1)  # (C, K, 2)
         node_of_leg = model.leg_key
         rel = feet[..., :2] - xy[:, node_of_leg]
-        fx = arc[:, node_of_leg] + np.einsum("cli,cli->cl", rel, fwd[:, node_of_leg])  # (C, L)
+        # arc length grows from the head to the back: a foot ahead of its node comes before it
+        fx = arc[:, node_of_leg] - np.einsum("cli,cli->cl", rel, fwd[:, node_of_leg])  # (C, L)
         # One column per leg, valid only in its own node's row.
         mine = node_of_leg[None, :] == np.arange(k)[:, None]  # (K, L)
         x = np.concatenate([x, np.broadcast_to(fx[:, None, :], (c, k, model.n_legs))], axis=2)
@@ -876,11 +895,22 @@ def refit(model: SpineModel, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePo
     return build_spine(model, key_xyz, pose.key_yaw, pose.key_pitch)
 
 
+def leg_frames(model: SpineModel, pose: SpinePose) -> FloatArray:
+    """Body-to-world rotation each leg hangs from ``(C, L, 3, 3)``: its carrier bone's
+    rotation (``SpineModel.leg_bone``), else the frame of its key node."""
+    key_frames = pose.joint_frame[:, model.key_joint[model.leg_key]]
+    if not np.any(model.leg_on_bone):
+        return np.asarray(key_frames)
+    bone_frames = pose.bone_rotation[:, model.leg_bone_row]
+    return np.asarray(np.where(model.leg_on_bone[None, :, None, None], bone_frames, key_frames))
+
+
 def hip_positions(model: SpineModel, pose: SpinePose) -> FloatArray:
-    """World hip positions ``(C, L, 3)``: each hip rides with the frame of its key node."""
-    joint = model.key_joint[model.leg_key]
-    offset = model.hip_rest - model.joint_rest[joint]  # (L, 3)
-    return pose.joints[:, joint] + np.einsum("clij,lj->cli", pose.joint_frame[:, joint], offset)
+    """World hip positions ``(C, L, 3)``: each hip rides with its carrier bone (turning about
+    the bone's back joint) or, without one, with the frame of its key node."""
+    pivot = model.leg_pivot
+    offset = model.hip_rest - model.joint_rest[pivot]  # (L, 3)
+    return pose.joints[:, pivot] + np.einsum("clij,lj->cli", leg_frames(model, pose), offset)
 
 
 def repeat_for_reach(
@@ -890,32 +920,64 @@ def repeat_for_reach(
     leg_reach: npt.ArrayLike,
     iterations: int = 3,
     slack: float = 0.995,
+    max_shift: float = np.inf,
 ) -> SpinePose:
-    """Repeat step 4 until every hip is within ``slack * leg_reach`` of its foot.
+    """Repeat step 4 until every hip is within ``leg_reach`` of its foot.
 
-    A hip too far from its foot is pulled toward it by the excess; each key node's guide
-    moves by the mean pull of its legs, and the spine is rebuilt (:func:`refit`). This is
+    A hip too far from its foot is pulled toward it, to ``slack * leg_reach`` (a little
+    inside, so that the rebuilt curve, which does not move every hip by exactly its pull,
+    settles in few repeats); each key node's guide
+    moves by the pulls of its legs averaged with their excesses as weights (one stretched
+    leg moves its node by its whole excess, two stretched the same way do not add up), and
+    the spine is rebuilt (:func:`refit`); at most ``iterations`` times. This is
     the hook of thesis §4.2.4 with reach as the legs' ability; a controller whose IK knows
     better (joint limits) can compute its own guides and call :func:`refit`.
-    ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)``.
+    ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)``; no guide moves further than
+    ``max_shift`` from where it was (a foot beyond help is the controller's to step).
     """
     if model.n_legs == 0:
         return pose
     feet = np.asarray(foot_world, dtype=np.float64)
-    reach = slack * np.broadcast_to(np.asarray(leg_reach, dtype=np.float64), (model.n_legs,))
-    k = pose.guide_xyz.shape[1]
-    count = np.bincount(model.leg_key, minlength=k).astype(np.float64)
+    reach = np.broadcast_to(np.asarray(leg_reach, dtype=np.float64), (model.n_legs,))
+    aim = slack * reach
+    member = _membership(model)
+    start = pose.guide_xyz
+    rows = np.arange(pose.joints.shape[0])  # characters still stretched (only they are rebuilt)
     for _ in range(max(0, int(iterations))):
-        hips = hip_positions(model, pose)
-        to_foot = feet - hips
+        sub = _pose_rows(pose, rows)
+        to_foot = feet[rows] - hip_positions(model, sub)
         dist = np.linalg.norm(to_foot, axis=-1)
-        excess = np.maximum(dist - reach[None, :], 0.0)
-        if not np.any(excess > 1e-9):
+        stretched = np.any(dist > reach[None, :] + 1e-12, axis=1)
+        if not np.any(stretched):
             break
-        pull = to_foot * (excess / np.maximum(dist, _EPS))[..., None]
-        shift = np.einsum("lk,cld->ckd", _membership(model), pull) / np.maximum(count, 1.0)[None, :, None]
-        pose = refit(model, pose, pose.guide_xyz + shift)
+        excess = np.maximum(dist - aim[None, :], 0.0)
+        rows, to_foot, dist, excess = rows[stretched], to_foot[stretched], dist[stretched], excess[stretched]
+        pull = to_foot * (excess * excess / np.maximum(dist, _EPS))[..., None]
+        weight = excess @ member  # (c, K)
+        shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
+        sub = _pose_rows(pose, rows)
+        moved = sub.guide_xyz + shift - start[rows]
+        size = np.linalg.norm(moved, axis=-1, keepdims=True)
+        moved *= np.minimum(1.0, max_shift / np.maximum(size, _EPS))
+        pose = _pose_with_rows(pose, rows, refit(model, sub, start[rows] + moved))
     return pose
+
+
+def _pose_rows(pose: SpinePose, rows: IntArray) -> SpinePose:
+    """The poses of characters ``rows`` only."""
+    return SpinePose(*(getattr(pose, f.name)[rows] for f in fields(SpinePose)))
+
+
+def _pose_with_rows(pose: SpinePose, rows: IntArray, sub: SpinePose) -> SpinePose:
+    """``pose`` with the characters ``rows`` replaced by ``sub``."""
+    if rows.size == pose.joints.shape[0]:
+        return sub
+    out = []
+    for f in fields(SpinePose):
+        arr = np.array(getattr(pose, f.name), copy=True)
+        arr[rows] = getattr(sub, f.name)
+        out.append(arr)
+    return SpinePose(*out)
 
 
 # ------------------------------------------------------------------------- one full step
@@ -966,6 +1028,7 @@ __all__ = [
     "frame_from_yaw_pitch",
     "ground_guides",
     "hip_positions",
+    "leg_frames",
     "node_pitch",
     "plan_spine",
     "refit",

@@ -243,3 +243,30 @@ def test_switching_pelvis_physics_on_does_not_jump() -> None:
         ctrl.step(1.0 / 30.0, ctl)
         z.append(ctrl.pos[0, 2])
     assert np.abs(np.diff(z)).max() < 0.01
+
+
+def test_spine_settings_need_a_spine_and_give_each_girdle_its_pelvis_node() -> None:
+    from procloco_addon.core.spine import SpineParams
+
+    env = _flat()
+    plain, dog = morph.quadruped(), morph.quadruped(spine=True)
+    legs = LegBatch.stack([plain, dog, dog])
+    gait = find_gait_preset("quadruped_walk").gait(plain.labels)
+    start = np.array([[0.0, 0.0], [0.0, 1.5], [0.0, -1.5]])
+    with pytest.raises(ValueError, match="character 0 has spine settings but its morphology has no spine"):
+        Controller(env, legs, [gait] * 3, start, np.zeros(3), _controls(legs),
+                   spine=[SpineParams(), None, None])
+    still = _controls(legs, speed=0.0)  # feet at their rest places
+    ctrl = Controller(env, legs, [gait] * 3, start, np.zeros(3), still, spine=[None, SpineParams(), None])
+    # one node for each rigid body, three (head, shoulders, hips) for the spine
+    assert ctrl.n_nodes == 1 + 3 + 1
+    assert ctrl.leg_node.tolist() == [0, 0, 0, 0, 2, 2, 3, 3, 4, 4, 4, 4]
+    # standing at rest, the spine is the rigid body: same hips, frames and body pose
+    up = np.array([0.0, 3.0, 0.0])
+    np.testing.assert_allclose(ctrl.hips_world()[4:8], ctrl.hips_world()[8:12] + up, atol=1e-12)
+    np.testing.assert_allclose(ctrl.leg_rotations()[4:8], np.broadcast_to(np.eye(3), (4, 3, 3)), atol=1e-12)
+    np.testing.assert_allclose(ctrl.pos[1], ctrl.pos[2] + up, atol=1e-12)
+    joints = ctrl.spine_joints()
+    assert joints.shape == (3, 7, 3)
+    np.testing.assert_allclose(joints[1], dog.spine.joint_rest + ctrl.pos[1], atol=1e-12)  # type: ignore[union-attr]
+    np.testing.assert_array_equal(joints[0], np.repeat(ctrl.pos[:1], 7, axis=0))

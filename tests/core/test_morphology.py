@@ -123,3 +123,40 @@ def test_unknown_leg_label_lookup_names_the_legs() -> None:
     with pytest.raises(MorphologyError, match="L1, R1"):
         morph.biped().leg_index("L9")
     assert morph.biped().leg_index("R1") == 1
+
+
+def test_with_spine_makes_the_legs_hang_from_virtual_pelvis_nodes() -> None:
+    plain = morph.quadruped()
+    assert plain.spine is None
+    assert plain.pelvis_node.tolist() == [0, 0, 0, 0]
+    dog = morph.quadruped(spine=True)
+    assert dog.spine is not None
+    # head, shoulders, hips (thesis §4.4: three pelvis nodes, about seven spine joints)
+    assert dog.spine.n_keys == 3
+    assert dog.spine.n_joints == 7
+    assert dog.pelvis_node.tolist() == [1, 1, 2, 2] == dog.spine.leg_key.tolist()
+    np.testing.assert_allclose(dog.spine.hip_rest, dog.hip_offset)
+    np.testing.assert_allclose(dog.spine.foot_rest, dog.rest_foot)
+    # the legs themselves are unchanged
+    np.testing.assert_allclose(dog.rest_joints, plain.rest_joints)
+    lizard = morph.lizard()
+    assert lizard.spine is not None
+    assert (lizard.spine.n_keys, lizard.spine.n_joints) == (3, 9)  # thesis figure 4.15
+    assert morph.lizard(spine=False).spine is None
+    # explicit key nodes and carrier bones
+    joints = dog.spine.joint_rest
+    carried = plain.with_spine(joints, key_joint=[0, 2, 6], leg_key=[1, 1, 2, 2], leg_bone=[2, 2, 5, 5],
+                               joint_yaw_limit=0.2)
+    assert carried.spine is not None
+    assert carried.spine.leg_bone.tolist() == [2, 2, 5, 5]
+    np.testing.assert_allclose(carried.spine.joint_yaw_limit, 0.2)
+    assert LegBatch.stack([plain, carried]).pelvis_node.tolist() == [0, 0, 0, 0, 1, 1, 2, 2]
+
+
+def test_a_spine_that_cannot_carry_the_legs_is_refused() -> None:
+    dog = morph.quadruped()
+    short = np.array([[0.3, 0.0, 0.0], [0.0, 0.0, 0.0], [-0.3, 0.0, 0.0]])  # no head before the shoulders
+    with pytest.raises(MorphologyError, match=r"spine: .*head"):
+        dog.with_spine(short)
+    with pytest.raises(MorphologyError, match="spine: "):
+        dog.with_spine(short, key_joint=[0, 2], leg_key=[0, 0, 1, 1])

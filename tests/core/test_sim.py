@@ -10,6 +10,7 @@ from procloco_addon.core import morphology as morph
 from procloco_addon.core.controller import ControllerParams
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.sim import Controls, GaitChange, SimResult, Simulation, check_motion
+from procloco_addon.core.spine import SpineParams, wrap_angle
 from procloco_addon.core.terrain import ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Boxes, Environment, Heightmap
 
 
@@ -287,3 +288,181 @@ def test_speed_and_heading_changes_replan_swinging_feet() -> None:
     assert replans[36:38].sum() > 0  # speed change (thesis sequence 3)
     assert replans[66:68].sum() > 0  # heading change
     assert res.yaw[-1, 0] == pytest.approx(0.8, abs=1e-6)
+
+
+# ------------------------------------------------------------------ flexible spine (§4.2)
+
+
+def _heading_of(frames: np.ndarray) -> np.ndarray:
+    """Headings of the forward axes of rotations ``(..., 3, 3)``."""
+    return np.asarray(np.arctan2(frames[..., 1, 0], frames[..., 0, 0]))
+
+
+def _quarter_turn(spine: SpineParams | None) -> SimResult:
+    """A quadruped walking along +x turns to +y (a 90 degree heading command at t = 1 s)."""
+    m = morph.quadruped(spine=True)
+    gait = find_gait_preset("quadruped_walk").gait(m.labels)
+
+    def controls(t: float) -> Controls:
+        return Controls(speed=0.5, heading=0.0 if t < 1.0 else np.pi / 2, step_height=0.06)
+
+    return Simulation(flat(10.0), [m], gait, controls=controls, spine=spine).run(150)
+
+
+def test_quadruped_turning_90_degrees_bends_its_spine_from_the_head() -> None:
+    res = _quarter_turn(SpineParams())
+    _assert_motion_ok(res, flat(10.0))
+    model = morph.quadruped(spine=True).spine
+    assert model is not None
+    assert res.spine_n_joints.tolist() == [7]
+    joints = res.spine_joints[:, 0]
+    bones = np.diff(joints, axis=1)
+    # bone lengths exact at every frame
+    lengths = np.linalg.norm(bones, axis=2)
+    np.testing.assert_allclose(lengths, np.broadcast_to(model.bone_length, lengths.shape), atol=1e-9)
+    # every joint within its limits: the turn between two bones moves from its rest value by
+    # at most the joint's yaw limit (and pitch limit in the vertical plane)
+    yaw = np.arctan2(bones[..., 1], bones[..., 0])
+    pitch = np.arctan2(bones[..., 2], np.hypot(bones[..., 0], bones[..., 1]))
+    rest_yaw = np.arctan2(model.bone_dir[:, 1], model.bone_dir[:, 0])
+    rest_pitch = np.arctan2(model.bone_dir[:, 2], np.hypot(model.bone_dir[:, 0], model.bone_dir[:, 1]))
+    joint_yaw = wrap_angle(np.diff(yaw, axis=1) - np.diff(rest_yaw))
+    joint_pitch = np.diff(pitch, axis=1) - np.diff(rest_pitch)
+    assert np.all(np.abs(joint_yaw) <= model.joint_yaw_limit[1:-1] + 1e-9)
+    assert np.all(np.abs(joint_pitch) <= model.joint_pitch_limit[1:-1] + 1e-9)
+    assert np.abs(joint_yaw).max() > 0.5 * model.joint_yaw_limit[1]  # and it did bend
+    # progressively from the head: while the turn goes on, each bone has turned at least as
+    # far as the one behind it
+    turned = wrap_angle(yaw - yaw[:1])
+    turning = np.flatnonzero((turned[:, 0] > np.radians(10)) & (turned[:, 0] < np.radians(70)))
+    assert turning.size > 5
+    assert np.all(np.diff(turned[turning], axis=1) <= 1e-9)
+    assert np.all(turned[turning, 0] - turned[turning, -1] > np.radians(5))
+    # the shoulders lead the hips through the turn, then the body straightens on +y
+    lead = wrap_angle(_heading_of(res.leg_frame[:, 0]) - _heading_of(res.leg_frame[:, 2]))
+    assert lead.max() > np.radians(20)
+    assert abs(lead[-1]) < np.radians(1)
+    assert res.yaw[-1, 0] == pytest.approx(np.pi / 2, abs=0.02)
+    assert np.abs(turned[-1] - np.pi / 2).max() < np.radians(1)
+
+
+def test_without_the_spine_the_quadruped_turns_rigidly() -> None:
+    res = _quarter_turn(None)
+    assert res.spine_n_joints.tolist() == [0]
+    assert res.yaw[-1, 0] == pytest.approx(np.pi / 2, abs=1e-6)
+    # every leg hangs from the one pelvis: same frame, and the hips keep their rest layout
+    np.testing.assert_array_equal(res.leg_frame, res.pelvis_rotation[:, res.leg_char])
+    m = res.legs.morphologies[0]
+    hips_body = np.einsum("fji,fnj->fni", res.pelvis_rotation[:, 0], res.hips - res.pelvis_position[:, :1])
+    np.testing.assert_allclose(hips_body, np.broadcast_to(m.hip_offset, hips_body.shape), atol=1e-12)
+
+
+def test_spine_stays_above_the_stairs_and_pitches_with_the_slope() -> None:
+    m = morph.quadruped(spine=True)
+    gait = find_gait_preset("quadruped_walk").gait(m.labels)
+    rise = 0.08
+    env = stairs(rise=rise)
+    res = Simulation(env, [m], gait, controls=Controls(speed=0.5, heading=0.0, step_height=0.08),
+                     spine=SpineParams()).run(300)
+    _assert_motion_ok(res, env)
+    joints = res.spine_joints[:, 0]
+    ground = env.height_at(joints[..., :2].reshape(-1, 2)).reshape(joints.shape[:2])
+    assert (joints[..., 2] - ground).min() > 0.6 * m.body_thickness
+    # the hips (the anchor node, the rig's root) end up on the plateau
+    assert joints[-1, -1, 2] == pytest.approx(6 * rise + m.body_thickness, abs=0.02)
+
+    grade = 0.25
+    env = slope(grade)
+    res = Simulation(env, [m], gait, controls=Controls(speed=0.5, heading=0.0, step_height=0.06),
+                     spine=SpineParams()).run(240)
+    _assert_motion_ok(res, env)
+    joints = res.spine_joints[:, 0]
+    on_slope = joints[:, -1, 0] > 0.3  # the whole spine is on the slope
+    assert on_slope.sum() > 60
+    # both girdles pitch with the slope (their legs' frames), the hips ride a body thickness
+    # above it (less the lag of the height filter: a quarter cycle of a 0.125 m/s climb)
+    frames = res.leg_frame[on_slope][..., 0]  # forward axes (n, legs, 3)
+    girdle_pitch = np.arctan2(frames[..., 2], np.hypot(frames[..., 0], frames[..., 1]))
+    assert girdle_pitch.mean(axis=0) == pytest.approx(np.full(4, np.arctan(grade)), abs=np.radians(3))
+    hips = joints[on_slope, -1]
+    above = hips[:, 2] - grade * hips[:, 0]
+    assert np.median(above) == pytest.approx(m.body_thickness - 0.25 * 0.5 * grade, abs=0.005)
+    assert np.abs(above - m.body_thickness).max() < 0.05
+
+
+def test_each_spine_node_bounces_on_its_own_legs() -> None:
+    """Pseudo-physics per pelvis node (thesis §4.2.3): off, the hips ride level on flat ground;
+    on, the shoulders and the hips bounce, each with its own pair of legs."""
+    m = morph.quadruped(spine=True)
+    gait = find_gait_preset("quadruped_walk").gait(m.labels)
+    env = flat()
+    z = {}
+    for on in (False, True):
+        ctl = Controls(speed=0.4, heading=0.0, step_height=0.05, pelvis_physics=on)
+        res = Simulation(env, [m], gait, controls=ctl, spine=SpineParams(foot_pitch_weight=0.0)).run(120)
+        _assert_motion_ok(res, env)
+        z[on] = res.spine_joints[30:, 0][:, [2, 6], 2]  # shoulders and hips (key joints)
+    assert np.ptp(z[False][:, 1]) < 1e-9
+    assert np.ptp(z[True], axis=0).min() > 0.003
+    assert z[True][:, 1].mean() == pytest.approx(z[False][0, 1], abs=0.003)
+    # the two nodes do not move as one: their bounces are out of step
+    bounce = z[True] - z[True].mean(axis=0)
+    assert np.abs(bounce[:, 0] - bounce[:, 1]).max() > 0.002
+
+
+def test_visual_yaw_sways_the_lizard_with_its_feet() -> None:
+    m = morph.lizard()
+    model = m.spine
+    assert model is not None
+    gait = find_gait_preset("quadruped_trot").gait(m.labels)
+    env = flat()
+    sway = {}
+    for on in (False, True):
+        res = Simulation(env, [m], gait, controls=Controls(speed=0.3, heading=0.0, step_height=0.03),
+                         spine=SpineParams(visual_yaw=on)).run(90)
+        _assert_motion_ok(res, env)
+        bones = np.diff(res.spine_joints[:, 0], axis=1)
+        yaw = np.arctan2(bones[..., 1], bones[..., 0])
+        sway[on] = np.abs(wrap_angle(yaw - np.pi))  # rest bones point straight back
+        joint_yaw = wrap_angle(np.diff(yaw, axis=1))
+        assert np.all(np.abs(joint_yaw) <= model.joint_yaw_limit[1:-1] + 1e-9)
+    assert sway[False].max() < 1e-9
+    assert sway[True].max() > np.radians(3)
+
+
+def test_spine_nodes_plan_the_rigid_footprints_on_a_straight_walk() -> None:
+    """Walking straight the nodes follow the rigid body's path, so feet planned in each node's
+    frame (predicted along the spine to touch-down) land where the rigid body plans them."""
+    m = morph.quadruped(spine=True)
+    gait = find_gait_preset("quadruped_walk").gait(m.labels)
+    env = flat()
+    ctl = Controls(speed=0.5, heading=0.3, step_height=0.06)
+    rigid = Simulation(env, [m], gait, controls=ctl, start_yaw=0.3).run(90)
+    level = SpineParams(foot_pitch_weight=0.0)
+    spine = Simulation(env, [m], gait, controls=ctl, start_yaw=0.3, spine=level).run(90)
+    assert (~rigid.contact).sum() > 20
+    np.testing.assert_allclose(spine.footprint, rigid.footprint, atol=1e-9)
+    np.testing.assert_allclose(spine.preferred, rigid.preferred, atol=1e-9)
+
+
+def test_rigid_characters_in_a_crowd_with_spines_are_unchanged_and_runs_repeat() -> None:
+    env, _ = bumpy_with_crates()
+    dog = morph.quadruped(spine=True)
+    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
+    ctl = Controls(speed=0.4, heading=0.0, step_height=0.06, pelvis_physics=True)
+    alone = Simulation(env, [dog], gait, controls=ctl, start_xy=[[0.0, 0.0]]).run(45)
+
+    def crowd() -> SimResult:
+        return Simulation(env, [dog, dog, morph.lizard(2.0)], [gait, gait, gait], controls=ctl,
+                          start_xy=[[0.0, 0.0], [0.0, -1.5], [-1.0, 1.2]],
+                          spine=[None, SpineParams(), SpineParams(visual_yaw=True)]).run(45)
+
+    a, b = crowd(), crowd()
+    assert a.spine_n_joints.tolist() == [0, 7, 9]
+    for name in ("pelvis_position", "pelvis_rotation", "joints", "foot", "footprint", "contact"):
+        np.testing.assert_array_equal(getattr(a, name)[:, :4] if getattr(a, name).shape[1] == 12
+                                      else getattr(a, name)[:, :1], getattr(alone, name), err_msg=name)
+    for name in ("spine_joints", "spine_rotation", "joints", "leg_frame"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    report = check_motion(a, env, chars=[1, 2])
+    assert report.passed, report.failures()

@@ -17,6 +17,7 @@ from procloco_addon.core.spine import (
     finish_spine,
     ground_guides,
     hip_positions,
+    leg_frames,
     node_pitch,
     plan_spine,
     repeat_for_reach,
@@ -519,3 +520,69 @@ def test_negative_distance_means_standing_still() -> None:
     plan = plan_spine(m, state, SpineParams(), 0.0, -1.0, DT)  # negative distance is clamped
     assert plan.key_xy == pytest.approx(state.key_xy)
     assert plan.distance[0] == 0.0
+
+
+# ------------------------------------------------------------- carrier bones, feet ahead
+
+
+def test_hips_ride_with_their_carrier_bone_like_a_child_bone() -> None:
+    """With ``leg_bone`` set, a hip keeps its rest offset in its carrier bone's frame, about
+    the bone's back joint: what a rig does with a leg parented to a spine bone."""
+    base = quadruped()
+    # front legs carried by bone 2 (joints 2-3), hind legs by bone 5 (joints 5-6)
+    m = SpineModel.build(base.joint_rest, base.key_joint, base.leg_key, base.hip_rest, base.foot_rest,
+                         leg_bone=[2, 2, 5, 5])
+    assert m.leg_pivot.tolist() == [3, 3, 6, 6]
+    # a bent spine: the head guide swung to the left and lowered
+    pose = build_spine(m, np.array([[[0.55, 0.25, 0.5], [0.3, 0.0, 0.5], [-0.3, 0.0, 0.5]]]),
+                       np.array([[0.8, 0.4, 0.0]]), np.array([[0.1, 0.05, 0.0]]))
+    hips = hip_positions(m, pose)[0]
+    for leg, bone in enumerate([2, 2, 5, 5]):
+        rot = pose.bone_rotation[0, bone]
+        back = m.leg_pivot[leg]
+        expected = pose.joints[0, back] + rot @ (m.hip_rest[leg] - m.joint_rest[back])
+        assert hips[leg] == pytest.approx(expected)
+        # rigidly attached to the bone: its distances to both ends of the bone are the rest ones
+        for joint in (bone, bone + 1):
+            assert np.linalg.norm(hips[leg] - pose.joints[0, joint]) == pytest.approx(
+                np.linalg.norm(m.hip_rest[leg] - m.joint_rest[joint]))
+    frames = leg_frames(m, pose)[0]
+    assert frames[0] == pytest.approx(pose.bone_rotation[0, 2])
+    assert frames[3] == pytest.approx(pose.bone_rotation[0, 5])
+    # the default (no carrier) keeps the key node frames
+    assert leg_frames(base, pose)[0, 0] == pytest.approx(pose.key_frames(base)[0, 1])
+    with pytest.raises(ValueError, match="leg_bone"):
+        SpineModel.build(base.joint_rest, base.key_joint, base.leg_key, base.hip_rest, base.foot_rest,
+                         leg_bone=[2, 2, 6, 6])
+
+
+def test_feet_ahead_of_their_node_on_a_step_lift_its_nose() -> None:
+    """A foot standing ahead of its node on something higher tilts that node's hull up at
+    the front (the slice runs from the head to the back: ahead is before the node)."""
+    m = quadruped()
+    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
+    feet[0, :2, :2] += [0.15, 0.0]  # front feet 0.15 m ahead of the shoulders...
+    feet[0, :2, 2] = 0.1  # ... up on a step
+    _, pitch = terrain_guides(m, plan, flat, feet)
+    assert pitch[0, 1] > np.radians(10)  # nose up
+    feet[0, :2, :2] -= [0.3, 0.0]  # the same step behind the shoulders: nose down
+    _, pitch = terrain_guides(m, plan, flat, feet)
+    assert pitch[0, 1] < -np.radians(10)
+
+
+def test_reach_repeat_moves_a_node_by_its_one_stretched_leg_and_is_bounded() -> None:
+    m = quadruped()
+    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    pose = finish_spine(m, plan, SpineParams(), m.key_rest_height[None, :], np.zeros((1, 3)))
+    feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
+    feet[0, 2, 0] -= 0.2  # one hind foot left 0.2 m behind: 0.54 m from its hip
+    reach = np.full(4, 0.52)
+    fixed = repeat_for_reach(m, pose, feet, reach, iterations=4)
+    after = np.linalg.norm(feet[0] - hip_positions(m, fixed)[0], axis=1)
+    assert after.max() <= 0.52 + 1e-9
+    # bounded: the hips may not move more than max_shift, so the leg stays stretched
+    held = repeat_for_reach(m, pose, feet, reach, iterations=4, max_shift=0.005)
+    moved = np.linalg.norm(held.guide_xyz - pose.guide_xyz, axis=-1)
+    assert moved.max() <= 0.005 + 1e-12
+    assert np.linalg.norm(feet[0, 2] - hip_positions(m, held)[0, 2]) > 0.52
