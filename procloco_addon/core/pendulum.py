@@ -1,0 +1,1085 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""3D pendulums: secondary motion layered on top of an existing animation (thesis chapter 5).
+
+Every bone of a chain is a pendulum: a bar of fixed length hanging from an anchor (its
+father's tip, or for a tree's root the point where the chain meets the body) and pulled
+toward a *target direction* by two planar spring-dampers. The state of a pendulum is its
+**error**: two angles, one per plane, that tell how far the bar is from its target. The
+target comes from the underlying animation (or is gravity, -Z), so with no perturbation
+the error stays exactly zero and the pendulums replay the animation untouched; the
+pendulums are a superimposed layer (thesis §5.4).
+
+What perturbs a pendulum:
+
+- its anchor changing velocity. The root anchor moves with the body (the whole motion
+  counts); an inner pendulum's anchor is its father's tip, and only the part of that
+  motion that is not in the animation counts (father pursuit, thesis §5.3.1);
+- explicit impulses: a mass displaced in world space. The displacement drags the
+  ancestors toward it, bottom-up (son pursuit, thesis §5.3.2) and the children follow in
+  the top-down pass.
+
+Design choices, and where they depart from the thesis:
+
+- *Settling time.* Eq. 5.1, ``Ts = -ln(tol) / (ζ ω0)``, counts only the decay envelope.
+  It ignores the ``1/sqrt(1-ζ²)`` factor of an underdamped response and the ``(1 + ω0 t)``
+  factor of a critically damped one (at ζ = 1 the response is still at 20 % of its
+  initial error at that ``Ts``). :func:`natural_frequency` therefore solves for the ω0 at
+  which a spring released from rest enters the 5 % band for good exactly at ``Ts``; eq. 5.2
+  then gives ``k`` and ``c``. :func:`natural_frequency_envelope` is eq. 5.1 as printed.
+- *Two planar springs.* The error ``(θx, θz)`` holds the angle of the bar toward the
+  target frame's x axis and toward its z axis (the thesis's XY and ZY planes around a Y
+  target). Each is an independent spring-damper. They are combined into a direction by
+  the exponential map of the sphere at the target (rotate the target by ``|θ|`` toward
+  ``θx·x + θz·z``), so the bar keeps its length exactly and the two angles are the planar
+  angles whenever the other one is zero.
+- *Inertia.* The thesis holds a mass in place while its anchor moves (§5.3.1). Done
+  literally, an anchor moving at constant speed leans the chain back by an angle that
+  grows as the bars get shorter, and it depends on the time step. Here a mass keeps its
+  *velocity* while its anchor moves: the geometric correction of §5.3.1 is applied to the
+  part of the anchor's displacement that its previous velocity does not explain
+  (the second difference of its position). Constant-velocity motion leaves the chain
+  as animated; starts, stops, bobbing and turns make it swing.
+- *Fixed internal rate.* The springs are integrated with a damped Störmer-Verlet step at
+  ``rate_hz`` (default 240 Hz, raised automatically for very stiff springs) whatever the
+  animation's frame rate; the animation is interpolated between its samples and the
+  pendulum errors are interpolated back at the sample times.
+- *Vectorised.* All pendulums of all trees of all characters are one flat array, sorted
+  by depth; each pass is a loop over depth levels, and every level is one numpy
+  operation over all pendulums at that depth.
+
+Frames: a pendulum's animated frame is a rotation matrix whose columns are the bone's
+x, y and z axes in world space, y pointing from the bone's head to its tail (Blender's
+bone convention). Twist about the bar is not simulated: the output keeps the animated
+twist and only swings the bar.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+TOLERANCE_FRACTION = 0.05
+"""The settling band: a spring has settled once it stays within 5 % of its initial error."""
+
+DEFAULT_RATE_HZ = 120.0
+"""Internal integration rate, independent of the scene's frame rate."""
+
+MAX_OMEGA_STEP = 0.5
+"""Largest ``ω0·h`` allowed; the internal rate is raised (doubled) until every spring fits."""
+MAX_FAST_STEP = 0.5
+"""Largest ``Ω·h`` for the fastest swing of a tree: the sons' reactions are explicit, and
+chains of 6-10 bars were seen to go unstable at 1.0."""
+
+REST_ANIMATION = 0
+"""Rest direction: the animated bone direction (the pendulum replays the animation)."""
+REST_GRAVITY = 1
+"""Rest direction: straight down, world -Z (the bar hangs)."""
+
+Combine = Literal["sum", "average", "weighted"]
+
+_GRAVITY_FRAME = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
+"""Target frame of a gravity pendulum: x = world X, y (the bar) = -Z, z = x × y = world Y."""
+
+
+# ---------------------------------------------------------------------------------------
+# Spring-dampers (thesis §5.2)
+# ---------------------------------------------------------------------------------------
+
+
+def _released_response(tau: FloatArray, zeta: FloatArray) -> FloatArray:
+    """Unit error released from rest, ω0 = 1: x(τ) of ``x'' + 2ζx' + x = 0``, x(0) = 1."""
+    out = np.empty(np.broadcast(tau, zeta).shape)
+    tau, zeta = np.broadcast_arrays(tau, zeta)
+    under = zeta < 1.0
+    crit = zeta == 1.0
+    over = zeta > 1.0
+    if np.any(under):
+        z, t = zeta[under], tau[under]
+        wd = np.sqrt(1.0 - z * z)
+        out[under] = np.exp(-z * t) * (np.cos(wd * t) + z / wd * np.sin(wd * t))
+    if np.any(crit):
+        t = tau[crit]
+        out[crit] = (1.0 + t) * np.exp(-t)
+    if np.any(over):
+        z, t = zeta[over], tau[over]
+        s = np.sqrt(z * z - 1.0)
+        r1, r2 = -z + s, -z - s
+        out[over] = (r2 * np.exp(r1 * t) - r1 * np.exp(r2 * t)) / (r2 - r1)
+    return out
+
+
+def settling_factor(damping: ArrayLike, tolerance: float = TOLERANCE_FRACTION) -> FloatArray:
+    """Dimensionless settling time ``ω0·Ts`` of a spring released from rest.
+
+    The last time at which ``|x(t)| = tolerance · |x(0)|``, for ω0 = 1. It depends on the
+    damping ratio only; eq. 5.1 approximates it by ``-ln(tolerance) / ζ``.
+
+    damping: ζ > 0, any shape. Returns the same shape.
+    """
+    zeta = np.asarray(damping, dtype=np.float64)
+    if np.any(~(zeta > 0.0)):
+        raise ValueError("damping ratio ζ must be > 0")
+    if not 0.0 < tolerance < 1.0:
+        raise ValueError("tolerance must be in (0, 1)")
+    flat = zeta.reshape(-1)
+    lo = np.zeros_like(flat)
+    hi = np.empty_like(flat)
+    under = flat < 1.0
+    # Underdamped: the extrema are at kπ/ωd with |x| = exp(-ζkπ/ωd). The last one above the
+    # band is k = K; the response leaves the band for good between it and the next extremum.
+    zu = flat[under]
+    wd = np.sqrt(1.0 - zu * zu)
+    k_last = np.floor(-np.log(tolerance) * wd / (zu * np.pi))
+    lo[under] = k_last * np.pi / wd
+    hi[under] = (k_last + 1.0) * np.pi / wd
+    # Critically and overdamped: monotone decay; the slow root bounds the crossing.
+    zo = flat[~under]
+    slow = np.where(zo > 1.0, zo - np.sqrt(np.maximum(zo * zo - 1.0, 0.0)), 1.0)
+    hi[~under] = (-np.log(tolerance) + 4.0) / slow + 10.0
+    # The response at extremum k has sign (-1)^k: after an odd extremum it rises to the band.
+    k_all = np.zeros_like(flat)
+    k_all[under] = k_last
+    sign = np.where(np.mod(k_all, 2.0) == 1.0, -1.0, 1.0)
+    # Bisection on x(τ) - sign·tol, which changes sign exactly once in [lo, hi].
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        above = sign * _released_response(mid, flat) > tolerance
+        lo = np.where(above, mid, lo)
+        hi = np.where(above, hi, mid)
+    return (0.5 * (lo + hi)).reshape(zeta.shape)
+
+
+def natural_frequency(
+    settling_time: ArrayLike, damping: ArrayLike, tolerance: float = TOLERANCE_FRACTION
+) -> FloatArray:
+    """ω0 (rad/s) such that a spring released from rest settles within ``tolerance`` at ``Ts``.
+
+    settling_time: Ts > 0 seconds; damping: ζ > 0 (broadcast together).
+    """
+    ts = np.asarray(settling_time, dtype=np.float64)
+    if np.any(~(ts > 0.0)):
+        raise ValueError("settling time Ts must be > 0 seconds")
+    return settling_factor(damping, tolerance) / ts
+
+
+def natural_frequency_envelope(
+    settling_time: ArrayLike, damping: ArrayLike, tolerance: float = TOLERANCE_FRACTION
+) -> FloatArray:
+    """Eq. 5.1 as printed: ``ω0 = -ln(tolerance) / (ζ · Ts)`` (decay envelope only)."""
+    ts = np.asarray(settling_time, dtype=np.float64)
+    zeta = np.asarray(damping, dtype=np.float64)
+    if np.any(~(ts > 0.0)) or np.any(~(zeta > 0.0)):
+        raise ValueError("Ts and ζ must be > 0")
+    return -np.log(tolerance) / (zeta * ts)
+
+
+def spring_constants(
+    settling_time: ArrayLike, damping: ArrayLike, mass: float = 1.0, tolerance: float = TOLERANCE_FRACTION
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``(ω0, k, c)`` from the settling time and damping ratio (eq. 5.1 corrected, eq. 5.2).
+
+    ``k = m ω0²`` and ``c = 2 m ζ ω0``.
+    """
+    omega0 = natural_frequency(settling_time, damping, tolerance)
+    zeta = np.asarray(damping, dtype=np.float64)
+    return omega0, mass * omega0**2, 2.0 * mass * zeta * omega0
+
+
+def spring_step(
+    x: ArrayLike, x_prev: ArrayLike, omega0: ArrayLike, damping: ArrayLike, h: float
+) -> FloatArray:
+    """One damped Störmer-Verlet step of ``x'' + 2ζω0 x' + ω0² x = 0`` (rest at 0).
+
+    The velocity in the damping term is the central difference ``(x⁺ - x⁻) / 2h``, which
+    keeps the scheme second order and free of overshoot at ζ ≥ 1 while ``ω0·h < 1``.
+    Shapes broadcast: ``x`` and ``x_prev`` (..., k); ``omega0`` and ``damping`` (...,) or
+    (..., 1).
+    """
+    a = np.asarray(damping) * np.asarray(omega0) * h
+    b = (np.asarray(omega0) * h) ** 2
+    xa, xp = np.asarray(x, dtype=np.float64), np.asarray(x_prev, dtype=np.float64)
+    return (2.0 * xa - (1.0 - a) * xp - b * xa) / (1.0 + a)
+
+
+def release_curve(
+    settling_time: float, damping: float, duration: float, rate_hz: float = DEFAULT_RATE_HZ
+) -> tuple[FloatArray, FloatArray]:
+    """A unit error released from rest, integrated at ``rate_hz``: ``(t, x)``, each (m,)."""
+    omega0 = float(natural_frequency(settling_time, damping))
+    h = _internal_step(np.array([omega0]), rate_hz)
+    m = int(np.ceil(duration / h)) + 1
+    x = np.empty(m)
+    x[0] = 1.0
+    prev, cur = 1.0, 1.0
+    for i in range(1, m):
+        prev, cur = cur, float(spring_step(cur, prev, omega0, damping, h))
+        x[i] = cur
+    return np.arange(m) * h, x
+
+
+def _internal_step(omega0: FloatArray, rate_hz: float) -> float:
+    if not rate_hz > 0.0:
+        raise ValueError("rate_hz must be > 0")
+    h = 1.0 / rate_hz
+    top = float(np.max(omega0)) if omega0.size else 0.0
+    while top * h > MAX_OMEGA_STEP:
+        h *= 0.5
+    return h
+
+
+# ---------------------------------------------------------------------------------------
+# Small batched vector helpers (hot path: plain arithmetic on (m, 3) arrays)
+# ---------------------------------------------------------------------------------------
+
+
+def _dot(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.einsum("...i,...i->...", a, b)
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+def _normalize(v: FloatArray) -> FloatArray:
+    n = np.sqrt(_dot(v, v))
+    return v / np.maximum(n, 1e-300)[..., None]
+
+
+def _exp_dir(theta: FloatArray, frame: FloatArray) -> FloatArray:
+    """Bar direction for an error ``theta`` (..., 2) in a target ``frame`` (..., 3, 3)."""
+    ang = np.sqrt(theta[..., 0] ** 2 + theta[..., 1] ** 2)
+    sinc = np.sinc(ang / np.pi)  # sin(a)/a, exact 1 at 0
+    return (
+        np.cos(ang)[..., None] * frame[..., :, 1]
+        + (sinc * theta[..., 0])[..., None] * frame[..., :, 0]
+        + (sinc * theta[..., 1])[..., None] * frame[..., :, 2]
+    )
+
+
+def _log_dir(direction: FloatArray, frame: FloatArray) -> FloatArray:
+    """Error (..., 2) of a unit bar ``direction`` (..., 3) relative to a target ``frame``."""
+    c = _dot(direction, frame[..., :, 1])
+    s1 = _dot(direction, frame[..., :, 0])
+    s2 = _dot(direction, frame[..., :, 2])
+    sn = np.sqrt(s1 * s1 + s2 * s2)
+    ang = np.arctan2(sn, c)
+    scale = np.where(sn > 1e-12, ang / np.maximum(sn, 1e-300), 1.0)
+    return np.stack([scale * s1, scale * s2], axis=-1)
+
+
+def _swing(a: FloatArray, b: FloatArray, fallback: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Axis (..., 3) and angle (...,) of the shortest rotation taking unit ``a`` to unit ``b``.
+
+    When ``a`` and ``b`` are opposite, the rotation is about ``fallback`` (a unit vector
+    perpendicular to ``a``).
+    """
+    k = _cross(a, b)
+    s = np.sqrt(_dot(k, k))
+    c = _dot(a, b)
+    angle = np.arctan2(s, c)
+    axis = np.where((s > 1e-12)[..., None], k / np.maximum(s, 1e-300)[..., None], fallback)
+    return axis, angle
+
+
+def _rotation_matrix(axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """Rotation matrices (..., 3, 3) about unit ``axis`` (..., 3) by ``angle`` (...,)."""
+    x, y, z = axis[..., 0], axis[..., 1], axis[..., 2]
+    c, s = np.cos(angle), np.sin(angle)
+    t = 1.0 - c
+    out = np.empty((*axis.shape[:-1], 3, 3))
+    out[..., 0, 0] = c + x * x * t
+    out[..., 0, 1] = x * y * t - z * s
+    out[..., 0, 2] = x * z * t + y * s
+    out[..., 1, 0] = y * x * t + z * s
+    out[..., 1, 1] = c + y * y * t
+    out[..., 1, 2] = y * z * t - x * s
+    out[..., 2, 0] = z * x * t - y * s
+    out[..., 2, 1] = z * y * t + x * s
+    out[..., 2, 2] = c + z * z * t
+    return out
+
+
+def orthonormalize_frames(frame: ArrayLike) -> FloatArray:
+    """Nearest-ish right-handed orthonormal frames (..., 3, 3) keeping the y column's direction.
+
+    y is normalised, x is made perpendicular to it (Gram-Schmidt), z = x × y. Use it on
+    bone matrices that carry scale or numerical drift.
+    """
+    f = np.asarray(frame, dtype=np.float64)
+    y = _normalize(f[..., :, 1])
+    x = f[..., :, 0] - _dot(f[..., :, 0], y)[..., None] * y
+    xn = np.sqrt(_dot(x, x))
+    # A degenerate x (parallel to y) falls back to any perpendicular axis.
+    alt = np.where((np.abs(y[..., 0]) < 0.9)[..., None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    alt = alt - _dot(alt, y)[..., None] * y
+    x = np.where((xn > 1e-9)[..., None], x, alt)
+    x = _normalize(x)
+    z = _cross(x, y)
+    return np.stack([x, y, z], axis=-1)
+
+
+# ---------------------------------------------------------------------------------------
+# Trees of pendulums
+# ---------------------------------------------------------------------------------------
+
+
+class PendulumForest:
+    """Many trees of pendulums (all chains of all rigs) as flat arrays.
+
+    parent: (n,) index of each pendulum's father, -1 for a tree root (anchored to the body).
+        Any order is accepted; fathers need not come before sons.
+    length: (n,) bar lengths (m), > 0. Used for the inertia of the masses only: the bars'
+        positions come from the animated heads, so animated bone lengths are kept.
+    settling_time: (n,) Ts (s) > 0; damping: (n,) ζ > 0 (ζ = 1 critical, < 1 underdamped,
+        > 1 overdamped).
+    rest_mode: (n,) REST_ANIMATION (target = the animated direction) or REST_GRAVITY
+        (target = world -Z). Default: all REST_ANIMATION.
+    influence: (n,) in [0, 1], how much of the simulated swing reaches the output (the
+        dynamics are not changed). Default 1.
+    child_weight: (n,) >= 0, the weight of a pendulum's pull on its father with
+        ``combine="weighted"`` (e.g. its mass). Default 1.
+    mass: (n,) > 0, the point mass at each bar's tip (used with ``reaction``). Default 1.
+    reaction: True (default): a father also feels its sons' springs pushing back, so a
+        tree moves like a chain of point masses on rods (linearised, the two passes are
+        then exact, see ``PendulumSimulator._reactions``). A chain's slowest swing is
+        slower than one bar's, so each tree's springs are stiffened (``tree_scale``) to
+        give that slowest swing the requested frequency; a whole chain then settles within
+        about 1-4 Ts (a single bar exactly at Ts).
+        False: the thesis's one-way passes, each bar with its own Ts and no stiffening. One-way coupling
+        cannot hand energy back: a pendulum shaken below its resonance swings wider than
+        its pivot, so an underdamped chain shaken near its frequency amplifies link after
+        link (an 8-bone tail shaken by 1 cm at resonance whirls round).
+    combine: how a father integrates the errors its sons' pulls give it (son pursuit,
+        thesis §5.3.3 step 2): "sum" (the thesis's choice, default), "average" (divided
+        by the number of sons), "weighted" (weighted average by ``child_weight``).
+    """
+
+    def __init__(
+        self,
+        parent: ArrayLike,
+        length: ArrayLike,
+        settling_time: ArrayLike,
+        damping: ArrayLike,
+        *,
+        rest_mode: ArrayLike | None = None,
+        influence: ArrayLike | None = None,
+        child_weight: ArrayLike | None = None,
+        combine: Combine = "sum",
+        mass: ArrayLike | None = None,
+        reaction: bool = True,
+    ) -> None:
+        par = np.asarray(parent, dtype=np.int64).reshape(-1)
+        n = par.size
+        self.n = n
+
+        def per_node(value: ArrayLike | None, default: float, name: str) -> FloatArray:
+            arr = np.full(n, default) if value is None else np.asarray(value, dtype=np.float64)
+            arr = np.broadcast_to(arr, (n,)).astype(np.float64)
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"{name} must be finite")
+            return arr
+
+        self.parent = par
+        self.length = per_node(length, 0.0, "length")
+        self.settling_time = per_node(settling_time, 0.0, "settling_time")
+        self.damping = per_node(damping, 0.0, "damping")
+        self.rest_mode = per_node(rest_mode, REST_ANIMATION, "rest_mode").astype(np.int64)
+        self.influence = per_node(influence, 1.0, "influence")
+        self.child_weight = per_node(child_weight, 1.0, "child_weight")
+        self.mass = per_node(mass, 1.0, "mass")
+        self.reaction = bool(reaction)
+        self.combine: Combine = combine
+
+        if np.any((par < -1) | (par >= n)):
+            raise ValueError("parent indices must be -1 or in [0, n)")
+        if np.any(par == np.arange(n)):
+            raise ValueError("a pendulum cannot be its own father")
+        if np.any(~(self.length > 0.0)):
+            raise ValueError("every pendulum needs a length > 0 (zero-length bones cannot swing)")
+        if np.any(~(self.settling_time > 0.0)):
+            raise ValueError("settling time Ts must be > 0 seconds")
+        if np.any(~(self.damping > 0.0)):
+            raise ValueError("damping ratio ζ must be > 0")
+        if np.any((self.influence < 0.0) | (self.influence > 1.0)):
+            raise ValueError("influence must be in [0, 1]")
+        if np.any(self.child_weight < 0.0):
+            raise ValueError("child_weight must be >= 0")
+        if np.any(~(self.mass > 0.0)):
+            raise ValueError("mass must be > 0")
+        if not np.all(np.isin(self.rest_mode, (REST_ANIMATION, REST_GRAVITY))):
+            raise ValueError("rest_mode must be REST_ANIMATION or REST_GRAVITY")
+        if combine not in ("sum", "average", "weighted"):
+            raise ValueError(f"combine must be 'sum', 'average' or 'weighted', not {combine!r}")
+
+        self.depth = _depths(par)
+        # Internal order: by depth, ties by input index (stable), so fathers precede sons
+        # and the result does not depend on how the caller ordered the pendulums.
+        self.order: IntArray = np.lexsort((np.arange(n), self.depth)).astype(np.int64)
+        self.rank: IntArray = np.empty(n, dtype=np.int64)
+        self.rank[self.order] = np.arange(n)
+        sorted_parent = par[self.order]
+        self.parent_sorted: IntArray = np.where(
+            sorted_parent >= 0, self.rank[np.maximum(sorted_parent, 0)], -1
+        )
+        depth_sorted = self.depth[self.order]
+        bounds = np.flatnonzero(np.diff(depth_sorted)) + 1
+        edges = [0, *bounds.tolist(), n] if n else [0]
+        self.levels: list[tuple[int, int]] = [(edges[i], edges[i + 1]) for i in range(len(edges) - 1)]
+        self.omega0 = natural_frequency(self.settling_time, self.damping)
+        self.gain = self._pull_gain()
+        if self.reaction:
+            self.tree_scale, self.fastest = _tree_modes(self)
+        else:
+            self.tree_scale, self.fastest = np.ones(n), self.omega0.copy()
+
+    def _pull_gain(self) -> FloatArray:
+        """Factor of each pendulum's pull on its father, from ``combine`` (input order)."""
+        n = self.n
+        has_father = self.parent >= 0
+        fathers = self.parent[has_father]
+        if self.combine == "sum":
+            return np.ones(n)
+        if self.combine == "average":
+            count = np.bincount(fathers, minlength=n).astype(np.float64)
+            gain = np.ones(n)
+            gain[has_father] = 1.0 / count[fathers]
+            return gain
+        total = np.bincount(fathers, weights=self.child_weight[has_father], minlength=n)
+        gain = np.zeros(n)
+        ok = has_father & (total[np.maximum(self.parent, 0)] > 0.0)
+        gain[ok] = self.child_weight[ok] / total[self.parent[ok]]
+        gain[~has_father] = 1.0
+        return gain
+
+    @property
+    def n_trees(self) -> int:
+        return int(np.count_nonzero(self.parent < 0))
+
+    @classmethod
+    def chains(
+        cls,
+        chain_lengths: list[ArrayLike],
+        settling_time: float | ArrayLike = 0.6,
+        damping: float | ArrayLike = 0.4,
+        **kwargs: object,
+    ) -> PendulumForest:
+        """A forest of unbranched chains; ``chain_lengths[i]`` holds chain i's bar lengths."""
+        parent: list[int] = []
+        lengths: list[float] = []
+        for chain in chain_lengths:
+            ls = np.asarray(chain, dtype=np.float64).reshape(-1)
+            start = len(parent)
+            parent.extend([-1, *list(range(start, start + ls.size - 1))])
+            lengths.extend(ls.tolist())
+        return cls(parent, lengths, settling_time, damping, **kwargs)  # type: ignore[arg-type]
+
+
+def _depths(parent: IntArray) -> IntArray:
+    """Depth of every node (roots 0); raises on cycles. Linear passes, no recursion."""
+    n = parent.size
+    depth = np.full(n, -1, dtype=np.int64)
+    depth[parent < 0] = 0
+    for _ in range(n + 1):
+        unknown = depth < 0
+        if not np.any(unknown):
+            return depth
+        fathers = parent[unknown]
+        ready = depth[fathers] >= 0
+        if not np.any(ready):
+            raise ValueError("the parent array has a cycle: pendulums must form trees")
+        idx = np.flatnonzero(unknown)[ready]
+        depth[idx] = depth[parent[idx]] + 1
+    raise ValueError("the parent array has a cycle: pendulums must form trees")  # pragma: no cover
+
+
+def _tree_modes(forest: PendulumForest) -> tuple[FloatArray, FloatArray]:
+    """Per pendulum: its tree's stiffness scale and the tree's fastest swing (rad/s).
+
+    Linearised about the rest pose with all bars of a tree treated as collinear, small
+    absolute swing angles φ of point masses ``m`` on bars ``L`` obey ``M φ'' = -K φ`` with
+    ``M_ij = L_i L_j Σ m_k`` over the pendulums k hanging below both i and j (zero unless
+    one is an ancestor of the other) and ``K = diag(m L² ω0²)``. A chain's slowest swing is
+    much slower than one bar's (a uniform 4-bar chain: 0.35 ω0). With the slowest
+    eigenvalue ``Ω²`` and the root's ω0, every bar of the tree runs at ``s·ω0`` with
+    ``s = ω0_root / Ω`` (its ζ kept), so the tree's slowest swing has the requested
+    frequency. Measured on kicked chains of 2-10 equal bars (Ts = 0.6 s, ζ 0.2-1): the tip
+    settles within 1-4.2 Ts, and a chain shaken at any frequency never amplifies along its
+    length.
+    Returns (n,) scales and (n,) fastest scaled swing frequencies, for the time step.
+    """
+    n = forest.n
+    scale = np.ones(n)
+    fastest = forest.omega0.copy()
+    roots = np.flatnonzero(forest.parent < 0)
+    # Members of every tree, by depth, without recursion.
+    tree = np.arange(n)
+    for s, e in forest.levels[1:]:
+        nodes = forest.order[s:e]
+        tree[nodes] = tree[forest.parent[nodes]]
+    for r in roots:
+        members = np.flatnonzero(tree == r)
+        if members.size == 1:
+            continue
+        local = {int(g): i for i, g in enumerate(members)}
+        k = members.size
+        below = np.eye(k, dtype=bool)  # below[i, j]: j is i or hangs below i
+        for j, g in enumerate(members):
+            f = int(forest.parent[g])
+            while f >= 0:
+                below[local[f], j] = True
+                f = int(forest.parent[f])
+        m = forest.mass[members]
+        L = forest.length[members]
+        w = forest.omega0[members]
+        shared = (below.astype(float) * m[None, :]) @ below.T.astype(float)  # Σ m over common descendants
+        M = shared * np.outer(L, L)
+        K = np.diag(m * L * L * w * w)
+        chol = np.linalg.cholesky(M)
+        inv = np.linalg.inv(chol)
+        eig = np.linalg.eigvalsh(inv @ K @ inv.T)
+        s_tree = forest.omega0[r] / np.sqrt(eig[0])
+        scale[members] = s_tree
+        fastest[members] = s_tree * np.sqrt(eig[-1])
+    return scale, fastest
+
+
+# ---------------------------------------------------------------------------------------
+# The simulator
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass
+class PendulumState:
+    """Simulation state, in the forest's internal (depth-sorted) order.
+
+    theta, theta_prev: (n, 2) errors at the current and the previous internal step.
+    offset, offset_prev: (n, 3) the part of each anchor's position whose changes perturb
+        it: the world head for a root, the deviation from the animated head otherwise.
+    head: (n, 3) simulated world anchors (bone heads); direction: (n, 3) simulated unit
+        bars; local: (n, 3) the same bars in their target frames; target: (n, 3, 3)
+        target frames of the last step.
+    """
+
+    theta: FloatArray
+    theta_prev: FloatArray
+    offset: FloatArray
+    offset_prev: FloatArray
+    head: FloatArray
+    direction: FloatArray
+    local: FloatArray
+    target: FloatArray
+    time: float = 0.0
+    steps: int = 0
+
+
+class PendulumSimulator:
+    """Steps a :class:`PendulumForest` at a fixed internal rate (vectorised over all trees).
+
+    Poses are given in the caller's (input) order: ``head_anim`` (n, 3) animated world bone
+    heads and ``frame_anim`` (n, 3, 3) animated world bone frames (columns x, y = head→tail,
+    z; orthonormal, see :func:`orthonormalize_frames`).
+    """
+
+    def __init__(self, forest: PendulumForest, rate_hz: float = DEFAULT_RATE_HZ) -> None:
+        self.forest = forest
+        fastest = forest.fastest * (MAX_OMEGA_STEP / MAX_FAST_STEP)
+        self.h = _internal_step(np.maximum(forest.omega0 * forest.tree_scale, fastest), rate_hz)
+        order = forest.order
+        self._length = forest.length[order]
+        # Trees are stiffened so that their slowest swing runs at the requested ω0 (see
+        # _tree_modes); ζ is kept.
+        self._omega0 = (forest.omega0 * forest.tree_scale)[order][:, None]
+        self._zeta = forest.damping[order][:, None]
+        self._gravity = forest.rest_mode[order] == REST_GRAVITY
+        self._gain = forest.gain[order]
+        self._parent = forest.parent_sorted
+        self._n_roots = forest.levels[0][1] if forest.levels else 0
+        # Reaction on each father's mass per unit of its son's spring acceleration:
+        # its angle gets -(m_s L_s) / (m_f L_f) · F_s, i.e. its mass moves -(m_s L_s / m_f) F_s h².
+        # Sons grouped by father, so that summing their reactions is one reduceat.
+        sons = np.flatnonzero(self._parent >= 0) if forest.reaction else np.zeros(0, dtype=np.int64)
+        sons = sons[np.argsort(self._parent[sons], kind="stable")]
+        self._sons = sons
+        fathers = self._parent[sons]
+        self._react_fathers, self._react_starts = np.unique(fathers, return_index=True)
+        mass = forest.mass[order]
+        self._reaction_gain = (mass[sons] * self._length[sons] / mass[fathers])[:, None] * self.h**2
+        # Spring step as x⁺ = c1·x - c2·x⁻ (see spring_step), per level, precomputed.
+        a = self._zeta * self._omega0 * self.h
+        b = (self._omega0 * self.h) ** 2
+        c1, c2 = (2.0 - b) / (1.0 + a), (1.0 - a) / (1.0 + a)
+        self._c1, self._c2 = c1, c2
+        root = np.arange(forest.n)
+        for s, e in forest.levels[1:]:
+            root[s:e] = root[self._parent[s:e]]
+        self._root = root
+        self._levels = [
+            _Level(
+                slice(s, e),
+                None if s == 0 else self._parent[s:e],
+                None if s == 0 else root[s:e],
+                self._length[s:e, None],
+                c1[s:e],
+                c2[s:e],
+            )
+            for s, e in forest.levels
+        ]
+        self.state: PendulumState | None = None
+
+    def targets(self, frame: FloatArray) -> FloatArray:
+        """Target frames (internal order) for animated frames (internal order, (..., n, 3, 3))."""
+        if not np.any(self._gravity):
+            return frame
+        target = frame.copy()
+        target[..., self._gravity, :, :] = _GRAVITY_FRAME
+        return target
+
+    # -- API -------------------------------------------------------------------------------
+
+    def reset(
+        self, head_anim: ArrayLike, frame_anim: ArrayLike, head_velocity: ArrayLike | None = None
+    ) -> PendulumState:
+        """Start at rest relative to the animated pose (gravity pendulums start where animated).
+
+        head_velocity: (n, 3) world anchor velocities at the start (only the roots' are
+        used), so that a body already in steady motion does not kick its chains.
+        """
+        head = _take_n(np.asarray(head_anim, dtype=np.float64), self.forest.order)
+        frame = _take_n(np.asarray(frame_anim, dtype=np.float64), self.forest.order)
+        return self._reset_sorted(head, frame, None if head_velocity is None else _take_n(
+            np.asarray(head_velocity, dtype=np.float64), self.forest.order))
+
+    def _reset_sorted(
+        self, head: FloatArray, frame: FloatArray, velocity: FloatArray | None
+    ) -> PendulumState:
+        n = self.forest.n
+        target = self.targets(frame)
+        theta = _log_dir(frame[:, :, 1], target)
+        # Roots feel their anchor's world motion; with reactions every pendulum feels its
+        # tree root's (see _father_pursuit).
+        felt = self._root if self.forest.reaction else np.arange(self._n_roots)
+        offset = np.zeros((n, 3))
+        offset[: felt.size] = head[felt]
+        offset_prev = offset.copy()
+        if velocity is not None:
+            offset_prev[: felt.size] -= velocity[felt] * self.h
+        self.state = PendulumState(
+            theta=theta, theta_prev=theta.copy(), offset=offset, offset_prev=offset_prev,
+            head=head.copy(), direction=_exp_dir(theta, target), local=_exp_local(theta), target=target,
+        )
+        return self.state
+
+    def step(
+        self, head_anim: ArrayLike, frame_anim: ArrayLike, impulse: ArrayLike | None = None
+    ) -> PendulumState:
+        """Advance one internal step ``h``, to the animated pose given for its end.
+
+        impulse: optional (n, 3) world displacements of the bar tips (masses), applied at
+        the start of the step; zero rows leave a pendulum alone.
+        """
+        order = self.forest.order
+        head = _take_n(np.asarray(head_anim, dtype=np.float64), order)
+        frame = _take_n(np.asarray(frame_anim, dtype=np.float64), order)
+        imp = None if impulse is None else _take_n(np.asarray(impulse, dtype=np.float64), order)
+        return self._step_sorted(head, frame, imp)
+
+    def _step_sorted(self, head: FloatArray, frame: FloatArray, impulse: FloatArray | None) -> PendulumState:
+        st = self.state
+        if st is None:
+            raise RuntimeError("call reset() before step()")
+        if impulse is not None and np.any(impulse != 0.0):
+            self._son_pursuit(st, impulse)
+        self._father_pursuit(st, head, frame, self.targets(frame), self._reactions(st))
+        st.time += self.h
+        st.steps += 1
+        return st
+
+    # -- the two passes (thesis §5.3.3) ----------------------------------------------------
+
+    def _son_pursuit(self, st: PendulumState, impulse: FloatArray) -> None:
+        """Bottom-up pass (thesis §5.3.2): displaced masses drag their ancestors.
+
+        A displaced pendulum's error grows by the angle, at its anchor, between its bar and
+        the line to the displaced mass. Its father's mass is dragged onto that line at one
+        bar length from the displaced mass; that is the father's perturbation, and so on up
+        to the fixed root anchor. A father adds up the errors its sons give it (``combine``:
+        sum, average or weighted average). Masses are displaced and released: errors move,
+        their rates do not. The children below a displaced mass follow in the top-down pass.
+        """
+        L = self._length
+        mass = st.head + L[:, None] * st.direction
+        moved = np.any(impulse != 0.0, axis=1)
+        own = moved.copy()
+        goal = mass + impulse  # where each mass is pulled to, before the bar constraint
+        eps = np.zeros_like(st.theta)
+        for s, e in reversed(self.forest.levels):
+            idx = np.flatnonzero(moved[s:e]) + s
+            if idx.size == 0:
+                continue
+            new_dir = _normalize(goal[idx] - st.head[idx])
+            mine = own[idx]
+            if np.any(mine):
+                im = idx[mine]
+                eps[im] += _log_dir(new_dir[mine], st.target[im]) - st.theta[im]
+            fathers = self._parent[idx]
+            inner = fathers >= 0
+            if not np.any(inner):
+                continue
+            ci, fi = idx[inner], fathers[inner]
+            dragged = goal[ci] - L[ci, None] * new_dir[inner]
+            gain = self._gain[ci]
+            to_dragged = _normalize(dragged - st.head[fi])
+            pull = _log_dir(to_dragged, st.target[fi]) - st.theta[fi]
+            np.add.at(eps, fi, gain[:, None] * pull)
+            np.add.at(goal, fi, gain[:, None] * (dragged - mass[fi]))
+            moved[fi] = True
+        st.theta += eps
+        st.theta_prev += eps
+        st.local = _exp_local(st.theta)
+
+    def _reactions(self, st: PendulumState) -> FloatArray | None:
+        """Displacement (n, 3) of every father's mass this step from its sons' springs.
+
+        Linearised, a chain of point masses on rods obeys the two passes exactly when each
+        father's acceleration also carries minus its sons' own spring forces, scaled by
+        ``m_s L_s / (m_f L_f)``: for a uniform chain, φₖ'' = -Fₖ₋₁ + 2Fₖ - Fₖ₊₁ in absolute
+        angles. The sons' forces come from the state at the start of the step, like every
+        spring force of the Verlet step. Damping acts on each bar's own swing and is not
+        handed on (feeding it back explicitly is unstable for stiff dampers).
+        """
+        sons = self._sons
+        if sons.size == 0 or not np.any(st.theta):
+            return None
+        force = -(self._omega0 * self._omega0) * st.theta  # springs only: damping is not handed on
+        tgt = st.target
+        tangent = force[:, 0:1] * tgt[:, :, 0] + force[:, 1:2] * tgt[:, :, 2]
+        out = np.zeros_like(st.head)
+        pushes = -self._reaction_gain * tangent[sons]
+        out[self._react_fathers] = np.add.reduceat(pushes, self._react_starts, axis=0)
+        return out
+
+    def _father_pursuit(
+        self,
+        st: PendulumState,
+        head: FloatArray,
+        frame: FloatArray,
+        target: FloatArray,
+        reaction: FloatArray | None = None,
+    ) -> None:
+        """Top-down pass (thesis §5.3.1): each anchor's unexplained motion perturbs its bar.
+
+        Level by level from the roots: place the anchor (a root's animated head; otherwise
+        the father's simulated bone carrying the animated head offset), let the mass keep
+        its velocity while the anchor accelerates (the error turns by the angle that the
+        anchor's acceleration displacement makes at the mass), then step both planar
+        springs. The bar geometry is done in each target's local coordinates (x, y = the
+        target direction, z), where the two error angles live.
+        """
+        # Per pendulum, for its sons: head deviation (3), a × b (3) and a · b (1) of the
+        # shortest rotation from the animated bar a to the simulated bar b.
+        father_data = np.empty((head.shape[0], 7))
+        anim_dir = frame[:, :, 1]
+        for lv in self._levels:
+            sl = lv.sl
+            if lv.father is None:
+                offset = head[sl]
+                anchor = offset
+                father_data[sl, 0:3] = 0.0
+            else:
+                fp = lv.father
+                fd = father_data[fp]
+                head_f = head[fp]
+                dev = fd[:, 0:3] + _swing_delta(head[sl] - head_f, fd[:, 3:6], fd[:, 6], frame, fp)
+                anchor = head[sl] + dev
+                father_data[sl, 0:3] = dev
+                # With reactions the body's own acceleration reaches every mass (exact chain);
+                # one way, a son feels the body only through its father's swing.
+                offset = dev + head[lv.root] if self.forest.reaction else dev
+            push = offset - 2.0 * st.offset[sl] + st.offset_prev[sl]
+            st.offset_prev[sl] = st.offset[sl]
+            st.offset[sl] = offset
+            if reaction is not None:
+                push = push - reaction[sl]  # the mass moved by its sons = the anchor moving back
+            tgt = target[sl]
+            if np.any(push):
+                # Hold the mass, move the anchor by the push: the bar turns (local coordinates).
+                push_local = np.einsum("mi,mij->mj", push, tgt)
+                theta = _log_local(lv.length * st.local[sl] - push_local)
+            else:
+                theta = st.theta[sl]
+            new_theta = lv.c1 * theta - lv.c2 * st.theta_prev[sl]
+            st.theta_prev[sl] = theta
+            st.theta[sl] = new_theta
+            local = _exp_local(new_theta)
+            st.local[sl] = local
+            direction = np.einsum("mij,mj->mi", tgt, local)
+            st.direction[sl] = direction
+            st.head[sl] = anchor
+            a = anim_dir[sl]
+            father_data[sl, 3:6] = _cross(a, direction)
+            father_data[sl, 6] = _dot(a, direction)
+        st.target = target
+
+    # -- output ----------------------------------------------------------------------------
+
+    def pose(
+        self, theta: FloatArray, head: FloatArray, frame: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """World heads (..., n, 3) and frames (..., n, 3, 3) for errors, all internal order.
+
+        theta (..., n, 2), head (..., n, 3), frame (..., n, 3, 3): errors and the animated
+        pose they apply to. Influence scales each bone's swing away from its animation.
+        """
+        anim_dir = frame[..., :, 1]
+        sim_dir = _exp_dir(theta, self.targets(frame))
+        axis, angle = _swing(anim_dir, sim_dir, frame[..., :, 0])
+        angle = angle * self.forest.influence[self.forest.order]
+        out_head = np.empty_like(head)
+        for s, e in self.forest.levels:
+            sl = slice(s, e)
+            if s == 0:
+                out_head[..., sl, :] = head[..., sl, :]
+                continue
+            fp = self._parent[sl]
+            rel = head[..., sl, :] - head[..., fp, :]
+            moved = out_head[..., fp, :] - head[..., fp, :]
+            turned = _rotate_delta(rel, axis[..., fp, :], angle[..., fp])
+            out_head[..., sl, :] = head[..., sl, :] + moved + turned
+        rotation = _rotation_matrix(axis, angle) @ frame
+        return out_head, rotation
+
+
+def _hermite_tangents(t: FloatArray, p: FloatArray) -> FloatArray:
+    """Catmull-Rom style tangents (dp/dt) of samples ``p`` (T, ...) at times ``t`` (T,)."""
+    m = np.zeros_like(p)
+    if t.size < 2:
+        return m
+    shape = (-1,) + (1,) * (p.ndim - 1)
+    if t.size == 2:
+        m[:] = (p[1] - p[0]) / (t[1] - t[0])
+        return m
+    m[1:-1] = (p[2:] - p[:-2]) / (t[2:] - t[:-2]).reshape(shape)
+    # Ends: derivative of the parabola through the three end samples (second order).
+    m[0] = _end_derivative(t[0], t[1], t[2], p[0], p[1], p[2])
+    m[-1] = _end_derivative(t[-1], t[-2], t[-3], p[-1], p[-2], p[-3])
+    return m
+
+
+def _end_derivative(
+    t0: float, t1: float, t2: float, p0: FloatArray, p1: FloatArray, p2: FloatArray
+) -> FloatArray:
+    """d/dt at ``t0`` of the parabola through (t0, p0), (t1, p1), (t2, p2)."""
+    return (
+        p0 * ((2 * t0 - t1 - t2) / ((t0 - t1) * (t0 - t2)))
+        + p1 * ((t0 - t2) / ((t1 - t0) * (t1 - t2)))
+        + p2 * ((t0 - t1) / ((t2 - t0) * (t2 - t1)))
+    )
+
+
+def _hermite(
+    p0: FloatArray, p1: FloatArray, m0: FloatArray, m1: FloatArray, dt: float, f: FloatArray
+) -> FloatArray:
+    """Cubic Hermite between two samples ``dt`` apart at fraction ``f``: smooth anchor
+    accelerations, so the springs feel the same motion at any sample rate."""
+    f2, f3 = f * f, f * f * f
+    return (
+        (2 * f3 - 3 * f2 + 1) * p0
+        + (f3 - 2 * f2 + f) * dt * m0
+        + (-2 * f3 + 3 * f2) * p1
+        + (f3 - f2) * dt * m1
+    )
+
+
+@dataclass(frozen=True)
+class _Level:
+    """One depth level of the internal order: its slice, fathers and tree roots (internal
+    indices), lengths (m, 1) and spring coefficients (m, 1)."""
+
+    sl: slice
+    father: IntArray | None
+    root: IntArray | None
+    length: FloatArray
+    c1: FloatArray
+    c2: FloatArray
+
+
+_TINY = 1e-300  # added to 0/0-prone ratios: sin(x)/x and atan2(s, c)/s tend to 1 at 0
+
+
+def _exp_local(theta: FloatArray) -> FloatArray:
+    """Unit bar (m, 3) in target-local coordinates for errors (m, 2): y is the target."""
+    ang = np.sqrt(theta[:, 0] * theta[:, 0] + theta[:, 1] * theta[:, 1]) + _TINY
+    sinc = np.sin(ang) / ang
+    out = np.empty((theta.shape[0], 3))
+    out[:, 0] = sinc * theta[:, 0]
+    out[:, 1] = np.cos(ang)
+    out[:, 2] = sinc * theta[:, 1]
+    return out
+
+
+def _log_local(bar: FloatArray) -> FloatArray:
+    """Errors (m, 2) of bars (m, 3) in target-local coordinates (any positive length)."""
+    sn = np.sqrt(bar[:, 0] * bar[:, 0] + bar[:, 2] * bar[:, 2]) + _TINY
+    scale = (np.arctan2(sn, bar[:, 1]) + _TINY) / sn
+    out = np.empty((bar.shape[0], 2))
+    out[:, 0] = scale * bar[:, 0]
+    out[:, 1] = scale * bar[:, 2]
+    return out
+
+
+def _swing_delta(
+    v: FloatArray, k: FloatArray, c: FloatArray, frame: FloatArray, father: IntArray
+) -> FloatArray:
+    """``R v - v`` for the shortest rotation R with ``k = a × b`` and ``c = a · b``.
+
+    Rodrigues without trigonometry: ``R v = c v + k × v + k (k·v) / (1 + c)``. Exactly
+    zero when a = b. Opposite bars (c = -1) turn by π about the father's x axis.
+    """
+    opposite = c < -1.0 + 1e-9
+    denom = np.where(opposite, 1.0, 1.0 + c)
+    out = (c - 1.0)[:, None] * v + _cross(k, v) + k * (_dot(k, v) / denom)[:, None]
+    if np.any(opposite):
+        f = frame[father[opposite], :, 0]
+        vo = v[opposite]
+        out[opposite] = 2.0 * (f * _dot(f, vo)[:, None] - vo)
+    return out
+
+
+def _take_n(arr: FloatArray, order: IntArray) -> FloatArray:
+    """Reorder the pendulum axis: axis 0 for (n,), (n, 3), (n, 3, 3) inputs."""
+    return arr[order]
+
+
+def _rotate_delta(v: FloatArray, axis: FloatArray, angle: FloatArray) -> FloatArray:
+    """``rotate(v) - v``; exactly zero for a zero angle, so unperturbed chains stay exact."""
+    ca, sa = np.cos(angle)[..., None], np.sin(angle)[..., None]
+    return _cross(axis, v) * sa + (axis * _dot(axis, v)[..., None] - v) * (1.0 - ca)
+
+
+# ---------------------------------------------------------------------------------------
+# Whole animations
+# ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Impulses:
+    """Explicit perturbations: at ``time[j]`` (s), displace the tip of pendulum ``node[j]``
+    (input index) by ``displacement[j]`` (world, m). Shapes (m,), (m,), (m, 3)."""
+
+    time: FloatArray
+    node: IntArray
+    displacement: FloatArray
+
+    @classmethod
+    def none(cls) -> Impulses:
+        return cls(np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 3)))
+
+
+@dataclass(frozen=True)
+class PendulumResult:
+    """Secondary motion sampled at the animation's times, in the caller's pendulum order.
+
+    head: (T, n, 3) world bone heads; rotation: (T, n, 3, 3) world bone frames (columns
+    x, y, z; the animated twist kept); theta: (T, n, 2) errors (rad) from the targets;
+    step: the internal step (s) used.
+    """
+
+    head: FloatArray
+    rotation: FloatArray
+    theta: FloatArray
+    step: float
+
+
+def simulate(
+    forest: PendulumForest,
+    times: ArrayLike,
+    head_anim: ArrayLike,
+    frame_anim: ArrayLike,
+    *,
+    rate_hz: float = DEFAULT_RATE_HZ,
+    impulses: Impulses | None = None,
+) -> PendulumResult:
+    """Run the pendulums over a sampled animation and return the layered motion.
+
+    times: (T,) strictly increasing sample times (s), e.g. frame / fps;
+    head_anim: (T, n, 3) animated world bone heads; frame_anim: (T, n, 3, 3) animated world
+    bone frames (re-orthonormalised here). The springs step at ``rate_hz`` whatever the
+    sample rate: the animation is interpolated between samples (heads linearly, frames by
+    normalised linear blend) and the errors are interpolated back at the sample times, so
+    24 and 60 samples per second give the same motion at shared times.
+    """
+    t = np.asarray(times, dtype=np.float64).reshape(-1)
+    n_t = t.size
+    head_in = np.asarray(head_anim, dtype=np.float64)
+    frame_in = np.asarray(frame_anim, dtype=np.float64)
+    n = forest.n
+    if head_in.shape != (n_t, n, 3) or frame_in.shape != (n_t, n, 3, 3):
+        raise ValueError(f"expected head (T, n, 3) and frame (T, n, 3, 3) with T={n_t}, n={n}; "
+                         f"got {head_in.shape} and {frame_in.shape}")
+    if n_t == 0:
+        raise ValueError("the animation has no samples")
+    if n_t > 1 and np.any(np.diff(t) <= 0.0):
+        raise ValueError("sample times must be strictly increasing")
+    if not (np.all(np.isfinite(head_in)) and np.all(np.isfinite(frame_in))):
+        raise ValueError("the animated pose contains NaN or infinite values")
+    sim = PendulumSimulator(forest, rate_hz)
+    order = forest.order
+    head = head_in[:, order]
+    frame = orthonormalize_frames(frame_in[:, order])
+    if n == 0:
+        return PendulumResult(np.zeros((n_t, 0, 3)), np.zeros((n_t, 0, 3, 3)), np.zeros((n_t, 0, 2)), sim.h)
+
+    tangent = _hermite_tangents(t, head)
+    sim._reset_sorted(head[0], frame[0], tangent[0] if n_t > 1 else None)
+    h = sim.h
+    n_steps = int(np.ceil((t[-1] - t[0]) / h - 1e-9))
+    theta_steps = np.empty((n_steps + 1, n, 2))
+    assert sim.state is not None
+    theta_steps[0] = sim.state.theta
+
+    imp = impulses if impulses is not None else Impulses.none()
+    imp_step = np.floor((np.asarray(imp.time, dtype=np.float64) - t[0]) / h).astype(np.int64) + 1
+    imp_node = forest.rank[np.asarray(imp.node, dtype=np.int64)] if len(imp.node) else np.zeros(0, np.int64)
+    imp_disp = np.asarray(imp.displacement, dtype=np.float64).reshape(-1, 3)
+
+    step_times = t[0] + h * np.arange(1, n_steps + 1)
+    seg = np.clip(np.searchsorted(t, step_times, side="right") - 1, 0, max(n_t - 2, 0))
+    frac = np.clip((step_times - t[seg]) / (t[seg + 1] - t[seg]), 0.0, 1.0) if n_t > 1 else np.zeros(n_steps)
+    nxt = np.minimum(seg + 1, n_t - 1)
+    # The animation at the internal steps, interpolated a batch of steps at a time (all the
+    # steps between two samples share one segment).
+    batch_starts = np.flatnonzero(np.r_[True, np.diff(seg) != 0, True]) if n_steps else np.zeros(1, np.int64)
+    for lo_k, hi_k in itertools.pairwise(batch_starts):
+        a, b = seg[lo_k], nxt[lo_k]
+        f = frac[lo_k:hi_k, None, None]
+        heads_k = _hermite(head[a], head[b], tangent[a], tangent[b], t[b] - t[a], f)
+        frames_k = orthonormalize_frames(frame[a] + f[..., None] * (frame[b] - frame[a]))
+        for k in range(lo_k, hi_k):
+            impulse = None
+            hit = imp_step == k + 1
+            if np.any(hit):
+                impulse = np.zeros((n, 3))
+                np.add.at(impulse, imp_node[hit], imp_disp[hit])
+            sim._step_sorted(heads_k[k - lo_k], frames_k[k - lo_k], impulse)
+            theta_steps[k + 1] = sim.state.theta
+
+    # Errors at the sample times, interpolated between the internal steps around them.
+    pos = (t - t[0]) / h
+    lo = np.clip(np.floor(pos + 1e-9).astype(np.int64), 0, n_steps)
+    hi = np.minimum(lo + 1, n_steps)
+    w = np.clip(pos - lo, 0.0, 1.0)[:, None, None]
+    theta = theta_steps[lo] * (1.0 - w) + theta_steps[hi] * w
+    out_head, rotation = sim.pose(theta, head, frame)
+    rank = forest.rank
+    return PendulumResult(out_head[:, rank], rotation[:, rank], theta[:, rank], h)
