@@ -26,6 +26,10 @@ from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
 from .locomotion import property_group as locomotion_props
 from .locomotion import ui_list as locomotion_ui_list
+from .secondary import ops as secondary_ops
+from .secondary import panel as secondary_panel
+from .secondary import property_group as secondary_props
+from .secondary import ui_list as secondary_ui_list
 from .ui import main as ui_main
 
 CLASSES: tuple[type, ...] = (
@@ -43,6 +47,13 @@ CLASSES: tuple[type, ...] = (
     biped_ops.PROCLOCO_OT_remove_biped_clip,
     biped_ops.PROCLOCO_OT_make_biped_clips,
     biped_ui_list.PROCLOCO_UL_biped_clips,
+    secondary_props.PROCLOCO_PG_secondary_chain,
+    secondary_props.PROCLOCO_PG_secondary_settings,
+    secondary_ops.PROCLOCO_OT_suggest_secondary_chains,
+    secondary_ops.PROCLOCO_OT_add_secondary_chain,
+    secondary_ops.PROCLOCO_OT_remove_secondary_chain,
+    secondary_ops.PROCLOCO_OT_bake_secondary_motion,
+    secondary_ui_list.PROCLOCO_UL_secondary_chains,
     # The sidebar tab's parent panel before every feature's sub-panels.
     ui_main.PROCLOCO_PT_main,
     gait_ops.PROCLOCO_MT_gait_presets,
@@ -55,6 +66,7 @@ CLASSES: tuple[type, ...] = (
     gait_panel.PROCLOCO_PT_gait,
     locomotion_panel.PROCLOCO_PT_locomotion,
     locomotion_panel.PROCLOCO_PT_terrain,
+    secondary_panel.PROCLOCO_PT_secondary,
     biped_panel.PROCLOCO_PT_biped,
     ui_main.PROCLOCO_PT_effects,
     ui_main.PROCLOCO_PT_generate,
@@ -69,6 +81,7 @@ PROPERTIES: tuple[tuple[type, str, Any], ...] = (
 POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco", locomotion_props.PROCLOCO_PG_rig_settings),
     (bpy.types.Object, "procloco_biped", biped_props.PROCLOCO_PG_biped_settings),
+    (bpy.types.Object, "procloco_secondary", secondary_props.PROCLOCO_PG_secondary_settings),
     (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 

@@ -1,0 +1,592 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Bake Secondary Motion without the operator around it: chain suggestion and the bake job.
+
+**Chains.** :func:`suggest_chains` proposes the bone chains that should swing: chains named
+like appendages (tail, antenna, ear, palp, tentacle, hair, abdomen...) anywhere outside the
+legs (ears not on two-legged rigs: a human's ears do not flop), and unnamed chains of three
+bones or more that hang from the body or spine bones and are neither legs, arms, face nor
+helper bones (the Rigify wolf's tail is ``spine.003 > ...``).
+Legs come from the rig's leg list (``Object.procloco.legs``), else from leg detection
+(:func:`..rig.detect_legs`); the body and spine from :func:`..rig.read_rig`.
+
+**The bake** of one rig is a :class:`Job` in three stages, like Generate Locomotion:
+
+1. :func:`prepare` checks everything and changes nothing (raises :class:`BakeError`);
+2. :func:`sample` plays the rig's current animation over the frame range (whatever drives
+   it: a generated or hand-made Action, NLA, or no animation at all) and records the
+   evaluated world pose of every chain bone, the poses their parents give them and every
+   channel the source Action animates. It is a generator yielding the fraction done;
+   :func:`cancel` puts the scene back as it was;
+3. :func:`write` runs the pendulums (``core.pendulum``) and writes a **new** Action: the
+   source's channels sampled at every frame, with the chain bones' rotations replaced by
+   the swinging ones. The source Action is left untouched and stays reachable (it is
+   remembered as the rig's previous Action, see :mod:`..actions`).
+
+Baking again over an Action that a previous bake made starts from that bake's source, so
+repeated bakes replace the secondary motion instead of piling it up.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Generator, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import bpy
+import numpy as np
+
+from ...core import pendulum as pend
+from .. import actions, rig
+
+__all__ = [
+    "SECONDARY_SOURCE",
+    "BakeError",
+    "ChainSuggestion",
+    "Job",
+    "bake",
+    "cancel",
+    "chain_bones",
+    "prepare",
+    "sample",
+    "suggest_chains",
+    "suggest_into_settings",
+    "write",
+]
+
+#: ID property on an Action made by a bake: the Action it was baked on (absent: no Action).
+SECONDARY_SOURCE = "_procloco_secondary_source"
+_SECONDARY_SLOT = "_procloco_secondary_source_slot"
+
+# Words that name a swinging appendage.
+APPENDAGE_WORDS = frozenset({
+    "tail", "tails", "antenna", "antennae", "antennas", "feeler", "feelers", "palp", "palps", "pedipalp",
+    "ear", "ears", "tentacle", "tentacles", "whisker", "whiskers", "hair", "ponytail", "braid", "fin", "fins",
+    "tassel", "rope", "chain", "abdomen", "gaster", "petiole", "cape", "mane", "trunk", "tendril",
+})
+# Words of bones that must not swing on their own: face, hands and fingers, torso parts.
+_STILL_WORDS = frozenset({
+    "eye", "eyes", "lid", "brow", "lip", "lips", "jaw", "chin", "cheek", "nose", "teeth", "tooth", "tongue",
+    "temple", "forehead", "face", "head", "neck", "skull", "mouth", "thumb", "index", "middle", "ring",
+    "pinky", "finger", "fingers", "palm", "shoulder", "clavicle", "breast", "chest", "pelvis", "hip", "hips",
+})
+# Control and mechanism bones never swing; "tip"/"end" bones only end a chain.
+_CONTROL_WORDS = rig.HELPER_WORDS - {"tip", "end", "root", "nub", "null"}
+_END_WORDS = frozenset({"end", "nub", "null"})
+
+
+class BakeError(ValueError):
+    """The bake is refused; the message is meant for the user."""
+
+
+# ---------------------------------------------------------------------------------------
+# Chains
+
+
+@dataclass(frozen=True)
+class ChainSuggestion:
+    """A proposed chain: ``label`` for the list, bones ``root`` down to ``tip``."""
+
+    label: str
+    root: str
+    tip: str
+    bones: tuple[str, ...]
+
+
+def _tokens(name: str) -> set[str]:
+    return set(rig.split_name(name)[1])
+
+
+def _leg_chains(obj: bpy.types.Object) -> list[rig.LegChain]:
+    """The rig's legs: its enabled leg list if it has one, else detected (none if neither)."""
+    legs: list[rig.LegChain] = []
+    settings = getattr(obj, "procloco", None)
+    items = list(getattr(settings, "legs", []) or [])
+    for item in items:
+        if not item.enabled or not item.hip or not item.end:
+            continue
+        try:
+            legs.append(rig.leg_from_bones(obj, item.hip, item.end, item.label or item.name))
+        except rig.RigError:
+            continue
+    if legs:
+        return legs
+    try:
+        return rig.detect_legs(obj)
+    except rig.RigError:
+        return []
+
+
+def _body_and_spine(
+    obj: bpy.types.Object, legs: Sequence[rig.LegChain]
+) -> tuple[str | None, tuple[str, ...]]:
+    if not legs:
+        return None, ()
+    try:
+        info = rig.read_rig(obj, legs)
+    except (rig.RigError, KeyError, ValueError):
+        return None, ()
+    return info.body_bone, info.spine
+
+
+def suggest_chains(obj: bpy.types.Object) -> list[ChainSuggestion]:
+    """Chains of ``obj`` that should carry secondary motion (see the module doc), root first.
+
+    Never raises for an armature; returns ``[]`` when nothing qualifies.
+    """
+    bones = obj.data.bones
+    names = [b.name for b in bones]
+    parent = {b.name: (b.parent.name if b.parent else None) for b in bones}
+    children: dict[str, list[str]] = {n: [] for n in names}
+    for n in names:
+        p = parent[n]
+        if p is not None:
+            children[p].append(n)
+    tokens = {n: _tokens(n) for n in names}
+
+    legs = _leg_chains(obj)
+    body, spine = _body_and_spine(obj, legs)
+    excluded: set[str] = set(spine)
+    for leg in legs:
+        excluded.update(leg.bones)
+        excluded.update(leg.foot)
+        stack = [leg.hip]
+        while stack:  # everything below a hip: feet, toes, claws, fingers
+            below = stack.pop()
+            excluded.add(below)
+            stack.extend(children[below])
+    attach: set[str] = set(spine)
+    if body is not None:
+        up: str | None = body
+        while up is not None:
+            excluded.add(up)
+            attach.add(up)
+            up = parent[up]
+    else:
+        attach.update(n for n in names if parent[n] is None)
+
+    def usable(n: str) -> bool:
+        return n not in excluded and not (tokens[n] & _CONTROL_WORDS) and bones[n].length > 0.0
+
+    # 1. Chains named like appendages. A biped's ears are a face's (a human's do not flop).
+    words = APPENDAGE_WORDS - {"ear", "ears"} if len(legs) == 2 else APPENDAGE_WORDS
+    named = {n for n in names if usable(n) and tokens[n] & words}
+
+    def named_next(n: str) -> str | None:
+        kids = [c for c in children[n] if c in named]
+        if len(kids) == 1:
+            return kids[0]
+        connected = [c for c in kids if bones[c].use_connect]
+        return connected[0] if len(connected) == 1 else None
+
+    chains: list[tuple[str, list[str]]] = []
+    for n in names:
+        if n not in named:
+            continue
+        p = parent[n]
+        if p is not None and p in named and named_next(p) == n:
+            continue  # continues its parent's chain
+        run = [n]
+        while (nxt := named_next(run[-1])) is not None:
+            run.append(nxt)
+        chains.append((n, run))
+    taken = {b for _label, run in chains for b in run}
+
+    # 2. Unnamed chains of three bones or more hanging from the body or the spine.
+    for a in names:
+        if a not in attach:
+            continue
+        for c in children[a]:
+            if c in taken or c in excluded:
+                continue
+            run = [c]
+            while len(children[run[-1]]) == 1:
+                run.append(children[run[-1]][0])
+            if children[run[-1]]:
+                continue  # branches: a limb or a body part, not a dangling chain
+            while run and tokens[run[-1]] & _END_WORDS:
+                run.pop()
+            if len(run) < 3 or not all(usable(b) for b in run):
+                continue
+            if any(tokens[b] & (_STILL_WORDS | rig.LEG_WORDS) for b in run):
+                continue
+            label = f"Tail ({c})" if a == body else c
+            chains.append((label, run))
+            taken.update(run)
+
+    chains = _dedupe(obj, chains)
+    order = {n: i for i, n in enumerate(names)}
+    chains.sort(key=lambda item: order[item[1][0]])
+    return [ChainSuggestion(label, run[0], run[-1], tuple(run)) for label, run in chains]
+
+
+def _dedupe(obj: bpy.types.Object, chains: list[tuple[str, list[str]]]) -> list[tuple[str, list[str]]]:
+    """One chain per appendage where a rig has parallel copies (Rigify's ORG-/DEF- bones):
+    chains starting and ending at the same places are one; the copy with the fewest
+    constrained bones wins, then the shorter name."""
+
+    def ends(run: list[str]) -> tuple[np.ndarray, np.ndarray]:
+        first, last = obj.data.bones[run[0]], obj.data.bones[run[-1]]
+        return np.array(first.head_local), np.array(last.tail_local)
+
+    def constrained(run: list[str]) -> int:
+        return sum(1 for b in run if any(c.enabled for c in obj.pose.bones[b].constraints))
+
+    ranked = sorted(chains, key=lambda item: (constrained(item[1]), len(item[1][0]), item[1][0]))
+    kept: list[tuple[str, list[str]]] = []
+    for label, run in ranked:
+        h, t = ends(run)
+        size = max(float(np.linalg.norm(t - h)), 1e-9)
+        if any(np.linalg.norm(h - ends(k)[0]) < 0.02 * size and np.linalg.norm(t - ends(k)[1]) < 0.02 * size
+               for _lb, k in kept):
+            continue
+        kept.append((label, run))
+    return kept
+
+
+def suggest_into_settings(obj: bpy.types.Object) -> list[ChainSuggestion]:
+    """Fill ``obj.procloco_secondary.chains`` with :func:`suggest_chains`.
+
+    A chain already listed with the same root and tip keeps its settings; chains the user
+    added that are not suggested are kept too. Returns the suggestions.
+    """
+    settings = obj.procloco_secondary
+    found = suggest_chains(obj)
+    existing = {(c.root, c.tip) for c in settings.chains}
+    for s in found:
+        if (s.root, s.tip) in existing:
+            continue
+        item = settings.chains.add()
+        item.name = s.label
+        item.root = s.root
+        item.tip = s.tip
+    settings.active_chain_index = min(settings.active_chain_index, max(len(settings.chains) - 1, 0))
+    return found
+
+
+def chain_bones(obj: bpy.types.Object, root: str, tip: str, label: str = "") -> list[str]:
+    """The bones from ``root`` down to ``tip`` (parent to child), validated.
+
+    Raises :class:`BakeError` when a bone is missing, ``root`` is not an ancestor of ``tip``
+    or a bone has (near) zero length.
+    """
+    name = label or f"{root} > {tip}"
+    bones = obj.data.bones
+    for b in (root, tip):
+        if not b:
+            raise BakeError(f"Chain {name}: choose both its root and its tip bone")
+        if b not in bones:
+            raise BakeError(f"Chain {name}: '{obj.name}' has no bone '{b}'")
+    run = [tip]
+    cur = bones[tip]
+    while cur.name != root:
+        cur = cur.parent
+        if cur is None:
+            raise BakeError(f"Chain {name}: '{root}' is not an ancestor of '{tip}'")
+        run.append(cur.name)
+    run.reverse()
+    size = max((b.length for b in bones), default=1.0)
+    for b in run:
+        if bones[b].length <= 1e-4 * size:
+            raise BakeError(f"Chain {name}: bone '{b}' has zero length, so it has no direction to swing; "
+                            "give it a length or end the chain before it")
+    return run
+
+
+# ---------------------------------------------------------------------------------------
+# The bake job
+
+
+@dataclass
+class Job:
+    """One rig's bake: what :func:`prepare` read, what :func:`sample` records."""
+
+    obj_name: str
+    bones: list[str]  # every pendulum bone, chains in list order, each root to tip
+    parents: list[str | None]  # each bone's parent bone in the armature
+    forest: pend.PendulumForest
+    frames: np.ndarray  # (F,) frame numbers
+    fps: float
+    source: bpy.types.Action | None  # the Action the bake layers on
+    source_slot: str  # its slot identifier on 4.4+ ("" otherwise)
+    switch_action: bool  # the source must be assigned while sampling (re-bake)
+    channels: list[actions.Channel]  # the source's channels copied into the new Action
+    restore_frame: tuple[int, float]
+    warnings: list[str] = field(default_factory=list)
+    # While sampling a re-bake, the rig's own Action (the earlier bake) is set aside here.
+    set_aside: tuple[bpy.types.Action | None, str] | None = None
+    # Filled by sample():
+    world: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (F, n, 4, 4) bones, world
+    parent_pose: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (F, n, 4, 4) armature space
+    object_world: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (F, 4, 4)
+    values: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (F, C) channel values
+    sampled: bool = False
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _frame_range(context: Any, obj: bpy.types.Object) -> tuple[int, int]:
+    settings = getattr(obj, "procloco", None)
+    if settings is not None and hasattr(settings, "frame_range"):
+        start, end = settings.frame_range(context.scene)
+    else:
+        start, end = context.scene.frame_start, context.scene.frame_end
+    return int(start), int(end)
+
+
+def _source_of(obj: bpy.types.Object) -> tuple[bpy.types.Action | None, str, bool]:
+    """The Action to bake on, its slot, and whether it must be assigned while sampling."""
+    adt = obj.animation_data
+    current = adt.action if adt is not None else None
+    slot = ""
+    if actions.is_slotted() and adt is not None and adt.action_slot is not None:
+        slot = str(adt.action_slot.identifier)
+    if current is not None and SECONDARY_SOURCE in current:
+        source = current.get(SECONDARY_SOURCE)
+        if isinstance(source, bpy.types.Action):
+            return source, str(current.get(_SECONDARY_SLOT, "")), True
+        return None, "", True  # the earlier bake was made on a rig with no Action
+    return current, slot, False
+
+
+def prepare(context: Any, obj: Any) -> Job:
+    """Check ``obj`` and its chain settings and read what the bake needs; changes nothing.
+
+    Raises :class:`BakeError` with a message for the user.
+    """
+    if obj is None or getattr(obj, "type", None) != "ARMATURE":
+        raise BakeError("Select an armature: secondary motion is baked on a rig's bones")
+    if getattr(context, "mode", "OBJECT") not in {"OBJECT", "POSE"}:
+        raise BakeError("Leave edit mode first")
+    adt = obj.animation_data
+    if adt is not None and adt.use_tweak_mode:
+        raise BakeError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
+    settings = obj.procloco_secondary
+    items = [c for c in settings.chains if c.enabled]
+    if not settings.chains:
+        raise BakeError(f"'{obj.name}' has no chains: press Suggest Chains or add one "
+                        "(tail, antennae, ears...)")
+    if not items:
+        raise BakeError(f"Every chain of '{obj.name}' is disabled: enable at least one")
+    start, end = _frame_range(context, obj)
+    if end <= start:
+        what = "reversed" if end < start else "a single frame"
+        raise BakeError(f"The frame range {start}-{end} is {what}: baking needs at least two frames")
+    scale = np.linalg.norm(np.array(obj.matrix_world)[:3, :3], axis=0)
+    if np.ptp(scale) > 1e-4 * scale.max():
+        raise BakeError(f"'{obj.name}' has a non-uniform scale {tuple(np.round(scale, 4))}: apply it first")
+
+    bones: list[str] = []
+    chain_of: dict[str, str] = {}
+    per_bone: list[tuple[float, float, int, float]] = []
+    for item in items:
+        label = item.name or f"{item.root} > {item.tip}"
+        run = chain_bones(obj, item.root, item.tip, label)
+        for b in run:
+            if b in chain_of:
+                raise BakeError(f"Bone '{b}' is in two chains ({chain_of[b]} and {label}): "
+                                "a bone may swing in one chain only")
+            chain_of[b] = label
+        bones += run
+        mode = pend.REST_GRAVITY if item.rest_direction == "GRAVITY" else pend.REST_ANIMATION
+        per_bone += [(item.settling_time, item.damping, mode, item.influence)] * len(run)
+    index = {b: i for i, b in enumerate(bones)}
+    parents = [obj.data.bones[b].parent.name if obj.data.bones[b].parent else None for b in bones]
+    # A chain whose root hangs from a bone of another chain continues that chain's tree.
+    father = [index.get(p, -1) if p is not None else -1 for p in parents]
+    ts, zeta, rest, influence = (np.array(v) for v in zip(*per_bone, strict=True))
+    length = np.array([obj.data.bones[b].length for b in bones]) * float(scale.max())
+    try:
+        forest = pend.PendulumForest(father, length, ts, zeta, rest_mode=rest, influence=influence,
+                                     reaction=bool(settings.use_reaction))
+    except ValueError as err:
+        raise BakeError(f"Chains of '{obj.name}': {err}") from err
+
+    warnings = []
+    for b in bones:
+        pb = obj.pose.bones[b]
+        active = sorted({c.type for c in pb.constraints if c.enabled and c.influence > 0.0})
+        if active:
+            warnings.append(f"bone '{b}' has {', '.join(active)} constraints, which act after the baked keys")
+        bone = obj.data.bones[b]
+        if not bone.use_inherit_rotation or bone.inherit_scale not in {"FULL", "NONE_LEGACY"}:
+            warnings.append(f"bone '{b}' does not inherit its parent's rotation or scale fully; "
+                            "its baked rotation may be off")
+
+    source, slot, switch = _source_of(obj)
+    channels = actions.channels_of(source, obj) if source is not None else []
+    swung = set(bones)
+    kept = []
+    for ch in channels:
+        owner = _pose_bone_of(ch.data_path)
+        if owner in swung and ch.data_path.rsplit(".", 1)[-1].startswith("rotation_"):
+            continue  # replaced by the swinging rotation
+        kept.append(ch)
+    fps = context.scene.render.fps / context.scene.render.fps_base
+    return Job(
+        obj_name=obj.name, bones=bones, parents=parents, forest=forest,
+        frames=np.arange(start, end + 1), fps=float(fps), source=source, source_slot=slot,
+        switch_action=switch, channels=kept,
+        restore_frame=(context.scene.frame_current, float(context.scene.frame_subframe)),
+        warnings=warnings,
+    )
+
+
+def _pose_bone_of(data_path: str) -> str | None:
+    """``'pose.bones["tail"].rotation_quaternion'`` -> ``'tail'``; None for other paths."""
+    prefix = 'pose.bones["'
+    if not data_path.startswith(prefix):
+        return None
+    end = data_path.find('"]', len(prefix))
+    if end < 0:
+        return None
+    return data_path[len(prefix):end].replace('\\"', '"').replace("\\\\", "\\")
+
+
+def _restore(context: Any, job: Job, obj: Any) -> None:
+    """Give the rig back its own Action (if a re-bake set it aside) and the scene its frame."""
+    if job.set_aside is not None and obj is not None:
+        actions.assign_action(obj, job.set_aside[0], job.set_aside[1])
+    job.set_aside = None
+    frame, sub = job.restore_frame
+    context.scene.frame_set(frame, subframe=sub)
+
+
+def sample(context: Any, job: Job) -> Generator[float, None, None]:
+    """Play the animation over the frame range and record the poses; yields the fraction done.
+
+    Leaves the scene as it found it when it ends or is closed early (:func:`cancel`).
+    """
+    obj = bpy.data.objects.get(job.obj_name)
+    if obj is None:
+        raise BakeError(f"'{job.obj_name}' was deleted during the bake")
+    t0 = time.perf_counter()
+    scene = context.scene
+    names = [pb.name for pb in obj.pose.bones]
+    where = {n: i for i, n in enumerate(names)}
+    idx = np.array([where[b] for b in job.bones])
+    pidx = np.array([where[p] if p is not None else -1 for p in job.parents])
+    n_frames, n = job.frames.size, len(job.bones)
+    world = np.empty((n_frames, n, 4, 4))
+    parent_pose = np.tile(np.eye(4), (n_frames, n, 1, 1))
+    object_world = np.empty((n_frames, 4, 4))
+    values = np.empty((n_frames, len(job.channels)))
+    buf = np.empty(len(names) * 16, dtype=np.float32)
+    if job.switch_action:
+        adt = obj.animation_data
+        own_slot = ""
+        if actions.is_slotted() and adt is not None and adt.action_slot is not None:
+            own_slot = str(adt.action_slot.identifier)
+        job.set_aside = (adt.action if adt is not None else None, own_slot)
+        actions.assign_action(obj, job.source, job.source_slot)
+    try:
+        for k, frame in enumerate(job.frames):
+            scene.frame_set(int(frame))
+            ev = obj.evaluated_get(context.evaluated_depsgraph_get())
+            ev.pose.bones.foreach_get("matrix", buf)
+            pose = buf.reshape(len(names), 4, 4).transpose(0, 2, 1).astype(np.float64)
+            obj_world = np.array(ev.matrix_world, dtype=np.float64)
+            object_world[k] = obj_world
+            world[k] = obj_world @ pose[idx]
+            has_parent = pidx >= 0
+            parent_pose[k, has_parent] = pose[pidx[has_parent]]
+            for c, ch in enumerate(job.channels):
+                values[k, c] = _channel_value(ev, ch)
+            yield (k + 1) / n_frames
+    finally:
+        _restore(context, job, obj)
+    job.world, job.parent_pose, job.object_world, job.values = world, parent_pose, object_world, values
+    job.sampled = True
+    job.timings["sample_s"] = time.perf_counter() - t0
+
+
+def _channel_value(ev: Any, ch: actions.Channel) -> float:
+    try:
+        value = ev.path_resolve(ch.data_path)
+    except ValueError:
+        return float("nan")
+    try:
+        return float(value[ch.index])
+    except TypeError:
+        return float(value)
+
+
+def cancel(context: Any, job: Job) -> None:
+    """Stop a bake before :func:`write`: nothing is written and the scene is as before."""
+    _restore(context, job, bpy.data.objects.get(job.obj_name))
+
+
+def simulate(job: Job) -> tuple[np.ndarray, np.ndarray]:
+    """Run the pendulums on the sampled poses: local rotations ``(F, n, 4)`` (w, x, y, z) of
+    every chain bone for its ``matrix_basis``, and the world matrices ``(F, n, 4, 4)``."""
+    if not job.sampled:
+        raise RuntimeError("sample() the job before simulating it")
+    t0 = time.perf_counter()
+    times = (job.frames - job.frames[0]) / job.fps
+    heads = job.world[..., :3, 3]
+    frames = pend.orthonormalize_frames(job.world[..., :3, :3])
+    result = pend.simulate(job.forest, times, heads, frames)
+    job.timings["simulate_s"] = time.perf_counter() - t0
+
+    obj = bpy.data.objects[job.obj_name]
+    n_frames, n = result.head.shape[:2]
+    # World -> armature space (uniform object scale).
+    obj_inv = np.linalg.inv(job.object_world)  # (F, 4, 4)
+    new_world = np.tile(np.eye(4), (n_frames, n, 1, 1))
+    bone_scale = np.linalg.norm(job.world[..., :3, :3], axis=-2)  # (F, n, 3) column lengths
+    new_world[..., :3, :3] = result.rotation * bone_scale[..., None, :]
+    new_world[..., :3, 3] = result.head
+    pose = obj_inv[:, None] @ new_world  # (F, n, 4, 4) armature space
+    index = {b: i for i, b in enumerate(job.bones)}
+    basis_rot = np.empty((n_frames, n, 3, 3))
+    for i, b in enumerate(job.bones):
+        bone = obj.data.bones[b]
+        rest = np.array(bone.matrix_local, dtype=np.float64)
+        p = job.parents[i]
+        if p is None:
+            basis = np.linalg.inv(rest) @ pose[:, i]
+        else:
+            parent_rest = np.array(obj.data.bones[p].matrix_local, dtype=np.float64)
+            rest_rel = np.linalg.inv(parent_rest) @ rest
+            parent_pose = pose[:, index[p]] if p in index else job.parent_pose[:, i]
+            basis = np.linalg.inv(parent_pose @ rest_rel) @ pose[:, i]
+        basis_rot[:, i] = basis[:, :3, :3] / np.linalg.norm(basis[:, :3, :3], axis=-2, keepdims=True)
+    quats = rig.matrix_to_quaternion(basis_rot.reshape(-1, 3, 3)).reshape(n_frames, n, 4)
+    return quats, new_world
+
+
+def write(context: Any, job: Job) -> bpy.types.Action:
+    """Simulate and write a new Action on the rig, assigned in place of the source."""
+    obj = bpy.data.objects.get(job.obj_name)
+    if obj is None:
+        raise BakeError(f"'{job.obj_name}' was deleted during the bake")
+    quats, _world = simulate(job)
+    t0 = time.perf_counter()
+    frames = job.frames.astype(np.float64)
+    action = actions.new_action(obj, suffix="Secondary")
+    try:
+        if job.source is not None:
+            action[SECONDARY_SOURCE] = job.source
+            action[_SECONDARY_SLOT] = job.source_slot
+        else:
+            action[SECONDARY_SOURCE] = ""
+        good = [c for c in range(len(job.channels)) if np.all(np.isfinite(job.values[:, c]))]
+        if good:
+            actions.write_channels(action, obj, [job.channels[c] for c in good], frames, job.values[:, good])
+        actions.write_pose_bone_transforms(action, obj, frames, job.bones, rotations=quats)
+        # Over an earlier bake, that bake is kept (with a fake user) and the remembered
+        # previous Action stays the user's own (see actions.assign_generated_action).
+        actions.assign_generated_action(obj, action)
+    except Exception:
+        bpy.data.actions.remove(action)
+        raise
+    job.timings["write_s"] = time.perf_counter() - t0
+    return action
+
+
+def bake(context: Any, obj: Any) -> bpy.types.Action:
+    """Prepare, sample and write in one go (scripts, batch mode, tests)."""
+    job = prepare(context, obj)
+    for _fraction in sample(context, job):
+        pass
+    return write(context, job)
+
