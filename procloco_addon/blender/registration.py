@@ -69,6 +69,7 @@ CLASSES: tuple[type, ...] = (
     secondary_panel.PROCLOCO_PT_secondary,
     biped_panel.PROCLOCO_PT_biped,
     ui_main.PROCLOCO_PT_effects,
+    locomotion_panel.PROCLOCO_PT_spine,
     ui_main.PROCLOCO_PT_generate,
 )
 

@@ -28,10 +28,19 @@ world matrix, so scaled, rotated and moved rigs work (a uniform object scale is 
 non-uniform scale shears bone rotations). Everything the core sees is in the creature's
 body frame (x forward, y left, z up) whose origin is the centroid of the hips.
 
+The **spine** (:attr:`RigInfo.spine`) is the chain of bones from the body bone (the hips)
+forward through the bones the legs hang from to the head: at each bone the chain goes on to
+the child on the body's midline that carries the most legs, then, past the last girdle, to
+the child that continues it forward. Each leg hangs from the nearest spine bone above its
+hip. When the legs hang from two or more spine bones (quadrupeds, lizards) and
+``read_rig(..., spine=True)``, :class:`SpineLayout` maps the chain to the core's flexible
+spine (``core.spine``): its joints, its virtual pelvis nodes (the head, one per girdle, the
+back girdle at the hips' head) and which bone carries each leg.
+
 :func:`solve_pose` converts per-frame core results (body frame and joint positions in the
-world) into pose-bone ``matrix_basis`` rotations and the body bone's location, keeping
-each leg's knee plane and adding no twist; :mod:`.actions` writes them in each bone's
-rotation mode.
+world, and with a spine its bones' rotations) into pose-bone ``matrix_basis`` rotations and
+the body bone's location, keeping each leg's knee plane and adding no twist;
+:mod:`.actions` writes them in each bone's rotation mode.
 """
 
 from __future__ import annotations
@@ -44,6 +53,7 @@ import bpy
 import numpy as np
 
 from ..core.morphology import Morphology
+from ..core.spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT
 
 __all__ = [
     "BodyInfo",
@@ -51,6 +61,7 @@ __all__ = [
     "PoseTracks",
     "RigError",
     "RigInfo",
+    "SpineLayout",
     "detect_legs",
     "leg_from_bones",
     "matrix_to_quaternion",
@@ -534,10 +545,35 @@ class BodyInfo:
 
 
 @dataclass(frozen=True)
+class SpineLayout:
+    """The rig's spine chain as the core's flexible spine (``core.spine.SpineModel``).
+
+    - ``joints``: ``(J, 3)`` world rest joints, head first: the tip of the head bone, then
+      the head of every chain bone from the head bone back to the body bone (``J - 1``
+      bones). Core bone ``i`` joins joints ``i`` and ``i + 1``: it is chain bone
+      ``spine[-1 - i]`` of :attr:`RigInfo.spine`.
+    - ``key_joint``: ``(K,)`` the virtual pelvis nodes: 0 (the head), one joint per girdle
+      (the end of its bone nearest the legs' hips), ``J - 1`` (the body bone's head, the back
+      girdle).
+    - ``leg_key``: ``(L,)`` the node each leg belongs to; ``leg_bone``: ``(L,)`` the core
+      bone each leg's hip hangs from (its nearest spine ancestor).
+    """
+
+    joints: np.ndarray
+    key_joint: np.ndarray
+    leg_key: np.ndarray
+    leg_bone: np.ndarray
+
+
+@dataclass(frozen=True)
 class RigInfo:
     """Everything the shell needs about one armature, read once per generation.
 
     Arrays are in world space at the generation's first frame unless named ``_local``.
+    ``spine`` is the spine chain from the body bone to the head (parent to child; empty when
+    the rig has none); ``spine_layout`` is set when the spine drives the body (read with
+    ``spine=True`` from a rig whose legs hang from two or more spine bones): its bones are
+    then keyed too.
     """
 
     object_name: str
@@ -559,6 +595,7 @@ class RigInfo:
     parents: dict[str, str | None] = field(repr=False)
     basis: dict[str, np.ndarray] = field(repr=False)  # bone -> (4, 4) current matrix_basis
     warnings: tuple[str, ...] = ()
+    spine_layout: SpineLayout | None = None
 
     @property
     def leg_length(self) -> np.ndarray:
@@ -567,6 +604,8 @@ class RigInfo:
     @property
     def driven_bones(self) -> tuple[str, ...]:
         names = [self.body_bone]
+        if self.spine_layout is not None:
+            names += list(self.spine)
         for leg in self.legs:
             names += list(leg.bones)
             names += list(leg.foot[:1])
@@ -581,10 +620,13 @@ _OVERRIDING_CONSTRAINTS = frozenset({
 
 
 def read_rig(
-    obj: bpy.types.Object, legs: Sequence[LegChain] | None = None, forward_axis: str = "AUTO"
+    obj: bpy.types.Object, legs: Sequence[LegChain] | None = None, forward_axis: str = "AUTO",
+    spine: bool = False,
 ) -> RigInfo:
     """Read ``obj``'s legs (given, else detected), body bone, spine and rest geometry.
 
+    ``spine``: drive the spine chain when the rig has one that carries two girdles or more
+    (:attr:`RigInfo.spine_layout`); its bones are then read at rest, like the legs.
     Raises :class:`RigError` for anything that cannot be animated (not an armature, bad
     legs, legs with no common body bone, non-uniform scale).
     """
@@ -615,11 +657,16 @@ def read_rig(
     # to the first ancestor that can.
     while obj.data.bones[rest.names[body_idx]].use_connect and rest.parent[body_idx] >= 0:
         body_idx = int(rest.parent[body_idx])
-    spine = _spine_between(rest, body_idx, hip_idx)
+    mean_leg = float(np.mean([_length(_chain_points(rest, [rest.index[b] for b in leg.bones]))
+                              for leg in legs]))
+    chain = _spine_chain(rest, body_idx, hip_idx, forward, mean_leg)
+    carried = spine and _spine_layout(rest, chain, hip_idx, rest.head, rest.tail) is not None
 
     basis = _current_basis(obj)
     ik_targets = [_ik_target(obj, rest, leg) for leg in legs]
     driven = {rest.index[b] for leg in legs for b in (*leg.bones, *leg.foot[:1])} | {body_idx}
+    if carried:
+        driven |= set(chain)
     driven |= {rest.index[t[0]] for t in ik_targets if t is not None}
     posed_local = _posed_rest(rest, basis, driven)
     heads = _apply(rest.world, posed_local[:, :3, 3])
@@ -655,6 +702,7 @@ def read_rig(
         foot_pts.append(probes)
     origin = np.array([j[0] for j in joints]).mean(axis=0)
     body = BodyInfo(origin, forward, left)
+    layout = _spine_layout(rest, chain, hip_idx, heads, tails) if carried else None
 
     warnings = []
     handled = {t[0] for t in ik_targets if t is not None}
@@ -671,7 +719,7 @@ def read_rig(
         object_name=obj.name,
         legs=tuple(legs),
         body_bone=rest.names[body_idx],
-        spine=tuple(rest.names[i] for i in spine),
+        spine=tuple(rest.names[i] for i in chain),
         body=body,
         joints=tuple(joints),
         contact=np.array(contact),
@@ -686,6 +734,7 @@ def read_rig(
                  for i, n in enumerate(rest.names)},
         basis=basis,
         warnings=tuple(warnings),
+        spine_layout=layout,
     )
 
 
@@ -726,15 +775,86 @@ def _common_ancestor(rest: _Rest, idx: Sequence[int]) -> int | None:
     return common[0] if common else None
 
 
-def _spine_between(rest: _Rest, body: int, hips: Sequence[int]) -> list[int]:
-    """Bones between the body bone and the legs' attachment bones (excluding the body bone)."""
-    on_path: list[int] = []
-    for h in hips:
-        anc = rest.ancestors(h)
-        on_path.extend(reversed(anc[: anc.index(body)]))
-    # keep only bones shared by legs of different attachment points, ordered from the body
-    seen = dict.fromkeys(on_path)
-    return [i for i in seen if sum(1 for h in hips if i in rest.ancestors(h)) >= 2]
+def _spine_chain(
+    rest: _Rest, body: int, hips: Sequence[int], forward: np.ndarray, leg_length: float
+) -> list[int]:
+    """The spine chain from the body bone to the head, parent to child (see the module doc).
+
+    A spine bone lies on the body's midline (its ends within 3 % of a leg length of the
+    vertical plane through the hips' centre and ``forward``), points forward, starts where
+    its parent ends (within a quarter of the parent's length), is not a leg's hip and has no
+    helper name. At each bone the chain takes the such child whose subtree holds the most
+    hips; when none holds any (past the last girdle), the one reaching furthest forward.
+    """
+    centre = rest.head[list(hips)].mean(axis=0)
+    left = np.cross(_UP, forward)
+    tol = 0.03 * leg_length
+    hip_set = set(hips)
+    below: dict[int, int] = {}
+
+    def carried(i: int) -> int:
+        if i not in below:
+            below[i] = sum(1 for h in hips if i in rest.ancestors(h))
+        return below[i]
+
+    def spine_like(parent: int, i: int) -> bool:
+        if i in hip_set or _is_helper_name(split_name(rest.names[i])[1]):
+            return False
+        ends = np.stack([rest.head[i], rest.tail[i]])
+        if np.abs((ends - centre) @ left).max() > tol:
+            return False
+        parent_len = float(np.linalg.norm(rest.tail[parent] - rest.head[parent]))
+        if np.linalg.norm(rest.head[i] - rest.tail[parent]) > 0.25 * parent_len + 1e-9 * rest.scale:
+            return False
+        return float((rest.tail[i] - rest.head[i]) @ forward) > 1e-3 * leg_length
+
+    chain = [body]
+    while len(chain) < len(rest.names):
+        kids = [k for k in rest.children(chain[-1]) if spine_like(chain[-1], k)]
+        if not kids:
+            break
+        holding = [k for k in kids if carried(k)]
+        if holding:
+            chain.append(max(holding, key=lambda k: (carried(k), -k)))
+        else:
+            chain.append(max(kids, key=lambda k: (float(rest.tail[k] @ forward), -k)))
+    return chain
+
+
+def _carriers(rest: _Rest, chain: Sequence[int], hips: Sequence[int]) -> list[int]:
+    """Per hip, the position in ``chain`` of its nearest spine ancestor."""
+    where = {b: i for i, b in enumerate(chain)}
+    return [next(where[a] for a in rest.ancestors(h) if a in where) for h in hips]
+
+
+def _spine_layout(rest: _Rest, chain: Sequence[int], hips: Sequence[int], heads: np.ndarray,
+                  tails: np.ndarray) -> SpineLayout | None:
+    """The core spine of ``chain`` (see :class:`SpineLayout`) from the rig's rest heads and
+    tails ``(B, 3)``, or None when the legs do not make two girdles with a head in front."""
+    n = len(chain)
+    if n < 2:
+        return None
+    order = list(chain)[::-1]  # head bone first: core bone i is order[i]
+    joints = np.vstack([tails[order[0]][None], heads[order]])
+    core_of = {b: i for i, b in enumerate(order)}
+    leg_bone = np.array([core_of[chain[c]] for c in _carriers(rest, chain, hips)], dtype=np.int64)
+    back = int(leg_bone.max())  # the back-most carrier bone
+    key_of_bone: dict[int, int] = {}
+    for b in sorted(set(leg_bone.tolist())):
+        if b == back:
+            key_of_bone[b] = n  # the back girdle: the body bone's head, the chain's last joint
+            continue
+        mine = np.array([heads[h] for h, lb in zip(hips, leg_bone, strict=True) if lb == b]).mean(axis=0)
+        # the end of the carrier bone nearest its legs' hips: joint b (front) or b + 1 (back)
+        front_nearer = np.linalg.norm(joints[b] - mine) <= np.linalg.norm(joints[b + 1] - mine)
+        key_of_bone[b] = b if front_nearer else b + 1
+    keys = sorted(set(key_of_bone.values()))
+    if keys[0] == 0 or len(keys) < 2:
+        return None  # legs at the head, or one girdle only
+    key_joint = np.array([0, *keys], dtype=np.int64)
+    leg_key = np.array([int(np.searchsorted(key_joint, key_of_bone[int(b)])) for b in leg_bone],
+                       dtype=np.int64)
+    return SpineLayout(joints=joints, key_joint=key_joint, leg_key=leg_key, leg_bone=leg_bone)
 
 
 def _current_basis(obj: bpy.types.Object) -> dict[str, np.ndarray]:
@@ -774,12 +894,18 @@ def _posed_rest(rest: _Rest, basis: dict[str, np.ndarray], driven: set[int]) -> 
 # Core morphology
 
 
-def morphology_of(info: RigInfo) -> Morphology:
+def morphology_of(
+    info: RigInfo,
+    joint_yaw_limit: float = DEFAULT_JOINT_YAW_LIMIT,
+    joint_pitch_limit: float = DEFAULT_JOINT_PITCH_LIMIT,
+) -> Morphology:
     """The core morphology of the rig, in its body frame (origin at the hips' centroid).
 
     The end-effectors are the core's feet. A leg whose foot bones hold its end-effector above
     the ground (a human's ankle) is handled by the caller, which raises the terrain the core
-    sees by :attr:`RigInfo.foot_height` (see ``locomotion.generate``).
+    sees by :attr:`RigInfo.foot_height` (see ``locomotion.generate``). With a
+    :attr:`RigInfo.spine_layout` the morphology has the flexible spine
+    (``Morphology.with_spine``) with these per-joint limits (radians).
     """
     to_body = np.linalg.inv(info.body.matrix)
     chains = [_apply(to_body, j) for j in info.joints]
@@ -793,12 +919,20 @@ def morphology_of(info: RigInfo) -> Morphology:
     # bones (toes, paw) reach from the end-effector (its box is centred on the end-effector).
     foot_half = np.maximum(FOOT_EXTENT_SHARE * info.foot_extent.max(axis=0), 0.04 * reach)
     try:
-        return Morphology.from_rest_joints(
+        morph = Morphology.from_rest_joints(
             chains,
             [leg.label for leg in info.legs],
             body_box=(0.5 * (lo + hi), 0.5 * (hi - lo) + 0.1 * reach),
             foot_half_extents=foot_half,
         )
+        layout = info.spine_layout
+        if layout is not None:
+            morph = morph.with_spine(
+                _apply(to_body, layout.joints), key_joint=layout.key_joint, leg_key=layout.leg_key,
+                leg_bone=layout.leg_bone, joint_yaw_limit=joint_yaw_limit,
+                joint_pitch_limit=joint_pitch_limit,
+            )
+        return morph
     except ValueError as err:
         raise RigError(str(err)) from err
 
@@ -928,6 +1062,10 @@ def solve_pose(
     joints_world: Sequence[np.ndarray],
     ground: GroundFn | None = None,
     max_foot_pitch: float = np.radians(50.0),
+    *,
+    spine_rotation: np.ndarray | None = None,
+    spine_joints: np.ndarray | None = None,
+    leg_frames: np.ndarray | None = None,
 ) -> PoseTracks:
     """Pose-bone channels that put the rig where the core says, frame by frame.
 
@@ -941,12 +1079,28 @@ def solve_pose(
     foot bone keeps its rest orientation turned by the body's heading and, when ``ground``
     is given (:data:`GroundFn`), pitches about its cross axis so its sole lies on the ground
     (toes lift onto slopes and edges, up to ``max_foot_pitch``).
+
+    With a driven spine (:attr:`RigInfo.spine_layout`), ``spine_rotation`` ``(F, J - 1, 3, 3)``
+    (``core.spine.SpinePose.bone_rotation``: each core bone's rotation from its rest direction
+    in the body frame to the world) turns the spine bones, the body bone's head goes to
+    ``spine_joints[:, -1]`` (``(F, J, 3)``), and ``leg_frames`` ``(F, L, 3, 3)`` (body-to-world
+    rotation each leg hangs from) turns each leg's rest knee plane and foot instead of the
+    body frame.
     """
     body_world = np.asarray(body_world, dtype=np.float64)
     n_frames = body_world.shape[0]
     delta = body_world @ np.linalg.inv(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
     delta_rot = delta[:, :3, :3]
-    yaw = _yaw_only(delta_rot)
+    body_rest_t = info.body.matrix[:3, :3].T  # world rest -> body frame
+    n_legs = len(info.legs)
+    if leg_frames is None:
+        leg_delta = np.broadcast_to(delta_rot[:, None], (n_frames, n_legs, 3, 3))
+    else:
+        leg_delta = np.asarray(leg_frames, dtype=np.float64) @ body_rest_t
+    leg_yaw = _yaw_only(leg_delta)
+    spine_on = info.spine_layout is not None
+    if spine_on and (spine_rotation is None or spine_joints is None):
+        raise ValueError("the rig's spine is driven: give its spine_rotation and spine_joints")
     w = info.world
     w_rot = w[:3, :3] / info.scale
     w_inv = np.linalg.inv(w)
@@ -958,8 +1112,15 @@ def solve_pose(
     desired[info.body_bone] = delta_rot @ rest_rot[info.body_bone]
     body_head_rest = _apply(w, info.rest_local[info.body_bone][:3, 3][None])[0]
     body_head = np.einsum("fij,j->fi", delta[:, :3, :3], body_head_rest) + delta[:, :3, 3]
+    if spine_on:
+        assert spine_rotation is not None
+        assert spine_joints is not None
+        turn = np.asarray(spine_rotation, dtype=np.float64) @ body_rest_t  # world rest -> now
+        for i, name in enumerate(info.spine[::-1]):  # core bones run from the head back
+            desired[name] = turn[:, i] @ rest_rot[name]
+        body_head = np.asarray(spine_joints, dtype=np.float64)[:, -1]
 
-    for leg, rest_j, cur_j in zip(info.legs, info.joints, joints_world, strict=True):
+    for k, (leg, rest_j, cur_j) in enumerate(zip(info.legs, info.joints, joints_world, strict=True)):
         cur_j = np.asarray(cur_j, dtype=np.float64)
         want = (n_frames, len(leg.bones) + 1, 3)
         if cur_j.shape != want:
@@ -969,7 +1130,7 @@ def solve_pose(
             # straight rest leg: bend like a knee, about the body's left axis
             n_rest = np.cross(rest_j[-1] - rest_j[0], info.body.forward)
         n_rest = _unit(n_rest)
-        n_turned = np.einsum("fij,j->fi", delta_rot, n_rest)
+        n_turned = np.einsum("fij,j->fi", leg_delta[:, k], n_rest)
         n_cur = _bend_normal(cur_j)
         size = np.linalg.norm(n_cur, axis=-1)
         scale2 = np.sum(np.diff(cur_j, axis=1) ** 2, axis=(1, 2))
@@ -984,7 +1145,7 @@ def solve_pose(
             f_cur = _frames(seg_cur[:, b], n_cur)
             desired[name] = f_cur @ np.swapaxes(f_rest, -1, -2)[None] @ rest_rot[name]
         if leg.foot:
-            desired[leg.foot[0]] = yaw @ rest_rot[leg.foot[0]]
+            desired[leg.foot[0]] = leg_yaw[:, k] @ rest_rot[leg.foot[0]]
 
     # Bones that IK constraints pull the legs to: placed where the simulated joint is,
     # turned with the body's heading.
@@ -993,11 +1154,11 @@ def solve_pose(
         if target is None:
             continue
         bone, joint = target
-        desired[bone] = yaw @ rest_rot[bone]
+        desired[bone] = leg_yaw[:, k] @ rest_rot[bone]
         moved_heads[bone] = np.asarray(joints_world[k], dtype=np.float64)[:, joint]
 
     if ground is not None:
-        _pitch_feet(info, joints_world, yaw, rest_rot, desired, ground, max_foot_pitch)
+        _pitch_feet(info, joints_world, leg_yaw, rest_rot, desired, ground, max_foot_pitch)
 
     bones = info.driven_bones
     # Armature-space pose matrices, parents before children.
@@ -1031,24 +1192,28 @@ def solve_pose(
     return PoseTracks(bones, rotations, locations, keyed)
 
 
-def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], yaw: np.ndarray,
+def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.ndarray,
                 rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
                 limit: float) -> None:
-    """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`)."""
+    """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`).
+    ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of what each leg hangs from."""
     dynamic = bool(getattr(ground, "dynamic", True))
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
     if not legs:
         return
-    n_frames = yaw.shape[0]
+    n_frames = leg_yaw.shape[0]
     rels, ends = [], []
     for k in legs:
         ends.append(np.asarray(joints_world[k], dtype=np.float64)[:, -1])
-        rels.append(np.einsum("fij,pj->fpi", yaw, info.foot_points[k] - info.joints[k][-1]))
+        rels.append(np.einsum("fij,pj->fpi", leg_yaw[:, k], info.foot_points[k] - info.joints[k][-1]))
     counts = [r.shape[1] for r in rels]
     bounds = np.cumsum([0, *counts])
     turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
-    # Pitching moves the sole points sideways too, onto other ground: a few fixed-point passes
-    # (heights where the pitched points are, the pitch from the rest sole) settle it.
+    pitched: list[np.ndarray | None] = [None] * len(legs)
+    # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
+    # where the pitched points are, the pitch from the rest sole). After the first the pitch
+    # only rises: a toe pitched down past an edge onto the higher ground it now stands over
+    # is lifted, never pitched down again (a down-and-up swing could end inside the edge).
     for _ in range(3):
         xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
                              for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
@@ -1061,6 +1226,10 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], yaw: np.ndarr
         heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
         for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
             theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit)
+            before = pitched[j]
+            if before is not None:
+                theta = np.maximum(theta, before)
+            pitched[j] = theta
             axis = np.cross(np.concatenate([d, np.zeros((n_frames, 1))], axis=1), _UP)
             axis_n = np.linalg.norm(axis, axis=1, keepdims=True)
             axis = np.divide(axis, axis_n, out=np.zeros_like(axis), where=axis_n > 1e-12)

@@ -478,6 +478,7 @@ class Controller:
         self.spine_legs = np.flatnonzero(self.has_spine[lc])
         self.max_spine_joints = max((m.n_joints for m in models.values()), default=0)
         self._spine_hips = np.zeros((self.n_legs, 3))
+        self._spine_hips_free = np.zeros((self.n_legs, 3))  # before the reach repeat of step 4
         self._spine_leg_rot = np.zeros((self.n_legs, 3, 3))
         self.spine_groups: list[_SpineGroup] = []
         for (mid, sp), chars in groups.items():
@@ -708,6 +709,7 @@ class Controller:
             )
             shift = g.plan.key_xy - old
             self._spine_hips[g.legs, :2] += shift[:, g.model.leg_key]
+            self._spine_hips_free[g.legs, :2] += shift[:, g.model.leg_key]
             self._body_from_plan(g)
 
     def _spine_guides(self, alpha: FloatArray) -> FloatArray:
@@ -741,6 +743,7 @@ class Controller:
                 yaw = yaw + visual_yaw(m, g.plan, self.foot[g.legs], g.params)
             guide = np.concatenate([g.plan.key_xy, z[..., None]], axis=-1)
             pose = build_spine(m, guide, yaw, g.pitch)
+            self._spine_hips_free[g.legs] = hip_positions(m, pose)
             # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
             shift = self.params.guard_max_drop * float(self.body_thickness[g.chars[0]])
             pose = repeat_for_reach(m, pose, self.foot[g.legs], self.guard_reach[g.legs[0]], iterations=6,
@@ -889,9 +892,13 @@ class Controller:
 
     def _overstretched(self) -> BoolArray:
         """Planted feet left so far behind (or aside) that keeping them would need the pelvis
-        to drop more than ``max_drop`` of its body thickness: they step early."""
+        to drop more than ``max_drop`` of its body thickness: they step early. (A spine's
+        hips are taken where the spine would put them before step 4 pulls them toward the
+        feet: a foot left behind must step, not drag the body back.)"""
         planted = ~self.swinging
         hips = self.hips_world()
+        if self.spine_groups:
+            hips[self.spine_legs] = self._spine_hips_free[self.spine_legs]
         reach = self.comfort_reach
         d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
         top = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
@@ -1129,6 +1136,7 @@ class Controller:
             shift = move[g.chars]
             g.plan.key_xy[...] += shift[:, None, :]
             self._spine_hips[g.legs, :2] += shift[:, None, :]
+            self._spine_hips_free[g.legs, :2] += shift[:, None, :]
         # the part worked off is consumed
         self.feedback -= np.where(
             significant[self.leg_char, None], self.feedback * share[self.leg_char, None], 0.0

@@ -286,3 +286,120 @@ def test_numbered_legs_without_sides_get_sides_from_where_they_are(empty_scene: 
     legs = rig.detect_legs(arm)
     got = {leg.label: tuple(renamed[b] for b in leg.bones) for leg in legs}
     assert got == {label: chain for label, (chain, _foot) in EXPECTED["robot"].items()}
+
+
+# ---------------------------------------------------------------------------------------
+# The spine chain (thesis §4.2): read from the rig, written back where the core puts it
+
+SPINES = {
+    "wolf": (("spine.004", "spine.005", "spine.006", "spine.007", "spine.008", "spine.009", "spine.010",
+              "spine.011"), {"L1": "spine.008", "R1": "spine.008", "L2": "spine.005", "R2": "spine.005"}),
+    "lizard": (("Hips", "Spine.001", "Spine.002", "Spine.003", "Spine.004", "Chest", "Neck", "Head"),
+               {"L1": "Chest", "R1": "Chest", "L2": "Hips", "R2": "Hips"}),
+}
+
+
+@pytest.mark.parametrize("kind", ["wolf", "lizard"])
+def test_spine_chain_runs_from_the_hips_to_the_head_and_carries_the_girdles(
+    empty_scene: Any, kind: str
+) -> None:
+    arm = creatures.BUILDERS[kind](empty_scene)
+    chain, carriers = SPINES[kind]
+    info = rig.read_rig(arm, spine=True)
+    assert info.spine == chain
+    assert info.body_bone == chain[0]
+    layout = info.spine_layout
+    assert layout is not None
+    # core bone i is chain bone -1 - i; each leg hangs from its parent spine bone
+    carried = {leg.label: chain[-1 - int(b)] for leg, b in zip(info.legs, layout.leg_bone, strict=True)}
+    assert carried == carriers
+    # nodes: the head tip, the front girdle, the hips' head; front legs on node 1, hind on node 2
+    assert layout.key_joint.tolist() == [0, 3, len(chain)]
+    assert layout.leg_key.tolist() == [1, 1, 2, 2]
+    bones = arm.data.bones
+    world = np.array(arm.matrix_world)
+    tip, hips = np.array(bones[chain[-1]].tail_local), np.array(bones[chain[0]].head_local)
+    assert layout.joints[0] == pytest.approx(world[:3, :3] @ tip + world[:3, 3])
+    assert layout.joints[-1] == pytest.approx(world[:3, :3] @ hips + world[:3, 3])
+    assert set(chain) <= set(info.driven_bones)
+    morph = rig.morphology_of(info, joint_yaw_limit=0.3)
+    assert morph.spine is not None
+    assert morph.pelvis_node.tolist() == [1, 1, 2, 2]
+    assert morph.spine.n_joints == len(chain) + 1
+    np.testing.assert_allclose(morph.spine.joint_yaw_limit, 0.3)
+    # the same rig read without the spine keeps its spine bones out of the keys
+    plain = rig.read_rig(arm)
+    assert plain.spine == chain
+    assert plain.spine_layout is None
+    assert not set(chain[1:]) & set(plain.driven_bones)
+    assert rig.morphology_of(plain).spine is None
+
+
+@pytest.mark.parametrize("kind", ["spider", "ant", "robot", "human"])
+def test_rigs_whose_legs_hang_from_one_bone_have_no_spine_to_bend(empty_scene: Any, kind: str) -> None:
+    arm = creatures.BUILDERS[kind](empty_scene)
+    info = rig.read_rig(arm, spine=True)
+    assert info.spine_layout is None
+    assert info.spine[0] == info.body_bone
+    assert rig.morphology_of(info).spine is None
+
+
+def test_spine_pose_is_written_where_the_core_puts_it(empty_scene: Any) -> None:
+    """Spine bones keyed from the core's bone rotations put every spine joint and every hip
+    (legs hang from spine.005 and spine.008) where the core's spine does: a moved, turned,
+    scaled wolf, bent sideways and up."""
+    from procloco_addon.core import spine as core_spine
+
+    arm = creatures.build_wolf(empty_scene, location=(1.0, 2.0, 0.0))
+    arm.scale = (2.0, 2.0, 2.0)
+    arm.rotation_euler = (0.0, 0.0, 0.7)
+    bpy.context.view_layer.update()
+    arm.pose.bones["spine.006"].rotation_mode = "XYZ"
+    info = rig.read_rig(arm, spine=True)
+    morph = rig.morphology_of(info)
+    model = morph.spine
+    assert model is not None
+    n = 6
+    t = np.linspace(0.0, 1.0, n)
+    heading = 0.3 + 0.8 * t
+    rest_keys = model.key_rest
+    c, s = np.cos(heading), np.sin(heading)
+    # key node guides: the rest layout turned by the heading, the head swung aside and raised
+    guides = np.einsum("fij,kj->fki", np.stack([np.stack([c, -s, 0 * c], -1), np.stack([s, c, 0 * c], -1),
+                                                np.stack([0 * c, 0 * c, 1 + 0 * c], -1)], -2), rest_keys)
+    guides += np.array([3.0, -1.0, 0.2])
+    guides[:, 0, :2] += 0.15 * t[:, None] * np.stack([-s, c], axis=1)
+    guides[:, 0, 2] += 0.1 * t
+    yaw = heading[:, None] + np.array([0.5, 0.25, 0.0])[None] * t[:, None]
+    pitch = np.array([0.1, 0.05, -0.05])[None] * t[:, None]
+    pose = core_spine.build_spine(model, guides, yaw, pitch)
+    hips = core_spine.hip_positions(model, pose)
+    frames_leg = core_spine.leg_frames(model, pose)
+    to_body = np.linalg.inv(info.body.matrix)
+    joints = []
+    for k, rest_j in enumerate(info.joints):
+        local = rest_j @ to_body[:3, :3].T + to_body[:3, 3]  # the leg at rest, in the body frame
+        joints.append(hips[:, k, None] + np.einsum("fij,pj->fpi", frames_leg[:, k], local - local[0]))
+    body = np.repeat(info.body.matrix[None], n, axis=0)
+    tracks = rig.solve_pose(info, body, joints, spine_rotation=pose.bone_rotation, spine_joints=pose.joints,
+                            leg_frames=frames_leg)
+    action = actions.new_action(arm)
+    frames = np.arange(1, n + 1)
+    actions.write_pose_bone_transforms(action, arm, frames, tracks.bones, tracks.rotations, tracks.locations)
+    actions.assign_generated_action(arm, action)
+    scale = float(info.leg_length.mean())
+    chain = list(info.spine[::-1])  # head bone first, as the core's bones
+    heads, tails = bone_heads_tails(arm, list(frames), chain)
+    got = np.concatenate([tails[:, :1], heads], axis=1)
+    assert np.abs(got - pose.joints).max() < 1e-4 * scale
+    for leg, want in zip(info.legs, joints, strict=True):
+        heads, tails = bone_heads_tails(arm, list(frames), list(leg.bones))
+        got = np.concatenate([heads, tails[:, -1:]], axis=1)
+        assert np.abs(got - want).max() < 1e-4 * scale, leg.label
+    # the spine bent: the head bone turned from the hips' bone by more than 10 degrees
+    mats = pose_matrices(arm, [n], [chain[0], chain[-1]])[0]
+    y_head, y_hips = mats[0, :3, 1], mats[1, :3, 1]
+    turn = np.degrees(np.arctan2(y_head[1], y_head[0]) - np.arctan2(y_hips[1], y_hips[0]))
+    assert abs((turn + 180.0) % 360.0 - 180.0) > 10.0
+    with pytest.raises(ValueError, match="spine is driven"):
+        rig.solve_pose(info, body, joints)

@@ -230,6 +230,11 @@ class Job:
     use_pelvis_physics: bool
     use_progression: bool
     use_gait_randomizer: bool
+    # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
+    use_visual_yaw: bool = False
+    spine_turn_rate: float = float(np.radians(120.0))  # rad/s
+    spine_relax_time: float = 0.6  # s
+    visual_yaw_gain: float = 1.0
     warnings: list[str] = field(default_factory=list)
     result: Any = None
     timings: dict[str, float] = field(default_factory=dict)
@@ -249,8 +254,8 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     try:
         legs = settings_legs(obj)
         from_settings = legs is not None
-        info = rig.read_rig(obj, legs, settings.forward_axis)
-        morph = rig.morphology_of(info)
+        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine))
+        morph = rig.morphology_of(info, float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
     except rig.RigError as err:
         raise GenerateError(str(err)) from err
     gait = _gait_of(obj, info.legs, from_settings)
@@ -287,6 +292,10 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         use_pelvis_physics=bool(settings.use_pelvis_physics),
         use_progression=bool(settings.use_progression),
         use_gait_randomizer=bool(settings.use_gait_randomizer),
+        use_visual_yaw=bool(settings.use_visual_yaw),
+        spine_turn_rate=float(settings.spine_turn_rate),
+        spine_relax_time=float(settings.spine_relax_time),
+        visual_yaw_gain=float(settings.visual_yaw_gain),
         warnings=list(info.warnings),
     )
     job.timings["read_s"] = time.perf_counter() - t0
@@ -312,7 +321,9 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
     t0 = time.perf_counter()
     obj = bpy.data.objects[job.obj_name]
     body_world, joints_world = simulation.world_tracks(job)
-    tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job))
+    leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
+    tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job),
+                            spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames)
     action = actions.new_action(obj)
     frames = job.frames.astype(np.float64)
     try:

@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Sub-panels of the ProcLoco tab for the locomotion feature: Rig & Legs, Locomotion, Terrain."""
+"""Sub-panels of the ProcLoco tab for the locomotion feature: Rig & Legs, Locomotion, Terrain,
+and the flexible spine's settings under Effects."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import bpy
 
@@ -11,7 +12,7 @@ from ..ui.main import PANEL_ORDER, PARENT, RigPanel, SidebarPanel, active_rig
 from .ops import PROCLOCO_OT_detect_legs
 from .ui_list import PROCLOCO_UL_legs
 
-__all__ = ["PROCLOCO_PT_locomotion", "PROCLOCO_PT_rig_legs", "PROCLOCO_PT_terrain"]
+__all__ = ["PROCLOCO_PT_locomotion", "PROCLOCO_PT_rig_legs", "PROCLOCO_PT_spine", "PROCLOCO_PT_terrain"]
 
 
 class PROCLOCO_PT_rig_legs(RigPanel, bpy.types.Panel):
@@ -99,3 +100,32 @@ class PROCLOCO_PT_terrain(SidebarPanel, bpy.types.Panel):
             layout.prop(obj, "procloco_role")
         else:
             layout.label(text=f"{obj.name} is not a mesh or a rig", icon="INFO")
+
+
+class PROCLOCO_PT_spine(SidebarPanel, bpy.types.Panel):
+    """How the flexible spine bends: head turn rate, relaxing, joint limits, visual yaw"""
+
+    bl_parent_id = "PROCLOCO_PT_effects"
+    bl_label = "Spine"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        return active_rig(context) is not None
+
+    def draw(self, context: Any) -> None:
+        layout = self.layout
+        settings = active_rig(context).procloco
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column()
+        col.active = settings.use_spine
+        col.prop(settings, "spine_turn_rate")
+        col.prop(settings, "spine_relax_time")
+        col.prop(settings, "spine_yaw_limit")
+        col.prop(settings, "spine_pitch_limit")
+        sub = col.column()
+        sub.active = settings.use_visual_yaw
+        sub.prop(settings, "visual_yaw_gain")
+        if settings.use_spine:
+            layout.label(text="Rigs whose legs hang from one bone turn rigidly", icon="INFO")

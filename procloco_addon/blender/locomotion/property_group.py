@@ -187,6 +187,62 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         description="A new random gait at each stall (thesis §4.3)",
         default=False,
     )
+    use_spine: BoolProperty(
+        name="Flexible Spine",
+        description="The spine bends through turns and over the terrain, each girdle with its own height and "
+        "pitch (thesis §4.2). Used when the legs hang from two or more bones of the spine chain "
+        "(quadrupeds, lizards); other rigs turn as one rigid body",
+        default=True,
+    )
+    use_visual_yaw: BoolProperty(
+        name="Visual Yaw",
+        description="The spine sways toward the feet as they reach and push, like a lizard (thesis §4.4)",
+        default=False,
+    )
+    spine_turn_rate: FloatProperty(
+        name="Head Turn Rate",
+        description="Fastest turn of the head; the rest of the spine follows its path",
+        default=2.0943951023931953,  # 120 degrees per second
+        min=0.01,
+        soft_max=10.0,
+        subtype="ANGLE",
+        unit="ROTATION",
+    )
+    spine_relax_time: FloatProperty(
+        name="Relax Time",
+        description="How long the back of the spine takes to straighten after a turn",
+        default=0.6,
+        min=0.01,
+        soft_max=5.0,
+        unit="TIME_ABSOLUTE",
+    )
+    spine_yaw_limit: FloatProperty(
+        name="Joint Side Limit",
+        description="How far each spine joint may bend sideways",
+        default=0.4363323129985824,  # 25 degrees
+        min=0.0,
+        max=1.5707963267948966,
+        subtype="ANGLE",
+        unit="ROTATION",
+    )
+    spine_pitch_limit: FloatProperty(
+        name="Joint Up/Down Limit",
+        description="How far each spine joint may bend up or down",
+        default=0.3490658503988659,  # 20 degrees
+        min=0.0,
+        max=1.5707963267948966,
+        subtype="ANGLE",
+        unit="ROTATION",
+    )
+    visual_yaw_gain: FloatProperty(
+        name="Sway",
+        description="Strength of the visual yaw: 1 turns each girdle by the mean angle of its feet "
+        "away from their rest places",
+        default=1.0,
+        min=0.0,
+        soft_max=2.0,
+        subtype="FACTOR",
+    )
 
     def frame_range(self, scene: bpy.types.Scene) -> tuple[int, int]:
         """``(first, last)`` generated frames."""

@@ -3,9 +3,10 @@
 
 Only glue: the controller (``core.controller``) does the locomotion. This module turns
 the rig settings into per-step commands (speed, heading — constant, turning, or steered
-along a path curve — step height, foot spacing, pelvis physics), moves the scene's animated
-obstacles to each frame before the step, and records what the rig needs per frame: the
-body frame in the world and every leg joint.
+along a path curve — step height, foot spacing, pelvis physics) and the flexible spine's
+settings (``core.spine.SpineParams``), moves the scene's animated obstacles to each frame
+before the step, and records what the rig needs per frame: the body frame in the world,
+every leg joint, the frame each leg hangs from, and the spine's joints and bone rotations.
 """
 
 from __future__ import annotations
@@ -20,12 +21,15 @@ from ...core.controller import Controller, ControllerParams, StepControls
 from ...core.footprints import PlannerParams
 from ...core.morphology import LegBatch
 from ...core.progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
+from ...core.spine import SpineParams
 from ...core.terrain import NO_SURFACE
 
 if TYPE_CHECKING:
     from .generate import Job
 
-__all__ = ["SimResult", "ground_function", "path_heading", "run", "world_tracks"]
+__all__ = [
+    "SimResult", "ground_function", "path_heading", "run", "spine_params", "spine_tracks", "world_tracks",
+]
 
 
 @dataclass
@@ -38,7 +42,11 @@ class SimResult:
     controller speeds it up when the stride would be too long); ``forced`` ``(F, n_legs)``
     feet taking a forced step (their support moved or became forbidden); ``plan_failed``
     ``(F, n_legs)`` feet whose footstep plan failed (they stay planted); ``disk_start``
-    ``(F, n_legs)`` each leg's swing start on the gait circle (changes with gait transitions)."""
+    ``(F, n_legs)`` each leg's swing start on the gait circle (changes with gait transitions);
+    ``leg_frame`` ``(F, n_legs, 3, 3)`` body-to-world rotation of what each leg hangs from
+    (the body, or its spine bone); with the flexible spine, ``spine_joints`` ``(F, J, 3)``
+    world spine joints (head first) and ``spine_rotation`` ``(F, J - 1, 3, 3)`` each spine
+    bone's rotation from its rest (body-frame) direction (None without a spine)."""
 
     body: np.ndarray
     joints: np.ndarray
@@ -50,6 +58,9 @@ class SimResult:
     forced: np.ndarray
     plan_failed: np.ndarray
     disk_start: np.ndarray
+    leg_frame: np.ndarray
+    spine_joints: np.ndarray | None = None
+    spine_rotation: np.ndarray | None = None
 
 
 def path_heading(path: np.ndarray, xy: np.ndarray, lookahead: float) -> tuple[float, float]:
@@ -84,6 +95,16 @@ def _controls(job: Job, legs: LegBatch, speed: float, heading: float) -> StepCon
         spacing=spacing,
         pelvis_physics=np.array([job.use_pelvis_physics]),
         ik=np.array([True]),
+    )
+
+
+def spine_params(job: Job) -> SpineParams:
+    """The flexible spine's settings of a job (thesis §4.2, §4.4)."""
+    return SpineParams(
+        turn_rate=max(job.spine_turn_rate, 1e-3),
+        relax_time=max(job.spine_relax_time, 1e-3),
+        visual_yaw=job.use_visual_yaw,
+        visual_yaw_gain=job.visual_yaw_gain,
     )
 
 
@@ -125,8 +146,9 @@ def run(job: Job) -> Iterator[float]:
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
+    spine = [spine_params(job)] if job.morphology.spine is not None else None
     sim = Controller(terrain.environment, legs, [gait], origin[None, :2], np.array([start_yaw]), ctl,
-                     params=params, planner=[planner])
+                     params=params, planner=[planner], spine=spine)
 
     n_legs = legs.n_legs
     s1 = legs.max_segments + 1
@@ -140,6 +162,10 @@ def run(job: Job) -> Iterator[float]:
     forced = np.zeros((n_frames, n_legs), dtype=bool)
     failed = np.zeros((n_frames, n_legs), dtype=bool)
     disk_start = np.zeros((n_frames, n_legs))
+    leg_frame = np.empty((n_frames, n_legs, 3, 3))
+    n_spine = job.morphology.spine.n_joints if spine is not None and job.morphology.spine is not None else 0
+    spine_joints = np.empty((n_frames, n_spine, 3)) if n_spine else None
+    spine_rotation = np.empty((n_frames, n_spine - 1, 3, 3)) if n_spine else None
 
     def record(f: int) -> None:
         body[f] = np.eye(4)
@@ -156,6 +182,10 @@ def run(job: Job) -> Iterator[float]:
         forced[f] = sim.forced
         failed[f] = sim.plan_failed
         disk_start[f] = sim.gait.disk_start
+        leg_frame[f] = sim.leg_rotations()
+        if spine_joints is not None and spine_rotation is not None:
+            spine_joints[f] = sim.spine_joints()[0]
+            spine_rotation[f] = sim.spine_rotations()[0]
 
     # The controller's initial pose does not yet keep the hips within reach of the feet (its
     # reach guard runs in step()): a vanishing step settles frame 0 without moving anything.
@@ -178,7 +208,7 @@ def run(job: Job) -> Iterator[float]:
         record(f)
         yield (f + 1) / n_frames
     job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed,
-                           disk_start)
+                           disk_start, leg_frame, spine_joints, spine_rotation)
 
 
 def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -188,6 +218,16 @@ def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:
         raise RuntimeError("the simulation has not run")
     joints = [res.joints[:, i, : len(leg.bones) + 1] for i, leg in enumerate(job.info.legs)]
     return res.body, joints
+
+
+def spine_tracks(job: Job) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The frames the legs hang from ``(F, n_legs, 3, 3)`` and, with a spine, its bones'
+    rotations ``(F, J - 1, 3, 3)`` and joints ``(F, J, 3)`` (else None) of a finished job:
+    what ``rig.solve_pose`` takes as ``leg_frames``, ``spine_rotation``, ``spine_joints``."""
+    res: SimResult = job.result
+    if res is None:
+        raise RuntimeError("the simulation has not run")
+    return res.leg_frame, res.spine_rotation, res.spine_joints
 
 
 def ground_function(job: Job) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
