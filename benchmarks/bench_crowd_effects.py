@@ -64,6 +64,8 @@ class Setting:
     spine: bool
     step_s: list[float] = field(default_factory=list)
     phase_s: dict[str, float] = field(default_factory=dict)
+    plans: int = 0
+    forced: int = 0
 
 
 def crowd_of(kind: str, n: int) -> tuple[list[Morphology], list[Gait], np.ndarray]:
@@ -152,12 +154,17 @@ def main() -> None:
             setting.step_s.append(time.process_time() - t0)
             for k in PHASES:
                 setting.phase_s[k] = setting.phase_s.get(k, 0.0) + stats.seconds.get(k, 0.0)
+            setting.plans += stats.n_plans
+            setting.forced += stats.n_forced
 
     print()
-    print("CPU seconds per step; ratio to the base of the same crowd; phases of the controller's step")
+    print("CPU seconds per step; ratio to the base of the same crowd; phases of the controller's step;")
+    print("footstep plans and forced steps per step (the effects change where feet land, so the planner's")
+    print("share moves with them)")
     header = (
         f"{'crowd':<11} {'setting':<16} {'step s':>8} {'ratio':>6} {'thesis':>10}"
         + "".join(f" {k:>8}" for k in PHASES)
+        + f" {'plans':>6} {'forced':>6}"
     )
     print(header)
     print("-" * len(header))
@@ -176,6 +183,7 @@ def main() -> None:
         print(
             f"{s.crowd:<11} {s.name:<16} {step:8.4f} {ratio:6.2f} {thesis_txt:>10}"
             + "".join(f" {phases.get(k, 0.0) / n:8.4f}" for k in PHASES)
+            + f" {s.plans / n:6.1f} {s.forced / n:6.2f}"
         )
     if profiler is not None:
         print("\n--- profile: quadrupeds, spine + physics ---")

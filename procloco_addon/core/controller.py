@@ -126,7 +126,9 @@ class ControllerParams:
       ``replan_until`` of the swing.
     - ``feedback_threshold`` (× leg) and ``feedback_gain`` (offset share worked off per cycle).
     - ``reach_margin``: largest hip-to-foot distance allowed, as a share of the leg length;
-      the pelvis sinks to keep it, by at most ``guard_max_drop`` (× body thickness).
+      the pelvis sinks to keep it, by at most ``guard_max_drop`` (× body thickness). A
+      spine's nodes are pulled toward the feet instead (step 4 repeated), each by at most
+      the same distance.
     - ``height_time`` (× cycle): time constant of the pelvis height/pitch/roll filter.
     - ``trajectory_samples``: samples kept of each swing trajectory (constant speed).
     - ``snap_tolerance`` (× step height): a footprint may be lowered by up to this much onto
@@ -202,7 +204,8 @@ class StepControls:
 class StepStats:
     """Planner statistics of one step: plans, failed plans, couples and paths evaluated,
     windows cut, re-plans, forced steps, plans retried without the other feet and slices
-    (``n_relaxed``), straight fallback steps (``n_fallback``); and seconds per phase."""
+    (``n_relaxed``), straight fallback steps (``n_fallback``); and seconds per phase
+    (``maps``, ``planning``, ``ik``, ``physics``, ``spine``, ``rest``)."""
 
     n_plans: int = 0
     n_failed: int = 0
