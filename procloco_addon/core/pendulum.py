@@ -77,6 +77,12 @@ MAX_FAST_STEP = 0.5
 """Largest ``Ω·h`` for the fastest swing of a tree: the sons' reactions are explicit, and
 chains of 6-10 bars were seen to go unstable at 1.0."""
 
+MAX_SWING = np.radians(170.0)
+"""A bar never swings further than this from its target: it stops there (its speed away from
+the target is lost). The thesis has no joint limits; without a bound, a violent start (a body
+jumping to full speed in one frame) could whirl a light chain round and round, and in the
+one-way passes nothing takes that energy back out."""
+
 REST_ANIMATION = 0
 """Rest direction: the animated bone direction (the pendulum replays the animation)."""
 REST_GRAVITY = 1
@@ -731,7 +737,8 @@ class PendulumSimulator:
             mine = own[idx]
             if np.any(mine):
                 im = idx[mine]
-                eps[im] += _log_dir(new_dir[mine], st.target[im]) - st.theta[im]
+                own_theta = _nearest_turn(_log_dir(new_dir[mine], st.target[im]), st.theta[im])
+                eps[im] += own_theta - st.theta[im]
             fathers = self._parent[idx]
             inner = fathers >= 0
             if not np.any(inner):
@@ -740,12 +747,13 @@ class PendulumSimulator:
             dragged = goal[ci] - L[ci, None] * new_dir[inner]
             gain = self._gain[ci]
             to_dragged = _normalize(dragged - st.head[fi])
-            pull = _log_dir(to_dragged, st.target[fi]) - st.theta[fi]
+            pull = _nearest_turn(_log_dir(to_dragged, st.target[fi]), st.theta[fi]) - st.theta[fi]
             np.add.at(eps, fi, gain[:, None] * pull)
             np.add.at(goal, fi, gain[:, None] * (dragged - mass[fi]))
             moved[fi] = True
         st.theta += eps
         st.theta_prev += eps
+        st.theta_prev, st.theta = _limit_swing(st.theta_prev, st.theta)
         st.local = _exp_local(st.theta)
 
     def _reactions(self, st: PendulumState) -> FloatArray | None:
@@ -812,13 +820,13 @@ class PendulumSimulator:
             if reaction is not None:
                 push = push - reaction[sl]  # the mass moved by its sons = the anchor moving back
             tgt = target[sl]
+            theta = st.theta[sl]
             if np.any(push):
                 # Hold the mass, move the anchor by the push: the bar turns (local coordinates).
                 push_local = np.einsum("mi,mij->mj", push, tgt)
-                theta = _log_local(lv.length * st.local[sl] - push_local)
-            else:
-                theta = st.theta[sl]
+                theta = _nearest_turn(_log_local(lv.length * st.local[sl] - push_local), theta)
             new_theta = lv.c1 * theta - lv.c2 * st.theta_prev[sl]
+            theta, new_theta = _limit_swing(theta, new_theta)
             st.theta_prev[sl] = theta
             st.theta[sl] = new_theta
             local = _exp_local(new_theta)
@@ -928,6 +936,41 @@ def _exp_local(theta: FloatArray) -> FloatArray:
     return out
 
 
+def _limit_swing(before: FloatArray, after: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Stop bars that swing past :data:`MAX_SWING`: the error is scaled back onto the limit
+    and its previous value set equal to it (no speed left). Shapes (m, 2)."""
+    if after.size == 0 or np.abs(after).max() <= MAX_SWING * np.sqrt(0.5):
+        return before, after  # quick: no component large enough to be over the limit
+    size = np.sqrt(after[:, 0] * after[:, 0] + after[:, 1] * after[:, 1])
+    over = size > MAX_SWING
+    if not np.any(over):
+        return before, after
+    after = after.copy()
+    after[over] *= (MAX_SWING / size[over])[:, None]
+    before = before.copy()
+    before[over] = after[over]
+    return before, after
+
+
+def _nearest_turn(theta: FloatArray, reference: FloatArray) -> FloatArray:
+    """The error equal to ``theta`` (m, 2) as a bar direction that is closest to ``reference``.
+
+    A direction at angle ``a`` from the target along unit ``u`` is also ``(a + 2πk) u`` for any
+    integer k. The log maps return ``a`` in [0, π]; a bar swung past upside down would then
+    jump by 2π between steps and the Verlet history would read that as a huge velocity. Picking
+    the turn nearest the previous error keeps the error continuous (the spring then unwinds
+    whole turns, like a torsion spring).
+    """
+    if reference.size == 0 or np.abs(reference).max() <= 2.0:
+        return theta  # only errors near or past π can change branch
+    a = np.sqrt(theta[:, 0] * theta[:, 0] + theta[:, 1] * theta[:, 1])
+    far = np.abs(reference).max(axis=1) > 2.0
+    u = theta / np.maximum(a, 1e-300)[:, None]
+    turns = np.round(((reference * u).sum(axis=1) - a) / (2.0 * np.pi))
+    turns = np.where(far & (a > 1e-12), turns, 0.0)
+    return theta + (2.0 * np.pi * turns)[:, None] * u
+
+
 def _log_local(bar: FloatArray) -> FloatArray:
     """Errors (m, 2) of bars (m, 3) in target-local coordinates (any positive length)."""
     sn = np.sqrt(bar[:, 0] * bar[:, 0] + bar[:, 2] * bar[:, 2]) + _TINY
@@ -946,6 +989,8 @@ def _swing_delta(
     Rodrigues without trigonometry: ``R v = c v + k × v + k (k·v) / (1 + c)``. Exactly
     zero when a = b. Opposite bars (c = -1) turn by π about the father's x axis.
     """
+    if c.size == 0 or c.min() > -1.0 + 1e-9:
+        return (c - 1.0)[:, None] * v + _cross(k, v) + k * (_dot(k, v) / (1.0 + c))[:, None]
     opposite = c < -1.0 + 1e-9
     denom = np.where(opposite, 1.0, 1.0 + c)
     out = (c - 1.0)[:, None] * v + _cross(k, v) + k * (_dot(k, v) / denom)[:, None]

@@ -451,3 +451,24 @@ def test_kicked_chain_settles_within_three_settling_times(n: int) -> None:
     away = np.linalg.norm(tip - tip[0], axis=1)
     outside = np.flatnonzero(away > 0.05 * away.max())
     assert times[outside[-1]] - 0.2 <= 3 * 0.6
+
+
+@pytest.mark.parametrize("reaction", [True, False])
+def test_violent_input_stays_bounded(reaction: bool) -> None:
+    """An anchor that jumps to full speed and teleports, and tips kicked every step: the bars
+    stop at the swing limit instead of whirling, and nothing blows up."""
+    parent = [-1, 0, 1, 2, 3, 4, -1, 6, 7, 6, 9]
+    forest = P.PendulumForest(parent, [0.08] * 6 + [0.05, 0.06, 0.06, 0.06, 0.06], 0.6, 0.35, reaction=reaction)
+    sim = P.PendulumSimulator(forest)
+    heads, frames = _hanging(1, parent, 0.06)
+    sim.reset(heads[0], frames[0])
+    kick = np.zeros((len(parent), 3))
+    kick[[3, 8, 10]] = [[0.01, 0.004, -0.012], [-0.02, 0.0, 0.01], [0.0, 0.015, 0.0]]
+    worst = 0.0
+    for k in range(600):
+        jump = np.array([1.5 * (k % 200) * sim.h, 0.0, 0.0])  # 1.5 m/s from rest, back to 0 every 200 steps
+        state = sim.step(heads[0] + jump, frames[0], kick)
+        worst = max(worst, float(np.linalg.norm(state.theta, axis=1).max()))
+    assert np.all(np.isfinite(state.theta))
+    assert worst <= P.MAX_SWING + 1e-12
+    assert worst > 1.0  # it was violent
