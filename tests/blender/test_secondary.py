@@ -86,6 +86,14 @@ def test_suggest_operator_fills_the_list_and_keeps_edited_chains(empty_scene: An
     assert not chains[1].enabled
 
 
+def test_suggested_chains_start_with_settings_that_suit_them(empty_scene: Any) -> None:
+    ant = creatures.build_ant(empty_scene)
+    bake.suggest_into_settings(ant)
+    chains = ant.procloco_secondary.chains
+    springs = {c.root: (round(c.settling_time, 3), round(c.damping, 3)) for c in chains}
+    assert springs == {"Antenna1.L": (0.45, 0.35), "Antenna1.R": (0.45, 0.35), "Petiole": (0.3, 0.8)}
+
+
 # ---------------------------------------------------------------------------------------
 # Bake Secondary Motion
 

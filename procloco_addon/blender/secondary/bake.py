@@ -64,6 +64,16 @@ APPENDAGE_WORDS = frozenset({
     "ear", "ears", "tentacle", "tentacles", "whisker", "whiskers", "hair", "ponytail", "braid", "fin", "fins",
     "tassel", "rope", "chain", "abdomen", "gaster", "petiole", "cape", "mane", "trunk", "tendril",
 })
+# First settings of a suggested chain, by the word in its root's name: (Ts s, ζ). Body parts
+# (an ant's gaster, a spider's abdomen) are heavy and stiff; ears are short and springy.
+_DEFAULTS: dict[str, tuple[float, float]] = {
+    "abdomen": (0.3, 0.8), "gaster": (0.3, 0.8), "petiole": (0.3, 0.8),
+    "ear": (0.35, 0.5), "ears": (0.35, 0.5),
+    "antenna": (0.45, 0.35), "antennae": (0.45, 0.35), "antennas": (0.45, 0.35),
+    "feeler": (0.45, 0.35), "palp": (0.35, 0.5), "palps": (0.35, 0.5), "pedipalp": (0.35, 0.5),
+    "hair": (0.8, 0.3), "ponytail": (0.8, 0.3), "braid": (0.8, 0.3), "mane": (0.8, 0.3),
+}
+
 # Words of bones that must not swing on their own: face, hands and fingers, torso parts.
 _STILL_WORDS = frozenset({
     "eye", "eyes", "lid", "brow", "lip", "lips", "jaw", "chin", "cheek", "nose", "teeth", "tooth", "tongue",
@@ -247,8 +257,10 @@ def _dedupe(obj: bpy.types.Object, chains: list[tuple[str, list[str]]]) -> list[
 def suggest_into_settings(obj: bpy.types.Object) -> list[ChainSuggestion]:
     """Fill ``obj.procloco_secondary.chains`` with :func:`suggest_chains`.
 
-    A chain already listed with the same root and tip keeps its settings; chains the user
-    added that are not suggested are kept too. Returns the suggestions.
+    New chains start with settings that suit what they are (a heavy abdomen is stiffer than
+    an antenna; tails and unnamed chains get the defaults). A chain already listed with the
+    same root and tip keeps its settings; chains the user added that are not suggested are
+    kept too. Returns the suggestions.
     """
     settings = obj.procloco_secondary
     found = suggest_chains(obj)
@@ -260,6 +272,8 @@ def suggest_into_settings(obj: bpy.types.Object) -> list[ChainSuggestion]:
         item.name = s.label
         item.root = s.root
         item.tip = s.tip
+        for word in sorted(_tokens(s.root) & _DEFAULTS.keys()):
+            item.settling_time, item.damping = _DEFAULTS[word]
     settings.active_chain_index = min(settings.active_chain_index, max(len(settings.chains) - 1, 0))
     return found
 
