@@ -41,14 +41,40 @@ plan is a :class:`Couple` with ``ok=False`` and a ``message``.
 from __future__ import annotations
 
 import functools
+import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from .pathing import FootTrajectory, PathContext, PathParams, path_score_2d, search_region, vertical_factor
-from .terrain import _VOID_BELOW, WindowGrids, _box_overlaps_cells, raster_boxes
+from .pathing import (
+    FootTrajectory,
+    Path2D,
+    PathContext,
+    PathParams,
+    Region,
+    RegionFrame,
+    lift_each,
+    path_score_2d,
+    region_frame,
+    region_masks,
+    search_region,
+    segments_clear_each,
+    turning_each,
+    vertical_factor,
+    wavefront_each,
+)
+from .terrain import (
+    _VOID_BELOW,
+    WindowGrids,
+    _box_overlaps_cells,
+    _rect_offsets,
+    dilate_each,
+    foot_kernels,
+    raster_boxes,
+)
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -185,6 +211,30 @@ def legs_cross(
     return np.asarray(np.any(hit, axis=1))
 
 
+def _legs_cross_each(
+    hip_xy: FloatArray, foot_xy: FloatArray, other_hips: FloatArray, other_feet: FloatArray, valid: BoolArray
+) -> BoolArray:
+    """:func:`legs_cross` of ``m`` footprints, each against its own other legs: ``hip_xy``,
+    ``foot_xy`` ``(m, 2)``, ``other_hips``, ``other_feet`` ``(m, j, 2)`` of which ``valid``
+    ``(m, j)`` are real. Returns ``(m,)``."""
+    p = hip_xy[:, None, :]
+    r = (foot_xy - hip_xy)[:, None, :]
+    q = other_hips
+    s = other_feet - other_hips
+
+    def cross(a: FloatArray, b: FloatArray) -> FloatArray:
+        return np.asarray(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
+
+    d1 = cross(r, q - p)
+    d2 = cross(r, q + s - p)
+    d3 = cross(s, p - q)
+    d4 = cross(s, p + r - q)
+    eps = 1e-12
+    hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
+        ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
+    return np.asarray(np.any(hit & valid, axis=1))
+
+
 def score_candidates(
     ctx: PathContext,
     preferred_xy: FloatArray,
@@ -249,17 +299,6 @@ def score_candidates(
                       edge[order], crossing[order])
 
 
-@functools.lru_cache(maxsize=64)
-def _disc_offsets(radius_cells: float) -> IntArray:
-    """Cell offsets ``(k, 2)`` within ``radius_cells`` of (0, 0)."""
-    k = math.ceil(radius_cells) + 1
-    di, dj = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
-    off = np.stack([di.ravel(), dj.ravel()], axis=1).astype(np.intp)
-    off = off[np.hypot(off[:, 0], off[:, 1]) <= radius_cells + 1e-9]
-    off.setflags(write=False)
-    return off
-
-
 @functools.lru_cache(maxsize=1024)
 def _offset_kernel(cell: float, hx: float, hy: float, yaw: float, sub_r: float, sub_c: float) -> IntArray:
     """Cells covered by a foot box whose centre sits ``(sub_r, sub_c)`` cells off its cell's
@@ -289,6 +328,17 @@ def _other_feet_mask(
     return mask
 
 
+@functools.lru_cache(maxsize=64)
+def _disc_offsets(radius_cells: float) -> IntArray:
+    """Cell offsets ``(k, 2)`` within ``radius_cells`` of (0, 0)."""
+    k = math.ceil(radius_cells) + 1
+    di, dj = np.meshgrid(np.arange(-k, k + 1), np.arange(-k, k + 1), indexing="ij")
+    off = np.stack([di.ravel(), dj.ravel()], axis=1).astype(np.intp)
+    off = off[np.hypot(off[:, 0], off[:, 1]) <= radius_cells + 1e-9]
+    off.setflags(write=False)
+    return off
+
+
 def slice_levels(ctx: PathContext, slice_size: float | None, ceiling: float = math.inf) -> list[float]:
     """Slice levels for one plan, lowest first, ending with ``inf`` (no slice).
 
@@ -302,16 +352,829 @@ def slice_levels(ctx: PathContext, slice_size: float | None, ceiling: float = ma
     elev = ctx.elevation[ctx.region.mask]
     elev = elev[elev > _VOID_BELOW]
     top = min(float(elev.max()) if elev.size else float(ctx.start[2]), ceiling)
+    levels = _level_list(float(ctx.start[2]), slice_size, top)
+    above = [int(np.count_nonzero(elev > lv)) for lv in levels]
+    return _distinct_levels(levels, above)
+
+
+def _level_list(z0: float, slice_size: float, top: float) -> list[float]:
     levels: list[float] = []
-    z0 = float(ctx.start[2])
     k = 1
     while z0 + k * slice_size < top and k <= 1000:
         levels.append(z0 + k * slice_size)
         k += 1
     levels.append(math.inf)
-    # Drop a level whose forbidden set equals the next one's (same paths twice).
-    above = [int(np.count_nonzero(elev > lv)) for lv in levels]
+    return levels
+
+
+def _distinct_levels(levels: list[float], above: list[int]) -> list[float]:
+    """Drop a level whose forbidden set equals the next one's (same paths twice)."""
     return [lv for i, lv in enumerate(levels) if i == len(levels) - 1 or above[i] != above[i + 1]]
+
+
+# ---------------------------------------------------------------------------------------
+# Planning many feet at once
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FootRequest:
+    """One foot to plan: the arguments of :func:`plan_footstep` (see there)."""
+
+    grids: WindowGrids
+    foot_start: npt.ArrayLike
+    preferred_xy: npt.ArrayLike
+    hip_xy: npt.ArrayLike
+    other_hips_xy: npt.ArrayLike
+    other_feet_xy: npt.ArrayLike
+    params: PlannerParams
+    foot_yaw: float = 0.0
+
+
+_NO_CANDIDATE = ("no candidate footprint: every cell near the preferred footprint is forbidden, "
+                 "out of reach, without ground or crosses another leg")
+_NO_COUPLE = "no valid couple: no candidate footprint can be reached from the foot"
+
+
+class _Plan:
+    """One request once validated: its numbers as plain Python values."""
+
+    __slots__ = (
+        "cell",
+        "frame",
+        "grids",
+        "half",
+        "hip",
+        "index",
+        "o_feet",
+        "o_hips",
+        "params",
+        "pref",
+        "start",
+        "start_rc",
+        "yaw",
+    )
+
+    def __init__(self, index: int, rq: FootRequest, start: FloatArray, pref: FloatArray, hip: FloatArray,
+                 o_hips: FloatArray, o_feet: FloatArray, start_rc: tuple[float, float], frame: RegionFrame,
+                 half: tuple[float, float]) -> None:
+        self.index = index
+        self.grids = rq.grids
+        self.params = rq.params
+        self.start = start
+        self.pref = pref
+        self.hip = hip
+        self.o_hips = o_hips
+        self.o_feet = o_feet
+        self.yaw = float(rq.foot_yaw)
+        self.cell = float(rq.grids.cell)
+        self.start_rc = start_rc
+        self.frame = frame
+        self.half = half
+
+
+def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
+    """Checks and the search rectangle of one request; a failed :class:`Couple` if it cannot
+    be planned at all."""
+    start = np.asarray(rq.foot_start, dtype=np.float64).reshape(3)
+    pref = np.asarray(rq.preferred_xy, dtype=np.float64).reshape(2)
+    hip = np.asarray(rq.hip_xy, dtype=np.float64).reshape(2)
+    o_hips = np.asarray(rq.other_hips_xy, dtype=np.float64).reshape(-1, 2)
+    o_feet = np.asarray(rq.other_feet_xy, dtype=np.float64).reshape(-1, 2)
+    sx, sy, sz = start.tolist()
+    px, py = pref.tolist()
+    hx, hy = hip.tolist()
+    finite = all(map(math.isfinite, (sx, sy, sz, px, py, hx, hy)))
+    if finite and (o_hips.size or o_feet.size):
+        finite = bool(np.isfinite(o_hips).all() and np.isfinite(o_feet).all())
+    if not finite:
+        return _fail(np.where(np.isfinite(start), start, 0.0), "non-finite input")
+    if o_hips.shape != o_feet.shape:
+        return _fail(start, "other_hips_xy and other_feet_xy differ in shape")
+    grids = rq.grids
+    params = rq.params
+    cell = float(grids.cell)
+    ox, oy = (float(v) for v in grids.origin)
+    half = tuple(float(v) for v in np.asarray(params.foot_half_extents, dtype=np.float64).reshape(2))
+    start_rc = ((sy - oy) / cell, (sx - ox) / cell)
+    pref_rc = ((py - oy) / cell, (px - ox) / cell)
+    ny, nx = grids.shape
+    if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
+        return _fail(start, "the foot is outside the window grids")
+    half_width = params.search_half_width
+    if half_width is None:
+        half_width = max(params.candidate_radius, 0.5 * params.leg_reach)
+    foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
+    frame = region_frame((ny, nx), start_rc[0], start_rc[1], pref_rc[0], pref_rc[1],
+                         half_width / cell + foot_cells,
+                         params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
+    if frame is None:
+        return _fail(start, _NO_CANDIDATE)
+    return _Plan(index, rq, start, pref, hip, o_hips, o_feet, start_rc, frame, (half[0], half[1]))
+
+
+@dataclass
+class _Search:
+    """Where one foot's best-couple search stands (Appendix E): the next target (position in
+    its order) and slice (position in its levels), the best couple so far and the counts."""
+
+    pos: int = 0
+    level_pos: int = 0
+    best: tuple[int, float, float, FootTrajectory, float] | None = None
+    best_score: float = 0.0
+    n_couples: int = 0
+    n_paths: int = 0
+    after_first: int = 0
+    first_valid: int = 0
+    done: bool = False
+
+
+#: Samples, arc lengths, length, world waypoints and box cells (rows, cols; None: not
+#: computed yet) of a 2D plan to lift.
+_LiftSource = tuple[FloatArray, FloatArray, float, FloatArray, IntArray | None, IntArray | None]
+
+
+class _Foot:
+    """One foot in the batch: its request, candidates, levels, path context and search."""
+
+    __slots__ = ("cand", "ctx", "k", "levels", "n_targets", "order", "padded", "plan", "st")
+
+    def __init__(self, plan: _Plan, k: int, cand: Candidates, order: list[int], n_targets: int,
+                 levels: list[float], ctx: PathContext) -> None:
+        self.plan = plan
+        self.k = k
+        self.cand = cand
+        self.order = order
+        self.n_targets = n_targets
+        self.levels = levels
+        self.ctx = ctx
+        self.st = _Search()
+        self.padded: dict[float, BoolArray] = {}  # blocked maps as (H, W) rows, for batches
+
+
+class _Batch:
+    """Stacked arrays of a batch of feet: plan ``k``'s search box at ``[k, :h, :w]`` (past its
+    own size: outside the rectangle, no surface, not avoided), and its window's elevation
+    around the box with a margin of ``pad`` cells (``-inf`` outside the window) for the foot
+    kernels' maxima."""
+
+    def __init__(self, plans: list[_Plan]) -> None:
+        n = len(plans)
+        self.plans = plans
+        frames = np.array([p.frame for p in plans])
+        self.r0 = r0 = frames[:, 0].astype(np.intp)
+        self.c0 = c0 = frames[:, 1].astype(np.intp)
+        self.hh = hh = frames[:, 2].astype(np.intp)
+        self.ww = ww = frames[:, 3].astype(np.intp)
+        H = int(hh.max())
+        W = int(ww.max())
+        self.mask = region_masks(frames, H, W)
+        self.outside = ~self.mask
+        self.cell = np.array([p.cell for p in plans])
+        self.origin = np.array([[float(p.grids.origin[0]), float(p.grids.origin[1])] for p in plans])
+        self.ny = np.array([p.grids.shape[0] for p in plans])
+        self.nx = np.array([p.grids.shape[1] for p in plans])
+        # Foot kernels: swept (the foot anywhere in its cell); the landing ones come with the
+        # candidates. The margin holds the widest of them.
+        self.half_x = np.array([p.half[0] for p in plans])
+        self.half_y = np.array([p.half[1] for p in plans])
+        self.yaw = np.array([p.yaw for p in plans])
+        self.sweep_off, self.sweep_in = foot_kernels(self.cell, self.half_x, self.half_y, self.yaw, True)
+        land_reach = max(math.ceil((abs(p.half[0]) + abs(p.half[1])) / p.cell + 1.0) for p in plans)
+        self.pad = R = max(int(np.abs(self.sweep_off).max()), land_reach)
+        Hp, Wp = H + 2 * R, W + 2 * R
+        epad = np.full((n, Hp, Wp), -np.inf)
+        avoid = np.zeros((n, H, W), dtype=bool)
+        for k, p in enumerate(plans):
+            g = p.grids
+            ny, nx = int(self.ny[k]), int(self.nx[k])
+            top, left = int(r0[k]) - R, int(c0[k]) - R
+            ra, rb, ca, cb = max(top, 0), min(top + Hp, ny), max(left, 0), min(left + Wp, nx)
+            epad[k, ra - top : rb - top, ca - left : cb - left] = g.elevation[ra:rb, ca:cb]
+            h, w = int(hh[k]), int(ww[k])
+            avoid[k, :h, :w] = g.avoid[r0[k] : r0[k] + h, c0[k] : c0[k] + w]
+        self.epad = epad
+        inner = epad[:, R : R + H, R : R + W]
+        if n == 1:
+            self.elev = inner.copy()
+        else:
+            inbox = ((np.arange(H)[None, :, None] < hh[:, None, None])
+                     & (np.arange(W)[None, None, :] < ww[:, None, None]))
+            self.elev = np.where(inbox, inner, -np.inf)
+        core = avoid.copy()
+        # Other feet: forbidden (their foot boxes, with this foot's shape and yaw).
+        n_other = np.array([p.o_feet.shape[0] for p in plans])
+        if n_other.sum():
+            owner = np.repeat(np.arange(n), n_other)
+            feet = np.concatenate([p.o_feet for p in plans])
+            hx = self.half_x[owner]
+            hy = self.half_y[owner]
+            grid = (self.ny[owner], self.nx[owner])
+            yaw_o = self.yaw[owner]
+            box, fr, fc = raster_boxes(self.origin[owner], self.cell[owner], grid, feet, hx, hy, yaw_o)
+            who = owner[box]
+            lr = fr - r0[who]
+            lc = fc - c0[who]
+            ok = (lr >= 0) & (lr < hh[who]) & (lc >= 0) & (lc < ww[who])
+            core[who[ok], lr[ok], lc[ok]] = True
+        self.core = core
+        # Lift-off zone: the cells the foot covers where it stands.
+        self.start_rc = np.array([p.start_rc for p in plans]) - np.column_stack([r0, c0])
+        sc = np.rint(self.start_rc).astype(np.intp)
+        inside = (sc[:, 0] >= 0) & (sc[:, 0] < hh) & (sc[:, 1] >= 0) & (sc[:, 1] < ww)
+        self.start_inside = inside
+        lr = sc[:, 0, None] + self.sweep_off[None, :, 0]
+        lc = sc[:, 1, None] + self.sweep_off[None, :, 1]
+        ok = self.sweep_in & inside[:, None] & (lr >= 0) & (lr < hh[:, None]) & (lc >= 0) & (lc < ww[:, None])
+        liftoff = np.zeros((n, H, W), dtype=bool)
+        kk, jj = np.nonzero(ok)
+        liftoff[kk, lr[kk, jj], lc[kk, jj]] = True
+        at = np.arange(n)
+        here = avoid[at, np.where(inside, sc[:, 0], 0), np.where(inside, sc[:, 1], 0)]
+        on_avoid = np.flatnonzero(inside & here)
+        if on_avoid.size:
+            # The foot stands on an avoided obstacle (it moved under the foot): let it leave
+            # across that obstacle's cells rather than be stuck there.
+            grown = dilate_each(avoid[on_avoid], self.sweep_off, self.sweep_in[on_avoid])
+            grown &= self.mask[on_avoid]
+            sources = [(int(sc[k, 0]), int(sc[k, 1])) for k in on_avoid.tolist()]
+            shapes = [(int(hh[k]), int(ww[k])) for k in on_avoid.tolist()]
+            for k, escape in zip(on_avoid.tolist(), wavefront_each(grown, sources, shapes), strict=True):
+                h, w = int(hh[k]), int(ww[k])
+                liftoff[k, :h, :w] |= np.isfinite(escape.dist)
+        self.liftoff = liftoff
+        # The obstacle map without slice (thesis §3.4.1 plus the other feet).
+        self.grown_inf = dilate_each(core, self.sweep_off, self.sweep_in)
+
+    def max_under(self, plan: IntArray, rows: IntArray, cols: IntArray, kernel: IntArray,
+                  member: BoolArray) -> FloatArray:
+        """Highest window elevation under kernel cells around box cells ``(rows, cols)``
+        ``(p,)`` of plans ``plan`` ``(p,)`` (cells within the box), the kernel of plan ``k``
+        being ``kernel[member[k]]``: ``(p,)``; ``-inf`` where no kernel cell is in the window
+        (what :meth:`PathContext.kernel_max` gives)."""
+        used = np.flatnonzero(member.any(axis=0))
+        _, hp, wp = self.epad.shape
+        R = self.pad
+        koff = kernel[used, 0] * wp + kernel[used, 1]
+        at = plan * (hp * wp) + (rows + R) * wp + (cols + R)
+        vals = self.epad.reshape(-1)[at[:, None] + koff[None, :]]
+        sel = member[:, used]
+        if not sel.all():
+            vals = np.where(sel[plan], vals, -np.inf)
+        return np.asarray(vals.max(axis=1))
+
+    def contexts(self, keep: list[int]) -> list[PathContext]:
+        """Path contexts of plans ``keep`` (their maps without slice already in)."""
+        sel = np.asarray(keep)
+        land_off, land_in = foot_kernels(self.cell[sel], self.half_x[sel], self.half_y[sel], self.yaw[sel],
+                                         anywhere_in_cell=False)
+        blocked_inf = (self.grown_inf[keep] | self.outside[keep]) & ~self.liftoff[keep]
+        out = []
+        for i, k in enumerate(keep):
+            p = self.plans[k]
+            h, w = int(self.hh[k]), int(self.ww[k])
+            c_k = self.core[k, :h, :w]
+            maps = {math.inf: (c_k, self.grown_inf[k, :h, :w] & ~c_k, blocked_inf[i, :h, :w])}
+            path_params = PathParams(step_height=p.params.step_height, tension=p.params.tension,
+                                     los_shortcut=p.params.los_shortcut)
+            region = Region(int(self.r0[k]), int(self.c0[k]), self.mask[k, :h, :w])
+            ctx = PathContext.from_parts(p.grids, p.start, region, path_params, not p.params.shared_wavefront,
+                                         self.sweep_off[self.sweep_in[k]], land_off[land_in[i]],
+                                         self.elev[k, :h, :w], c_k, self.start_rc[k], self.liftoff[k, :h, :w],
+                                         maps)
+            out.append(ctx)
+        self.blocked_inf_rows = {k: blocked_inf[i] for i, k in enumerate(keep)}
+        return out
+
+    def add_maps(self, feet: list[_Foot], levels: list[float]) -> None:
+        """The obstacle maps of ``feet`` at slice ``levels`` (one each), all at once."""
+        ks = np.array([f.k for f in feet])
+        lv = np.array(levels)
+        core = self.core[ks] | (self.elev[ks] > lv[:, None, None])
+        grown = dilate_each(core, self.sweep_off, self.sweep_in[ks])
+        blocked = (grown | self.outside[ks]) & ~self.liftoff[ks]
+        dil = grown & ~core
+        for i, (f, level) in enumerate(zip(feet, levels, strict=True)):
+            h, w = int(self.hh[f.k]), int(self.ww[f.k])
+            f.ctx._blocked[level] = (core[i, :h, :w], dil[i, :h, :w], blocked[i, :h, :w])
+            f.padded[level] = blocked[i]
+
+    def blocked_row(self, f: _Foot, level: float) -> BoolArray:
+        row = f.padded.get(level)
+        if row is None:
+            row = self.blocked_inf_rows[f.k] if math.isinf(level) else None
+            if row is None:  # computed one by one by the context: pad it
+                row = np.ones(self.mask.shape[1:], dtype=bool)
+                b = f.ctx._blocked[level][2]
+                row[: b.shape[0], : b.shape[1]] = b
+            f.padded[level] = row
+        return row
+
+
+def _next_couple(f: _Foot, exhaustive: bool) -> tuple[str, float]:
+    """Advance ``f``'s search over couples that need no batch work (no plan from the start
+    cell, target cell blocked or known unreachable at that slice); returns what the next
+    couple needs: ``("maps", level)``, ``("eval", level)`` or ``("end", 0)``."""
+    st = f.st
+    ctx = f.ctx
+    cand = f.cand
+    order = f.order
+    levels = f.levels
+    while True:
+        if st.done or st.pos >= len(order):
+            return "end", 0.0
+        t = order[st.pos]
+        if (st.level_pos == 0 and not exhaustive and st.best is not None
+                and float(cand.score[t]) <= st.best_score):
+            return "end", 0.0  # Appendix E: no couple with this target can beat the best one
+        if st.level_pos >= len(levels) or not ctx.start_inside:
+            st.pos += 1
+            st.level_pos = 0
+            continue
+        level = levels[st.level_pos]
+        maps = ctx._blocked.get(level)
+        if maps is None:
+            return "maps", level
+        r, c = int(cand.cells[t, 0]), int(cand.cells[t, 1])
+        if maps[2][r, c]:
+            st.level_pos += 1
+            continue
+        if not ctx.per_target:
+            fld = ctx._fields.get((level, ctx.start_cell[0], ctx.start_cell[1]))
+            if fld is not None and not math.isfinite(fld.dist[r, c]):
+                st.level_pos += 1  # known unreachable at this slice
+                continue
+        return "eval", level
+
+
+def _after_couple(f: _Foot, level: float, path_ok: bool, in_sight: bool, s2: float,
+                  traj: FootTrajectory | None, exhaustive: bool, budget: int | None) -> bool:
+    """Book one evaluated couple; ``traj`` is its 3D trajectory if it was built. Returns
+    whether the caller must build the trajectory first (then call again with it)."""
+    st = f.st
+    t = f.order[st.pos]
+    t_score = float(f.cand.score[t])
+    if not path_ok:
+        st.level_pos += 1
+        return False
+    if traj is None and (exhaustive or st.best is None or t_score * s2 > st.best_score):
+        return True
+    st.level_pos += 1
+    st.n_couples += 1
+    if st.best is not None:
+        st.after_first += 1
+    if traj is not None:
+        st.n_paths += 1
+        s3 = s2 * vertical_factor(traj, f.plan.params.step_height)
+        score = t_score * s3
+        if st.best is None or score > st.best_score:
+            if st.best is None:
+                st.first_valid = st.n_couples
+            st.best = (t, s3, level, traj, score)
+            st.best_score = score
+    if budget is not None and st.best is not None and st.after_first >= budget:
+        st.done = True
+    elif in_sight:
+        # A straight line clear at this slice is clear at every higher one: the same couple
+        # again, which cannot beat itself.
+        st.pos += 1
+        st.level_pos = 0
+    return False
+
+
+def _straight_plans(
+    batch: _Batch, ks: IntArray, start_rc: FloatArray, end_rc: FloatArray, blocked: BoolArray
+) -> tuple[list[int], list[float], FloatArray, FloatArray, FloatArray, list[int], IntArray, IntArray,
+           FloatArray]:
+    """Straight 2D plans from ``start_rc`` to ``end_rc`` ``(m, 2)`` (box cells) of plans
+    ``ks``, checked against ``blocked`` ``(m, H, W)`` (what :meth:`PathContext.plan_2d` does
+    for a target in sight). Returns ``(status, s2, ...)``: status per plan is 1 (a clean
+    plan), 0 (its samples touch a blocked cell: no plan) or -1 (zero length: plan it alone),
+    its 2D score, then the samples of the clean and blocked plans one after the other
+    (``xy`` ``(M, 2)``, ``arc`` ``(M,)``, ``length`` ``(m,)``), their ``bounds``, their cells
+    ``rows``, ``cols`` (window) and the world waypoints ``(m, 2, 2)``."""
+    cl = batch.cell[ks]
+    org = batch.origin[ks]
+    r0 = batch.r0[ks]
+    c0 = batch.c0[ks]
+    w0x = org[:, 0] + (start_rc[:, 1] + c0) * cl
+    w0y = org[:, 1] + (start_rc[:, 0] + r0) * cl
+    w1x = org[:, 0] + (end_rc[:, 1] + c0) * cl
+    w1y = org[:, 1] + (end_rc[:, 0] + r0) * cl
+    dx = w1x - w0x
+    dy = w1y - w0y
+    length = np.sqrt(dx * dx + dy * dy)
+    moving = length > 1e-9
+    spacing = PathParams().sample_spacing * cl
+    counts = np.where(moving, np.maximum(2, np.ceil(length / spacing).astype(np.intp) + 1), 1)
+    bounds = np.concatenate([[0], np.cumsum(counts)])
+    m = ks.size
+    owner = np.repeat(np.arange(m), counts)
+    i = np.arange(bounds[-1]) - bounds[:-1][owner]
+    safe = np.where(moving, length, 1.0)
+    arc = i * (length / np.maximum(counts - 1, 1))[owner]
+    arc[bounds[1:] - 1] = length
+    frac = arc / safe[owner]
+    sx = w0x[owner] + dx[owner] * frac
+    sy = w0y[owner] + dy[owner] * frac
+    rows = np.rint((sy - org[owner, 1]) / cl[owner] - r0[owner]).astype(np.intp)
+    cols = np.rint((sx - org[owner, 0]) / cl[owner] - c0[owner]).astype(np.intp)
+    hh = batch.hh[ks][owner]
+    ww = batch.ww[ks][owner]
+    inside = (rows >= 0) & (rows < hh) & (cols >= 0) & (cols < ww)
+    bad = ~inside
+    bad[inside] = blocked[owner[inside], rows[inside], cols[inside]]
+    clean = ~np.logical_or.reduceat(bad, bounds[:-1])
+    samples = np.column_stack([sx, sy])
+    bl = bounds.tolist()
+    turning = turning_each(samples, bl)
+    status = np.where(moving, np.where(clean, 1, 0), -1).tolist()
+    lens = length.tolist()
+    s2 = []
+    for j in range(m):
+        if status[j] != 1:
+            s2.append(0.0)
+            continue
+        a, b = bl[j], bl[j + 1]
+        ddx = float(sx[b - 1] - sx[a])
+        ddy = float(sy[b - 1] - sy[a])
+        direct = math.sqrt(ddx * ddx + ddy * ddy)
+        s2.append(min(1.0, direct / lens[j]) / (1.0 + turning[j] / (2.0 * math.pi)))
+    way = np.stack([np.column_stack([w0x, w0y]), np.column_stack([w1x, w1y])], axis=1)
+    return status, s2, samples, arc, length, bl, rows, cols, way
+
+
+def _run(batch: _Batch, feet: list[_Foot]) -> None:
+    """The best-couple search of every foot (thesis §3.5.2, Appendix E), in rounds: each
+    round evaluates the next couple of every foot still searching, the batchable parts
+    (obstacle maps, line of sight, straight plans, wavefronts, 3D trajectories) for all of
+    them at once. Each foot sees exactly the sequence of couples of its own search."""
+    active = feet
+    while active:
+        evals: list[tuple[_Foot, float]] = []
+        pending = active
+        while pending:
+            need: list[tuple[_Foot, float]] = []
+            for f in pending:
+                kind, level = _next_couple(f, f.plan.params.exhaustive)
+                if kind == "maps":
+                    need.append((f, level))
+                elif kind == "eval":
+                    evals.append((f, level))
+            if need:
+                batch.add_maps([f for f, _ in need], [lv for _, lv in need])
+            pending = [f for f, _ in need]
+        if not evals:
+            return
+        m = len(evals)
+        ks = np.array([f.k for f, _ in evals])
+        tgt = [f.order[f.st.pos] for f, _ in evals]
+        t_xy = np.array([f.cand.xy[t] for (f, _), t in zip(evals, tgt, strict=True)])
+        t_cell = [(int(f.cand.cells[t, 0]), int(f.cand.cells[t, 1]))
+                  for (f, _), t in zip(evals, tgt, strict=True)]
+        cl = batch.cell[ks]
+        org = batch.origin[ks]
+        end_rc = np.column_stack([(t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
+                                  (t_xy[:, 0] - org[:, 0]) / cl - batch.c0[ks]])
+        blocked = np.stack([batch.blocked_row(f, level) for f, level in evals])
+        start_rc = batch.start_rc[ks]
+        shape = np.column_stack([batch.hh[ks], batch.ww[ks]])
+        sight = segments_clear_each(blocked, np.arange(m), shape, start_rc, end_rc).tolist()
+        shortcut = [bool(sight[i]) and f.plan.params.los_shortcut for i, (f, _) in enumerate(evals)]
+        # Plans: straight ones together, the others one by one (after their wavefronts).
+        paths: list[Path2D | None] = [None] * m
+        s2: list[float] = [0.0] * m
+        straight_i = [i for i in range(m) if shortcut[i]]
+        lift_src: dict[int, _LiftSource] = {}
+        if straight_i:
+            si = np.asarray(straight_i)
+            status, s2s, xy, arc, lens, bl, rows, cols, way = _straight_plans(
+                batch, ks[si], start_rc[si], end_rc[si], blocked[si])
+            for j, i in enumerate(straight_i):
+                if status[j] == 1:
+                    a, b = bl[j], bl[j + 1]
+                    s2[i] = s2s[j]
+                    lift_src[i] = (xy[a:b], arc[a:b], float(lens[j]), way[j], rows[a:b], cols[a:b])
+                elif status[j] == -1:
+                    f, level = evals[i]
+                    paths[i] = f.ctx.plan_2d(level, t_cell[i], end_rc[i], True)
+        others = [i for i in range(m) if not shortcut[i]]
+        if others:
+            _fields_for(batch, [(evals[i][0], evals[i][1], t_cell[i]) for i in others])
+            for i in others:
+                f, level = evals[i]
+                paths[i] = f.ctx.plan_2d(level, t_cell[i], end_rc[i], bool(sight[i]))
+        for i in range(m):
+            path = paths[i]
+            if path is not None:
+                s2[i] = path_score_2d(path)
+                if path.length > 1e-9:
+                    lift_src[i] = (path.samples, path.arc, float(path.length), path.waypoints, None, None)
+        # Book every couple; build the 3D trajectories the search asks for, all at once.
+        lifts: list[int] = []
+        for i, (f, level) in enumerate(evals):
+            ok = i in lift_src or paths[i] is not None
+            prm = f.plan.params
+            budget = None if prm.exhaustive else prm.max_couples_after_first
+            if _after_couple(f, level, ok, sight[i], s2[i], None, prm.exhaustive, budget):
+                lifts.append(i)
+        trajs = _lift_all(batch, evals, lifts, lift_src, paths, tgt)
+        for i, traj in zip(lifts, trajs, strict=True):
+            f, level = evals[i]
+            prm = f.plan.params
+            budget = None if prm.exhaustive else prm.max_couples_after_first
+            _after_couple(f, level, True, sight[i], s2[i], traj, prm.exhaustive, budget)
+        active = [f for f, _ in evals]
+
+
+def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]) -> None:
+    """Grow the wavefronts that :meth:`PathContext.plan_2d` will ask for, all at once."""
+    todo: list[tuple[_Foot, float, tuple[int, int]]] = []
+    for f, level, t_cell in items:
+        ctx = f.ctx
+        src = t_cell if ctx.per_target else ctx.start_cell
+        if (level, src[0], src[1]) in ctx._fields:
+            continue
+        blocked = ctx._blocked[level][2]
+        if not blocked.any():
+            ctx.field(level, src)  # closed form
+            continue
+        todo.append((f, level, src))
+    if not todo:
+        return
+    free = ~np.stack([batch.blocked_row(f, level) for f, level, _ in todo])
+    shapes = [(int(batch.hh[f.k]), int(batch.ww[f.k])) for f, _, _ in todo]
+    fields = wavefront_each(free, [src for _, _, src in todo], shapes)
+    for (f, level, src), fld in zip(todo, fields, strict=True):
+        ctx = f.ctx
+        ctx._fields[(level, src[0], src[1])] = fld
+        ctx.n_wavefronts += 1
+        ctx.wavefront_iterations += fld.iterations
+
+
+def _lift_all(
+    batch: _Batch, evals: list[tuple[_Foot, float]], lifts: list[int],
+    lift_src: dict[int, _LiftSource],
+    paths: list[Path2D | None], tgt: list[int],
+) -> list[FootTrajectory]:
+    """:meth:`PathContext.lift` of the couples ``lifts`` (indices into ``evals``)."""
+    out: dict[int, FootTrajectory] = {}
+    many = [i for i in lifts if i in lift_src]
+    for i in lifts:
+        if i not in lift_src:  # zero length: lift and put down on the spot
+            f, _ = evals[i]
+            path = paths[i]
+            assert path is not None
+            out[i] = f.ctx.lift(path, float(f.cand.z[tgt[i]]))
+    if many:
+        xy = np.concatenate([lift_src[i][0] for i in many])
+        arc = np.concatenate([lift_src[i][1] for i in many])
+        counts = [lift_src[i][0].shape[0] for i in many]
+        bounds = [0, *itertools.accumulate(counts)]
+        ks = np.array([evals[i][0].k for i in many])
+        owner = np.repeat(np.arange(len(many)), counts)
+        kp = ks[owner]
+        if all(lift_src[i][4] is not None for i in many):
+            rows = np.concatenate([lift_src[i][4] for i in many])
+            cols = np.concatenate([lift_src[i][5] for i in many])
+        else:
+            cl = batch.cell[kp]
+            org = batch.origin[kp]
+            rows = np.rint((xy[:, 1] - org[:, 1]) / cl - batch.r0[kp]).astype(np.intp)
+            cols = np.rint((xy[:, 0] - org[:, 0]) / cl - batch.c0[kp]).astype(np.intp)
+        ground = batch.max_under(kp, rows, cols, batch.sweep_off, batch.sweep_in)
+        lens, z0, tz, step, ramp, gap, way = [], [], [], [], [], [], []
+        for i in many:
+            f, _ = evals[i]
+            ctx = f.ctx
+            length = lift_src[i][2]
+            lens.append(length)
+            z0.append(float(ctx.start[2]))
+            tz.append(float(f.cand.z[tgt[i]]))
+            step.append(ctx.params.step_height)
+            ramp.append(min(ctx.ramp, 0.5 * length))
+            gap.append(ctx.params.min_waypoint_gap * ctx.grids.cell)
+            way.append(lift_src[i][3])
+        trajs = lift_each(xy, arc, bounds, ground, lens, z0, tz, step, ramp, gap, way)
+        out.update(zip(many, trajs, strict=True))
+    return [out[i] for i in lifts]
+
+
+def plan_footsteps(requests: Sequence[FootRequest]) -> list[Couple]:
+    """The best couple of every request, exactly as :func:`plan_footstep` gives it for each
+    alone, for many feet (of one or many characters, on one or many windows) at once.
+
+    The search of each foot is the same sequence of couples (Appendix E); what does not
+    depend on the other feet is computed for all of them together: the search rectangles,
+    the other feet's cells, the foot kernels, the obstacle maps of every slice, every
+    candidate's score, the slice levels, then round after round the next couple of every foot
+    still searching (line of sight, straight plans, wavefronts, 3D trajectories). A crowd
+    step's plans cost a few hundred numpy calls instead of a few hundred per foot.
+    """
+    if len(requests) == 1:  # nothing to share: the one-foot planner costs less
+        rq = requests[0]
+        return [plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
+                              rq.other_feet_xy, rq.params, rq.foot_yaw)]
+    results: list[Couple | None] = [None] * len(requests)
+    plans: list[_Plan] = []
+    for i, rq in enumerate(requests):
+        item = _validate(i, rq)
+        if isinstance(item, Couple):
+            results[i] = item
+        else:
+            plans.append(item)
+    if plans:
+        for p, couple in zip(plans, _plan_batch(plans), strict=True):
+            results[p.index] = couple
+    return [c for c in results if c is not None]
+
+
+def _plan_batch(plans: list[_Plan]) -> list[Couple]:
+    batch = _Batch(plans)
+    cand_all = _score_all(plans, batch)
+    levels = _levels_all(plans, batch.mask, batch.elev)
+    keep = [k for k in range(len(plans)) if cand_all[k][2] > 0]
+    feet: dict[int, _Foot] = {}
+    if keep:
+        for k, ctx in zip(keep, batch.contexts(keep), strict=True):
+            cand, order, n_targets = cand_all[k]
+            feet[k] = _Foot(plans[k], k, cand, order, n_targets, levels[k], ctx)
+        _run(batch, list(feet.values()))
+    out = []
+    for k, p in enumerate(plans):
+        f = feet.get(k)
+        if f is None:
+            out.append(_fail(p.start, _NO_CANDIDATE))
+            continue
+        st = f.st
+        ctx = f.ctx
+        if st.best is None:
+            out.append(_fail(p.start, _NO_COUPLE, n_couples=st.n_couples, n_paths=st.n_paths,
+                             n_targets=f.n_targets, n_wavefronts=ctx.n_wavefronts,
+                             wavefront_iterations=ctx.wavefront_iterations))
+            continue
+        t, s3, level, traj, score = st.best
+        cand = f.cand
+        footprint = np.array([cand.xy[t, 0], cand.xy[t, 1], cand.z[t]])
+        out.append(Couple(True, footprint, traj, float(score), float(cand.score[t]), float(s3), st.n_couples,
+                          st.n_paths, "", f.n_targets, ctx.n_wavefronts, ctx.wavefront_iterations,
+                          st.first_valid, max(0, st.n_couples - st.first_valid),
+                          None if math.isinf(level) else float(level), int(t)))
+    return out
+
+
+def _score_all(plans: list[_Plan], batch: _Batch) -> list[tuple[Candidates, list[int], int]]:
+    """Candidate footprints of every plan with their scores (thesis §3.5.1), best first:
+    per plan its :class:`Candidates`, the targets to try (positive scores, at most
+    ``max_targets``) and their number."""
+    n = len(plans)
+    r0, c0, hh, ww, mask, elev = batch.r0, batch.c0, batch.hh, batch.ww, batch.mask, batch.elev
+    forbidden, cell, origin = batch.grown_inf, batch.cell, batch.origin
+    pref_rc = np.array([((float(p.pref[1]) - float(origin[k, 1])) / p.cell - int(r0[k]),
+                         (float(p.pref[0]) - float(origin[k, 0])) / p.cell - int(c0[k]))
+                        for k, p in enumerate(plans)])
+    base = np.rint(pref_rc).astype(np.intp)
+    sub = pref_rc - base  # the preferred footprint's offset inside its cell (cells)
+    radius = [round(p.params.candidate_radius / p.cell, 9) for p in plans]
+    disc = _disc_offsets(max(radius))
+    rad = np.asarray(radius)
+    member = np.hypot(disc[:, 0], disc[:, 1])[None, :] <= rad[:, None] + 1e-9
+    cr = base[:, 0, None] + disc[None, :, 0]
+    cc = base[:, 1, None] + disc[None, :, 1]
+    member &= (cr >= 0) & (cr < hh[:, None]) & (cc >= 0) & (cc < ww[:, None])
+    b, d = np.nonzero(member)
+    r = cr[b, d]
+    c = cc[b, d]
+    ok = mask[b, r, c] & ~forbidden[b, r, c] & (elev[b, r, c] > _VOID_BELOW)
+    cl = cell[b]
+    x = origin[b, 0] + (c + c0[b] + sub[b, 1]) * cl
+    y = origin[b, 1] + (r + r0[b] + sub[b, 0]) * cl
+    hip = np.array([p.hip for p in plans])
+    dx = x - hip[b, 0]
+    dy = y - hip[b, 1]
+    reach = np.array([p.params.leg_reach + 1e-9 for p in plans])
+    ok &= np.sqrt(dx * dx + dy * dy) <= reach[b]
+    # Landing height: the highest surface under the foot box at its exact offset.
+    land_off, land_in = _offset_kernels(plans, sub)
+    z = batch.max_under(b, r, c, land_off, land_in)
+    z0 = np.array([float(p.start[2]) for p in plans])
+    max_dz = np.array([p.params.leg_reach if p.params.max_height_change is None
+                       else p.params.max_height_change for p in plans])
+    ok &= np.abs(z - z0[b]) <= max_dz[b]
+    keep = np.flatnonzero(ok)
+    b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
+    # Neighbour criteria, the search box padded as "not free".
+    n_, H, W = elev.shape
+    pad_forb = np.ones((n_, H + 2, W + 2), dtype=bool)
+    pad_forb[:, 1:-1, 1:-1] = forbidden | (elev < _VOID_BELOW)
+    pad_elev = np.full((n_, H + 2, W + 2), -np.inf)
+    pad_elev[:, 1:-1, 1:-1] = elev
+    here = elev[b, r, c][:, None]
+    nr = r[:, None] + 1 + _NEIGHBOURS[None, :, 0]
+    nc = c[:, None] + 1 + _NEIGHBOURS[None, :, 1]
+    bb = b[:, None]
+    ne = pad_elev[bb, nr, nc]  # (k, 8)
+    edge_h = np.array([p.params.edge_height for p in plans])[b][:, None]
+    free = np.count_nonzero(~pad_forb[bb, nr, nc] & (np.abs(ne - here) <= edge_h), axis=1)
+    rim = np.any(here - ne > edge_h, axis=1)
+    pref = np.array([p.pref for p in plans])
+    fixed = np.array([p.params.fixed_distance for p in plans])
+    ex = x - pref[b, 0]
+    ey = y - pref[b, 1]
+    distance = np.clip(1.0 - np.sqrt(ex * ex + ey * ey) / fixed[b], 0.0, 1.0)
+    free_score = free / 8.0
+    edge = np.where(rim, np.array([p.params.edge_score for p in plans])[b], 1.0)
+    xy = np.column_stack([x, y])
+    n_other = np.array([p.o_hips.shape[0] for p in plans])
+    if n_other.max(initial=0):
+        j = int(n_other.max())
+        o_hips = np.zeros((n, j, 2))
+        o_feet = np.zeros((n, j, 2))
+        for k, p in enumerate(plans):
+            o_hips[k, : n_other[k]] = p.o_hips
+            o_feet[k, : n_other[k]] = p.o_feet
+        valid = np.arange(j)[None, :] < n_other[b][:, None]
+        crosses = _legs_cross_each(hip[b], xy, o_hips[b], o_feet[b], valid)
+    else:
+        crosses = np.zeros(b.size, dtype=bool)
+    crossing = np.where(crosses, 0.0, 1.0)
+    score = distance * free_score * edge * crossing
+    # Best first; ties: nearer the preferred footprint, then row, then column.
+    order = np.lexsort((c, r, np.hypot(disc[d, 0], disc[d, 1]), -score, b))
+    b = b[order]
+    cells = np.column_stack([r[order], c[order]])
+    xy, z, score = xy[order], z[order], score[order]
+    distance, free_score, edge, crossing = distance[order], free_score[order], edge[order], crossing[order]
+    cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
+    n_valid = np.add.reduceat(np.append(score > 0.0, False), cuts[:-1]) if b.size else np.zeros(n, np.intp)
+    out = []
+    for k, p in enumerate(plans):
+        a, e = cuts[k], cuts[k + 1]
+        cand = Candidates(xy[a:e], cells[a:e], z[a:e], score[a:e], distance[a:e], free_score[a:e], edge[a:e],
+                          crossing[a:e])
+        n_targets = int(n_valid[k]) if e > a else 0
+        targets = list(range(n_targets))
+        if p.params.max_targets is not None:
+            targets = targets[: p.params.max_targets]
+        out.append((cand, targets, n_targets))
+    return out
+
+
+def _offset_kernels(plans: list[_Plan], sub: FloatArray) -> tuple[IntArray, BoolArray]:
+    """The landing kernel of each plan: cells covered by a foot box whose centre sits ``sub``
+    ``(n, 2)`` cells off its cell's centre (sub offsets rounded to 1e-9 cell, as cached)."""
+    n = len(plans)
+    cell = np.array([p.cell for p in plans])
+    hx = np.array([p.half[0] for p in plans])
+    hy = np.array([p.half[1] for p in plans])
+    yaw = np.array([p.yaw for p in plans])
+    sub_r = np.array([round(float(v), 9) for v in sub[:, 0]])
+    sub_c = np.array([round(float(v), 9) for v in sub[:, 1]])
+    reach = max(math.ceil((abs(p.half[0]) + abs(p.half[1])) / p.cell + 1.0) for p in plans)
+    off = _rect_offsets(reach, reach)
+    col = cell[:, None]
+    centres = np.stack([off[None, :, 1] * col, off[None, :, 0] * col], axis=-1)
+    centre = np.stack([sub_c * cell, sub_r * cell], axis=-1)[:, None, :]
+    member = _box_overlaps_cells(centres, col, centre, hx[:, None], hy[:, None], yaw[:, None])
+    empty = ~member.any(axis=1)
+    if empty.any():
+        member[empty, (2 * reach + 1) * reach + reach] = True
+    del n
+    return off, member
+
+
+def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[list[float]]:
+    """Slice levels of every plan (:func:`slice_levels`)."""
+    out: list[list[float]] = [[math.inf] for _ in plans]
+    sliced = [k for k, p in enumerate(plans) if p.params.slice_size is not None]
+    if not sliced:
+        return out
+    sel = np.asarray(sliced)
+    valid = mask[sel] & (elev[sel] > _VOID_BELOW)
+    tops = np.where(valid, elev[sel], -np.inf).max(axis=(1, 2)).tolist()
+    lists = []
+    for i, k in enumerate(sliced):
+        p = plans[k]
+        z0 = float(p.start[2])
+        reach_up = p.params.leg_reach if p.params.max_height_change is None else p.params.max_height_change
+        top = min(tops[i] if tops[i] != -math.inf else z0, z0 + reach_up)
+        size = p.params.slice_size
+        assert size is not None
+        lists.append(_level_list(z0, size, top))
+    j = max(len(lv) for lv in lists)
+    if j <= 16:
+        lv_arr = np.full((sel.size, j), math.inf)
+        for i, lv in enumerate(lists):
+            lv_arr[i, : len(lv)] = lv
+        e = np.where(valid, elev[sel], -np.inf).reshape(sel.size, 1, -1)
+        above = np.count_nonzero(e > lv_arr[:, :, None], axis=2).tolist()
+    else:
+        above = []
+        for i in range(sel.size):
+            ev = elev[sel[i]][valid[i]]
+            above.append([int(np.count_nonzero(ev > lv)) for lv in lists[i]])
+    for i, k in enumerate(sliced):
+        out[k] = _distinct_levels(lists[i], above[i][: len(lists[i])])
+    return out
+
 
 
 def plan_footstep(

@@ -49,7 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from .hermite import HermiteCurve, hermite_basis
+from .hermite import HERMITE_MATRIX, HermiteCurve, hermite_basis
 from .hull import upper_hull
 from .terrain import WindowGrids, dilate, foot_kernel
 
@@ -174,27 +174,62 @@ def search_region(
     """
     a0, a1 = (float(v) for v in np.asarray(start_rc, dtype=np.float64).reshape(2))
     b0, b1 = (float(v) for v in np.asarray(end_rc, dtype=np.float64).reshape(2))
+    frame = region_frame(window_shape, a0, a1, b0, b1, half_width, end_margin, start_margin)
+    if frame is None:
+        return Region(0, 0, np.zeros((0, 0), dtype=bool))
+    r0, c0, h, w = frame[:4]
+    mask = region_masks(np.array([frame]), h, w)[0]
+    return Region(r0, c0, mask)
+
+
+#: One search rectangle as plain numbers: ``(r0, c0, h, w, a0, a1, u0, u1, lo, hi, half)``
+#: (bounding box; axis origin and unit direction; along-axis bounds; half width with margins).
+RegionFrame = tuple[int, int, int, int, float, float, float, float, float, float, float]
+
+
+def region_frame(
+    window_shape: tuple[int, int], a0: float, a1: float, b0: float, b1: float,
+    half_width: float, end_margin: float, start_margin: float,
+) -> RegionFrame | None:
+    """The numbers behind :func:`search_region` (plain Python floats), None if the rectangle
+    misses the window."""
     dist = math.hypot(b0 - a0, b1 - a1)
     u0, u1 = ((b0 - a0) / dist, (b1 - a1) / dist) if dist > 1e-9 else (0.0, 1.0)
     p0, p1 = -u1, u0
-    span = ((t, q) for t in (-start_margin, dist + end_margin) for q in (-half_width, half_width))
-    corners = [(a0 + u0 * t + p0 * q, a1 + u1 * t + p1 * q) for t, q in span]
-    rows = [r for r, _ in corners]
-    cols = [c for _, c in corners]
+    rows = []
+    cols = []
+    for t in (-start_margin, dist + end_margin):
+        for q in (-half_width, half_width):
+            rows.append(a0 + u0 * t + p0 * q)
+            cols.append(a1 + u1 * t + p1 * q)
     ny, nx = window_shape
     r0 = max(math.floor(min(rows)), 0)
     r1 = min(math.ceil(max(rows)), ny - 1)
     c0 = max(math.floor(min(cols)), 0)
     c1 = min(math.ceil(max(cols)), nx - 1)
     if r1 < r0 or c1 < c0:
-        return Region(0, 0, np.zeros((0, 0), dtype=bool))
-    dr = (np.arange(r0, r1 + 1) - a0)[:, None]
-    dc = (np.arange(c0, c1 + 1) - a1)[None, :]
-    along = dr * u0 + dc * u1
-    across = np.abs(dr * p0 + dc * p1)
+        return None
     eps = 1e-9
-    mask = (along >= -start_margin - eps) & (along <= dist + end_margin + eps) & (across <= half_width + eps)
-    return Region(r0, c0, mask)
+    return (r0, c0, r1 - r0 + 1, c1 - c0 + 1, a0, a1, u0, u1, -start_margin - eps, dist + end_margin + eps,
+            half_width + eps)
+
+
+def region_masks(frames: FloatArray, height: int, width: int) -> BoolArray:
+    """Masks ``(n, height, width)`` of ``n`` search rectangles (rows of :data:`RegionFrame`),
+    each in its bounding box at the top-left corner; cells past a box's own size are False."""
+    f = frames
+    r0, c0, h, w = (f[:, k].astype(np.intp) for k in range(4))
+    a0, a1, u0, u1, lo, hi, half = (f[:, k, None, None] for k in range(4, 11))
+    rows = np.arange(height)
+    cols = np.arange(width)
+    dr = (rows[None, :, None] + r0[:, None, None]) - a0
+    dc = (cols[None, None, :] + c0[:, None, None]) - a1
+    along = dr * u0 + dc * u1
+    across = np.abs(dr * -u1 + dc * u0)
+    mask = (along >= lo) & (along <= hi) & (across <= half)
+    if f.shape[0] > 1 or h[0] != height or w[0] != width:
+        mask &= (rows[None, :, None] < h[:, None, None]) & (cols[None, None, :] < w[:, None, None])
+    return np.asarray(mask)
 
 
 # ---------------------------------------------------------------------------------------
@@ -217,15 +252,16 @@ class DistanceField:
 
 
 def _move_costs(free: BoolArray) -> list[FloatArray]:
-    """Per move, the cost of entering each cell (``inf`` if the move is not allowed)."""
-    h, w = free.shape
-    pad = np.zeros((h + 2, w + 2), dtype=bool)
-    pad[1:-1, 1:-1] = free
+    """Per move, the cost of entering each cell (``inf`` if the move is not allowed);
+    ``free`` ``(..., h, w)``."""
+    h, w = free.shape[-2:]
+    pad = np.zeros((*free.shape[:-2], h + 2, w + 2), dtype=bool)
+    pad[..., 1:-1, 1:-1] = free
     costs = []
     for (dr, dc), length in zip(MOVES, MOVE_LENGTH, strict=True):
         ok = free.copy()
         if dr and dc:  # no corner cutting: both side cells must be free
-            ok &= pad[1 - dr : h + 1 - dr, 1 : w + 1] & pad[1 : h + 1, 1 - dc : w + 1 - dc]
+            ok &= pad[..., 1 - dr : h + 1 - dr, 1 : w + 1] & pad[..., 1 : h + 1, 1 - dc : w + 1 - dc]
         costs.append(np.where(ok, length, np.inf))
     return costs
 
@@ -247,21 +283,70 @@ def wavefront(free: BoolArray, source: tuple[int, int], max_iterations: int | No
     limit = max_iterations if max_iterations is not None else h * w + 1
     iterations = 0
     cand = np.empty((h, w))
+    before = np.empty((h, w))
+    shifted = [dist[1 - dr : h + 1 - dr, 1 - dc : w + 1 - dc] for dr, dc in MOVES]
     while iterations < limit:
-        before = inner.copy()
-        for (dr, dc), cost in zip(MOVES, costs, strict=True):
-            np.add(dist[1 - dr : h + 1 - dr, 1 - dc : w + 1 - dc], cost, out=cand)
+        np.copyto(before, inner)
+        for view, cost in zip(shifted, costs, strict=True):
+            np.add(view, cost, out=cand)
             np.minimum(inner, cand, out=inner)
         iterations += 1
         if np.array_equal(before, inner):
             break
     # Parent move of every reached cell: the move that realises its distance.
-    stacked = np.stack([dist[1 - dr : h + 1 - dr, 1 - dc : w + 1 - dc] + cost
-                        for (dr, dc), cost in zip(MOVES, costs, strict=True)])
+    stacked = np.stack([view + cost for view, cost in zip(shifted, costs, strict=True)])
     parent = np.argmin(stacked, axis=0).astype(np.int8)
     parent[~np.isfinite(inner)] = -1
     parent[source] = -1
     return DistanceField(inner.copy(), parent, (int(source[0]), int(source[1])), iterations)
+
+
+def wavefront_each(
+    free: BoolArray, sources: list[tuple[int, int]], shapes: list[tuple[int, int]],
+    max_iterations: int | None = None,
+) -> list[DistanceField]:
+    """:func:`wavefront` of many grids at once: grid ``i`` is ``free[i, :h, :w]`` (``free``
+    ``(m, H, W)``, False past each grid's own ``shapes[i] = (h, w)``) with source
+    ``sources[i]``. The sweeps of each grid are exactly its own (grids never interact), so
+    each result, sweep count included, equals the one-grid call."""
+    m, hh, ww = free.shape
+    fr = free.copy()
+    src = np.asarray(sources, dtype=np.intp).reshape(m, 2)
+    at = np.arange(m)
+    fr[at, src[:, 0], src[:, 1]] = True
+    costs = _move_costs(fr)
+    dist = np.full((m, hh + 2, ww + 2), np.inf)
+    dist[at, src[:, 0] + 1, src[:, 1] + 1] = 0.0
+    inner = dist[:, 1:-1, 1:-1]
+    limit = max_iterations if max_iterations is not None else max(h * w for h, w in shapes) + 1
+    iterations = np.zeros(m, dtype=np.intp)
+    settled = np.zeros(m, dtype=bool)
+    sweeps = 0
+    shifted = [dist[:, 1 - dr : hh + 1 - dr, 1 - dc : ww + 1 - dc] for dr, dc in MOVES]
+    cand = np.empty((m, hh, ww))
+    before = np.empty((m, hh, ww))
+    while sweeps < limit:
+        np.copyto(before, inner)
+        for view, cost in zip(shifted, costs, strict=True):
+            np.add(view, cost, out=cand)
+            np.minimum(inner, cand, out=inner)
+        sweeps += 1
+        same = (before == inner).reshape(m, -1).all(axis=1)
+        iterations[same & ~settled] = sweeps
+        settled |= same
+        if settled.all():
+            break
+    iterations[~settled] = sweeps
+    # Parent move of every reached cell: the move that realises its distance.
+    stacked = np.stack([view + cost for view, cost in zip(shifted, costs, strict=True)])
+    parent = np.argmin(stacked, axis=0).astype(np.int8)
+    parent[~np.isfinite(inner)] = -1
+    parent[at, src[:, 0], src[:, 1]] = -1
+    out = []
+    for i, (h, w) in enumerate(shapes):
+        source = (int(src[i, 0]), int(src[i, 1]))
+        out.append(DistanceField(inner[i, :h, :w].copy(), parent[i, :h, :w], source, int(iterations[i])))
+    return out
 
 
 def octile_field(shape: tuple[int, int], source: tuple[int, int]) -> DistanceField:
@@ -320,32 +405,54 @@ def supercover_cells(a: npt.ArrayLike, b: npt.ArrayLike) -> IntArray:
 def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, BoolArray]:
     """Cells around every grid-line crossing and both ends of segments ``a -> b[i]``.
 
+    ``a``: ``(2,)`` shared by every segment, or ``(m, 2)`` one per segment; ``b``: ``(m, 2)``.
     Returns ``(cells (m, K*4, 2), valid (m, K*4))``.
     """
-    d = b - a  # (m, 2)
-    lo = np.minimum(a, b)
-    hi = np.maximum(a, b)
+    m = b.shape[0]
+    aa = np.broadcast_to(a, b.shape)
+    d = b - aa  # (m, 2)
+    lo = np.minimum(aa, b)
+    hi = np.maximum(aa, b)
     first = np.ceil(lo - 0.5)  # first grid line index k with k + 0.5 >= lo
     last = np.floor(hi - 0.5)
-    count = np.where(np.abs(d) > 1e-12, np.maximum(last - first + 1, 0), 0).astype(np.intp)  # (m, 2)
+    moving = np.abs(d) > 1e-12
+    count = np.where(moving, np.maximum(last - first + 1, 0), 0).astype(np.intp)  # (m, 2)
     kmax = int(count.max(initial=0))
     steps = np.arange(kmax)
-    ts = [np.zeros((b.shape[0], 1)), np.ones((b.shape[0], 1))]
-    valid = [np.ones((b.shape[0], 2), dtype=bool)]
-    for axis in (0, 1):
-        line = first[:, axis, None] + steps[None, :] + 0.5  # (m, kmax)
-        dd = np.where(np.abs(d[:, axis]) > 1e-12, d[:, axis], 1.0)[:, None]
-        ts.append(np.clip((line - a[axis]) / dd, 0.0, 1.0))
-        valid.append(steps[None, :] < count[:, axis, None])
-    t = np.concatenate(ts, axis=1)  # (m, K)
-    ok = np.concatenate(valid, axis=1)
-    p = a[None, None, :] + t[..., None] * d[:, None, :]  # (m, K, 2)
-    eps = 1e-7
-    offs = np.array([[-eps, -eps], [-eps, eps], [eps, -eps], [eps, eps]])
-    q = p[:, :, None, :] + offs[None, None, :, :]  # (m, K, 4, 2)
-    cells = np.rint(q).astype(np.intp).reshape(b.shape[0], -1, 2)
+    dd = np.where(moving, d, 1.0)
+    line = first[:, :, None] + steps[None, None, :] + 0.5  # (m, 2, kmax)
+    t_lines = np.clip((line - aa[:, :, None]) / dd[:, :, None], 0.0, 1.0).reshape(m, 2 * kmax)
+    t = np.concatenate([np.zeros((m, 1)), np.ones((m, 1)), t_lines], axis=1)  # (m, K)
+    ok = np.concatenate([np.ones((m, 2), dtype=bool),
+                         (steps[None, None, :] < count[:, :, None]).reshape(m, 2 * kmax)], axis=1)
+    p = aa[:, None, :] + t[..., None] * d[:, None, :]  # (m, K, 2)
+    q = p[:, :, None, :] + _CORNER_OFFSETS[None, None, :, :]  # (m, K, 4, 2)
+    cells = np.rint(q).astype(np.intp).reshape(m, -1, 2)
     mask = np.repeat(ok, 4, axis=1)
     return cells, mask
+
+
+_CORNER_EPS = 1e-7
+_CORNER_OFFSETS = np.array([[-_CORNER_EPS, -_CORNER_EPS], [-_CORNER_EPS, _CORNER_EPS],
+                            [_CORNER_EPS, -_CORNER_EPS], [_CORNER_EPS, _CORNER_EPS]])
+
+
+def segments_clear_each(
+    blocked: BoolArray, which: IntArray, shape: IntArray, a: FloatArray, b: FloatArray
+) -> BoolArray:
+    """Line of sight of many segments, each on its own grid: segment ``i`` from ``a[i]`` to
+    ``b[i]`` (``(m, 2)`` continuous row, col) on ``blocked[which[i]]`` (``blocked``:
+    ``(n, H, W)``), whose own size is ``shape[i]`` (``(m, 2)``: rows, cols; cells past it
+    count as outside). Same samples and result as :func:`segments_clear` per segment."""
+    if b.shape[0] == 0:
+        return np.zeros(0, dtype=bool)
+    cells, mask = _crossing_samples(a, b)
+    r = cells[..., 0]
+    c = cells[..., 1]
+    inside = (r >= 0) & (r < shape[:, 0, None]) & (c >= 0) & (c < shape[:, 1, None])
+    hit = blocked[which[:, None], np.where(inside, r, 0), np.where(inside, c, 0)]
+    bad = mask & (~inside | hit)
+    return np.asarray(~np.any(bad, axis=1))
 
 
 def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> BoolArray:
@@ -479,6 +586,134 @@ def _hull_waypoints(s: FloatArray, required: FloatArray, min_gap: float) -> IntA
     return np.asarray(keep, dtype=np.intp)
 
 
+def _hull_knots_increasing(s: list[float], required: list[float], min_gap: float) -> list[int]:
+    """:func:`_hull_waypoints` for strictly increasing ``s``, in plain Python floats (the same
+    monotone chain and the same chord arithmetic, without numpy's per-call cost)."""
+    hull: list[int] = []
+    for k in range(len(s)):
+        sk = s[k]
+        zk = required[k]
+        while len(hull) >= 2:
+            i = hull[-2]
+            j = hull[-1]
+            if (s[j] - s[i]) * (zk - required[i]) - (required[j] - required[i]) * (sk - s[i]) >= 0.0:
+                hull.pop()
+            else:
+                break
+        hull.append(k)
+    if len(hull) <= 2 or min_gap <= 0.0:
+        return hull
+    keep = [hull[0]]
+    for pos in range(1, len(hull) - 1):
+        v = hull[pos]
+        a = keep[-1]
+        if s[v] - s[a] >= min_gap:
+            keep.append(v)
+            continue
+        c = hull[pos + 1]
+        ra = required[a]
+        rise = required[c] - ra
+        sa = s[a]
+        den = max(s[c] - sa, 1e-12)
+        if all(ra + rise * (s[i] - sa) / den >= required[i] - 1e-9 for i in range(a, c + 1)):
+            continue  # removable: the straight chord still clears
+        keep.append(v)
+    keep.append(hull[-1])
+    return keep
+
+
+def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
+    """:func:`_turning` of many polylines stored one after the other in ``samples``
+    ``(M, 2)``, polyline ``i`` being rows ``bounds[i]:bounds[i + 1]`` (same arithmetic)."""
+    n = len(bounds) - 1
+    d = np.diff(samples, axis=0)
+    length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    owner = np.repeat(np.arange(n), np.diff(bounds))
+    keep = (length > 1e-9) & (owner[:-1] == owner[1:])
+    idx = np.flatnonzero(keep)
+    ang = np.arctan2(d[idx, 1], d[idx, 0])
+    turn = np.abs((np.diff(ang) + np.pi) % (2.0 * np.pi) - np.pi)
+    who = owner[idx]
+    cuts = np.searchsorted(who, np.arange(n + 1)).tolist()
+    out = []
+    for i in range(n):
+        a, b = cuts[i], cuts[i + 1]
+        out.append(float(np.sum(turn[a : b - 1])) if b - a >= 2 else 0.0)
+    return out
+
+
+def lift_each(
+    samples: FloatArray, arc: FloatArray, bounds: list[int], ground: FloatArray, length: list[float],
+    start_z: list[float], target_z: list[float], step_height: list[float], ramp: list[float],
+    min_gap: list[float], waypoints_2d: list[FloatArray],
+) -> list[FootTrajectory]:
+    """:meth:`PathContext.lift` of many 2D plans at once (same arithmetic, so the same
+    trajectories): plan ``i`` has the samples ``samples[bounds[i]:bounds[i + 1]]`` ``(m, 2)``
+    at strictly increasing arc lengths ``arc``, ``ground`` under them (what the swinging foot
+    must clear), its 2D ``length`` (> 0) and ``waypoints_2d``; ``ramp`` is already capped at
+    half the length."""
+    n = len(bounds) - 1
+    counts = np.diff(bounds)
+    owner = np.repeat(np.arange(n), counts)
+    L = np.asarray(length)[owner]
+    rp = np.asarray(ramp)[owner]
+    clear = np.asarray(step_height)[owner] * np.clip(np.minimum(arc, L - arc) / rp, 0.0, 1.0)
+    required = ground + clear
+    first = np.asarray(bounds[:-1])
+    last = np.asarray(bounds[1:]) - 1
+    required[first] = start_z
+    required[last] = target_z
+    s_list = arc.tolist()
+    r_list = required.tolist()
+    knots: list[int] = []
+    knot_bounds = [0]
+    for i in range(n):
+        a, b = bounds[i], bounds[i + 1]
+        local = _hull_knots_increasing(s_list[a:b], r_list[a:b], min_gap[i])
+        knots.extend(a + k for k in local)
+        knot_bounds.append(len(knots))
+    kidx = np.asarray(knots)
+    ks = arc[kidx]
+    kz = required[kidx]
+    # Height profile (height_profile per plan): knot j's segment to knot j + 1.
+    h = np.diff(ks)
+    h_safe = np.where(h > 1e-12, h, 1e-12)
+    delta = np.diff(kz) / h_safe
+    nk = kidx.size
+    slope = np.empty(nk)
+    kb = np.asarray(knot_bounds)
+    slope[1:-1] = (kz[2:] - kz[:-2]) / np.maximum(ks[2:] - ks[:-2], 1e-12)
+    slope[kb[:-1]] = delta[kb[:-1]]
+    slope[kb[1:] - 1] = delta[kb[1:] - 2]
+    is_knot = np.zeros(arc.size, dtype=np.intp)
+    is_knot[kidx] = 1
+    seg = np.cumsum(is_knot) - 1  # global knot index at or before each sample
+    seg = np.clip(seg, kb[:-1][owner], kb[1:][owner] - 2)
+    t = np.clip((arc - ks[seg]) / h_safe[seg], 0.0, 1.0)
+    powers = np.stack([t**3, t**2, t, np.ones_like(t)], axis=-1)
+    w = np.empty_like(powers)
+    for i in range(n):  # one product per plan: the same BLAS call as for that plan alone
+        a, b = bounds[i], bounds[i + 1]
+        w[a:b] = powers[a:b] @ HERMITE_MATRIX
+    hs = h[np.minimum(seg, nk - 2)]
+    z = (w[:, 0] * kz[seg] + w[:, 1] * kz[seg + 1] + w[:, 2] * hs * slope[seg]
+         + w[:, 3] * hs * slope[seg + 1])
+    z = np.maximum(z, required)
+    points = np.column_stack([samples, z])
+    d3 = np.diff(points, axis=0)
+    seg3 = np.linalg.norm(d3, axis=1)
+    way3 = np.column_stack([samples[kidx], kz])
+    out = []
+    for i in range(n):
+        a, b = bounds[i], bounds[i + 1]
+        arc3 = np.empty(b - a)
+        arc3[0] = 0.0
+        np.cumsum(seg3[a : b - 1], out=arc3[1:])
+        out.append(FootTrajectory(points[a:b], float(arc3[-1]), way3[knot_bounds[i] : knot_bounds[i + 1]],
+                                  waypoints_2d[i], length[i], arc3, arc[a:b]))
+    return out
+
+
 # ---------------------------------------------------------------------------------------
 # Paths inside one plan: shared context
 # ---------------------------------------------------------------------------------------
@@ -574,6 +809,38 @@ class PathContext:
         self.wavefront_iterations = 0
         self.ramp = params.ramp if params.ramp is not None else max(params.step_height, 2.0 * cell)
 
+    @classmethod
+    def from_parts(
+        cls, grids: WindowGrids, start: FloatArray, region: Region, params: PathParams, per_target: bool,
+        sweep_kernel: IntArray, land_kernel: IntArray, elevation: FloatArray, base_core: BoolArray,
+        start_rc: FloatArray, liftoff: BoolArray, maps: dict[float, tuple[BoolArray, BoolArray, BoolArray]],
+    ) -> PathContext:
+        """A context from parts computed elsewhere (the batched planner computes them for many
+        feet at once): exactly what ``__init__`` would compute, plus cached slice ``maps``."""
+        self = cls.__new__(cls)
+        self.grids = grids
+        self.params = params
+        self.start = start
+        self.region = region
+        self.per_target = per_target
+        self.sweep_kernel = sweep_kernel
+        self.land_kernel = land_kernel
+        self.elevation = elevation
+        self.base_core = base_core
+        self.outside = ~region.mask
+        self.start_rc = start_rc
+        self.start_cell = (round(float(start_rc[0])), round(float(start_rc[1])))
+        h, w = region.shape
+        self.start_inside = 0 <= self.start_cell[0] < h and 0 <= self.start_cell[1] < w
+        self.liftoff = liftoff
+        self._blocked = dict(maps)
+        self._fields = {}
+        self.n_wavefronts = 0
+        self.wavefront_iterations = 0
+        cell = grids.cell
+        self.ramp = params.ramp if params.ramp is not None else max(params.step_height, 2.0 * cell)
+        return self
+
     # -- obstacle maps per slice ------------------------------------------------------------
     def maps(self, level: float) -> tuple[BoolArray, BoolArray, BoolArray]:
         """``(core, dilated, blocked)`` for a slice ``level`` (``inf`` = no slice).
@@ -635,6 +902,16 @@ class PathContext:
             if cached is not None and not np.isfinite(cached.dist[target_cell]):
                 return None  # known unreachable at this slice
         in_sight = bool(segments_clear(blocked, self.start_rc, end_rc[None, :])[0])
+        return self.plan_2d(level, target_cell, end_rc, in_sight, target_xy is not None)
+
+    def plan_2d(
+        self, level: float, target_cell: tuple[int, int], end_rc: FloatArray, in_sight: bool,
+        exact_end: bool = True,
+    ) -> Path2D | None:
+        """The rest of :meth:`path_2d` once its checks passed (the target cell is free and not
+        known to be unreachable; ``in_sight``: the straight line to ``end_rc`` is clear)."""
+        blocked = self.maps(level)[2]
+        offset = np.array([self.region.r0, self.region.c0])
         if self.params.los_shortcut and in_sight:
             # The target is in sight: the wavefront, its descent and the line-of-sight reduction
             # would keep exactly these two points (the greedy reduction jumps to the farthest
@@ -652,7 +929,7 @@ class PathContext:
                 return None
             n_naive = int(naive.shape[0])
             pts = np.vstack([self.start_rc[None, :], naive.astype(np.float64)])
-            if target_xy is not None:
+            if exact_end:
                 # End exactly at the target; it replaces its cell's centre when the cell before
                 # sees it (no detour to the centre and back), else the centre stays a waypoint.
                 if segments_clear(blocked, pts[-2], end_rc[None, :])[0]:

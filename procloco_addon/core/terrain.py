@@ -214,8 +214,45 @@ def _foot_kernel(cell: float, hx: float, hy: float, yaw: float, anywhere_in_cell
     return off
 
 
+def foot_kernels(
+    cell: FloatArray, half_x: FloatArray, half_y: FloatArray, yaw: FloatArray, anywhere_in_cell: bool = True
+) -> tuple[IntArray, BoolArray]:
+    """:func:`foot_kernel` of ``n`` feet at once (``(n,)`` cell sizes, half extents and yaws).
+
+    Returns ``(offsets, member)``: ``offsets`` ``(m, 2)`` the cells of a rectangle holding every
+    kernel, ``member`` ``(n, m)``; ``offsets[member[i]]`` are exactly the cells of foot ``i``'s
+    kernel (the same tests with the same arithmetic, in another order)."""
+    cos = np.cos(yaw)
+    sin = np.sin(yaw)
+    c = np.abs(cos)
+    s = np.abs(sin)
+    if anywhere_in_cell:
+        grow = 0.5 * cell * (c + s)
+        half_x = half_x + grow
+        half_y = half_y + grow
+    ex = c * half_x + s * half_y
+    ey = s * half_x + c * half_y
+    rx = int(np.max(np.ceil(ex / cell + 0.5), initial=0))
+    ry = int(np.max(np.ceil(ey / cell + 0.5), initial=0))
+    offsets = _rect_offsets(ry, rx)
+    col = cell[:, None]
+    centres = np.stack([offsets[None, :, 1] * col, offsets[None, :, 0] * col], axis=-1)
+    member = _box_overlaps_cells(centres, col, np.zeros(2), half_x[:, None], half_y[:, None], yaw[:, None])
+    member[:, (2 * rx + 1) * ry + rx] = True  # (0, 0) always
+    return offsets, member
+
+
+@functools.lru_cache(maxsize=64)
+def _rect_offsets(ry: int, rx: int) -> IntArray:
+    """Cells ``(i, j)`` with ``|i| <= ry``, ``|j| <= rx``, row-major: ``((2ry+1)(2rx+1), 2)``."""
+    ii, jj = np.meshgrid(np.arange(-ry, ry + 1), np.arange(-rx, rx + 1), indexing="ij")
+    off = np.stack([ii.ravel(), jj.ravel()], axis=1).astype(np.intp)
+    off.setflags(write=False)
+    return off
+
+
 def _box_overlaps_cells(
-    cell_xy: FloatArray, cell: float, box_xy: FloatArray, hx: float | FloatArray,
+    cell_xy: FloatArray, cell: float | FloatArray, box_xy: FloatArray, hx: float | FloatArray,
     hy: float | FloatArray, yaw: float | FloatArray,
 ) -> BoolArray:
     """Separating-axis test: does each axis-aligned cell square overlap its oriented box?"""
@@ -236,29 +273,46 @@ def _box_overlaps_cells(
 
 
 def dilate(mask: BoolArray, offsets: IntArray) -> BoolArray:
-    """Binary dilation of ``mask`` ``(h, w)`` by the cell ``offsets`` ``(k, 2)``.
+    """Binary dilation of ``mask`` ``(..., h, w)`` by the cell ``offsets`` ``(k, 2)`` (every
+    leading index is dilated on its own).
 
     A kernel that fills its bounding rectangle is applied as a row pass then a column pass
     (``(a - 1) + (b - 1)`` shifted ORs instead of ``a * b - 1``)."""
     r_lo, c_lo = (int(v) for v in offsets.min(axis=0))
     r_hi, c_hi = (int(v) for v in offsets.max(axis=0))
     if offsets.shape[0] == (r_hi - r_lo + 1) * (c_hi - c_lo + 1) and offsets.shape[0] > 4:
-        rows = np.array([[di, 0] for di in range(r_lo, r_hi + 1)], dtype=np.intp)
-        cols = np.array([[0, dj] for dj in range(c_lo, c_hi + 1)], dtype=np.intp)
+        rows = [(di, 0) for di in range(r_lo, r_hi + 1)]
+        cols = [(0, dj) for dj in range(c_lo, c_hi + 1)]
         return _dilate_shifts(_dilate_shifts(mask, rows), cols)
-    return _dilate_shifts(mask, offsets)
+    return _dilate_shifts(mask, offsets.tolist())
 
 
-def _dilate_shifts(mask: BoolArray, offsets: IntArray) -> BoolArray:
+def _dilate_shifts(mask: BoolArray, offsets: Sequence[Sequence[int]]) -> BoolArray:
     out = mask.copy()
-    h, w = mask.shape
-    for di, dj in offsets.tolist():
+    h, w = mask.shape[-2:]
+    for di, dj in offsets:
         if di == 0 and dj == 0:
             continue
         if abs(di) >= h or abs(dj) >= w:
             continue
-        src = mask[max(0, -di) : h - max(0, di), max(0, -dj) : w - max(0, dj)]
-        out[max(0, di) : h - max(0, -di), max(0, dj) : w - max(0, -dj)] |= src
+        src = mask[..., max(0, -di) : h - max(0, di), max(0, -dj) : w - max(0, dj)]
+        out[..., max(0, di) : h - max(0, -di), max(0, dj) : w - max(0, -dj)] |= src
+    return out
+
+
+def dilate_each(mask: BoolArray, offsets: IntArray, member: BoolArray) -> BoolArray:
+    """:func:`dilate` of every ``mask[i]`` ``(n, h, w)`` by its own kernel ``offsets[member[i]]``
+    (``offsets`` ``(m, 2)``, ``member`` ``(n, m)``, as :func:`foot_kernels` gives them); masks
+    that share a kernel are dilated together."""
+    groups: dict[bytes, list[int]] = {}
+    for i, row in enumerate(member):
+        groups.setdefault(row.tobytes(), []).append(i)
+    if len(groups) == 1:
+        return dilate(mask, offsets[member[0]])
+    out = np.empty_like(mask)
+    for idx in groups.values():
+        sel = np.asarray(idx, dtype=np.intp)
+        out[sel] = dilate(mask[sel], offsets[member[idx[0]]])
     return out
 
 
@@ -286,26 +340,32 @@ def _ranges_to_pairs(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
 
 
 def raster_boxes(
-    origin: FloatArray, cell: float, shape: tuple[int, int], center_xy: FloatArray,
-    half_x: FloatArray, half_y: FloatArray, yaw: FloatArray,
+    origin: FloatArray, cell: float | FloatArray, shape: tuple[int, int] | tuple[IntArray, IntArray],
+    center_xy: FloatArray, half_x: FloatArray, half_y: FloatArray, yaw: FloatArray,
 ) -> tuple[IntArray, IntArray, IntArray]:
     """Cells of a grid overlapped by oriented rectangles.
 
     The grid has cell ``[0, 0]`` centred at ``origin`` ``(2,)``; rectangles have centres
     ``(n, 2)``, half extents ``(n,)`` and yaw ``(n,)``. Returns ``(box, row, col)`` index
     arrays of every overlapping (rectangle, cell) pair, vectorised over all rectangles.
+
+    Each rectangle may have its own grid: ``origin`` ``(n, 2)``, ``cell`` ``(n,)`` and
+    ``shape`` a pair of ``(n,)`` arrays (the same arithmetic per rectangle as with one grid).
     """
-    ny, nx = shape
     n = center_xy.shape[0]
     if n == 0:
         empty = np.zeros(0, dtype=np.intp)
         return empty, empty, empty
+    org = np.asarray(origin, dtype=np.float64)
+    per_box = org.ndim == 2
+    ny = np.asarray(shape[0])
+    nx = np.asarray(shape[1])
     acos = np.abs(np.cos(yaw))
     asin = np.abs(np.sin(yaw))
     ex = half_x * acos + half_y * asin
     ey = half_x * asin + half_y * acos
-    fx = (center_xy[:, 0] - origin[0]) / cell
-    fy = (center_xy[:, 1] - origin[1]) / cell
+    fx = (center_xy[:, 0] - org[..., 0]) / cell
+    fy = (center_xy[:, 1] - org[..., 1]) / cell
     j0 = np.maximum(np.floor(fx - ex / cell - 0.5).astype(np.intp), 0)
     j1 = np.minimum(np.ceil(fx + ex / cell + 0.5).astype(np.intp), nx - 1)
     i0 = np.maximum(np.floor(fy - ey / cell - 0.5).astype(np.intp), 0)
@@ -320,8 +380,13 @@ def raster_boxes(
     local = np.arange(box.size, dtype=np.intp) - start[box]
     col = j0[box] + local % np.maximum(wcols[box], 1)
     row = i0[box] + local // np.maximum(wcols[box], 1)
-    cxy = np.stack([origin[0] + col * cell, origin[1] + row * cell], axis=1)
-    hit = _box_overlaps_cells(cxy, cell, center_xy[box], half_x[box], half_y[box], yaw[box])
+    if per_box:
+        cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
+        cxy = np.stack([org[box, 0] + col * cl, org[box, 1] + row * cl], axis=1)
+        hit = _box_overlaps_cells(cxy, cl, center_xy[box], half_x[box], half_y[box], yaw[box])
+    else:
+        cxy = np.stack([org[0] + col * cell, org[1] + row * cell], axis=1)
+        hit = _box_overlaps_cells(cxy, cell, center_xy[box], half_x[box], half_y[box], yaw[box])
     return box[hit], row[hit], col[hit]
 
 

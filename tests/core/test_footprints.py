@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import replace
@@ -13,7 +14,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.core.footprints import Couple, PlannerParams, legs_cross, plan_footstep
+from procloco_addon.core.footprints import (
+    Couple,
+    FootRequest,
+    PlannerParams,
+    legs_cross,
+    plan_footstep,
+    plan_footsteps,
+)
 from procloco_addon.core.pathing import clearance_profile, wavefront
 from procloco_addon.core.terrain import (
     ROLE_AVOID,
@@ -183,7 +191,7 @@ def random_scene(seed: int) -> tuple[Environment, WindowGrids, np.random.Generat
               np.column_stack([rng.uniform(0.05, 0.3, (n, 2)), rng.uniform(0.02, 0.35, n)]),
               rng.uniform(0, np.pi, n), rng.choice([ROLE_STEP_OVER, ROLE_AVOID], n, p=[0.7, 0.3]),
               np.zeros(n, dtype=bool))
-    env = Environment(hm, b)
+    env = Environment(hm, b, tile_cells=48)  # tiles are a cache: small ones for a small window
     return env, env.window(np.array([0.2, 0.0]), WP), rng
 
 
@@ -335,3 +343,71 @@ def test_legs_cross_is_a_proper_segment_intersection() -> None:
     # Sharing the hip point is not a crossing.
     assert not legs_cross(hip, feet[:1], np.zeros((1, 2)), np.array([[1.0, -1.0]]))[0]
     assert legs_cross(hip, feet, np.zeros((0, 2)), np.zeros((0, 2))).tolist() == [False, False, False]
+
+
+def _same_couple(a: Couple, b: Couple) -> None:
+    """Bit for bit the same answer."""
+    assert a.ok == b.ok
+    assert a.message == b.message
+    assert np.array_equal(a.footprint, b.footprint)
+    for name in ("score", "target_score", "path_score", "n_couples", "n_paths", "n_targets", "n_wavefronts",
+                 "wavefront_iterations", "first_valid_couple", "n_couples_after_first", "slice_level",
+                 "target_index"):
+        assert getattr(a, name) == getattr(b, name), name
+    if a.trajectory is None or b.trajectory is None:
+        assert a.trajectory is None
+        assert b.trajectory is None
+        return
+    for name in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d"):
+        assert np.array_equal(getattr(a.trajectory, name), getattr(b.trajectory, name)), name
+    assert a.trajectory.length == b.trajectory.length
+    assert a.trajectory.length_2d == b.trajectory.length_2d
+
+
+@functools.cache
+def _crate_window() -> WindowGrids:
+    return window([(0.0, 0.0, 0.3, 0.3, 0.15, ROLE_AVOID)])
+
+
+#: Planner settings the feet of one batch are given in turn: each LOD of thesis §3.7 and every
+#: switch of the search.
+BATCH_SETTINGS = [
+    P,
+    replace(P, max_couples_after_first=0, slice_size=None),
+    replace(P, max_couples_after_first=1, slice_size=0.15),
+    replace(P, slice_size=0.05, foot_half_extents=(0.05, 0.02)),
+    replace(P, exhaustive=True, candidate_radius=0.1),
+    replace(P, shared_wavefront=False, candidate_radius=0.1),
+    replace(P, los_shortcut=False, candidate_radius=0.15),
+    replace(P, max_targets=3, candidate_radius=0.3),
+]
+
+
+@given(st.integers(0, 100_000))
+def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    scenes = [random_scene(seed), random_scene(seed + 1)]
+    requests = []
+    for i in range(6):
+        env, w, _ = scenes[i % 2]
+        foot = random_foot(env, w, rng)
+        if foot is None:
+            continue
+        start, pref, hip, oh, of = foot
+        params = BATCH_SETTINGS[int(rng.integers(len(BATCH_SETTINGS)))]
+        requests.append(FootRequest(w, start, pref, hip, oh, of, params, float(rng.uniform(-np.pi, np.pi))))
+    env, w, _ = scenes[0]
+    # Feet that cannot be planned, and a foot on an avoided crate (it may step off it).
+    for grids, start, pref in ((w, [np.nan, 0.0, 0.0], [0.3, 0.0]), (w, [50.0, 0.0, 0.0], [50.3, 0.0]),
+                               (_crate_window(), [0.0, 0.0, 0.15], [0.4, 0.0])):
+        requests.append(FootRequest(grids, np.array(start), np.array(pref), HIP, NO_LEGS, NO_LEGS, P))
+    order = rng.permutation(len(requests))
+    requests = [requests[i] for i in order]
+    batched = plan_footsteps(requests)
+    assert len(batched) == len(requests)
+    for rq, got in zip(requests, batched, strict=True):
+        alone = plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
+                              rq.other_feet_xy, rq.params, rq.foot_yaw)
+        _same_couple(got, alone)
+    assert any(c.ok for c in batched)
+    assert plan_footsteps([]) == []

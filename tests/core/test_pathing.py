@@ -17,17 +17,28 @@ from procloco_addon.core.pathing import (
     MOVE_LENGTH,
     MOVES,
     FootTrajectory,
+    PathContext,
     PathParams,
+    _hull_knots_increasing,
+    _hull_waypoints,
+    _turning,
     build_path,
     clearance_profile,
     descend,
     height_profile,
+    lift_each,
     line_of_sight_reduce,
     octile_field,
+    region_frame,
+    region_masks,
+    search_region,
     segments_clear,
+    segments_clear_each,
     supercover_cells,
     trajectory_valid,
+    turning_each,
     wavefront,
+    wavefront_each,
 )
 from procloco_addon.core.terrain import (
     ROLE_AVOID,
@@ -340,3 +351,120 @@ def test_one_segment_and_batched_line_of_sight_agree(seed: int, on_lattice: bool
     batched = segments_clear(blocked, a, ends[1:])
     single = [segments_clear(blocked, a, e[None, :])[0] for e in ends[1:]]
     assert batched.tolist() == single
+
+
+@given(st.integers(0, 100_000))
+def test_many_wavefronts_at_once_equal_one_at_a_time(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    shapes = [(int(rng.integers(3, 15)), int(rng.integers(3, 15))) for _ in range(4)]
+    hh = max(h for h, _ in shapes)
+    ww = max(w for _, w in shapes)
+    free = np.zeros((4, hh, ww), dtype=bool)
+    sources = []
+    for i, (h, w) in enumerate(shapes):
+        free[i, :h, :w] = rng.random((h, w)) > 0.3
+        sources.append((int(rng.integers(h)), int(rng.integers(w))))
+    for i, got in enumerate(wavefront_each(free, sources, shapes)):
+        h, w = shapes[i]
+        alone = wavefront(free[i, :h, :w], sources[i])
+        assert np.array_equal(got.dist, alone.dist)  # bit for bit, not just close
+        assert np.array_equal(got.parent, alone.parent)
+        assert got.iterations == alone.iterations
+        assert got.source == alone.source
+
+
+@given(st.integers(0, 100_000))
+def test_line_of_sight_on_many_grids_equals_one_grid_at_a_time(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    blocked = rng.random((3, 12, 12)) < 0.12
+    shape = np.array([[12, 12], [9, 12], [12, 7]])
+    blocked[1, 9:] = True  # past a grid's own size: outside
+    blocked[2, :, 7:] = True
+    which = rng.integers(0, 3, 10)
+    a = rng.uniform(-1.0, 12.0, (10, 2))
+    b = rng.uniform(-1.0, 12.0, (10, 2))
+    got = segments_clear_each(blocked, which, shape[which], a, b)
+    for i in range(10):
+        h, w = shape[which[i]]
+        assert got[i] == segments_clear(blocked[which[i], :h, :w], a[i], b[i][None, :])[0]
+
+
+@given(st.integers(0, 100_000))
+def test_search_rectangles_at_once_equal_one_at_a_time(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    frames, regions = [], []
+    for _ in range(5):
+        a, b = rng.uniform(-5.0, 45.0, 2), rng.uniform(-5.0, 45.0, 2)
+        half, end, back = rng.uniform(1.0, 8.0), rng.uniform(0.0, 5.0), rng.uniform(0.0, 3.0)
+        frame = region_frame((40, 40), a[0], a[1], b[0], b[1], half, end, back)
+        one = search_region((40, 40), a, b, half, end, back)
+        if frame is None:
+            assert one.mask.size == 0
+            continue
+        frames.append(frame)
+        regions.append(one)
+    if not frames:
+        return
+    arr = np.array(frames)
+    masks = region_masks(arr, int(arr[:, 2].max()), int(arr[:, 3].max()))
+    for frame, one, mask in zip(frames, regions, masks, strict=True):
+        assert (one.r0, one.c0) == frame[:2]
+        assert np.array_equal(mask[: frame[2], : frame[3]], one.mask)
+        assert not mask[frame[2] :].any()
+        assert not mask[:, frame[3] :].any()
+
+
+@given(st.integers(0, 100_000))
+def test_lifting_many_plans_at_once_equals_lifting_each(seed: int) -> None:
+    env, w = random_window(seed)
+    rng = np.random.default_rng(seed + 3)
+    core, dilated = w.obstacle_map()
+    paths, ctxs, tz = [], [], []
+    for _ in range(6):
+        s_xy = rng.uniform(-0.8, 0.8, 2)
+        if (core | dilated)[tuple(w.cell_of(s_xy))]:
+            continue
+        start = np.array([s_xy[0], s_xy[1], env.height_at(s_xy[None, :])[0]])
+        t_rc = np.rint(w.rowcol(s_xy + rng.uniform(-0.5, 0.5, 2)))
+        region = search_region(w.shape, w.rowcol(s_xy), t_rc, 0.4 / w.cell, 3.0)
+        ctx = PathContext(w, start, region, None, w.foot_half_extents, 0.0, PathParams(step_height=0.08))
+        cell = (int(t_rc[0]) - region.r0, int(t_rc[1]) - region.c0)
+        if not (0 <= cell[0] < region.shape[0] and 0 <= cell[1] < region.shape[1]):
+            continue
+        path = ctx.path_2d(float(rng.choice([np.inf, start[2] + 0.1])), cell)
+        if path is None or path.length <= 1e-9:
+            continue
+        paths.append(path)
+        ctxs.append(ctx)
+        tz.append(float(ctx.land_height(np.array([cell]))[0]))
+    if not paths:
+        return
+    bounds = [0, *itertools.accumulate(p.samples.shape[0] for p in paths)]
+    ground = np.concatenate([c._clear_at(p.samples) for c, p in zip(ctxs, paths, strict=True)])
+    samples = np.concatenate([p.samples for p in paths])
+    ramps = [min(c.ramp, 0.5 * p.length) for c, p in zip(ctxs, paths, strict=True)]
+    arcs = np.concatenate([p.arc for p in paths])
+    z0 = [float(c.start[2]) for c in ctxs]
+    gaps = [c.params.min_waypoint_gap * w.cell for c in ctxs]
+    got = lift_each(samples, arcs, bounds, ground, [p.length for p in paths], z0, tz,
+                    [c.params.step_height for c in ctxs], ramps, gaps, [p.waypoints for p in paths])
+    for c, p, z, traj in zip(ctxs, paths, tz, got, strict=True):
+        alone = c.lift(p, z)
+        for name in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d"):
+            assert np.array_equal(getattr(traj, name), getattr(alone, name)), name
+        assert traj.length == alone.length
+    # The turning of every plan too.
+    assert turning_each(samples, bounds) == [_turning(p.samples) for p in paths]
+
+
+@given(st.integers(0, 100_000))
+def test_plain_python_hull_waypoints_equal_the_numpy_ones(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 60))
+    s = np.sort(rng.uniform(0.0, 1.0, n))
+    s = s[np.concatenate([[True], np.diff(s) > 0])]
+    # Clearance-like profiles: flat runs and linear ramps (collinear points) plus bumps.
+    steps = np.repeat(rng.uniform(0, 0.2, s.size // 3 + 1), 3)[: s.size]
+    z = np.minimum(np.minimum(s, s[-1] - s) * 2.0, 0.1) + steps
+    gap = float(rng.choice([0.0, 0.02, 0.1]))
+    assert _hull_knots_increasing(s.tolist(), z.tolist(), gap) == _hull_waypoints(s, z, gap).tolist()

@@ -19,7 +19,10 @@ from procloco_addon.core.terrain import (
     TriangleSoup,
     WindowParams,
     dilate,
+    dilate_each,
     foot_kernel,
+    foot_kernels,
+    raster_boxes,
 )
 
 SMALL = WindowParams(n_cells=30, cell=0.07, foot_half_extents=(0.03, 0.03))
@@ -259,3 +262,50 @@ def test_bad_inputs_are_refused() -> None:
         TriangleSoup(np.zeros((3, 3)), np.array([[0, 1, 3]]))
     with pytest.raises(ValueError, match="n_cells"):
         WindowParams(n_cells=2)
+
+
+@given(st.integers(0, 100_000))
+def test_foot_kernels_of_many_feet_equal_one_at_a_time(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = 6
+    cell = rng.choice([0.05, 0.07, 0.1], n)
+    hx, hy = rng.uniform(0.0, 0.15, n), rng.uniform(0.0, 0.08, n)
+    yaw = rng.uniform(-np.pi, np.pi, n)
+    for anywhere in (True, False):
+        offsets, member = foot_kernels(cell, hx, hy, yaw, anywhere)
+        for i in range(n):
+            one = foot_kernel(float(cell[i]), (float(hx[i]), float(hy[i])), float(yaw[i]), anywhere)
+            assert {tuple(c) for c in offsets[member[i]].tolist()} == {tuple(c) for c in one.tolist()}
+
+
+@given(st.integers(0, 100_000))
+def test_dilating_many_masks_each_with_its_kernel_equals_one_at_a_time(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    masks = rng.random((5, 9, 11)) < 0.1
+    offsets, member = foot_kernels(np.full(5, 0.07), np.array([0.03, 0.03, 0.1, 0.0, 0.06]), np.full(5, 0.03),
+                                   rng.uniform(-np.pi, np.pi, 5), True)
+    got = dilate_each(masks, offsets, member)
+    for i in range(5):
+        assert np.array_equal(got[i], dilate(masks[i], offsets[member[i]]))
+    # One kernel for a stack: each mask dilated alone.
+    stacked = dilate(masks, foot_kernel(0.07, (0.1, 0.02), 0.4))
+    one = foot_kernel(0.07, (0.1, 0.02), 0.4)
+    assert all(np.array_equal(stacked[i], dilate(masks[i], one)) for i in range(5))
+
+
+def test_boxes_rasterised_each_on_its_own_grid_equal_one_grid_at_a_time() -> None:
+    rng = np.random.default_rng(4)
+    n = 12
+    origin = rng.uniform(-1.0, 1.0, (n, 2))
+    cell = rng.choice([0.05, 0.07], n)
+    ny, nx = rng.integers(10, 30, n), rng.integers(10, 30, n)
+    centre = origin + rng.uniform(-0.2, 1.2, (n, 2))
+    hx, hy, yaw = rng.uniform(0.02, 0.3, n), rng.uniform(0.02, 0.3, n), rng.uniform(-np.pi, np.pi, n)
+    box, row, col = raster_boxes(origin, cell, (ny, nx), centre, hx, hy, yaw)
+    assert box.size
+    for i in range(n):
+        one = slice(i, i + 1)
+        grid = (int(ny[i]), int(nx[i]))
+        _, r, c = raster_boxes(origin[i], float(cell[i]), grid, centre[one], hx[one], hy[one], yaw[one])
+        assert sorted(zip(row[box == i].tolist(), col[box == i].tolist(), strict=True)) == sorted(
+            zip(r.tolist(), c.tolist(), strict=True))
