@@ -290,8 +290,8 @@ def test_zero_length_bone_is_refused(empty_scene: Any) -> None:
     bpy.ops.object.mode_set(mode="EDIT")
     handle = arm.edit_bones.new("Handle")
     handle.head, handle.tail = (0, 0, 1), (0, 0, 0.5)
-    dot = arm.edit_bones.new("Dot")  # Blender keeps it, a few micrometres long
-    dot.head, dot.tail = (0, 0, 0.5), (0, 0, 0.5)
+    dot = arm.edit_bones.new("Dot")  # 20 µm: as good as zero next to a 0.5 m handle
+    dot.head, dot.tail = (0, 0, 0.5), (0, 0, 0.49998)
     dot.parent = handle
     bpy.ops.object.mode_set(mode="OBJECT")
     chain = obj.procloco_secondary.chains.add()
