@@ -14,9 +14,10 @@ What perturbs a pendulum:
 - its anchor changing velocity. The root anchor moves with the body (the whole motion
   counts); an inner pendulum's anchor is its father's tip, and only the part of that
   motion that is not in the animation counts (father pursuit, thesis §5.3.1);
-- explicit impulses: a mass displaced in world space. The displacement drags the
-  ancestors toward it, bottom-up (son pursuit, thesis §5.3.2) and the children follow in
-  the top-down pass.
+- explicit impulses (:class:`Impulses`): a mass displaced in world space. The displacement
+  drags the ancestors toward it, bottom-up (son pursuit, thesis §5.3.2; a father sums,
+  averages or weighs its sons' pulls, ``combine``) and the children follow in the top-down
+  pass.
 
 Design choices, and where they depart from the thesis:
 
@@ -39,10 +40,23 @@ Design choices, and where they depart from the thesis:
   part of the anchor's displacement that its previous velocity does not explain
   (the second difference of its position). Constant-velocity motion leaves the chain
   as animated; starts, stops, bobbing and turns make it swing.
+- *Sons push back (``reaction``, default on).* In the thesis a son follows its father but
+  never acts on it. One-way coupling cannot hand energy back: a pendulum shaken below its
+  resonance swings wider than its pivot, so a lightly damped chain shaken near its
+  frequency amplifies link after link (an 8-bar tail shaken by 1 cm whirls round). Here a
+  father also feels its sons' spring forces; linearised, the two passes are then exactly
+  the dynamics of point masses on rods. A chain's slowest swing is slower than one bar's,
+  so each tree is stiffened to give that swing the requested frequency (see
+  ``_tree_modes``): a single bar settles exactly at Ts, a chain within about 1-4 Ts.
+  ``reaction=False`` gives the thesis's one-way scheme.
+- *Swing limit.* A bar stops at :data:`MAX_SWING` (170°) from its target and errors are
+  kept continuous across the upside-down direction, so a violent start cannot spin a
+  chain round or blow the simulation up.
 - *Fixed internal rate.* The springs are integrated with a damped Störmer-Verlet step at
-  ``rate_hz`` (default 240 Hz, raised automatically for very stiff springs) whatever the
-  animation's frame rate; the animation is interpolated between its samples and the
-  pendulum errors are interpolated back at the sample times.
+  ``rate_hz`` (default 120 Hz, doubled automatically for stiff springs and stiffened
+  trees) whatever the animation's frame rate; the animation is interpolated between its
+  samples (heads by cubic Hermite, frames by normalised blend) and the pendulum errors are
+  interpolated back at the sample times.
 - *Vectorised.* All pendulums of all trees of all characters are one flat array, sorted
   by depth; each pass is a loop over depth levels, and every level is one numpy
   operation over all pendulums at that depth.
