@@ -458,7 +458,8 @@ def test_violent_input_stays_bounded(reaction: bool) -> None:
     """An anchor that jumps to full speed and teleports, and tips kicked every step: the bars
     stop at the swing limit instead of whirling, and nothing blows up."""
     parent = [-1, 0, 1, 2, 3, 4, -1, 6, 7, 6, 9]
-    forest = P.PendulumForest(parent, [0.08] * 6 + [0.05, 0.06, 0.06, 0.06, 0.06], 0.6, 0.35, reaction=reaction)
+    lengths = [0.08] * 6 + [0.05, 0.06, 0.06, 0.06, 0.06]
+    forest = P.PendulumForest(parent, lengths, 0.6, 0.35, reaction=reaction)
     sim = P.PendulumSimulator(forest)
     heads, frames = _hanging(1, parent, 0.06)
     sim.reset(heads[0], frames[0])
