@@ -292,6 +292,7 @@ def _random_tree(draw: st.DrawFn) -> list[int]:
     return [-1] + [draw(st.integers(-1, i - 1)) for i in range(1, n)]
 
 
+@pytest.mark.slow
 @settings(max_examples=20)
 @given(data=st.data())
 def test_pendulum_order_never_changes_results(data: st.DataObject) -> None:
@@ -319,6 +320,7 @@ def test_pendulum_order_never_changes_results(data: st.DataObject) -> None:
     assert np.allclose(a.rotation, again.rotation, rtol=0.0, atol=1e-6)
 
 
+@pytest.mark.slow
 @settings(max_examples=20)
 @given(
     seed=st.integers(0, 2**31 - 1),
