@@ -85,7 +85,9 @@ def keyframe_insert_write(job: generate.Job, obj: bpy.types.Object) -> tuple[flo
     channels keyed in bulk and keyed by per-frame ``keyframe_insert``. Returns the three times."""
     t0 = time.perf_counter()
     body, joints = simulation.world_tracks(job)
-    tracks = rig.solve_pose(job.info, body, joints, ground=simulation.ground_function(job))
+    leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
+    tracks = rig.solve_pose(job.info, body, joints, ground=simulation.ground_function(job),
+                            spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames)
     t1 = time.perf_counter()
     bulk = actions.new_action(obj, "Bulk")
     frames = job.frames.astype(np.float64)
