@@ -23,7 +23,8 @@ def _bpy_scripts_dir() -> Path:
     import importlib.util
 
     spec = importlib.util.find_spec("bpy")
-    assert spec is not None and spec.submodule_search_locations
+    assert spec is not None
+    assert spec.submodule_search_locations
     bpy_dir = Path(next(iter(spec.submodule_search_locations)))
     found = sorted(bpy_dir.glob("*/scripts"))
     assert found, "bpy wheel without a scripts folder"
@@ -129,8 +130,8 @@ def test_zip_installs_registers_and_uninstalls(built_zip: Path, tmp_path: Path) 
     classes, pointers, reg = registered_state(pkg)
     assert classes and all(classes.values()), classes
     assert pointers and all(pointers.values()), pointers
-    bpy.ops.extensions.package_uninstall(repo_index=[r.module for r in bpy.context.preferences.extensions.repos]
-                                         .index("user_default"), pkg_id="procloco")
+    repos = [r.module for r in bpy.context.preferences.extensions.repos]
+    bpy.ops.extensions.package_uninstall(repo_index=repos.index("user_default"), pkg_id="procloco")
     left = [c.__name__ for c in reg.CLASSES if c.is_registered or hasattr(bpy.types, c.__name__)]
     left += [f"{{o.__name__}}.{{a}}" for o, a, _ in reg.POINTERS if hasattr(o, a)]
     assert left == [], left

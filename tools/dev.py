@@ -57,7 +57,8 @@ def ensure_venv(blender: str) -> Path:
 def blender_ext_script(python: Path) -> Path:
     """The ``blender_ext.py`` command-line tool shipped inside the bpy wheel."""
     out = subprocess.run(
-        [str(python), "-c", "import importlib.util as u; print(u.find_spec('bpy').submodule_search_locations[0])"],
+        [str(python), "-c",
+         "import importlib.util as u; print(u.find_spec('bpy').submodule_search_locations[0])"],
         check=True, capture_output=True, text=True,
     )
     bpy_dir = Path(out.stdout.strip())
@@ -69,7 +70,7 @@ def blender_ext_script(python: Path) -> Path:
 
 def run(cmd: list[str], **kw: object) -> int:
     print("[dev] $ " + " ".join(str(c) for c in cmd), flush=True)
-    return subprocess.run(cmd, cwd=ROOT, **kw).returncode  # type: ignore[call-overload, no-any-return]
+    return subprocess.run(cmd, cwd=ROOT, **kw).returncode  # type: ignore[call-overload]
 
 
 def cmd_lint(python: Path) -> int:
@@ -98,7 +99,8 @@ def cmd_build(python: Path) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("command", choices=["example", "test", "build", "lint", "bench", "venv"])
     parser.add_argument("--blender", choices=sorted(VENV_DIRS), default="5.0",
                         help="which bpy wheel to run on (default 5.0)")
