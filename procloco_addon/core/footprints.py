@@ -50,6 +50,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .pathing import (
+    DistanceField,
     FootTrajectory,
     Path2D,
     PathContext,
@@ -72,6 +73,7 @@ from .terrain import (
     _box_overlaps_cells,
     _rect_offsets,
     dilate_each,
+    foot_kernel,
     foot_kernels,
     raster_boxes,
 )
@@ -216,19 +218,15 @@ def _legs_cross_each(
 ) -> BoolArray:
     """:func:`legs_cross` of ``m`` footprints, each against its own other legs: ``hip_xy``,
     ``foot_xy`` ``(m, 2)``, ``other_hips``, ``other_feet`` ``(m, j, 2)`` of which ``valid``
-    ``(m, j)`` are real. Returns ``(m,)``."""
-    p = hip_xy[:, None, :]
-    r = (foot_xy - hip_xy)[:, None, :]
-    q = other_hips
-    s = other_feet - other_hips
-
-    def cross(a: FloatArray, b: FloatArray) -> FloatArray:
-        return np.asarray(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
-
-    d1 = cross(r, q - p)
-    d2 = cross(r, q + s - p)
-    d3 = cross(s, p - q)
-    d4 = cross(s, p + r - q)
+    ``(m, j)`` are real. Returns ``(m,)``. The same arithmetic, one coordinate at a time."""
+    px, py = hip_xy[:, 0, None], hip_xy[:, 1, None]
+    rx, ry = foot_xy[:, 0, None] - px, foot_xy[:, 1, None] - py
+    qx, qy = other_hips[..., 0], other_hips[..., 1]
+    sx, sy = other_feet[..., 0] - qx, other_feet[..., 1] - qy
+    d1: FloatArray = rx * (qy - py) - ry * (qx - px)
+    d2: FloatArray = rx * (qy + sy - py) - ry * (qx + sx - px)
+    d3: FloatArray = sx * (py - qy) - sy * (px - qx)
+    d4: FloatArray = sx * (py + ry - qy) - sy * (px + rx - qx)
     eps = 1e-12
     hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
         ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
@@ -490,24 +488,68 @@ class _Search:
 #: Samples, arc lengths, length, world waypoints and box cells (rows, cols; None: not
 #: computed yet) of a 2D plan to lift.
 _LiftSource = tuple[FloatArray, FloatArray, float, FloatArray, IntArray | None, IntArray | None]
+_Maps = tuple[BoolArray, BoolArray, BoolArray]
+
+
+@dataclass
+class _Cands:
+    """The candidates of every plan of a batch, best first within each plan, one plan after
+    the other: plan ``k`` owns rows ``bounds[k]:bounds[k + 1]``; ``score`` and ``cells`` also
+    as Python lists for the search's bookkeeping."""
+
+    xy: FloatArray
+    cells: IntArray
+    z: FloatArray
+    score: FloatArray
+    bounds: list[int]
+    n_valid: list[int]
+    score_list: list[float]
+    cell_list: list[list[int]]
 
 
 class _Foot:
-    """One foot in the batch: its request, candidates, levels, path context and search."""
+    """One foot in the batch: where its candidates are, its levels, caches and search."""
 
-    __slots__ = ("cand", "ctx", "k", "levels", "n_targets", "order", "padded", "plan", "st")
+    __slots__ = (
+        "base",
+        "budget",
+        "ctx",
+        "exhaustive",
+        "fields",
+        "k",
+        "levels",
+        "maps",
+        "n_targets",
+        "order",
+        "padded",
+        "per_target",
+        "plan",
+        "shortcut",
+        "st",
+        "start_cell",
+        "start_inside",
+    )
 
-    def __init__(self, plan: _Plan, k: int, cand: Candidates, order: list[int], n_targets: int,
-                 levels: list[float], ctx: PathContext) -> None:
+    def __init__(self, plan: _Plan, k: int, base: int, order: list[int], n_targets: int, levels: list[float],
+                 start_cell: tuple[int, int], start_inside: bool) -> None:
         self.plan = plan
         self.k = k
-        self.cand = cand
+        self.base = base
         self.order = order
         self.n_targets = n_targets
         self.levels = levels
-        self.ctx = ctx
+        self.start_cell = start_cell
+        self.start_inside = start_inside
+        prm = plan.params
+        self.exhaustive = prm.exhaustive
+        self.budget = None if prm.exhaustive else prm.max_couples_after_first
+        self.per_target = not prm.shared_wavefront
+        self.shortcut = prm.los_shortcut
         self.st = _Search()
+        self.maps: dict[float, _Maps] = {}
+        self.fields: dict[tuple[float, int, int], DistanceField] = {}
         self.padded: dict[float, BoolArray] = {}  # blocked maps as (H, W) rows, for batches
+        self.ctx: PathContext | None = None
 
 
 class _Batch:
@@ -621,27 +663,46 @@ class _Batch:
             vals = np.where(sel[plan], vals, -np.inf)
         return np.asarray(vals.max(axis=1))
 
-    def contexts(self, keep: list[int]) -> list[PathContext]:
-        """Path contexts of plans ``keep`` (their maps without slice already in)."""
-        sel = np.asarray(keep)
-        land_off, land_in = foot_kernels(self.cell[sel], self.half_x[sel], self.half_y[sel], self.yaw[sel],
-                                         anywhere_in_cell=False)
-        blocked_inf = (self.grown_inf[keep] | self.outside[keep]) & ~self.liftoff[keep]
-        out = []
-        for i, k in enumerate(keep):
-            p = self.plans[k]
+    def path_context(self, f: _Foot) -> PathContext:
+        """The foot's :class:`PathContext` (made on first use; it shares the foot's caches)."""
+        if f.ctx is None:
+            k = f.k
+            p = f.plan
             h, w = int(self.hh[k]), int(self.ww[k])
-            c_k = self.core[k, :h, :w]
-            maps = {math.inf: (c_k, self.grown_inf[k, :h, :w] & ~c_k, blocked_inf[i, :h, :w])}
             path_params = PathParams(step_height=p.params.step_height, tension=p.params.tension,
                                      los_shortcut=p.params.los_shortcut)
             region = Region(int(self.r0[k]), int(self.c0[k]), self.mask[k, :h, :w])
-            ctx = PathContext.from_parts(p.grids, p.start, region, path_params, not p.params.shared_wavefront,
-                                         self.sweep_off[self.sweep_in[k]], land_off[land_in[i]],
-                                         self.elev[k, :h, :w], c_k, self.start_rc[k], self.liftoff[k, :h, :w],
-                                         maps)
-            out.append(ctx)
-        self.blocked_inf_rows = {k: blocked_inf[i] for i, k in enumerate(keep)}
+            land = foot_kernel(p.cell, p.half, p.yaw, anywhere_in_cell=False)
+            f.ctx = PathContext.from_parts(p.grids, p.start, region, path_params, f.per_target,
+                                           self.sweep_off[self.sweep_in[k]], land, self.elev[k, :h, :w],
+                                           self.core[k, :h, :w], self.start_rc[k], self.liftoff[k, :h, :w],
+                                           f.maps, f.fields)
+        return f.ctx
+
+    def feet(self, cands: _Cands, levels: list[list[float]]) -> dict[int, _Foot]:
+        """The feet with candidates, their maps without slice in."""
+        keep = [k for k in range(len(self.plans)) if cands.n_valid[k] > 0]
+        if not keep:
+            return {}
+        sel = np.asarray(keep)
+        core = self.core[sel]
+        grown = self.grown_inf[sel]
+        blocked = (grown | self.outside[sel]) & ~self.liftoff[sel]
+        dil = grown & ~core
+        sc = np.rint(self.start_rc[sel]).astype(np.intp).tolist()
+        inside = self.start_inside[sel].tolist()
+        out = {}
+        for i, k in enumerate(keep):
+            p = self.plans[k]
+            n_targets = cands.n_valid[k]
+            order = list(range(n_targets))
+            if p.params.max_targets is not None:
+                order = order[: p.params.max_targets]
+            f = _Foot(p, k, cands.bounds[k], order, n_targets, levels[k], (sc[i][0], sc[i][1]), inside[i])
+            h, w = int(self.hh[k]), int(self.ww[k])
+            f.maps[math.inf] = (core[i, :h, :w], dil[i, :h, :w], blocked[i, :h, :w])
+            f.padded[math.inf] = blocked[i]
+            out[k] = f
         return out
 
     def add_maps(self, feet: list[_Foot], levels: list[float]) -> None:
@@ -654,68 +715,65 @@ class _Batch:
         dil = grown & ~core
         for i, (f, level) in enumerate(zip(feet, levels, strict=True)):
             h, w = int(self.hh[f.k]), int(self.ww[f.k])
-            f.ctx._blocked[level] = (core[i, :h, :w], dil[i, :h, :w], blocked[i, :h, :w])
+            f.maps[level] = (core[i, :h, :w], dil[i, :h, :w], blocked[i, :h, :w])
             f.padded[level] = blocked[i]
 
     def blocked_row(self, f: _Foot, level: float) -> BoolArray:
+        """The foot's blocked map at ``level`` padded to the batch's box size."""
         row = f.padded.get(level)
-        if row is None:
-            row = self.blocked_inf_rows[f.k] if math.isinf(level) else None
-            if row is None:  # computed one by one by the context: pad it
-                row = np.ones(self.mask.shape[1:], dtype=bool)
-                b = f.ctx._blocked[level][2]
-                row[: b.shape[0], : b.shape[1]] = b
+        if row is None:  # computed one by one by the context: pad it
+            row = np.ones(self.mask.shape[1:], dtype=bool)
+            b = f.maps[level][2]
+            row[: b.shape[0], : b.shape[1]] = b
             f.padded[level] = row
         return row
 
 
-def _next_couple(f: _Foot, exhaustive: bool) -> tuple[str, float]:
-    """Advance ``f``'s search over couples that need no batch work (no plan from the start
-    cell, target cell blocked or known unreachable at that slice); returns what the next
-    couple needs: ``("maps", level)``, ``("eval", level)`` or ``("end", 0)``."""
+def _next_couple(f: _Foot, cands: _Cands) -> tuple[str, float]:
+    """Advance ``f``'s search over couples that need no batch work (no plan from outside the
+    search box, target cell blocked or known unreachable at that slice); returns what the
+    next couple needs: ``("maps", level)``, ``("eval", level)`` or ``("end", 0)``."""
     st = f.st
-    ctx = f.ctx
-    cand = f.cand
     order = f.order
     levels = f.levels
+    scores = cands.score_list
     while True:
         if st.done or st.pos >= len(order):
             return "end", 0.0
-        t = order[st.pos]
-        if (st.level_pos == 0 and not exhaustive and st.best is not None
-                and float(cand.score[t]) <= st.best_score):
+        t = f.base + order[st.pos]
+        if st.level_pos == 0 and not f.exhaustive and st.best is not None and scores[t] <= st.best_score:
             return "end", 0.0  # Appendix E: no couple with this target can beat the best one
-        if st.level_pos >= len(levels) or not ctx.start_inside:
+        if st.level_pos >= len(levels) or not f.start_inside:
             st.pos += 1
             st.level_pos = 0
             continue
         level = levels[st.level_pos]
-        maps = ctx._blocked.get(level)
+        maps = f.maps.get(level)
         if maps is None:
             return "maps", level
-        r, c = int(cand.cells[t, 0]), int(cand.cells[t, 1])
+        r, c = cands.cell_list[t]
         if maps[2][r, c]:
             st.level_pos += 1
             continue
-        if not ctx.per_target:
-            fld = ctx._fields.get((level, ctx.start_cell[0], ctx.start_cell[1]))
+        if not f.per_target:
+            fld = f.fields.get((level, f.start_cell[0], f.start_cell[1]))
             if fld is not None and not math.isfinite(fld.dist[r, c]):
                 st.level_pos += 1  # known unreachable at this slice
                 continue
         return "eval", level
 
 
-def _after_couple(f: _Foot, level: float, path_ok: bool, in_sight: bool, s2: float,
-                  traj: FootTrajectory | None, exhaustive: bool, budget: int | None) -> bool:
+def _after_couple(f: _Foot, cands: _Cands, level: float, path_ok: bool, in_sight: bool, s2: float,
+                  traj: FootTrajectory | None) -> bool:
     """Book one evaluated couple; ``traj`` is its 3D trajectory if it was built. Returns
     whether the caller must build the trajectory first (then call again with it)."""
     st = f.st
     t = f.order[st.pos]
-    t_score = float(f.cand.score[t])
+    t_score = cands.score_list[f.base + t]
     if not path_ok:
         st.level_pos += 1
         return False
-    if traj is None and (exhaustive or st.best is None or t_score * s2 > st.best_score):
+    if traj is None and (f.exhaustive or st.best is None or t_score * s2 > st.best_score):
         return True
     st.level_pos += 1
     st.n_couples += 1
@@ -730,7 +788,7 @@ def _after_couple(f: _Foot, level: float, path_ok: bool, in_sight: bool, s2: flo
                 st.first_valid = st.n_couples
             st.best = (t, s3, level, traj, score)
             st.best_score = score
-    if budget is not None and st.best is not None and st.after_first >= budget:
+    if f.budget is not None and st.best is not None and st.after_first >= f.budget:
         st.done = True
     elif in_sight:
         # A straight line clear at this slice is clear at every higher one: the same couple
@@ -802,7 +860,7 @@ def _straight_plans(
     return status, s2, samples, arc, length, bl, rows, cols, way
 
 
-def _run(batch: _Batch, feet: list[_Foot]) -> None:
+def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
     """The best-couple search of every foot (thesis §3.5.2, Appendix E), in rounds: each
     round evaluates the next couple of every foot still searching, the batchable parts
     (obstacle maps, line of sight, straight plans, wavefronts, 3D trajectories) for all of
@@ -814,7 +872,7 @@ def _run(batch: _Batch, feet: list[_Foot]) -> None:
         while pending:
             need: list[tuple[_Foot, float]] = []
             for f in pending:
-                kind, level = _next_couple(f, f.plan.params.exhaustive)
+                kind, level = _next_couple(f, cands)
                 if kind == "maps":
                     need.append((f, level))
                 elif kind == "eval":
@@ -826,10 +884,9 @@ def _run(batch: _Batch, feet: list[_Foot]) -> None:
             return
         m = len(evals)
         ks = np.array([f.k for f, _ in evals])
-        tgt = [f.order[f.st.pos] for f, _ in evals]
-        t_xy = np.array([f.cand.xy[t] for (f, _), t in zip(evals, tgt, strict=True)])
-        t_cell = [(int(f.cand.cells[t, 0]), int(f.cand.cells[t, 1]))
-                  for (f, _), t in zip(evals, tgt, strict=True)]
+        tgt = [f.base + f.order[f.st.pos] for f, _ in evals]
+        t_xy = cands.xy[tgt]
+        t_cell = [(cands.cell_list[t][0], cands.cell_list[t][1]) for t in tgt]
         cl = batch.cell[ks]
         org = batch.origin[ks]
         end_rc = np.column_stack([(t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
@@ -838,11 +895,10 @@ def _run(batch: _Batch, feet: list[_Foot]) -> None:
         start_rc = batch.start_rc[ks]
         shape = np.column_stack([batch.hh[ks], batch.ww[ks]])
         sight = segments_clear_each(blocked, np.arange(m), shape, start_rc, end_rc).tolist()
-        shortcut = [bool(sight[i]) and f.plan.params.los_shortcut for i, (f, _) in enumerate(evals)]
         # Plans: straight ones together, the others one by one (after their wavefronts).
         paths: list[Path2D | None] = [None] * m
         s2: list[float] = [0.0] * m
-        straight_i = [i for i in range(m) if shortcut[i]]
+        straight_i = [i for i in range(m) if sight[i] and evals[i][0].shortcut]
         lift_src: dict[int, _LiftSource] = {}
         if straight_i:
             si = np.asarray(straight_i)
@@ -855,13 +911,13 @@ def _run(batch: _Batch, feet: list[_Foot]) -> None:
                     lift_src[i] = (xy[a:b], arc[a:b], float(lens[j]), way[j], rows[a:b], cols[a:b])
                 elif status[j] == -1:
                     f, level = evals[i]
-                    paths[i] = f.ctx.plan_2d(level, t_cell[i], end_rc[i], True)
-        others = [i for i in range(m) if not shortcut[i]]
+                    paths[i] = batch.path_context(f).plan_2d(level, t_cell[i], end_rc[i], True)
+        others = [i for i in range(m) if not (sight[i] and evals[i][0].shortcut)]
         if others:
             _fields_for(batch, [(evals[i][0], evals[i][1], t_cell[i]) for i in others])
             for i in others:
                 f, level = evals[i]
-                paths[i] = f.ctx.plan_2d(level, t_cell[i], end_rc[i], bool(sight[i]))
+                paths[i] = batch.path_context(f).plan_2d(level, t_cell[i], end_rc[i], bool(sight[i]))
         for i in range(m):
             path = paths[i]
             if path is not None:
@@ -869,19 +925,14 @@ def _run(batch: _Batch, feet: list[_Foot]) -> None:
                 if path.length > 1e-9:
                     lift_src[i] = (path.samples, path.arc, float(path.length), path.waypoints, None, None)
         # Book every couple; build the 3D trajectories the search asks for, all at once.
-        lifts: list[int] = []
-        for i, (f, level) in enumerate(evals):
-            ok = i in lift_src or paths[i] is not None
-            prm = f.plan.params
-            budget = None if prm.exhaustive else prm.max_couples_after_first
-            if _after_couple(f, level, ok, sight[i], s2[i], None, prm.exhaustive, budget):
-                lifts.append(i)
-        trajs = _lift_all(batch, evals, lifts, lift_src, paths, tgt)
-        for i, traj in zip(lifts, trajs, strict=True):
-            f, level = evals[i]
-            prm = f.plan.params
-            budget = None if prm.exhaustive else prm.max_couples_after_first
-            _after_couple(f, level, True, sight[i], s2[i], traj, prm.exhaustive, budget)
+        made = [i in lift_src or paths[i] is not None for i in range(m)]
+        lifts = [i for i, (f, level) in enumerate(evals)
+                 if _after_couple(f, cands, level, made[i], sight[i], s2[i], None)]
+        if lifts:
+            target_z = cands.z[tgt].tolist()
+            for i, traj in zip(lifts, _lift_all(batch, evals, lifts, lift_src, paths, target_z), strict=True):
+                f, level = evals[i]
+                _after_couple(f, cands, level, True, sight[i], s2[i], traj)
         active = [f for f, _ in evals]
 
 
@@ -889,13 +940,11 @@ def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]
     """Grow the wavefronts that :meth:`PathContext.plan_2d` will ask for, all at once."""
     todo: list[tuple[_Foot, float, tuple[int, int]]] = []
     for f, level, t_cell in items:
-        ctx = f.ctx
-        src = t_cell if ctx.per_target else ctx.start_cell
-        if (level, src[0], src[1]) in ctx._fields:
+        src = t_cell if f.per_target else f.start_cell
+        if (level, src[0], src[1]) in f.fields:
             continue
-        blocked = ctx._blocked[level][2]
-        if not blocked.any():
-            ctx.field(level, src)  # closed form
+        if not f.maps[level][2].any():
+            batch.path_context(f).field(level, src)  # closed form
             continue
         todo.append((f, level, src))
     if not todo:
@@ -904,34 +953,31 @@ def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]
     shapes = [(int(batch.hh[f.k]), int(batch.ww[f.k])) for f, _, _ in todo]
     fields = wavefront_each(free, [src for _, _, src in todo], shapes)
     for (f, level, src), fld in zip(todo, fields, strict=True):
-        ctx = f.ctx
-        ctx._fields[(level, src[0], src[1])] = fld
+        ctx = batch.path_context(f)
+        f.fields[(level, src[0], src[1])] = fld
         ctx.n_wavefronts += 1
         ctx.wavefront_iterations += fld.iterations
 
 
 def _lift_all(
-    batch: _Batch, evals: list[tuple[_Foot, float]], lifts: list[int],
-    lift_src: dict[int, _LiftSource],
-    paths: list[Path2D | None], tgt: list[int],
+    batch: _Batch, evals: list[tuple[_Foot, float]], lifts: list[int], lift_src: dict[int, _LiftSource],
+    paths: list[Path2D | None], target_z: list[float],
 ) -> list[FootTrajectory]:
     """:meth:`PathContext.lift` of the couples ``lifts`` (indices into ``evals``)."""
     out: dict[int, FootTrajectory] = {}
     many = [i for i in lifts if i in lift_src]
     for i in lifts:
         if i not in lift_src:  # zero length: lift and put down on the spot
-            f, _ = evals[i]
             path = paths[i]
             assert path is not None
-            out[i] = f.ctx.lift(path, float(f.cand.z[tgt[i]]))
+            out[i] = batch.path_context(evals[i][0]).lift(path, target_z[i])
     if many:
         xy = np.concatenate([lift_src[i][0] for i in many])
         arc = np.concatenate([lift_src[i][1] for i in many])
         counts = [lift_src[i][0].shape[0] for i in many]
         bounds = [0, *itertools.accumulate(counts)]
         ks = np.array([evals[i][0].k for i in many])
-        owner = np.repeat(np.arange(len(many)), counts)
-        kp = ks[owner]
+        kp = np.repeat(ks, counts)
         if all(lift_src[i][4] is not None for i in many):
             rows = np.concatenate([lift_src[i][4] for i in many])
             cols = np.concatenate([lift_src[i][5] for i in many])
@@ -943,19 +989,22 @@ def _lift_all(
         ground = batch.max_under(kp, rows, cols, batch.sweep_off, batch.sweep_in)
         lens, z0, tz, step, ramp, gap, way = [], [], [], [], [], [], []
         for i in many:
-            f, _ = evals[i]
-            ctx = f.ctx
+            p = evals[i][0].plan
             length = lift_src[i][2]
             lens.append(length)
-            z0.append(float(ctx.start[2]))
-            tz.append(float(f.cand.z[tgt[i]]))
-            step.append(ctx.params.step_height)
-            ramp.append(min(ctx.ramp, 0.5 * length))
-            gap.append(ctx.params.min_waypoint_gap * ctx.grids.cell)
+            z0.append(float(p.start[2]))
+            tz.append(target_z[i])
+            step.append(p.params.step_height)
+            # PathContext.ramp (the default PathParams) and its minimum waypoint gap.
+            ramp.append(min(max(p.params.step_height, 2.0 * p.cell), 0.5 * length))
+            gap.append(_PATH_DEFAULTS.min_waypoint_gap * p.cell)
             way.append(lift_src[i][3])
         trajs = lift_each(xy, arc, bounds, ground, lens, z0, tz, step, ramp, gap, way)
         out.update(zip(many, trajs, strict=True))
     return [out[i] for i in lifts]
+
+
+_PATH_DEFAULTS = PathParams()
 
 
 def plan_footsteps(requests: Sequence[FootRequest]) -> list[Couple]:
@@ -989,15 +1038,11 @@ def plan_footsteps(requests: Sequence[FootRequest]) -> list[Couple]:
 
 def _plan_batch(plans: list[_Plan]) -> list[Couple]:
     batch = _Batch(plans)
-    cand_all = _score_all(plans, batch)
+    cands = _score_all(plans, batch)
     levels = _levels_all(plans, batch.mask, batch.elev)
-    keep = [k for k in range(len(plans)) if cand_all[k][2] > 0]
-    feet: dict[int, _Foot] = {}
-    if keep:
-        for k, ctx in zip(keep, batch.contexts(keep), strict=True):
-            cand, order, n_targets = cand_all[k]
-            feet[k] = _Foot(plans[k], k, cand, order, n_targets, levels[k], ctx)
-        _run(batch, list(feet.values()))
+    feet = batch.feet(cands, levels)
+    if feet:
+        _run(batch, list(feet.values()), cands)
     out = []
     for k, p in enumerate(plans):
         f = feet.get(k)
@@ -1005,26 +1050,25 @@ def _plan_batch(plans: list[_Plan]) -> list[Couple]:
             out.append(_fail(p.start, _NO_CANDIDATE))
             continue
         st = f.st
-        ctx = f.ctx
+        n_wf = f.ctx.n_wavefronts if f.ctx is not None else 0
+        n_it = f.ctx.wavefront_iterations if f.ctx is not None else 0
         if st.best is None:
             out.append(_fail(p.start, _NO_COUPLE, n_couples=st.n_couples, n_paths=st.n_paths,
-                             n_targets=f.n_targets, n_wavefronts=ctx.n_wavefronts,
-                             wavefront_iterations=ctx.wavefront_iterations))
+                             n_targets=f.n_targets, n_wavefronts=n_wf, wavefront_iterations=n_it))
             continue
         t, s3, level, traj, score = st.best
-        cand = f.cand
-        footprint = np.array([cand.xy[t, 0], cand.xy[t, 1], cand.z[t]])
-        out.append(Couple(True, footprint, traj, float(score), float(cand.score[t]), float(s3), st.n_couples,
-                          st.n_paths, "", f.n_targets, ctx.n_wavefronts, ctx.wavefront_iterations,
-                          st.first_valid, max(0, st.n_couples - st.first_valid),
-                          None if math.isinf(level) else float(level), int(t)))
+        row = f.base + t
+        footprint = np.array([cands.xy[row, 0], cands.xy[row, 1], cands.z[row]])
+        out.append(Couple(True, footprint, traj, float(score), cands.score_list[row], float(s3), st.n_couples,
+                          st.n_paths, "", f.n_targets, n_wf, n_it, st.first_valid,
+                          max(0, st.n_couples - st.first_valid), None if math.isinf(level) else float(level),
+                          int(t)))
     return out
 
 
-def _score_all(plans: list[_Plan], batch: _Batch) -> list[tuple[Candidates, list[int], int]]:
-    """Candidate footprints of every plan with their scores (thesis §3.5.1), best first:
-    per plan its :class:`Candidates`, the targets to try (positive scores, at most
-    ``max_targets``) and their number."""
+def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
+    """Candidate footprints of every plan with their scores (thesis §3.5.1), best first
+    within each plan (what :func:`score_candidates` gives each plan)."""
     n = len(plans)
     r0, c0, hh, ww, mask, elev = batch.r0, batch.c0, batch.hh, batch.ww, batch.mask, batch.elev
     forbidden, cell, origin = batch.grown_inf, batch.cell, batch.origin
@@ -1101,21 +1145,11 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> list[tuple[Candidates, list
     order = np.lexsort((c, r, np.hypot(disc[d, 0], disc[d, 1]), -score, b))
     b = b[order]
     cells = np.column_stack([r[order], c[order]])
-    xy, z, score = xy[order], z[order], score[order]
-    distance, free_score, edge, crossing = distance[order], free_score[order], edge[order], crossing[order]
+    score = score[order]
     cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
-    n_valid = np.add.reduceat(np.append(score > 0.0, False), cuts[:-1]) if b.size else np.zeros(n, np.intp)
-    out = []
-    for k, p in enumerate(plans):
-        a, e = cuts[k], cuts[k + 1]
-        cand = Candidates(xy[a:e], cells[a:e], z[a:e], score[a:e], distance[a:e], free_score[a:e], edge[a:e],
-                          crossing[a:e])
-        n_targets = int(n_valid[k]) if e > a else 0
-        targets = list(range(n_targets))
-        if p.params.max_targets is not None:
-            targets = targets[: p.params.max_targets]
-        out.append((cand, targets, n_targets))
-    return out
+    positive = np.concatenate([[0], np.cumsum(score > 0.0)])
+    n_valid = (positive[cuts[1:]] - positive[cuts[:-1]]).tolist()
+    return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells.tolist())
 
 
 def _offset_kernels(plans: list[_Plan], sub: FloatArray) -> tuple[IntArray, BoolArray]:

@@ -29,6 +29,7 @@ Shapes: ``d`` is the dimension (2 or 3, any works), ``n`` the number of points.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -340,3 +341,52 @@ def _segment_sphere_exit(a: FloatArray, b: FloatArray, centre: FloatArray, radiu
     disc = max(qb * qb - 4.0 * qa * qc, 0.0)
     s = (-qb + np.sqrt(disc)) / (2.0 * qa)
     return np.asarray(a + np.clip(s, 0.0, 1.0) * d)
+
+
+def cardinal_samples(
+    points: FloatArray, tension: float, spacing: float, samples_per_segment: int = 16
+) -> tuple[FloatArray, FloatArray, float]:
+    """Points at even arc-length steps of about ``spacing`` (both ends included) along the
+    cardinal curve through ``points`` ``(n, d)``, ``n >= 2``.
+
+    Returns ``(samples (m, d), arc (m,), length)``: exactly what
+    ``HermiteCurve.cardinal(points, tension, samples_per_segment=...)`` gives with
+    ``at_length(np.linspace(0, length, max(2, ceil(length / spacing) + 1)))``, with the same
+    arithmetic but without building the object (a path planner samples many curves).
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    t_start, t_end = cardinal_tangents(pts, tension)
+    n_seg = pts.shape[0] - 1
+    top = float(n_seg)
+    k = max(4, int(samples_per_segment))
+    table_t = np.linspace(0.0, pts.shape[0] - 1.0, n_seg * k + 1)
+
+    def split(t: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
+        tt = np.minimum(np.maximum(t, 0.0), top)
+        seg = np.minimum(np.floor(tt).astype(np.intp), n_seg - 1)
+        return seg, tt - seg
+
+    def combine(w: FloatArray, seg: npt.NDArray[np.intp]) -> FloatArray:
+        return np.asarray(w[..., 0:1] * pts[seg] + w[..., 1:2] * pts[seg + 1] + w[..., 2:3] * t_start[seg]
+                          + w[..., 3:4] * t_end[seg])
+
+    def evaluate(t: FloatArray) -> FloatArray:
+        seg, s = split(t)
+        return combine(np.stack([s**3, s**2, s, np.ones_like(s)], axis=-1) @ HERMITE_MATRIX, seg)
+
+    dense = evaluate(table_t)
+    d = np.diff(dense, axis=0)
+    table_len = np.concatenate([[0.0], np.cumsum(np.sqrt(np.add.reduce(d * d, axis=-1)))])
+    length = float(table_len[-1])
+    arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
+    # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.
+    a = np.minimum(np.maximum(arc, 0.0), length)
+    t = np.interp(a, table_len, table_t)
+    approx = np.interp(t, table_t, table_len)
+    seg, s = split(t)
+    v = combine(np.stack([s**2, s, np.ones_like(s)], axis=-1) @ _HERMITE_DERIV_MATRIX, seg)
+    speed = np.sqrt(np.add.reduce(v * v, axis=-1))
+    fast = speed > 1e-12
+    t = t + np.where(fast, (a - approx) / np.where(fast, speed, 1.0), 0.0)
+    t = np.minimum(np.maximum(t, 0.0), top)
+    return evaluate(t), arc, length

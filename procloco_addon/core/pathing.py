@@ -45,11 +45,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from .hermite import HERMITE_MATRIX, HermiteCurve, hermite_basis
+from .hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .hull import upper_hull
 from .terrain import WindowGrids, dilate, foot_kernel
 
@@ -375,10 +376,9 @@ def descend(field_: DistanceField, cell: tuple[int, int]) -> IntArray:
         return np.zeros((0, 2), dtype=np.intp)
     r, c = int(cell[0]), int(cell[1])
     out = [(r, c)]
-    par = parent.tolist()
     limit = parent.size
     while (r, c) != field_.source and len(out) <= limit:
-        k = par[r][c]
+        k = int(parent[r, c])
         if k < 0:
             break
         dr, dc = MOVES[k]
@@ -481,28 +481,40 @@ def _one_segment_clear(blocked: BoolArray, a0: float, a1: float, b0: float, b1: 
     """:func:`segments_clear` for a single segment, in plain Python floats (same samples and
     the same arithmetic as :func:`_crossing_samples`, so both always agree)."""
     h, w = blocked.shape
+    return _clear_py(blocked, h, w, a0, a1, b0, b1)
+
+
+def _clear_py(rows: Any, h: int, w: int, a0: float, a1: float, b0: float, b1: float) -> bool:
+    """The samples of :func:`_crossing_samples` for one segment, nudged by -1e-7 and +1e-7 in
+    both axes, looked up in ``rows`` (a boolean map indexable as ``rows[r][c]``; outside
+    ``h`` × ``w`` is blocked)."""
     d0 = b0 - a0
     d1 = b1 - a1
     ts = [0.0, 1.0]
-    for start, delta, lo, hi in ((a0, d0, min(a0, b0), max(a0, b0)), (a1, d1, min(a1, b1), max(a1, b1))):
-        if abs(delta) <= 1e-12:
-            continue
-        first = math.ceil(lo - 0.5)
-        for k in range(first, math.floor(hi - 0.5) + 1):
-            t = (float(k) + 0.5 - start) / delta
+    if abs(d0) > 1e-12:
+        lo, hi = (a0, b0) if a0 <= b0 else (b0, a0)
+        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
+            t = (float(k) + 0.5 - a0) / d0
             ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
-    eps = 1e-7
+    if abs(d1) > 1e-12:
+        lo, hi = (a1, b1) if a1 <= b1 else (b1, a1)
+        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
+            t = (float(k) + 0.5 - a1) / d1
+            ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
+    eps = _CORNER_EPS
     for t in ts:
         p0 = a0 + t * d0
         p1 = a1 + t * d1
-        for o0 in (-eps, eps):
-            r = round(p0 + o0)
-            if r < 0 or r >= h:
-                return False
-            for o1 in (-eps, eps):
-                c = round(p1 + o1)
-                if c < 0 or c >= w or blocked[r, c]:
-                    return False
+        r_lo = round(p0 - eps)
+        r_hi = round(p0 + eps)  # rounding is monotone: r_lo <= r_hi, c_lo <= c_hi
+        c_lo = round(p1 - eps)
+        c_hi = round(p1 + eps)
+        if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
+            return False
+        lo_row = rows[r_lo]
+        hi_row = rows[r_hi]
+        if lo_row[c_lo] or lo_row[c_hi] or hi_row[c_lo] or hi_row[c_hi]:
+            return False
     return True
 
 
@@ -510,17 +522,23 @@ def line_of_sight_reduce(blocked: BoolArray, points: npt.ArrayLike) -> IntArray:
     """Indices of the points to keep so that consecutive kept points see each other.
 
     ``points``: ``(n, 2)`` continuous (row, col), from start to end. Greedy: from each kept
-    point jump to the farthest later point in sight (thesis §3.4.2, the final cells).
+    point jump to the farthest later point in sight (thesis §3.4.2, the final cells). The
+    candidates are tried from the farthest down, in plain Python on the map as lists (the
+    same samples as :func:`segments_clear`; far fewer than testing every later point).
     """
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    n = pts.shape[0]
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2).tolist()
+    n = len(pts)
+    h, w = blocked.shape
+    rows = blocked.tolist()
     keep = [0]
     i = 0
     while i < n - 1:
-        clear = segments_clear(blocked, pts[i], pts[i + 1 :])
-        seen = np.nonzero(clear)[0]
-        i = i + 1 + int(seen[-1]) if seen.size else i + 1
-        keep.append(i)
+        a0, a1 = pts[i]
+        j = n - 1
+        while j > i + 1 and not _clear_py(rows, h, w, a0, a1, pts[j][0], pts[j][1]):
+            j -= 1
+        keep.append(j)  # the next point is always kept, in sight or not
+        i = j
     return np.asarray(keep, dtype=np.intp)
 
 
@@ -814,9 +832,11 @@ class PathContext:
         cls, grids: WindowGrids, start: FloatArray, region: Region, params: PathParams, per_target: bool,
         sweep_kernel: IntArray, land_kernel: IntArray, elevation: FloatArray, base_core: BoolArray,
         start_rc: FloatArray, liftoff: BoolArray, maps: dict[float, tuple[BoolArray, BoolArray, BoolArray]],
+        fields: dict[tuple[float, int, int], DistanceField] | None = None,
     ) -> PathContext:
         """A context from parts computed elsewhere (the batched planner computes them for many
-        feet at once): exactly what ``__init__`` would compute, plus cached slice ``maps``."""
+        feet at once): exactly what ``__init__`` would compute. ``maps`` (slice level -> its
+        maps) and ``fields`` are the caches themselves, shared with the caller."""
         self = cls.__new__(cls)
         self.grids = grids
         self.params = params
@@ -833,8 +853,8 @@ class PathContext:
         h, w = region.shape
         self.start_inside = 0 <= self.start_cell[0] < h and 0 <= self.start_cell[1] < w
         self.liftoff = liftoff
-        self._blocked = dict(maps)
-        self._fields = {}
+        self._blocked = maps
+        self._fields = fields if fields is not None else {}
         self.n_wavefronts = 0
         self.wavefront_iterations = 0
         cell = grids.cell
@@ -953,10 +973,7 @@ class PathContext:
                 arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
                 samples = waypoints[0] + (waypoints[1] - waypoints[0]) * (arc / length)[:, None]
             else:
-                curve = HermiteCurve.cardinal(waypoints, tension=tension, samples_per_segment=16)
-                length = curve.length
-                arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
-                samples = curve.at_length(arc)
+                samples, arc, length = cardinal_samples(waypoints, tension, spacing, samples_per_segment=16)
             cells = np.rint(self.grids.rowcol(samples) - offset).astype(np.intp)
             inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
             if inside.all() and not blocked[cells[:, 0], cells[:, 1]].any():
@@ -992,18 +1009,16 @@ class PathContext:
         z0 = float(self.start[2])
         if path.length <= 1e-9:
             return _in_place(self.start, target_z, self._clear_at(path.samples[:1])[0], prm.step_height)
-        s = path.arc
+        # The samples are at increasing arc lengths (a linspace over a positive length):
+        # lift_each holds the same arithmetic as the steps below, with fewer numpy calls.
+        #   required = ground + clearance_profile(s, length, step_height, ramp), pinned to the
+        #   start and target heights; knots = _hull_waypoints(s, required, min gap);
+        #   z = max(height_profile(s[knots], required[knots], s), required).
         ground = self._clear_at(path.samples)
         ramp = min(self.ramp, 0.5 * path.length)
-        required = ground + clearance_profile(s, path.length, prm.step_height, ramp)
-        required[0] = z0
-        required[-1] = target_z
-        knots = _hull_waypoints(s, required, prm.min_waypoint_gap * self.grids.cell)
-        z = height_profile(s[knots], required[knots], s)
-        z = np.maximum(z, required)  # guards rounding only: the profile is above the hull
-        points = np.column_stack([path.samples, z])
-        way3 = np.column_stack([path.samples[knots], required[knots]])
-        return FootTrajectory.from_points(points, way3, path.waypoints, path.length, s)
+        return lift_each(path.samples, path.arc, [0, path.samples.shape[0]], ground, [path.length], [z0],
+                         [target_z], [prm.step_height], [ramp], [prm.min_waypoint_gap * self.grids.cell],
+                         [path.waypoints])[0]
 
     def _clear_at(self, xy: FloatArray) -> FloatArray:
         """What a foot swinging over each point must clear: the highest surface under the foot

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -13,6 +14,7 @@ from hypothesis.extra.numpy import arrays
 
 from procloco_addon.core.hermite import (
     HermiteCurve,
+    cardinal_samples,
     cardinal_tangents,
     hermite_basis,
     hermite_segment,
@@ -150,3 +152,19 @@ def test_degenerate_inputs_do_not_produce_nan() -> None:
     assert np.all(np.isfinite(curve.at_fraction(np.linspace(0.0, 1.0, 5))))
     with pytest.raises(ValueError, match="at least two"):
         cardinal_tangents(np.zeros((1, 2)))
+
+
+@given(st.integers(0, 100_000), st.sampled_from([0.5, 0.25, 0.0]))
+def test_cardinal_samples_equal_the_curve_object_sampled_by_arc_length(seed: int, tension: float) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 7))
+    pts = np.cumsum(rng.normal(size=(n, 2)) * rng.uniform(0.01, 1.0), axis=0)
+    if n > 2 and seed % 5 == 0:
+        pts[1] = pts[0]  # coincident waypoints: zero tangents, never NaN
+    spacing = float(rng.uniform(0.005, 0.05))
+    curve = HermiteCurve.cardinal(pts, tension=tension, samples_per_segment=16)
+    arc = np.linspace(0.0, curve.length, max(2, math.ceil(curve.length / spacing) + 1))
+    samples, got_arc, length = cardinal_samples(pts, tension, spacing, samples_per_segment=16)
+    assert length == curve.length
+    assert np.array_equal(got_arc, arc)
+    assert np.array_equal(samples, curve.at_length(arc))  # bit for bit

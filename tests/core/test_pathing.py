@@ -468,3 +468,23 @@ def test_plain_python_hull_waypoints_equal_the_numpy_ones(seed: int) -> None:
     z = np.minimum(np.minimum(s, s[-1] - s) * 2.0, 0.1) + steps
     gap = float(rng.choice([0.0, 0.02, 0.1]))
     assert _hull_knots_increasing(s.tolist(), z.tolist(), gap) == _hull_waypoints(s, z, gap).tolist()
+
+
+@given(st.integers(0, 100_000))
+def test_line_of_sight_reduction_keeps_the_farthest_point_in_sight_of_the_batched_test(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    free = rng.random((18, 18)) > 0.3
+    free[0, 0] = free[17, 17] = True
+    field = wavefront(free, (0, 0))
+    if not np.isfinite(field.dist[17, 17]):
+        return
+    naive = descend(field, (17, 17))[::-1].astype(float)
+    pts = np.vstack([rng.uniform(-0.4, 0.4, 2), naive[1:], naive[-1:] + rng.uniform(-0.4, 0.4, 2)])
+    # Reference greedy: every later point tested at once with the vectorised supercover test.
+    expected = [0]
+    i = 0
+    while i < len(pts) - 1:
+        seen = np.nonzero(segments_clear(~free, pts[i], pts[i + 1 :]))[0]
+        i = i + 1 + int(seen[-1]) if seen.size else i + 1
+        expected.append(i)
+    assert line_of_sight_reduce(~free, pts).tolist() == expected
