@@ -647,6 +647,13 @@ class Environment:
         self._box_index_dynamic: _BucketIndex | None = None
         self._soup_index: dict[int, _BucketIndex] = {}
         self._soup_tris: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        # Which boxes' lattice rasters are current, per cell size (a box's raster is stale once
+        # it moved); the moving boxes sorted by their min x (rebuilt after a move); the last
+        # point query's (point, box) pairs (height_at and forbidden_at often ask for the same
+        # points one after the other).
+        self._raster_ok: dict[float, BoolArray] = {}
+        self._dynamic_sorted: tuple[IntArray, FloatArray, FloatArray, float] | None = None
+        self._last_pairs: tuple[tuple[int, ...], bytes, IntArray, IntArray] | None = None
         self._update_box_bounds()
         self.stats = {"tiles_rasterised": 0, "moving_rasterised": 0, "windows": 0}
 
@@ -673,9 +680,10 @@ class Environment:
         self._box_yaw[idx] = np.asarray(yaw, dtype=np.float64).reshape(idx.size)
         self._update_box_bounds(idx)
         self._box_index_dynamic = None
-        moved = set(idx.tolist())
-        for key in [k for k in self._moving_raster if k[1] == "box" and k[2] in moved]:
-            del self._moving_raster[key]
+        self._dynamic_sorted = None
+        self._last_pairs = None
+        for ok in self._raster_ok.values():
+            ok[idx] = False
 
     def set_soup_vertices(self, i: int, vertices: npt.ArrayLike) -> None:
         """Replace the vertices ``(v, 3)`` of dynamic soup ``i`` (same topology)."""
@@ -686,6 +694,7 @@ class Environment:
         self._soups[i] = TriangleSoup(v, soup.faces, soup.role, True)
         self._soup_index.pop(i, None)
         self._soup_tris.pop(i, None)
+        self._last_pairs = None
         for key in [k for k in self._moving_raster if k[1] == "soup" and k[2] == i]:
             del self._moving_raster[key]
 
@@ -693,22 +702,39 @@ class Environment:
         """Forget every cached tile and raster (memory only; results do not change)."""
         self._tiles.clear()
         self._moving_raster.clear()
+        self._raster_ok.clear()
 
     def _update_box_bounds(self, idx: IntArray | None = None) -> None:
         if idx is None:
             idx = np.arange(self._box_center.shape[0])
             self._box_lo = np.zeros((idx.size, 2))
             self._box_hi = np.zeros((idx.size, 2))
+            self._box_cos = np.zeros(idx.size)
+            self._box_sin = np.zeros(idx.size)
+            self._box_half = 0.5 * self._box_size[:, :2]
+            self._box_top = np.zeros(idx.size)
         hx = 0.5 * self._box_size[idx, 0]
         hy = 0.5 * self._box_size[idx, 1]
-        acos = np.abs(np.cos(self._box_yaw[idx]))
-        asin = np.abs(np.sin(self._box_yaw[idx]))
+        cos = np.cos(self._box_yaw[idx])
+        sin = np.sin(self._box_yaw[idx])
+        acos = np.abs(cos)
+        asin = np.abs(sin)
         ext = np.stack([hx * acos + hy * asin, hx * asin + hy * acos], axis=1)
         self._box_lo[idx] = self._box_center[idx, :2] - ext
         self._box_hi[idx] = self._box_center[idx, :2] + ext
+        self._box_cos[idx] = cos
+        self._box_sin[idx] = sin
+        self._box_top[idx] = self._box_center[idx, 2] + self._box_size[idx, 2]
 
     # -- point queries -------------------------------------------------------------------
     def _box_pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
+        """(point, box) pairs of points ``(n, 2)`` inside boxes' ground footprints. The last
+        query's answer is kept: asking again for the same points (until something moves) costs
+        a comparison."""
+        key = xy.tobytes()
+        last = self._last_pairs
+        if last is not None and last[0] == xy.shape and last[1] == key:
+            return last[2], last[3]
         if self._box_index_static is None:
             s = self._static_boxes
             self._box_index_static = _BucketIndex(self._box_lo[s], self._box_hi[s])
@@ -720,12 +746,15 @@ class Environment:
         point = np.concatenate([p1, p2])
         box = np.concatenate([self._static_boxes[b1], self._dynamic_boxes[b2]])
         rel = xy[point] - self._box_center[box, :2]
-        cos = np.cos(self._box_yaw[box])
-        sin = np.sin(self._box_yaw[box])
+        cos = self._box_cos[box]
+        sin = self._box_sin[box]
         u = rel[:, 0] * cos + rel[:, 1] * sin
         v = -rel[:, 0] * sin + rel[:, 1] * cos
-        inside = (np.abs(u) <= 0.5 * self._box_size[box, 0]) & (np.abs(v) <= 0.5 * self._box_size[box, 1])
-        return point[inside], box[inside]
+        half = self._box_half[box]
+        inside = (np.abs(u) <= half[:, 0]) & (np.abs(v) <= half[:, 1])
+        point, box = point[inside], box[inside]
+        self._last_pairs = (xy.shape, key, point, box)
+        return point, box
 
     def _soup_triangles(self, i: int) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Triangles ``(f, 3, 3)`` of soup ``i`` and their xy bounds, cached until it moves."""
@@ -767,7 +796,7 @@ class Environment:
         if self.heightmap is not None:
             out = np.maximum(out, self.heightmap.sample(p))
         point, box = self._box_pairs(p)
-        np.maximum.at(out, point, self._box_center[box, 2] + self._box_size[box, 2])
+        np.maximum.at(out, point, self._box_top[box])
         for i in range(len(self._soups)):
             pt, z = self._soup_hits(i, p)
             np.maximum.at(out, pt, z)
@@ -869,10 +898,13 @@ class Environment:
 
     def _cache_moving_boxes(self, cell: float, ids: IntArray) -> None:
         """Rasterise the moving boxes ``ids`` not cached yet, all in one vectorised call."""
-        cached = self._moving_raster
-        todo = np.asarray([b for b in ids.tolist() if (cell, "box", b) not in cached], dtype=np.intp)
+        ok = self._raster_ok.get(cell)
+        if ok is None:
+            ok = self._raster_ok[cell] = np.zeros(self._box_center.shape[0], dtype=bool)
+        todo = ids[~ok[ids]]
         if todo.size == 0:
             return
+        ok[todo] = True
         lo = self._box_lo[todo].min(axis=0)
         hi = self._box_hi[todo].max(axis=0)
         i0 = math.floor(lo[1] / cell) - 1
@@ -921,39 +953,70 @@ class Environment:
         """
         return self.windows(np.asarray(center_xy, dtype=np.float64).reshape(1, 2), params)[0]
 
-    def windows(self, centers_xy: npt.ArrayLike, params: WindowParams | None = None) -> list[WindowGrids]:
+    def windows(
+        self, centers_xy: npt.ArrayLike, params: WindowParams | Sequence[WindowParams] | None = None
+    ) -> list[WindowGrids]:
         """:meth:`window` for many characters at once (``(n, 2)`` centres): the moving boxes
-        near any of them are rasterised in a single vectorised batch, once per move."""
-        prm = params if params is not None else WindowParams()
-        cell = float(prm.cell)
-        n = int(prm.n_cells)
+        near any of them are rasterised in a single vectorised batch, once per move.
+        ``params``: one :class:`WindowParams` for every window, or one per centre (windows of
+        the same size and cell share that batch; the foot shape may differ)."""
         ctr = np.asarray(centers_xy, dtype=np.float64).reshape(-1, 2)
-        i0s = np.rint(ctr[:, 1] / cell).astype(np.intp) - n // 2
-        j0s = np.rint(ctr[:, 0] / cell).astype(np.intp) - n // 2
-        lo_w = np.column_stack([j0s, i0s]) * cell - cell
-        hi_w = lo_w + (n + 1) * cell
-        d = self._dynamic_boxes
-        near_all: list[IntArray] = []
-        if d.size:
-            # Moving boxes sorted by their min x: each window scans only a narrow x range.
+        m = ctr.shape[0]
+        if params is None or isinstance(params, WindowParams):
+            plist = [params if params is not None else WindowParams()] * m
+        else:
+            plist = list(params)
+            if len(plist) != m:
+                raise ValueError("give one WindowParams per centre, or one for all")
+        groups: dict[tuple[int, float], list[int]] = {}
+        for w, prm in enumerate(plist):
+            groups.setdefault((int(prm.n_cells), float(prm.cell)), []).append(w)
+        out: list[WindowGrids | None] = [None] * m
+        for (n, cell), ws in groups.items():
+            made = self._windows_of(ctr[ws], n, cell, [plist[w] for w in ws])
+            for w, grids in zip(ws, made, strict=True):
+                out[w] = grids
+        return [g for g in out if g is not None]
+
+    def _dynamic_by_x(self) -> tuple[IntArray, FloatArray, FloatArray, float]:
+        """The moving boxes sorted by their min x, their bounds, and the widest one's width
+        (kept until a box moves)."""
+        if self._dynamic_sorted is None:
+            d = self._dynamic_boxes
             dlo = self._box_lo[d]
             order = np.argsort(dlo[:, 0], kind="stable")
             d_sorted = d[order]
             lo_sorted = dlo[order]
             hi_sorted = self._box_hi[d_sorted]
             widest = float(np.max(hi_sorted[:, 0] - lo_sorted[:, 0]))
-            first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left")
-            last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right")
+            self._dynamic_sorted = (d_sorted, lo_sorted, hi_sorted, widest)
+        return self._dynamic_sorted
+
+    def _windows_of(
+        self, ctr: FloatArray, n: int, cell: float, plist: list[WindowParams]
+    ) -> list[WindowGrids]:
+        i0s = np.rint(ctr[:, 1] / cell).astype(np.intp) - n // 2
+        j0s = np.rint(ctr[:, 0] / cell).astype(np.intp) - n // 2
+        lo_w = np.column_stack([j0s, i0s]) * cell - cell
+        hi_w = lo_w + (n + 1) * cell
+        near_all: list[list[int]] = []
+        if self._dynamic_boxes.size:
+            # Moving boxes sorted by their min x: each window scans only a narrow x range.
+            d_sorted, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
+            first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left").tolist()
+            last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right").tolist()
+            near_arrays = []
             for w in range(ctr.shape[0]):
-                sl = slice(int(first[w]), int(last[w]))
+                sl = slice(first[w], last[w])
                 ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
                       & (lo_sorted[sl, 1] <= hi_w[w, 1]))
-                near_all.append(d_sorted[sl][ok])
-            self._cache_moving_boxes(cell, np.unique(np.concatenate(near_all)))
+                near_arrays.append(d_sorted[sl][ok])
+            self._cache_moving_boxes(cell, np.unique(np.concatenate(near_arrays)))
+            near_all = [a.tolist() for a in near_arrays]
         moving_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic and soup.faces.shape[0]]
         soup_box = {i: (self._soup_triangles(i)[1].min(axis=0), self._soup_triangles(i)[2].max(axis=0))
                     for i in moving_soups}
-        half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
+        avoid_box = self._box_role == ROLE_AVOID
         out: list[WindowGrids] = []
         for w in range(ctr.shape[0]):
             i0 = int(i0s[w])
@@ -964,12 +1027,12 @@ class Environment:
             tops: list[FloatArray] = []
             avoid_rows: list[IntArray] = []
             avoid_cols: list[IntArray] = []
-            for b in near_all[w].tolist() if near_all else []:
+            for b in near_all[w] if near_all else []:
                 r, c, z = self._moving_raster[(cell, "box", b)]
                 rows.append(r)
                 cols.append(c)
                 tops.append(z)
-                if self._box_role[b] == ROLE_AVOID:
+                if avoid_box[b]:
                     avoid_rows.append(r)
                     avoid_cols.append(c)
             for i in moving_soups:
@@ -994,6 +1057,8 @@ class Environment:
                 ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
                 avoid[r[ok], c[ok]] = True
             self.stats["windows"] += 1
+            prm = plist[w]
+            half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
             origin = np.array([j0 * cell, i0 * cell])
             out.append(WindowGrids(origin, cell, elev, avoid, half, float(prm.foot_yaw)))
         return out

@@ -309,3 +309,31 @@ def test_boxes_rasterised_each_on_its_own_grid_equal_one_grid_at_a_time() -> Non
         _, r, c = raster_boxes(origin[i], float(cell[i]), grid, centre[one], hx[one], hy[one], yaw[one])
         assert sorted(zip(row[box == i].tolist(), col[box == i].tolist(), strict=True)) == sorted(
             zip(r.tolist(), c.tolist(), strict=True))
+
+
+def test_windows_with_their_own_params_equal_one_call_per_params() -> None:
+    env = random_env(5)
+    centres = np.array([[0.0, 0.0], [0.4, -0.3], [-0.9, 0.6], [1.1, 1.0]])
+    params = [SMALL, WindowParams(n_cells=30, cell=0.07, foot_half_extents=(0.05, 0.02), foot_yaw=0.7),
+              WindowParams(n_cells=24, cell=0.05), SMALL]
+    batch = env.windows(centres, params)
+    for c, prm, w in zip(centres, params, batch, strict=True):
+        single = Environment(env.heightmap, env.boxes, env.soups, tile_cells=16).window(c, prm)
+        assert np.array_equal(single.elevation, w.elevation)
+        assert np.array_equal(single.avoid, w.avoid)
+        assert np.array_equal(single.origin, w.origin)
+        assert (w.foot_half_extents, w.foot_yaw) == (prm.foot_half_extents, prm.foot_yaw)
+    with pytest.raises(ValueError, match="one WindowParams per centre"):
+        env.windows(centres, params[:2])
+
+
+def test_point_queries_see_boxes_that_moved_even_for_the_same_points() -> None:
+    env = Environment(flat(), boxes([(2.0, 2.0, 0.2, 0.2, 0.3, 0.0, ROLE_AVOID, True)]))
+    xy = np.array([[0.0, 0.0], [0.5, 0.5]])
+    assert env.height_at(xy).tolist() == [0.0, 0.0]
+    assert env.forbidden_at(xy).tolist() == [False, False]
+    env.move_boxes(np.array([0]), np.array([[0.5, 0.5, 0.0]]), np.array([0.3]))
+    assert env.height_at(xy).tolist() == [0.0, pytest.approx(0.3)]  # the same array, asked again
+    assert env.forbidden_at(xy).tolist() == [False, True]
+    xy[0] = [0.55, 0.45]  # the same array object, other points
+    assert env.forbidden_at(xy).tolist() == [True, True]
