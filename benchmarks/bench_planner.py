@@ -2,6 +2,7 @@
 """Footprint planner throughput on the thesis's Table 3.1 scene.
 
     python benchmarks/bench_planner.py [--plans N] [--chars N] [--seed S] [--repeat R]
+                                       [--crowd-steps N] [--baseline REV]
 
 The scene (benchmarks/scenes.py): a 100 m heightmap with 3000 crates, 40 % moving; windows of
 70 × 70 cells of 7 cm around each character. Characters are eight-legged (spider-like: feet
@@ -16,21 +17,39 @@ after the first valid one, 15 cm slices), no LOD (full best-couple search with 1
 and every couple (exhaustive). Then the wavefront comparison the issue asks for, with the
 line-of-sight shortcut off so that every couple needs a wavefront: one wavefront per slice
 grown from the foot against one per (target, slice) as the thesis does, in the pruned and in
-the exhaustive search. Times are CPU time of this process (single-threaded; the machine is
-shared, so wall time varies with the neighbours' load), the best of ``--repeat`` rounds in
-which the settings take turns. Ends with
-``RESULT planner plans_per_s_lod=<n> plans_per_s_nolod=<n>``.
+the exhaustive search.
+
+Last, **batched, as the crowd does it**: the crowd benchmark's simulation (benchmarks/
+bench_crowd.py, LOD and no-LOD camera set-ups) runs ``--crowd-steps`` steps while every plan
+its controller asks for is recorded (the planner it calls is wrapped); those plans are then
+replayed step by step, one foot at a time (``plan_footstep``, what the controller calls
+today) and all of a step's feet in one ``plan_footsteps`` call, and the answers compared bit
+for bit. ``--baseline REV`` also replays them with the planner of git revision ``REV`` (its
+``procloco_addon`` extracted to a temporary folder) in the same run, for before/after
+ratios.
+
+Times are CPU time of this process (single-threaded; the machine is shared, so wall time
+varies with the neighbours' load), the best of ``--repeat`` rounds in which the settings take
+turns. Ends with ``RESULT planner plans_per_s_lod=<n> plans_per_s_nolod=<n>`` (one foot at a
+time, the situations above).
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import platform
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -38,7 +57,7 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core.footprints import Couple, PlannerParams, plan_footstep
+from procloco_addon.core.footprints import Couple, FootRequest, PlannerParams, plan_footstep, plan_footsteps
 from procloco_addon.core.terrain import WindowGrids, WindowParams
 
 FloatArray = npt.NDArray[np.float64]
@@ -117,12 +136,135 @@ def mean(values: list[int]) -> float:
     return float(np.mean(values))
 
 
+Step = list[FootRequest]
+
+
+def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[Step]:
+    """The plans the crowd benchmark's controller asks for, step by step: its planner is
+    wrapped for ``steps`` steps after ``warmup`` ones, and the inputs of every call copied
+    (the windows are kept as they are: nothing writes into them)."""
+    from benchmarks import bench_crowd
+    from procloco_addon.core import controller
+
+    args = argparse.Namespace(chars=100, steps=steps, warmup=warmup, seed=seed, scale=2.0, profile=False)
+    scene, sim = bench_crowd.build(args, mode)
+    for _ in range(warmup):
+        scene.advance(sim.dt)
+        sim.step()
+    recorded: list[Step] = []
+    original = controller.plan_footstep
+
+    def recording(*a: Any, **k: Any) -> Couple:
+        rq = FootRequest(*a, **k)
+
+        def own(v: npt.ArrayLike) -> FloatArray:
+            return np.array(v, dtype=np.float64)  # a copy: the controller's arrays change
+
+        recorded[-1].append(FootRequest(rq.grids, own(rq.foot_start), own(rq.preferred_xy), own(rq.hip_xy),
+                                        own(rq.other_hips_xy), own(rq.other_feet_xy), rq.params,
+                                        float(rq.foot_yaw)))
+        return original(*a, **k)
+
+    controller.plan_footstep = recording
+    try:
+        for _ in range(steps):
+            recorded.append([])
+            scene.advance(sim.dt)
+            sim.step()
+    finally:
+        controller.plan_footstep = original
+    return recorded
+
+
+def load_baseline(rev: str) -> Callable[..., Any]:
+    """``plan_footstep`` of git revision ``rev``, imported from a temporary copy of its
+    ``procloco_addon`` (renamed so that both versions live in this process)."""
+    import io
+    import tarfile
+
+    root = Path(__file__).resolve().parent.parent
+    archive = subprocess.run(["git", "-C", str(root), "archive", rev, "procloco_addon"], check=True,
+                             capture_output=True).stdout
+    tmp = Path(tempfile.mkdtemp(prefix="procloco-baseline-"))
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tmp, filter="data")
+    shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
+    sys.path.insert(0, str(tmp))
+    module: ModuleType = importlib.import_module("procloco_baseline.core.footprints")
+    return module.plan_footstep
+
+
+def same_couple(a: Couple, b: Couple) -> bool:
+    """Bit for bit the same answer (footprint, trajectory, scores and counts)."""
+    fields = ("ok", "message", "score", "target_score", "path_score", "n_couples", "n_paths", "n_targets",
+              "n_wavefronts", "wavefront_iterations", "first_valid_couple", "slice_level", "target_index")
+    if any(getattr(a, f) != getattr(b, f) for f in fields) or not np.array_equal(a.footprint, b.footprint):
+        return False
+    if a.trajectory is None or b.trajectory is None:
+        return a.trajectory is None and b.trajectory is None
+    return all(np.array_equal(getattr(a.trajectory, f), getattr(b.trajectory, f))
+               for f in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d"))
+
+
+def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float, list[Couple]]:
+    """CPU time to plan every recorded step: one foot at a time with ``one``, or all of a
+    step's feet in one :func:`plan_footsteps` call (``one`` None)."""
+    t0 = time.process_time()
+    out: list[Couple] = []
+    for reqs in steps:
+        if one is None:
+            out += plan_footsteps(reqs)
+        else:
+            out += [one(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
+                        r.params, r.foot_yaw) for r in reqs]
+    return time.process_time() - t0, out
+
+
+def crowd_section(args: argparse.Namespace) -> None:
+    """The "batched, as the crowd does it" table."""
+    baseline = load_baseline(args.baseline) if args.baseline else None
+    print()
+    print(f"batched, as the crowd does it: the plans of {args.crowd_steps} crowd steps (bench_crowd.py scene "
+          f"and camera set-ups, after 15 warm-up steps), replayed")
+    print(f"{'camera':8s} {'plans/step':>10s} {'per foot':>12s} {'batched':>12s} {'ratio':>6s} {'same':>7s}"
+          + (f" {'baseline':>12s} {'vs per foot':>11s} {'vs batched':>10s} {'same':>7s}" if baseline else ""))
+    for mode in ("LOD", "No LOD"):
+        steps = record_crowd_plans(mode, args.crowd_steps, 15, args.seed)
+        n_steps = len(steps)
+        n_plans = sum(len(r) for r in steps)
+        runners: list[tuple[str, Callable[..., Couple] | None]] = [("per foot", plan_footstep),
+                                                                    ("batched", None)]
+        if baseline is not None:
+            runners.append(("baseline", baseline))
+        best = dict.fromkeys((name for name, _ in runners), np.inf)
+        answers: dict[str, list[Couple]] = {}
+        for _ in range(args.repeat):
+            for name, one in runners:
+                dt, answers[name] = replay(steps, one)
+                best[name] = min(best[name], dt)
+        ms = {k: 1e3 * v / n_steps for k, v in best.items()}
+        pairs = zip(answers["per foot"], answers["batched"], strict=True)
+        same = np.mean([same_couple(a, b) for a, b in pairs])
+        line = (f"{mode:8s} {n_plans / n_steps:10.1f} {ms['per foot']:9.2f} ms {ms['batched']:9.2f} ms "
+                f"{ms['per foot'] / ms['batched']:5.2f}x {same:7.1%}")
+        if baseline is not None:
+            same_b = np.mean([same_couple(a, b) for a, b in zip(answers["baseline"], answers["per foot"],
+                                                                 strict=True)])
+            line += (f" {ms['baseline']:9.2f} ms {ms['baseline'] / ms['per foot']:10.2f}x "
+                     f"{ms['baseline'] / ms['batched']:9.2f}x {same_b:7.1%}")
+        print(line)
+    print("(times per crowd step; 'same': answers bit for bit equal to the per-foot ones"
+          + (f"; baseline: revision {args.baseline}, one foot at a time" if baseline else "") + ")")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--plans", type=int, default=400, help="plans per setting")
     ap.add_argument("--chars", type=int, default=100, help="characters (windows per step)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeat", type=int, default=3, help="timing runs per setting (best is kept)")
+    ap.add_argument("--crowd-steps", type=int, default=20, help="crowd steps recorded and replayed (0: skip)")
+    ap.add_argument("--baseline", default="", help="git revision whose planner is replayed too")
     args = ap.parse_args(argv)
 
     t0 = time.perf_counter()
@@ -204,6 +346,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"pruned best-couple search picks the exhaustive search's footprint in "
           f"{same_choice(results[2], results[3]):.1%} of plans; the line-of-sight shortcut changes "
           f"{1.0 - same_choice(results[2], results[4]):.1%} of choices")
+    if args.crowd_steps > 0:
+        crowd_section(args)
     print(f"RESULT planner plans_per_s_lod={rows[0].per_s:.1f} plans_per_s_nolod={rows[2].per_s:.1f}")
     return 0
 

@@ -867,6 +867,11 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
     them at once. Each foot sees exactly the sequence of couples of its own search."""
     active = feet
     while active:
+        if len(active) <= _ALONE:
+            # A round for a foot or two costs more than going on with them one by one.
+            for f in active:
+                _search_alone(batch, f, cands)
+            return
         evals: list[tuple[_Foot, float]] = []
         pending = active
         while pending:
@@ -934,6 +939,32 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
                 f, level = evals[i]
                 _after_couple(f, cands, level, True, sight[i], s2[i], traj)
         active = [f for f, _ in evals]
+
+
+#: Feet still searching below which the rounds stop and each goes on alone.
+_ALONE = 2
+
+
+def _search_alone(batch: _Batch, f: _Foot, cands: _Cands) -> None:
+    """The rest of one foot's search with its path context alone (the same couples, maps,
+    wavefronts and trajectories as the rounds would give it)."""
+    ctx = batch.path_context(f)
+    while True:
+        kind, level = _next_couple(f, cands)
+        if kind == "end":
+            return
+        if kind == "maps":
+            ctx.maps(level)
+            continue
+        t = f.base + f.order[f.st.pos]
+        path = ctx.path_2d(level, (cands.cell_list[t][0], cands.cell_list[t][1]), cands.xy[t])
+        if path is None:
+            _after_couple(f, cands, level, False, False, 0.0, None)
+            continue
+        s2 = path_score_2d(path)
+        if _after_couple(f, cands, level, True, path.in_sight, s2, None):
+            traj = ctx.lift(path, float(cands.z[t]))
+            _after_couple(f, cands, level, True, path.in_sight, s2, traj)
 
 
 def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]) -> None:

@@ -612,9 +612,11 @@ def _hull_knots_increasing(s: list[float], required: list[float], min_gap: float
         sk = s[k]
         zk = required[k]
         while len(hull) >= 2:
-            i = hull[-2]
             j = hull[-1]
-            if (s[j] - s[i]) * (zk - required[i]) - (required[j] - required[i]) * (sk - s[i]) >= 0.0:
+            i = hull[-2]
+            si = s[i]
+            zi = required[i]
+            if (s[j] - si) * (zk - zi) - (required[j] - zi) * (sk - si) >= 0.0:
                 hull.pop()
             else:
                 break
@@ -625,17 +627,18 @@ def _hull_knots_increasing(s: list[float], required: list[float], min_gap: float
     for pos in range(1, len(hull) - 1):
         v = hull[pos]
         a = keep[-1]
-        if s[v] - s[a] >= min_gap:
+        sa = s[a]
+        if s[v] - sa >= min_gap:
             keep.append(v)
             continue
         c = hull[pos + 1]
         ra = required[a]
         rise = required[c] - ra
-        sa = s[a]
         den = max(s[c] - sa, 1e-12)
-        if all(ra + rise * (s[i] - sa) / den >= required[i] - 1e-9 for i in range(a, c + 1)):
-            continue  # removable: the straight chord still clears
-        keep.append(v)
+        for i in range(a, c + 1):
+            if not ra + rise * (s[i] - sa) / den >= required[i] - 1e-9:
+                keep.append(v)  # the chord that would replace it dips under a sample
+                break
     keep.append(hull[-1])
     return keep
 
