@@ -493,9 +493,10 @@ _Maps = tuple[BoolArray, BoolArray, BoolArray]
 
 @dataclass
 class _Cands:
-    """The candidates of every plan of a batch, best first within each plan, one plan after
-    the other: plan ``k`` owns rows ``bounds[k]:bounds[k + 1]``; ``score`` and ``cells`` also
-    as Python lists for the search's bookkeeping."""
+    """The targets (candidates with a positive score) of every plan of a batch, best first
+    within each plan, one plan after the other: plan ``k`` owns rows
+    ``bounds[k]:bounds[k + 1]``; ``score`` and ``cells`` also as Python lists for the search's
+    bookkeeping."""
 
     xy: FloatArray
     cells: IntArray
@@ -1157,9 +1158,14 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     distance = np.clip(1.0 - np.sqrt(ex * ex + ey * ey) / fixed[b], 0.0, 1.0)
     free_score = free / 8.0
     edge = np.where(rim, np.array([p.params.edge_score for p in plans])[b], 1.0)
+    # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
+    partial = distance * free_score * edge
+    live = np.flatnonzero(partial > 0.0)
+    b, d, r, c = b[live], d[live], r[live], c[live]
+    x, y, z, partial = x[live], y[live], z[live], partial[live]
     xy = np.column_stack([x, y])
     n_other = np.array([p.o_hips.shape[0] for p in plans])
-    if n_other.max(initial=0):
+    if n_other.max(initial=0) and b.size:
         j = int(n_other.max())
         o_hips = np.zeros((n, j, 2))
         o_feet = np.zeros((n, j, 2))
@@ -1170,16 +1176,16 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
         crosses = _legs_cross_each(hip[b], xy, o_hips[b], o_feet[b], valid)
     else:
         crosses = np.zeros(b.size, dtype=bool)
-    crossing = np.where(crosses, 0.0, 1.0)
-    score = distance * free_score * edge * crossing
+    score = partial * np.where(crosses, 0.0, 1.0)
+    keep = np.flatnonzero(score > 0.0)
+    b, d, r, c, xy, z, score = b[keep], d[keep], r[keep], c[keep], xy[keep], z[keep], score[keep]
     # Best first; ties: nearer the preferred footprint, then row, then column.
     order = np.lexsort((c, r, np.hypot(disc[d, 0], disc[d, 1]), -score, b))
     b = b[order]
     cells = np.column_stack([r[order], c[order]])
     score = score[order]
     cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
-    positive = np.concatenate([[0], np.cumsum(score > 0.0)])
-    n_valid = (positive[cuts[1:]] - positive[cuts[:-1]]).tolist()
+    n_valid = [cuts[k + 1] - cuts[k] for k in range(n)]
     return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells.tolist())
 
 

@@ -355,38 +355,62 @@ def cardinal_samples(
     arithmetic but without building the object (a path planner samples many curves).
     """
     pts = np.asarray(points, dtype=np.float64)
-    t_start, t_end = cardinal_tangents(pts, tension)
     n_seg = pts.shape[0] - 1
+    chords = np.diff(pts, axis=0)
+    h = np.sqrt(np.add.reduce(chords * chords, axis=-1))
+    if np.all(h > 1e-12):  # no coincident points: cardinal_tangents' guarded divisions are plain ones
+        direction = np.empty_like(pts)
+        direction[1:-1] = (pts[2:] - pts[:-2]) / (h[:-1] + h[1:])[:, None]
+        direction[0] = chords[0] / h[0]
+        direction[-1] = chords[-1] / h[-1]
+        scale = 2.0 * tension * h[:, None]
+        t_start, t_end = direction[:-1] * scale, direction[1:] * scale
+    else:
+        t_start, t_end = cardinal_tangents(pts, tension)
+    # One gather per evaluation: the segment's two points and two tangents.
+    ctrl = np.stack([pts[:-1], pts[1:], t_start, t_end], axis=1)  # (n_seg, 4, d)
     top = float(n_seg)
     k = max(4, int(samples_per_segment))
-    table_t = np.linspace(0.0, pts.shape[0] - 1.0, n_seg * k + 1)
 
     def split(t: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
-        tt = np.minimum(np.maximum(t, 0.0), top)
-        seg = np.minimum(np.floor(tt).astype(np.intp), n_seg - 1)
-        return seg, tt - seg
+        # t is within [0, n_seg] wherever this is called: HermiteCurve's clip changes nothing
+        seg = np.minimum(np.floor(t).astype(np.intp), n_seg - 1)
+        return seg, t - seg
 
     def combine(w: FloatArray, seg: npt.NDArray[np.intp]) -> FloatArray:
-        return np.asarray(w[..., 0:1] * pts[seg] + w[..., 1:2] * pts[seg + 1] + w[..., 2:3] * t_start[seg]
-                          + w[..., 3:4] * t_end[seg])
+        c = ctrl[seg]
+        return np.asarray(w[:, 0:1] * c[:, 0] + w[:, 1:2] * c[:, 1] + w[:, 2:3] * c[:, 2]
+                          + w[:, 3:4] * c[:, 3])
 
     def evaluate(t: FloatArray) -> FloatArray:
         seg, s = split(t)
         return combine(np.stack([s**3, s**2, s, np.ones_like(s)], axis=-1) @ HERMITE_MATRIX, seg)
 
+    table_t = _linspace(top, n_seg * k + 1)  # np.linspace(0.0, n - 1.0, ...)
     dense = evaluate(table_t)
     d = np.diff(dense, axis=0)
-    table_len = np.concatenate([[0.0], np.cumsum(np.sqrt(np.add.reduce(d * d, axis=-1)))])
+    table_len = np.empty(table_t.size)
+    table_len[0] = 0.0
+    np.cumsum(np.sqrt(np.add.reduce(d * d, axis=-1)), out=table_len[1:])
     length = float(table_len[-1])
-    arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
+    arc = _linspace(length, max(2, math.ceil(length / spacing) + 1))
     # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.
-    a = np.minimum(np.maximum(arc, 0.0), length)
-    t = np.interp(a, table_len, table_t)
+    t = np.interp(arc, table_len, table_t)  # arc is within [0, length]: its clip changes nothing
     approx = np.interp(t, table_t, table_len)
     seg, s = split(t)
     v = combine(np.stack([s**2, s, np.ones_like(s)], axis=-1) @ _HERMITE_DERIV_MATRIX, seg)
     speed = np.sqrt(np.add.reduce(v * v, axis=-1))
     fast = speed > 1e-12
-    t = t + np.where(fast, (a - approx) / np.where(fast, speed, 1.0), 0.0)
+    t = t + np.where(fast, (arc - approx) / np.where(fast, speed, 1.0), 0.0)
     t = np.minimum(np.maximum(t, 0.0), top)
     return evaluate(t), arc, length
+
+
+def _linspace(stop: float, num: int) -> FloatArray:
+    """``np.linspace(0.0, stop, num)`` (``num >= 2``), the same numbers with fewer calls."""
+    step = stop / (num - 1)
+    if step == 0.0:
+        return np.zeros(num)
+    y = np.arange(num, dtype=np.float64) * step
+    y[-1] = stop
+    return y

@@ -674,14 +674,21 @@ def lift_each(
     must clear), its 2D ``length`` (> 0) and ``waypoints_2d``; ``ramp`` is already capped at
     half the length."""
     n = len(bounds) - 1
-    counts = np.diff(bounds)
-    owner = np.repeat(np.arange(n), counts)
-    L = np.asarray(length)[owner]
-    rp = np.asarray(ramp)[owner]
-    clear = np.asarray(step_height)[owner] * np.clip(np.minimum(arc, L - arc) / rp, 0.0, 1.0)
+    if n == 1:  # scalars broadcast: the same numbers, fewer calls
+        L: FloatArray | float = length[0]
+        rp: FloatArray | float = ramp[0]
+        sh: FloatArray | float = step_height[0]
+        owner = None
+    else:
+        owner = np.repeat(np.arange(n), np.diff(bounds))
+        L = np.asarray(length)[owner]
+        rp = np.asarray(ramp)[owner]
+        sh = np.asarray(step_height)[owner]
+    # clearance_profile (np.clip as minimum/maximum: the same values)
+    clear = sh * np.minimum(np.maximum(np.minimum(arc, L - arc) / rp, 0.0), 1.0)
     required = ground + clear
-    first = np.asarray(bounds[:-1])
-    last = np.asarray(bounds[1:]) - 1
+    first = bounds[:-1]
+    last = [b - 1 for b in bounds[1:]]
     required[first] = start_z
     required[last] = target_z
     s_list = arc.tolist()
@@ -702,28 +709,37 @@ def lift_each(
     delta = np.diff(kz) / h_safe
     nk = kidx.size
     slope = np.empty(nk)
-    kb = np.asarray(knot_bounds)
     slope[1:-1] = (kz[2:] - kz[:-2]) / np.maximum(ks[2:] - ks[:-2], 1e-12)
-    slope[kb[:-1]] = delta[kb[:-1]]
-    slope[kb[1:] - 1] = delta[kb[1:] - 2]
+    heads = knot_bounds[:-1]
+    tails = [k - 1 for k in knot_bounds[1:]]
+    slope[heads] = delta[heads]
+    slope[tails] = delta[[k - 1 for k in tails]]
     is_knot = np.zeros(arc.size, dtype=np.intp)
     is_knot[kidx] = 1
-    seg = np.cumsum(is_knot) - 1  # global knot index at or before each sample
-    seg = np.clip(seg, kb[:-1][owner], kb[1:][owner] - 2)
-    t = np.clip((arc - ks[seg]) / h_safe[seg], 0.0, 1.0)
+    # The knot at or before each sample (each plan's first sample is a knot), at most its
+    # plan's second last: searchsorted(knots, s, "right") - 1 clipped, for increasing s.
+    seg = np.cumsum(is_knot) - 1
+    seg = np.minimum(seg, nk - 2) if owner is None else np.minimum(seg, (np.asarray(tails) - 1)[owner])
+    t = np.minimum(np.maximum((arc - ks[seg]) / h_safe[seg], 0.0), 1.0)
     powers = np.stack([t**3, t**2, t, np.ones_like(t)], axis=-1)
-    w = np.empty_like(powers)
-    for i in range(n):  # one product per plan: the same BLAS call as for that plan alone
-        a, b = bounds[i], bounds[i + 1]
-        w[a:b] = powers[a:b] @ HERMITE_MATRIX
-    hs = h[np.minimum(seg, nk - 2)]
+    if n == 1:
+        w = powers @ HERMITE_MATRIX
+    else:
+        w = np.empty_like(powers)
+        for i in range(n):  # one product per plan: the same BLAS call as for that plan alone
+            a, b = bounds[i], bounds[i + 1]
+            w[a:b] = powers[a:b] @ HERMITE_MATRIX
+    hs = h[seg]
     z = (w[:, 0] * kz[seg] + w[:, 1] * kz[seg + 1] + w[:, 2] * hs * slope[seg]
          + w[:, 3] * hs * slope[seg + 1])
-    z = np.maximum(z, required)
-    points = np.column_stack([samples, z])
+    points = np.empty((arc.size, 3))
+    points[:, :2] = samples
+    np.maximum(z, required, out=points[:, 2])
     d3 = np.diff(points, axis=0)
-    seg3 = np.linalg.norm(d3, axis=1)
-    way3 = np.column_stack([samples[kidx], kz])
+    seg3 = np.sqrt(np.add.reduce(d3 * d3, axis=1))
+    way3 = np.empty((nk, 3))
+    way3[:, :2] = samples[kidx]
+    way3[:, 2] = kz
     out = []
     for i in range(n):
         a, b = bounds[i], bounds[i + 1]

@@ -253,11 +253,11 @@ def _rect_offsets(ry: int, rx: int) -> IntArray:
 
 def _box_overlaps_cells(
     cell_xy: FloatArray, cell: float | FloatArray, box_xy: FloatArray, hx: float | FloatArray,
-    hy: float | FloatArray, yaw: float | FloatArray,
+    hy: float | FloatArray, yaw: float | FloatArray, cos_sin: tuple[FloatArray, FloatArray] | None = None,
 ) -> BoolArray:
-    """Separating-axis test: does each axis-aligned cell square overlap its oriented box?"""
-    cos = np.cos(yaw)
-    sin = np.sin(yaw)
+    """Separating-axis test: does each axis-aligned cell square overlap its oriented box?
+    ``cos_sin``: ``cos(yaw)``, ``sin(yaw)`` when the caller has them already."""
+    cos, sin = (np.cos(yaw), np.sin(yaw)) if cos_sin is None else cos_sin
     d = cell_xy - box_xy
     half = 0.5 * cell
     acos = np.abs(cos)
@@ -360,8 +360,10 @@ def raster_boxes(
     per_box = org.ndim == 2
     ny = np.asarray(shape[0])
     nx = np.asarray(shape[1])
-    acos = np.abs(np.cos(yaw))
-    asin = np.abs(np.sin(yaw))
+    cos = np.cos(yaw)
+    sin = np.sin(yaw)
+    acos = np.abs(cos)
+    asin = np.abs(sin)
     ex = half_x * acos + half_y * asin
     ey = half_x * asin + half_y * acos
     fx = (center_xy[:, 0] - org[..., 0]) / cell
@@ -383,10 +385,12 @@ def raster_boxes(
     if per_box:
         cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
         cxy = np.stack([org[box, 0] + col * cl, org[box, 1] + row * cl], axis=1)
-        hit = _box_overlaps_cells(cxy, cl, center_xy[box], half_x[box], half_y[box], yaw[box])
+        hit = _box_overlaps_cells(cxy, cl, center_xy[box], half_x[box], half_y[box], yaw[box],
+                                  (cos[box], sin[box]))
     else:
         cxy = np.stack([org[0] + col * cell, org[1] + row * cell], axis=1)
-        hit = _box_overlaps_cells(cxy, cell, center_xy[box], half_x[box], half_y[box], yaw[box])
+        hit = _box_overlaps_cells(cxy, cell, center_xy[box], half_x[box], half_y[box], yaw[box],
+                                  (cos[box], sin[box]))
     return box[hit], row[hit], col[hit]
 
 
