@@ -36,6 +36,20 @@ One wavefront per slice, grown from the foot, serves every target (the distance 
 candidates at once); ``shared_wavefront=False`` grows one per (target, slice) as the thesis
 does, for comparison. Neither ever raises for an unreachable target nor returns NaN: a failed
 plan is a :class:`Couple` with ``ok=False`` and a ``message``.
+
+**Many feet at once.** :func:`plan_footsteps` takes a list of :class:`FootRequest` (the
+arguments of :func:`plan_footstep`; any characters, windows and settings) and returns, for
+each, exactly the :class:`Couple` that :func:`plan_footstep` returns (bit for bit). A crowd
+step's feet are planned together: the search boxes of all feet are stacked into ``(n, H, W)``
+arrays (each foot's box at the top-left of its slice, blocked past its own size), and every
+step of the search that does not depend on the others runs once for all of them: the other
+feet's cells, foot kernels, obstacle maps of each slice (one dilation per distinct kernel),
+candidate scores, slice levels; then the search goes in rounds, each evaluating the next
+couple of every foot still searching (its line of sight, its straight plan, the wavefronts
+its couple needs, the 3D trajectories) in a few vectorised calls. Numpy's cost per call,
+not its arithmetic, is what a plan costs, so a step's plans cost a few rounds of calls
+instead of a few hundred calls per foot. The last one or two feet of a search finish alone
+(a round for one foot costs more than its couples).
 """
 
 from __future__ import annotations

@@ -37,6 +37,12 @@ The result is a :class:`FootTrajectory`: a dense 3D polyline of the curve with i
 sampled at constant speed by fractions of its arc length. :func:`trajectory_valid` tells the
 controller whether a running swing is still clear after obstacles moved (thesis §3.2.1).
 
+For planning many feet at once (:func:`~.footprints.plan_footsteps`) the steps also come
+batched, each giving exactly what the one-at-a-time function gives: :func:`region_masks`
+(search rectangles), :func:`wavefront_each` (distance fields of many grids, sweep for sweep),
+:func:`segments_clear_each` (line of sight, each segment on its own grid),
+:func:`turning_each` and :func:`lift_each` (3D trajectories of many 2D plans).
+
 Grid coordinates: ``(row, col)`` in a window, cell ``(r, c)`` centred at continuous
 coordinates ``(r, c)``; world xy ↔ grid through :class:`~.terrain.WindowGrids`.
 """

@@ -23,7 +23,14 @@ Windows are cut from a fixed world lattice (cell ``(i, j)`` is centred at ``(j, 
 so static content is rasterised once per world tile and cached; moving boxes and meshes are
 rasterised on demand, only when a window overlaps them, and that raster is reused until they
 move again (thesis: "we compute the map's representation of dynamic objects when they move near
-the multi-legged character").
+the multi-legged character"). :meth:`Environment.windows` cuts the windows of a whole step at
+once (one :class:`WindowParams` per window if their foot shapes differ): the moving boxes near
+any of them are rasterised in one batch (thesis Table 3.1: the maps are prepared "for all
+characters at the same time").
+
+Point queries (:meth:`Environment.height_at`, :meth:`Environment.forbidden_at`) use bucket
+indices of the boxes; asking both for the same points (as the controller does) finds the boxes
+once.
 
 Coordinates: world metres, Z up. Grid arrays are indexed ``[row, col]`` = ``[y, x]``.
 """
