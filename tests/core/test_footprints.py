@@ -398,8 +398,11 @@ def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
         requests.append(FootRequest(w, start, pref, hip, oh, of, params, float(rng.uniform(-np.pi, np.pi))))
     env, w, _ = scenes[0]
     # Feet that cannot be planned, and a foot on an avoided crate (it may step off it).
+    # A window of another size and cell size in the same batch.
+    other = env.window(np.array([0.1, 0.1]), WindowParams(n_cells=31, cell=0.05))
     for grids, start, pref in ((w, [np.nan, 0.0, 0.0], [0.3, 0.0]), (w, [50.0, 0.0, 0.0], [50.3, 0.0]),
-                               (_crate_window(), [0.0, 0.0, 0.15], [0.4, 0.0])):
+                               (_crate_window(), [0.0, 0.0, 0.15], [0.4, 0.0]),
+                               (other, [0.0, 0.0, 0.0], [0.3, 0.1])):
         requests.append(FootRequest(grids, np.array(start), np.array(pref), HIP, NO_LEGS, NO_LEGS, P))
     order = rng.permutation(len(requests))
     requests = [requests[i] for i in order]
