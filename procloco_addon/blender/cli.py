@@ -5,14 +5,25 @@ The same entry is callable from Python with the ``bpy`` module: ``main(argv)`` r
 exit status. Commands::
 
     procloco info
-        list the armatures of the scene and the legs ProcLoco finds on each
+        list the armatures of the scene, the legs ProcLoco finds on each and the chains
+        it would swing (tails, antennae, ears)
     procloco generate --rig NAME [--rig NAME ...] | --all
                       [--frames START END] [--speed M_PER_S] [--heading DEG] [--step-height M]
-                      [--seed N] [--render DIR] [--frame-step N] [--resolution W H]
-                      [--contact-sheet PNG] [--save BLEND]
+                      [--seed N] [--spine | --no-spine] [--visual-yaw | --no-visual-yaw]
+                      [--bake-secondary] [OUTPUT OPTIONS]
         generate locomotion for the rigs (settings saved on each rig, overridden by the
-        options given), then optionally render Workbench PNG frames into DIR, tile them into
-        a contact sheet and save the .blend
+        options given); with --bake-secondary, then bake secondary motion on every rig
+        that has (or is suggested) pendulum chains
+    procloco bake-secondary --rig NAME [--rig NAME ...] | --all [--frames START END]
+                      [OUTPUT OPTIONS]
+        bake secondary motion (Bake Secondary Motion) on the rigs' current animation; a rig
+        with no chain listed gets the suggested ones first. A rig named with --rig must have
+        a chain; with --all, rigs without one are skipped
+
+    OUTPUT OPTIONS: [--render DIR] [--frame-step N] [--resolution W H] [--contact-sheet PNG]
+                    [--save BLEND]
+        render Workbench PNG frames of the rigs' frame range into DIR, tile them into a
+        contact sheet and save the .blend
 
 Progress lines go to stdout (``ProcLoco: ...``); errors to stderr with a non-zero status
 (1: the work failed, 2: bad command line).
@@ -30,8 +41,9 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import rig
+from . import actions, rig
 from .locomotion import generate
+from .secondary import bake
 
 __all__ = ["contact_sheet", "main", "register", "render_frames", "unregister"]
 
@@ -54,22 +66,33 @@ class _UsageError(Exception):
 
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=COMMAND, description="ProcLoco batch mode")
-    sub = parser.add_subparsers(dest="command", required=True)
-    sub.add_parser("info", help="list armatures and their detected legs")
-    gen = sub.add_parser("generate", help="generate locomotion (and render a preview)")
-    gen.add_argument("--rig", action="append", default=[], metavar="NAME",
-                     help="armature to animate (repeatable)")
-    gen.add_argument("--all", action="store_true", help="every armature of the scene")
-    gen.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
+    rigs = _Parser(add_help=False)
+    rigs.add_argument("--rig", action="append", default=[], metavar="NAME",
+                      help="armature to animate (repeatable)")
+    rigs.add_argument("--all", action="store_true", help="every armature of the scene")
+    rigs.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
+    output = _Parser(add_help=False)
+    output.add_argument("--render", metavar="DIR", help="render Workbench PNG frames into DIR")
+    output.add_argument("--frame-step", type=int, default=1, help="render every N-th frame")
+    output.add_argument("--resolution", nargs=2, type=int, default=(640, 360), metavar=("W", "H"))
+    output.add_argument("--contact-sheet", metavar="PNG", help="tile rendered frames into one image")
+    output.add_argument("--save", metavar="BLEND", help="save the .blend file there")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    sub.add_parser("info", help="list armatures, their detected legs and their swinging chains")
+    gen = sub.add_parser("generate", parents=[rigs, output],
+                         help="generate locomotion (and bake secondary motion, render a preview)")
     gen.add_argument("--speed", type=float, help="speed in metres per second")
     gen.add_argument("--heading", type=float, help="heading in degrees relative to where the rig faces")
     gen.add_argument("--step-height", type=float, help="step height in metres")
     gen.add_argument("--seed", type=int, help="random seed")
-    gen.add_argument("--render", metavar="DIR", help="render Workbench PNG frames into DIR")
-    gen.add_argument("--frame-step", type=int, default=1, help="render every N-th frame")
-    gen.add_argument("--resolution", nargs=2, type=int, default=(640, 360), metavar=("W", "H"))
-    gen.add_argument("--contact-sheet", metavar="PNG", help="tile rendered frames into one image")
-    gen.add_argument("--save", metavar="BLEND", help="save the .blend file there")
+    gen.add_argument("--spine", action=argparse.BooleanOptionalAction, default=None,
+                     help="flexible spine on or off (Effects > Flexible Spine)")
+    gen.add_argument("--visual-yaw", action=argparse.BooleanOptionalAction, default=None,
+                     help="the body sways with the feet, lizard-like (Effects > Visual Yaw)")
+    gen.add_argument("--bake-secondary", action="store_true",
+                     help="then bake secondary motion on the rigs that have (or are suggested) chains")
+    sub.add_parser("bake-secondary", parents=[rigs, output],
+                   help="bake secondary motion (tails, antennae, ears) on the rigs' current animation")
     return parser
 
 
@@ -94,14 +117,19 @@ def _cmd_info(_args: argparse.Namespace) -> int:
             _say(f"{obj.name}: {len(legs)} legs ({desc})")
         except rig.RigError as err:
             _say(f"{obj.name}: {err}")
+        listed = [c.name for c in obj.procloco_secondary.chains]
+        if listed:
+            _say(f"{obj.name}: secondary chains {', '.join(listed)}")
+        else:
+            found = [c.label for c in bake.suggest_chains(obj)]
+            _say(f"{obj.name}: " + (f"suggested secondary chains {', '.join(found)}" if found
+                                    else "no tail, antenna or ear chain"))
     return 0
 
 
 def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
     s = obj.procloco
-    if args.frames is not None:
-        s.use_scene_range = False
-        s.frame_start, s.frame_end = int(args.frames[0]), int(args.frames[1])
+    _set_frames(obj, args)
     if args.speed is not None:
         s.speed = float(args.speed)
     if args.heading is not None:
@@ -110,23 +138,34 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
         s.step_height = float(args.step_height)
     if args.seed is not None:
         s.seed = int(args.seed)
+    if args.spine is not None:
+        s.use_spine = bool(args.spine)
+    if args.visual_yaw is not None:
+        s.use_visual_yaw = bool(args.visual_yaw)
 
 
-def _cmd_generate(args: argparse.Namespace) -> int:
+def _set_frames(obj: Any, args: argparse.Namespace) -> None:
+    if args.frames is not None:
+        s = obj.procloco
+        s.use_scene_range = False
+        s.frame_start, s.frame_end = int(args.frames[0]), int(args.frames[1])
+
+
+def _rigs_of(args: argparse.Namespace, what: str) -> list[Any]:
     scene = bpy.context.scene
     arms = {o.name: o for o in scene.objects if o.type == "ARMATURE"}
     names = sorted(arms) if args.all else list(args.rig)
     if not names:
         known = f"; armatures: {', '.join(sorted(arms))}" if arms else "; the scene has no armature"
-        raise CliError("say which rigs to animate: --rig NAME (repeatable) or --all" + known)
+        raise CliError(f"say which rigs to {what}: --rig NAME (repeatable) or --all" + known)
     missing = [n for n in names if n not in arms]
     if missing:
         raise CliError(f"no armature named {', '.join(repr(n) for n in missing)} in scene '{scene.name}'"
                        + (f" (armatures: {', '.join(sorted(arms))})" if arms else " (it has no armature)"))
-    objs = [arms[n] for n in names]
-    for obj in objs:
-        _apply_overrides(obj, args)
-    _say(f"generating {', '.join(names)}")
+    return [arms[n] for n in names]
+
+
+def _progress_printer() -> Any:
     last: dict[str, int] = {}
 
     def progress(name: str, fraction: float) -> None:
@@ -135,13 +174,61 @@ def _cmd_generate(args: argparse.Namespace) -> int:
             last[name] = tenth
             _say(f"  {name}: {int(100 * fraction)}%")
 
+    return progress
+
+
+def _bake_jobs(objs: Sequence[Any], required: bool, quiet: bool = False) -> list[bake.Job]:
+    """Check the secondary-motion bake of each rig (a rig with no chain listed gets the
+    suggested ones); returns the prepared jobs. Rigs without any chain are an error when
+    ``required``, else skipped. On an error the suggested chains are taken back."""
+    context = bpy.context
+    suggested: list[Any] = []
+    jobs: list[bake.Job] = []
     try:
-        made = generate.generate(bpy.context, objs, progress=progress)
-    except (generate.GenerateError, rig.RigError) as err:
+        for obj in objs:
+            chains = obj.procloco_secondary.chains
+            if not len(chains):
+                found = bake.suggest_into_settings(obj)
+                if found:
+                    suggested.append(obj)
+                    if not quiet:
+                        _say(f"{obj.name}: suggested chains {', '.join(c.label for c in found)}")
+            if not len(chains):
+                if required:
+                    raise CliError(f"'{obj.name}' has no tail, antenna or ear chain to swing: add one in "
+                                   "the Secondary Motion panel")
+                if not quiet:
+                    _say(f"{obj.name}: no chain for secondary motion, not baked")
+                continue
+            jobs.append(bake.prepare(context, obj))
+    except bake.BakeError as err:
+        for obj in suggested:
+            obj.procloco_secondary.chains.clear()
         raise CliError(str(err)) from err
-    assert made is not None
-    for obj, action in zip(objs, made, strict=True):
-        _say(f"{obj.name}: wrote Action '{action.name}'")
+    except CliError:
+        for obj in suggested:
+            obj.procloco_secondary.chains.clear()
+        raise
+    return jobs
+
+
+def _run_bakes(jobs: Sequence[bake.Job]) -> None:
+    context = bpy.context
+    progress = _progress_printer()
+    for job in jobs:
+        try:
+            for fraction in bake.sample(context, job):
+                progress(job.obj_name, fraction)
+            action = bake.write(context, job)
+        except (bake.BakeError, actions.ActionError) as err:
+            raise CliError(str(err)) from err
+        for warning in job.warnings:
+            _say(f"{job.obj_name}: warning: {warning}")
+        _say(f"{job.obj_name}: baked {len(job.bones)} swinging bones into Action '{action.name}'")
+
+
+def _outputs(objs: Sequence[Any], args: argparse.Namespace) -> None:
+    scene = bpy.context.scene
     if args.render:
         start, end = objs[0].procloco.frame_range(scene)
         files = render_frames(scene, Path(args.render), range(start, end + 1, max(1, args.frame_step)),
@@ -156,6 +243,43 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         path = str(Path(args.save).resolve())
         bpy.ops.wm.save_as_mainfile(filepath=path, copy=False)
         _say(f"saved {path}")
+
+
+def _cmd_generate(args: argparse.Namespace) -> int:
+    objs = _rigs_of(args, "animate")
+    if args.contact_sheet and not args.render:
+        raise CliError("--contact-sheet needs --render DIR")
+    for obj in objs:
+        _apply_overrides(obj, args)
+    unset = [o for o in objs if not len(o.procloco_secondary.chains)]
+    if args.bake_secondary:
+        _bake_jobs(objs, required=False)  # refuse bad chains before anything is written
+    _say(f"generating {', '.join(o.name for o in objs)}")
+    try:
+        made = generate.generate(bpy.context, objs, progress=_progress_printer())
+    except (generate.GenerateError, rig.RigError) as err:
+        for obj in unset:  # the chains suggested above are taken back
+            obj.procloco_secondary.chains.clear()
+        raise CliError(str(err)) from err
+    assert made is not None
+    for obj, action in zip(objs, made, strict=True):
+        _say(f"{obj.name}: wrote Action '{action.name}'")
+    if args.bake_secondary:
+        _run_bakes(_bake_jobs(objs, required=False, quiet=True))
+    _outputs(objs, args)
+    return 0
+
+
+def _cmd_bake_secondary(args: argparse.Namespace) -> int:
+    objs = _rigs_of(args, "bake")
+    if args.contact_sheet and not args.render:
+        raise CliError("--contact-sheet needs --render DIR")
+    for obj in objs:
+        _set_frames(obj, args)
+    jobs = _bake_jobs(objs, required=not args.all)
+    _say(f"baking secondary motion on {', '.join(j.obj_name for j in jobs) or 'no rig'}")
+    _run_bakes(jobs)
+    _outputs(objs, args)
     return 0
 
 
@@ -171,6 +295,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         if args.command == "info":
             return _cmd_info(args)
+        if args.command == "bake-secondary":
+            return _cmd_bake_secondary(args)
         return _cmd_generate(args)
     except (CliError, OSError, RuntimeError) as err:
         print(f"{COMMAND}: error: {err}", file=sys.stderr, flush=True)

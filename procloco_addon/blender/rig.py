@@ -46,7 +46,7 @@ the body bone's location, keeping each leg's knee plane and adding no twist;
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 
 import bpy
@@ -621,12 +621,14 @@ _OVERRIDING_CONSTRAINTS = frozenset({
 
 def read_rig(
     obj: bpy.types.Object, legs: Sequence[LegChain] | None = None, forward_axis: str = "AUTO",
-    spine: bool = False,
+    spine: bool = False, at_rest: Collection[str] = (),
 ) -> RigInfo:
     """Read ``obj``'s legs (given, else detected), body bone, spine and rest geometry.
 
     ``spine``: drive the spine chain when the rig has one that carries two girdles or more
     (:attr:`RigInfo.spine_layout`); its bones are then read at rest, like the legs.
+    Bones that are not driven keep their current pose (:attr:`RigInfo.basis`), except those
+    named in ``at_rest``, which are taken at rest.
     Raises :class:`RigError` for anything that cannot be animated (not an armature, bad
     legs, legs with no common body bone, non-uniform scale).
     """
@@ -663,6 +665,9 @@ def read_rig(
     carried = spine and _spine_layout(rest, chain, hip_idx, rest.head, rest.tail) is not None
 
     basis = _current_basis(obj)
+    for name in at_rest:
+        if name in basis:
+            basis[name] = np.eye(4)
     ik_targets = [_ik_target(obj, rest, leg) for leg in legs]
     driven = {rest.index[b] for leg in legs for b in (*leg.bones, *leg.foot[:1])} | {body_idx}
     if carried:
@@ -1021,7 +1026,8 @@ GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _foot_pitch(
-    rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float
+    rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
+    lift: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pitch ``(F,)`` about each foot's horizontal cross axis that sets its sole on the ground.
 
@@ -1029,6 +1035,9 @@ def _foot_pitch(
     yaw-turned rest orientation); heights ``(F, P)`` ground under them. The smallest rotation
     keeping every forward point above the ground: up a slope or onto an edge the toes lift,
     down a slope they follow it. Points behind the end-effector (heels) are left alone.
+    ``lift`` ``(F,)``: how far the end-effector is above where it stands when planted (``inf``
+    over no ground); the downward pitch fades out as the foot rises by half its length, so a
+    lifted foot does not point its toes at the ground below (swing, or over a gap).
     """
     d = rel[..., :2].sum(axis=1)
     d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
@@ -1041,6 +1050,11 @@ def _foot_pitch(
     need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
     theta = np.where(ok, need, -np.inf).max(axis=1)
     theta = np.where(np.isfinite(theta), theta, 0.0)
+    if lift is not None:
+        fade = 0.5 * np.where(ok, radius, 0.0).max(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.clip(1.0 - np.maximum(lift, 0.0) / np.maximum(fade, 1e-12), 0.0, 1.0)
+        theta = np.where(theta < 0.0, theta * np.nan_to_num(share, nan=0.0), theta)
     return np.clip(theta, -limit, limit), d
 
 
@@ -1210,6 +1224,12 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     bounds = np.cumsum([0, *counts])
     turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
     pitched: list[np.ndarray | None] = [None] * len(legs)
+    # How far each end-effector is above where it would stand on the ground under it.
+    end_xy = np.concatenate([end[:, :2] for end in ends])
+    end_frame = np.tile(np.arange(n_frames), len(legs))
+    under = np.asarray(ground(end_frame if dynamic else np.zeros_like(end_frame), end_xy), dtype=np.float64)
+    lifts = [end[:, 2] - info.foot_height[k] - under[j * n_frames:(j + 1) * n_frames]
+             for j, (k, end) in enumerate(zip(legs, ends, strict=True))]
     # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
     # where the pitched points are, the pitch from the rest sole). After the first the pitch
     # only rises: a toe pitched down past an edge onto the higher ground it now stands over
@@ -1225,7 +1245,7 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
         found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
         heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
         for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
-            theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit)
+            theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit, lifts[j])
             before = pitched[j]
             if before is not None:
                 theta = np.maximum(theta, before)

@@ -106,3 +106,97 @@ def test_the_command_is_registered_with_blender(procloco_registered: Any) -> Non
         pytest.skip("this Blender has no command-line commands")
     assert cli._handle is not None
     assert cli._execute(["generate", "--rig", "Nobody"]) == 1
+
+
+# ---------------------------------------------------------------------------------------
+# Secondary motion and the spine switches
+
+
+@pytest.fixture
+def lizard_scene(empty_scene: Any) -> Any:
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    lizard = creatures.build_lizard(empty_scene)
+    empty_scene.frame_start, empty_scene.frame_end = 1, 36
+    return lizard
+
+
+def test_generate_then_bake_secondary_swings_the_tail_only(empty_scene: Any,
+                                                           capsys: pytest.CaptureFixture[str]) -> None:
+    from mathutils import Matrix
+
+    from procloco_addon.blender.secondary import bake
+    from tests.blender.pose_eval import pose_matrices
+
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    wolf = creatures.build_wolf(empty_scene)
+    empty_scene.frame_start, empty_scene.frame_end = 1, 36
+    assert cli.main(["generate", "--rig", "Wolf", "--bake-secondary"]) == 0
+    printed = capsys.readouterr().out
+    assert "Wolf: suggested chains Tail (spine.003)" in printed
+    assert "Wolf: baked" in printed
+    baked = wolf.animation_data.action
+    assert baked.name == "Wolf Secondary"
+    walk = baked[bake.SECONDARY_SOURCE]
+    assert walk.name == "Wolf ProcLoco"  # the bake sits on the generated walk, which is kept
+    frames = list(range(1, 37))
+    bones = ["thigh.L", "front_foot.R", "spine.004", "spine"]  # legs, hips, the tail's tip
+    swinging = pose_matrices(wolf, frames, bones)
+    actions.assign_action(wolf, walk)
+    for pb in wolf.pose.bones:  # the walk does not key the tail: put it back at rest
+        pb.matrix_basis = Matrix()
+    walking = pose_matrices(wolf, frames, bones)
+    # Legs and body walk exactly as generated; the tail's tip lags and swings.
+    assert np.abs(swinging[:, :3] - walking[:, :3]).max() < 1e-5
+    tip = [m[:, 3, :3, 1] / np.linalg.norm(m[:, 3, :3, 1], axis=-1, keepdims=True)
+           for m in (swinging, walking)]
+    swing = np.degrees(np.arccos(np.clip(np.sum(tip[0] * tip[1], axis=-1), -1.0, 1.0)))
+    assert swing.max() > 0.5  # (exactly 0 without the bake; about 1.7° for this short flat walk)
+
+
+def test_bake_secondary_command(empty_scene: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    robot = creatures.build_robot(empty_scene)
+    ant = creatures.build_ant(empty_scene, location=(1.0, 0.0, 0.0), scale=20.0)
+    empty_scene.frame_start, empty_scene.frame_end = 1, 6
+    # A named rig without anything to swing is refused, and nothing changes.
+    before = snapshot()
+    assert cli.main(["bake-secondary", "--rig", "Robot"]) == 1
+    assert "'Robot' has no tail, antenna or ear chain" in capsys.readouterr().err
+    assert snapshot() == before
+    assert len(robot.procloco_secondary.chains) == 0
+    # --all bakes every rig that has chains (the ant's antennae, even with no animation) and skips the rest.
+    assert cli.main(["bake-secondary", "--all", "--frames", "2", "5"]) == 0
+    printed = capsys.readouterr().out
+    assert "Robot: no chain for secondary motion, not baked" in printed
+    assert "Ant: baked" in printed
+    assert robot.animation_data is None or robot.animation_data.action is None
+    labels = {c.name for c in ant.procloco_secondary.chains}
+    assert any("Antenna" in label for label in labels), labels
+    antenna = 'pose.bones["Antenna1.L"].rotation_quaternion'
+    keys = actions.read_channel(ant.animation_data.action, ant, antenna, 0)
+    assert keys is not None
+    assert keys[0].tolist() == [2.0, 3.0, 4.0, 5.0]
+    # The bake's options are the generate command's.
+    assert cli.main(["bake-secondary", "--rig", "Ant", "--contact-sheet", "x.png"]) == 1
+    assert "--contact-sheet needs --render DIR" in capsys.readouterr().err
+
+
+def test_spine_and_visual_yaw_switches(lizard_scene: Any) -> None:
+    from tests.blender.test_generate import _spine_bend
+
+    frames = list(range(1, 37))
+    assert cli.main(["generate", "--rig", "Lizard", "--spine", "--visual-yaw"]) == 0
+    s = lizard_scene.procloco
+    assert s.use_spine
+    assert s.use_visual_yaw
+    swaying = _spine_bend(lizard_scene, frames, ("Hips", "Chest"))
+    assert swaying.max() > 2.0
+    # Generated again without the spine: its bones are back at rest (not frozen in the
+    # last pose the first walk gave them).
+    assert cli.main(["generate", "--rig", "Lizard", "--no-spine"]) == 0
+    assert not s.use_spine
+    assert s.use_visual_yaw  # left as it was
+    rigid = _spine_bend(lizard_scene, frames, ("Hips", "Chest"))
+    assert rigid.max() < 0.05  # float32 pose matrices
+    assert cli.main(["generate", "--rig", "Lizard", "--no-visual-yaw"]) == 0
+    assert not s.use_visual_yaw

@@ -403,3 +403,59 @@ def test_spine_pose_is_written_where_the_core_puts_it(empty_scene: Any) -> None:
     assert abs((turn + 180.0) % 360.0 - 180.0) > 10.0
     with pytest.raises(ValueError, match="spine is driven"):
         rig.solve_pose(info, body, joints)
+
+
+def test_feet_follow_the_ground_they_stand_on_and_not_the_ground_below_them(empty_scene: Any) -> None:
+    """The wolf's hind paw (``toe.L``) with its leg at rest over different grounds: flat, a
+    slope falling away ahead (toes follow it down), a slope rising (toes lift), the ground a
+    leg length below (a foot in the air keeps its rest orientation instead of pointing its
+    toes at the ground) and no ground at all (over a gap)."""
+    arm = creatures.build_wolf(empty_scene)
+    info = rig.read_rig(arm)
+    k = [leg.label for leg in info.legs].index("L2")
+    end = info.joints[k][-1]
+    contact_z = float(info.contact[k, 2])
+    forward = info.body.forward[:2]
+    leg_length = float(info.leg_length[k])
+    slopes = {0: 0.0, 1: np.radians(-20.0), 2: np.radians(15.0)}
+
+    def ground(frame_index: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        ahead = np.maximum((xy - end[:2]) @ forward, 0.0)
+        z = np.empty(len(xy))
+        for f in np.unique(frame_index):
+            pick = frame_index == f
+            if f in slopes:
+                z[pick] = contact_z + np.tan(slopes[int(f)]) * ahead[pick]
+            elif f == 3:
+                z[pick] = contact_z - leg_length
+            else:
+                z[pick] = -np.inf
+        return z
+
+    ground.dynamic = True  # type: ignore[attr-defined]
+    n = 5
+    body = np.repeat(info.body.matrix[None], n, axis=0)
+    joints = [np.repeat(j[None], n, axis=0) for j in info.joints]
+    tracks = rig.solve_pose(info, body, joints, ground=ground)
+    action = actions.new_action(arm)
+    actions.write_pose_bone_transforms(action, arm, np.arange(1, n + 1), tracks.bones, tracks.rotations,
+                                       tracks.locations)
+    actions.assign_generated_action(arm, action)
+    paw = pose_matrices(arm, list(range(1, n + 1)), ["toe.L"])[:, 0]
+    rest = (info.world @ info.rest_local["toe.L"])[:3, 1]
+    tip = paw[:, :3, 3] + paw[:, :3, 1] * arm.data.bones["toe.L"].length
+
+    def pitch(v: np.ndarray) -> float:  # degrees above the horizontal
+        return float(np.degrees(np.arctan2(v[2], np.linalg.norm(v[:2]))))
+
+    tilt = np.array([pitch(v) - pitch(rest) for v in paw[:, :3, 1]])
+    # On the ground it stands on, the paw turns until its toes touch it: down the falling
+    # slope, up the rising one.
+    assert abs(tilt[0]) < 0.1
+    assert tilt[1] < -10.0
+    assert tilt[2] > 10.0
+    above = tip[:3, 2] - ground(np.arange(3), tip[:3, :2])
+    assert np.all(above > -1e-4 * leg_length), above  # never into the ground
+    assert np.all(above < 0.006 * leg_length), above  # and down onto it
+    # In the air, or over nothing, the paw keeps its rest orientation.
+    np.testing.assert_allclose(tilt[3:], 0.0, atol=0.1)

@@ -37,6 +37,7 @@ __all__ = [
     "prepare",
     "settings_legs",
     "simulate",
+    "stale_bones",
     "write",
 ]
 
@@ -235,9 +236,45 @@ class Job:
     spine_turn_rate: float = float(np.radians(120.0))  # rad/s
     spine_relax_time: float = 0.6  # s
     visual_yaw_gain: float = 1.0
+    # Bones only an earlier generation (or bake) keyed, which this one does not drive: keyed
+    # at rest so the new Action alone decides the pose (see stale_bones).
+    held_bones: tuple[str, ...] = ()
     warnings: list[str] = field(default_factory=list)
     result: Any = None
     timings: dict[str, float] = field(default_factory=dict)
+
+
+def _keyed_bones(action: bpy.types.Action | None, obj: bpy.types.Object) -> set[str]:
+    """Names of the pose bones ``action`` animates on ``obj``."""
+    if action is None:
+        return set()
+    prefix = 'pose.bones["'
+    out = set()
+    for ch in actions.channels_of(action, obj):
+        if ch.data_path.startswith(prefix):
+            end = ch.data_path.find('"]', len(prefix))
+            if end > 0:
+                out.add(ch.data_path[len(prefix):end].replace('\\"', '"').replace("\\\\", "\\"))
+    return out
+
+
+def stale_bones(obj: bpy.types.Object) -> set[str]:
+    """Bones whose current pose comes from ProcLoco, not from the user: those the rig's
+    generated Action keys and the user's own previous Action does not.
+
+    A new generation reads them at rest and keys them at rest, so switching the spine off or
+    generating over a secondary-motion bake does not freeze the spine or the tail in the
+    last pose the earlier Action gave them. (Bones the user animates or posed keep their
+    current pose, as always.)
+    """
+    current = actions.generated_action(obj)
+    if current is None:
+        return set()
+    stale = _keyed_bones(current, obj)
+    _remembered, previous = actions.previous_action(obj)
+    if previous is not None and not actions.is_generated(previous):
+        stale -= _keyed_bones(previous, obj)
+    return stale
 
 
 def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
@@ -251,10 +288,11 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     start, end = settings.frame_range(scene)
     if end <= start:
         raise GenerateError(f"The frame range of '{obj.name}' is empty or reversed ({start} to {end})")
+    stale = stale_bones(obj)
     try:
         legs = settings_legs(obj)
         from_settings = legs is not None
-        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine))
+        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine), at_rest=stale)
         morph = rig.morphology_of(info, float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
     except rig.RigError as err:
         raise GenerateError(str(err)) from err
@@ -297,6 +335,8 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         spine_relax_time=float(settings.spine_relax_time),
         visual_yaw_gain=float(settings.visual_yaw_gain),
         warnings=list(info.warnings),
+        held_bones=tuple(pb.name for pb in obj.pose.bones
+                         if pb.name in stale and pb.name not in info.driven_bones),
     )
     job.timings["read_s"] = time.perf_counter() - t0
     return job
@@ -332,6 +372,11 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
         if loc:
             actions.write_pose_bone_transforms(action, obj, frames, [tracks.bones[i] for i in loc],
                                                locations=tracks.locations[:, loc])
+        if job.held_bones:
+            n = len(job.held_bones)
+            rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
+            actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
+                                               rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
         actions.assign_generated_action(obj, action)
     except Exception:
         bpy.data.actions.remove(action)
