@@ -1,20 +1,30 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The README's main job: generate locomotion for every creature of ``examples.blend``.
+"""The README's main job: every creature of ``examples.blend`` walks, swings and is rendered.
 
-    python3 tools/dev.py example [--blend examples.blend] [--out out/example]
-                                 [--rig NAME ...] [--frame-step N] [--resolution W H] [--info]
+    python3 tools/dev.py example [--blend examples.blend] [--out out/example] [--rig NAME ...]
+                                 [--frame-step N] [--resolution W H] [--close-up-frames F ...]
+                                 [--no-biped] [--update-docs] [--info]
 
 Runs Blender headless (the ``bpy`` module), enables ProcLoco the way Blender does — as an
 extension from a repository that points at this checkout — opens ``examples.blend`` (built
-first by ``tools/build_examples.py`` when it is missing), and runs the extension's batch
-command: ``procloco generate --all --render ... --contact-sheet ... --save ...``. It
-writes into ``--out``:
+first by ``tools/build_examples.py`` when it is missing) and, printing its progress:
 
-* ``examples_generated.blend`` — the scene with one new Action per creature,
-* ``frames/frame_####.png`` — Workbench renders (every ``--frame-step``-th frame),
-* ``contact_sheet.png`` — twelve of those frames tiled.
+1. runs the extension's batch command ``procloco generate --all --bake-secondary``:
+   Generate Locomotion on every creature, then Bake Secondary Motion on every rig with
+   pendulum chains (the wolf's tail and ears, the ant's antennae and gaster, the spider's
+   palps and abdomen, the lizard's tail);
+2. walks the human up and down its stairs with Plan Biped Footsteps (its clips and goal
+   are set up in ``examples.blend``; ``--no-biped`` keeps its Generate Locomotion walk);
+3. renders with Workbench and saves, into ``--out``:
 
-``--info`` only lists the rigs and the legs ProcLoco finds on each.
+   * ``frames/frame_####.png`` — the scene camera's view, every ``--frame-step``-th frame,
+   * ``contact_sheet.png`` — twelve of those frames tiled,
+   * ``creatures.png`` — a close-up of each creature (columns) at ``--close-up-frames`` (rows),
+   * ``examples_generated.blend`` — the scene with the new Actions.
+
+``--update-docs`` also copies the two sheets to ``docs/images/example_contact_sheet.png``
+and ``docs/images/example_creatures.png`` (the README's pictures). ``--info`` only lists the
+rigs, their legs and their chains.
 """
 
 from __future__ import annotations
@@ -22,6 +32,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -59,6 +70,25 @@ def enable_extension() -> str:
     return PACKAGE
 
 
+def _say(text: str) -> None:
+    print(f"[example] {text}", flush=True)
+
+
+def plan_biped(obj: bpy.types.Object) -> str:
+    """Plan Biped Footsteps on ``obj`` (its clips and goal as saved); returns what happened."""
+    settings = obj.procloco_biped
+    if settings.goal is None or not len(settings.clips):
+        return f"{obj.name}: no biped goal or clips, kept its walk"
+    with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj]):
+        result = bpy.ops.procloco.plan_biped_footsteps()
+    if result != {"FINISHED"}:
+        raise RuntimeError(f"Plan Biped Footsteps refused {obj.name}")
+    action = obj.animation_data.action
+    start, end = (round(v) for v in action.frame_range)
+    return (f"{obj.name}: walked to '{settings.goal.name}' with Plan Biped Footsteps, "
+            f"Action '{action.name}' (frames {start}-{end})")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -67,32 +97,70 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rig", action="append", default=[], help="only these rigs (default: all)")
     parser.add_argument("--frame-step", type=int, default=4, help="render every N-th frame")
     parser.add_argument("--resolution", nargs=2, type=int, default=(640, 360), metavar=("W", "H"))
-    parser.add_argument("--info", action="store_true", help="only list the rigs and their legs")
+    parser.add_argument("--close-up-frames", nargs="+", type=int, default=[12, 60, 108], metavar="F",
+                        help="frames of the creature close-ups (one row each)")
+    parser.add_argument("--no-biped", action="store_true",
+                        help="keep the human's Generate Locomotion walk instead of Plan Biped Footsteps")
+    parser.add_argument("--update-docs", action="store_true",
+                        help="copy the two sheets to docs/images/example_*.png")
+    parser.add_argument("--info", action="store_true", help="only list the rigs, their legs and chains")
     args = parser.parse_args(argv)
 
     t0 = time.perf_counter()
     if not args.blend.exists():
-        print(f"[example] {args.blend.name} is missing: building it with tools/build_examples.py", flush=True)
+        _say(f"{args.blend.name} is missing: building it with tools/build_examples.py")
         build = importlib.import_module("tools.build_examples")
         build.build(args.blend)
         bpy.ops.wm.read_homefile(use_empty=True)
     package = enable_extension()
-    print(f"[example] enabled {package} (Blender {bpy.app.version_string})", flush=True)
+    _say(f"enabled {package} (Blender {bpy.app.version_string})")
     bpy.ops.wm.open_mainfile(filepath=str(args.blend))
     cli = importlib.import_module(f"{package}.procloco_addon.blender.cli")
     if args.info:
         return int(cli.main(["info"]))
+    examples = importlib.import_module("tools.examples.scene")
+    scene = bpy.context.scene
+    names = args.rig or sorted(o.name for o in scene.objects if o.type == "ARMATURE")
     out = args.out.resolve()
-    command = ["generate", *(["--all"] if not args.rig else [x for r in args.rig for x in ("--rig", r)]),
-               "--render", str(out / "frames"), "--frame-step", str(args.frame_step),
-               "--resolution", *map(str, args.resolution),
-               "--contact-sheet", str(out / "contact_sheet.png"),
-               "--save", str(out / "examples_generated.blend")]
-    print("[example] procloco " + " ".join(command), flush=True)
+
+    command = ["generate", *[x for name in names for x in ("--rig", name)], "--bake-secondary"]
+    _say("1/4 procloco " + " ".join(command))
     status = int(cli.main(command))
-    took = time.perf_counter() - t0
-    print(f"[example] done in {took:.1f} s (status {status}); results in {out}", flush=True)
-    return status
+    if status:
+        return status
+    _say(f"    generated and baked in {time.perf_counter() - t0:.1f} s")
+    rigs = [bpy.data.objects[name] for name in names]
+    if not args.no_biped:
+        t1 = time.perf_counter()
+        for obj in rigs:
+            if len(obj.procloco_biped.clips):
+                _say(f"2/4 {plan_biped(obj)} in {time.perf_counter() - t1:.1f} s")
+
+    t1 = time.perf_counter()
+    frames = range(scene.frame_start, scene.frame_end + 1, max(1, args.frame_step))
+    _say(f"3/4 rendering {len(frames)} frames ({args.resolution[0]}x{args.resolution[1]}, Workbench)")
+    files = cli.render_frames(scene, out / "frames", frames, tuple(args.resolution), focus=rigs)
+    sheet = cli.contact_sheet(files, out / "contact_sheet.png")
+    _say(f"    {sheet} ({time.perf_counter() - t1:.1f} s)")
+    t1 = time.perf_counter()
+    # Close-ups in lane order (the scene's creatures), then any other rig.
+    order = {name: i for i, name in enumerate(examples.CREATURE_NAMES.values())}
+    in_lanes = sorted(rigs, key=lambda o: order.get(o.name, len(order)))
+    kinds = {str(o.get("procloco_kind", o.name)): o for o in in_lanes}
+    _say(f"4/4 close-ups of {len(kinds)} creatures at frames {' '.join(map(str, args.close_up_frames))}")
+    close_ups = examples.render_contact_sheet(scene, kinds, out / "creatures.png", tile=(320, 200),
+                                              frames=args.close_up_frames)
+    _say(f"    {close_ups} ({time.perf_counter() - t1:.1f} s)")
+    saved = out / "examples_generated.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(saved), copy=True)
+    _say(f"saved {saved}")
+    if args.update_docs:
+        docs = ROOT / "docs" / "images"
+        for source, name in ((sheet, "example_contact_sheet.png"), (close_ups, "example_creatures.png")):
+            shutil.copyfile(source, docs / name)
+            _say(f"updated docs/images/{name}")
+    _say(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
+    return 0
 
 
 if __name__ == "__main__":

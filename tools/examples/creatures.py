@@ -318,11 +318,16 @@ RIG_SETTINGS: dict[str, dict[str, float]] = {
     "spider": {"speed": 0.06, "step_height": 0.012},
     "ant": {"speed": 0.012, "step_height": 0.002},
     "robot": {"speed": 0.45, "step_height": 0.08},
-    "lizard": {"speed": 0.3, "step_height": 0.03},
+    "lizard": {"speed": 0.3, "step_height": 0.03, "use_visual_yaw": True},  # the thesis's lizard sway
     "wolf": {"speed": 0.8, "step_height": 0.08},
     "human": {"speed": 1.2, "step_height": 0.08},
 }
 _SCALED_SETTINGS = ("speed", "step_height")
+#: Changes to the suggested secondary-motion chains per kind: ``{word in the chain's root
+#: bone: {setting: value}}`` (settings of ``Object.procloco_secondary.chains``).
+SECONDARY_SETTINGS: dict[str, dict[str, dict[str, float | bool]]] = {
+    "wolf": {"spine.003": {"settling_time": 1.0, "damping": 0.25}},  # a lively tail
+}
 #: The shipped gait preset (file stem in ``presets/gait``) each kind walks with; the example
 #: scene applies it once the legs are detected (see ``scene.configure_example_rig``).
 GAIT_PRESET: dict[str, str] = {
@@ -553,7 +558,9 @@ def _descends_from(bone: Any, ancestor: str) -> bool:
 
 def _build_metarig(kind: str, operator: Callable[[], Any], radius_of: Callable[[Any], tuple[float, float]],
                    scene: bpy.types.Scene, name: str, location: Sequence[float], scale: float,
-                   collection: bpy.types.Collection | None) -> bpy.types.Object:
+                   collection: bpy.types.Collection | None,
+                   before_skin: Callable[[bpy.types.Scene, bpy.types.Object], None] | None = None,
+                   ) -> bpy.types.Object:
     import addon_utils
 
     if scale <= 0.0:
@@ -581,6 +588,8 @@ def _build_metarig(kind: str, operator: Callable[[], Any], radius_of: Callable[[
                 for eb in arm.data.edit_bones:
                     eb.head *= scale
                     eb.tail *= scale
+        if before_skin is not None:
+            before_skin(scene, arm)
     radii: dict[str, tuple[float, float]] = {}
     for bone in arm.data.bones:
         if _descends_from(bone, "face"):
@@ -633,11 +642,38 @@ def build_wolf(scene: bpy.types.Scene, name: str = "Wolf", location: Sequence[fl
                           scene, name, location, scale, collection)
 
 
+#: Where the example human's upper arms and forearms point at rest (left arm; the right one
+#: mirrored): hanging at its sides, a little out, the elbows slightly bent, instead of the
+#: metarig's A pose.
+HUMAN_ARM_DIRECTION: dict[str, Vec3] = {"upper_arm": (0.2, -0.05, -1.0), "forearm": (0.1, -0.3, -1.0)}
+
+
+def _lower_arms(scene: bpy.types.Scene, arm: bpy.types.Object) -> None:
+    """Turn each arm bone of :data:`HUMAN_ARM_DIRECTION` (and every bone below it) about its
+    head so it points that way, in the rest pose."""
+    with _edit_mode(scene, arm):
+        edit = arm.data.edit_bones
+        for side, sign in (("L", 1.0), ("R", -1.0)):
+            for name, (x, y, z) in HUMAN_ARM_DIRECTION.items():
+                bone = edit.get(f"{name}.{side}")
+                if bone is None:
+                    continue
+                turn = (bone.tail - bone.head).rotation_difference(Vector((sign * x, y, z))).to_matrix()
+                pivot = bone.head.copy()
+                # All new ends first: connected children's heads follow their parents' tails.
+                moved = [(eb, pivot + turn @ (eb.head - pivot), pivot + turn @ (eb.tail - pivot),
+                          turn @ eb.z_axis) for eb in [bone, *bone.children_recursive]]
+                for eb, head, tail, z_axis in moved:
+                    eb.head, eb.tail = head, tail
+                    eb.align_roll(z_axis)
+
+
 def build_human(scene: bpy.types.Scene, name: str = "Human", location: Sequence[float] = (0.0, 0.0, 0.0),
                 scale: float = 1.0, collection: bpy.types.Collection | None = None) -> bpy.types.Object:
-    """Rigify's human metarig (hips ``spine``, legs ``thigh > shin > foot > toe``) with a capsule skin."""
+    """Rigify's human metarig (hips ``spine``, legs ``thigh > shin > foot > toe``) with a capsule
+    skin, its arms lowered to hang at its sides (:data:`HUMAN_ARM_DIRECTION`)."""
     return _build_metarig("human", bpy.ops.object.armature_human_metarig_add, _human_radius,
-                          scene, name, location, scale, collection)
+                          scene, name, location, scale, collection, before_skin=_lower_arms)
 
 
 #: The builders by kind.

@@ -6,11 +6,14 @@ API::
     setup_render(scene, resolution=(640, 360))    # Workbench, material colours, shadows
     add_sun(scene, collection=None) -> Object       # a sun for Cycles/EEVEE; sets Workbench's light direction
     bound_corners(objects) -> list[Vector]          # world corners of evaluated bounding boxes
+    skin_points(obj, count=300) -> list[Vector]     # world vertices of the evaluated mesh, subsampled
     frame_camera(scene, points, direction=..., margin=0.04, camera=None) -> Object
     configure_example_rig(rig, kind, terrain_collection) -> list[str]   # first-click settings
     build_example_scene(scene) -> ExampleScene      # six creatures on the terrain, framed
     creature_screen_boxes(scene, rigs) -> {kind: [u0, v0, u1, v1]}
-    render_contact_sheet(scene, rigs, path, tile=(320, 180), columns=3) -> path   # close-ups, one PNG
+    render_close_ups(scene, rigs, tile=(320, 180)) -> {kind: pixels}              # one close-up each
+    render_contact_sheet(scene, rigs, path, tile=(320, 180), columns=3, frames=None) -> path
+        # close-ups in one PNG: side by side at the current frame, or one row per frame
 
 ``EXAMPLE_SCALE[kind]`` is the scale each creature is built at in the example: the
 tarantula and the ant are giants (legs ~0.7 m and ~0.5 m), the others are real size.
@@ -45,10 +48,13 @@ FRAME_END = 120
 FPS = 24
 #: Where the camera looks from (towards the scene centre): in front of the creatures, raised.
 CAMERA_DIRECTION = (-0.35, -1.0, -0.55)
-#: Where close-ups look from: in front of the creature (it faces -Y), on its left, raised.
-CLOSEUP_DIRECTION = (-0.6, 1.0, -0.5)
+#: Where close-ups look from (towards the creature): its left side (it faces -Y), a little
+#: ahead of it, raised.
+CLOSEUP_DIRECTION = (-1.0, 0.5, -0.5)
 #: The stretch of ground (y) the camera keeps in view.
 FRAMED_Y = (-2.5, 4.0)
+#: Where the human walks to with Plan Biped Footsteps: on the ground beyond its stairs.
+HUMAN_GOAL = (terrain.LANE_X["human"], -3.5, 0.0)
 
 
 @dataclass
@@ -91,6 +97,23 @@ def add_sun(scene: bpy.types.Scene, collection: bpy.types.Collection | None = No
     # Workbench's light_direction points towards the light, in world space.
     scene.display.light_direction = tuple(-d)
     return sun
+
+
+def skin_points(obj: bpy.types.Object, count: int = 300) -> list[Vector]:
+    """Up to ``count`` evenly picked vertices of ``obj``'s evaluated (posed) mesh, in world space."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        co = np.empty(len(mesh.vertices) * 3)
+        mesh.vertices.foreach_get("co", co)
+    finally:
+        evaluated.to_mesh_clear()
+    co = co.reshape(-1, 3)
+    if co.shape[0] > count:
+        co = co[np.linspace(0, co.shape[0] - 1, count).round().astype(int)]
+    m = np.array(evaluated.matrix_world)
+    return [Vector(p) for p in co @ m[:3, :3].T + m[:3, 3]]
 
 
 def bound_corners(objects: Iterable[bpy.types.Object]) -> list[Vector]:
@@ -156,55 +179,94 @@ def _read_png(path: Path) -> np.ndarray:
     return pixels.reshape(h, w, 4)  # row 0 is the bottom of the picture
 
 
-def render_contact_sheet(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object], path: Path,
-                         tile: tuple[int, int] = (320, 180), columns: int = 3,
-                         direction: Sequence[float] = CLOSEUP_DIRECTION) -> Path:
-    """Render each creature close up at the current frame (Workbench, ``tile`` pixels) and
-    save them side by side, ``columns`` per row, as one PNG at ``path``.
+def _save_png(pixels: np.ndarray, path: Path) -> Path:
+    """Save ``(h, w, 4)`` float pixels (row 0 at the bottom) as a PNG at ``path``."""
+    image = bpy.data.images.new("ProcLoco contact sheet", pixels.shape[1], pixels.shape[0], alpha=False)
+    try:
+        image.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+        path.parent.mkdir(parents=True, exist_ok=True)
+        image.filepath_raw = str(path)
+        image.file_format = "PNG"
+        image.save()
+    finally:
+        bpy.data.images.remove(image)
+    return path
 
-    The scene's camera, resolution and output path are left as they were.
-    """
+
+def render_close_ups(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object],
+                     tile: tuple[int, int] = (320, 180),
+                     direction: Sequence[float] = CLOSEUP_DIRECTION,
+                     margin: float = 0.08) -> dict[str, np.ndarray]:
+    """Render each creature close up at the current frame (Workbench, ``tile`` pixels): the
+    camera looks along ``direction`` at the creature's posed skin, framed with ``margin`` to spare.
+    Returns ``{kind: (h, w, 4) pixels}`` (row 0 at the bottom; creatures without a skin are
+    left out). The scene's camera, resolution, engine and output path are left as they were."""
     render = scene.render
     saved = (scene.camera, render.resolution_x, render.resolution_y, render.resolution_percentage,
              render.filepath, render.engine)
     camera = bpy.data.objects.new("Close-up camera", bpy.data.cameras.new("Close-up camera"))
     scene.collection.objects.link(camera)
-    rows = -(-len(rigs) // columns)
-    sheet = np.ones((rows * tile[1], columns * tile[0], 4), dtype=np.float32)
+    out: dict[str, np.ndarray] = {}
     try:
         render.engine = "BLENDER_WORKBENCH"
         render.resolution_x, render.resolution_y = tile
         render.resolution_percentage = 100
         with tempfile.TemporaryDirectory() as tmp:
-            for i, (kind, rig) in enumerate(rigs.items()):
+            for kind, rig in rigs.items():
                 skin = creatures.skin_of(rig)
                 if skin is None:
                     continue
-                frame_camera(scene, bound_corners([skin]), direction=direction, margin=0.08, lens=50.0,
+                frame_camera(scene, skin_points(skin), direction=direction, margin=margin, lens=50.0,
                              camera=camera)
                 scene.camera = camera
                 render.filepath = str(Path(tmp) / f"{kind}.png")
                 bpy.ops.render.render(write_still=True)
-                pixels = _read_png(Path(render.filepath))
-                row, col = divmod(i, columns)
-                top = (rows - 1 - row) * tile[1]  # image rows count from the bottom
-                sheet[top:top + tile[1], col * tile[0]:(col + 1) * tile[0]] = pixels
-        image = bpy.data.images.new("ProcLoco contact sheet", sheet.shape[1], sheet.shape[0], alpha=False)
-        try:
-            image.pixels.foreach_set(sheet.ravel())
-            path.parent.mkdir(parents=True, exist_ok=True)
-            image.filepath_raw = str(path)
-            image.file_format = "PNG"
-            image.save()
-        finally:
-            bpy.data.images.remove(image)
+                out[kind] = _read_png(Path(render.filepath))
     finally:
         (scene.camera, render.resolution_x, render.resolution_y, render.resolution_percentage,
          render.filepath, render.engine) = saved
         camera_data = camera.data
         bpy.data.objects.remove(camera)
         bpy.data.cameras.remove(camera_data)
-    return path
+    return out
+
+
+def render_contact_sheet(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object], path: Path,
+                         tile: tuple[int, int] = (320, 180), columns: int = 3,
+                         direction: Sequence[float] = CLOSEUP_DIRECTION,
+                         frames: Sequence[int] | None = None) -> Path:
+    """Render each creature close up (see :func:`render_close_ups`) and save the tiles as one
+    PNG at ``path``.
+
+    Without ``frames``: the current frame, the creatures side by side, ``columns`` per row.
+    With ``frames``: one row per frame (top to bottom), one column per creature (in the order
+    of ``rigs``); the scene is put back on its current frame afterwards.
+
+    The scene's camera, resolution and output path are left as they were.
+    """
+    if frames is None:
+        shots = [render_close_ups(scene, rigs, tile, direction)]
+        n_cols = columns
+        n_rows = -(-len(rigs) // columns)
+    else:
+        current = scene.frame_current
+        try:
+            shots = []
+            for frame in frames:
+                scene.frame_set(int(frame))
+                shots.append(render_close_ups(scene, rigs, tile, direction))
+        finally:
+            scene.frame_set(current)
+        n_cols, n_rows = len(rigs), len(shots)
+    sheet = np.ones((n_rows * tile[1], n_cols * tile[0], 4), dtype=np.float32)
+    for r, shot in enumerate(shots):
+        for i, kind in enumerate(rigs):
+            if kind not in shot:
+                continue
+            row, col = (r, i) if frames is not None else divmod(i, columns)
+            top = (n_rows - 1 - row) * tile[1]  # image rows count from the bottom
+            sheet[top:top + tile[1], col * tile[0]:(col + 1) * tile[0]] = shot[kind]
+    return _save_png(sheet, path)
 
 
 def _operator_registered(idname: str) -> bool:
@@ -220,7 +282,9 @@ def configure_example_rig(rig: bpy.types.Object, kind: str,
                           terrain_collection: bpy.types.Collection | None) -> list[str]:
     """Settings that make Generate work on the first click: the terrain collection, the
     scene's frame range, the legs (found by the add-on's own Detect Legs operator) and the
-    kind's gait preset (applied by the add-on's Apply Gait Preset operator), as a user would.
+    kind's gait preset (applied by the add-on's Apply Gait Preset operator), as a user would;
+    the suggested secondary-motion chains (Suggest Chains) so Bake Secondary Motion works on
+    the first click too; for the human, Plan Biped Footsteps' clips and goal.
 
     Returns what could not be done (the add-on lacks a setting or an operator, or refused).
     """
@@ -245,7 +309,45 @@ def configure_example_rig(rig: bpy.types.Object, kind: str,
             problems.append(f"gait preset {preset_path.stem} refused")
         else:
             rig.procloco.gait_preset = json.loads(preset_path.read_text(encoding="utf-8"))["name"]
+        problems += _configure_secondary(rig, kind)
+        if kind == "human":
+            problems += _configure_biped(rig)
     return problems
+
+
+def _configure_secondary(rig: bpy.types.Object, kind: str) -> list[str]:
+    """The suggested pendulum chains (Suggest Chains), with the kind's changes
+    (``creatures.SECONDARY_SETTINGS``)."""
+    if not _operator_registered("procloco.suggest_secondary_chains"):
+        return ["operator procloco.suggest_secondary_chains is not registered: no chains"]
+    if bpy.ops.procloco.suggest_secondary_chains() != {"FINISHED"}:
+        return ["Suggest Chains refused the rig"]
+    for chain in rig.procloco_secondary.chains:
+        for word, values in creatures.SECONDARY_SETTINGS.get(kind, {}).items():
+            if word in chain.root:
+                for name, value in values.items():
+                    setattr(chain, name, value)
+    return []
+
+
+def _configure_biped(rig: bpy.types.Object) -> list[str]:
+    """Plan Biped Footsteps ready to run: walking clips made for the rig (Make Example Clips,
+    no runs or jumps: it walks up and down the stairs) and a goal, the Empty ``"<rig> Goal"``
+    beyond the stairs (``HUMAN_GOAL``)."""
+    if not _operator_registered("procloco.make_biped_clips"):
+        return ["operator procloco.make_biped_clips is not registered: no biped clips"]
+    if bpy.ops.procloco.make_biped_clips(runs=False, jump=False) != {"FINISHED"}:
+        return ["Make Example Clips refused the rig"]
+    goal = bpy.data.objects.new(f"{rig.name} Goal", None)
+    goal.empty_display_type = "SINGLE_ARROW"
+    goal.empty_display_size = 0.3
+    for collection in rig.users_collection:
+        collection.objects.link(goal)
+    goal.location = HUMAN_GOAL
+    settings = rig.procloco_biped
+    settings.goal = goal
+    settings.allow_run = False
+    return []
 
 
 def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
@@ -280,6 +382,18 @@ def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
     for x in terrain.LANE_X.values():
         for y in FRAMED_Y:
             framed.append(Vector((x, y, float(terrain.ground_height(np.array(x), np.array(y))))))
+    # Each creature as far down its lane, standing on the highest ground of it (hills, stairs).
+    ys = np.linspace(FRAMED_Y[0], terrain.START_Y, 60)
+    stairs = np.array(bound_corners([t.stairs]))
+    for kind, rig in out.rigs.items():
+        skin = creatures.skin_of(rig)
+        if skin is None:
+            continue
+        x = terrain.LANE_X[kind]
+        top = float(terrain.ground_height(np.full_like(ys, x), ys).max())
+        if stairs[:, 0].min() <= x <= stairs[:, 0].max():
+            top = max(top, float(stairs[:, 2].max()))
+        framed += [c + Vector((0.0, FRAMED_Y[0] - terrain.START_Y, top)) for c in bound_corners([skin])]
     out.camera = frame_camera(scene, framed)
     return out
 
