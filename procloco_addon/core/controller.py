@@ -5,9 +5,12 @@
 Per step, for all characters at once:
 
 1. **Heading and needle.** The heading turns toward the commanded one at a bounded rate.
-   The gait's needle advances; when the commanded speed would make a stance sweep longer
-   than ``max_stroke`` leg lengths, the needle runs faster (a shorter cycle) so feet keep
-   up with the body instead of over-stretching.
+   The gait's needle advances; when the commanded speed (and, for a rigid body, its turn:
+   planted feet far from the pelvis sweep sideways) would make a stance sweep longer than
+   the legs allow, the needle runs faster (a shorter cycle) so feet keep up with the body
+   instead of over-stretching. What the legs allow (``stroke_limit``, from the rest pose):
+   every foot within reach at both ends of its sweep, a landing foot never crossing nor
+   crowding a neighbour's planted foot, and never more than ``max_stroke`` leg lengths.
 2. **Pelvis in the ground plane** (§3.2.2): speed along the heading, plus the feet-error
    feedback (figure 3.9): the mean offset between preferred and chosen footprints, when it
    exceeds ``feedback_threshold`` leg lengths, is worked off over a cycle.
@@ -21,6 +24,11 @@ Per step, for all characters at once:
    plan, when its spacing changed, or when a moving obstacle now cuts its remaining
    trajectory or its target. Stance feet are locked; when the support under one moves or
    becomes forbidden (sequence 4), that foot takes a short forced step to a new footprint.
+   Moving obstacles are watched on two rings around each planted foot (and each landing
+   spot): one closing in makes the foot step away (or re-plan its landing) before it
+   arrives; one that reaches a foot anyway pushes it out the shorter way, aside rather than
+   onto the top of an avoided obstacle. A foot left behind (it would need the pelvis to sink
+   more than ``max_drop``) steps early, also when its gait swing could not be planned.
 4. **Pelvis height, pitch and roll** (§3.2.2, figure 3.8): the upper convex hull of the
    terrain under the body box and of the planted feet (and the targets of swinging feet),
    along the body's forward axis for height and pitch and along its left axis for roll;
@@ -108,6 +116,62 @@ def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> F
     return np.asarray(rz @ ry @ rx)
 
 
+def stroke_limits(
+    legs: LegBatch,
+    reach: FloatArray,
+    low: FloatArray,
+    clearance: FloatArray,
+    cap: FloatArray,
+    samples: int = 97,
+) -> FloatArray:
+    """Longest stance sweep ``(C,)`` (metres) each character's legs allow when walking
+    straight ahead: a foot lands half a sweep ahead of its rest position and lifts half a
+    sweep behind it (thesis figures 3.6, 3.7), so
+
+    - every foot must stay within ``reach (N,)`` of its hip at both ends, with the hip
+      ``low (N,)`` above the ground (horizontally: ``sqrt(reach² - low²)``);
+    - a foot landing must stay behind a neighbour's planted foot that is about to lift (at
+      its far end) and ``clearance (C,)`` away from it, without the two legs crossing (the
+      planner forbids both: the neighbour's foot box and legs crossing, thesis §3.5.1).
+      Pairs already crossing or crowded at rest are left out (the stroke cannot help them).
+
+    Neither is ever more than ``cap (C,)``. Rest geometry only (body frame, x forward)."""
+    c = legs.n_chars
+    hip = legs.hip_offset[:, :2]
+    rest = legs.rest_foot[:, :2] - hip
+    out = np.asarray(cap, dtype=np.float64).copy()
+    # reach: |rest ± s/2 x| <= H  <=>  s <= 2 (sqrt(H² - y²) - |x|)
+    horizontal = np.sqrt(np.maximum(reach * reach - low * low, 0.0))
+    room = np.sqrt(np.maximum(horizontal * horizontal - rest[:, 1] ** 2, 0.0)) - np.abs(rest[:, 0])
+    np.minimum.at(out, legs.leg_char, np.maximum(2.0 * room, 0.0))
+    # neighbours: ordered pairs (i lands, j lifts) of the same character
+    i, j = np.nonzero((legs.leg_char[:, None] == legs.leg_char[None, :]) & ~np.eye(legs.n_legs, dtype=bool))
+    if i.size == 0:
+        return out
+    owner = legs.leg_char[i]
+    s = np.linspace(0.0, 1.0, samples)[None, :] * out[owner][:, None]  # (p, k)
+    shift = np.stack([0.5 * s, np.zeros_like(s)], axis=-1)
+    foot_i = legs.rest_foot[i, None, :2] + shift
+    foot_j = legs.rest_foot[j, None, :2] - shift
+    hip_i = np.broadcast_to(hip[i, None], foot_i.shape)
+    hip_j = np.broadcast_to(hip[j, None], foot_j.shape)
+
+    def side(a: FloatArray, b: FloatArray, q: FloatArray) -> FloatArray:
+        d = b - a
+        e = q - a
+        return np.asarray(d[..., 0] * e[..., 1] - d[..., 1] * e[..., 0])
+
+    cross = (side(hip_i, foot_i, hip_j) * side(hip_i, foot_i, foot_j) < 0.0) & (
+        side(hip_j, foot_j, hip_i) * side(hip_j, foot_j, foot_i) < 0.0
+    )
+    bad = cross | (np.linalg.norm(foot_i - foot_j, axis=-1) < clearance[owner][:, None])
+    keep = ~bad[:, 0]
+    first = np.where(bad.any(axis=1), np.argmax(bad, axis=1), samples)
+    limit = np.where(first < samples, s[np.arange(i.size), np.maximum(first - 1, 0)], out[owner])
+    np.minimum.at(out, owner[keep], limit[keep])
+    return out[:c]
+
+
 @dataclass(frozen=True)
 class ControllerParams:
     """Controller knobs. Lengths marked "× leg" are fractions of the character's mean leg
@@ -137,6 +201,9 @@ class ControllerParams:
     - ``body_samples``: terrain samples under the body box (along, across).
     - ``support_tolerance``: metres the support under a planted foot may move before the
       foot steps again.
+    - ``watch_distance`` (× leg): a planted foot also steps away when a moving obstacle comes
+      within this distance of its foot box (the ground there rose above the foot or became
+      forbidden since it landed), before the obstacle reaches it.
     - ``forced_swing``: duration of a forced step as a share of the leg's swing duration.
     - ``clock``: the clock of the per-phase timings in ``StepStats.seconds`` (wall time; a
       benchmark on a shared machine may pass ``time.process_time``).
@@ -167,6 +234,7 @@ class ControllerParams:
     snap_tolerance: float = 0.5
     body_samples: tuple[int, int] = (5, 3)
     support_tolerance: float = 0.002
+    watch_distance: float = 0.15
     forced_swing: float = 0.6
     max_drop: float = 0.15
     step_early_reach: float = 0.92
@@ -301,6 +369,15 @@ class Controller:
         self.guard_reach = np.minimum(
             np.maximum(p.reach_margin * legs.leg_length, 1.01 * rest_dist), 0.999 * legs.leg_length
         )
+        # the longest stance sweep the legs allow (the needle runs faster beyond it), never
+        # less than a quarter of max_stroke: a leg's reach with the pelvis half its allowed
+        # drop lower, and neighbouring feet kept a foot box and half a planning cell apart
+        cap = p.max_stroke * mean_leg
+        low = self.rest_height - 0.5 * p.max_drop * self.body_thickness[legs.leg_char]
+        clearance = 2.0 * self.foot_half.max(axis=1) + 0.5 * self.window_cell
+        self.stroke_limit = np.maximum(
+            stroke_limits(legs, self.comfort_reach, low, clearance, cap), 0.25 * cap
+        )
         self.env_dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
         # pelvis
         self.pos = np.zeros((c, 3))
@@ -309,12 +386,15 @@ class Controller:
         self.pitch = np.zeros(c)
         self.roll = np.zeros(c)
         self.height_target = np.zeros(c)
+        self.guard_drop = np.zeros(c)  # how far the reach guard lowered each pelvis last
         self.feedback = np.zeros((n, 2))
         # feet
         # start as if already walking: a planted foot is where the stance sweep has brought it,
         # a foot in its swing sector waits at its lift-off spot (no stumble at the first frame)
         g = self.gait
-        period = g.cycle_time[legs.leg_char]
+        # the needle already runs at the speed the commanded stroke asks for
+        g.rate_scale = self._rate_scale(np.asarray(controls.speed, dtype=np.float64))
+        period = 1.0 / g.rate()[legs.leg_char]
         stance_time = (1.0 - g.disk_duration) * period
         stance_done: FloatArray = np.where(
             g.swing,
@@ -330,11 +410,26 @@ class Controller:
         foot_xy = self.pos[legs.leg_char, :2] + self._rotate_xy(rest_xy, self.yaw[legs.leg_char])
         self.foot = np.column_stack([foot_xy, self._surface(foot_xy)])
         self.support_z = self.foot[:, 2].copy()
+        # points watched around each planted foot for moving obstacles: two rings, at the foot
+        # box's corner distance plus watch_distance and half of it, and what was there at the
+        # last step (or when the foot landed)
+        ring = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
+        dirs = np.stack([np.cos(ring), np.sin(ring)], axis=1)
+        corner = np.linalg.norm(self.foot_half, axis=1)[legs.leg_char]
+        outer = corner + p.watch_distance * legs.leg_length
+        inner = corner + 0.5 * p.watch_distance * legs.leg_length
+        self._watch_offsets = np.concatenate(
+            [outer[:, None, None] * dirs[None], inner[:, None, None] * np.roll(dirs, 1, axis=0)[None]], axis=1
+        )  # (N, 16, 2), the inner ring turned half a step
+        self.watch_ground = np.zeros((n, 16))
+        self.watch_forbidden = np.zeros((n, 16), dtype=bool)
+        self._watch_reset(np.arange(n), self.foot)
         self.support_target = self.foot[:, 2].copy()
         self.target = self.foot.copy()
         self.preferred = self.foot.copy()
         self.swinging = np.zeros(n, dtype=bool)
         self.forced = np.zeros(n, dtype=bool)
+        self.dodged = np.zeros(n, dtype=bool)  # this swing was re-planned for an obstacle closing in
         self.forced_elapsed = np.zeros(n)
         self.forced_duration = np.ones(n)
         k = p.trajectory_samples
@@ -399,6 +494,26 @@ class Controller:
         self._solve_ik(controls)
 
     # ---------------------------------------------------------------- small helpers
+    def _rate_scale(self, speed: FloatArray, yaw_rate: FloatArray | None = None) -> FloatArray:
+        """``(C,)`` needle speed-up for the commanded ``speed (C,)`` and the body's
+        ``yaw_rate (C,)`` (rad/s): the stance sweep at the gait's own cycle, over the longest
+        the legs allow (``stroke_limit``), at least 1. A rigid body turning sweeps its planted
+        feet sideways too (the farther from the pelvis, the more); a spine's nodes follow
+        the head's path, so only their speed counts."""
+        lc = self.leg_char
+        stance = (1.0 - self.gait.disk_duration) * self.gait.cycle_time[lc]
+        foot_speed = np.asarray(speed, dtype=np.float64)[lc]
+        if yaw_rate is not None:
+            w = np.where(self.has_spine, 0.0, np.asarray(yaw_rate, dtype=np.float64))[lc]
+            r = self.legs.rest_foot[:, :2]
+            foot_speed = np.hypot(foot_speed - w * r[:, 1], w * r[:, 0])
+        stroke = np.zeros(self.n_chars)
+        np.maximum.at(stroke, lc, foot_speed * stance)
+        # in steps of 1/1024 (rounded up): characters that differ only by rounding (a rig
+        # read at 100 times its size) keep exactly the same cycle
+        steps = np.ceil(stroke / self.stroke_limit * 1024.0 - 1e-6) / 1024.0
+        return np.asarray(np.maximum(1.0, steps))
+
     @staticmethod
     def _rotate_xy(v: FloatArray, yaw: FloatArray) -> FloatArray:
         c, s = np.cos(yaw), np.sin(yaw)
@@ -549,11 +664,7 @@ class Controller:
         # 1. heading, needle
         turn = np.clip(wrap_angle(ctl.heading - self.yaw), -p.max_turn_rate * dt, p.max_turn_rate * dt)
         self.yaw = wrap_angle(self.yaw + turn)
-        base_rate = 1.0 / self.gait.cycle_time
-        stance_frac = np.zeros(self.n_chars)
-        np.maximum.at(stance_frac, lc, 1.0 - self.gait.disk_duration)
-        stroke = ctl.speed * stance_frac / base_rate
-        rate_scale = np.maximum(1.0, stroke / (p.max_stroke * self.char_leg_length))
+        rate_scale = self._rate_scale(ctl.speed, turn / dt)
         needle_before = self.gait.needle[lc].copy()
         gstep = self.gait.advance(dt, rate_scale)
         rate_leg = self.gait.rate()[lc]
@@ -594,8 +705,11 @@ class Controller:
         stance_time = gstep.stance_time
 
         replan = self._replan_needed(ctl, progress, gstep.swing)
+        # a foot still down in its swing sector (its plan failed) is planted like any other:
+        # it must step when its support goes or when it is left behind
+        planted = ~gstep.swing | self.plan_failed
         forced_new = (
-            (self._check_supports() | self._overstretched()) & ~gstep.swing & ~self.forced
+            (self._check_supports() | self._overstretched()) & planted & ~self.forced
         ) | bad_landing
         if np.any(forced_new):
             self.forced |= forced_new
@@ -628,10 +742,12 @@ class Controller:
         if moving.size:
             self.foot[moving] = _sample_polyline(self.traj[moving], u[moving])
             if self.env_dynamic:
-                # an obstacle that moved into a swinging foot pushes it up (the trajectory is
-                # re-planned at the next step)
+                # an obstacle that moved into a swinging foot pushes it out, up or aside (the
+                # trajectory is re-planned at the next step)
                 surface = self.env.height_at(self.foot[moving, :2])
-                self.foot[moving, 2] = np.maximum(self.foot[moving, 2], surface)
+                hit = surface > self.foot[moving, 2]
+                if np.any(hit):
+                    self._push_out(moving[hit], surface[hit])
         # a gait swing whose plan failed leaves the foot planted
         self.plan_failed &= gstep.swing | self.forced
 
@@ -831,6 +947,46 @@ class Controller:
         self.support_z[legs] = self._surface(self.target[legs, :2])
         self.forced[legs] = False
         self.swinging[legs] = False
+        self.dodged[legs] = False
+        self._watch_reset(legs)
+
+    # ------------------------------------------------- watching for moving obstacles
+    def _watched_spot(self, legs: IntArray) -> FloatArray:
+        """``(m, 3)`` the spot watched for each leg: where a planted foot stands, where a
+        swinging foot will land."""
+        return np.asarray(np.where(self.swinging[legs, None], self.target[legs], self.foot[legs]))
+
+    def _watch_reset(self, legs: IntArray, spot: FloatArray | None = None) -> None:
+        """Remember what is around the watched spots of ``legs`` (or ``spot (m, 3)``) now (a
+        foot landed, or a swing was planned)."""
+        if not self.env_dynamic or legs.size == 0:
+            return
+        at = self._watched_spot(legs) if spot is None else spot
+        pts = (at[:, None, :2] + self._watch_offsets[legs]).reshape(-1, 2)
+        self.watch_ground[legs] = self.env.height_at(pts).reshape(legs.size, -1)
+        self.watch_forbidden[legs] = self.env.forbidden_at(pts).reshape(legs.size, -1)
+
+    def _watch(self, legs: IntArray) -> tuple[FloatArray, BoolArray, BoolArray]:
+        """Query the watched spots of ``legs`` and the rings around them (one query).
+
+        Returns the surface ``(m,)`` and forbidden flags ``(m,)`` at the spots, and whether a
+        moving obstacle closes in on each spot ``(m,)`` (since the last look, a ring point rose
+        above the spot or became forbidden). The rings' memory moves on to now."""
+        m = legs.size
+        k = self._watch_offsets.shape[1]
+        spot = self._watched_spot(legs)
+        ring = spot[:, None, :2] + self._watch_offsets[legs]
+        xy = np.concatenate([spot[:, :2], ring.reshape(-1, 2)])
+        heights = self.env.height_at(xy)
+        forbidden = self.env.forbidden_at(xy)
+        tol = self.params.support_tolerance
+        ring_h = heights[m:].reshape(m, k)
+        ring_f = forbidden[m:].reshape(m, k)
+        rose = (ring_h > self.watch_ground[legs] + tol) & (ring_h > spot[:, 2, None] + tol)
+        coming = (rose | (ring_f & ~self.watch_forbidden[legs])).any(axis=1)
+        self.watch_ground[legs] = ring_h
+        self.watch_forbidden[legs] = ring_f
+        return heights[:m], forbidden[:m], coming
 
     def _replan_needed(self, ctl: StepControls, progress: FloatArray, gait_swing: BoolArray) -> BoolArray:
         p = self.params
@@ -872,7 +1028,11 @@ class Controller:
         # the landing spot itself must still be there
         land_surface = surface[:, -1]
         moved = np.abs(land_surface - self.support_target[legs]) > tol
-        out[legs] = cut.any(axis=1) | moved
+        # and nothing moving may be closing in on it (once per swing: a foot that already
+        # moved its landing spot away lands; _spot_taken still stops it landing on the obstacle)
+        coming = self._watch(legs)[2] & ~self.dodged[legs]
+        self.dodged[legs] |= coming
+        out[legs] = cut.any(axis=1) | moved | coming
         return out
 
     def _check_supports(self) -> BoolArray:
@@ -883,15 +1043,55 @@ class Controller:
         if not self.env_dynamic or not np.any(planted):
             return out
         legs = np.flatnonzero(planted)
-        xy = self.foot[legs, :2]
-        surface = self.env.height_at(xy)
+        # the foot's own spot, and something moving closing in around it (it steps away
+        # before the obstacle reaches it)
+        surface, forbidden, coming = self._watch(legs)
         tol = self.params.support_tolerance
         buried = surface > self.foot[legs, 2] + tol
         bad = (np.abs(surface - self.support_z[legs]) > tol) | buried
-        out[legs] = bad | self.env.forbidden_at(xy)
-        # an obstacle that slid under a planted foot lifts it onto its top before it steps off
-        self.foot[legs[buried], 2] = surface[buried]
+        out[legs] = bad | forbidden | coming
+        if np.any(buried):
+            # an obstacle slid under a planted foot anyway: it pushes the foot out (the foot
+            # steps off from there)
+            at = legs[buried]
+            self._push_out(at, surface[buried])
+            self.support_z[at] = self._surface(self.foot[at, :2])
         return out
+
+    def _push_out(self, legs: IntArray, surface: FloatArray) -> None:
+        """Feet of ``legs`` that a moving obstacle ran into (its top ``surface (m,)`` is above
+        them) are pushed out of it the shorter way: up onto its top (never onto an avoided
+        obstacle while there is room beside it), or aside to the nearest point around them
+        (the watch rings, one to three times as far) that is free at their height."""
+        m = legs.size
+        offsets = np.concatenate([f * self._watch_offsets[legs] for f in (1.0, 2.0, 3.0)], axis=1)
+        k = offsets.shape[1]
+        here = self.foot[legs, :2]
+        pts = np.concatenate([here, (here[:, None, :] + offsets).reshape(-1, 2)])
+        heights = self.env.height_at(pts)
+        forbidden = self.env.forbidden_at(pts)
+        ring_h = heights[m:].reshape(m, k)
+        ring_f = forbidden[m:].reshape(m, k)
+        z = self.foot[legs, 2]
+        tol = self.params.support_tolerance
+        free = (ring_h <= z[:, None] + tol) & ~ring_f & (ring_h > _VOID)
+        # the nearest ring with room, and on it the point facing away from the obstacle
+        # (the mean direction of the points it covers), so the foot is not pushed ahead of it
+        radius = np.linalg.norm(offsets, axis=2)
+        unit = offsets / np.maximum(radius, 1e-12)[..., None]
+        covered = np.where(~free[..., None], unit, 0.0).sum(axis=1)
+        norm = np.maximum(np.linalg.norm(covered, axis=1), 1e-12)
+        away = -np.einsum("mkd,md->mk", unit, covered) / norm[:, None]
+        ring_no = np.repeat(np.arange(3), k // 3)[None, :]
+        first = np.min(np.where(free, ring_no, 3), axis=1)
+        rank = np.where(free & (ring_no == first[:, None]), away, -np.inf)
+        pick = np.argmax(rank, axis=1)
+        best = np.where(free.any(axis=1), radius[np.arange(m), pick], np.inf)
+        aside = (best < surface - z) | (forbidden[:m] & np.isfinite(best))
+        side, up = legs[aside], legs[~aside]
+        self.foot[side, :2] += offsets[aside, pick[aside]]
+        self.foot[side, 2] = np.maximum(self.foot[side, 2], ring_h[aside, pick[aside]])
+        self.foot[up, 2] = surface[~aside]
 
     def _overstretched(self) -> BoolArray:
         """Planted feet left so far behind (or aside) that keeping them would need the pelvis
@@ -900,6 +1100,9 @@ class Controller:
         feet: a foot left behind must step, not drag the body back.)"""
         planted = ~self.swinging
         hips = self.hips_world()
+        # judged from the height the pelvis wants, not from where the reach guard has already
+        # lowered it (else a foot dragging the pelvis down never counts as left behind)
+        hips[:, 2] += self.guard_drop[self.leg_char]
         if self.spine_groups:
             hips[self.spine_legs] = self._spine_hips_free[self.spine_legs]
         reach = self.comfort_reach
@@ -972,6 +1175,7 @@ class Controller:
             self.rest_horizontal[legs] + 0.5 * p.candidate_radius * legs_data.leg_length[legs],
         )
         hip_offset_xy = legs_data.hip_offset[:, :2]
+        hip_now = self.hips_world()[legs]
         row_of = {int(leg): j for j, leg in enumerate(legs.tolist())}
         timer.lap("rest")
         k = p.trajectory_samples
@@ -1039,21 +1243,35 @@ class Controller:
                 stats.n_plans += 1
                 stats.n_couples += couple.n_couples
                 stats.n_paths += couple.n_paths
-                if couple.ok and couple.trajectory is not None:
+                # a swing that would leave the leg's reach is not taken, unless the foot must
+                # move (its way out may be a detour)
+                if couple.ok and couple.trajectory is not None and (
+                    self.forced[leg]
+                    or self._within_reach(
+                        leg, samples := couple.trajectory.point_at(u_grid), hip_now[j],
+                        pelvis_land[j] + hips[own] - pelvis_ref[j],
+                    )
+                ):
                     samples = couple.trajectory.point_at(u_grid)
                     target = np.asarray(couple.footprint, dtype=np.float64).copy()
-                elif self.forced[leg] and not self.swinging[leg]:
+                elif self.forced[leg] and not self.swinging[leg] and (
+                    straight := self._straight_step(
+                        leg, self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c]),
+                        p.candidate_radius * float(legs_data.leg_length[leg]), hip_now[j],
+                        pelvis_land[j] + hips[own] - pelvis_ref[j],
+                    )
+                ) is not None:
                     # a foot that must move (left behind, or its support gone) and that the
                     # planner cannot serve steps straight to its preferred spot
-                    samples, target = self._straight_step(
-                        self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c])
-                    )
+                    samples, target = straight
                     stats.n_failed += 1
                     stats.n_fallback += 1
                 else:
                     stats.n_failed += 1
                     if not self.swinging[leg]:
                         self.plan_failed[leg] = True
+                        # a foot that must move tries again at the next step (the body moved)
+                        self.forced[leg] = False
                     continue
                 self.plan_failed[leg] = False
                 done.append((leg, j, c, samples, target))
@@ -1086,40 +1304,95 @@ class Controller:
         self.traj_u0[leg_ids] = start_u[leg_ids]
         self.target[leg_ids] = targets
         self.support_target[leg_ids] = exact
+        self._watch_reset(leg_ids, targets)
         self.plan_heading[leg_ids] = ctl.heading[chars]
         self.plan_speed[leg_ids] = ctl.speed[chars]
         self.plan_spacing[leg_ids] = ctl.spacing[leg_ids]
         self.feedback[leg_ids] = targets[:, :2] - preferred_xy[rows]
         timer.lap("rest")
 
+    def _within_reach(
+        self, leg: int, samples: FloatArray, hip_start: FloatArray, hip_end_xy: FloatArray
+    ) -> bool:
+        """Whether a swing ``samples (k + 1, 3)`` stays within leg ``leg``'s length of its hip
+        moving from ``hip_start (3,)`` to ``hip_end_xy (2,)`` at touch-down (rising or sinking
+        with the feet), the pelvis lowered as far as the reach guard ever lowers it. The
+        planner's paths may detour around obstacles farther than a leg reaches; such a couple
+        is not taken."""
+        dist = self._hip_distance(leg, samples, hip_start, hip_end_xy)
+        u = np.linspace(0.0, 1.0, samples.shape[0])
+        return bool(np.all(dist <= self._reach_bound(leg, float(dist[0]), u)))
+
+    def _hip_distance(
+        self, leg: int, samples: FloatArray, hip_start: FloatArray, hip_end_xy: FloatArray
+    ) -> FloatArray:
+        """``(..., k + 1)`` distances of swing samples ``(..., k + 1, 3)`` to the hip of ``leg``
+        moving from ``hip_start (3,)`` to ``hip_end_xy (..., 2)`` (see ``_within_reach``)."""
+        u = np.linspace(0.0, 1.0, samples.shape[-2])
+        end_xy = np.broadcast_to(hip_end_xy, (*samples.shape[:-2], 2))
+        end = np.concatenate(
+            [end_xy, (hip_start[2] + samples[..., -1, 2] - samples[..., 0, 2])[..., None]], axis=-1
+        )
+        hip = hip_start + u[:, None] * (end[..., None, :] - hip_start)
+        horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
+        drop = self.params.guard_max_drop * float(self.body_thickness[self.leg_char[leg]])
+        below = hip[..., 2] - samples[..., 2]
+        vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
+        return np.asarray(np.hypot(horizontal, vertical))
+
+    def _reach_bound(self, leg: int, start: float, u: FloatArray) -> FloatArray:
+        """How far a swing's samples at ``u`` may be from the hip: the leg's length, or for a
+        foot that starts beyond it (left behind), a bound shrinking from there to it."""
+        length = float(self.legs.leg_length[leg])
+        return np.asarray(length + max(start - length, 0.0) * (1.0 - u))
+
     def _straight_step(
-        self, start: FloatArray, target_xy: FloatArray, u: FloatArray, step_height: float
-    ) -> tuple[FloatArray, FloatArray]:
-        """Last resort when the planner finds no couple: a straight arc to ``target_xy`` (or
-        the nearest spot around it outside avoided obstacles), lifted ``step_height`` above
-        everything under it (it may pass over an avoided box)."""
-        if self.env.forbidden_at(target_xy[None])[0]:
-            reach = float(np.linalg.norm(target_xy - start[:2])) + 1e-3
-            ring = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-            radii = np.linspace(0.1, 1.0, 6) * reach
-            spots = target_xy[None, None, :] + radii[:, None, None] * np.stack(
-                [np.cos(ring), np.sin(ring)], axis=1
-            )
-            spots = spots.reshape(-1, 2)
-            free = ~self.env.forbidden_at(spots) & (self.env.height_at(spots) > _VOID)
-            if np.any(free):
-                target_xy = spots[int(np.flatnonzero(free)[0])]
-        xy = start[None, :2] + u[:, None] * (target_xy - start[:2])[None, :]
-        surface = self.env.height_at(xy)
-        end_z = float(surface[-1]) if surface[-1] > _VOID else float(start[2])
-        base = start[2] + u * (end_z - start[2])
-        surface = np.where(surface > _VOID, surface, base)
-        lift = max(float(np.max(surface - base)), 0.0) + step_height
-        z = base + 4.0 * u * (1.0 - u) * lift
+        self, leg: int, start: FloatArray, target_xy: FloatArray, u: FloatArray, step_height: float,
+        search: float, hip_start: FloatArray, hip_end_xy: FloatArray,
+    ) -> tuple[FloatArray, FloatArray] | None:
+        """Last resort when the planner finds no couple for a foot that must move: a straight
+        arc lifted ``step_height`` over what it crosses, to ``target_xy`` or else the nearest
+        spot around it (up to the step's length or ``search`` metres away, whichever is more)
+        that the leg can step to: landing on a surface outside avoided obstacles, the line not
+        through an avoided obstacle (a foot standing on one may leave across it), and nothing
+        on the way taller, above the higher end, than the leg's hip stands above its foot at
+        rest less ``step_height`` (higher, the leg could not fold enough to pass). None when
+        there is no such spot: the foot stays rather than step onto air or out of reach.
+
+        Returns the samples ``(k + 1, 3)`` at ``u (k + 1,)`` and the landing point ``(3,)``."""
+        reach = max(float(np.linalg.norm(target_xy - start[:2])), search) + 1e-3
+        ring = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
+        radii = np.linspace(0.1, 1.0, 6) * reach
+        dirs = np.stack([np.cos(ring), np.sin(ring)], axis=1)
+        around = target_xy[None, None, :] + radii[:, None, None] * dirs[None, :, :]
+        spots = np.concatenate([target_xy[None, :], around.reshape(-1, 2)])  # nearest first
+        n_u = u.shape[0]
+        xy = start[None, None, :2] + u[None, :, None] * (spots - start[:2])[:, None, :]
+        flat = xy.reshape(-1, 2)
+        surface = self.env.height_at(flat).reshape(-1, n_u)
+        forbidden = self.env.forbidden_at(flat).reshape(-1, n_u)
+        landing = (surface[:, -1] > _VOID) & ~forbidden[:, -1]
+        # leaving an avoided obstacle the foot stands on is allowed; entering one is not
+        leaving = np.logical_and.accumulate(forbidden, axis=1)
+        crossing = (forbidden & ~leaving)[:, 1:-1].any(axis=1)
+        end_z = np.where(surface[:, -1] > _VOID, surface[:, -1], start[2])
+        base = start[2] + u[None, :] * (end_z - start[2])[:, None]
+        under = np.where(surface > _VOID, surface, base)
+        climb = np.maximum((under - base).max(axis=1), 0.0)
+        rest = float(self.rest_height[leg])
+        ok = landing & ~crossing & (climb <= max(rest - step_height, 0.25 * rest))
+        lift = climb + step_height
+        z = base + 4.0 * u[None, :] * (1.0 - u[None, :]) * lift[:, None]
         inner = (u > 0.0) & (u < 1.0)
-        z[inner] = np.maximum(z[inner], surface[inner] + 0.25 * step_height)
-        samples = np.column_stack([xy, z])
-        return samples, np.array([target_xy[0], target_xy[1], end_z])
+        z[:, inner] = np.maximum(z[:, inner], under[:, inner] + 0.25 * step_height)
+        # and within the leg's length of the hip all the way (the hip moving to touch-down)
+        pts = np.concatenate([xy, z[..., None]], axis=2)
+        dist = self._hip_distance(leg, pts, hip_start, hip_end_xy)
+        ok &= (dist <= self._reach_bound(leg, float(dist[0, 0]), u)[None, :]).all(axis=1)
+        if not np.any(ok):
+            return None
+        k = int(np.flatnonzero(ok)[0])
+        return pts[k], np.array([spots[k, 0], spots[k, 1], float(end_z[k])])
 
     def _apply_feedback(self, dt: float) -> None:
         """Thesis figure 3.9: move the pelvis by the mean footprint error when it matters."""
@@ -1258,7 +1531,8 @@ class Controller:
         drop = np.zeros(self.n_chars)
         np.maximum.at(drop, self.leg_char, excess)
         # bounded (a foot beyond any help steps early instead), and continuous in the feet
-        self.pos[:, 2] -= np.minimum(drop, self.params.guard_max_drop * self.body_thickness)
+        self.guard_drop = np.minimum(drop, self.params.guard_max_drop * self.body_thickness)
+        self.pos[:, 2] -= self.guard_drop
 
     # ---------------------------------------------------------------- legs
     def _solve_ik(self, ctl: StepControls) -> None:

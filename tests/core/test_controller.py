@@ -8,10 +8,11 @@ import pytest
 
 from procloco_addon.core import morphology as morph
 from procloco_addon.core.controller import Controller, ControllerParams, StepControls, rotation_matrices
+from procloco_addon.core.footprints import Couple
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.morphology import LegBatch
 from procloco_addon.core.sim import Controls, Simulation, check_motion
-from procloco_addon.core.terrain import ROLE_STEP_OVER, Boxes, Environment, Heightmap
+from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
 
 
 def _flat(half: float = 4.0, boxes: Boxes | None = None) -> Environment:
@@ -126,7 +127,11 @@ def test_fast_walking_shortens_the_cycle_instead_of_overstretching() -> None:
         ctrl.step(1.0 / 30.0, _controls(legs, speed=speed))
     sweep = speed * (1.0 - ctrl.gait.disk_duration.min()) * ctrl.gait.cycle_time[0] / ctrl.gait.rate_scale[0]
     assert ctrl.gait.rate_scale[0] > 1.0
-    assert sweep == pytest.approx(ControllerParams().max_stroke * leg)
+    # the sweep is the longest the legs allow: never more than max_stroke, and for this
+    # spider less (neighbouring feet a planning cell apart, see test_stroke_limits_*)
+    assert sweep <= ctrl.stroke_limit[0]
+    assert sweep == pytest.approx(ctrl.stroke_limit[0], rel=1.0 / 1024.0)
+    assert ctrl.stroke_limit[0] <= ControllerParams().max_stroke * leg
 
 
 def _moving_box_run(box_path: np.ndarray, frames: int) -> tuple[Environment, object]:
@@ -214,16 +219,23 @@ def test_no_ground_ahead_fails_plans_cleanly_and_keeps_feet_planted() -> None:
     env = Environment(Heightmap(np.zeros((40, 40)), np.array([-1.2, -1.0]), 0.05))
     ctrl, legs = _spider_controller(env)
     failures = 0
+    frames_failed = 0
     for _ in range(50):
         stats = ctrl.step(1.0 / 30.0, _controls(legs, speed=0.5))
         failures += stats.n_failed
         res = ctrl.ik_result
         assert res is not None
         assert np.all(np.isfinite(res.joints))
+        # a foot whose plan failed stays on the ground (checked at every step: which feet
+        # are between swings at the last step depends on the cycle)
+        frames_failed += int(ctrl.plan_failed.any())
+        assert np.all(ctrl.foot[ctrl.plan_failed, 2] == 0.0)
+        assert not np.any(ctrl.swinging & ctrl.plan_failed)
+        # a foot forced to step for lack of anywhere better never lands on nothing
+        assert np.all(env.height_at(ctrl.foot[~ctrl.swinging, :2]) > NO_SURFACE / 2)
+        assert np.all(env.height_at(ctrl.target[ctrl.swinging, :2]) > NO_SURFACE / 2)
     assert failures > 0
-    assert ctrl.plan_failed.any()
-    # a foot whose plan failed stays on the ground
-    assert np.all(ctrl.foot[ctrl.plan_failed, 2] == 0.0)
+    assert frames_failed > 0
 
 
 def test_ik_off_keeps_the_previous_angles() -> None:
@@ -270,3 +282,243 @@ def test_spine_settings_need_a_spine_and_give_each_girdle_its_pelvis_node() -> N
     assert joints.shape == (3, 7, 3)
     np.testing.assert_allclose(joints[1], dog.spine.joint_rest + ctrl.pos[1], atol=1e-12)  # type: ignore[union-attr]
     np.testing.assert_array_equal(joints[0], np.repeat(ctrl.pos[:1], 7, axis=0))
+
+
+# ---------------------------------------------------------------------------------------
+# Robustness at real speeds and near moving obstacles
+
+
+def _row_of_legs(gap: float, reach_y: float = 0.4) -> LegBatch:
+    """Four legs, two per side, their rest feet in a row ``gap`` apart along x."""
+    chains = []
+    for x in (0.5 * gap, -0.5 * gap):
+        for side in (1.0, -1.0):
+            hip = np.array([0.3 * x, side * 0.05, 0.0])
+            foot = np.array([x, side * reach_y, -0.2])
+            chains.append(np.array([hip, 0.5 * (hip + foot) + np.array([0.0, 0.0, 0.12]), foot]))
+    return LegBatch.stack([morph.Morphology.from_rest_joints(chains, morph.leg_labels(4))])
+
+
+def test_stroke_limits_keep_neighbouring_feet_a_clearance_apart() -> None:
+    from procloco_addon.core.controller import stroke_limits
+
+    legs = _row_of_legs(gap=0.3)
+    far = np.full(4, 10.0)
+    clearance = np.array([0.08])
+    # the front foot lifts half a stroke behind its rest spot while the hind one lands half a
+    # stroke ahead of its own: they meet when the stroke eats the gap less the clearance
+    limit = stroke_limits(legs, far, np.zeros(4), clearance, np.array([1.0]))
+    assert limit[0] == pytest.approx(0.3 - 0.08, abs=1.0 / 96.0)
+    assert limit[0] <= 0.3 - 0.08 + 1e-12
+    # feet far apart: only the cap binds
+    assert stroke_limits(_row_of_legs(gap=3.0), far, np.zeros(4), clearance, np.array([1.0]))[0] == 1.0
+
+
+def test_stroke_limits_keep_feet_within_reach_at_both_ends_of_the_sweep() -> None:
+    from procloco_addon.core.controller import stroke_limits
+
+    legs = _row_of_legs(gap=0.3)
+    rest = legs.rest_foot - legs.hip_offset
+    reach = np.full(4, 0.45)
+    low = np.full(4, 0.2)
+    limit = stroke_limits(legs, reach, low, np.array([0.0]), np.array([10.0]))[0]
+    horizontal = np.sqrt(0.45**2 - 0.2**2)
+    expected = 2.0 * (np.sqrt(horizontal**2 - rest[:, 1] ** 2) - np.abs(rest[:, 0])).min()
+    assert limit == pytest.approx(expected)
+    # at that sweep every foot is exactly within reach at its far end
+    ends = rest[:, :2] + np.array([[0.5 * limit, 0.0]]) * np.sign(rest[:, :1])
+    assert np.hypot(ends[:, 0], ends[:, 1]).max() == pytest.approx(horizontal)
+
+
+def test_the_needle_starts_at_the_speed_the_stroke_limit_asks_for() -> None:
+    # a fast start must not place the feet as if the cycle were the gait's own (too long)
+    env = _flat(6.0)
+    m = morph.spider()
+    legs = LegBatch.stack([m])
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    ctrl = Controller(env, legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=1.5))
+    assert ctrl.gait.rate_scale[0] > 1.0
+    hips = ctrl.hips_world()
+    assert np.all(np.linalg.norm(ctrl.foot - hips, axis=1) <= ctrl.comfort_reach + 1e-9)
+
+
+def test_a_rigid_body_turning_fast_shortens_its_steps() -> None:
+    ctrl, _ = _spider_controller(_flat())
+    speed = np.array([0.2])
+    straight = ctrl._rate_scale(speed, np.zeros(1))
+    turning = ctrl._rate_scale(speed, np.array([2.0]))
+    # planted feet far from the pelvis sweep sideways in a turn: the cycle runs faster
+    assert turning[0] > straight[0] >= 1.0
+
+
+def test_a_foot_whose_swing_could_not_be_planned_still_steps_when_left_behind(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import procloco_addon.core.controller as controller_module
+
+    real = controller_module.plan_footstep
+    clock = {"t": 0.0}
+
+    def flaky(*args: object, **kw: object) -> object:
+        params = args[6]
+        # every normal plan fails for a while; a foot forced to step (planned without
+        # slices) is served
+        if 0.5 <= clock["t"] < 1.2 and params.slice_size is not None:  # type: ignore[attr-defined]
+            start = np.asarray(args[1], dtype=np.float64)
+            return Couple(ok=False, footprint=start, trajectory=None, score=0.0, target_score=0.0,
+                          path_score=0.0, n_couples=0, n_paths=0, message="test", n_targets=1)
+        return real(*args, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(controller_module, "plan_footstep", flaky)
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    sim = Simulation(_flat(6.0), [m], gait, controls=Controls(speed=0.5, heading=0.0, step_height=0.05))
+
+    def tick(s: Simulation) -> None:
+        clock["t"] = s.time
+
+    res = sim.run(60, on_step=tick)
+    assert res.stats["n_failed"].sum() > 0
+    assert res.forced.any()
+    report = check_motion(res, sim.env)
+    # no planted foot dragged along, no leg asked to stretch
+    assert report.stance_slide.max() <= 0.002, report.failures()
+    assert report.extension.max() <= 1.0 + 1e-6, report.failures()
+
+
+def _avoided_crate_run(
+    path: np.ndarray, frames: int, size: tuple[float, float, float]
+) -> tuple[Environment, object]:
+    boxes = Boxes(np.array([path[0]]), np.array([size]), np.zeros(1), np.array([ROLE_AVOID]),
+                  np.array([True]))
+    env = _flat(4.0, boxes)
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    sim = Simulation(env, [m], gait, controls=Controls(speed=0.05, heading=0.0, step_height=0.05))
+
+    def move(s: Simulation) -> None:
+        k = min(round((s.time + s.dt) * 30), len(path) - 1)
+        env.move_boxes(np.array([0]), path[k][None], np.zeros(1))
+
+    return env, sim.run(frames, on_step=move)
+
+
+def test_a_tall_crate_sliding_at_planted_feet_makes_them_step_away_before_it_arrives() -> None:
+    # an avoided crate, taller than the spider's step, comes from the side at 0.6 m/s and
+    # passes where the right feet stand
+    frames = 60
+    size = (0.2, 0.2, 0.25)
+    path = np.column_stack(
+        [np.full(frames + 1, 0.1), np.linspace(-1.2, 0.0, frames + 1), np.zeros(frames + 1)]
+    )
+    env, res = _avoided_crate_run(path, frames, size)
+    ends = res.end_effector  # type: ignore[attr-defined]
+    # the crate where it stood at each frame: no foot ever inside it
+    from procloco_addon.core import metrics as mx
+
+    k = np.minimum(np.round(res.time * 30).astype(int), frames)  # type: ignore[attr-defined]
+    box_size = np.array([size])
+    inside = [mx.box_intrusion(ends[f], path[k[f]][None], box_size, np.zeros(1)).max() for f in range(len(k))]
+    assert max(inside) <= 0.005
+    report = check_motion(res, env)  # type: ignore[arg-type]
+    assert report.passed, report.failures()
+    # nothing was popped onto its top: feet stay on the ground
+    assert ends[..., 2].max() < size[2]
+    assert res.stats["n_forced"].sum() > 0  # type: ignore[attr-defined]
+
+
+def test_a_crate_that_lands_on_a_planted_foot_pushes_it_aside_not_onto_its_top() -> None:
+    boxes = Boxes(np.array([[0.0, -2.0, 0.0]]), np.array([[0.16, 0.16, 0.25]]), np.zeros(1),
+                  np.array([ROLE_AVOID]), np.array([True]))
+    env = _flat(4.0, boxes)
+    ctrl, legs = _spider_controller(env)
+    planted = int(np.flatnonzero(~ctrl.swinging)[0])
+    spot = ctrl.foot[planted].copy()
+    # too fast to see coming: in one step the crate stands on the foot
+    env.move_boxes(np.array([0]), np.array([[spot[0] + 0.03, spot[1], 0.0]]), np.zeros(1))
+    ctrl.step(1.0 / 30.0, _controls(legs, speed=0.0))
+    foot = ctrl.foot[planted]
+    assert foot[2] < 0.01  # not lifted 25 cm onto the crate
+    from procloco_addon.core import metrics as mx
+
+    box = env.boxes
+    assert mx.box_intrusion(foot[None], box.center, box.size, box.yaw)[0] == 0.0
+    assert np.linalg.norm(foot[:2] - spot[:2]) < 0.15  # shoved aside, a short way
+
+
+def _failed(start: object) -> Couple:
+    return Couple(ok=False, footprint=np.asarray(start, dtype=np.float64), trajectory=None, score=0.0,
+                  target_score=0.0, path_score=0.0, n_couples=0, n_paths=0, message="test", n_targets=1)
+
+
+def test_a_foot_that_must_step_goes_around_a_tall_avoided_crate_not_over_it(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    import procloco_addon.core.controller as controller_module
+
+    # the planner finds nothing; a hind foot left behind must step, and a crate taller than
+    # the spider stands between it and its preferred spot: the straight fallback goes around
+    monkeypatch.setattr(controller_module, "plan_footstep", lambda *a, **k: _failed(a[1]))
+    m = morph.spider()
+    leg = 6  # L4, planted at the start
+    rest = m.rest_foot[leg]
+    centre = np.array([rest[0] - 0.12, rest[1], 0.0])
+    size = np.array([0.06, 0.16, 0.8])
+    env = _flat(4.0, Boxes(centre[None], size[None], np.zeros(1), np.array([ROLE_AVOID]), np.array([False])))
+    legs = LegBatch.stack([m])
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    ctrl = Controller(env, legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0))
+    assert not ctrl.swinging[leg]
+    ctrl.foot[leg, 0] = rest[0] - 0.25  # far behind its hip, the crate in the way
+    ctrl.step(1.0 / 30.0, _controls(legs, speed=0.0))
+    assert ctrl.forced[leg]
+    assert ctrl.swinging[leg]
+    from procloco_addon.core import metrics as mx
+
+    swing = ctrl.traj[leg]
+    assert mx.box_intrusion(swing, centre[None], size[None], np.zeros(1)).max() == 0.0
+    # never higher than the leg can fold: below its hip
+    assert swing[:, 2].max() < ctrl.hips_world()[leg, 2]
+
+
+def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytest.MonkeyPatch) -> None:
+    import procloco_addon.core.controller as controller_module
+
+    real = controller_module.plan_footstep
+    holder: dict[str, Controller] = {}
+
+    class Detour:
+        """A trajectory swinging 1.5 leg lengths out to the side (a path around an obstacle)."""
+
+        def __init__(self, start: np.ndarray, end: np.ndarray, width: float) -> None:
+            self.start, self.end, self.width = start, end, width
+
+        def point_at(self, u: np.ndarray) -> np.ndarray:
+            line = self.start[None, :] + u[:, None] * (self.end - self.start)[None, :]
+            return line + np.outer(np.sin(np.pi * u), [0.0, self.width, 0.03])
+
+    def detouring(*args: object, **kw: object) -> Couple:
+        couple = real(*args, **kw)  # type: ignore[arg-type]
+        ctrl = holder["ctrl"]
+        leg = int(np.argmin(np.linalg.norm(ctrl.foot - np.asarray(args[1]), axis=1)))
+        if not couple.ok or ctrl.forced[leg]:
+            return couple  # a foot that must move takes what it gets
+        start = np.asarray(args[1], dtype=np.float64)
+        wide = Detour(start, couple.footprint, 0.8)
+        return Couple(ok=True, footprint=couple.footprint, trajectory=wide,  # type: ignore[arg-type]
+                      score=couple.score, target_score=couple.target_score, path_score=couple.path_score,
+                      n_couples=1, n_paths=1)
+
+    m = morph.spider()
+    legs = LegBatch.stack([m])
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    ctrl = Controller(_flat(6.0), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs))
+    holder["ctrl"] = ctrl
+    monkeypatch.setattr(controller_module, "plan_footstep", detouring)
+    failed = 0
+    for _ in range(45):
+        failed += ctrl.step(1.0 / 30.0, _controls(legs)).n_failed
+        # no foot, planted or swinging, is ever asked to be farther than its leg from its hip
+        dist = np.linalg.norm(ctrl.foot - ctrl.hips_world(), axis=1)
+        assert np.all(dist <= legs.leg_length + 1e-9)
+    assert failed > 0  # the detours were refused (the feet stepped when forced instead)

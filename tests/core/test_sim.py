@@ -8,6 +8,7 @@ import pytest
 
 from procloco_addon.core import morphology as morph
 from procloco_addon.core.controller import ControllerParams
+from procloco_addon.core.footprints import PlannerParams
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.sim import Controls, GaitChange, SimResult, Simulation, check_motion
 from procloco_addon.core.spine import SpineParams, wrap_angle
@@ -466,3 +467,56 @@ def test_rigid_characters_in_a_crowd_with_spines_are_unchanged_and_runs_repeat()
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     report = check_motion(a, env, chars=[1, 2])
     assert report.passed, report.failures()
+
+
+# ---------------------------------------------------------------------------------------
+# At the presets' own speeds
+
+
+def _preset_run(
+    m: morph.Morphology, preset_name: str, env: Environment, seconds: float, heading: object = 0.0,
+    fps: float = 24.0,
+) -> SimResult:
+    """``m`` walking at its gait preset's speed and step height (leg lengths), pelvis physics
+    on, as the Blender shell runs it: a step per frame, cells and slices in leg lengths."""
+    preset = find_gait_preset(preset_name)
+    leg = float(m.leg_length.mean())
+
+    def controls(t: float) -> Controls:
+        h = heading(t) if callable(heading) else heading
+        return Controls(speed=preset.speed * leg, heading=h, step_height=preset.step_height * leg,
+                        pelvis_physics=True)
+
+    params = ControllerParams(window_cell=0.065 * leg, slice_size=0.14 * leg)
+    planner = PlannerParams(step_height=preset.step_height * leg, slice_size=0.14 * leg, leg_reach=leg,
+                            candidate_radius=params.candidate_radius * leg,
+                            fixed_distance=params.fixed_distance * leg, edge_height=0.055 * leg)
+    sim = Simulation(env, [m], preset.gait(m.labels), controls=controls, dt=1.0 / fps, params=params,
+                     planner=[planner])
+    return sim.run(round(seconds * fps))
+
+
+def test_spider_at_its_preset_speed_walks_and_turns_with_its_feet_planted() -> None:
+    # 1.5 leg lengths per second at the preset's 0.7 s cycle would sweep 0.58 leg lengths,
+    # more than the 0.3-0.35 between neighbouring feet and, turning, more than the legs
+    # reach: the cycle shortens so that legs neither cross, crowd nor stretch
+    m = morph.spider(1.33)
+    env = flat(12.0)
+    res = _preset_run(m, "octopod_alternating_tetrapod", env, 2.5,
+                      heading=lambda t: 0.0 if t < 1.5 else 0.5 * np.pi)
+    _assert_motion_ok(res, env)
+    assert res.stats["n_failed"].sum() == 0
+    leg = float(m.leg_length.mean())
+    travel = np.linalg.norm(np.diff(res.pelvis_position[:, 0, :2], axis=0), axis=1).sum()
+    assert travel == pytest.approx(1.5 * leg * 2.5, rel=0.02)
+
+
+def test_rigid_quadruped_turning_90_degrees_at_walking_speed_keeps_its_feet_planted() -> None:
+    # an abrupt quarter turn: the planted feet far from the pelvis sweep sideways; the legs
+    # step faster and early rather than stretch or drag
+    m = morph.quadruped(1.45, spine=False)
+    env = flat(12.0)
+    res = _preset_run(m, "quadruped_walk", env, 3.0, heading=lambda t: 0.0 if t < 1.0 else 0.5 * np.pi,
+                      fps=24.0)
+    _assert_motion_ok(res, env)
+    assert res.yaw[-1, 0] == pytest.approx(0.5 * np.pi, abs=1e-6)

@@ -142,7 +142,7 @@ def run(job: Job) -> Iterator[float]:
     # Planning cells and height slices scale with the creature (the core's defaults are
     # tuned for half-metre legs: 7 cm cells, 10 cm slices), so a rig scaled ×100 plans the
     # same steps on a 100 times larger terrain.
-    params = ControllerParams(window_cell=0.13 * leg_len, slice_size=0.14 * leg_len)
+    params = ControllerParams(window_cell=0.065 * leg_len, slice_size=0.14 * leg_len)
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
