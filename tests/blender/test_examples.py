@@ -369,3 +369,25 @@ def test_contact_sheet_has_a_close_up_of_each_creature(empty_scene: Any, tmp_pat
     assert (empty_scene.camera, empty_scene.render.resolution_x, empty_scene.render.resolution_y) == before
     assert empty_scene.camera == main_camera
     assert len(bpy.data.objects) == n_objects
+
+
+def test_close_ups_leave_out_crates_that_hide_the_creature(empty_scene: Any) -> None:
+    terrain.build_ground(empty_scene, x_range=(-3.0, 3.0), y_range=(-3.0, 3.0), cell=0.5,
+                         height=lambda x, y: np.zeros_like(x))
+    spider = creatures.build_spider(empty_scene, scale=8.0)
+    scene.setup_render(empty_scene)
+    # A tall crate between the close-up camera and the spider.
+    toward_camera = -np.array(scene.CLOSEUP_DIRECTION[:2]) / np.linalg.norm(scene.CLOSEUP_DIRECTION[:2])
+    crate = terrain.build_crate(empty_scene, "Crate", tuple(0.9 * toward_camera), (0.3, 0.3, 1.5), "AVOID")
+    bpy.context.view_layer.update()
+    shots = scene.render_close_ups(empty_scene, {"spider": spider}, tile=(64, 48))["spider"]
+    assert not crate.hide_render  # put back
+    crate.hide_render = True
+    clear = scene.render_close_ups(empty_scene, {"spider": spider}, tile=(64, 48))["spider"]
+    np.testing.assert_allclose(shots, clear, atol=1e-3)
+    # Beside the creature, out of the way, it stays in the picture.
+    crate.hide_render = False
+    crate.location = (-0.9 * toward_camera[0], -0.9 * toward_camera[1], 0.0)
+    bpy.context.view_layer.update()
+    behind = scene.render_close_ups(empty_scene, {"spider": spider}, tile=(64, 48))["spider"]
+    assert np.abs(behind - clear).max() > 0.1

@@ -613,6 +613,11 @@ def _wolf_radius(bone: Any) -> tuple[float, float]:
     }
     if bone.name in fixed:
         return fixed[bone.name]
+    words = set(bone.name.split(".")[0].split("_"))
+    if "palm" in words:  # the paw's pads: thick enough to read as a paw, not as fingers
+        return 0.022, 0.02
+    if words & {"index", "middle", "ring", "pinky"}:
+        return 0.016, 0.014
     r = min(max(0.18 * bone.length, 0.008), 0.04)
     return r, 0.85 * r
 

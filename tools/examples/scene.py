@@ -193,12 +193,33 @@ def _save_png(pixels: np.ndarray, path: Path) -> Path:
     return path
 
 
+def _occluders(scene: bpy.types.Scene, eye: Vector, points: Sequence[Vector],
+               target: bpy.types.Object) -> list[bpy.types.Object]:
+    """Crates that a ray from ``eye`` to one of ``points`` hits before ``target``: what hides
+    the creature from the close-up camera (a tall crate beside it). The ground and the stairs
+    are never taken away."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    found: list[bpy.types.Object] = []
+    for p in points:
+        d = p - eye
+        hit, _loc, _normal, _index, obj, _m = scene.ray_cast(depsgraph, eye, d.normalized(),
+                                                             distance=d.length)
+        if not hit or obj is None:
+            continue
+        original = obj.original
+        crate = original.get("example_feature") in ("static_crate", "moving_crate")
+        if crate and original != target and original not in found and not original.hide_render:
+            found.append(original)
+    return found
+
+
 def render_close_ups(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object],
                      tile: tuple[int, int] = (320, 180),
                      direction: Sequence[float] = CLOSEUP_DIRECTION,
                      margin: float = 0.08) -> dict[str, np.ndarray]:
     """Render each creature close up at the current frame (Workbench, ``tile`` pixels): the
     camera looks along ``direction`` at the creature's posed skin, framed with ``margin`` to spare.
+    Objects in front of the creature (seen from the camera) are left out of its picture.
     Returns ``{kind: (h, w, 4) pixels}`` (row 0 at the bottom; creatures without a skin are
     left out). The scene's camera, resolution, engine and output path are left as they were."""
     render = scene.render
@@ -216,11 +237,18 @@ def render_close_ups(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object],
                 skin = creatures.skin_of(rig)
                 if skin is None:
                     continue
-                frame_camera(scene, skin_points(skin), direction=direction, margin=margin, lens=50.0,
-                             camera=camera)
+                points = skin_points(skin)
+                frame_camera(scene, points, direction=direction, margin=margin, lens=50.0, camera=camera)
                 scene.camera = camera
-                render.filepath = str(Path(tmp) / f"{kind}.png")
-                bpy.ops.render.render(write_still=True)
+                hidden = _occluders(scene, camera.matrix_world.translation, points[::10], skin)
+                for obj in hidden:
+                    obj.hide_render = True
+                try:
+                    render.filepath = str(Path(tmp) / f"{kind}.png")
+                    bpy.ops.render.render(write_still=True)
+                finally:
+                    for obj in hidden:
+                        obj.hide_render = False
                 out[kind] = _read_png(Path(render.filepath))
     finally:
         (scene.camera, render.resolution_x, render.resolution_y, render.resolution_percentage,
