@@ -22,9 +22,9 @@ first by ``tools/build_examples.py`` when it is missing) and, printing its progr
    * ``creatures.png`` — a close-up of each creature (columns) at ``--close-up-frames`` (rows),
    * ``examples_generated.blend`` — the scene with the new Actions.
 
-``--update-docs`` also copies the two sheets to ``docs/images/example_contact_sheet.png``
-and ``docs/images/example_creatures.png`` (the README's pictures). ``--info`` only lists the
-rigs, their legs and their chains.
+``--update-docs`` also writes the README's pictures: ``docs/images/example_contact_sheet.png``
+(six of the frames, three to a row) and ``docs/images/example_creatures.png`` (the
+close-ups). ``--info`` only lists the rigs, their legs and their chains.
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--no-biped", action="store_true",
                         help="keep the human's Generate Locomotion walk instead of Plan Biped Footsteps")
     parser.add_argument("--update-docs", action="store_true",
-                        help="copy the two sheets to docs/images/example_*.png")
+                        help="also write the README's pictures docs/images/example_*.png")
     parser.add_argument("--info", action="store_true", help="only list the rigs, their legs and chains")
     args = parser.parse_args(argv)
 
@@ -156,9 +156,10 @@ def main(argv: list[str] | None = None) -> int:
     _say(f"saved {saved}")
     if args.update_docs:
         docs = ROOT / "docs" / "images"
-        for source, name in ((sheet, "example_contact_sheet.png"), (close_ups, "example_creatures.png")):
-            shutil.copyfile(source, docs / name)
-            _say(f"updated docs/images/{name}")
+        # The README's overview: six of the frames, three to a row.
+        cli.contact_sheet(files, docs / "example_contact_sheet.png", columns=3, max_tiles=6)
+        shutil.copyfile(close_ups, docs / "example_creatures.png")
+        _say("updated docs/images/example_contact_sheet.png and docs/images/example_creatures.png")
     _say(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     return 0
 

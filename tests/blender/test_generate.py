@@ -371,15 +371,15 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
                            np.zeros(fh.shape[:2]), np.zeros(ft.shape[:2])], axis=1)
     depth = np.where(over, heights + lift - probes[..., 2], -np.inf)
     out["penetration"] = float(depth.max())
-    # Inside an avoided crate: in its own frame (at each frame) it is the cube [-0.5, 0.5]^3
-    # (origin at its bottom face for the example terrain's crates: [0, 1] along z).
+    # Inside an avoided crate: in its own frame (at each frame) it is its mesh's bounding box
+    # (a unit cube scaled by the object, or a box built to size with its origin at its bottom).
     out["avoid"] = 0.0
     for box in avoid:
         mats = object_world_matrices(box, frames)
         inv = np.linalg.inv(mats)
         local = np.einsum("fij,flj->fli", inv[:, :3, :3], ends) + inv[:, None, :3, 3]
-        lo = np.array([-0.5, -0.5, min(c[2] for c in box.bound_box)])
-        hi = np.array([0.5, 0.5, max(c[2] for c in box.bound_box)])
+        corners = np.array([tuple(c) for c in box.bound_box])
+        lo, hi = corners.min(axis=0), corners.max(axis=0)
         size = np.linalg.norm(mats[:, :3, :3], axis=1)[:, None, :]  # (F, 1, 3) scale per axis
         depth_in = np.min(np.minimum(local - lo, hi - local) * size, axis=-1)  # metres to the nearest face
         out["avoid"] = max(out["avoid"], float(max(depth_in.max(), 0.0)))

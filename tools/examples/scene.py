@@ -216,10 +216,11 @@ def _occluders(scene: bpy.types.Scene, eye: Vector, points: Sequence[Vector],
 def render_close_ups(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object],
                      tile: tuple[int, int] = (320, 180),
                      direction: Sequence[float] = CLOSEUP_DIRECTION,
-                     margin: float = 0.08) -> dict[str, np.ndarray]:
+                     margin: float = 0.08, hide_occluders: bool = True) -> dict[str, np.ndarray]:
     """Render each creature close up at the current frame (Workbench, ``tile`` pixels): the
     camera looks along ``direction`` at the creature's posed skin, framed with ``margin`` to spare.
-    Objects in front of the creature (seen from the camera) are left out of its picture.
+    Crates in front of the creature (seen from the camera) are left out of its picture unless
+    ``hide_occluders`` is False.
     Returns ``{kind: (h, w, 4) pixels}`` (row 0 at the bottom; creatures without a skin are
     left out). The scene's camera, resolution, engine and output path are left as they were."""
     render = scene.render
@@ -240,7 +241,8 @@ def render_close_ups(scene: bpy.types.Scene, rigs: dict[str, bpy.types.Object],
                 points = skin_points(skin)
                 frame_camera(scene, points, direction=direction, margin=margin, lens=50.0, camera=camera)
                 scene.camera = camera
-                hidden = _occluders(scene, camera.matrix_world.translation, points[::10], skin)
+                hidden = (_occluders(scene, camera.matrix_world.translation, points[::10], skin)
+                          if hide_occluders else [])
                 for obj in hidden:
                     obj.hide_render = True
                 try:
