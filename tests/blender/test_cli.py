@@ -96,9 +96,13 @@ def test_failures_and_usage_errors_exit_non_zero(robot_scene: Any,
     assert "invalid choice" in capsys.readouterr().err
 
 
-def test_info_lists_rigs_and_legs(robot_scene: Any, capsys: pytest.CaptureFixture[str]) -> None:
+def test_info_lists_rigs_legs_and_chains(robot_scene: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    creatures.build_lizard(bpy.context.scene, location=(1.5, 0.0, 0.0))
     assert cli.main(["info"]) == 0
-    assert "Robot: 5 legs (M1: Leg1_thigh > Leg1_foot" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "Robot: 5 legs (M1: Leg1_thigh > Leg1_foot" in printed
+    assert "Robot: no tail, antenna or ear chain" in printed
+    assert "Lizard: suggested secondary chains Tail.001" in printed
 
 
 def test_the_command_is_registered_with_blender(procloco_registered: Any) -> None:
