@@ -1062,7 +1062,8 @@ class Controller:
         """Feet of ``legs`` that a moving obstacle ran into (its top ``surface (m,)`` is above
         them) are pushed out of it the shorter way: up onto its top (never onto an avoided
         obstacle while there is room beside it), or aside to the nearest point around them
-        (the watch rings, one to three times as far) that is free at their height."""
+        (the watch rings, one to three times as far) that is free at their height and within
+        the leg's reach."""
         m = legs.size
         offsets = np.concatenate([f * self._watch_offsets[legs] for f in (1.0, 2.0, 3.0)], axis=1)
         k = offsets.shape[1]
@@ -1075,6 +1076,11 @@ class Controller:
         z = self.foot[legs, 2]
         tol = self.params.support_tolerance
         free = (ring_h <= z[:, None] + tol) & ~ring_f & (ring_h > _VOID)
+        # within the leg's reach
+        hips = self.hips_world()[legs]
+        top = np.maximum(ring_h, z[:, None])
+        spots = np.concatenate([here[:, None, :] + offsets, top[..., None]], axis=2)
+        free &= np.linalg.norm(spots - hips[:, None, :], axis=2) <= self.guard_reach[legs, None]
         # the nearest ring with room, and on it the point facing away from the obstacle
         # (the mean direction of the points it covers), so the foot is not pushed ahead of it
         radius = np.linalg.norm(offsets, axis=2)
@@ -1243,22 +1249,20 @@ class Controller:
                 stats.n_plans += 1
                 stats.n_couples += couple.n_couples
                 stats.n_paths += couple.n_paths
+                samples = couple.trajectory.point_at(u_grid) if couple.trajectory is not None else None
+                hip_land = pelvis_land[j] + hips[own] - pelvis_ref[j]
                 # a swing that would leave the leg's reach is not taken, unless the foot must
                 # move (its way out may be a detour)
-                if couple.ok and couple.trajectory is not None and (
-                    self.forced[leg]
-                    or self._within_reach(
-                        leg, samples := couple.trajectory.point_at(u_grid), hip_now[j],
-                        pelvis_land[j] + hips[own] - pelvis_ref[j],
-                    )
+                if (
+                    couple.ok
+                    and samples is not None
+                    and (self.forced[leg] or self._within_reach(leg, samples, hip_now[j], hip_land))
                 ):
-                    samples = couple.trajectory.point_at(u_grid)
                     target = np.asarray(couple.footprint, dtype=np.float64).copy()
                 elif self.forced[leg] and not self.swinging[leg] and (
                     straight := self._straight_step(
                         leg, self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c]),
-                        p.candidate_radius * float(legs_data.leg_length[leg]), hip_now[j],
-                        pelvis_land[j] + hips[own] - pelvis_ref[j],
+                        p.candidate_radius * float(legs_data.leg_length[leg]), hip_now[j], hip_land,
                     )
                 ) is not None:
                     # a foot that must move (left behind, or its support gone) and that the
