@@ -24,9 +24,12 @@ bench_crowd.py, LOD and no-LOD camera set-ups) runs ``--crowd-steps`` steps whil
 its controller asks for is recorded (the planner it calls is wrapped); those plans are then
 replayed step by step, one foot at a time (``plan_footstep``, what the controller calls
 today) and all of a step's feet in one ``plan_footsteps`` call, and the answers compared bit
-for bit. ``--baseline REV`` also replays them with the planner of git revision ``REV`` (its
-``procloco_addon`` extracted to a temporary folder) in the same run, for before/after
-ratios.
+for bit.
+
+``--baseline REV`` also times the planner of git revision ``REV`` (its ``procloco_addon``
+extracted to a temporary folder and imported under another name) in the same rounds, on the
+same situations and recorded crowd plans, and compares its answers: before/after ratios from
+one run.
 
 Times are CPU time of this process (single-threaded; the machine is shared, so wall time
 varies with the neighbours' load), the best of ``--repeat`` rounds in which the settings take
@@ -37,6 +40,7 @@ time, the situations above).
 from __future__ import annotations
 
 import argparse
+import atexit
 import importlib
 import os
 import platform
@@ -123,12 +127,13 @@ def make_situations(scene: CrowdScene, centres: FloatArray, headings: FloatArray
 
 
 def run_plans(
-    grids: list[WindowGrids], sits: list[Situation], params: PlannerParams
+    grids: list[WindowGrids], sits: list[Situation], params: PlannerParams,
+    planner: Callable[..., Couple] = plan_footstep,
 ) -> tuple[float, list[Couple]]:
     """CPU time of this process for one run over all situations, and its results."""
     t0 = time.process_time()
-    res = [plan_footstep(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, params,
-                         s.yaw) for s in sits]
+    res = [planner(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, params, s.yaw)
+           for s in sits]
     return time.process_time() - t0, res
 
 
@@ -186,6 +191,7 @@ def load_baseline(rev: str) -> Callable[..., Any]:
     archive = subprocess.run(["git", "-C", str(root), "archive", rev, "procloco_addon"], check=True,
                              capture_output=True).stdout
     tmp = Path(tempfile.mkdtemp(prefix="procloco-baseline-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
     with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
         tar.extractall(tmp, filter="data")
     shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
@@ -220,9 +226,8 @@ def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float,
     return time.process_time() - t0, out
 
 
-def crowd_section(args: argparse.Namespace) -> None:
+def crowd_section(args: argparse.Namespace, baseline: Callable[..., Couple] | None) -> None:
     """The "batched, as the crowd does it" table."""
-    baseline = load_baseline(args.baseline) if args.baseline else None
     print()
     print(f"batched, as the crowd does it: the plans of {args.crowd_steps} crowd steps (bench_crowd.py scene "
           f"and camera set-ups, after 15 warm-up steps), replayed")
@@ -305,11 +310,19 @@ def main(argv: list[str] | None = None) -> int:
     # The machine is shared: settings take turns in every round and each keeps its best time.
     sizes = [len(sits) if not prm.exhaustive else max(40, len(sits) // 4) for _, prm in settings]
     best = [np.inf] * len(settings)
+    best_base = [np.inf] * len(settings)
+    baseline = load_baseline(args.baseline) if args.baseline else None
     results: list[list[Couple]] = [[] for _ in settings]
+    same_as_base = [1.0] * len(settings)
     for _ in range(args.repeat):
         for k, (_, prm) in enumerate(settings):
             dt, results[k] = run_plans(grids, sits[: sizes[k]], prm)
             best[k] = min(best[k], dt)
+            if baseline is not None:
+                dt, base = run_plans(grids, sits[: sizes[k]], prm, baseline)
+                best_base[k] = min(best_base[k], dt)
+                pairs = zip(results[k], base, strict=True)
+                same_as_base[k] = float(np.mean([same_couple(a, b) for a, b in pairs]))
     rows: list[Row] = []
     for (name, _), n, dt, res in zip(settings, sizes, best, results, strict=True):
         ok = np.array([r.ok for r in res])
@@ -332,10 +345,16 @@ def main(argv: list[str] | None = None) -> int:
           f"{t_window / args.chars * 1e3:10.3f}ms")
     print()
     print(f"{'setting':46s} {'plans':>6s} {'plans/s':>9s} {'ms/plan':>8s} {'ok':>6s} {'targets':>8s} "
-          f"{'couples':>8s} {'3D paths':>9s} {'wavefr.':>8s} {'sweeps':>7s}")
-    for r in rows:
+          f"{'couples':>8s} {'3D paths':>9s} {'wavefr.':>8s} {'sweeps':>7s}"
+          + (f" {'baseline/s':>10s} {'speed-up':>8s} {'same':>6s}" if baseline is not None else ""))
+    for k, r in enumerate(rows):
         print(f"{r.name:46s} {r.n:6d} {r.per_s:9.1f} {r.ms:8.2f} {r.ok:6.1%} {r.targets:8.1f} "
-              f"{r.couples:8.2f} {r.paths:9.2f} {r.wavefronts:8.2f} {r.sweeps:7.1f}")
+              f"{r.couples:8.2f} {r.paths:9.2f} {r.wavefronts:8.2f} {r.sweeps:7.1f}"
+              + (f" {r.n / best_base[k]:10.1f} {best_base[k] / best[k]:7.2f}x {same_as_base[k]:6.1%}"
+                 if baseline is not None else ""))
+    if baseline is not None:
+        print(f"(baseline: the planner of revision {args.baseline}, timed in the same rounds; 'same': its "
+              f"answers bit for bit equal)")
     print()
     for k, label in ((4, "best-couple search"), (6, "exhaustive search")):
         ratio = rows[k].per_s / rows[k + 1].per_s
@@ -347,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{same_choice(results[2], results[3]):.1%} of plans; the line-of-sight shortcut changes "
           f"{1.0 - same_choice(results[2], results[4]):.1%} of choices")
     if args.crowd_steps > 0:
-        crowd_section(args)
+        crowd_section(args, baseline)
     print(f"RESULT planner plans_per_s_lod={rows[0].per_s:.1f} plans_per_s_nolod={rows[2].per_s:.1f}")
     return 0
 
