@@ -1,0 +1,136 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""``examples.blend`` end to end: each creature as saved in the committed file, on the first
+click, generates its walk (Generate Locomotion) and bakes its secondary motion (Bake
+Secondary Motion, where the file lists chains), over the file's whole frame range (1-120).
+
+The motion is measured on the posed rig, frame by frame through the depsgraph, against ray
+casts into the example terrain's real meshes, with the thresholds of "What done means for
+the motion" (see ``test_generate._measure_on``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+from procloco_addon.blender.locomotion import generate
+from procloco_addon.blender.secondary import bake
+from tests.blender.pose_eval import pose_matrices
+from tests.blender.test_generate import _measure_on, _select_only
+from tools.examples import scene as example_scene
+
+pytestmark = pytest.mark.blender
+
+# Failures of the core's motion on the example terrain, recorded precisely (the thresholds
+# are not loosened). strict: once the core is fixed the test passes and the mark must go.
+_CORE_FAILURES = {
+    "spider": "core: leg R1 planted beside the low crate with its tibia-tarsus joint 4.0 cm inside "
+              "the crate (frames 42-44, also 107 and 109): penetration 0.040 > 0.005",
+    "ant": "core: leg L3's IK misses its target by 1.74 cm at frame 47 (leg fully stretched): "
+           "reach 0.0174 > 0.01",
+    "robot": "core: leg M1's IK misses its target by 1.37 cm at frame 118 on the hill: reach 0.0137 > 0.01",
+}
+KINDS = tuple(
+    pytest.param(kind, marks=pytest.mark.xfail(strict=True, raises=AssertionError,
+                                               reason=_CORE_FAILURES[kind]))
+    if kind in _CORE_FAILURES else kind
+    for kind in example_scene.CREATURE_NAMES
+)
+
+
+def _open_examples(repo_root: Path) -> None:
+    path = repo_root / "examples.blend"
+    if not path.exists():
+        pytest.fail("examples.blend is missing: run tools/build_examples.py")
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return np.asarray(v / np.linalg.norm(v, axis=-1, keepdims=True))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_example_creature_walks_and_swings_within_the_thresholds(empty_scene: Any, repo_root: Path,
+                                                                 kind: str) -> None:
+    _open_examples(repo_root)
+    scene = bpy.context.scene
+    obj = bpy.data.objects[example_scene.CREATURE_NAMES[kind]]
+    assert "procloco_pending_settings" not in obj
+    assert obj.procloco.frame_range(scene) == (example_scene.FRAME_START, example_scene.FRAME_END)
+    _select_only(obj)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    walk = obj.animation_data.action
+    assert walk.name == f"{obj.name} ProcLoco"
+    # The same inputs again, to read what the operator simulated (the posed rig must match it:
+    # the "reach" measure compares the posed feet with these targets).
+    job = generate.prepare(bpy.context, obj)
+    for _ in generate.simulate(job):
+        pass
+
+    chains = list(obj.procloco_secondary.chains)
+    if chains:
+        tips = [c.tip for c in chains]
+        frames = [int(f) for f in job.frames]
+        walking = _unit(pose_matrices(obj, frames, tips)[..., :3, 1])
+        assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+        baked = obj.animation_data.action
+        assert baked.name == f"{obj.name} Secondary"
+        assert baked[bake.SECONDARY_SOURCE] == walk
+        swinging = _unit(pose_matrices(obj, frames, tips)[..., :3, 1])
+        swing = np.degrees(np.arccos(np.clip(np.sum(walking * swinging, axis=-1), -1.0, 1.0)))
+        assert swing.max() > 0.5, f"no chain of the {kind} swings: {swing.max(axis=0)}"
+
+    terrain = bpy.data.collections["Terrain"].objects
+    solid = [o for o in terrain if o.procloco_role != "IGNORE"]
+    # Static avoided crates are judged from the side too; a crate moving across is judged by
+    # its top (it may slide into a planted foot, which then steps away: thesis sequence 4).
+    avoid = [o for o in terrain if o.procloco_role == "AVOID" and o.animation_data is None]
+    m = _measure_on(obj, job, solid, avoid)
+    m.pop("ends")
+    assert m["slide"] <= 0.002, m
+    assert m["penetration"] <= 0.005, m
+    assert m["avoid"] <= 0.005, m
+    assert m["bone"] < 1e-4, m
+    assert m["reach"] <= 0.01, m
+    assert m["extension"] <= 1.0 + 1e-6, m
+    assert m["phase_events"] > 0, m
+    assert m["phase"] <= 1.0, m
+    assert m["travel"] > 2.0 * m["scale"], m
+
+
+@pytest.mark.xfail(strict=True, raises=AssertionError,
+                   reason="core biped planner: the left foot is set down 15 cm inside the step above it "
+                   "(heel at z 0.30 under the 0.45 step, frames 72 and 117-118; the right one at frame "
+                   "128): the footprints are placed too close to the risers")
+def test_example_human_walks_over_its_stairs_to_its_goal(empty_scene: Any, repo_root: Path) -> None:
+    """Plan Biped Footsteps on the example human, as set up in the file (its clips and goal):
+    it reaches the goal beyond the stairs, and its feet never sink into the steps."""
+    from tests.blender.pose_eval import ray_heights_over_time
+
+    _open_examples(repo_root)
+    human = bpy.data.objects[example_scene.CREATURE_NAMES["human"]]
+    goal = human.procloco_biped.goal
+    assert goal is not None
+    _select_only(human)
+    assert bpy.ops.procloco.plan_biped_footsteps() == {"FINISHED"}
+    action = human.animation_data.action
+    start, end = (round(v) for v in action.frame_range)
+    frames = list(range(start, end + 1, 2))
+    feet = ["foot.L", "toe.L", "foot.R", "toe.R"]
+    mats = pose_matrices(human, frames, feet)
+    lengths = np.array([human.data.bones[b].length for b in feet])
+    heads = mats[..., :3, 3]
+    points = np.concatenate([heads, heads + mats[..., :3, 1] * lengths[:, None]], axis=1)
+    walkable = [o for o in bpy.data.collections["Terrain"].objects
+                if o.get("example_feature") in ("ground", "stairs")]
+    under = ray_heights_over_time(frames, points[..., :2], walkable)
+    toe_radius = 0.025  # the skin's capsule at the toes; the bones run inside the foot
+    assert (under - points[..., 2]).max() <= toe_radius + 0.005
+    climbed = points[..., 2].min(axis=1).max()
+    assert climbed > 0.5, "the feet never stood on the landing (0.6 m up)"
+    hips = pose_matrices(human, [end], ["spine"])[0, 0, :3, 3]
+    assert np.linalg.norm(hips[:2] - np.array(goal.location)[:2]) < 0.5
