@@ -326,7 +326,9 @@ _SCALED_SETTINGS = ("speed", "step_height")
 #: Changes to the suggested secondary-motion chains per kind: ``{word in the chain's root
 #: bone: {setting: value}}`` (settings of ``Object.procloco_secondary.chains``).
 SECONDARY_SETTINGS: dict[str, dict[str, dict[str, float | bool]]] = {
-    "wolf": {"spine.003": {"settling_time": 1.0, "damping": 0.25}},  # a lively tail
+    # A lively tail; stiff ears (a wolf's stand up: the default springy ears flop by 40°).
+    "wolf": {"spine.003": {"settling_time": 1.0, "damping": 0.25},
+             "ear": {"settling_time": 0.2, "damping": 0.9}},
 }
 #: The shipped gait preset (file stem in ``presets/gait``) each kind walks with; the example
 #: scene applies it once the legs are detected (see ``scene.configure_example_rig``).
