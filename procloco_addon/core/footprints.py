@@ -87,7 +87,6 @@ from .terrain import (
     _box_overlaps_cells,
     _rect_offsets,
     dilate_each,
-    foot_kernel,
     foot_kernels,
     raster_boxes,
 )
@@ -687,11 +686,10 @@ class _Batch:
             path_params = PathParams(step_height=p.params.step_height, tension=p.params.tension,
                                      los_shortcut=p.params.los_shortcut)
             region = Region(int(self.r0[k]), int(self.c0[k]), self.mask[k, :h, :w])
-            land = foot_kernel(p.cell, p.half, p.yaw, anywhere_in_cell=False)
             f.ctx = PathContext.from_parts(p.grids, p.start, region, path_params, f.per_target,
-                                           self.sweep_off[self.sweep_in[k]], land, self.elev[k, :h, :w],
-                                           self.core[k, :h, :w], self.start_rc[k], self.liftoff[k, :h, :w],
-                                           f.maps, f.fields)
+                                           self.sweep_off[self.sweep_in[k]], (p.half, p.yaw),
+                                           self.elev[k, :h, :w], self.core[k, :h, :w], self.start_rc[k],
+                                           self.liftoff[k, :h, :w], f.maps, f.fields)
         return f.ctx
 
     def feet(self, cands: _Cands, levels: list[list[float]]) -> dict[int, _Foot]:

@@ -819,7 +819,8 @@ class PathContext:
         self.per_target = per_target
         cell = grids.cell
         self.sweep_kernel = foot_kernel(cell, foot_half_extents, foot_yaw, anywhere_in_cell=True)
-        self.land_kernel = foot_kernel(cell, foot_half_extents, foot_yaw, anywhere_in_cell=False)
+        self._foot_shape = (foot_half_extents, float(foot_yaw))
+        self._land_kernel: IntArray | None = None
         self.elevation = np.asarray(region.view(grids.elevation), dtype=np.float64)
         base = np.asarray(region.view(grids.avoid), dtype=bool).copy()
         if extra is not None:
@@ -855,13 +856,15 @@ class PathContext:
     @classmethod
     def from_parts(
         cls, grids: WindowGrids, start: FloatArray, region: Region, params: PathParams, per_target: bool,
-        sweep_kernel: IntArray, land_kernel: IntArray, elevation: FloatArray, base_core: BoolArray,
-        start_rc: FloatArray, liftoff: BoolArray, maps: dict[float, tuple[BoolArray, BoolArray, BoolArray]],
+        sweep_kernel: IntArray, foot_shape: tuple[npt.ArrayLike, float], elevation: FloatArray,
+        base_core: BoolArray, start_rc: FloatArray, liftoff: BoolArray,
+        maps: dict[float, tuple[BoolArray, BoolArray, BoolArray]],
         fields: dict[tuple[float, int, int], DistanceField] | None = None,
     ) -> PathContext:
         """A context from parts computed elsewhere (the batched planner computes them for many
-        feet at once): exactly what ``__init__`` would compute. ``maps`` (slice level -> its
-        maps) and ``fields`` are the caches themselves, shared with the caller."""
+        feet at once): exactly what ``__init__`` would compute. ``foot_shape``: the foot's half
+        extents and yaw; ``maps`` (slice level -> its maps) and ``fields`` are the caches
+        themselves, shared with the caller."""
         self = cls.__new__(cls)
         self.grids = grids
         self.params = params
@@ -869,7 +872,8 @@ class PathContext:
         self.region = region
         self.per_target = per_target
         self.sweep_kernel = sweep_kernel
-        self.land_kernel = land_kernel
+        self._foot_shape = (foot_shape[0], float(foot_shape[1]))
+        self._land_kernel = None
         self.elevation = elevation
         self.base_core = base_core
         self.outside = ~region.mask
@@ -885,6 +889,14 @@ class PathContext:
         cell = grids.cell
         self.ramp = params.ramp if params.ramp is not None else max(params.step_height, 2.0 * cell)
         return self
+
+    @property
+    def land_kernel(self) -> IntArray:
+        """The cells a landing foot covers at a cell centre (made on first use)."""
+        if self._land_kernel is None:
+            half, yaw = self._foot_shape
+            self._land_kernel = foot_kernel(self.grids.cell, half, yaw, anywhere_in_cell=False)
+        return self._land_kernel
 
     # -- obstacle maps per slice ------------------------------------------------------------
     def maps(self, level: float) -> tuple[BoolArray, BoolArray, BoolArray]:
