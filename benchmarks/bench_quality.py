@@ -20,7 +20,8 @@ walks along +X:
 - ``crates``: hills plus a low crate to step on or over and a tall (1.5 L) crate to keep off
   beside the path (the Blender tests' layout); ``crates+mover``: the same with a low crate
   sliding across the path;
-- ``moving``: an avoided crate 0.6 L tall sliding back and forth across the path;
+- ``moving``: an avoided crate 0.7 L wide and 0.6 L tall sliding ±1.2 L back and forth
+  across the path every 4 s (up to 1.9 L/s; the example spider lane's moving crate);
 - ``stairs``: four steps up (0.15 L rise), a landing, four steps down;
 - ``gap``: a hole with no surface, 0.5 L wide, across the path (the ground is a mesh);
 - ``turn``: flat ground, the heading commanded 90° to the left after 1.5 s.
