@@ -157,27 +157,40 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
         scene.advance(sim.dt)
         sim.step()
     recorded: list[Step] = []
-    original = controller.plan_footstep
 
-    def recording(*a: Any, **k: Any) -> Couple:
-        rq = FootRequest(*a, **k)
+    def own(v: npt.ArrayLike) -> FloatArray:
+        return np.array(v, dtype=np.float64)  # a copy: the controller's arrays change
 
-        def own(v: npt.ArrayLike) -> FloatArray:
-            return np.array(v, dtype=np.float64)  # a copy: the controller's arrays change
-
+    def keep(rq: FootRequest) -> None:
         recorded[-1].append(FootRequest(rq.grids, own(rq.foot_start), own(rq.preferred_xy), own(rq.hip_xy),
                                         own(rq.other_hips_xy), own(rq.other_feet_xy), rq.params,
                                         float(rq.foot_yaw)))
-        return original(*a, **k)
 
-    controller.plan_footstep = recording
+    # The controller calls plan_footstep (one foot) or plan_footsteps (a step's feet): wrap both.
+    wrapped: dict[str, Any] = {}
+    one = getattr(controller, "plan_footstep", None)
+    many = getattr(controller, "plan_footsteps", None)
+    if one is not None:
+        def record_one(*a: Any, **k: Any) -> Couple:
+            keep(FootRequest(*a, **k))
+            return one(*a, **k)
+        wrapped["plan_footstep"] = (one, record_one)
+    if many is not None:
+        def record_many(requests: list[FootRequest]) -> list[Couple]:
+            for rq in requests:
+                keep(rq)
+            return many(requests)
+        wrapped["plan_footsteps"] = (many, record_many)
+    for name, (_, wrapper) in wrapped.items():
+        setattr(controller, name, wrapper)
     try:
         for _ in range(steps):
             recorded.append([])
             scene.advance(sim.dt)
             sim.step()
     finally:
-        controller.plan_footstep = original
+        for name, (original, _) in wrapped.items():
+            setattr(controller, name, original)
     return recorded
 
 
