@@ -64,7 +64,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
-from .footprints import PlannerParams, plan_footstep
+from .footprints import FootRequest, PlannerParams, plan_footsteps
 from .gait import Gait, GaitManager
 from .hull import hull_height_and_pitch
 from .ik import IKResult, solve_legs
@@ -1187,19 +1187,26 @@ class Controller:
         k = p.trajectory_samples
         u_grid = np.linspace(0.0, 1.0, k + 1)
         done: list[tuple[int, int, int, FloatArray, FloatArray]] = []
-        for c in np.unique(c_of).tolist():
-            mine = legs[c_of == c]
-            window = WindowParams(
+        # every window of the step in one call (the moving crates near any of them are
+        # rasterised together), then every foot in one plan_footsteps call
+        chars = np.unique(c_of).tolist()
+        windows = [
+            WindowParams(
                 n_cells=p.window_cells,
                 cell=float(self.window_cell[c]),
                 foot_half_extents=(float(self.foot_half[c, 0]), float(self.foot_half[c, 1])),
                 foot_yaw=float(self.yaw[c]),
             )
-            grids = self.env.window(self.pos[c, :2], window)
-            stats.n_windows += 1
-            timer.lap("maps")
+            for c in chars
+        ]
+        grids_of = dict(zip(chars, self.env.windows(self.pos[chars, :2], windows), strict=True))
+        stats.n_windows += len(chars)
+        timer.lap("maps")
+        requests: list[FootRequest] = []
+        rows_of: list[tuple[int, int, int, FloatArray]] = []
+        for c in chars:
             sl = legs_data.leg_slice(c)
-            for leg in mine.tolist():
+            for leg in legs[c_of == c].tolist():
                 j = row_of[leg]
                 params = self.planner_params(c, float(ctl.step_height[c]), float(reach[j]))
                 hips = pelvis_ref[j] + self._rotate_xy(
@@ -1214,72 +1221,75 @@ class Controller:
                 other_feet = np.where(
                     self.swinging[other_idx, None], self.target[other_idx, :2], self.foot[other_idx, :2]
                 )
-                args = (grids, self.foot[leg], preferred_xy[j], hips[own], hips[others], other_feet)
-                couple = plan_footstep(*args, params, float(yaw_land[j]))
-                if not couple.ok and couple.n_targets == 0:
-                    # every footprint near the preferred one is taken (an obstacle, another
-                    # foot): look twice as far before giving up
-                    wider = replace(
-                        params,
-                        candidate_radius=2.0 * params.candidate_radius,
-                        fixed_distance=2.0 * params.fixed_distance,
-                    )
-                    couple = plan_footstep(*args, wider, float(yaw_land[j]))
-                if not couple.ok and self.forced[leg]:
-                    # a foot that must move, crowded by the other feet or boxed in by slices:
-                    # try without them
-                    relaxed = replace(
-                        params,
-                        candidate_radius=2.0 * params.candidate_radius,
-                        fixed_distance=2.0 * params.fixed_distance,
-                        slice_size=None,
-                    )
-                    none = np.zeros((0, 2))
-                    couple = plan_footstep(
-                        grids,
-                        self.foot[leg],
-                        preferred_xy[j],
-                        hips[own],
-                        none,
-                        none,
-                        relaxed,
-                        float(yaw_land[j]),
-                    )
-                    stats.n_relaxed += 1
-                stats.n_plans += 1
-                stats.n_couples += couple.n_couples
-                stats.n_paths += couple.n_paths
-                samples = couple.trajectory.point_at(u_grid) if couple.trajectory is not None else None
-                hip_land = pelvis_land[j] + hips[own] - pelvis_ref[j]
-                # a swing that would leave the leg's reach is not taken, unless the foot must
-                # move (its way out may be a detour)
-                if (
-                    couple.ok
-                    and samples is not None
-                    and (self.forced[leg] or self._within_reach(leg, samples, hip_now[j], hip_land))
-                ):
-                    target = np.asarray(couple.footprint, dtype=np.float64).copy()
-                elif self.forced[leg] and not self.swinging[leg] and (
-                    straight := self._straight_step(
-                        leg, self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c]),
-                        p.candidate_radius * float(legs_data.leg_length[leg]), hip_now[j], hip_land,
-                    )
-                ) is not None:
-                    # a foot that must move (left behind, or its support gone) and that the
-                    # planner cannot serve steps straight to its preferred spot
-                    samples, target = straight
-                    stats.n_failed += 1
-                    stats.n_fallback += 1
-                else:
-                    stats.n_failed += 1
-                    if not self.swinging[leg]:
-                        self.plan_failed[leg] = True
-                        # a foot that must move tries again at the next step (the body moved)
-                        self.forced[leg] = False
-                    continue
-                self.plan_failed[leg] = False
-                done.append((leg, j, c, samples, target))
-            timer.lap("planning")
+                requests.append(FootRequest(grids_of[c], self.foot[leg], preferred_xy[j], hips[own],
+                                            hips[others], other_feet, params, float(yaw_land[j])))
+                rows_of.append((leg, j, c, hips[own]))
+        couples = plan_footsteps(requests)
+        # every footprint near the preferred one is taken (an obstacle, another foot): look
+        # twice as far before giving up
+        wide = [i for i, cp in enumerate(couples) if not cp.ok and cp.n_targets == 0]
+        if wide:
+            again = plan_footsteps([
+                replace(requests[i], params=replace(
+                    requests[i].params,
+                    candidate_radius=2.0 * requests[i].params.candidate_radius,
+                    fixed_distance=2.0 * requests[i].params.fixed_distance,
+                ))
+                for i in wide
+            ])
+            for i, cp in zip(wide, again, strict=True):
+                couples[i] = cp
+        # a foot that must move, crowded by the other feet or boxed in by slices: try without them
+        relax = [i for i, cp in enumerate(couples) if not cp.ok and self.forced[rows_of[i][0]]]
+        if relax:
+            none = np.zeros((0, 2))
+            again = plan_footsteps([
+                replace(requests[i], other_hips_xy=none, other_feet_xy=none, params=replace(
+                    requests[i].params,
+                    candidate_radius=2.0 * requests[i].params.candidate_radius,
+                    fixed_distance=2.0 * requests[i].params.fixed_distance,
+                    slice_size=None,
+                ))
+                for i in relax
+            ])
+            for i, cp in zip(relax, again, strict=True):
+                couples[i] = cp
+            stats.n_relaxed += len(relax)
+        for (leg, j, c, hip_own), couple in zip(rows_of, couples, strict=True):
+            stats.n_plans += 1
+            stats.n_couples += couple.n_couples
+            stats.n_paths += couple.n_paths
+            samples = couple.trajectory.point_at(u_grid) if couple.trajectory is not None else None
+            hip_land = pelvis_land[j] + hip_own - pelvis_ref[j]
+            # a swing that would leave the leg's reach is not taken, unless the foot must
+            # move (its way out may be a detour)
+            if (
+                couple.ok
+                and samples is not None
+                and (self.forced[leg] or self._within_reach(leg, samples, hip_now[j], hip_land))
+            ):
+                target = np.asarray(couple.footprint, dtype=np.float64).copy()
+            elif self.forced[leg] and not self.swinging[leg] and (
+                straight := self._straight_step(
+                    leg, self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c]),
+                    p.candidate_radius * float(legs_data.leg_length[leg]), hip_now[j], hip_land,
+                )
+            ) is not None:
+                # a foot that must move (left behind, or its support gone) and that the
+                # planner cannot serve steps straight to its preferred spot
+                samples, target = straight
+                stats.n_failed += 1
+                stats.n_fallback += 1
+            else:
+                stats.n_failed += 1
+                if not self.swinging[leg]:
+                    self.plan_failed[leg] = True
+                    # a foot that must move tries again at the next step (the body moved)
+                    self.forced[leg] = False
+                continue
+            self.plan_failed[leg] = False
+            done.append((leg, j, c, samples, target))
+        timer.lap("planning")
         if not done:
             return
         # every new trajectory at once: land on the exact surface under the foot's point

@@ -3,17 +3,30 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
+
 import numpy as np
 import pytest
 
 from procloco_addon.core import morphology as morph
 from procloco_addon.core.controller import Controller, ControllerParams, StepControls, rotation_matrices
-from procloco_addon.core.footprints import Couple
+from procloco_addon.core.footprints import Couple, FootRequest, plan_footstep
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.morphology import LegBatch
 from procloco_addon.core.sim import Controls, Simulation, check_motion
 from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
 
+
+def _plan_each_foot_with(monkeypatch: pytest.MonkeyPatch, plan: Callable[..., object]) -> None:
+    """Make the controller's batched planner answer each foot with ``plan`` (a stand-in with
+    ``plan_footstep``'s signature), so a test can fail or bend chosen plans."""
+    import procloco_addon.core.controller as controller_module
+
+    def batched(requests: Sequence[FootRequest]) -> list[object]:
+        return [plan(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
+                     r.params, r.foot_yaw) for r in requests]
+
+    monkeypatch.setattr(controller_module, "plan_footsteps", batched)
 
 def _flat(half: float = 4.0, boxes: Boxes | None = None) -> Environment:
     n = int(2 * half / 0.05)
@@ -354,9 +367,8 @@ def test_a_rigid_body_turning_fast_shortens_its_steps() -> None:
 def test_a_foot_whose_swing_could_not_be_planned_still_steps_when_left_behind(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import procloco_addon.core.controller as controller_module
 
-    real = controller_module.plan_footstep
+    real = plan_footstep
     clock = {"t": 0.0}
 
     def flaky(*args: object, **kw: object) -> object:
@@ -369,7 +381,7 @@ def test_a_foot_whose_swing_could_not_be_planned_still_steps_when_left_behind(
                           path_score=0.0, n_couples=0, n_paths=0, message="test", n_targets=1)
         return real(*args, **kw)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(controller_module, "plan_footstep", flaky)
+    _plan_each_foot_with(monkeypatch, flaky)
     m = morph.spider()
     gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
     sim = Simulation(_flat(6.0), [m], gait, controls=Controls(speed=0.5, heading=0.0, step_height=0.05))
@@ -454,11 +466,10 @@ def _failed(start: object) -> Couple:
 def test_a_foot_that_must_step_goes_around_a_tall_avoided_crate_not_over_it(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    import procloco_addon.core.controller as controller_module
 
     # the planner finds nothing; a hind foot left behind must step, and a crate taller than
     # the spider stands between it and its preferred spot: the straight fallback goes around
-    monkeypatch.setattr(controller_module, "plan_footstep", lambda *a, **k: _failed(a[1]))
+    _plan_each_foot_with(monkeypatch, lambda *a, **k: _failed(a[1]))
     m = morph.spider()
     leg = 6  # L4, planted at the start
     rest = m.rest_foot[leg]
@@ -482,9 +493,8 @@ def test_a_foot_that_must_step_goes_around_a_tall_avoided_crate_not_over_it(
 
 
 def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytest.MonkeyPatch) -> None:
-    import procloco_addon.core.controller as controller_module
 
-    real = controller_module.plan_footstep
+    real = plan_footstep
     holder: dict[str, Controller] = {}
 
     class Detour:
@@ -514,7 +524,7 @@ def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytes
     gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
     ctrl = Controller(_flat(6.0), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs))
     holder["ctrl"] = ctrl
-    monkeypatch.setattr(controller_module, "plan_footstep", detouring)
+    _plan_each_foot_with(monkeypatch, detouring)
     failed = 0
     for _ in range(45):
         failed += ctrl.step(1.0 / 30.0, _controls(legs)).n_failed
