@@ -43,6 +43,7 @@ import numpy as np
 
 from . import actions, rig
 from .locomotion import generate
+from .locomotion import property_group as locomotion_props
 from .secondary import bake
 
 __all__ = ["contact_sheet", "main", "register", "render_frames", "unregister"]
@@ -230,7 +231,7 @@ def _run_bakes(jobs: Sequence[bake.Job]) -> None:
 def _outputs(objs: Sequence[Any], args: argparse.Namespace) -> None:
     scene = bpy.context.scene
     if args.render:
-        start, end = objs[0].procloco.frame_range(scene)
+        start, end = locomotion_props.frame_range(objs[0].procloco, scene)
         files = render_frames(scene, Path(args.render), range(start, end + 1, max(1, args.frame_step)),
                               tuple(args.resolution), focus=objs)
         _say(f"rendered {len(files)} frames into {args.render}")

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender.locomotion import generate
+from procloco_addon.blender.locomotion import property_group as locomotion_props
 from procloco_addon.blender.secondary import bake
 from tests.blender.pose_eval import pose_matrices
 from tests.blender.test_generate import _measure_on, _select_only
@@ -60,7 +61,8 @@ def test_example_creature_walks_and_swings_within_the_thresholds(empty_scene: An
     scene = bpy.context.scene
     obj = bpy.data.objects[example_scene.CREATURE_NAMES[kind]]
     assert "procloco_pending_settings" not in obj
-    assert obj.procloco.frame_range(scene) == (example_scene.FRAME_START, example_scene.FRAME_END)
+    expected = (example_scene.FRAME_START, example_scene.FRAME_END)
+    assert locomotion_props.frame_range(obj.procloco, scene) == expected
     _select_only(obj)
     assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
     walk = obj.animation_data.action

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender.gait import draw, geometry
+from procloco_addon.blender.locomotion import property_group as locomotion_props
 
 TOLERANCE = 2.0 / 360.0  # two degrees, as a cycle fraction
 SIZE = 512
@@ -249,7 +250,7 @@ def test_panel_picture_follows_the_rig(gpu_ready: None, empty_scene: Any) -> Non
             assert cyclic_error(measure_needle(pixels, layout, i), phase) <= TOLERANCE, i
 
     fps = empty_scene.render.fps / empty_scene.render.fps_base
-    start_frame = settings.frame_range(empty_scene)[0]
+    start_frame = locomotion_props.frame_range(settings, empty_scene)[0]
 
     def phase_now() -> float:
         return ((empty_scene.frame_current - start_frame) / fps / settings.cycle_time) % 1.0

@@ -157,6 +157,13 @@ def test_refuses_an_empty_path(wolf_scene: Any) -> None:
     _refused("Path 'EmptyPath' is empty")
 
 
+def test_refuses_a_path_that_is_not_a_curve(wolf_scene: Any) -> None:
+    mesh = bpy.data.objects.new("NotACurve", bpy.data.meshes.new("NotACurve"))
+    bpy.context.scene.collection.objects.link(mesh)
+    wolf_scene.procloco.path = mesh  # Python may set what the picker would not offer
+    _refused("Path 'NotACurve' is not a curve")
+
+
 @pytest.mark.parametrize(("start", "end"), [(20, 10), (10, 10)])
 def test_refuses_an_empty_or_reversed_frame_range(wolf_scene: Any, start: int, end: int) -> None:
     _short_range(wolf_scene, start, end)

@@ -159,6 +159,9 @@ def _refresh_timer() -> None:
         print(f"ProcLoco: could not redraw the gait circles: {error}")
 
 
+_MSGBUS_OWNER = object()
+
+
 def _tag_redraw() -> None:
     window_manager = getattr(bpy.context, "window_manager", None)
     for window in getattr(window_manager, "windows", ()):
@@ -177,9 +180,21 @@ def _on_frame_change(_scene: Any, _depsgraph: Any = None) -> None:
     request_refresh()
 
 
+def _subscribe_overlay_settings() -> None:
+    """Redraw the viewports when an overlay setting changes (message bus; loading a file
+    drops every subscription, so ``load_post`` subscribes again)."""
+    from .property_group import OVERLAY_PROPERTIES, PROCLOCO_PG_gait_view
+
+    bpy.msgbus.clear_by_owner(_MSGBUS_OWNER)
+    for name in OVERLAY_PROPERTIES:
+        bpy.msgbus.subscribe_rna(key=(PROCLOCO_PG_gait_view, name), owner=_MSGBUS_OWNER, args=(),
+                                 notify=_tag_redraw)
+
+
 @persistent
 def _on_load_post(*_args: Any) -> None:
     _state.signature = None
+    _subscribe_overlay_settings()
     request_refresh()
 
 
@@ -256,11 +271,13 @@ def register() -> None:
         if callback not in handlers:
             handlers.append(callback)
     _state.draw_handle = bpy.types.SpaceView3D.draw_handler_add(_draw_overlay, (), "WINDOW", "POST_PIXEL")
+    _subscribe_overlay_settings()
 
 
 def unregister() -> None:
     import bpy.utils.previews
 
+    bpy.msgbus.clear_by_owner(_MSGBUS_OWNER)
     if _state.draw_handle is not None:
         bpy.types.SpaceView3D.draw_handler_remove(_state.draw_handle, "WINDOW")
         _state.draw_handle = None

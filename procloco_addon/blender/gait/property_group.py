@@ -8,12 +8,10 @@ Display choices only, shared by every rig: the gait itself is saved on the rig
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty
 
-
-def _redraw_viewports(_self: object, context: bpy.types.Context) -> None:
-    for window in context.window_manager.windows:
-        for area in window.screen.areas:
-            if area.type == "VIEW_3D":
-                area.tag_redraw()
+#: Properties whose change redraws the 3D viewports. They are watched through the message
+#: bus (gait/handler.py) rather than ``update=`` callbacks: on Blender 4.2, a property group
+#: with an update callback crashes Blender at exit once the extension has been uninstalled.
+OVERLAY_PROPERTIES = ("show_overlay", "overlay_corner", "overlay_cell")
 
 
 class PROCLOCO_PG_gait_view(bpy.types.PropertyGroup):
@@ -23,7 +21,6 @@ class PROCLOCO_PG_gait_view(bpy.types.PropertyGroup):
         name="Show in Viewport",
         description="Draw the active rig's gait circles in a corner of the 3D viewport",
         default=False,
-        update=_redraw_viewports,
     )
     overlay_corner: EnumProperty(
         name="Corner",
@@ -35,7 +32,6 @@ class PROCLOCO_PG_gait_view(bpy.types.PropertyGroup):
             ("TOP_RIGHT", "Top Right", ""),
         ),
         default="BOTTOM_LEFT",
-        update=_redraw_viewports,
     )
     overlay_cell: IntProperty(
         name="Circle Size",
@@ -44,7 +40,6 @@ class PROCLOCO_PG_gait_view(bpy.types.PropertyGroup):
         min=40,
         max=400,
         subtype="PIXEL",
-        update=_redraw_viewports,
     )
     picture_scale: FloatProperty(
         name="Picture Size",

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ...core import gait as core_gait
+from ..locomotion import property_group as locomotion_props
 
 __all__ = [
     "RigGait",
@@ -63,7 +64,10 @@ def read_rig_gait(obj: Any, scene: Any = None) -> RigGait | None:
         import bpy
 
         scene = bpy.context.scene
-    frame_start = int(settings.frame_range(scene)[0]) if scene is not None else int(settings.frame_start)
+    if scene is not None:
+        frame_start = locomotion_props.frame_range(settings, scene)[0]
+    else:
+        frame_start = int(settings.frame_start)
     return RigGait(labels, start, duration, float(settings.cycle_time), frame_start)
 
 

@@ -27,6 +27,7 @@ import numpy as np
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
 from .. import actions, rig, scene_terrain
+from . import property_group
 
 __all__ = [
     "GenerateError",
@@ -155,6 +156,8 @@ def _offsets_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settin
 
 def path_points(context: bpy.types.Context, path: bpy.types.Object) -> np.ndarray:
     """The path curve as a world polyline ``(n, 3)`` (its first spline, evaluated)."""
+    if path.type != "CURVE":
+        raise GenerateError(f"Path '{path.name}' is not a curve: pick a curve object to follow")
     depsgraph = context.evaluated_depsgraph_get()
     ev = path.evaluated_get(depsgraph)
     try:
@@ -285,7 +288,7 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError(f"{name} is not an armature: select a rig")
     scene = context.scene
     settings = obj.procloco
-    start, end = settings.frame_range(scene)
+    start, end = property_group.frame_range(settings, scene)
     if end <= start:
         raise GenerateError(f"The frame range of '{obj.name}' is empty or reversed ({start} to {end})")
     stale = stale_bones(obj)

@@ -28,6 +28,13 @@ def _is_curve(_self: object, obj: bpy.types.Object) -> bool:
     return obj.type == "CURVE"
 
 
+# Blender 4.2 crashes at exit once an extension whose property groups carry Python functions
+# (``poll`` and ``update`` callbacks, methods) was uninstalled in the session; 4.5 does not.
+# There the picker lists every object and Generate Locomotion refuses a path that is not a
+# curve.
+_PATH_POLL = {"poll": _is_curve} if bpy.app.version >= (4, 5, 0) else {}
+
+
 class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
     """One leg of a rig: its bones, its gait circle and its relative foot position.
 
@@ -119,7 +126,7 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         type=bpy.types.Object,
         name="Path",
         description="A curve to follow instead of the heading (walked from its start at the given speed)",
-        poll=_is_curve,
+        **_PATH_POLL,
     )
     step_height: FloatProperty(
         name="Step Height",
@@ -244,11 +251,16 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         subtype="FACTOR",
     )
 
-    def frame_range(self, scene: bpy.types.Scene) -> tuple[int, int]:
-        """``(first, last)`` generated frames."""
-        if self.use_scene_range:
-            return int(scene.frame_start), int(scene.frame_end)
-        return int(self.frame_start), int(self.frame_end)
+
+def frame_range(settings: PROCLOCO_PG_rig_settings, scene: bpy.types.Scene) -> tuple[int, int]:
+    """``(first, last)`` frames a rig's settings generate in ``scene``.
+
+    A module function rather than a method: Blender 4.2 crashes at exit once an extension
+    was uninstalled whose property groups carry Python functions.
+    """
+    if settings.use_scene_range:
+        return int(scene.frame_start), int(scene.frame_end)
+    return int(settings.frame_start), int(settings.frame_end)
 
 
 #: ``Object.procloco_role``: the object's part in the terrain (see ``scene_terrain``).

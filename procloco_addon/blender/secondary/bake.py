@@ -38,6 +38,7 @@ import numpy as np
 
 from ...core import pendulum as pend
 from .. import actions, rig
+from ..locomotion import property_group as locomotion_props
 
 __all__ = [
     "SECONDARY_SOURCE",
@@ -340,8 +341,8 @@ class Job:
 
 def _frame_range(context: Any, obj: bpy.types.Object) -> tuple[int, int]:
     settings = getattr(obj, "procloco", None)
-    if settings is not None and hasattr(settings, "frame_range"):
-        start, end = settings.frame_range(context.scene)
+    if settings is not None:
+        start, end = locomotion_props.frame_range(settings, context.scene)
     else:
         start, end = context.scene.frame_start, context.scene.frame_end
     return int(start), int(end)
