@@ -132,6 +132,17 @@ def test_reading_a_clip_restores_the_rig_and_keeps_the_clip(empty_scene: Any) ->
 
     assert info.curvature == pytest.approx(1.0 / (1.6 * synth.body_scale(brig.skeleton)), rel=0.05)
     assert [(iv.side, iv.td == 0.0) for iv in info.intervals] == [(1, True), (0, False)]
+    # One stride read as one loop: the stride ends as it began (the feet do not jump where it
+    # joins itself) and its root runs on into the next stride without a kink.
+    from procloco_addon.core.biped import quat
+    from procloco_addon.core.biped.skeleton import foot_points, forward_kinematics
+
+    pos, _ = forward_kinematics(brig.skeleton, clip.joint_rot, clip.pelvis_pos)
+    feet = foot_points(brig.skeleton, pos)
+    assert np.abs(feet[-1] - feet[0]).max() < 0.005
+    first = quat.rot2(-clip.root_yaw[0], clip.root_pos[1] - clip.root_pos[0])
+    last = quat.rot2(-clip.root_yaw[-1], clip.root_pos[-1] - clip.root_pos[-2])
+    assert np.linalg.norm(first - last) < 0.05 * np.linalg.norm(first)
 
 
 def test_contacts_come_from_markers() -> None:

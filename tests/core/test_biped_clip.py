@@ -9,7 +9,14 @@ import numpy as np
 import pytest
 
 from procloco_addon.core.biped import quat, synth
-from procloco_addon.core.biped.clip import Clip, ClipRole, contact_runs, detect_contacts, extract_cycle
+from procloco_addon.core.biped.clip import (
+    Clip,
+    ClipRole,
+    contact_runs,
+    detect_contacts,
+    extract_cycle,
+    recorded_clip,
+)
 from procloco_addon.core.biped.database import ClipDatabase
 from procloco_addon.core.biped.skeleton import LEFT, RIGHT, LegJoints, Skeleton, forward_kinematics
 
@@ -190,3 +197,75 @@ def test_spine_and_arms_are_found_by_shape() -> None:
     (lu, _ll), (_ru, rl) = synth.hanging_arms(skel)
     assert skel.names[lu] == "upper_arm.L"
     assert skel.names[rl] == "forearm.R"
+
+
+def _recorded(skel: Skeleton, clip: Clip, periodic: bool) -> Clip:
+    """``clip`` as a recording in the world (pelvis position and rotation) read back."""
+    pelvis_world = clip.root_pos + quat.rot2(clip.root_yaw, clip.pelvis_pos)
+    pelvis_rot = quat.mul(quat.from_yaw(clip.root_yaw), clip.joint_rot[:, 0])
+    return recorded_clip(
+        "rec", clip.role, skel, clip.dt, pelvis_world, pelvis_rot, clip.joint_rot, clip.contacts, periodic
+    )
+
+
+@pytest.mark.parametrize("role", [ClipRole.WALK_FORWARD, ClipRole.WALK_LEFT])
+def test_a_recorded_stride_loops_with_its_root(skel: Skeleton, clips: list[Clip], role: ClipRole) -> None:
+    """One recorded stride of a walk, its root derived from the pelvis: the pose relative to
+    the root must end the stride as it began it, or the feet jump at every join of the loop
+    (they jumped by 18 cm when the average was padded with copies of the end frames)."""
+    clip = next(c for c in clips if c.role is role)
+    mismatch = {}
+    for periodic in (True, False):
+        rec = _recorded(skel, clip, periodic)
+        pos, _ = forward_kinematics(skel, rec.joint_rot, rec.pelvis_pos)
+        feet = pos[:, [skel.left.heel, skel.left.toe, skel.right.heel, skel.right.toe]]
+        assert np.abs(feet[-1] - feet[0]).max() < 1e-3
+        assert rec.root_yaw[-1] - rec.root_yaw[0] == pytest.approx(
+            clip.root_yaw[-1] - clip.root_yaw[0], abs=1e-3
+        )
+        # How the root moves over the first and the last frame, each in its own heading.
+        first = quat.rot2(-rec.root_yaw[0], rec.root_pos[1] - rec.root_pos[0])
+        last = quat.rot2(-rec.root_yaw[-1], rec.root_pos[-1] - rec.root_pos[-2])
+        turn = (rec.root_yaw[1] - rec.root_yaw[0]) - (rec.root_yaw[-1] - rec.root_yaw[-2])
+        mismatch[periodic] = (float(np.linalg.norm(first - last) / np.linalg.norm(first)), abs(float(turn)))
+    # Known to loop, the root runs on into the next stride without a kink.
+    assert mismatch[True][0] < 0.02
+    assert mismatch[True][1] < 1e-3
+    assert mismatch[False][0] > 0.1  # not known to loop: its speed jumps at the join
+    assert mismatch[False][1] > 5e-3
+
+
+def _arm_angles(skel: Skeleton, clip: Clip) -> tuple[np.ndarray, np.ndarray]:
+    """Left upper arm's pitch from hanging straight down and the elbow's bend, both seen from
+    the side in the character frame, forwards positive (degrees, per frame)."""
+    pos, _ = forward_kinematics(skel, clip.joint_rot, clip.pelvis_pos)
+    upper, lower = synth.hanging_arms(skel)[0]
+    hand = next(j for j in range(skel.n_joints) if skel.parents[j] == lower)
+    u = pos[:, lower] - pos[:, upper]
+    f = pos[:, hand] - pos[:, lower]
+    pitch_u = np.degrees(np.arctan2(u[:, 0], -u[:, 2]))
+    pitch_f = np.degrees(np.arctan2(f[:, 0], -f[:, 2]))
+    return pitch_u, pitch_f - pitch_u
+
+
+@pytest.mark.parametrize("rest_bend", [0.0, 15.0])
+def test_arms_swing_gently_and_elbows_hang_nearly_straight(rest_bend: float) -> None:
+    skel = synth.make_skeleton()
+    if rest_bend:
+        # A rig modelled with its elbows already bent: the hands 15° ahead of the forearms.
+        offsets = skel.offsets.copy()
+        for tag in ("L", "R"):
+            j = skel.index(f"hand.{tag}")
+            length = np.linalg.norm(offsets[j])
+            a = np.radians(rest_bend)
+            offsets[j] = [length * np.sin(a), offsets[j][1], -length * np.cos(a)]
+        skel = Skeleton(skel.names, skel.parents, offsets, skel.left, skel.right)
+    lib = {c.role: c for c in synth.standard_library(skel, run=False, jump=False)}
+    _, idle_elbow = _arm_angles(skel, lib[ClipRole.IDLE])
+    assert idle_elbow == pytest.approx(np.degrees(synth.WALK.elbow), abs=1.0)  # relaxed, not bent twice
+    swing, elbow = _arm_angles(skel, lib[ClipRole.WALK_FORWARD])
+    assert 8.0 <= 0.5 * (swing.max() - swing.min()) <= 15.0  # about ±11°, not ±30°
+    assert elbow.min() >= np.degrees(synth.WALK.elbow) - 1.0
+    assert elbow.max() <= np.degrees(synth.WALK.elbow + synth.WALK.elbow_swing) + 1.0
+    # The elbow bends most with the arm at the front of its swing.
+    assert np.corrcoef(swing, elbow)[0, 1] > 0.9

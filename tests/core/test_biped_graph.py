@@ -14,7 +14,9 @@ from procloco_addon.core.biped.graph import (
     GraphSettings,
     NoClipsError,
     relative_to_right,
+    stride_geometry,
 )
+from procloco_addon.core.biped.scenarios import stairs
 from procloco_addon.core.biped.surface import WalkableSurface, rectangle
 
 
@@ -49,11 +51,17 @@ def test_edges_follow_the_clips_within_tolerance(db: ClipDatabase, gap_world: Wa
     pos, yaw = np.array([0.5, 0.2, 0.0]), 0.3
     nodes, ok = g.successors(pos[None], np.array([yaw]))
     assert ok.sum() >= 5
-    for c, nd in zip(g.edges.clip[ok[0]], nodes[0][ok[0]], strict=True):
-        info = db.infos[int(c)]
-        rel, rel_yaw = relative_to_right(info, info.end_right_pos, info.end_right_yaw)
+    natural = g.edges.scale == 1.0
+    assert (ok[0] & natural).sum() >= 5
+    for col in np.flatnonzero(ok[0]):
+        info = db.infos[int(g.edges.clip[col])]
+        rel, rel_yaw, _, _ = stride_geometry(db, info, float(g.edges.scale[col]))
+        if natural[col]:
+            own, own_yaw = relative_to_right(info, info.end_right_pos, info.end_right_yaw)
+            assert np.allclose(rel, own)
+            assert rel_yaw == pytest.approx(own_yaw)
         want, want_yaw = quat.compose2(pos, yaw, rel, rel_yaw)
-        got, got_yaw = g.node_pose(int(nd))
+        got, got_yaw = g.node_pose(int(nodes[0, col]))
         assert np.linalg.norm(got[:2] - want[:2]) <= g.tol_p + 1e-12
         assert abs(quat.wrap_angle(got_yaw - want_yaw)) <= g.tol_h + 1e-12
 
@@ -117,3 +125,45 @@ def test_without_jumps_the_gap_is_unreachable(db: ClipDatabase, gap_world: Walka
         g.search(np.array([0.6, -0.09, 0.0]), 0.0, np.array([10.0, 0.0]), None, stop)
     with pytest.raises(NoClipsError):
         FootprintGraph(db, gap_world, GraphSettings(), np.random.default_rng(0), families=("swim",))
+
+
+def test_a_step_up_is_walked_not_jumped(db: ClipDatabase) -> None:
+    # Ground, then a 15 cm step up to a long platform 1 m ahead: a jump crosses no gap here.
+    step_world = WalkableSurface.from_polygons(
+        [rectangle((0.5, 0.0, 0.0), (3.0, 3.0)), rectangle((4.0, 0.0, 0.15), (4.0, 3.0))], cell=0.025
+    )
+    g = FootprintGraph(db, step_world, GraphSettings(), np.random.default_rng(1))
+    xs = np.linspace(0.0, 1.6, 17)
+    pos = np.column_stack((xs, np.full(len(xs), -0.06), np.zeros(len(xs))))
+    nodes, ok = g.successors(pos, np.zeros(len(xs)))
+    up = np.zeros_like(ok)
+    for i, j in zip(*np.nonzero(ok), strict=True):
+        up[i, j] = g.node_pose(int(nodes[i, j]))[0][2] > 0.1
+    families = np.array([db.infos[int(c)].role.family for c in g.edges.clip])
+    assert up.any()
+    assert "walk" in set(families[np.nonzero(up)[1]])  # walked (or run) up, never jumped
+    assert not ok[:, families == "jump"].any()  # no gap anywhere: no jump at all
+
+
+def test_stairs_are_climbed_a_tread_at_a_time(db: ClipDatabase) -> None:
+    sc = stairs()
+    surf = sc.surface().with_foot(0.12, 0.06)
+    g = FootprintGraph(db, surf, GraphSettings(), np.random.default_rng(2), families=("walk",))
+    stop = db.first("stop")
+    assert stop is not None
+    path = g.search(np.array([0.6, -0.09, 0.0]), 0.0, np.array([4.8, 0.0]), None, stop)
+    assert path.scales is not None
+    # Natural strides on the flat, short ones on the 35 cm treads.
+    assert (path.scales < 1.0).any()
+    assert (path.scales == 1.0).any()
+    # Every right footprint wholly on a tread, never two rises above the one before (its
+    # left step in between takes one).
+    assert surf.supports(path.right_pos, path.right_yaw).all()
+    assert np.diff(path.right_pos[:, 2]).max() <= 2 * 0.15 + 1e-6
+    assert path.right_pos[-1, 2] == pytest.approx(0.6)
+    for k, (clip, f) in enumerate(zip(path.clips, path.scales, strict=True)):
+        _, _, left, left_yaw = stride_geometry(db, db.infos[int(clip)], float(f))
+        lp, _ = quat.compose2(path.right_pos[k], path.right_yaw[k], left, left_yaw)
+        z = float(surf.raster_height(lp[None, :2])[0])
+        assert abs(z - path.right_pos[k, 2]) <= g.settings.max_step_height
+        assert abs(path.right_pos[k + 1, 2] - z) <= g.settings.max_step_height

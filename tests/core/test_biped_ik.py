@@ -12,7 +12,7 @@ from procloco_addon.core.biped import quat, synth
 from procloco_addon.core.biped.blending import Playback, one_hot_plan, play
 from procloco_addon.core.biped.clip import ClipRole
 from procloco_addon.core.biped.database import ClipDatabase
-from procloco_addon.core.biped.ik import IKSettings, achieved_points, point_targets, solve
+from procloco_addon.core.biped.ik import IKSettings, achieved_points, point_targets, solve, swing_lift
 from procloco_addon.core.biped.planner import stance_slide
 from procloco_addon.core.biped.skeleton import LEFT, RIGHT, forward_kinematics
 from procloco_addon.core.biped.trajectory import transfer
@@ -133,3 +133,34 @@ def test_pelvis_comes_down_when_a_foot_is_out_of_reach(db: ClipDatabase, played:
     f, s = np.nonzero(result.ik_point >= 0)
     err = np.linalg.norm(pts[f, s, result.ik_point[f, s]] - result.targets[f, s], axis=1)
     assert err.max() < 0.01
+
+
+def test_swing_lift_clears_a_step_edge_and_spares_lift_off_and_touchdown() -> None:
+    # A foot point swinging from the ground at x = 0 onto a 0.2 m step whose edge is at
+    # x = 0.5: its height rises smoothly from 0 to 0.2 (as the interpolated correction does),
+    # so halfway it would cut through the edge.
+    n_stance, n_swing = 10, 21
+    planted = np.r_[np.ones(n_stance, bool), np.zeros(n_swing, bool), np.ones(n_stance, bool)]
+    u = np.r_[np.zeros(n_stance), np.linspace(0.0, 1.0, n_swing + 2)[1:-1], np.ones(n_stance)]
+    x = u
+    z = 0.2 * u * u * (3.0 - 2.0 * u)
+    pts = np.stack((x, np.zeros_like(x), z), axis=-1)[:, None, :]
+
+    def ground(xy: np.ndarray) -> np.ndarray:
+        return np.where(xy[..., 0] > 0.5, 0.2, 0.0)
+
+    assert (ground(pts[..., :2])[:, 0] - z).max() > 0.05  # without the lift it cuts the edge
+    lift = swing_lift(pts, planted, ground, 0.02)
+    assert np.all(lift[planted] == 0.0)
+    assert np.all(lift >= 0.0)
+    lifted = z + lift
+    over = ~planted & (x > 0.5)
+    assert np.all(lifted[over] >= 0.2)  # above the step wherever it is over it
+    swing = np.flatnonzero(~planted)
+    mid = swing[(u[swing] > 0.2) & (u[swing] < 0.8) & (x[swing] > 0.5)]
+    assert np.all(lifted[mid] >= 0.2 + 0.02 - 1e-9)  # with the clearance away from the ends
+    # Smooth arches: no jump from frame to frame, little lift just after lift-off and just
+    # before touchdown.
+    assert np.abs(np.diff(lift)).max() < 0.5 * lift.max()
+    assert lift[swing[0]] < 0.1 * lift.max()
+    assert lift[swing[-1]] < 0.5 * lift.max()

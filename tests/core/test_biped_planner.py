@@ -15,8 +15,14 @@ from procloco_addon.core.biped.graph import (
     PlanCancelled,
 )
 from procloco_addon.core.biped.ik import achieved_points
-from procloco_addon.core.biped.planner import BipedMotion, PlannerSettings, plan_biped, stance_slide
-from procloco_addon.core.biped.scenarios import SCENARIOS, Scenario
+from procloco_addon.core.biped.planner import (
+    BipedMotion,
+    PlannerSettings,
+    foot_size,
+    plan_biped,
+    stance_slide,
+)
+from procloco_addon.core.biped.scenarios import SCENARIOS, Scenario, stairs
 from procloco_addon.core.biped.skeleton import forward_kinematics
 from procloco_addon.core.biped.surface import WalkableSurface, rectangle
 
@@ -82,7 +88,8 @@ def test_planted_feet_do_not_slide(db: ClipDatabase, name: str) -> None:
 def test_footprints_lie_on_the_surfaces(db: ClipDatabase, name: str) -> None:
     sc, surf, m = _planned(db, name)
     fp = m.footprints
-    assert surf.fits(fp.pos).all()
+    # Every sole wholly supported at its heading (not merely its centre away from edges).
+    assert surf.with_foot(*foot_size(db.skeleton)).supports(fp.pos, fp.yaw).all()
     assert np.allclose(fp.pos[:, 2], surf.height_at(fp.pos), atol=1e-6)
     for gap in sc.gaps:
         assert not _inside(gap, fp.pos).any()
@@ -186,3 +193,55 @@ def test_progress_and_cancel(db: ClipDatabase) -> None:
     assert {"smoothing", "blend groups", "inverse kinematics"} <= set(seen)
     with pytest.raises(PlanCancelled):
         plan_biped(db, surf, sc.start_pos, sc.start_yaw, sc.goal, progress=lambda f, s: s != "smoothing")
+
+
+_STAIRS: dict[tuple[float, float], tuple[Scenario, WalkableSurface, BipedMotion]] = {}
+
+
+def _stairs(db: ClipDatabase, goal: tuple[float, float]) -> tuple[Scenario, WalkableSurface, BipedMotion]:
+    """The stairs scene with runs and jumps allowed (the clip library has both)."""
+    if goal not in _STAIRS:
+        sc = stairs(goal)
+        surf = sc.surface()
+        motion = plan_biped(db, surf, sc.start_pos, sc.start_yaw, sc.goal, rng=np.random.default_rng(11))
+        _STAIRS[goal] = (sc, surf, motion)
+    return _STAIRS[goal]
+
+
+def foot_points_world(db: ClipDatabase, m: BipedMotion) -> np.ndarray:
+    """Every joint of both feet (the ankles and all below them) in the world: ``(F, P, 3)``."""
+    skel = db.skeleton
+    pos, _ = forward_kinematics(skel, m.joint_rot, m.pelvis_pos)
+    feet = [
+        j
+        for j in range(skel.n_joints)
+        if skel.is_descendant(j, skel.left.ankle) or skel.is_descendant(j, skel.right.ankle)
+    ]
+    return m.root_pos[:, None, :] + quat.rot2(m.root_yaw[:, None], pos[:, feet])
+
+
+@pytest.mark.parametrize("goal", [(9.0, 0.0), (4.8, 0.0)], ids=["beyond", "landing"])
+def test_stairs_are_walked_a_tread_at_a_time(db: ClipDatabase, goal: tuple[float, float]) -> None:
+    sc, surf, m = _stairs(db, goal)
+    assert np.linalg.norm(m.root_pos[-1, :2] - sc.goal[:2]) < 0.10
+    fp = m.footprints
+    assert fp.pos[:, 2].max() == pytest.approx(0.6)  # up on the landing
+    # Every foot set down wholly on one tread; from one footprint to the next one rise.
+    assert surf.with_foot(*foot_size(db.skeleton)).supports(fp.pos, fp.yaw).all()
+    assert np.abs(np.diff(fp.pos[:, 2])).max() <= 0.15 + 1e-6
+    # Walked, not jumped (the library has a jump and runs).
+    roles = {db.infos[int(c)].role.family for c in m.clips}
+    assert "jump" not in roles
+
+
+@pytest.mark.parametrize("goal", [(9.0, 0.0), (4.8, 0.0)], ids=["beyond", "landing"])
+def test_stairs_feet_never_enter_the_steps(db: ClipDatabase, goal: tuple[float, float]) -> None:
+    """Planted or swinging, no joint of a foot goes below the tread or into a riser."""
+    _, surf, m = _stairs(db, goal)
+    pts = foot_points_world(db, m)
+    ground = surf.height_at(pts[..., :2])
+    assert np.isfinite(ground).all()
+    assert (ground - pts[..., 2]).max() <= 0.005
+    # Still planted where planted: no sliding, targets reached.
+    held = achieved_points(db.skeleton, m.ik)
+    assert np.nanmax(stance_slide(held, m.ik.ik_point, m.contact)) <= 0.002

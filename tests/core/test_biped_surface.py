@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -101,3 +103,58 @@ def test_bounds_limit_the_raster() -> None:
     surf = WalkableSurface.from_polygons([big], bounds=(-5.0, -5.0, 5.0, 5.0))
     assert max(surf.z.shape) <= 10.0 / surf.cell + 2
     assert surf.height_at(np.array([[1.0, 1.0]]))[0] == pytest.approx(0.0)
+
+
+@pytest.fixture(scope="module")
+def steps() -> WalkableSurface:
+    # Three treads 0.35 m deep, 0.15 m apart in height, ascending along +x; one island.
+    treads = [rectangle((0.175 + 0.35 * k, 0.0, 0.15 * k), (0.35, 1.6)) for k in range(3)]
+    return WalkableSurface.from_polygons(treads, cell=0.025, max_step=0.2).with_foot(0.1, 0.05)
+
+
+def test_steps_are_one_island_but_separate_terraces(steps: WalkableSurface) -> None:
+    pts = np.array([[0.175, 0.0], [0.525, 0.0], [0.875, 0.0]])
+    assert len(set(steps.island_at(pts).tolist())) == 1
+    assert len(set(steps.terrace_at(pts).tolist())) == 3
+
+
+def test_a_foot_is_supported_only_wholly_on_one_tread(steps: WalkableSurface) -> None:
+    # A 0.2 m foot along the flight: centred on the middle tread it fits; 8 cm off centre
+    # its toe is in the riser above or its heel over the edge below.
+    on = steps.supports(np.array([[0.525, 0.0]]), np.array([0.0]))
+    toe_in_riser = steps.supports(np.array([[0.605, 0.0]]), np.array([0.0]))
+    heel_over_edge = steps.supports(np.array([[0.445, 0.0]]), np.array([0.0]))
+    assert on.tolist() == [True]
+    assert toe_in_riser.tolist() == [False]
+    assert heel_over_edge.tolist() == [False]
+    # Turned along the tread, the same off-centre foot fits: the sole is heading-aware.
+    assert steps.supports(np.array([[0.605, 0.0]]), np.array([np.pi / 2])).tolist() == [True]
+    assert steps.straddles_step(np.array([[0.605, 0.0]]), np.array([0.0])).tolist() == [True]
+    assert not steps.straddles_step(np.array([[0.525, 0.0]]), np.array([0.0]))[0]
+    # The old centre test would have let the straddling foot stand (its disc is on the island).
+    assert steps.fits(np.array([[0.605, 0.0]]))[0]
+
+
+def test_snap_with_a_heading_puts_the_sole_back_on_its_tread(steps: WalkableSurface) -> None:
+    pts = np.array([[0.6, 0.1, 0.0], [0.44, -0.2, 0.0]])
+    terrace = steps.terrace_at(np.array([[0.525, 0.0], [0.525, 0.0]]))
+    yaw = np.array([0.05, -0.05])
+    snapped = steps.snap(pts, steps.island_at(pts), yaw=yaw, terrace=terrace)
+    assert steps.supports(snapped, yaw, terrace).all()
+    assert np.allclose(snapped[:, 2], 0.15)
+    # Moved no farther than needed: about the overlap plus the raster's half-cell slack.
+    assert np.all(np.linalg.norm(snapped[:, :2] - pts[:, :2], axis=1) < 0.1)
+
+
+def test_crate_sides_raise_no_numpy_warning() -> None:
+    ground = rectangle((0.0, 0.0, 0.0), (4.0, 4.0))
+    top = rectangle((0.0, 0.0, 0.5), (1.0, 1.0))
+    side = np.array([[[0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [0.5, 0.5, 0.5]]])  # seen edge-on from above
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        surf = WalkableSurface.from_triangles(
+            np.array([[ground[0], ground[1], ground[2]], [ground[0], ground[2], ground[3]]]),
+            blocked=np.concatenate((np.array([[top[0], top[1], top[2]], [top[0], top[2], top[3]]]), side)),
+        )
+    assert not surf.supported(np.array([[0.0, 0.0]]))[0]
+    assert surf.supported(np.array([[1.5, 0.0]]))[0]

@@ -17,15 +17,18 @@ honoured; the object itself is never animated.
 
 **Clips.** :func:`read_clip` plays an Action on the rig (temporarily assigned, NLA off,
 everything restored afterwards) and records the pose per frame. The root is the pelvis
-projected on the ground and smoothed; foot contacts come from the Action's pose markers
-(``L down``, ``L up``, ``R down``, ``R up``) when there are any, else from the feet's
-speed and height. Walks, runs and jumps are cut to one stride (right touchdown to right
-touchdown) unless they already are one. :func:`write_clip_action` writes a core clip as
-a new Action (the example clips).
+projected on the ground and smoothed (as one loop of the motion when a walk or run holds
+exactly one stride, so that the stride joins itself without a jump); foot contacts come
+from the Action's pose markers (``L down``, ``L up``, ``R down``, ``R up``) when there are
+any, else from the feet's speed and height. Walks, runs and jumps are cut to one stride
+(right touchdown to right touchdown) unless they already are one.
+:func:`write_clip_action` writes a core clip as a new Action (the example clips).
 
 **Surfaces.** :func:`walkable_surface` takes the upward faces (up to ``max_slope``) of the
 terrain objects (same choice and roles as Generate Locomotion: ``AVOID`` objects are cut
-out, ``IGNORE`` ones skipped) around the start and the goal.
+out, ``IGNORE`` ones skipped) around the start and the goal, rasterised in cells of
+2.5 cm for the reference leg, scaled to the rig (2.9 cm for the example human): fine
+enough that a foot fits on a 35 cm stair tread with the raster's half-cell slack.
 
 **Result.** :func:`write_motion` writes the planned motion as a new Action through
 :mod:`...actions` (never into an existing one) and assigns it, remembering the old one.
@@ -474,6 +477,11 @@ def read_clip(
         c = clip.contacts
         assert c is not None
         one_stride = bool(c[0, RIGHT] and c[-1, RIGHT] and not c[:, RIGHT].all())
+        if one_stride and role.family in ("walk", "run"):
+            # One loop of a walk or run: its root must loop with it (see root_from_pelvis).
+            clip = recorded_clip(
+                action.name, role, brig.skeleton, clip.dt, pelvis_w, e[:, 0], local, c, periodic=True
+            )
         if not one_stride:
             try:
                 clip = extract_cycle(clip, brig.skeleton)
@@ -550,7 +558,7 @@ def walkable_surface(
     try:
         return WalkableSurface.from_triangles(
             np.concatenate(walk),
-            cell=0.05 * k,
+            cell=0.025 * k,
             margin=margin,
             max_step=0.2 * k,
             blocked=np.concatenate(block) if block else None,

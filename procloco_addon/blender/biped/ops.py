@@ -30,6 +30,7 @@ from ...core.biped import quat, synth
 from ...core.biped.clip import Clip, ClipRole
 from ...core.biped.database import ClipDatabase
 from ...core.biped.graph import GraphSettings, PlanCancelled, PlanningError
+from ...core.biped.ik import IKSettings
 from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from ...core.biped.skeleton import LEFT, forward_kinematics
 from ...core.biped.surface import WalkableSurface
@@ -166,6 +167,7 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object) -> PlanJob:
         blend_groups=bool(settings.use_blend_groups),
         allow_run=bool(settings.allow_run),
         sigma=float(settings.speed_change),
+        ik=IKSettings(swing_clearance=0.02 * k),
     )
     start_frame = scene.frame_start if settings.use_scene_start else int(settings.start_frame)
     job = PlanJob(

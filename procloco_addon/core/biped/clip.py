@@ -192,7 +192,11 @@ def extract_cycle(clip: Clip, skeleton: Skeleton, role: ClipRole | None = None) 
 
 
 def root_from_pelvis(
-    pelvis_world: FloatArray, pelvis_rot_world: FloatArray, dt: float, window: float = 0.5
+    pelvis_world: FloatArray,
+    pelvis_rot_world: FloatArray,
+    dt: float,
+    window: float = 0.5,
+    periodic: bool = False,
 ) -> tuple[FloatArray, FloatArray]:
     """A ground root trajectory for a recorded clip that has none.
 
@@ -200,16 +204,37 @@ def root_from_pelvis(
     average of ``window`` seconds (which removes the side-to-side sway of a walk), with the
     pelvis' own heading likewise smoothed. Returns ``(root_pos (n, 3), root_yaw (n,))``
     with the root at height 0; :func:`recorded_clip` puts it on the ground under the feet.
+
+    ``periodic``: the recording is one cycle of a looping motion (its last frame is its
+    first one moved by the cycle's travel and turn). The average then reaches past the ends
+    into the previous and next cycles, so that the root — and every pose taken relative to
+    it — ends the cycle exactly as it began it, moved by the cycle. Padding the ends with
+    copies of the end frames instead would drag the root at both ends, and the feet of one
+    stride would jump at every join of the loop. Otherwise the ends are extended by point
+    reflection (``2 p_end - p``), which continues the motion at its end speed: a clip that
+    ends walking (a start) keeps its root under the walking pelvis up to its last frame.
     """
     n = len(pelvis_world)
     k = max(1, round(window / dt) | 1)
     pad = k // 2
-    xy = np.pad(pelvis_world[:, :2], ((pad, pad), (0, 0)), mode="edge")
-    kernel = np.ones(k) / k
-    sx = np.convolve(xy[:, 0], kernel, mode="valid")
-    sy = np.convolve(xy[:, 1], kernel, mode="valid")
     yaw = np.unwrap(quat.yaw_of(pelvis_rot_world))
-    yaw_p = np.pad(yaw, (pad, pad), mode="edge")
+    xy = pelvis_world[:, :2]
+    if periodic and n > 2 and pad > 0:
+        # The cycle transform maps frame 0's ground pose onto frame n-1's.
+        turn = float(yaw[-1] - yaw[0])
+        d = min(pad, n - 2)
+        before = quat.rot2(-turn, xy[n - 1 - d : n - 1] - xy[-1]) + xy[0]
+        after = quat.rot2(turn, xy[1 : d + 1] - xy[0]) + xy[-1]
+        xy_p = np.concatenate((before, xy, after))
+        yaw_p = np.concatenate((yaw[n - 1 - d : n - 1] - turn, yaw, yaw[1 : d + 1] + turn))
+        xy_p = np.pad(xy_p, ((pad - d, pad - d), (0, 0)), mode="reflect", reflect_type="odd")
+        yaw_p = np.pad(yaw_p, (pad - d, pad - d), mode="reflect", reflect_type="odd")
+    else:
+        xy_p = np.pad(xy, ((pad, pad), (0, 0)), mode="reflect", reflect_type="odd")
+        yaw_p = np.pad(yaw, (pad, pad), mode="reflect", reflect_type="odd")
+    kernel = np.ones(k) / k
+    sx = np.convolve(xy_p[:, 0], kernel, mode="valid")
+    sy = np.convolve(xy_p[:, 1], kernel, mode="valid")
     syaw = np.convolve(yaw_p, kernel, mode="valid")
     root = np.column_stack((sx[:n], sy[:n], np.zeros(n)))
     return root, syaw[:n]
@@ -224,15 +249,17 @@ def recorded_clip(
     joint_rot_world_pelvis: FloatArray,
     joint_rot: FloatArray,
     contacts: BoolArray | None = None,
+    periodic: bool = False,
 ) -> Clip:
     """A clip from a recording in world space (e.g. an Action read from Blender).
 
     ``pelvis_world (n, 3)`` and ``joint_rot_world_pelvis (n, 4)`` are the pelvis' world
     position and rotation; ``joint_rot (n, J, 4)`` the local rotations of the other joints
     (index 0 is replaced by the pelvis rotation relative to the new root). The root is
-    derived with :func:`root_from_pelvis`, at the height of the lowest foot point.
+    derived with :func:`root_from_pelvis` (``periodic``: the recording is one loop of a
+    walk or run), at the height of the lowest foot point.
     """
-    root_pos, root_yaw = root_from_pelvis(pelvis_world, joint_rot_world_pelvis, dt)
+    root_pos, root_yaw = root_from_pelvis(pelvis_world, joint_rot_world_pelvis, dt, periodic=periodic)
     local_pelvis = quat.rot2(-root_yaw, pelvis_world - root_pos)
     rot = joint_rot.copy()
     rot[:, 0] = quat.mul(quat.from_yaw(-root_yaw), joint_rot_world_pelvis)

@@ -30,6 +30,19 @@ times more rotation, mostly near a straight leg where that plane is ill-defined.
 During swing the ankle correction is interpolated between the surrounding stances, so
 the legs move continuously into and out of every footprint. If a target is out of reach
 the pelvis is lowered (smoothly) until the leg reaches it.
+
+*Swing clearance.* The clips swing their feet over flat ground; stepping up a stair the
+interpolated correction alone would drag the toes through the riser's edge, and stepping
+down it would lower the foot before it has left the step above. Every swinging frame the
+foot's points (the ankle, every joint under it, and points along the sole from heel to
+toe) are compared with the ground under them: where one is below the ground plus
+``swing_clearance`` (the clearance easing in over the first and out over the last seventh of
+the swing, so that lift-off and touchdown are untouched), the ankle is lifted. The lift over
+each swing is the upper envelope of smooth arches, one per frame that needs lifting, each
+rising from zero at lift-off to that frame's need and falling back to zero at touchdown: the
+foot clears every edge and still leaves and meets the ground with zero vertical speed
+added. A held point whose ground differs from its footprint's height by more than
+``ground_tolerance`` (it hangs over an edge) keeps the footprint's height instead.
 """
 
 from __future__ import annotations
@@ -53,7 +66,8 @@ _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
 
 @dataclass(frozen=True)
 class IKSettings:
-    """Body-offset gains and iterations, B-spline spacings (s), swivel method."""
+    """Body-offset gains and iterations, B-spline spacings (s), swivel method, how far
+    (metres) a swinging foot stays above the ground it passes over."""
 
     alpha: float = 0.5
     beta: float = 1.0
@@ -62,6 +76,7 @@ class IKSettings:
     swivel: str = "analytic"
     swivel_iterations: int = 20
     reach: float = 0.999
+    swing_clearance: float = 0.02
 
 
 @dataclass(frozen=True)
@@ -162,12 +177,15 @@ def point_targets(
     want_pos: FloatArray,
     want_yaw: FloatArray,
     ground: Callable[[FloatArray], FloatArray] | None = None,
+    ground_tolerance: float = np.inf,
 ) -> tuple[FloatArray, IntArray]:
     """IK point targets ``(F, 2, 3)`` (NaN in swing) and the point used ``(F, 2)`` (§3.8.3).
 
     ``ground(xy (M, 2)) -> z (M,)`` puts every held point exactly on the ground (it is the
     lowest point of a planted foot); without it the point keeps the height the clip gave it
-    above its footprint.
+    above its footprint. Ground more than ``ground_tolerance`` away from the footprint's
+    height is not the footprint's (the point hangs over an edge): the footprint's height is
+    used there.
     """
     n = pb.n_frames
     fp = pb.footprints
@@ -186,6 +204,8 @@ def point_targets(
         targets[idx, s] = _ground_map(fp.pos, fp.yaw, want_pos, want_yaw, ci[idx], pts[idx])
         if ground is not None and len(idx):
             z = ground(targets[idx, s, :2])
+            own = want_pos[ci[idx], 2]
+            z = np.where(np.abs(z - own) <= ground_tolerance, z, own)
             targets[idx, s, 2] = np.where(np.isfinite(z), z, targets[idx, s, 2])
         which[idx, s] = low[idx, s]
     return targets, which
@@ -264,6 +284,67 @@ def _interpolate_swing(values: FloatArray, planted: NDArray[np.bool_]) -> FloatA
     return out
 
 
+def _arch_envelope(need: FloatArray) -> FloatArray:
+    """The lift over one swing of ``m`` frames (``need (m,)``, the frames between two
+    stances): the upper envelope of one arch per frame, each zero at both stances (with zero
+    slope) and equal to that frame's need at its frame, so the result is at least ``need``."""
+    m = len(need)
+    u = np.arange(1, m + 1) / (m + 1)
+    peak = u[None, :]  # arch j peaks at frame j
+    x = u[:, None]
+    up = x / peak
+    down = (1.0 - x) / (1.0 - peak)
+    a = np.clip(np.where(x <= peak, up, down), 0.0, 1.0)
+    arch = a * a * (3.0 - 2.0 * a)
+    return np.max(arch * np.maximum(need, 0.0)[None, :], axis=1)
+
+
+def swing_lift(
+    points: FloatArray,
+    planted: NDArray[np.bool_],
+    ground: Callable[[FloatArray], FloatArray],
+    clearance: float,
+) -> FloatArray:
+    """How much to lift a swinging foot ``(F,)`` so that its points ``(F, P, 3)`` clear the
+    ground under them by ``clearance`` (eased in and out at the ends of each swing); zero
+    while ``planted (F,)``. Ground the points are not over (NaN) asks for nothing."""
+    n = len(planted)
+    lift = np.zeros(n)
+    swing = np.flatnonzero(~planted)
+    if len(swing) == 0:
+        return lift
+    # Runs of swinging frames.
+    breaks = np.flatnonzero(np.diff(swing) > 1)
+    starts = np.concatenate(([0], breaks + 1))
+    ends = np.concatenate((breaks + 1, [len(swing)]))
+    pts = points[swing]
+    h = ground(pts[..., :2])
+    run_of = np.repeat(np.arange(len(starts)), ends - starts)
+    m = (ends - starts)[run_of]
+    u = (np.arange(len(swing)) - starts[run_of] + 1) / (m + 1)
+    ease = np.minimum(1.0, 8.0 * u * (1.0 - u))
+    short = np.where(np.isfinite(h), h + (clearance * ease)[:, None] - pts[..., 2], -np.inf)
+    need = np.max(short, axis=1)
+    for a, b in zip(starts.tolist(), ends.tolist(), strict=True):
+        if np.any(need[a:b] > 0.0):
+            lift[swing[a:b]] = _arch_envelope(need[a:b])
+    return lift
+
+
+def _foot_points_in_ankle(skel: Skeleton, pb: Playback, side: int) -> FloatArray:
+    """Points of one foot in its ankle joint's frame per frame ``(F, P, 3)``: the ankle,
+    every joint under it, and three points along the sole between heel and toe."""
+    leg = skel.leg(side)
+    sub = [j for j in range(skel.n_joints) if skel.is_descendant(j, leg.ankle)]
+    rel = pb.joint_pos_local[:, sub] - pb.joint_pos_local[:, leg.ankle][:, None, :]
+    heel = pb.joint_pos_local[:, leg.heel] - pb.joint_pos_local[:, leg.ankle]
+    toe = pb.joint_pos_local[:, leg.toe] - pb.joint_pos_local[:, leg.ankle]
+    sole = heel[:, None, :] + np.array([0.25, 0.5, 0.75])[None, :, None] * (toe - heel)[:, None, :]
+    rel = np.concatenate((rel, sole), axis=1)
+    inv = quat.conj(pb.joint_rot_local[:, leg.ankle])[:, None, :]
+    return quat.rotate(np.broadcast_to(inv, (*rel.shape[:2], 4)), rel)
+
+
 def _smooth_drop(drop: FloatArray, k: int) -> FloatArray:
     """Smooth a non-positive correction while staying at or below it (min filter, then mean)."""
     if k <= 1:
@@ -284,8 +365,10 @@ def solve_legs(
     which: IntArray,
     want_yaw: FloatArray,
     settings: IKSettings,
+    ground: Callable[[FloatArray], FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Leg rotations that put the IK points on their targets (§3.8.2).
+    """Leg rotations that put the IK points on their targets (§3.8.2); with ``ground``, the
+    swinging feet lifted clear of it (see the module docstring).
 
     Returns ``(joint_rot (F, J, 4), pelvis_pos (F, 3), swivel_cost (F, 2))``.
     """
@@ -315,8 +398,16 @@ def solve_legs(
             d_ankle[idx] = a_t - ankle[idx]
             d_turn[idx] = turn
         filled = _interpolate_swing(np.column_stack((d_ankle, d_turn)), planted)
-        ankle_targets.append(ankle + filled[:, :3])
-        foot_targets.append(quat.mul(quat.from_yaw(filled[:, 3]), foot_rot))
+        a_target = ankle + filled[:, :3]
+        f_target = quat.mul(quat.from_yaw(filled[:, 3]), foot_rot)
+        if ground is not None and not np.all(planted):
+            local = _foot_points_in_ankle(skel, pb, s)
+            pts = a_target[:, None, :] + quat.rotate(
+                np.broadcast_to(f_target[:, None, :], (*local.shape[:2], 4)), local
+            )
+            a_target[:, 2] += swing_lift(pts, planted, ground, settings.swing_clearance)
+        ankle_targets.append(a_target)
+        foot_targets.append(f_target)
 
     # Lower the pelvis where a leg cannot reach (the thesis' "stays above its feet").
     pelvis_pos = pb.pelvis_pos.copy()
@@ -393,15 +484,19 @@ def solve(
     want_yaw: FloatArray,
     settings: IKSettings | None = None,
     ground: Callable[[FloatArray], FloatArray] | None = None,
+    ground_tolerance: float = np.inf,
 ) -> IKResult:
     """Both IK stages for a played plan carried onto the body trajectory ``body_pos/yaw``
-    (``ground``: see :func:`point_targets`)."""
+    (``ground``, ``ground_tolerance``: see :func:`point_targets`; the swinging feet clear
+    ``ground`` too)."""
     settings = settings or IKSettings()
-    targets, which = point_targets(pb, want_pos, want_yaw, ground)
+    targets, which = point_targets(pb, want_pos, want_yaw, ground, ground_tolerance)
     off_p, off_y = body_offset(pb, body_pos, body_yaw, targets, which, settings)
     root_pos = body_pos + off_p
     root_yaw = body_yaw + off_y
-    joint_rot, pelvis_pos, cost = solve_legs(skel, pb, root_pos, root_yaw, targets, which, want_yaw, settings)
+    joint_rot, pelvis_pos, cost = solve_legs(
+        skel, pb, root_pos, root_yaw, targets, which, want_yaw, settings, ground
+    )
     return IKResult(root_pos, root_yaw, pelvis_pos, joint_rot, targets, which, off_p, off_y, cost)
 
 

@@ -1,15 +1,20 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The whole biped pipeline (biped thesis chapter 3), from a start pose to a goal.
 
-1. **Search** the footprint graph with A* (§3.2) → right footprints and clips.
-2. **Smooth** the footprints (§3.3), snapping them back onto their platforms.
+1. **Search** the footprint graph with A* (§3.2) → right footprints and clips (and short
+   strides where a foot must land on every tread of a stair).
+2. **Smooth** the footprints (§3.3), snapping them back onto their platforms. Every
+   footprint keeps the *terrace* it was planned on (the tread of a stair, a landing, the
+   ground) with its whole sole supported there, through smoothing, refinement and
+   re-spacing, so no foot is set down over a step's edge or into a riser.
 3. **Play** the clips (§3.4) and **refine** the footprints towards the clips' own (§3.5).
 4. Carry the played **body trajectory** onto the desired footprints (§3.6).
 5. **Blend groups** (§3.7): walks and runs become one group blended by the path's
    curvature τ and the walk/run parameter s; strides whose count no longer fits the
    blended clips are laid out again (:mod:`.respace`, the thesis' future work); play
    again, refine again, carry again.
-6. **IK** (§3.8): body offset, then the legs, holding the lower of heel and toe.
+6. **IK** (§3.8): body offset, then the legs, holding the lower of heel and toe; swinging
+   feet are lifted over the edges they pass (:func:`.ik.swing_lift`).
 
 :func:`plan_biped` returns every frame's root, pelvis and joint rotations plus the
 footprints and per-stage timings. Everything is deterministic for a given generator.
@@ -37,11 +42,12 @@ from .graph import (
     PlanningError,
     StartOffSurfaceError,
     relative_to_right,
+    stride_geometry,
 )
 from .ik import IKResult, IKSettings, solve
 from .refine import refine
 from .respace import respace
-from .skeleton import LEFT, RIGHT
+from .skeleton import LEFT, RIGHT, Skeleton, forward_kinematics
 from .smoothing import smooth_footprints
 from .surface import WalkableSurface
 from .trajectory import transfer
@@ -177,6 +183,43 @@ def _speed_knots(db: ClipDatabase, plan: Plan) -> tuple[FloatArray, FloatArray]:
     return np.array(fu), np.array(fs)
 
 
+def foot_size(skel: Skeleton) -> tuple[float, float]:
+    """Half length and half width (m) of the sole :meth:`.WalkableSurface.supports` checks:
+    half the heel-to-toe distance of the rest pose (the longer foot), and half of that (no
+    rig gives the foot's width; a human foot is about a third as wide as it is long, plus
+    room for the skin)."""
+    pos, _ = forward_kinematics(skel, quat.identity((skel.n_joints,)), skel.offsets[0])
+    length = max(
+        float(np.linalg.norm(pos[skel.leg(s).toe, :2] - pos[skel.leg(s).heel, :2])) for s in (LEFT, RIGHT)
+    )
+    return 0.5 * length, 0.25 * length
+
+
+def _short_stride_lefts(
+    db: ClipDatabase,
+    plan: Plan,
+    want: Footprints,
+    right_pos: FloatArray,
+    right_yaw: FloatArray,
+    scales: FloatArray,
+) -> Footprints:
+    """Left footprints of the graph's short strides where the graph put them (the clip's own
+    left step on the shortened stride), not where the clip's natural stride would."""
+    pos = want.pos.copy()
+    yaw = want.yaw.copy()
+    for k in range(1, plan.n_segments - 1):
+        f = float(scales[k - 1])
+        if f == 1.0:
+            continue
+        info = db.infos[int(plan.clips[k])]
+        _, _, left_p, left_y = stride_geometry(db, info, f)
+        p, y = quat.compose2(right_pos[k], float(right_yaw[k]), left_p, left_y)
+        idx = np.flatnonzero((want.segment == k) & (want.side == LEFT))
+        pos[idx[-1:]] = p
+        yaw[idx[-1:]] = float(y)
+    return want.with_poses(pos, np.unwrap(yaw))
+
+
 def plan_biped(
     db: ClipDatabase,
     surface: WalkableSurface,
@@ -199,6 +242,7 @@ def plan_biped(
     settings = settings or PlannerSettings()
     rng = rng or np.random.default_rng(0)
     clock = _Clock()
+    surface = surface.with_foot(*foot_size(db.skeleton))
     start_info = db.first("start")
     stop_info = db.first("stop")
     if start_info is None or stop_info is None or not db.by_role("walk"):
@@ -239,6 +283,8 @@ def plan_biped(
 
     plan = one_hot_plan(db, clips, start_pos, start_yaw)
     want = plan_footprints(db, plan, (right_pos, right_yaw))
+    if path.scales is not None:
+        want = _short_stride_lefts(db, plan, want, right_pos, right_yaw, path.scales)
     n_fp = len(want)
     fixed = np.zeros(n_fp, dtype=bool)
     fixed[:2] = True  # the standing start
@@ -251,11 +297,21 @@ def plan_biped(
     end_snap = surface.snap(want.pos[-2:], island[-2:])
     want_pos = want.pos.copy()
     want_pos[-2:, 2] = end_snap[:, 2]
+    # Each footprint's terrace: where its sole is supported nearest to where the clips put it
+    # (the graph checked that there is such a place within a few centimetres).
+    terrace = surface.terrace_at(want_pos)
+    move = ~fixed
+    want_pos[move] = surface.snap(want_pos[move], island[move], yaw=want.yaw[move])
+    terrace[move] = surface.terrace_at(want_pos[move])
+    # Segments of short strides (stairs): never re-laid at the clips' natural stride.
+    short = np.zeros(len(clips), dtype=bool)
+    if path.scales is not None:
+        short[1:-1] = path.scales < 1.0 - 1e-9
 
     # 2. Smoothing.
     _check(progress, 0.4, "smoothing")
     want_pos, want_yaw_arr = smooth_footprints(
-        want_pos, want.yaw, want.side, fixed, island, surface, settings.smoothing_iterations
+        want_pos, want.yaw, want.side, fixed, island, surface, settings.smoothing_iterations, terrace
     )
     smooth_pos, smooth_yaw = want_pos, want_yaw_arr
     respaced: tuple[tuple[int, int, int], ...] = ()
@@ -267,7 +323,15 @@ def plan_biped(
     clock.lap("playback")
     fp = pb.footprints
     want_pos, want_yaw_arr = refine(
-        fp.pos, fp.yaw, want_pos, want_yaw_arr, fixed, island, surface, settings.refinement_iterations
+        fp.pos,
+        fp.yaw,
+        want_pos,
+        want_yaw_arr,
+        fixed,
+        island,
+        surface,
+        settings.refinement_iterations,
+        terrace,
     )
     clock.lap("refinement")
     body_pos, body_yaw = transfer(
@@ -302,7 +366,9 @@ def plan_biped(
             smoothed = Footprints(
                 want.side, want.segment, want.u_td, want.u_lo, smooth_pos, smooth_yaw, want.time
             )
-            spaced, island = respace(db, plan, smoothed, surface, island)
+            spaced, island = respace(db, plan, smoothed, surface, island, short, terrace)
+            if spaced.terrace is not None:
+                terrace = spaced.terrace
             plan = spaced.plan
             smooth_pos, smooth_yaw = spaced.footprints.pos, spaced.footprints.yaw
             fixed = np.zeros(len(smooth_pos), dtype=bool)
@@ -316,7 +382,15 @@ def plan_biped(
         # Refine the smoothed footprints again, now towards the blended clips: starting from
         # the first refinement would keep the zig-zag of the graph's discrete clips.
         want_pos, want_yaw_arr = refine(
-            fp.pos, fp.yaw, smooth_pos, smooth_yaw, fixed, island, surface, settings.refinement_iterations
+            fp.pos,
+            fp.yaw,
+            smooth_pos,
+            smooth_yaw,
+            fixed,
+            island,
+            surface,
+            settings.refinement_iterations,
+            terrace,
         )
         clock.lap("refinement")
         body_pos, body_yaw = transfer(
@@ -327,7 +401,15 @@ def plan_biped(
     # 6. IK.
     _check(progress, 0.8, "inverse kinematics")
     result = solve(
-        db.skeleton, pb, body_pos, body_yaw, want_pos, want_yaw_arr, settings.ik, surface.height_at
+        db.skeleton,
+        pb,
+        body_pos,
+        body_yaw,
+        want_pos,
+        want_yaw_arr,
+        settings.ik,
+        surface.height_at,
+        ground_tolerance=0.5 * surface.max_step,
     )
     clock.lap("ik")
     _check(progress, 1.0, "done")

@@ -9,7 +9,7 @@ a rotation about the vertical, a uniform scale) is applied to the original footp
 ``i``; the result replaces the desired footprint ``i``. Neighbours alternate feet, so
 each footprint gets back the stance width and step shape of its clip while following the
 desired path. Iterated (all footprints at once), with every footprint snapped back onto
-its platform after each iteration.
+its platform (and, when given, its terrace with the sole supported) after each iteration.
 
 Each iteration moves a footprint only halfway to its mapped position (a damped Jacobi
 step). Without damping, footprints of the two feet push each other back and forth: with
@@ -79,15 +79,20 @@ def refine(
     island: IntArray,
     surface: WalkableSurface | None,
     iterations: int = 10,
+    terrace: IntArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
-    """``iterations`` refinement passes with snapping (thesis: about 10 suffice)."""
+    """``iterations`` refinement passes with snapping (thesis: about 10 suffice);
+    ``terrace (N,)``: see :func:`.smoothing.smooth_footprints`."""
     pos = pos.copy()
     yaw = yaw.copy()
+    move = ~fixed
+    ter = None if terrace is None else terrace[move]
     for _ in range(iterations):
         pos, yaw = refine_step(orig_pos, orig_yaw, pos, yaw, fixed)
         if surface is not None:
-            move = ~fixed
-            pos[move] = surface.snap(pos[move], island[move], exact=False)
+            sole = None if ter is None else yaw[move]
+            pos[move] = surface.snap(pos[move], island[move], exact=False, yaw=sole, terrace=ter)
     if surface is not None and iterations > 0:
-        pos[~fixed, 2] = surface.snap(pos[~fixed], island[~fixed])[:, 2]  # exact heights
+        sole = None if ter is None else yaw[move]
+        pos[move, 2] = surface.snap(pos[move], island[move], yaw=sole, terrace=ter)[:, 2]  # exact heights
     return pos, yaw

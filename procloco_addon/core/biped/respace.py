@@ -15,7 +15,9 @@ blended there; when that rounds to another count than the graph's, the right foo
 are re-placed at equal shares of that integral (short strides where the character walks,
 long ones where it runs), the left footprints between them from the clips' own geometry,
 and the blend weights carried over by arc length. The ends of each run stay where they
-were: they belong to the special clips.
+were: they belong to the special clips. Strides the caller asks to ``keep`` (the short
+strides the footprint graph chose to put a foot on every tread of a stair) end runs like
+special clips and are never re-laid.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ class Respaced:
     plan: Plan
     footprints: Footprints
     changes: tuple[tuple[int, int, int], ...]
+    terrace: IntArray | None = None
 
 
 def clip_strides(db: ClipDatabase) -> FloatArray:
@@ -77,15 +80,22 @@ def respace(
     want: Footprints,
     surface: WalkableSurface | None,
     island: IntArray,
+    keep: BoolArray | None = None,
+    terrace: IntArray | None = None,
 ) -> tuple[Respaced, IntArray]:
     """Re-lay the walk/run strides of ``plan`` so their count fits their blended clips.
 
     ``want`` holds the desired footprints of ``plan`` (the smoothed ones); ``island`` their
-    platforms. Returns the new plan and footprints, and the new footprints' platforms.
+    platforms; ``keep (K,)`` marks segments not to re-lay; ``terrace`` (optional) the
+    footprints' terraces, which snapping then keeps, with the soles supported (the new
+    footprints' terraces are in the result). Returns the new plan and footprints, and the new
+    footprints' platforms.
     """
     strides = clip_strides(db)
     families = [db.infos[int(c)].role.family for c in plan.clips]
     group = np.array([f in ("walk", "run") for f in families])
+    if keep is not None:
+        group &= ~np.asarray(keep, dtype=bool)
     n_seg = plan.n_segments
     runs: list[tuple[int, int]] = []
     k = 0
@@ -139,7 +149,7 @@ def respace(
         seg_u.append((float(kk), float(kk + 1)))
         seg_pose.append((r_pos[kk], float(r_yaw[kk])))
     if not changes:
-        return Respaced(plan, want, ()), island
+        return Respaced(plan, want, (), terrace), island
 
     # The new plan: weights carried over by old segment coordinate (so by arc length).
     n_new_seg = len(seg_u)
@@ -166,6 +176,7 @@ def respace(
     fresh = plan_footprints(db, new_plan, (rp, ry))
     pos = fresh.pos.copy()
     yaw = fresh.yaw.copy()
+    carried = np.full(len(fresh), -1, dtype=np.int64)
     # Footprints of unchanged segments keep their smoothed poses.
     for i in range(len(fresh)):
         old = old_of_new[int(fresh.segment[i])]
@@ -176,8 +187,10 @@ def respace(
         if nth < len(same):
             pos[i] = want.pos[same[nth]]
             yaw[i] = want.yaw[same[nth]]
+            carried[i] = same[nth]
     yaw = np.unwrap(yaw)
     new_island = np.full(len(fresh), -1, dtype=np.int64)
+    new_terrace: IntArray | None = None
     if surface is not None:
         new_island = surface.island_at(pos)
         bad = new_island < 0
@@ -185,6 +198,14 @@ def respace(
             new_island[bad] = surface.island_at(surface.snap(pos[bad]))
         move = np.ones(len(fresh), dtype=bool)
         move[:2] = move[-2:] = False
-        pos[move] = surface.snap(pos[move], new_island[move])
+        if terrace is None:
+            pos[move] = surface.snap(pos[move], new_island[move])
+        else:
+            # Kept footprints keep their terraces; new ones stand on the nearest supported spot.
+            new_terrace = np.where(carried >= 0, terrace[np.maximum(carried, 0)], -1)
+            fresh_fp = np.flatnonzero(new_terrace < 0)
+            near = surface.snap(pos[fresh_fp], new_island[fresh_fp], yaw=yaw[fresh_fp])
+            new_terrace[fresh_fp] = surface.terrace_at(near)
+            pos[move] = surface.snap(pos[move], new_island[move], yaw=yaw[move], terrace=new_terrace[move])
     footprints = Footprints(fresh.side, fresh.segment, fresh.u_td, fresh.u_lo, pos, yaw, fresh.time)
-    return Respaced(new_plan, footprints, tuple(changes)), new_island
+    return Respaced(new_plan, footprints, tuple(changes), new_terrace), new_island

@@ -6,9 +6,11 @@
 * ``turns`` — a walkway with a sequence of bends ending on a curved platform, walking
   only (the thesis' "Turns");
 * ``jumps`` — walk, bend, run, jump a gap, sharp bend, jump a second gap, stop (the
-  thesis' "Jumps"): three platforms, so the only route jumps twice.
+  thesis' "Jumps"): three platforms, so the only route jumps twice;
+* ``stairs`` — a walkway with a flight of steps up to a landing and down again (0.15 m
+  rises, 0.35 m treads, as in the example scene), filling its width: the only route climbs.
 
-Used by the tests, the benchmark and the example scene; all flat (z = 0) unless stated.
+Used by the tests and the benchmark; all flat (z = 0) unless stated.
 """
 
 from __future__ import annotations
@@ -36,9 +38,10 @@ class Scenario:
     goal: FloatArray
     allow_run: bool = True
     gaps: tuple[FloatArray, ...] = ()
+    cell: float = 0.05
 
-    def surface(self, cell: float = 0.05) -> WalkableSurface:
-        return WalkableSurface.from_polygons(list(self.polygons), cell=cell)
+    def surface(self, cell: float | None = None) -> WalkableSurface:
+        return WalkableSurface.from_polygons(list(self.polygons), cell=self.cell if cell is None else cell)
 
 
 def _box(x0: float, x1: float, y0: float, y1: float, z: float = 0.0) -> FloatArray:
@@ -100,4 +103,39 @@ def jumps(length: float = 1.0) -> Scenario:
     return Scenario("jumps", tuple(first + second + third), np.array([0.0, 0.0, 0.0]), 0.0, goal, gaps=gaps)
 
 
-SCENARIOS = {"corridor": corridor, "curve": curve, "turns": turns, "jumps": jumps}
+STAIR_RISE = 0.15
+STAIR_TREAD = 0.35
+STAIR_START = 3.0
+STAIR_LANDING = 1.5
+
+
+def stair_treads(steps: int = 3) -> list[tuple[float, float, float]]:
+    """``(x0, x1, height)`` of every tread of :func:`stairs`, the landing included."""
+    out = []
+    x = STAIR_START
+    for k in range(1, steps + 1):
+        out.append((x, x + STAIR_TREAD, k * STAIR_RISE))
+        x += STAIR_TREAD
+    top = (steps + 1) * STAIR_RISE
+    out.append((x, x + STAIR_LANDING, top))
+    x += STAIR_LANDING
+    for k in range(steps, 0, -1):
+        out.append((x, x + STAIR_TREAD, k * STAIR_RISE))
+        x += STAIR_TREAD
+    return out
+
+
+def stairs(goal: tuple[float, float] = (9.0, 0.0), steps: int = 3) -> Scenario:
+    """Ground, ``steps`` steps up to a landing one rise higher, as many steps down, ground
+    again, all 1.6 m wide. Rasterised at 2.5 cm: a 35 cm tread leaves a foot only a few
+    centimetres of play, which a coarser raster would not resolve."""
+    treads = stair_treads(steps)
+    polys = [_box(-1.0, STAIR_START, -0.8, 0.8)]
+    polys += [_box(x0, x1, -0.8, 0.8, z) for x0, x1, z in treads]
+    polys.append(_box(treads[-1][1], treads[-1][1] + 4.0, -0.8, 0.8))
+    return Scenario(
+        "stairs", tuple(polys), np.array([0.0, 0.0, 0.0]), 0.0, np.array(goal, dtype=float), cell=0.025
+    )
+
+
+SCENARIOS = {"corridor": corridor, "curve": curve, "turns": turns, "jumps": jumps, "stairs": stairs}

@@ -9,7 +9,9 @@ the relative rotations ``ωᵢ = log(qᵢ⁻¹ qᵢ₊₁)``:
 
 (For rotations about one axis this is exactly the binomial average of the angles; the
 thesis prints the same weights shifted by one index, which is not.) After every iteration
-the footprints are snapped back onto their own platform of the walkable surface.
+the footprints are snapped back onto their own platform of the walkable surface — and, when
+their terraces are given, onto their own terrace (the tread of a stair they were planned on)
+with the whole sole supported at the smoothed heading.
 
 Left and right footprints are smoothed as two separate sequences: averaging across feet
 would pull both onto the centre line between them.
@@ -62,14 +64,17 @@ def smooth_footprints(
     island: IntArray,
     surface: WalkableSurface | None,
     iterations: int = 4,
+    terrace: IntArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Smooth footprints ``pos (N, 3)`` / ``yaw (N,)``, each foot's sequence on its own.
 
     ``fixed (N,)`` footprints do not move (the start and goal stances); ``island (N,)`` is
-    the platform each footprint must stay on when snapped to ``surface``.
+    the platform each footprint must stay on when snapped to ``surface``, ``terrace (N,)``
+    (optional) the terrace, with the sole supported.
     """
     pos = pos.copy()
     q = quat.from_yaw(yaw)
+    move = ~fixed
     for _ in range(iterations):
         for s in (0, 1):
             idx = np.flatnonzero(side == s)
@@ -78,9 +83,24 @@ def smooth_footprints(
             pos[idx] = smooth_positions(pos[idx], fixed[idx])
             q[idx] = smooth_rotations(q[idx], fixed[idx])
         if surface is not None:
-            move = ~fixed
-            pos[move] = surface.snap(pos[move], island[move], exact=False)
+            pos[move] = _snap(surface, pos, q, move, island, terrace, exact=False)
     if surface is not None and iterations > 0:
-        pos[~fixed, 2] = surface.snap(pos[~fixed], island[~fixed])[:, 2]  # exact heights
+        pos[move, 2] = _snap(surface, pos, q, move, island, terrace, exact=True)[:, 2]
     new_yaw = yaw + quat.wrap_angle(quat.yaw_of(q) - yaw)
     return pos, new_yaw
+
+
+def _snap(
+    surface: WalkableSurface,
+    pos: FloatArray,
+    q: FloatArray,
+    move: BoolArray,
+    island: IntArray,
+    terrace: IntArray | None,
+    exact: bool,
+) -> FloatArray:
+    """The moving footprints snapped (with their soles when the terraces are known)."""
+    if terrace is None:
+        return surface.snap(pos[move], island[move], exact=exact)
+    yaw = quat.yaw_of(q[move])
+    return surface.snap(pos[move], island[move], exact=exact, yaw=yaw, terrace=terrace[move])

@@ -12,7 +12,16 @@ triangulates, and Blender gives triangles directly) plus a fine raster built onc
 * ``island`` — connected platforms: neighbouring cells whose heights differ by at most
   ``max_step`` belong to the same island, so a gap (or a wall) separates islands;
 * ``inner`` — cells at least ``margin`` (about half a foot) inside their island, the cells a
-  footprint centre may use.
+  footprint centre may use whatever the foot's heading;
+* ``terrace`` — flat or gently sloping pieces: neighbouring cells whose heights differ by at
+  most ``ledge`` (a step's riser, a kerb, a crate's edge separate terraces; a slope does not).
+
+A planted foot must be *supported*: its whole sole — a rectangle of the foot's length and
+width along its heading, grown by half a cell's diagonal so that raster look-ups cannot miss
+an edge — lies on one terrace (:meth:`WalkableSurface.supports`). That keeps a foot from
+hanging over a step's edge or standing half inside the riser of the next step up. Snapping
+with a heading (:meth:`WalkableSurface.snap`) moves a footprint to the nearest supported pose
+on its island and terrace.
 
 Point queries are raster look-ups (constant time, vectorised); heights of final footprints
 come from the triangles themselves, exactly. Surfaces stacked above each other (a bridge
@@ -21,6 +30,7 @@ over a path) keep only the highest one, the same model as the terrain elevation 
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -52,6 +62,10 @@ class WalkableSurface:
     tri_id: IntArray
     margin: float
     max_step: float
+    terrace: IntArray
+    ledge: float
+    foot_half_length: float
+    foot_half_width: float
 
     # -- construction -------------------------------------------------------------------------
 
@@ -64,6 +78,8 @@ class WalkableSurface:
         max_step: float = 0.2,
         blocked: FloatArray | None = None,
         bounds: tuple[float, float, float, float] | None = None,
+        ledge: float | None = None,
+        foot: tuple[float, float] | None = None,
     ) -> WalkableSurface:
         """Surface from ``(T, 3, 3)`` triangles (any winding; vertical ones are ignored).
 
@@ -73,6 +89,10 @@ class WalkableSurface:
         ``blocked (B, 3, 3)``: triangles of obstacles to keep off; the ground under them
         (seen from above) is not walkable. ``bounds (x0, y0, x1, y1)`` limits the raster to
         a region (a large ground plane need not be rasterised far from the character).
+        ``ledge`` (default: one ``cell``, a 45° slope) is the height difference between
+        neighbouring cells that separates terraces. ``foot (half_length, half_width)`` is the
+        sole :meth:`supports` checks (default: ``margin`` long and ``0.45 margin`` wide halves;
+        see :meth:`with_foot`).
         """
         tris = np.asarray(triangles, dtype=float).reshape(-1, 3, 3)
         if len(tris) == 0:
@@ -96,7 +116,34 @@ class WalkableSurface:
         island = _label_islands(z, max_step)
         # One cell of slack: an edge may lie anywhere inside its boundary cell.
         inner = _erode(island, margin + cell, cell)
-        return cls(tris, float(cell), lo, z, island, inner, tri_id, float(margin), float(max_step))
+        ledge = float(cell if ledge is None else ledge)
+        if ledge <= 0.0:
+            raise ValueError("ledge must be positive")
+        terrace = _label_islands(z, ledge)
+        half_length, half_width = (margin, 0.45 * margin) if foot is None else foot
+        return cls(
+            tris,
+            float(cell),
+            lo,
+            z,
+            island,
+            inner,
+            tri_id,
+            float(margin),
+            float(max_step),
+            terrace,
+            ledge,
+            float(half_length),
+            float(half_width),
+        )
+
+    def with_foot(self, half_length: float, half_width: float) -> WalkableSurface:
+        """The same surface checking a sole of the given half length and half width (metres)."""
+        if half_length <= 0.0 or half_width <= 0.0:
+            raise ValueError("a foot needs a positive length and width")
+        return dataclasses.replace(
+            self, foot_half_length=float(half_length), foot_half_width=float(half_width)
+        )
 
     @classmethod
     def from_polygons(cls, polygons: Sequence[FloatArray], **kwargs: Any) -> WalkableSurface:
@@ -144,6 +191,64 @@ class WalkableSurface:
         """Whether each point is over some walkable surface."""
         return self.island_at(xy) >= 0
 
+    def terrace_at(self, xy: FloatArray) -> IntArray:
+        """Terrace of each point (``-1`` off every surface)."""
+        ix, iy, ok = self.cell_of(xy)
+        return np.where(ok, self.terrace[ix, iy], -1)
+
+    @functools.cached_property
+    def sole_offsets(self) -> FloatArray:
+        """Sample points ``(P, 2)`` of the sole in the foot's frame (x along the heading): its
+        centre, then a grid at most a cell apart over the sole grown by half a cell's
+        diagonal, so that every raster cell the sole touches is looked at."""
+        pad = 0.5 * np.sqrt(2.0) * self.cell
+        hl = self.foot_half_length + pad
+        hw = self.foot_half_width + pad
+        na = max(2, int(np.ceil(2.0 * hl / self.cell)) + 1)
+        nw = max(2, int(np.ceil(2.0 * hw / self.cell)) + 1)
+        gx, gy = np.meshgrid(np.linspace(-hl, hl, na), np.linspace(-hw, hw, nw), indexing="ij")
+        return np.vstack(([0.0, 0.0], np.column_stack((gx.ravel(), gy.ravel()))))
+
+    @functools.cached_property
+    def _terrace_border(self) -> IntArray:
+        """``terrace`` framed by one cell of ``-1`` and flattened: look-ups need no bounds test."""
+        nx, ny = self.terrace.shape
+        out = np.full((nx + 2, ny + 2), -1, dtype=np.int64)
+        out[1:-1, 1:-1] = self.terrace
+        return out.ravel()
+
+    def supports(self, xy: FloatArray, yaw: FloatArray, terrace: IntArray | None = None) -> BoolArray:
+        """Whether a foot planted at each point ``(..., 2+)`` with heading ``yaw (...)`` stands
+        wholly on one terrace (``terrace (...)``: on that one)."""
+        labels = self.sole_terraces(xy, yaw)
+        centre = labels[..., 0]
+        ok = (centre >= 0) & np.all(labels == centre[..., None], axis=-1)
+        if terrace is not None:
+            ok &= centre == np.asarray(terrace)
+        return np.asarray(ok)
+
+    def straddles_step(self, xy: FloatArray, yaw: FloatArray) -> BoolArray:
+        """Whether the sole of a foot at each pose covers two walkable terraces (it is planted
+        across a step's edge), as opposed to hanging off a platform's edge or being whole."""
+        labels = self.sole_terraces(xy, yaw)
+        first = np.max(labels, axis=-1)
+        return np.asarray(np.any((labels >= 0) & (labels != first[..., None]), axis=-1))
+
+    def sole_terraces(self, xy: FloatArray, yaw: FloatArray) -> IntArray:
+        """Terraces ``(..., P)`` under the sole samples (:attr:`sole_offsets`, the centre first)
+        of a foot at each pose ``xy (..., 2+)``, ``yaw (...)``; ``-1`` off the surfaces."""
+        xy = np.asarray(xy, dtype=float)[..., :2]
+        yaw = np.broadcast_to(np.asarray(yaw, dtype=float), xy.shape[:-1])
+        off = self.sole_offsets
+        c, s = np.cos(yaw)[..., None], np.sin(yaw)[..., None]
+        # Sample 0 is the centre; the others must be on its terrace.
+        fx = (xy[..., 0, None] + c * off[:, 0] - s * off[:, 1] - self.origin[0]) / self.cell
+        fy = (xy[..., 1, None] + s * off[:, 0] + c * off[:, 1] - self.origin[1]) / self.cell
+        nx, ny = self.terrace.shape
+        ix = np.clip(np.floor(fx).astype(np.int64) + 1, 0, nx + 1)
+        iy = np.clip(np.floor(fy).astype(np.int64) + 1, 0, ny + 1)
+        return np.asarray(self._terrace_border[ix * (ny + 2) + iy])
+
     @functools.cached_property
     def _inner_cells(self) -> dict[int, FloatArray]:
         """Centres of the cells a footprint fits in, per island (``-1``: all of them)."""
@@ -187,7 +292,14 @@ class WalkableSurface:
         out = np.where(best <= 0.5, out, np.nan)
         return out.reshape(shape)
 
-    def snap(self, points: FloatArray, island: IntArray | None = None, exact: bool = True) -> FloatArray:
+    def snap(
+        self,
+        points: FloatArray,
+        island: IntArray | None = None,
+        exact: bool = True,
+        yaw: FloatArray | None = None,
+        terrace: IntArray | None = None,
+    ) -> FloatArray:
         """Closest footprint position to each point, on its island, ``margin`` inside edges.
 
         ``points`` is ``(N, 3)``; ``island`` ``(N,)`` says which platform each point must stay
@@ -196,14 +308,30 @@ class WalkableSurface:
         raster cell of its island (thesis §3.3: "snap to the closest point on the surface").
         ``exact=False`` takes heights from the raster (exact on flat ground, cheaper), for
         the inner iterations of smoothing and refinement.
+
+        With the feet's headings ``yaw (N,)`` a footprint fits when its sole is supported
+        (:meth:`supports`), on its ``terrace (N,)`` when given, and moves to the nearest
+        supported position otherwise (within about a foot's length; farther, to the nearest
+        fitting cell as above, then to a supported position near it).
         """
         pts = np.array(points, dtype=float).reshape(-1, 3)
         if island is None:
             island = self.island_at(pts)
         island = np.asarray(island, dtype=np.int64).reshape(-1)
         ix, iy, ok = self.cell_of(pts)
-        fits = ok & self.inner[ix, iy] & (self.island[ix, iy] == island)
+        if yaw is None:
+            fits = ok & self.inner[ix, iy] & (self.island[ix, iy] == island)
+        else:
+            yaw = np.broadcast_to(np.asarray(yaw, dtype=float), island.shape)
+            if terrace is not None:
+                terrace = np.broadcast_to(np.asarray(terrace, dtype=np.int64), island.shape)
+            fits = ok & (self.island[ix, iy] == island) & self.supports(pts[:, :2], yaw, terrace)
         need = np.flatnonzero(~fits)
+        if len(need) and yaw is not None:
+            found = self._nearest_support(pts[need, :2], yaw[need], island[need], terrace, need)
+            moved = np.isfinite(found[:, 0])
+            pts[need[moved], :2] = found[moved]
+            need = need[~moved]
         if len(need):
             cells = self._inner_cells
             for i in need:
@@ -212,10 +340,59 @@ class WalkableSurface:
                     centres = cells[-1]
                 d2 = np.sum((centres - pts[i, :2]) ** 2, axis=1)
                 pts[i, :2] = centres[int(np.argmin(d2))]
+            if yaw is not None:
+                found = self._nearest_support(pts[need, :2], yaw[need], island[need], terrace, need)
+                moved = np.isfinite(found[:, 0])
+                pts[need[moved], :2] = found[moved]
         raster = self.raster_height(pts[:, :2])
         z = self.height_at(pts[:, :2]) if exact else raster
         pts[:, 2] = np.where(np.isfinite(z), z, raster)
         return pts
+
+    def _nearest_support(
+        self,
+        xy: FloatArray,
+        yaw: FloatArray,
+        island: IntArray,
+        terrace: IntArray | None,
+        rows: IntArray,
+    ) -> FloatArray:
+        """Nearest supported position ``(M, 2)`` to each point within about a foot's length
+        (NaN where there is none): a coarse search one cell apart, then a fine one a quarter
+        cell apart around the best coarse candidate."""
+        cell = self.cell
+        radius = 2.0 * self.foot_half_length + 2.0 * cell
+        k = int(np.ceil(radius / cell))
+        g = np.arange(-k, k + 1) * cell
+        gx, gy = np.meshgrid(g, g, indexing="ij")
+        coarse = np.column_stack((gx.ravel(), gy.ravel()))
+        coarse = coarse[np.sum(coarse**2, axis=1) <= radius**2 + 1e-12]
+        coarse = coarse[np.argsort(np.sum(coarse**2, axis=1), kind="stable")]
+        f = np.arange(-4, 5) * (0.25 * cell)
+        fx, fy = np.meshgrid(f, f, indexing="ij")
+        fine = np.column_stack((fx.ravel(), fy.ravel()))
+        ter = None if terrace is None else terrace[rows]
+        out = np.full((len(xy), 2), np.nan)
+
+        def good(cand: FloatArray) -> BoolArray:  # (M, K, 2) -> (M, K)
+            ok = self.supports(cand, yaw[:, None], None if ter is None else ter[:, None])
+            return ok & (self.island_at(cand) == island[:, None])
+
+        cand = xy[:, None, :] + coarse[None]
+        hit = good(cand)
+        has = hit.any(axis=1)
+        if not np.any(has):
+            return out
+        first = np.argmax(hit, axis=1)
+        best = cand[np.arange(len(xy)), first]
+        cand = best[:, None, :] + fine[None]
+        hit = good(cand) & has[:, None]
+        d2 = np.where(hit, np.sum((cand - xy[:, None, :]) ** 2, axis=2), np.inf)
+        j = np.argmin(d2, axis=1)
+        fine_best = cand[np.arange(len(xy)), j]
+        pick = np.where(np.isfinite(d2[np.arange(len(xy)), j])[:, None], fine_best, best)
+        out[has] = pick[has]
+        return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -275,7 +452,9 @@ def _rasterise(
         centre = origin + (np.stack((cx, cy), axis=-1) + 0.5) * cell
         w = _barycentric(centre, tris[t_idx])
         inside = np.all(w >= -1e-9, axis=-1)
-        zc = np.sum(w * tris[t_idx, :, 2], axis=-1)
+        # Triangles seen edge-on from above (a crate's side) have no barycentric coordinates
+        # (-inf): they cover no cell centre, and must not enter the products as -inf * 0.
+        zc = np.sum(np.where(inside[:, None], w, 0.0) * tris[t_idx, :, 2], axis=-1)
         cells.append((cx * ny + cy)[inside])
         heights.append(zc[inside])
         tids.append(t_idx[inside])

@@ -10,7 +10,11 @@ depend on motion capture. This module writes clips for a simple human skeleton
 * the feet follow a heel-strike / flat / toe-off roll with the pivot point exactly fixed on
   the ground, swing along a lifted curve, and the legs are solved by the analytic two-bone
   IK with the knee pointing along the foot, so every clip has perfectly planted feet;
-* the pelvis bobs, sways, twists and leans; arms and spine counter-swing.
+* the pelvis bobs, sways, twists and leans; arms and spine counter-swing. The arms swing
+  from the shoulder by ``arm_swing`` (±11° walking, as people do; wider running), the
+  elbows hang slightly bent (``elbow``) and bend a little more as the arm swings forward
+  (``elbow_swing``); the rig's own rest bend of the elbow is taken into account, so a rig
+  modelled with bent elbows does not end up bent twice as much.
 
 Every clip is in the normal form of :mod:`.clip` (right touchdown to right touchdown) and
 carries its exact foot contacts. :func:`standard_library` returns the full set of roles.
@@ -69,7 +73,9 @@ class Gait:
     ``duty`` is the stance fraction of the stride; ``heel_pitch``/``toe_pitch`` the foot
     angles at touchdown and lift-off (radians), reached over ``heel_phase``/``toe_phase``
     of the stance; ``bob`` the pelvis' vertical amplitude (positive: highest at mid-stance,
-    as in walking; negative: lowest, as in running).
+    as in walking; negative: lowest, as in running); ``arm_swing`` the shoulder's swing
+    amplitude, ``elbow`` the elbow's bend with the arm hanging and ``elbow_swing`` how much
+    more it bends at the front of the swing (radians).
     """
 
     speed: float
@@ -87,6 +93,8 @@ class Gait:
     toe_phase: float
     arm_swing: float
     forward_lean: float
+    elbow: float = 0.2
+    elbow_swing: float = 0.3
 
     def scaled(self, k: float) -> Gait:
         """The same gait for a body ``k`` times as large (lengths and speeds times ``k``)."""
@@ -141,8 +149,10 @@ WALK = Gait(
     toe_pitch=0.45,
     heel_phase=0.15,
     toe_phase=0.3,
-    arm_swing=0.3,
+    arm_swing=0.2,
     forward_lean=0.03,
+    elbow=0.2,
+    elbow_swing=0.3,
 )
 RUN = Gait(
     speed=3.0,
@@ -158,8 +168,10 @@ RUN = Gait(
     toe_pitch=0.6,
     heel_phase=0.1,
     toe_phase=0.45,
-    arm_swing=0.55,
+    arm_swing=0.5,
     forward_lean=0.12,
+    elbow=1.35,
+    elbow_swing=0.25,
 )
 
 
@@ -292,6 +304,18 @@ def hanging_arms(skel: Skeleton) -> tuple[tuple[int, int], tuple[int, int]]:
     return out[0], out[1]
 
 
+def rest_elbow_bend(skel: Skeleton, forearm: int) -> float:
+    """How far (radians, forwards positive) the forearm already points ahead of the upper
+    arm in the rest pose, seen from the side; 0 when the forearm has no child to aim at."""
+    kids = _children(skel, forearm)
+    if not kids:
+        return 0.0
+    upper_dir = skel.offsets[forearm]
+    fore_dir = skel.offsets[kids[0]]
+    pitch = np.arctan2(fore_dir[0], -fore_dir[2]) - np.arctan2(upper_dir[0], -upper_dir[2])
+    return float(pitch)
+
+
 def _assemble(
     skel: Skeleton,
     name: str,
@@ -307,8 +331,10 @@ def _assemble(
     pitch: FloatArray,
     plants: tuple[list[_Plant], list[_Plant]],
     arm_phase: FloatArray,
-    arm_swing: float,
+    arm_swing: float | FloatArray,
     periodic: bool,
+    elbow: float = 0.0,
+    elbow_swing: float | FloatArray = 0.0,
 ) -> Clip:
     """Solve the legs for the given root, pelvis and foot plans and package a clip."""
     n = len(t)
@@ -408,10 +434,11 @@ def _assemble(
     for sign, (upper, lower) in zip((1.0, -1.0), hanging_arms(skel), strict=True):
         if upper < 0:
             continue
-        swing = sign * arm_swing * np.sin(arm_phase)
-        joint_rot[:, upper] = quat.from_axis_angle(y_axis, -swing)
+        forward = sign * np.sin(arm_phase)  # +1 with this arm at the front of its swing
+        joint_rot[:, upper] = quat.from_axis_angle(y_axis, -arm_swing * forward)
         if lower >= 0:
-            joint_rot[:, lower] = quat.from_axis_angle(y_axis, np.full(n, -0.35 - 0.6 * arm_swing))
+            bend = elbow + elbow_swing * 0.5 * (1.0 + forward) - rest_elbow_bend(skel, lower)
+            joint_rot[:, lower] = quat.from_axis_angle(y_axis, -np.broadcast_to(bend, (n,)))
     contact = np.column_stack(contacts).astype(bool)
     return Clip(name, role, dt, root_pos, root_yaw, pelvis_pos, quat.hemisphere(joint_rot), contact)
 
@@ -492,6 +519,8 @@ def gait_clip(
         phase,
         gait.arm_swing,
         periodic=True,
+        elbow=gait.elbow,
+        elbow_swing=gait.elbow_swing,
     )
 
 
@@ -572,6 +601,8 @@ def jump_clip(
         phase,
         run.arm_swing,
         periodic=False,
+        elbow=run.elbow,
+        elbow_swing=run.elbow_swing,
     )
 
 
@@ -619,6 +650,8 @@ def start_clip(skel: Skeleton, walk: Gait = WALK, fps: float = 60.0) -> Clip:
         phase,
         walk.arm_swing * ramp,
         periodic=False,
+        elbow=walk.elbow,
+        elbow_swing=walk.elbow_swing * ramp,
     )
     contacts = clip.contacts.copy() if clip.contacts is not None else None
     assert contacts is not None
@@ -672,6 +705,8 @@ def stop_clip(skel: Skeleton, walk: Gait = WALK, fps: float = 60.0) -> Clip:
         phase,
         walk.arm_swing * ramp,
         periodic=False,
+        elbow=walk.elbow,
+        elbow_swing=walk.elbow_swing * ramp,
     )
 
 
@@ -711,6 +746,7 @@ def idle_clip(skel: Skeleton, walk: Gait = WALK, duration: float = 2.0, fps: flo
         zeros,
         0.0,
         periodic=True,
+        elbow=walk.elbow,
     )
 
 
