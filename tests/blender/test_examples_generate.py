@@ -31,8 +31,6 @@ pytestmark = pytest.mark.blender
 _CORE_FAILURES = {
     "spider": "core: leg R1 planted beside the low crate with its tibia-tarsus joint 4.0 cm inside "
               "the crate (frames 42-44, also 107 and 109): penetration 0.040 > 0.005",
-    "ant": "core: leg L3's IK misses its target by 1.74 cm at frame 47 (leg fully stretched): "
-           "reach 0.0174 > 0.01",
     "robot": "core: leg M1's IK misses its target by 1.37 cm at frame 118 on the hill: reach 0.0137 > 0.01",
 }
 KINDS = tuple(
@@ -104,13 +102,9 @@ def test_example_creature_walks_and_swings_within_the_thresholds(empty_scene: An
     assert m["travel"] > 2.0 * m["scale"], m
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError,
-                   reason="core biped planner: the left foot is set down 15 cm inside the step above it "
-                   "(heel at z 0.30 under the 0.45 step, frames 72 and 117-118; the right one at frame "
-                   "128): the footprints are placed too close to the risers")
 def test_example_human_walks_over_its_stairs_to_its_goal(empty_scene: Any, repo_root: Path) -> None:
     """Plan Biped Footsteps on the example human, as set up in the file (its clips and goal):
-    it reaches the goal beyond the stairs, and its feet never sink into the steps."""
+    it climbs its stairs to the goal on the landing, and its feet never sink into the steps."""
     from tests.blender.pose_eval import ray_heights_over_time
 
     _open_examples(repo_root)
@@ -134,5 +128,7 @@ def test_example_human_walks_over_its_stairs_to_its_goal(empty_scene: Any, repo_
     assert (under - points[..., 2]).max() <= toe_radius + 0.005
     climbed = points[..., 2].min(axis=1).max()
     assert climbed > 0.5, "the feet never stood on the landing (0.6 m up)"
-    hips = pose_matrices(human, [end], ["spine"])[0, 0, :3, 3]
-    assert np.linalg.norm(hips[:2] - np.array(goal.location)[:2]) < 0.5
+    hips = pose_matrices(human, [end, min(end, example_scene.FRAME_END)], ["spine"])[:, 0, :3, 3]
+    assert np.linalg.norm(hips[0, :2] - np.array(goal.location)[:2]) < 0.5
+    # ... and it is there by the example's last frame: the render shows the climb complete.
+    assert np.linalg.norm(hips[1, :2] - np.array(goal.location)[:2]) < 0.5

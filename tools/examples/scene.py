@@ -53,8 +53,9 @@ CAMERA_DIRECTION = (-0.35, -1.0, -0.55)
 CLOSEUP_DIRECTION = (-1.0, 0.5, -0.5)
 #: The stretch of ground (y) the camera keeps in view.
 FRAMED_Y = (-2.5, 4.0)
-#: Where the human walks to with Plan Biped Footsteps: on the ground beyond its stairs.
-HUMAN_GOAL = (terrain.LANE_X["human"], -3.5, 0.0)
+#: Where the human walks to with Plan Biped Footsteps: up its stairs onto the landing (at its
+#: walking pace it stands there by frame 120; the way down and on does not fit in the frames).
+HUMAN_GOAL = (terrain.LANE_X["human"], -0.6, terrain.STAIR_STEPS * terrain.STAIR_RISE)
 
 
 @dataclass
@@ -362,8 +363,8 @@ def _configure_secondary(rig: bpy.types.Object, kind: str) -> list[str]:
 
 def _configure_biped(rig: bpy.types.Object) -> list[str]:
     """Plan Biped Footsteps ready to run: walking clips made for the rig (Make Example Clips,
-    no runs or jumps: it walks up and down the stairs) and a goal, the Empty ``"<rig> Goal"``
-    beyond the stairs (``HUMAN_GOAL``)."""
+    no runs or jumps: it walks up the stairs) and a goal, the Empty ``"<rig> Goal"`` on the
+    stairs' landing (``HUMAN_GOAL``)."""
     if not _operator_registered("procloco.make_biped_clips"):
         return ["operator procloco.make_biped_clips is not registered: no biped clips"]
     if bpy.ops.procloco.make_biped_clips(runs=False, jump=False) != {"FINISHED"}:

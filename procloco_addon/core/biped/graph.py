@@ -12,7 +12,8 @@ goes to the supported node nearest that pose within the position and heading tol
 Walking clips also give *short strides*: the clip's root travel scaled by each of
 ``stride_scales`` (its turn kept), the feet placed about the root as in the clip. They are
 offered only where a step blocks the clip's natural stride (a predicted footprint straddles
-a step's edge or a half step rises too much), so open ground is searched as before. On
+a step's edge or a half step rises too much) and near the goal (to stop in the right
+place), so open ground is searched as before. On
 stairs whose treads are shorter than a natural step they put a foot on every tread where
 natural strides would land on an edge; the refinement, body trajectory and IK stages fit
 the clip to the shorter footprints as they fit any other mismatch (the character then
@@ -117,7 +118,7 @@ class GraphSettings:
     batch: int = 16
     support_samples: int = 8
     field_cell: float = 0.2
-    stride_scales: tuple[float, ...] = (1.0, 0.75, 0.55)
+    stride_scales: tuple[float, ...] = (1.0, 0.75, 0.55, 0.35)
     short_stride_cost: float = 0.2
     left_search: float | None = None
 
@@ -273,6 +274,10 @@ class FootprintGraph:
         self.left_search = 0.5 * self.tol_p if settings.left_search is None else settings.left_search
         # Whether each node's sole is supported: -1 not known yet, computed on first use.
         self._node_support = np.full((self.nx, self.ny, k), -1, dtype=np.int8)
+        # Short strides are offered to any footprint this close to the goal (set by search).
+        natural = self.edges.scale == 1.0
+        self.near_goal = 1.5 * float(np.max(np.linalg.norm(self.edges.end_pos[natural, :2], axis=1)))
+        self.goal_xy: FloatArray | None = None
 
     # -- nodes --------------------------------------------------------------------------------
 
@@ -382,8 +387,10 @@ class FootprintGraph:
 
         A clip's short strides are offered only from footprints where steps block its natural
         stride (a predicted footprint straddles a step's edge, or a half step rises too
-        much): on open ground, and at the edges of platforms and gaps, the search sees the
-        clips as they are."""
+        much), and to every footprint near the goal (within one and a half natural strides,
+        where people shorten their steps to stop in the right place): elsewhere on open
+        ground, and at the edges of platforms and gaps, the search sees the clips as they
+        are."""
         e = self.edges
         b = len(yaw)
         c = len(e.clip)
@@ -399,6 +406,8 @@ class FootprintGraph:
             rows = np.repeat(np.arange(b), len(short))
             cols = np.tile(short, b)
             need = blocked[rows, e.natural[cols]]
+            if self.goal_xy is not None:
+                need |= np.linalg.norm(pos[rows, :2] - self.goal_xy, axis=1) <= self.near_goal
             rows, cols = rows[need], cols[need]
             if len(rows):
                 nodes[rows, cols], ok[rows, cols], _ = self._edges(pos, yaw, rows, cols)
@@ -526,6 +535,7 @@ class FootprintGraph:
         """
         s = self.settings
         field_, f_origin, f_cell = self.distance_field(goal_xy)
+        self.goal_xy = np.asarray(goal_xy, dtype=float)[:2]
         fnx, fny = field_.shape
 
         def h(xy: FloatArray) -> FloatArray:
