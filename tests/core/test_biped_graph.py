@@ -167,3 +167,16 @@ def test_stairs_are_climbed_a_tread_at_a_time(db: ClipDatabase) -> None:
         z = float(surf.raster_height(lp[None, :2])[0])
         assert abs(z - path.right_pos[k, 2]) <= g.settings.max_step_height
         assert abs(path.right_pos[k + 1, 2] - z) <= g.settings.max_step_height
+
+
+def test_short_strides_only_near_the_goal_on_open_ground(db: ClipDatabase) -> None:
+    square = WalkableSurface.from_polygons([rectangle((3.0, 0.0, 0.0), (10.0, 6.0))])
+    g = FootprintGraph(db, square, GraphSettings(), np.random.default_rng(4), families=("walk",))
+    short = g.edges.scale < 1.0
+    pos = np.array([[0.0, 0.0, 0.0], [5.5, 0.0, 0.0]])
+    _, ok = g.successors(pos, np.zeros(2))
+    assert not ok[:, short].any()  # no goal known, no step in the way: the clips as they are
+    g.goal_xy = np.array([6.0, 0.0])
+    _, ok = g.successors(pos, np.zeros(2))
+    assert not ok[0, short].any()  # far from the goal
+    assert ok[1, short].any()  # close to it: shorter steps to stop in the right place
