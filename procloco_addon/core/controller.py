@@ -713,14 +713,17 @@ class Controller:
         ) | bad_landing
         if np.any(forced_new):
             self.forced |= forced_new
-            self.forced_elapsed[forced_new] = 0.0
             self.forced_duration[forced_new] = np.maximum(
                 p.forced_swing * gstep.swing_time[forced_new], 2.0 * dt
             )
-            progress = np.where(forced_new, 0.0, progress)
+            # a forced step leaves in the frame it starts (its first frame's share of the
+            # swing is done): the leg is already stretched, a frame later it would be more
+            self.forced_elapsed[forced_new] = dt
+            first = dt / self.forced_duration
+            progress = np.where(forced_new, first, progress)
             start_u = np.where(forced_new, 0.0, start_u)
             swing_time = np.where(forced_new, self.forced_duration, swing_time)
-            remaining = np.where(forced_new, self.forced_duration, remaining)
+            remaining = np.where(forced_new, self.forced_duration - dt, remaining)
             stats.n_forced = int(forced_new.sum())
         # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
         to_plan = lifted | forced_new | replan

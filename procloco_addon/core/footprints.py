@@ -83,6 +83,7 @@ from .pathing import (
 )
 from .terrain import (
     _VOID_BELOW,
+    NO_SURFACE,
     WindowGrids,
     _box_overlaps_cells,
     _rect_offsets,
@@ -598,6 +599,7 @@ class _Batch:
         self.pad = R = max(int(np.abs(self.sweep_off).max()), land_reach)
         Hp, Wp = H + 2 * R, W + 2 * R
         epad = np.full((n, Hp, Wp), -np.inf)
+        apad = np.zeros((n, Hp, Wp), dtype=bool)
         avoid = np.zeros((n, H, W), dtype=bool)
         for k, p in enumerate(plans):
             g = p.grids
@@ -605,6 +607,7 @@ class _Batch:
             top, left = int(r0[k]) - R, int(c0[k]) - R
             ra, rb, ca, cb = max(top, 0), min(top + Hp, ny), max(left, 0), min(left + Wp, nx)
             epad[k, ra - top : rb - top, ca - left : cb - left] = g.elevation[ra:rb, ca:cb]
+            apad[k, ra - top : rb - top, ca - left : cb - left] = g.avoid[ra:rb, ca:cb]
             h, w = int(hh[k]), int(ww[k])
             avoid[k, :h, :w] = g.avoid[r0[k] : r0[k] + h, c0[k] : c0[k] + w]
         self.epad = epad
@@ -645,6 +648,13 @@ class _Batch:
         liftoff[kk, lr[kk, jj], lc[kk, jj]] = True
         at = np.arange(n)
         here = avoid[at, np.where(inside, sc[:, 0], 0), np.where(inside, sc[:, 1], 0)]
+        # What swings must clear (pathing.clearance_elevation): avoided cells above the foot
+        # plus its step height left out.
+        if apad.any():
+            above = np.array([float(p.start[2]) + p.params.step_height for p in plans])
+            self.cpad = np.where(apad & (epad > above[:, None, None]), NO_SURFACE, epad)
+        else:
+            self.cpad = epad
         on_avoid = np.flatnonzero(inside & here)
         if on_avoid.size:
             # The foot stands on an avoided obstacle (it moved under the foot): let it leave
@@ -661,17 +671,19 @@ class _Batch:
         self.grown_inf = dilate_each(core, self.sweep_off, self.sweep_in)
 
     def max_under(self, plan: IntArray, rows: IntArray, cols: IntArray, kernel: IntArray,
-                  member: BoolArray) -> FloatArray:
+                  member: BoolArray, clearance: bool = False) -> FloatArray:
         """Highest window elevation under kernel cells around box cells ``(rows, cols)``
         ``(p,)`` of plans ``plan`` ``(p,)`` (cells within the box), the kernel of plan ``k``
         being ``kernel[member[k]]``: ``(p,)``; ``-inf`` where no kernel cell is in the window
-        (what :meth:`PathContext.kernel_max` gives)."""
+        (what :meth:`PathContext.kernel_max` gives). ``clearance``: of the elevation a swing
+        must clear (:meth:`PathContext.clearance_grid`)."""
         used = np.flatnonzero(member.any(axis=0))
-        _, hp, wp = self.epad.shape
+        grid = self.cpad if clearance else self.epad
+        _, hp, wp = grid.shape
         R = self.pad
         koff = kernel[used, 0] * wp + kernel[used, 1]
         at = plan * (hp * wp) + (rows + R) * wp + (cols + R)
-        vals = self.epad.reshape(-1)[at[:, None] + koff[None, :]]
+        vals = grid.reshape(-1)[at[:, None] + koff[None, :]]
         sel = member[:, used]
         if not sel.all():
             vals = np.where(sel[plan], vals, -np.inf)
@@ -1030,7 +1042,7 @@ def _lift_all(
             org = batch.origin[kp]
             rows = np.rint((xy[:, 1] - org[:, 1]) / cl - batch.r0[kp]).astype(np.intp)
             cols = np.rint((xy[:, 0] - org[:, 0]) / cl - batch.c0[kp]).astype(np.intp)
-        ground = batch.max_under(kp, rows, cols, batch.sweep_off, batch.sweep_in)
+        ground = batch.max_under(kp, rows, cols, batch.sweep_off, batch.sweep_in, clearance=True)
         lens, z0, tz, step, ramp, gap, way = [], [], [], [], [], [], []
         for i in many:
             p = evals[i][0].plan

@@ -27,12 +27,20 @@ IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
 
 
-def upper_hull(x: npt.ArrayLike, z: npt.ArrayLike, keep_collinear: bool = False) -> IntArray:
+def upper_hull(
+    x: npt.ArrayLike, z: npt.ArrayLike, keep_collinear: bool = False, collinear: float = 0.0
+) -> IntArray:
     """Indices of the upper hull's vertices of the points ``(x[i], z[i])``, by increasing x.
 
     ``x``, ``z``: ``(n,)``, ``n >= 1``, any order. Where several points share an ``x`` only
     the highest can be a vertex. Collinear points on a hull edge are dropped unless
     ``keep_collinear``. Every input point lies on or below the polyline through the result.
+
+    ``collinear``: a relative tolerance under which a point counts as collinear with its
+    neighbours (dropped; it may then stand above the hull by that share of the edge): the
+    cross product against the sum of its two terms' magnitudes. Points collinear in exact
+    arithmetic (flat runs, linear ramps) then give the same hull whatever rounding or tiny
+    input noise does to them, at any scale.
     """
     xa = np.asarray(x, dtype=np.float64).ravel()
     za = np.asarray(z, dtype=np.float64).ravel()
@@ -50,8 +58,11 @@ def upper_hull(x: npt.ArrayLike, z: npt.ArrayLike, keep_collinear: bool = False)
         while len(hull) >= 2:
             i, j = hull[-2], hull[-1]
             # Cross product of (j - i) and (k - i); >= 0 means j is not strictly above ik.
-            cross = (xs[j] - xs[i]) * (zs[k] - zs[i]) - (zs[j] - zs[i]) * (xs[k] - xs[i])
-            if cross > 0.0 or (cross == 0.0 and not keep_collinear):
+            a = (xs[j] - xs[i]) * (zs[k] - zs[i])
+            b = (zs[j] - zs[i]) * (xs[k] - xs[i])
+            cross = a - b
+            tol = collinear * (abs(a) + abs(b))
+            if cross > tol or (cross >= -tol and not keep_collinear):
                 hull.pop()
             else:
                 break

@@ -58,7 +58,7 @@ import numpy.typing as npt
 
 from .hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .hull import upper_hull
-from .terrain import WindowGrids, dilate, foot_kernel
+from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -588,10 +588,22 @@ def height_profile(knots_s: FloatArray, knots_z: FloatArray, s: FloatArray) -> F
     )
 
 
+#: Relative tolerance of the trajectory hull's collinearity test: the clearance profile has
+#: long collinear runs (flat ground, linear ramps) whose points must be dropped or kept the
+#: same way for a rig and its ×100 copy, whose inputs differ by float noise (~1e-8).
+_COLLINEAR = 1e-6
+
+
+def _chord_tolerance(min_gap: float) -> float:
+    """How far below a sample a chord may pass and still count as clearing it (metres): a
+    millionth of the waypoint gap, so the same at every scale."""
+    return 1e-6 * min_gap if min_gap > 0.0 else 1e-9
+
+
 def _hull_waypoints(s: FloatArray, required: FloatArray, min_gap: float) -> IntArray:
     """Upper-hull vertices of ``(s, required)``, without vertices closer than ``min_gap`` to
     the previous one when the chord that replaces them still clears every sample."""
-    hull = upper_hull(s, required).tolist()
+    hull = upper_hull(s, required, collinear=_COLLINEAR).tolist()
     if len(hull) <= 2 or min_gap <= 0.0:
         return np.asarray(hull, dtype=np.intp)
     keep = [hull[0]]
@@ -603,7 +615,7 @@ def _hull_waypoints(s: FloatArray, required: FloatArray, min_gap: float) -> IntA
         a, c = keep[-1], hull[pos + 1]
         seg = slice(a, c + 1)
         chord = required[a] + (required[c] - required[a]) * (s[seg] - s[a]) / max(s[c] - s[a], 1e-12)
-        if np.all(chord >= required[seg] - 1e-9):
+        if np.all(chord >= required[seg] - _chord_tolerance(min_gap)):
             continue  # removable: the straight chord still clears
         keep.append(v)
     keep.append(hull[-1])
@@ -622,13 +634,16 @@ def _hull_knots_increasing(s: list[float], required: list[float], min_gap: float
             i = hull[-2]
             si = s[i]
             zi = required[i]
-            if (s[j] - si) * (zk - zi) - (required[j] - zi) * (sk - si) >= 0.0:
+            a = (s[j] - si) * (zk - zi)
+            b = (required[j] - zi) * (sk - si)
+            if a - b >= -_COLLINEAR * (abs(a) + abs(b)):
                 hull.pop()
             else:
                 break
         hull.append(k)
     if len(hull) <= 2 or min_gap <= 0.0:
         return hull
+    tol = _chord_tolerance(min_gap)
     keep = [hull[0]]
     for pos in range(1, len(hull) - 1):
         v = hull[pos]
@@ -642,7 +657,7 @@ def _hull_knots_increasing(s: list[float], required: list[float], min_gap: float
         rise = required[c] - ra
         den = max(s[c] - sa, 1e-12)
         for i in range(a, c + 1):
-            if not ra + rise * (s[i] - sa) / den >= required[i] - 1e-9:
+            if not ra + rise * (s[i] - sa) / den >= required[i] - tol:
                 keep.append(v)  # the chord that would replace it dips under a sample
                 break
     keep.append(hull[-1])
@@ -847,6 +862,7 @@ class PathContext:
                 escape = wavefront(avoid_grown & region.mask, self.start_cell)
                 liftoff |= np.isfinite(escape.dist)
         self.liftoff = liftoff
+        self._clear_grid: FloatArray | None = None
         self._blocked: dict[float, tuple[BoolArray, BoolArray, BoolArray]] = {}
         self._fields: dict[tuple[float, int, int], DistanceField] = {}
         self.n_wavefronts = 0
@@ -882,6 +898,7 @@ class PathContext:
         h, w = region.shape
         self.start_inside = 0 <= self.start_cell[0] < h and 0 <= self.start_cell[1] < w
         self.liftoff = liftoff
+        self._clear_grid = None
         self._blocked = maps
         self._fields = fields if fields is not None else {}
         self.n_wavefronts = 0
@@ -1021,11 +1038,12 @@ class PathContext:
         return Path2D(waypoints, samples, arc, float(length), _turning(samples), tension, n_naive, in_sight)
 
     # -- lifting to 3D -------------------------------------------------------------------------
-    def kernel_max(self, cells: IntArray, kernel: IntArray) -> FloatArray:
+    def kernel_max(self, cells: IntArray, kernel: IntArray, grid: FloatArray | None = None) -> FloatArray:
         """Highest elevation over ``kernel`` offsets around region cells ``(k, 2)``: ``(k,)``.
 
-        Reads the whole window, so cells near the region's border see past it."""
-        g = self.grids.elevation
+        Reads the whole window (or ``grid``, a map of the window's shape), so cells near the
+        region's border see past it."""
+        g = self.grids.elevation if grid is None else grid
         ny, nx = g.shape
         rr = cells[:, 0, None] + (self.region.r0 + kernel[None, :, 0])
         cc = cells[:, 1, None] + (self.region.c0 + kernel[None, :, 1])
@@ -1057,11 +1075,30 @@ class PathContext:
                          [target_z], [prm.step_height], [ramp], [prm.min_waypoint_gap * self.grids.cell],
                          [path.waypoints])[0]
 
+    def clearance_grid(self) -> FloatArray:
+        """The window's elevation as a swing must clear it (:func:`clearance_elevation`)."""
+        if self._clear_grid is None:
+            self._clear_grid = clearance_elevation(self.grids, float(self.start[2]) + self.params.step_height)
+        return self._clear_grid
+
     def _clear_at(self, xy: FloatArray) -> FloatArray:
         """What a foot swinging over each point must clear: the highest surface under the foot
-        anywhere in that point's cell."""
+        anywhere in that point's cell (avoided obstacles aside, see :meth:`clearance_grid`)."""
         rc = np.rint(self.grids.rowcol(xy) - np.array([self.region.r0, self.region.c0])).astype(np.intp)
-        return self.kernel_max(rc, self.sweep_kernel)
+        return self.kernel_max(rc, self.sweep_kernel, self.clearance_grid())
+
+
+def clearance_elevation(grids: WindowGrids, above: float) -> FloatArray:
+    """The elevation a swing must clear: ``grids.elevation`` with the avoided cells higher
+    than ``above`` (the foot's height plus its step height) at :data:`~.terrain.NO_SURFACE`.
+
+    Paths never cross avoided cells; a foot's swept box only grazes them beside its path, or
+    where it stands when a moving obstacle has come at it, and such a foot leaves sideways,
+    not over the obstacle's top. A foot standing on an avoided obstacle's top (it was pushed
+    up there) still clears it on its way off."""
+    if not grids.avoid.any():
+        return grids.elevation
+    return np.where(grids.avoid & (grids.elevation > above), NO_SURFACE, grids.elevation)
 
 
 def _turning(samples: FloatArray) -> float:
@@ -1078,8 +1115,10 @@ def _turning(samples: FloatArray) -> float:
 
 
 def _in_place(start: FloatArray, target_z: float, ground: float, step_height: float) -> FootTrajectory:
-    """Lift and put down on the spot: up to the step height above the ground, then down."""
-    top = max(float(start[2]), target_z, ground) + step_height
+    """Lift and put down on the spot: up to the step height above the ground, then down. A
+    foot already in the air (a re-plan) is not lifted a step height above where it is: plan
+    after plan it would ratchet upward."""
+    top = max(float(start[2]), max(target_z, ground) + step_height)
     knots_s = np.array([0.0, 0.5, 1.0])
     knots_z = np.array([float(start[2]), top, target_z])
     s = np.linspace(0.0, 1.0, 17)

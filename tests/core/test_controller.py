@@ -222,9 +222,14 @@ def test_a_foot_left_behind_steps_early() -> None:
     planted = 6  # L4, a hind leg standing at the start
     assert not ctrl.swinging[planted]
     ctrl.foot[planted, 0] -= 0.25  # far behind its hip
+    left = ctrl.foot[planted].copy()
+    hip_before = np.linalg.norm(ctrl.hips_world()[planted] - left)
     ctrl.step(1.0 / 30.0, _controls(legs))
     assert ctrl.forced[planted]
     assert ctrl.swinging[planted]
+    # it leaves in the frame it starts: a frame later the stretched leg would miss it
+    assert ctrl.foot[planted, 2] > left[2] + 1e-4
+    assert np.linalg.norm(ctrl.hips_world()[planted] - ctrl.foot[planted]) < hip_before
 
 
 def test_no_ground_ahead_fails_plans_cleanly_and_keeps_feet_planted() -> None:
@@ -450,7 +455,7 @@ def test_a_crate_that_lands_on_a_planted_foot_pushes_it_aside_not_onto_its_top()
     env.move_boxes(np.array([0]), np.array([[spot[0] + 0.03, spot[1], 0.0]]), np.zeros(1))
     ctrl.step(1.0 / 30.0, _controls(legs, speed=0.0))
     foot = ctrl.foot[planted]
-    assert foot[2] < 0.01  # not lifted 25 cm onto the crate
+    assert foot[2] < 0.05  # stepping away (at most the step height up), not lifted 25 cm onto the crate
     from procloco_addon.core import metrics as mx
 
     box = env.boxes

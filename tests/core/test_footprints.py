@@ -414,3 +414,74 @@ def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
         _same_couple(got, alone)
     assert any(c.ok for c in batched)
     assert plan_footsteps([]) == []
+
+
+def _scaled_plan(scale: float, noise: np.random.Generator | None) -> Couple:
+    """A foot in mid-air stepping onto a low crate, in a world ``scale`` times larger, its inputs
+    perturbed by float noise (a rig read at another scale through single-precision matrices)."""
+    boxes = crates([(0.35 * scale, 0.0, 0.3 * scale, 0.4 * scale, 0.08 * scale, ROLE_STEP_OVER)])
+    env = Environment(Heightmap(np.zeros((13, 13)), np.array([-3.0, -3.0]) * scale, 0.5 * scale), boxes)
+    half = (0.03 * scale, 0.03 * scale)
+    wp = WindowParams(n_cells=40, cell=0.07 * scale, foot_half_extents=half)
+    w = env.window(np.array([0.2, 0.0]) * scale, wp)
+    params = replace(P, step_height=0.1 * scale, slice_size=0.1 * scale, leg_reach=0.6 * scale,
+                     candidate_radius=0.2 * scale, fixed_distance=0.3 * scale,
+                     foot_half_extents=half, edge_height=0.04 * scale)
+
+    def jitter(v: list[float]) -> np.ndarray:
+        a = np.asarray(v) * scale
+        return a if noise is None else a * (1.0 + 1e-8 * noise.standard_normal(a.shape))
+
+    return plan_footstep(w, jitter([0.02, 0.01, 0.03]), jitter([0.4, 0.02]), jitter([0.2, 0.25]), NO_LEGS,
+                         NO_LEGS, params)
+
+
+def test_a_plan_and_its_hundredfold_copy_with_float_noise_agree() -> None:
+    # The clearance profile over flat ground and a crate top has long collinear runs (flat
+    # tops, linear ramps): which of their points become waypoints must not hang on rounding.
+    ref = _scaled_plan(1.0, None)
+    assert ref.ok
+    assert ref.trajectory is not None
+    assert ref.footprint[2] == pytest.approx(0.08)  # onto the crate
+    u = np.linspace(0.0, 1.0, 65)
+    want = ref.trajectory.point_at(u)
+    rng = np.random.default_rng(7)
+    for _ in range(12):
+        got = _scaled_plan(100.0, rng)
+        assert got.ok
+        assert got.trajectory is not None
+        assert np.abs(got.trajectory.point_at(u) / 100.0 - want).max() < 1e-6
+
+
+@pytest.mark.parametrize("crate_y", [-0.2, -0.18])
+def test_a_foot_beside_a_tall_avoided_crate_steps_away_without_climbing_it(crate_y: float) -> None:
+    # The crate's side is 5 or 3 cm from the foot's centre (at -0.18 it overlaps the foot's
+    # cell, as when a moving crate has come at the foot): the foot leaves sideways at its
+    # step height, not over the crate's 30 cm top.
+    w = window([(0.0, crate_y, 0.3, 0.3, 0.3, ROLE_AVOID)])
+    for pref in ((0.3, 0.0), (0.0, 0.25), (-0.25, 0.05)):
+        c = plan(w, pref)
+        assert c.ok
+        assert c.trajectory is not None
+        assert c.trajectory.points[:, 2].max() <= 1.1 * P.step_height
+
+
+def test_a_foot_on_top_of_an_avoided_crate_still_clears_it_on_its_way_off() -> None:
+    w = window([(0.0, 0.0, 0.3, 0.3, 0.2, ROLE_AVOID)])
+    c = plan(w, (0.35, 0.0), start=np.array([0.0, 0.0, 0.2]))
+    assert c.ok
+    assert c.trajectory is not None
+    on_crate = np.all(np.abs(c.trajectory.points[:, :2]) <= 0.15 + 0.03, axis=1)
+    assert np.all(c.trajectory.points[on_crate, 2] >= 0.2 - 1e-9)
+
+
+def test_a_foot_in_the_air_over_its_footprint_comes_down_without_lifting_again() -> None:
+    # A re-plan from mid-air right over the preferred footprint: the foot is not lifted a
+    # step height above where it already is (plan after plan it would ratchet upward).
+    w = window()
+    for z in (0.06, 0.09):
+        c = plan(w, (0.0, 0.0), start=np.array([0.0, 0.0, z]))
+        assert c.ok
+        assert c.trajectory is not None
+        assert np.allclose(c.footprint, [0.0, 0.0, 0.0])
+        assert c.trajectory.points[:, 2].max() <= 1.1 * P.step_height
