@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Biped footprint planner (biped thesis, table 4.1): time per stage of the whole pipeline.
 
-    python benchmarks/bench_biped.py [--repeat 5] [--fps 60]
+    python benchmarks/bench_biped.py [--repeat 5] [--fps 60] [--baseline REV]
 
 Scenes: the thesis' "Jumps" (walk, bend, run, jump a gap, sharp bend, jump, stop; stretched
 to about 51 footprints and 1400 frames like the thesis' run) and "Turns" (bends and a
@@ -23,18 +23,32 @@ Then three comparisons that justify choices made beyond the thesis:
 * footprint re-spacing (the thesis' future work): how well the footprints' strides fit the
   blended clips, and how far the legs must correct the clips, with and without it.
 
+``--baseline REV`` also plans Jumps and Turns with the planner of git revision ``REV`` (its
+``procloco_addon`` extracted to a temporary folder and imported under another name, its own
+clip library), alternating with ours run by run, and prints both sets of medians side by
+side: a before/after in the same run on the same machine load.
+
 Ends with ``RESULT biped total_ms=<ms> per_frame_ms=<ms> search_ms=<ms>`` for Jumps.
 """
 
 from __future__ import annotations
 
 import argparse
+import atexit
+import importlib
+import io
 import platform
+import shutil
 import statistics
+import subprocess
 import sys
+import tarfile
+import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from types import ModuleType
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -252,10 +266,82 @@ def heading_table(db: ClipDatabase, motion: BipedMotion) -> None:
         print(f"{label:<28}{tw.max():>7.2f} deg{tw.mean():>7.2f} deg")
 
 
+def load_baseline(rev: str) -> ModuleType:
+    """The ``core.biped`` package of git revision ``rev``, from a temporary copy of its
+    ``procloco_addon`` renamed so that both versions live in this process."""
+    root = Path(__file__).resolve().parent.parent
+    archive = subprocess.run(
+        ["git", "-C", str(root), "archive", rev, "procloco_addon"], check=True, capture_output=True
+    ).stdout
+    tmp = Path(tempfile.mkdtemp(prefix="procloco-baseline-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
+        tar.extractall(tmp, filter="data")
+    shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
+    sys.path.insert(0, str(tmp))
+    return importlib.import_module("procloco_baseline.core.biped")
+
+
+def baseline_table(rev: str, fps: float, repeat: int) -> None:
+    """Jumps and Turns planned by revision ``rev`` and by this tree, alternately."""
+    base = load_baseline(rev)
+    mods: dict[str, Any] = {}
+    for tag, pkg in (("ours", "procloco_addon.core.biped"), ("base", base.__name__)):
+        synth_m = importlib.import_module(f"{pkg}.synth")
+        skel = synth_m.make_skeleton()
+        db = importlib.import_module(f"{pkg}.database").ClipDatabase(
+            skel, synth_m.standard_library(skel, fps=fps)
+        )
+        mods[tag] = (
+            importlib.import_module(f"{pkg}.planner"),
+            importlib.import_module(f"{pkg}.scenarios"),
+            db,
+        )
+    stages = ("search", "smoothing", "refinement", "trace", "blend_groups", "ik", "total", "per_frame")
+    print(
+        f"\n{'before/after (' + rev + ')':<28}" + "".join(f"{n:>13}" for n in ("ours", "baseline", "ratio"))
+    )
+    for name, allow_run in (("Jumps", True), ("Turns", False)):
+        times: dict[str, list[dict[str, float]]] = {"ours": [], "base": []}
+        frames: dict[str, int] = {}
+        expansions: dict[str, int] = {}
+        for _ in range(repeat):
+            for tag in ("ours", "base"):
+                planner, scenarios, db = mods[tag]
+                sc = scenarios.jumps(1.3) if name == "Jumps" else scenarios.turns()
+                settings = planner.PlannerSettings(dt=1.0 / fps, allow_run=allow_run)
+                m = planner.plan_biped(
+                    db,
+                    sc.surface(),
+                    sc.start_pos,
+                    sc.start_yaw,
+                    sc.goal,
+                    settings=settings,
+                    rng=np.random.default_rng(0),
+                )
+                t = dict(m.timings)
+                t["trace"] = t["playback"] + t["body_trajectory"]
+                t["total"] = sum(v for k, v in m.timings.items() if k != "search")
+                t["per_frame"] = t["total"] / m.n_frames
+                times[tag].append(t)
+                frames[tag], expansions[tag] = m.n_frames, m.expansions
+        for key in stages:
+            ours = 1e3 * statistics.median(t[key] for t in times["ours"])
+            theirs = 1e3 * statistics.median(t[key] for t in times["base"])
+            unit = "ms"
+            line = f"{name + ' ' + key:<28}{ours:>10.3f} {unit}{theirs:>10.3f} {unit}{ours / theirs:>12.2f}x"
+            print(line)
+        print(
+            f"{name + ' frames, A* expansions':<28}{frames['ours']:>7} {expansions['ours']:>5}"
+            f"{frames['base']:>7} {expansions['base']:>5}"
+        )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--fps", type=float, default=60.0)
+    ap.add_argument("--baseline", default="", help="git revision whose planner is timed too")
     args = ap.parse_args()
     print(
         f"# biped planner benchmark — {platform.node()} {platform.processor() or platform.machine()}, "
@@ -289,6 +375,8 @@ def main() -> None:
         f"\nJumps: goal reached within {1e3 * goal:.1f} mm, {motion.expansions} footprints expanded by A*, "
         f"yaw at the end {quat.wrap_angle(motion.root_yaw[-1]):.2f} rad"
     )
+    if args.baseline:
+        baseline_table(args.baseline, args.fps, args.repeat)
     total, per_frame, search = med["total"], med["per_frame"], med["search"]
     print(f"RESULT biped total_ms={total:.1f} per_frame_ms={per_frame:.3f} search_ms={search:.1f}")
 

@@ -427,7 +427,10 @@ class FootprintGraph:
         end_xy = start_xy + quat.rot2(y0, e.end_pos[cols, :2])
         end_yaw = y0 + e.end_yaw[cols]
         nodes, ok = self.match(end_xy, z0 + e.end_pos[cols, 2], end_yaw)
-        blocked = ~ok & surf.straddles_step(end_xy, end_yaw)
+        blocked = np.zeros(len(rows), dtype=bool)
+        miss = np.flatnonzero(~ok)
+        if len(miss):
+            blocked[miss] = surf.straddles_step(end_xy[miss], end_yaw[miss])
         idx = np.flatnonzero(ok)
         if len(idx) == 0:
             return nodes, ok, blocked

@@ -274,20 +274,23 @@ class WalkableSurface:
         out = np.full(len(pts), np.nan)
         nx, ny = self.z.shape
         best = np.full(len(pts), np.inf)
+        todo = np.flatnonzero(ok)
         for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
-            jx = np.clip(ix + dx, 0, nx - 1)
-            jy = np.clip(iy + dy, 0, ny - 1)
-            tid = np.where(ok, self.tri_id[jx, jy], -1)
+            jx = np.clip(ix[todo] + dx, 0, nx - 1)
+            jy = np.clip(iy[todo] + dy, 0, ny - 1)
+            tid = self.tri_id[jx, jy]
             has = tid >= 0
             tri = self.triangles[np.maximum(tid, 0)]
-            w = _barycentric(pts, tri)
+            w = _barycentric(pts[todo], tri)
             # Distance outside the triangle in barycentric units; 0 inside.
             outside = np.maximum(-w.min(axis=-1), 0.0)
             zt = np.sum(w * tri[:, :, 2], axis=-1)
-            better = has & (outside < best - 1e-12)
-            out = np.where(better, zt, out)
-            best = np.where(better, outside, best)
-            if dx == 0 and dy == 0 and np.all(best[ok] == 0.0):
+            better = has & (outside < best[todo] - 1e-12)
+            out[todo[better]] = zt[better]
+            best[todo[better]] = outside[better]
+            # Points inside their triangle are done; the others look at the next neighbour.
+            todo = todo[best[todo] > 0.0]
+            if len(todo) == 0:
                 break
         out = np.where(best <= 0.5, out, np.nan)
         return out.reshape(shape)
