@@ -69,7 +69,6 @@ twist and only swings the bar.
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 from typing import Literal
 
@@ -340,13 +339,20 @@ def orthonormalize_frames(frame: ArrayLike) -> FloatArray:
     y = _normalize(f[..., :, 1])
     x = f[..., :, 0] - _dot(f[..., :, 0], y)[..., None] * y
     xn = np.sqrt(_dot(x, x))
-    # A degenerate x (parallel to y) falls back to any perpendicular axis.
-    alt = np.where((np.abs(y[..., 0]) < 0.9)[..., None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
-    alt = alt - _dot(alt, y)[..., None] * y
-    x = np.where((xn > 1e-9)[..., None], x, alt)
-    x = _normalize(x)
-    z = _cross(x, y)
-    return np.stack([x, y, z], axis=-1)
+    degenerate = ~(xn > 1e-9)
+    if np.any(degenerate):
+        # A degenerate x (parallel to y) falls back to any perpendicular axis.
+        alt = np.where((np.abs(y[..., 0]) < 0.9)[..., None], np.array([1.0, 0.0, 0.0]),
+                       np.array([0.0, 1.0, 0.0]))
+        alt = alt - _dot(alt, y)[..., None] * y
+        x = np.where(degenerate[..., None], alt, x)
+        xn = np.sqrt(_dot(x, x))
+    out = np.empty((*y.shape, 3))
+    x = x / np.maximum(xn, 1e-300)[..., None]
+    out[..., :, 0] = x
+    out[..., :, 1] = y
+    out[..., :, 2] = _cross(x, y)
+    return out
 
 
 # ---------------------------------------------------------------------------------------
@@ -581,11 +587,15 @@ def _tree_modes(forest: PendulumForest) -> tuple[FloatArray, FloatArray]:
 
 @dataclass
 class PendulumState:
-    """Simulation state, in the forest's internal (depth-sorted) order.
+    """Simulation state, in the forest's internal (depth-sorted) order; r = number of trees.
 
     theta, theta_prev: (n, 2) errors at the current and the previous internal step.
-    offset, offset_prev: (n, 3) the part of each anchor's position whose changes perturb
-        it: the world head for a root, the deviation from the animated head otherwise.
+    dev, dev_prev: (n, 3) how far each anchor is from its animated head (simulated minus
+        animated, world) at the last two steps; zero for tree roots.
+    anchor, anchor_prev: (r, 3) world anchors of the tree roots at the last two steps.
+    anchor_frame: (r, 3, 3) world frames of the bodies the trees hang from at the last step
+        and anchor_turn: (r, 3, 3) their rotation over that step (``R_k R_{k-1}ᵀ``); None
+        until :meth:`PendulumSimulator.step` is given anchor frames.
     head: (n, 3) simulated world anchors (bone heads); direction: (n, 3) simulated unit
         bars; local: (n, 3) the same bars in their target frames; target: (n, 3, 3)
         target frames of the last step.
@@ -593,12 +603,16 @@ class PendulumState:
 
     theta: FloatArray
     theta_prev: FloatArray
-    offset: FloatArray
-    offset_prev: FloatArray
+    dev: FloatArray
+    dev_prev: FloatArray
+    anchor: FloatArray
+    anchor_prev: FloatArray
     head: FloatArray
     direction: FloatArray
     local: FloatArray
     target: FloatArray
+    anchor_frame: FloatArray | None = None
+    anchor_turn: FloatArray | None = None
     time: float = 0.0
     steps: int = 0
 
@@ -608,7 +622,9 @@ class PendulumSimulator:
 
     Poses are given in the caller's (input) order: ``head_anim`` (n, 3) animated world bone
     heads and ``frame_anim`` (n, 3, 3) animated world bone frames (columns x, y = head→tail,
-    z; orthonormal, see :func:`orthonormalize_frames`).
+    z; orthonormal, see :func:`orthonormalize_frames`). ``anchor_frame`` (n, 3, 3), optional:
+    world frames of the bodies the trees hang from (only the tree roots' rows are read; see
+    :func:`simulate`).
     """
 
     def __init__(self, forest: PendulumForest, rate_hz: float = DEFAULT_RATE_HZ) -> None:
@@ -616,42 +632,54 @@ class PendulumSimulator:
         fastest = forest.fastest * (MAX_OMEGA_STEP / MAX_FAST_STEP)
         self.h = _internal_step(np.maximum(forest.omega0 * forest.tree_scale, fastest), rate_hz)
         order = forest.order
+        n = forest.n
         self._length = forest.length[order]
         # Trees are stiffened so that their slowest swing runs at the requested ω0 (see
         # _tree_modes); ζ is kept.
         self._omega0 = (forest.omega0 * forest.tree_scale)[order][:, None]
         self._zeta = forest.damping[order][:, None]
         self._gravity = forest.rest_mode[order] == REST_GRAVITY
+        self._any_gravity = bool(np.any(self._gravity))
         self._gain = forest.gain[order]
         self._parent = forest.parent_sorted
-        self._n_roots = forest.levels[0][1] if forest.levels else 0
+        self._n_roots = r = forest.levels[0][1] if forest.levels else 0
         # Reaction on each father's mass per unit of its son's spring acceleration:
-        # its angle gets -(m_s L_s) / (m_f L_f) · F_s, i.e. its mass moves -(m_s L_s / m_f) F_s h².
-        # Sons grouped by father, so that summing their reactions is one reduceat.
+        # its angle gets -(m_s L_s) / (m_f L_f) · F_s, i.e. its mass moves -(m_s L_s / m_f) F_s h²,
+        # with F_s = -ω_s² θ_s along the son's target axes. Sons grouped by father, so that
+        # summing their reactions is one reduceat.
         sons = np.flatnonzero(self._parent >= 0) if forest.reaction else np.zeros(0, dtype=np.int64)
         sons = sons[np.argsort(self._parent[sons], kind="stable")]
         self._sons = sons
         fathers = self._parent[sons]
         self._react_fathers, self._react_starts = np.unique(fathers, return_index=True)
         mass = forest.mass[order]
-        self._reaction_gain = (mass[sons] * self._length[sons] / mass[fathers])[:, None] * self.h**2
+        reaction_gain = (mass[sons] * self._length[sons] / mass[fathers])[:, None] * self.h**2
+        self._react_coef = np.repeat(reaction_gain * self._omega0[sons] ** 2, 2, axis=1)  # (s, 2)
         # Spring step as x⁺ = c1·x - c2·x⁻ (see spring_step), per level, precomputed.
         a = self._zeta * self._omega0 * self.h
         b = (self._omega0 * self.h) ** 2
         c1, c2 = (2.0 - b) / (1.0 + a), (1.0 - a) / (1.0 + a)
         self._c1, self._c2 = c1, c2
-        root = np.arange(forest.n)
+        root = np.arange(n)
         for s, e in forest.levels[1:]:
             root[s:e] = root[self._parent[s:e]]
         self._root = root
+        # Pendulums held back when their body turns: those pulled toward the animation (a
+        # gravity target does not turn with the body); one way, only the roots (a son feels
+        # its body only through its father's swing, as for the body's translation).
+        held = ~self._gravity
+        if not forest.reaction:
+            held[r:] = False
+        self._held = held
         self._levels = [
             _Level(
                 slice(s, e),
                 None if s == 0 else self._parent[s:e],
-                None if s == 0 else root[s:e],
-                self._length[s:e, None],
-                c1[s:e],
-                c2[s:e],
+                slice(max(s - r, 0), max(e - r, 0)),
+                np.repeat(self._length[s:e, None], 3, axis=1),
+                np.repeat(c1[s:e], 2, axis=1),
+                np.repeat(c2[s:e], 2, axis=1),
+                bool(np.any(held[s:e])),
             )
             for s, e in forest.levels
         ]
@@ -659,7 +687,7 @@ class PendulumSimulator:
 
     def targets(self, frame: FloatArray) -> FloatArray:
         """Target frames (internal order) for animated frames (internal order, (..., n, 3, 3))."""
-        if not np.any(self._gravity):
+        if not self._any_gravity:
             return frame
         target = frame.copy()
         target[..., self._gravity, :, :] = _GRAVITY_FRAME
@@ -668,59 +696,118 @@ class PendulumSimulator:
     # -- API -------------------------------------------------------------------------------
 
     def reset(
-        self, head_anim: ArrayLike, frame_anim: ArrayLike, head_velocity: ArrayLike | None = None
+        self,
+        head_anim: ArrayLike,
+        frame_anim: ArrayLike,
+        head_velocity: ArrayLike | None = None,
+        anchor_frame: ArrayLike | None = None,
+        anchor_angular_velocity: ArrayLike | None = None,
     ) -> PendulumState:
         """Start at rest relative to the animated pose (gravity pendulums start where animated).
 
-        head_velocity: (n, 3) world anchor velocities at the start (only the roots' are
-        used), so that a body already in steady motion does not kick its chains.
+        head_velocity: (n, 3) world anchor velocities at the start, and
+        anchor_angular_velocity: (n, 3) world angular velocities (rad/s) of the anchor frames
+        (only the roots' rows are used), so that a body already in steady motion or in a
+        steady turn does not kick its chains. anchor_frame: (n, 3, 3) the anchor frames at
+        the start (see :meth:`step`).
         """
-        head = _take_n(np.asarray(head_anim, dtype=np.float64), self.forest.order)
-        frame = _take_n(np.asarray(frame_anim, dtype=np.float64), self.forest.order)
-        return self._reset_sorted(head, frame, None if head_velocity is None else _take_n(
-            np.asarray(head_velocity, dtype=np.float64), self.forest.order))
+        order = self.forest.order
+
+        def sorted_or_none(value: ArrayLike | None) -> FloatArray | None:
+            return None if value is None else _take_n(np.asarray(value, dtype=np.float64), order)
+
+        return self._reset_sorted(
+            _take_n(np.asarray(head_anim, dtype=np.float64), order),
+            _take_n(np.asarray(frame_anim, dtype=np.float64), order),
+            sorted_or_none(head_velocity),
+            sorted_or_none(anchor_frame),
+            sorted_or_none(anchor_angular_velocity),
+        )
 
     def _reset_sorted(
-        self, head: FloatArray, frame: FloatArray, velocity: FloatArray | None
+        self,
+        head: FloatArray,
+        frame: FloatArray,
+        velocity: FloatArray | None,
+        anchor_frame: FloatArray | None = None,
+        angular_velocity: FloatArray | None = None,
     ) -> PendulumState:
-        n = self.forest.n
+        n, r = self.forest.n, self._n_roots
         target = self.targets(frame)
         theta = _log_dir(frame[:, :, 1], target)
-        # Roots feel their anchor's world motion; with reactions every pendulum feels its
-        # tree root's (see _father_pursuit).
-        felt = self._root if self.forest.reaction else np.arange(self._n_roots)
-        offset = np.zeros((n, 3))
-        offset[: felt.size] = head[felt]
-        offset_prev = offset.copy()
-        if velocity is not None:
-            offset_prev[: felt.size] -= velocity[felt] * self.h
+        anchor = head[:r].copy()
+        anchor_prev = anchor.copy() if velocity is None else anchor - velocity[:r] * self.h
+        turned = None
+        if anchor_frame is not None:
+            turned = np.broadcast_to(np.eye(3), (r, 3, 3)).copy()
+            if angular_velocity is not None:
+                turned = _rotvec_matrix(angular_velocity[:r] * self.h)
         self.state = PendulumState(
-            theta=theta, theta_prev=theta.copy(), offset=offset, offset_prev=offset_prev,
+            theta=theta, theta_prev=theta.copy(), dev=np.zeros((n, 3)), dev_prev=np.zeros((n, 3)),
+            anchor=anchor, anchor_prev=anchor_prev,
             head=head.copy(), direction=_exp_dir(theta, target), local=_exp_local(theta), target=target,
+            anchor_frame=None if anchor_frame is None else orthonormalize_frames(anchor_frame[:r]),
+            anchor_turn=turned,
         )
         return self.state
 
     def step(
-        self, head_anim: ArrayLike, frame_anim: ArrayLike, impulse: ArrayLike | None = None
+        self,
+        head_anim: ArrayLike,
+        frame_anim: ArrayLike,
+        impulse: ArrayLike | None = None,
+        anchor_frame: ArrayLike | None = None,
     ) -> PendulumState:
         """Advance one internal step ``h``, to the animated pose given for its end.
 
         impulse: optional (n, 3) world displacements of the bar tips (masses), applied at
         the start of the step; zero rows leave a pendulum alone.
+        anchor_frame: optional (n, 3, 3) world frames of the bodies the trees hang from (the
+        roots' rows are read): a change of their angular velocity perturbs the trees. Give
+        it at every step; the first one given (at reset or here) starts from a steady body.
         """
         order = self.forest.order
         head = _take_n(np.asarray(head_anim, dtype=np.float64), order)
         frame = _take_n(np.asarray(frame_anim, dtype=np.float64), order)
         imp = None if impulse is None else _take_n(np.asarray(impulse, dtype=np.float64), order)
-        return self._step_sorted(head, frame, imp)
+        spin = None
+        if anchor_frame is not None:
+            anchors = _take_n(np.asarray(anchor_frame, dtype=np.float64), order)
+            spin = self._anchor_spin(orthonormalize_frames(anchors[: self._n_roots]))
+        return self._step_sorted(head, frame, imp, spin)
 
-    def _step_sorted(self, head: FloatArray, frame: FloatArray, impulse: FloatArray | None) -> PendulumState:
+    def _anchor_spin(self, rot: FloatArray) -> FloatArray | None:
+        """Unexplained turn (rotation vectors, (r, 3)) of the anchors reaching ``rot`` (r, 3, 3)."""
+        st = self.state
+        if st is None:
+            raise RuntimeError("call reset() before step()")
+        if st.anchor_frame is None or st.anchor_turn is None:
+            st.anchor_frame = rot.copy()
+            st.anchor_turn = np.broadcast_to(np.eye(3), rot.shape).copy()
+            return None
+        turn = rot @ np.swapaxes(st.anchor_frame, -1, -2)
+        spin = _rotation_log(turn @ np.swapaxes(st.anchor_turn, -1, -2))
+        st.anchor_frame, st.anchor_turn = rot.copy(), turn
+        return _steady_to_zero(spin[None])[0] if np.any(spin) else None
+
+    def _step_sorted(
+        self, head: FloatArray, frame: FloatArray, impulse: FloatArray | None, spin: FloatArray | None = None
+    ) -> PendulumState:
+        """One step in internal order; ``spin`` (r, 3): the anchors' unexplained turn, or None."""
         st = self.state
         if st is None:
             raise RuntimeError("call reset() before step()")
         if impulse is not None and np.any(impulse != 0.0):
             self._son_pursuit(st, impulse)
-        self._father_pursuit(st, head, frame, self.targets(frame), self._reactions(st))
+        target = self.targets(frame)
+        push = self._anchor_push(st, head, spin)
+        hold = None
+        if spin is not None:
+            # In its own target frame, each held bar turns back by the body's turn.
+            spin_n = spin.take(self._root, axis=0)
+            spin_n[~self._held] = 0.0
+            hold = _rotvec_matrix(-np.einsum("mi,mij->mj", spin_n, target))
+        self._father_pursuit(st, head, frame, target, push, hold)
         st.time += self.h
         st.steps += 1
         return st
@@ -770,8 +857,33 @@ class PendulumSimulator:
         st.theta_prev, st.theta = _limit_swing(st.theta_prev, st.theta)
         st.local = _exp_local(st.theta)
 
-    def _reactions(self, st: PendulumState) -> FloatArray | None:
-        """Displacement (n, 3) of every father's mass this step from its sons' springs.
+    def _anchor_push(self, st: PendulumState, head: FloatArray, spin: FloatArray | None) -> FloatArray:
+        """World displacement (n, 3) by which each anchor moved this step beyond what its
+        previous velocity explains, before the father's swing is added (``_father_pursuit``).
+
+        A root's anchor: the second difference of its world position. With reactions every
+        pendulum feels its tree root's, and, when the body turns (``spin``), the turn's
+        carrying of its animated head round the root (the lever arm; a steady turn carries
+        nothing). Minus the sons' spring reactions on their fathers (``_reactions`` below).
+        """
+        r = self._n_roots
+        root_head = head[:r]
+        root_push = root_head - 2.0 * st.anchor + st.anchor_prev
+        st.anchor_prev = st.anchor
+        st.anchor = root_head.copy()
+        if self.forest.reaction:
+            push = root_push.take(self._root, axis=0)
+            if spin is not None and push.shape[0] > r:
+                lever = head[r:] - head[self._root[r:]]
+                push[r:] += _turn_back_delta(lever, spin[self._root[r:]])
+        else:
+            push = np.zeros_like(head)
+            push[:r] = root_push
+        self._reactions(st, push)
+        return push
+
+    def _reactions(self, st: PendulumState, push: FloatArray) -> None:
+        """Subtract from ``push`` (n, 3) every father's mass displacement by its sons' springs.
 
         Linearised, a chain of point masses on rods obeys the two passes exactly when each
         father's acceleration also carries minus its sons' own spring forces, scaled by
@@ -781,15 +893,12 @@ class PendulumSimulator:
         handed on (feeding it back explicitly is unstable for stiff dampers).
         """
         sons = self._sons
-        if sons.size == 0 or not np.any(st.theta):
-            return None
-        force = -(self._omega0 * self._omega0) * st.theta  # springs only: damping is not handed on
-        tgt = st.target
-        tangent = force[:, 0:1] * tgt[:, :, 0] + force[:, 1:2] * tgt[:, :, 2]
-        out = np.zeros_like(st.head)
-        pushes = -self._reaction_gain * tangent[sons]
-        out[self._react_fathers] = np.add.reduceat(pushes, self._react_starts, axis=0)
-        return out
+        if sons.size == 0 or not st.theta.any():
+            return
+        w = st.theta.take(sons, axis=0) * self._react_coef
+        tgt = st.target.take(sons, axis=0)
+        pull = tgt[:, :, 0] * w[:, 0:1] + tgt[:, :, 2] * w[:, 1:2]
+        push[self._react_fathers] -= np.add.reduceat(pull, self._react_starts, axis=0)
 
     def _father_pursuit(
         self,
@@ -797,61 +906,93 @@ class PendulumSimulator:
         head: FloatArray,
         frame: FloatArray,
         target: FloatArray,
-        reaction: FloatArray | None = None,
+        push: FloatArray,
+        hold: FloatArray | None = None,
     ) -> None:
         """Top-down pass (thesis §5.3.1): each anchor's unexplained motion perturbs its bar.
 
         Level by level from the roots: place the anchor (a root's animated head; otherwise
         the father's simulated bone carrying the animated head offset), let the mass keep
         its velocity while the anchor accelerates (the error turns by the angle that the
-        anchor's acceleration displacement makes at the mass), then step both planar
-        springs. The bar geometry is done in each target's local coordinates (x, y = the
-        target direction, z), where the two error angles live.
+        anchor's acceleration displacement makes at the mass) and, when the body turns
+        beyond its steady turn, while the target turns with the body (``hold`` (n, 3, 3):
+        each bar's turn back in its target frame); then step both planar springs. The bar
+        geometry is done in each target's local coordinates (x, y = the target direction,
+        z), where the two error angles live. ``push`` (n, 3): the anchors' pushes before
+        the fathers' swings (``_anchor_push``), world.
+
+        A father's swing is the shortest rotation R from its animated bar a to its simulated
+        bar b; it carries a son's animated offset v to R v. R is the product of the mirror
+        across the plane normal to a and the mirror across the plane normal to h = a + b, so
+        ``R v - v = -2 a (a·v) - 2 h (h·w) / (h·h)`` with ``w = v - 2 a (a·v)``: the parts
+        from a and v are known for every son before the pass, only h waits for the father.
         """
-        # Per pendulum, for its sons: head deviation (3), a × b (3) and a · b (1) of the
-        # shortest rotation from the animated bar a to the simulated bar b.
-        father_data = np.empty((head.shape[0], 7))
-        anim_dir = frame[:, :, 1]
+        r = self._n_roots
+        n_sons = head.shape[0] - r
+        if n_sons:
+            father = self._parent[r:]
+            lever = head[r:] - head.take(father, axis=0)  # each son's animated offset from its father
+            anim_father = frame[:, :, 1].take(father, axis=0)
+            mirrored = anim_father * (-2.0 * np.einsum("mi,mi->m", anim_father, lever))[:, None]
+            mirrored_lever = lever + mirrored  # w
+        new_dev = st.dev_prev  # overwritten level by level once read: the oldest deviation
         for lv in self._levels:
             sl = lv.sl
-            if lv.father is None:
-                offset = head[sl]
-                anchor = offset
-                father_data[sl, 0:3] = 0.0
-            else:
-                fp = lv.father
-                fd = father_data[fp]
-                head_f = head[fp]
-                dev = fd[:, 0:3] + _swing_delta(head[sl] - head_f, fd[:, 3:6], fd[:, 6], frame, fp)
-                anchor = head[sl] + dev
-                father_data[sl, 0:3] = dev
-                # With reactions the body's own acceleration reaches every mass (exact chain);
-                # one way, a son feels the body only through its father's swing.
-                offset = dev + head[lv.root] if self.forest.reaction else dev
-            push = offset - 2.0 * st.offset[sl] + st.offset_prev[sl]
-            st.offset_prev[sl] = st.offset[sl]
-            st.offset[sl] = offset
-            if reaction is not None:
-                push = push - reaction[sl]  # the mass moved by its sons = the anchor moving back
             tgt = target[sl]
+            if lv.father is None:
+                anchor = head[sl]
+                pw = push[sl]
+            else:
+                fp, ss = lv.father, lv.sons
+                half = anim_father[ss] + st.direction.take(fp, axis=0)  # h
+                hh = np.einsum("mi,mi->m", half, half)
+                w = mirrored_lever[ss]
+                if hh.min() > 2e-9:
+                    turned = mirrored[ss] - half * (2.0 * np.einsum("mi,mi->m", half, w) / hh)[:, None]
+                else:
+                    turned = self._turned_opposite(half, hh, w, mirrored[ss], lever[ss], frame[fp, :, 0])
+                dev = new_dev.take(fp, axis=0) + turned
+                d2 = dev - 2.0 * st.dev[sl] + new_dev[sl]
+                new_dev[sl] = dev
+                pw = push[sl] + d2
+                anchor = head[sl] + dev
+            held = hold is not None and lv.held
             theta = st.theta[sl]
-            if np.any(push):
+            if held or pw.any():
+                pl = np.einsum("mi,mij->mj", pw, tgt)  # in target coordinates
                 # Hold the mass, move the anchor by the push: the bar turns (local coordinates).
-                push_local = np.einsum("mi,mij->mj", push, tgt)
-                theta = _nearest_turn(_log_local(lv.length * st.local[sl] - push_local), theta)
+                bar = lv.length * st.local[sl]
+                if held:
+                    assert hold is not None
+                    bar = np.einsum("mij,mj->mi", hold[sl], bar)
+                theta = _nearest_turn(_log_local(bar - pl), theta)
             new_theta = lv.c1 * theta - lv.c2 * st.theta_prev[sl]
             theta, new_theta = _limit_swing(theta, new_theta)
             st.theta_prev[sl] = theta
             st.theta[sl] = new_theta
-            local = _exp_local(new_theta)
-            st.local[sl] = local
-            direction = np.einsum("mij,mj->mi", tgt, local)
-            st.direction[sl] = direction
+            local = _exp_local(new_theta, st.local[sl])
+            st.direction[sl] = np.einsum("mij,mj->mi", tgt, local)
             st.head[sl] = anchor
-            a = anim_dir[sl]
-            father_data[sl, 3:6] = _cross(a, direction)
-            father_data[sl, 6] = _dot(a, direction)
+        st.dev_prev, st.dev = st.dev, new_dev
         st.target = target
+
+    @staticmethod
+    def _turned_opposite(
+        half: FloatArray,
+        hh: FloatArray,
+        w: FloatArray,
+        mirrored: FloatArray,
+        lever: FloatArray,
+        axis: FloatArray,
+    ) -> FloatArray:
+        """``R v - v`` when some fathers' bars point opposite to their animation (h ≈ 0): those
+        turn by π about the father's x axis (``axis`` (m, 3)), ``R v = 2 x (x·v) - v``."""
+        opposite = hh <= 2e-9
+        safe = np.where(opposite, 1.0, hh)
+        turned = mirrored - half * (2.0 * np.einsum("mi,mi->m", half, w) / safe)[:, None]
+        x, v = axis[opposite], lever[opposite]
+        turned[opposite] = 2.0 * (x * np.einsum("mi,mi->m", x, v)[:, None] - v)
+        return turned
 
     # -- output ----------------------------------------------------------------------------
 
@@ -925,29 +1066,45 @@ def _hermite(
 
 @dataclass(frozen=True)
 class _Level:
-    """One depth level of the internal order: its slice, fathers and tree roots (internal
-    indices), lengths (m, 1) and spring coefficients (m, 1)."""
+    """One depth level of the internal order: its slice, fathers (internal indices), its
+    slice among the non-roots (``sons``), lengths (m, 3), spring coefficients (m, 2), and
+    whether any of it is held back by a turning body."""
 
     sl: slice
     father: IntArray | None
-    root: IntArray | None
+    sons: slice
     length: FloatArray
     c1: FloatArray
     c2: FloatArray
+    held: bool
 
 
 _TINY = 1e-300  # added to 0/0-prone ratios: sin(x)/x and atan2(s, c)/s tend to 1 at 0
 
+# (a @ _SKEW).reshape(-1, 3, 3) is the cross-product matrix [a]×, so that [a]× b = a × b.
+_SKEW = np.zeros((3, 9))
+_SKEW[2, 1], _SKEW[1, 2], _SKEW[2, 3], _SKEW[0, 5], _SKEW[1, 6], _SKEW[0, 7] = -1.0, 1.0, 1.0, -1.0, -1.0, 1.0
 
-def _exp_local(theta: FloatArray) -> FloatArray:
-    """Unit bar (m, 3) in target-local coordinates for errors (m, 2): y is the target."""
-    ang = np.sqrt(theta[:, 0] * theta[:, 0] + theta[:, 1] * theta[:, 1]) + _TINY
-    sinc = np.sin(ang) / ang
-    out = np.empty((theta.shape[0], 3))
-    out[:, 0] = sinc * theta[:, 0]
+STEADY_TURN = 1e-12
+"""Anchor turns smaller than this (rad per internal step) are rounding in a steady turn: zero."""
+
+
+def _exp_local(theta: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    """Unit bar (m, 3) in target-local coordinates for errors (m, 2): y is the target.
+    Written into ``out`` (m, 3) when given."""
+    ang = np.hypot(theta[:, 0], theta[:, 1]) + _TINY
+    if out is None:
+        out = np.empty((theta.shape[0], 3))
+    out[:, 0::2] = theta * (np.sin(ang) / ang)[:, None]
     out[:, 1] = np.cos(ang)
-    out[:, 2] = sinc * theta[:, 1]
     return out
+
+
+def _log_local(bar: FloatArray) -> FloatArray:
+    """Errors (m, 2) of bars (m, 3) in target-local coordinates (any positive length)."""
+    sn = np.hypot(bar[:, 0], bar[:, 2]) + _TINY
+    scale = (np.arctan2(sn, bar[:, 1]) + _TINY) / sn
+    return bar[:, 0::2] * scale[:, None]
 
 
 def _limit_swing(before: FloatArray, after: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -985,34 +1142,63 @@ def _nearest_turn(theta: FloatArray, reference: FloatArray) -> FloatArray:
     return theta + (2.0 * np.pi * turns)[:, None] * u
 
 
-def _log_local(bar: FloatArray) -> FloatArray:
-    """Errors (m, 2) of bars (m, 3) in target-local coordinates (any positive length)."""
-    sn = np.sqrt(bar[:, 0] * bar[:, 0] + bar[:, 2] * bar[:, 2]) + _TINY
-    scale = (np.arctan2(sn, bar[:, 1]) + _TINY) / sn
-    out = np.empty((bar.shape[0], 2))
-    out[:, 0] = scale * bar[:, 0]
-    out[:, 1] = scale * bar[:, 2]
-    return out
+def _rotvec_matrix(rotvec: FloatArray) -> FloatArray:
+    """Rotation matrices (..., 3, 3) of rotation vectors (..., 3) (axis × angle, rad).
 
-
-def _swing_delta(
-    v: FloatArray, k: FloatArray, c: FloatArray, frame: FloatArray, father: IntArray
-) -> FloatArray:
-    """``R v - v`` for the shortest rotation R with ``k = a × b`` and ``c = a · b``.
-
-    Rodrigues without trigonometry: ``R v = c v + k × v + k (k·v) / (1 + c)``. Exactly
-    zero when a = b. Opposite bars (c = -1) turn by π about the father's x axis.
+    ``R = I + a [w]× + b [w]×²`` with ``a = sin θ / θ`` and ``b = (1 - cos θ) / θ²``: exactly
+    the identity for a zero vector, accurate for tiny ones.
     """
-    if c.size == 0 or c.min() > -1.0 + 1e-9:
-        return (c - 1.0)[:, None] * v + _cross(k, v) + k * (_dot(k, v) / (1.0 + c))[:, None]
-    opposite = c < -1.0 + 1e-9
-    denom = np.where(opposite, 1.0, 1.0 + c)
-    out = (c - 1.0)[:, None] * v + _cross(k, v) + k * (_dot(k, v) / denom)[:, None]
-    if np.any(opposite):
-        f = frame[father[opposite], :, 0]
-        vo = v[opposite]
-        out[opposite] = 2.0 * (f * _dot(f, vo)[:, None] - vo)
+    w = np.asarray(rotvec, dtype=np.float64)
+    angle = np.sqrt(_dot(w, w))
+    a = np.sinc(angle / np.pi)
+    b = 0.5 * np.sinc(angle / (2.0 * np.pi)) ** 2
+    shape = w.shape[:-1]
+    skew = (w.reshape(-1, 3) @ _SKEW).reshape(*shape, 3, 3)
+    out = (b[..., None, None] * w[..., :, None]) * w[..., None, :]  # b w wᵀ
+    out += a[..., None, None] * skew
+    out.reshape(-1, 9)[:, ::4] += (1.0 - b * angle * angle).reshape(-1, 1)  # a view: out is new
     return out
+
+
+def _rotation_log(rot: FloatArray) -> FloatArray:
+    """Rotation vectors (..., 3) of rotation matrices (..., 3, 3); angles in [0, π]."""
+    s = 0.5 * np.stack(
+        [rot[..., 2, 1] - rot[..., 1, 2], rot[..., 0, 2] - rot[..., 2, 0], rot[..., 1, 0] - rot[..., 0, 1]],
+        axis=-1,
+    )
+    sn = np.sqrt(_dot(s, s))
+    cs = 0.5 * (rot[..., 0, 0] + rot[..., 1, 1] + rot[..., 2, 2] - 1.0)
+    angle = np.arctan2(sn, cs)
+    out = s * np.where(sn > 1e-300, angle / np.maximum(sn, 1e-300), 1.0)[..., None]
+    wide = cs < -0.5  # beyond 120°: sin θ loses the axis; read it from the symmetric part
+    if np.any(wide):
+        r = rot[wide]
+        c = cs[wide]
+        axes = (0.5 * (r + np.swapaxes(r, -1, -2)) - c[:, None, None] * np.eye(3)) / (1.0 - c)[:, None, None]
+        pick = np.argmax(np.diagonal(axes, axis1=-2, axis2=-1), axis=-1)
+        axis = _normalize(axes[np.arange(r.shape[0]), :, pick])
+        sign = np.where(_dot(axis, s[wide]) < 0.0, -1.0, 1.0)
+        out[wide] = axis * (sign * angle[wide])[:, None]
+    return out
+
+
+def _steady_to_zero(spin: FloatArray) -> FloatArray:
+    """Zero the turns (rotation vectors, (..., 3)) below :data:`STEADY_TURN` (in place)."""
+    tiny = _dot(spin, spin) < STEADY_TURN * STEADY_TURN
+    spin[tiny] = 0.0
+    return spin
+
+
+def _turn_back_delta(v: FloatArray, spin: FloatArray) -> FloatArray:
+    """``v - Rᵀ v`` for the rotations R of rotation vectors ``spin`` (m, 3); v (m, 3).
+
+    How far a point at ``v`` from the centre of an unexplained turn was carried by it.
+    """
+    angle = np.sqrt(_dot(spin, spin))
+    a = np.sinc(angle / np.pi)[:, None]
+    b = 0.5 * np.sinc(angle / (2.0 * np.pi))[:, None] ** 2
+    # Rᵀ v = v - a (s × v) + b (s (s·v) - θ² v)
+    return a * _cross(spin, v) - b * (spin * _dot(spin, v)[:, None] - (angle * angle)[:, None] * v)
 
 
 def _take_n(arr: FloatArray, order: IntArray) -> FloatArray:
@@ -1068,15 +1254,25 @@ def simulate(
     *,
     rate_hz: float = DEFAULT_RATE_HZ,
     impulses: Impulses | None = None,
+    anchor_frame: ArrayLike | None = None,
 ) -> PendulumResult:
     """Run the pendulums over a sampled animation and return the layered motion.
 
     times: (T,) strictly increasing sample times (s), e.g. frame / fps;
     head_anim: (T, n, 3) animated world bone heads; frame_anim: (T, n, 3, 3) animated world
     bone frames (re-orthonormalised here). The springs step at ``rate_hz`` whatever the
-    sample rate: the animation is interpolated between samples (heads linearly, frames by
-    normalised linear blend) and the errors are interpolated back at the sample times, so
-    24 and 60 samples per second give the same motion at shared times.
+    sample rate: the animation is interpolated between samples (heads by cubic Hermite,
+    frames by normalised linear blend) and the errors are interpolated back at the sample
+    times, so 24 and 60 samples per second give the same motion at shared times.
+
+    anchor_frame: optional (T, n, 3, 3) world frames of the body each tree hangs from (for a
+    bone chain, the frame of the root bone's parent bone, or of the object); only the tree
+    roots' rows are read (a son hangs from its father). When given, the body's angular
+    motion perturbs the trees: a change of its angular velocity (a sway, a yaw oscillation,
+    a turn starting or stopping) makes the chains lag and swing, a steady turn carries them
+    as animated. Rotations are interpolated between samples by a cubic Hermite curve of
+    their rotation vectors. None: the anchors' rotation carries the chains rigidly (only
+    their translation perturbs).
     """
     t = np.asarray(times, dtype=np.float64).reshape(-1)
     n_t = t.size
@@ -1092,6 +1288,13 @@ def simulate(
         raise ValueError("sample times must be strictly increasing")
     if not (np.all(np.isfinite(head_in)) and np.all(np.isfinite(frame_in))):
         raise ValueError("the animated pose contains NaN or infinite values")
+    anchor_in = None
+    if anchor_frame is not None:
+        anchor_in = np.asarray(anchor_frame, dtype=np.float64)
+        if anchor_in.shape != (n_t, n, 3, 3):
+            raise ValueError(f"expected anchor_frame (T, n, 3, 3) with T={n_t}, n={n}; got {anchor_in.shape}")
+        if not np.all(np.isfinite(anchor_in)):
+            raise ValueError("the anchor frames contain NaN or infinite values")
     sim = PendulumSimulator(forest, rate_hz)
     order = forest.order
     head = head_in[:, order]
@@ -1111,26 +1314,37 @@ def simulate(
     imp_step = np.floor((np.asarray(imp.time, dtype=np.float64) - t[0]) / h).astype(np.int64) + 1
     imp_node = forest.rank[np.asarray(imp.node, dtype=np.int64)] if len(imp.node) else np.zeros(0, np.int64)
     imp_disp = np.asarray(imp.displacement, dtype=np.float64).reshape(-1, 3)
+    kicked = set(imp_step.tolist())
 
     step_times = t[0] + h * np.arange(1, n_steps + 1)
     seg = np.clip(np.searchsorted(t, step_times, side="right") - 1, 0, max(n_t - 2, 0))
     frac = np.clip((step_times - t[seg]) / (t[seg + 1] - t[seg]), 0.0, 1.0) if n_t > 1 else np.zeros(n_steps)
     nxt = np.minimum(seg + 1, n_t - 1)
-    # The animation at the internal steps, interpolated a batch of steps at a time (all the
-    # steps between two samples share one segment).
-    batch_starts = np.flatnonzero(np.r_[True, np.diff(seg) != 0, True]) if n_steps else np.zeros(1, np.int64)
-    for lo_k, hi_k in itertools.pairwise(batch_starts):
-        a, b = seg[lo_k], nxt[lo_k]
+    spins: FloatArray | None = None
+    turning = np.zeros(n_steps, dtype=bool)
+    if anchor_in is not None and n_steps:
+        rot = orthonormalize_frames(anchor_in[:, order[: sim._n_roots]])
+        spins = _anchor_spins(t, rot, h, seg, frac)
+        turning = np.any(spins != 0.0, axis=(1, 2))
+    # The animation at the internal steps, interpolated a batch of steps at a time: one numpy
+    # call per batch instead of per step, the batch small enough (~4k pendulum-steps) for its
+    # temporaries to stay in the processor's cache.
+    batch = max(1, 4096 // n)
+    for lo_k in range(0, n_steps, batch):
+        hi_k = min(lo_k + batch, n_steps)
+        a, b = seg[lo_k:hi_k], nxt[lo_k:hi_k]
         f = frac[lo_k:hi_k, None, None]
-        heads_k = _hermite(head[a], head[b], tangent[a], tangent[b], t[b] - t[a], f)
+        dt = (t[b] - t[a])[:, None, None]
+        heads_k = _hermite(head[a], head[b], tangent[a], tangent[b], dt, f)
         frames_k = orthonormalize_frames(frame[a] + f[..., None] * (frame[b] - frame[a]))
         for k in range(lo_k, hi_k):
             impulse = None
-            hit = imp_step == k + 1
-            if np.any(hit):
+            if k + 1 in kicked:
+                hit = imp_step == k + 1
                 impulse = np.zeros((n, 3))
                 np.add.at(impulse, imp_node[hit], imp_disp[hit])
-            sim._step_sorted(heads_k[k - lo_k], frames_k[k - lo_k], impulse)
+            spin = spins[k] if spins is not None and turning[k] else None
+            sim._step_sorted(heads_k[k - lo_k], frames_k[k - lo_k], impulse, spin)
             theta_steps[k + 1] = sim.state.theta
 
     # Errors at the sample times, interpolated between the internal steps around them.
@@ -1142,3 +1356,35 @@ def simulate(
     out_head, rotation = sim.pose(theta, head, frame)
     rank = forest.rank
     return PendulumResult(out_head[:, rank], rotation[:, rank], theta[:, rank], h)
+
+
+def _anchor_spins(t: FloatArray, rot: FloatArray, h: float, seg: IntArray, frac: FloatArray) -> FloatArray:
+    """Unexplained turns of the anchors at the internal steps: (K, r, 3) rotation vectors.
+
+    t: (T,) sample times, T >= 2; rot: (T, r, 3, 3) anchor rotations at the samples; step k
+    (1..K) lies in segment ``seg[k-1]`` at fraction ``frac[k-1]``. Between samples the
+    rotation follows a cubic Hermite curve of its rotation vector relative to the segment's
+    start, with Catmull-Rom angular velocities at the samples (a steady turn stays steady).
+    With ``D_k = R_k R_{k-1}ᵀ`` the anchor's turn over step k, the unexplained part is
+    ``δ_k = D_k D_{k-1}ᵀ`` (``D_0`` from the angular velocity at the start, so a body already
+    turning steadily does not kick its chains); turns below :data:`STEADY_TURN` are zero.
+    """
+    swap = np.swapaxes
+    rel = _rotation_log(rot[1:] @ swap(rot[:-1], -1, -2))  # (T-1, r, 3): each segment's turn
+    dt = np.diff(t)
+    omega = np.empty_like(rot[..., 0])  # (T, r, 3) world angular velocities
+    if t.size == 2:
+        omega[:] = rel[0] / dt[0]
+    else:
+        omega[1:-1] = (rel[1:] + rel[:-1]) / (t[2:] - t[:-2])[:, None, None]
+        zero = np.zeros_like(rel[0])
+        omega[0] = _end_derivative(t[0], t[1], t[2], zero, rel[0], rel[0] + rel[1])
+        omega[-1] = _end_derivative(t[-1], t[-2], t[-3], zero, -rel[-1], -(rel[-1] + rel[-2]))
+    f = frac[:, None, None]
+    f2, f3 = f * f, f * f * f
+    phi = (dt[seg][:, None, None] * ((f3 - 2 * f2 + f) * omega[seg] + (f3 - f2) * omega[seg + 1])
+           + (-2 * f3 + 3 * f2) * rel[seg])
+    steps = np.concatenate([rot[:1], _rotvec_matrix(phi) @ rot[seg]])  # (K+1, r, 3, 3)
+    turn = steps[1:] @ swap(steps[:-1], -1, -2)  # D_1..D_K
+    before = np.concatenate([_rotvec_matrix(omega[0] * h)[None], turn[:-1]])  # D_0..D_{K-1}
+    return _steady_to_zero(_rotation_log(turn @ swap(before, -1, -2)))
