@@ -39,3 +39,20 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 @pytest.fixture(scope="session")
 def repo_root() -> Path:
     return ROOT
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    """On Blender wheels that crash while the interpreter shuts down (4.2), leave with
+    pytest's own exit status once everything is reported (see tools/bpy_exit.py)."""
+    from tools.bpy_exit import needs_hard_exit
+
+    status = getattr(config, "_procloco_exitstatus", None)
+    if status is not None and needs_hard_exit():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(int(status))
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_sessionfinish(session: pytest.Session, exitstatus: int) -> None:
+    session.config._procloco_exitstatus = exitstatus  # type: ignore[attr-defined]
