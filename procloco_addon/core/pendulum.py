@@ -14,6 +14,9 @@ What perturbs a pendulum:
 - its anchor changing velocity. The root anchor moves with the body (the whole motion
   counts); an inner pendulum's anchor is its father's tip, and only the part of that
   motion that is not in the animation counts (father pursuit, thesis §5.3.1);
+- the body it hangs from changing its *angular* velocity (``anchor_frame``): a sway, a yaw
+  oscillation, a turn starting or stopping leaves the masses behind while the targets turn
+  with the body, so a tail lags and swings; a steady turn carries the chain as animated;
 - explicit impulses (:class:`Impulses`): a mass displaced in world space. The displacement
   drags the ancestors toward it, bottom-up (son pursuit, thesis §5.3.2; a father sums,
   averages or weighs its sons' pulls, ``combine``) and the children follow in the top-down
@@ -40,6 +43,27 @@ Design choices, and where they depart from the thesis:
   part of the anchor's displacement that its previous velocity does not explain
   (the second difference of its position). Constant-velocity motion leaves the chain
   as animated; starts, stops, bobbing and turns make it swing.
+- *Angular inertia.* An animated target is carried by the body's rotation, so without
+  more a rotating body carries its chains rigidly (the thesis's anchors only translate).
+  The same rule is applied to the body's rotation: the masses keep their angular
+  velocity, and what turns them back is the part of the body's turn over a step that its
+  previous turn does not explain, ``δ = D_k D_{k-1}ᵀ`` with ``D_k`` the body's rotation
+  over step k. Every held bar turns back by δ in the world (its error changes by -δ), and
+  with ``reaction`` every anchor below the root also feels how far δ carried it round the
+  root (the lever arm); linearised this is the chain of point masses again, driven by
+  ``e'' + 2ζω0 e' + ω0² e = -β''`` for a body yaw β. Gravity bars do not turn with the
+  body and are not held; with ``reaction`` a gravity son feels its anchor's whole world
+  motion (it follows no animation). Centripetal effects of the chain's own rotation are
+  left out, so that a steady turn leaves the chain as animated; the root anchor's path
+  still counts in full (a tail hanging behind a body that turns about its middle leans
+  out of the turn, steadily). Without ``anchor_frame`` a rotating body carries its chains
+  rigidly, as before.
+- *When a push acts.* The springs step first and the step's pushes (anchor moved, body
+  turned) are applied to the result, with the share ``1 / (1 + ζω0h)`` that makes them
+  exactly the forcing of the discretised spring-damper: a bar on a body yawing at Ω
+  follows the analytic driven response within 1 % in amplitude and 0.01 rad in phase at
+  120 Hz. (Applying a push before the step, to the current bar, leads the response by one
+  internal step.)
 - *Sons push back (``reaction``, default on).* In the thesis a son follows its father but
   never acts on it. One-way coupling cannot hand energy back: a pendulum shaken below its
   resonance swings wider than its pivot, so a lightly damped chain shaken near its
@@ -58,8 +82,12 @@ Design choices, and where they depart from the thesis:
   samples (heads by cubic Hermite, frames by normalised blend) and the pendulum errors are
   interpolated back at the sample times.
 - *Vectorised.* All pendulums of all trees of all characters are one flat array, sorted
-  by depth; each pass is a loop over depth levels, and every level is one numpy
-  operation over all pendulums at that depth.
+  by depth; each pass is a loop over depth levels, and every level is a few numpy
+  operations over all pendulums at that depth. With a few hundred pendulums per level
+  numpy's per-call overhead dominates, so the level loop keeps calls few: what does not
+  wait for the father (the sons' offsets, their first mirror, the anchors' pushes) is
+  done for all pendulums before the loop, gathers use ``take``, and a father's swing
+  reaches its sons as two mirrors (no cross products).
 
 Frames: a pendulum's animated frame is a rotation matrix whose columns are the bone's
 x, y and z axes in world space, y pointing from the bone's head to its tail (Blender's
@@ -592,7 +620,8 @@ class PendulumState:
     theta, theta_prev: (n, 2) errors at the current and the previous internal step.
     dev, dev_prev: (n, 3) how far each anchor is from its animated head (simulated minus
         animated, world) at the last two steps; zero for tree roots.
-    anchor, anchor_prev: (r, 3) world anchors of the tree roots at the last two steps.
+    anchor, anchor_prev: (r + g, 3) world anchors of the tree roots and, with reactions, the
+        animated heads of the g gravity sons, at the last two steps.
     anchor_frame: (r, 3, 3) world frames of the bodies the trees hang from at the last step
         and anchor_turn: (r, 3, 3) their rotation over that step (``R_k R_{k-1}ᵀ``); None
         until :meth:`PendulumSimulator.step` is given anchor frames.
@@ -660,6 +689,10 @@ class PendulumSimulator:
         b = (self._omega0 * self.h) ** 2
         c1, c2 = (2.0 - b) / (1.0 + a), (1.0 - a) / (1.0 + a)
         self._c1, self._c2 = c1, c2
+        # A push (anchor moved, body turned) is a forcing of the spring-damper; its discrete
+        # form x⁺ = c1·x - c2·x⁻ + h²f / (1 + ζω0h) gives it the share 1 / (1 + ζω0h) (the
+        # central-difference damper reads the jump over two steps and takes the rest).
+        self._push_share = 1.0 / (1.0 + a[:, 0])
         root = np.arange(n)
         for s, e in forest.levels[1:]:
             root[s:e] = root[self._parent[s:e]]
@@ -671,6 +704,11 @@ class PendulumSimulator:
         if not forest.reaction:
             held[r:] = False
         self._held = held
+        # Anchors whose own world motion is felt: the roots', and with reactions those of
+        # gravity sons (no animation to follow: the world is their frame).
+        hanging = np.flatnonzero(self._gravity[r:]) + r if forest.reaction else np.zeros(0, np.int64)
+        self._hanging = hanging.astype(np.int64)
+        self._felt = np.concatenate([np.arange(r), self._hanging]).astype(np.int64)
         self._levels = [
             _Level(
                 slice(s, e),
@@ -679,6 +717,7 @@ class PendulumSimulator:
                 np.repeat(self._length[s:e, None], 3, axis=1),
                 np.repeat(c1[s:e], 2, axis=1),
                 np.repeat(c2[s:e], 2, axis=1),
+                np.repeat(self._push_share[s:e, None], 3, axis=1),
                 bool(np.any(held[s:e])),
             )
             for s, e in forest.levels
@@ -735,15 +774,27 @@ class PendulumSimulator:
         n, r = self.forest.n, self._n_roots
         target = self.targets(frame)
         theta = _log_dir(frame[:, :, 1], target)
-        anchor = head[:r].copy()
-        anchor_prev = anchor.copy() if velocity is None else anchor - velocity[:r] * self.h
+        anchor = head.take(self._felt, axis=0)
+        anchor_prev = anchor.copy()
+        dev_prev = np.zeros((n, 3))
+        if velocity is not None:
+            anchor_prev -= velocity.take(self._felt, axis=0) * self.h
+            # A bar starts at rest against its target: an animated one moves with the
+            # animation, a gravity one stays put in the world (its tip moves with its anchor
+            # only). Where a son's anchor (its father's tip) does not move as animated, its
+            # deviation from the animation starts moving: no kick at the first step.
+            moving = velocity.copy()
+            for s, e in self.forest.levels[1:]:
+                fathers = self._parent[s:e]
+                moving[s:e] = np.where(self._gravity[fathers, None], moving[fathers], velocity[s:e])
+            dev_prev[r:] = (velocity[r:] - moving[r:]) * self.h
         turned = None
         if anchor_frame is not None:
             turned = np.broadcast_to(np.eye(3), (r, 3, 3)).copy()
             if angular_velocity is not None:
                 turned = _rotvec_matrix(angular_velocity[:r] * self.h)
         self.state = PendulumState(
-            theta=theta, theta_prev=theta.copy(), dev=np.zeros((n, 3)), dev_prev=np.zeros((n, 3)),
+            theta=theta, theta_prev=theta.copy(), dev=np.zeros((n, 3)), dev_prev=dev_prev,
             anchor=anchor, anchor_prev=anchor_prev,
             head=head.copy(), direction=_exp_dir(theta, target), local=_exp_local(theta), target=target,
             anchor_frame=None if anchor_frame is None else orthonormalize_frames(anchor_frame[:r]),
@@ -804,7 +855,7 @@ class PendulumSimulator:
         hold = None
         if spin is not None:
             # In its own target frame, each held bar turns back by the body's turn.
-            spin_n = spin.take(self._root, axis=0)
+            spin_n = spin.take(self._root, axis=0) * self._push_share[:, None]
             spin_n[~self._held] = 0.0
             hold = _rotvec_matrix(-np.einsum("mi,mij->mj", spin_n, target))
         self._father_pursuit(st, head, frame, target, push, hold)
@@ -864,21 +915,25 @@ class PendulumSimulator:
         A root's anchor: the second difference of its world position. With reactions every
         pendulum feels its tree root's, and, when the body turns (``spin``), the turn's
         carrying of its animated head round the root (the lever arm; a steady turn carries
-        nothing). Minus the sons' spring reactions on their fathers (``_reactions`` below).
+        nothing), except a gravity pendulum, which follows no animation and feels its
+        anchor's whole world motion (its animated head's, its father's swing added in the
+        pass). Minus the sons' spring reactions on their fathers (``_reactions`` below).
         """
         r = self._n_roots
-        root_head = head[:r]
-        root_push = root_head - 2.0 * st.anchor + st.anchor_prev
+        felt = head[:r] if self._hanging.size == 0 else head.take(self._felt, axis=0)
+        felt_push = felt - 2.0 * st.anchor + st.anchor_prev
         st.anchor_prev = st.anchor
-        st.anchor = root_head.copy()
+        st.anchor = felt.copy()
         if self.forest.reaction:
-            push = root_push.take(self._root, axis=0)
+            push = felt_push[:r].take(self._root, axis=0)
             if spin is not None and push.shape[0] > r:
                 lever = head[r:] - head[self._root[r:]]
                 push[r:] += _turn_back_delta(lever, spin[self._root[r:]])
+            if self._hanging.size:
+                push[self._hanging] = felt_push[r:]
         else:
             push = np.zeros_like(head)
-            push[:r] = root_push
+            push[:r] = felt_push
         self._reactions(st, push)
         return push
 
@@ -958,19 +1013,27 @@ class PendulumSimulator:
                 anchor = head[sl] + dev
             held = hold is not None and lv.held
             theta = st.theta[sl]
+            new_theta = lv.c1 * theta - lv.c2 * st.theta_prev[sl]
+            local = None
             if held or pw.any():
-                pl = np.einsum("mi,mij->mj", pw, tgt)  # in target coordinates
-                # Hold the mass, move the anchor by the push: the bar turns (local coordinates).
-                bar = lv.length * st.local[sl]
+                # The mass moved on by the step; the anchor moved by the push meanwhile (and the
+                # target turned by the body's turn) while the mass did not: the bar turns.
+                bar = lv.length * _exp_local(new_theta)
                 if held:
                     assert hold is not None
                     bar = np.einsum("mij,mj->mi", hold[sl], bar)
-                theta = _nearest_turn(_log_local(bar - pl), theta)
-            new_theta = lv.c1 * theta - lv.c2 * st.theta_prev[sl]
-            theta, new_theta = _limit_swing(theta, new_theta)
-            st.theta_prev[sl] = theta
+                bar -= np.einsum("mi,mij->mj", pw * lv.share, tgt)  # in target coordinates
+                new_theta = _nearest_turn(_log_local(bar), new_theta)
+                local = bar / np.sqrt(np.einsum("mi,mi->m", bar, bar))[:, None]
+            limited, new_theta = _limit_swing(theta, new_theta)
+            if limited is not theta:
+                local = None
+            st.theta_prev[sl] = limited
             st.theta[sl] = new_theta
-            local = _exp_local(new_theta, st.local[sl])
+            if local is None:
+                local = _exp_local(new_theta, st.local[sl])
+            else:
+                st.local[sl] = local
             st.direction[sl] = np.einsum("mij,mj->mi", tgt, local)
             st.head[sl] = anchor
         st.dev_prev, st.dev = st.dev, new_dev
@@ -1076,6 +1139,7 @@ class _Level:
     length: FloatArray
     c1: FloatArray
     c2: FloatArray
+    share: FloatArray
     held: bool
 
 

@@ -241,6 +241,38 @@ def test_bake_layers_on_a_generated_action(empty_scene: Any) -> None:
     assert np.abs(after[:, 1] - walking[:, 1]).max() > 1e-3  # the tail tip swings
 
 
+def test_a_lizard_walking_with_visual_yaw_swings_its_tail_behind_its_hips(empty_scene: Any) -> None:
+    """Generate Locomotion with visual yaw sways the lizard's hips (and the tail they carry) by
+    about ±9° at each step; baking secondary motion lets the tail lag behind that sway."""
+    _frames(empty_scene, 1, 72)
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    lizard = _lizard(empty_scene)
+    lizard.procloco.use_visual_yaw = True
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    frames = list(range(1, 73))
+    bones = ["Hips", *TAIL]
+    walking = pose_matrices(lizard, frames, bones)
+    hips_yaw = np.degrees(np.arctan2(walking[:, 0, 1, 1], walking[:, 0, 0, 1]))
+    assert np.ptp(hips_yaw[24:]) > 10.0  # the hips really sway
+    assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+    baked = pose_matrices(lizard, frames, bones)
+    lengths = np.array([lizard.data.bones[b].length for b in TAIL])
+
+    def tip_from_root(mats: np.ndarray) -> np.ndarray:
+        tips = mats[:, -1, :3, 3] + _bone_dirs(mats[:, -1]) * lengths[-1]
+        return tips - mats[:, 1, :3, 3]
+
+    a, b = tip_from_root(walking), tip_from_root(baked)
+    cosine = np.sum(a * b, -1) / np.linalg.norm(a, axis=-1) / np.linalg.norm(b, axis=-1)
+    swing = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    assert swing.max() > 5.0  # several degrees (a rigidly carried tail: under 1.1°)
+    # The hips play as generated; the tail stays attached and keeps its bones' lengths.
+    assert np.abs(baked[:, 0] - walking[:, 0]).max() < 1e-5
+    assert np.abs(baked[:, 1, :3, 3] - walking[:, 1, :3, 3]).max() < 1e-5
+    ends = baked[:, 1:, :3, 3] + _bone_dirs(baked[:, 1:]) * lengths[None, :, None]
+    assert np.abs(ends[:, :-1] - baked[:, 2:, :3, 3]).max() < 1e-5
+
+
 # ---------------------------------------------------------------------------------------
 # Refusals and cancelling change nothing
 

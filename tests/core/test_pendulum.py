@@ -475,3 +475,241 @@ def test_violent_input_stays_bounded(reaction: bool) -> None:
     assert np.all(np.isfinite(state.theta))
     assert worst <= P.MAX_SWING + 1e-12
     assert worst > 1.0  # it was violent
+
+
+# --- the body turning: angular motion of the anchor (thesis §5.3.1, extended) ------------
+
+
+def _yaw(angle: np.ndarray) -> np.ndarray:
+    """Rotations (T, 3, 3) about world Z by ``angle`` (T,)."""
+    c, s = np.cos(angle), np.sin(angle)
+    rot = np.zeros((*angle.shape, 3, 3))
+    rot[..., 0, 0], rot[..., 0, 1], rot[..., 1, 0], rot[..., 1, 1], rot[..., 2, 2] = c, -s, s, c, 1.0
+    return rot
+
+
+# A horizontal bar pointing backwards (body -X): x = Y, y (the bar) = -X, z = Z.
+BACKWARD = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _tail_on_turning_body(
+    body_yaw: np.ndarray, n: int, length: float, centre: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A straight tail of ``n`` bars pointing backwards from the origin, carried rigidly by a
+    body that yaws by ``body_yaw`` (T,) about a vertical axis through ``centre`` (default:
+    the tail's root): heads (T, n, 3), frames (T, n, 3, 3), anchor frames (T, n, 3, 3)."""
+    rot = _yaw(body_yaw)
+    pivot = np.zeros(3) if centre is None else centre
+    rest = np.array([[-length * i, 0.0, 0.0] for i in range(n)])
+    heads = np.einsum("tij,nj->tni", rot, rest - pivot) + pivot
+    frames = np.broadcast_to((rot @ BACKWARD)[:, None], (body_yaw.size, n, 3, 3)).copy()
+    anchors = np.broadcast_to(rot[:, None], (body_yaw.size, n, 3, 3)).copy()
+    return heads, frames, anchors
+
+
+def _world_yaw(direction: np.ndarray) -> np.ndarray:
+    """Yaw (rad) of backward-pointing bars (..., 3): 0 along -X."""
+    return np.arctan2(-direction[..., 1], -direction[..., 0])
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    """Angles (rad) wrapped into [-π, π)."""
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _fit_sine(t: np.ndarray, x: np.ndarray, omega: float) -> complex:
+    """Least-squares phasor of ``x`` (T,) at ``omega``: x ≈ Im(z · exp(iωt))."""
+    basis = np.column_stack([np.sin(omega * t), np.cos(omega * t)])
+    (a, b), *_ = np.linalg.lstsq(basis, x, rcond=None)
+    return complex(a, b)
+
+
+@pytest.mark.parametrize(("ratio", "damping"), [(0.6, 0.3), (1.0, 0.5), (1.7, 0.3)])
+def test_a_body_yawing_back_and_forth_drives_a_bar_like_a_damped_oscillator(
+    ratio: float, damping: float
+) -> None:
+    """Anchor yaw β = β0 sin Ωt about the bar's head: the error e (bar yaw minus body yaw) obeys
+    e'' + 2ζω0 e' + ω0² e = -β''. Its steady response is e/β = Ω² / (ω0² - Ω² + 2iζω0Ω)."""
+    forest = P.PendulumForest([-1], [0.4], 0.6, damping)
+    omega0 = float(forest.omega0[0])
+    omega = ratio * omega0
+    times = np.arange(0, 241) / 30.0
+    beta0 = np.radians(10.0)
+    body = beta0 * np.sin(omega * times)
+    heads, frames, anchors = _tail_on_turning_body(body, 1, 0.4)
+    result = P.simulate(forest, times, heads, frames, anchor_frame=anchors)
+    error = _wrap(_world_yaw(result.rotation[:, 0, :, 1]) - body)
+    steady = times > 3 * 0.6
+    measured = _fit_sine(times[steady], error[steady], omega) / beta0
+    expected = omega**2 / (omega0**2 - omega**2 + 2j * damping * omega0 * omega)
+    assert abs(measured) == pytest.approx(abs(expected), rel=0.01)
+    assert abs(np.angle(measured / expected)) < 0.01  # radians
+    # The bar lags behind the body: its world yaw's phase trails the body's.
+    assert np.angle(1.0 + measured) < -0.05
+    # The bar stays horizontal and keeps its length; its anchor does not move.
+    assert np.abs(result.rotation[:, 0, 2, 1]).max() < 1e-9
+    assert np.abs(result.head - heads).max() < 1e-12
+
+
+def test_without_anchor_frames_a_turning_body_carries_its_chain_rigidly() -> None:
+    times = np.arange(0, 121) / 30.0
+    heads, frames, _anchors = _tail_on_turning_body(np.radians(10.0) * np.sin(6.0 * times), 4, 0.1)
+    result = P.simulate(P.PendulumForest.chains([[0.1] * 4]), times, heads, frames)
+    assert np.abs(result.theta).max() < 1e-9
+
+
+@pytest.mark.parametrize("reaction", [True, False])
+def test_a_tail_on_a_swaying_body_lags_and_swings(reaction: bool) -> None:
+    """A 6-bar tail on hips swaying ±10° at 1.5 Hz: the tip swings by several degrees against
+    the animation and its world yaw lags the body's; bone lengths and the root stay."""
+    times = np.arange(0, 145) / 24.0
+    omega = 2 * np.pi * 1.5
+    body = np.radians(10.0) * np.sin(omega * times)
+    heads, frames, anchors = _tail_on_turning_body(body, 6, 0.1)
+    forest = P.PendulumForest.chains([[0.1] * 6], settling_time=0.6, damping=0.4, reaction=reaction)
+    result = P.simulate(forest, times, heads, frames, anchor_frame=anchors)
+    tip = result.head[:, -1] + 0.1 * result.rotation[:, -1, :, 1]
+    tip_yaw = _world_yaw(tip - result.head[:, 0])
+    steady = times > 2.0
+    assert np.degrees(np.abs(_wrap(tip_yaw - body))[steady].max()) > 4.0
+    tip_phasor = _fit_sine(times[steady], tip_yaw[steady], omega)
+    lag = np.angle(tip_phasor / _fit_sine(times[steady], body[steady], omega))
+    assert -np.pi < lag < -0.2  # radians behind the body
+    lengths = np.linalg.norm(np.diff(result.head, axis=1), axis=-1)
+    assert np.abs(lengths - 0.1).max() < 1e-9
+    assert np.abs(result.head[:, 0] - heads[:, 0]).max() < 1e-12
+
+
+def test_a_steady_turn_carries_the_chain_as_animated() -> None:
+    times = np.arange(0, 97) / 24.0
+    heads, frames, anchors = _tail_on_turning_body(1.5 * times, 6, 0.1)  # 1.5 rad/s from the start
+    result = P.simulate(P.PendulumForest.chains([[0.1] * 6]), times, heads, frames, anchor_frame=anchors)
+    assert np.abs(result.theta).max() < 1e-9
+    assert np.abs(result.rotation - frames).max() < 1e-9
+
+
+def _ramped_yaw(times: np.ndarray, rate: float, start: float, ramp: float) -> np.ndarray:
+    """Yaw of a body at rest that starts turning at ``start`` and reaches ``rate`` (rad/s) in
+    ``ramp`` seconds, then turns steadily."""
+    t = times - start
+    return np.where(t < 0.0, 0.0, np.where(t < ramp, 0.5 * rate * t**2 / ramp, rate * (t - 0.5 * ramp)))
+
+
+def test_a_turn_starting_swings_the_tail_out_of_the_turn_then_it_settles() -> None:
+    times = np.arange(0, 145) / 24.0
+    body = _ramped_yaw(times, 1.5, 0.5, 0.3)
+    heads, frames, anchors = _tail_on_turning_body(body, 6, 0.1)
+    forest = P.PendulumForest.chains([[0.1] * 6], settling_time=0.6, damping=0.35)
+    result = P.simulate(forest, times, heads, frames, anchor_frame=anchors)
+    swing = np.abs(result.theta).max(axis=(1, 2))
+    assert swing[times < 0.5].max() < 1e-12  # at rest: as animated
+    # Turning left (counter-clockwise) leaves the tail behind: it points to the right of the
+    # animated tail, i.e. its world yaw falls short of the body's.
+    tip = result.head[:, -1] + 0.1 * result.rotation[:, -1, :, 1]
+    behind = _wrap(body - _world_yaw(tip - result.head[:, 0]))
+    ramp = (times > 0.5) & (times < 1.0)
+    assert np.degrees(behind[ramp].max()) > 1.0
+    # Once the turn is steady the tail comes back to the animation and stays there.
+    assert swing[times > 0.8 + 4 * 0.6].max() < 0.01 * swing.max()
+
+
+def test_walking_a_circle_leans_the_tail_out_of_the_turn_steadily() -> None:
+    """The body walks a left-hand circle of 0.5 m radius (it turns about a point beside it): the
+    tail's root is swung round the circle, and its centripetal acceleration leaves the tail
+    leaning out of the turn, steadily (the chain's own rotation adds nothing)."""
+    times = np.arange(0, 145) / 24.0
+    body = _ramped_yaw(times, 1.5, 0.5, 0.3)
+    centre = np.array([0.0, 0.5, 0.0])  # on the left of the root: the body faces +X
+    heads, frames, anchors = _tail_on_turning_body(body, 4, 0.1, centre=centre)
+    forest = P.PendulumForest.chains([[0.1] * 4], settling_time=0.6, damping=0.5)
+    result = P.simulate(forest, times, heads, frames, anchor_frame=anchors)
+    tip = result.head[:, -1] + 0.1 * result.rotation[:, -1, :, 1]
+    animated_tip = heads[:, -1] + 0.1 * frames[:, -1, :, 1]
+    outward = np.linalg.norm(tip - centre, axis=1) - np.linalg.norm(animated_tip - centre, axis=1)
+    late = times > 0.8 + 4 * 0.6
+    assert outward[late].min() > 0.005  # metres, on a 0.4 m tail
+    assert np.ptp(outward[late]) < 1e-4  # steady: no swinging
+
+
+def _hanging_under_rolling_body(rate: float, with_anchors: bool) -> np.ndarray:
+    """Errors (T, 3, 2) of a 3-bar gravity chain hanging from a body that rolls ±25° about the
+    chain's top (already rolling at the first sample), sampled ``rate`` times a second."""
+    times = np.arange(0, int(3 * rate) + 1) / rate
+    roll = np.radians(25.0) * np.sin(4.0 * times)
+    c, s = np.cos(roll), np.sin(roll)
+    rot = np.zeros((times.size, 3, 3))
+    rot[:, 0, 0], rot[:, 1, 1], rot[:, 1, 2], rot[:, 2, 1], rot[:, 2, 2] = 1.0, c, -s, s, c
+    heads0, frames0 = _hanging(1, [-1, 0, 1], 0.2)
+    heads = np.einsum("tij,nj->tni", rot, heads0[0])
+    frames = np.einsum("tij,njk->tnik", rot, frames0[0])
+    anchors = np.broadcast_to(rot[:, None], frames.shape).copy() if with_anchors else None
+    forest = P.PendulumForest([-1, 0, 1], [0.2] * 3, 0.6, 0.4, rest_mode=[P.REST_GRAVITY] * 3)
+    return P.simulate(forest, times, heads, frames, anchor_frame=anchors).theta
+
+
+@pytest.mark.parametrize("with_anchors", [True, False])
+def test_a_hanging_chain_under_a_rolling_body_hangs_still(with_anchors: bool) -> None:
+    """The top does not move, gravity targets do not turn with the body, and each bar's anchor
+    (its father's tip) stays put in the world: the chain hangs still, from the first frame."""
+    internal = 1.0 / P.PendulumSimulator(P.PendulumForest([-1, 0, 1], [0.2] * 3, 0.6, 0.4)).h
+    assert np.abs(_hanging_under_rolling_body(internal, with_anchors)).max() < 1e-9
+    # From 24 fps samples, but for the interpolation between them (heads along cubic curves,
+    # frames by normalised blends, which differ slightly on a circle).
+    assert np.degrees(np.abs(_hanging_under_rolling_body(24.0, with_anchors)).max()) < 0.1
+
+
+def test_no_perturbation_is_exact_with_anchor_frames_too() -> None:
+    """A hand-animated wag on a body at rest, anchors given: the wag is animation, not a turn."""
+    times = np.arange(0, 73) / 24.0
+    wag = 0.5 * np.sin(2 * np.pi * 0.8 * times)[:, None] * np.arange(1, 5)[None, :]
+    heads, frames = _chain_pose(np.tile([0.0, 0.0, 1.0], (times.size, 1)), wag, 0.2)
+    anchors = np.broadcast_to(P.orthonormalize_frames(np.eye(3) + 0.1), frames.shape)
+    forest = P.PendulumForest.chains([[0.2] * 4], settling_time=0.4, damping=0.3)
+    result = P.simulate(forest, times, heads, frames, anchor_frame=anchors)
+    assert np.abs(result.theta).max() < 1e-12
+    assert np.abs(result.rotation - frames).max() < 1e-12
+
+
+def test_a_turning_body_gives_the_same_motion_at_24_and_60_fps() -> None:
+    forest = P.PendulumForest.chains([[0.1] * 5], settling_time=0.5, damping=0.35)
+    runs = {}
+    for fps in (24, 60):
+        times = np.arange(0, 3 * fps + 1) / fps
+        body = np.radians(12.0) * np.sin(2 * np.pi * 1.2 * times) * np.minimum(times, 1.0) + _ramped_yaw(
+            times, 1.0, 1.5, 0.4)
+        heads, frames, anchors = _tail_on_turning_body(body, 5, 0.1)
+        runs[fps] = P.simulate(forest, times, heads, frames, anchor_frame=anchors)
+    i24, i60 = np.arange(0, 73, 2), np.arange(0, 181, 5)
+    assert np.degrees(np.abs(runs[60].theta).max()) > 3.0
+    d24, d60 = runs[24].rotation[i24, :, :, 1], runs[60].rotation[i60, :, :, 1]
+    angle = np.arccos(np.clip(np.einsum("tni,tni->tn", d24, d60), -1.0, 1.0))
+    assert np.degrees(angle.max()) < 0.5
+
+
+def test_stepping_with_anchor_frames_starts_from_a_steady_turn() -> None:
+    """The step-by-step API: a body already turning at 2 rad/s is told so at reset and its tail
+    follows as animated; a simulator not told so sees the turn start with a kick."""
+    forest = P.PendulumForest.chains([[0.1] * 3])
+    told, surprised = P.PendulumSimulator(forest), P.PendulumSimulator(forest)
+    h = told.h
+    pose = [_tail_on_turning_body(np.array([2.0 * k * h]), 3, 0.1) for k in range(60)]
+    spin = np.tile([0.0, 0.0, 2.0], (3, 1))
+    told.reset(pose[0][0][0], pose[0][1][0], anchor_frame=pose[0][2][0], anchor_angular_velocity=spin)
+    surprised.reset(pose[0][0][0], pose[0][1][0], anchor_frame=pose[0][2][0])
+    for heads, frames, anchors in pose[1:]:
+        told.step(heads[0], frames[0], anchor_frame=anchors[0])
+        surprised.step(heads[0], frames[0], anchor_frame=anchors[0])
+    assert np.abs(told.state.theta).max() < 1e-9
+    assert np.abs(surprised.state.theta).max() > 1e-3
+
+
+def test_bad_anchor_frames_are_refused() -> None:
+    forest = P.PendulumForest.chains([[0.2, 0.2]])
+    heads, frames = _hanging(3, [-1, 0], 0.2)
+    times = np.array([0.0, 0.1, 0.2])
+    with pytest.raises(ValueError, match="anchor_frame"):
+        P.simulate(forest, times, heads, frames, anchor_frame=frames[:, :1])
+    bad = frames.copy()
+    bad[1, 0, 0, 0] = np.inf
+    with pytest.raises(ValueError, match="anchor frames contain NaN"):
+        P.simulate(forest, times, heads, frames, anchor_frame=bad)

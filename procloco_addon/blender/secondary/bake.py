@@ -19,8 +19,10 @@ Legs come from the rig's leg list (``Object.procloco.legs``), else from leg dete
    :func:`cancel` puts the scene back as it was;
 3. :func:`write` runs the pendulums (``core.pendulum``) and writes a **new** Action: the
    source's channels sampled at every frame, with the chain bones' rotations replaced by
-   the swinging ones. The source Action is left untouched and stays reachable (it is
-   remembered as the rig's previous Action, see :mod:`..actions`).
+   the swinging ones. Each chain hangs from its root's parent bone (or from the object):
+   that body moving *and turning* (a hip sway, a turn starting) makes the chain swing.
+   The source Action is left untouched and stays reachable (it is remembered as the rig's
+   previous Action, see :mod:`..actions`).
 
 Baking again over an Action that a previous bake made starts from that bake's source, so
 repeated bakes replace the secondary motion instead of piling it up.
@@ -539,7 +541,10 @@ def simulate(job: Job) -> tuple[np.ndarray, np.ndarray]:
     times = (job.frames - job.frames[0]) / job.fps
     heads = job.world[..., :3, 3]
     frames = pend.orthonormalize_frames(job.world[..., :3, :3])
-    result = pend.simulate(job.forest, times, heads, frames)
+    # Each chain hangs from its root's parent bone (or the object): that body turning,
+    # swaying or rolling makes the chain lag and swing.
+    anchors = pend.orthonormalize_frames((job.object_world[:, None] @ job.parent_pose)[..., :3, :3])
+    result = pend.simulate(job.forest, times, heads, frames, anchor_frame=anchors)
     job.timings["simulate_s"] = time.perf_counter() - t0
 
     obj = bpy.data.objects[job.obj_name]
