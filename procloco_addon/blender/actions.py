@@ -23,7 +23,8 @@ Rules this module keeps for the animator:
   hidden ID properties on the object, which also keep that Action alive when the file is
   saved. :func:`restore_previous_action` puts it back. Generating again keeps the memory of
   the *user's* Action, not of the previous generation; a replaced generated Action gets a
-  fake user so that it is never lost silently.
+  fake user so that it is never lost silently, unless the new one supersedes it (a re-bake)
+  and nothing else uses it: then it is deleted and the new one takes its name.
 * Rotations are keyed in each pose bone's (or object's) own rotation mode: quaternion, any
   Euler order, or axis-angle, with sign/branch continuity from frame to frame.
 
@@ -171,20 +172,32 @@ def _current_slot_identifier(obj: bpy.types.Object) -> str:
     return str(adt.action_slot.identifier)
 
 
-def assign_generated_action(obj: bpy.types.Object, action: bpy.types.Action) -> None:
+def assign_generated_action(
+    obj: bpy.types.Object, action: bpy.types.Action, *, replace: bool = False
+) -> None:
     """Assign a generated ``action`` to ``obj``, remembering what the user had before.
 
     If the object's current Action is itself generated, the remembered user Action is kept
     (so Clear goes back to the user's animation, however many times one generates), and the
     replaced generated Action gets a fake user so it stays reachable.
+
+    ``replace``: the new Action supersedes the current one (the same operation run again,
+    e.g. a re-bake). Then a current Action that ProcLoco generated and that nothing else
+    uses (this object is its only user, no fake user) is deleted instead, and ``action``
+    takes over its name. Anything else is kept as above; an Action the user made is never
+    deleted.
     """
     adt = obj.animation_data
     if adt is not None and adt.use_tweak_mode:
         raise ActionError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
     current = adt.action if adt is not None else None
+    superseded = None
     if current is not None and is_generated(current):
         if current != action:
-            current.use_fake_user = True
+            if replace and current.users == 1 and not current.use_fake_user:
+                superseded = current
+            else:
+                current.use_fake_user = True
     else:
         obj[_HAS_PREV] = 1
         obj[_PREV_SLOT] = _current_slot_identifier(obj)
@@ -193,6 +206,17 @@ def assign_generated_action(obj: bpy.types.Object, action: bpy.types.Action) -> 
         elif _PREV_ACTION in obj:
             del obj[_PREV_ACTION]
     assign_action(obj, action)
+    if superseded is not None and superseded.users == 0:
+        name = superseded.name
+        bpy.data.actions.remove(superseded)
+        if _unnumbered(action.name) == _unnumbered(name):
+            action.name = name  # "Lizard Secondary" again rather than "Lizard Secondary.001"
+
+
+def _unnumbered(name: str) -> str:
+    """A name without Blender's ``.001``-style suffix."""
+    stem, dot, number = name.rpartition(".")
+    return stem if dot and number.isdigit() else name
 
 
 def generated_action(obj: bpy.types.Object) -> bpy.types.Action | None:

@@ -209,16 +209,74 @@ def test_baking_again_replaces_the_secondary_motion(empty_scene: Any) -> None:
     frames = _frames(empty_scene, 1, 37)
     _key_object_path(lizard, 24, 1.5)
     source = lizard.animation_data.action
+    keys_before = {(c.data_path, c.index): actions.read_channel(source, lizard, c.data_path, c.index)
+                   for c in actions.channels_of(source, lizard)}
     assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
-    first_action = lizard.animation_data.action
+    first_name = lizard.animation_data.action.name
     first = pose_matrices(lizard, frames, TAIL)
-    assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
-    second_action = lizard.animation_data.action
-    assert second_action not in (first_action, source)
-    # Baked on the source again, not on the first bake: same settings, same motion.
+    for _ in range(3):
+        assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+    latest = lizard.animation_data.action
+    # Baked on the source again, not on the earlier bake: same settings, same motion.
     assert np.abs(pose_matrices(lizard, frames, TAIL) - first).max() < 1e-6
     assert actions.previous_action(lizard) == (True, source)
-    assert first_action.use_fake_user  # the earlier bake is kept, never lost silently
+    # Each bake superseded the one before: one bake is left, under the first one's name, and
+    # nothing was given a fake user to clutter the file.
+    assert {a.name for a in bpy.data.actions} == {source.name, first_name}
+    assert latest.name == first_name
+    assert not any(a.use_fake_user for a in bpy.data.actions)
+    # The user's Action is untouched.
+    for (path, index), (f0, v0) in keys_before.items():
+        f1, v1 = actions.read_channel(source, lizard, path, index)
+        assert np.array_equal(f0, f1)
+        assert np.array_equal(v0, v1)
+
+
+@pytest.mark.parametrize("kept_by", ["fake_user", "nla", "other_object"])
+def test_a_bake_something_else_uses_survives_a_rebake(empty_scene: Any, kept_by: str) -> None:
+    lizard = _lizard(empty_scene)
+    _frames(empty_scene, 1, 25)
+    _key_object_path(lizard, 24, 1.0)
+    assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+    first = lizard.animation_data.action
+    if kept_by == "fake_user":
+        first.use_fake_user = True  # the animator keeps this take
+    elif kept_by == "nla":
+        actions.push_to_nla(lizard, first)
+    else:
+        twin = creatures.build_lizard(empty_scene, name="Twin")
+        actions.assign_action(twin, first)
+        _select_only(lizard)
+    assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+    second = lizard.animation_data.action
+    assert second != first
+    assert first.name in bpy.data.actions
+    assert first.use_fake_user  # kept, and reachable even if the strip or the twin goes
+    assert second.name != first.name
+
+
+def test_assign_generated_action_replaces_only_its_own_unused_actions(empty_scene: Any) -> None:
+    """The helper itself: ``replace=True`` deletes the object's current Action only when ProcLoco
+    generated it and nothing else uses it; the user's own Action is remembered, never deleted."""
+    lizard = _lizard(empty_scene)
+    own = bpy.data.actions.new("Hand keyed")
+    actions.assign_action(lizard, own)
+    take1 = actions.new_action(lizard, suffix="Take")
+    actions.assign_generated_action(lizard, take1, replace=True)
+    assert "Hand keyed" in bpy.data.actions
+    assert not own.use_fake_user
+    assert actions.previous_action(lizard) == (True, own)
+    take2 = actions.new_action(lizard, suffix="Take")
+    assert take2.name == f"{lizard.name} Take.001"
+    actions.assign_generated_action(lizard, take2, replace=True)
+    assert take2.name == f"{lizard.name} Take"  # took over the superseded take's name
+    assert {a.name for a in bpy.data.actions} == {"Hand keyed", f"{lizard.name} Take"}
+    # Without replace, a superseded generated Action is kept with a fake user, as before.
+    take3 = actions.new_action(lizard, suffix="Take")
+    actions.assign_generated_action(lizard, take3)
+    assert take2.name in bpy.data.actions
+    assert take2.use_fake_user
+    assert actions.previous_action(lizard) == (True, own)
 
 
 def test_bake_layers_on_a_generated_action(empty_scene: Any) -> None:

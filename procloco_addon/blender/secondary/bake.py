@@ -25,7 +25,9 @@ Legs come from the rig's leg list (``Object.procloco.legs``), else from leg dete
    previous Action, see :mod:`..actions`).
 
 Baking again over an Action that a previous bake made starts from that bake's source, so
-repeated bakes replace the secondary motion instead of piling it up.
+repeated bakes replace the secondary motion instead of piling it up; the earlier bake is
+deleted and the new one takes its name, unless something else uses it (an NLA strip,
+another object) or it was given a fake user, and then it is kept.
 """
 
 from __future__ import annotations
@@ -593,9 +595,14 @@ def write(context: Any, job: Job) -> bpy.types.Action:
         if good:
             actions.write_channels(action, obj, [job.channels[c] for c in good], frames, job.values[:, good])
         actions.write_pose_bone_transforms(action, obj, frames, job.bones, rotations=quats)
-        # Over an earlier bake, that bake is kept (with a fake user) and the remembered
-        # previous Action stays the user's own (see actions.assign_generated_action).
-        actions.assign_generated_action(obj, action)
+        # Over an earlier bake, this bake supersedes it: the earlier one is deleted (and this
+        # one takes its name) unless something else uses it or it was given a fake user, in
+        # which case it is kept with a fake user. The remembered previous Action stays the
+        # user's own (see actions.assign_generated_action).
+        adt = obj.animation_data
+        current = adt.action if adt is not None else None
+        rebake = current is not None and actions.is_generated(current) and SECONDARY_SOURCE in current
+        actions.assign_generated_action(obj, action, replace=rebake)
     except Exception:
         bpy.data.actions.remove(action)
         raise
