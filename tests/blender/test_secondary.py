@@ -297,6 +297,11 @@ def test_bake_layers_on_a_generated_action(empty_scene: Any) -> None:
     assert np.abs(walking[:, 0, :3, 3] - walking[0, 0, :3, 3]).max() > 0.05  # the walk moves the hips
     assert np.abs(after[:, 0] - walking[:, 0]).max() < 1e-5  # and still does
     assert np.abs(after[:, 1] - walking[:, 1]).max() > 1e-3  # the tail tip swings
+    # Baking again supersedes the bake, never the walk it was baked on.
+    baked_name = baked.name
+    assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+    assert {a.name for a in bpy.data.actions} == {walk.name, baked_name}
+    assert lizard.animation_data.action[bake.SECONDARY_SOURCE] == walk
 
 
 def test_a_lizard_walking_with_visual_yaw_swings_its_tail_behind_its_hips(empty_scene: Any) -> None:
