@@ -1,16 +1,22 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """3D pendulums (thesis §5.5.3): cost of secondary motion for a crowd, and a Blender bake.
 
-    python benchmarks/bench_pendulums.py [--chars 110] [--repeat 300] [--no-blender]
+    python benchmarks/bench_pendulums.py [--chars 110] [--repeat 300] [--no-blender] [--baseline REV]
 
 Core section (numpy only): the thesis's figure 5.14 setting, 110 characters with 3 trees of
 pendulums each (a 6-bone tail, a head with two 2-bone antennae, a 3- or 4-bone body chain;
-1550 pendulums for 110 characters), every body walking with a bob and a sway so that every
-tree is perturbed. Rows: one internal step of all pendulums (target update, both passes,
-all spring steps), the same with son pursuit active (impulses on 10 % of the tips), and the
-cost per 30 fps animation frame of a whole ``simulate`` run (sub-steps at the internal rate,
-interpolation and output poses included). CPU time of the process and wall time, best of
-three rounds (the machine is shared). The thesis reports ≈3 ms per step in C++.
+1550 pendulums for 110 characters), every body walking with a bob and a yaw sway so that
+every tree is perturbed. Rows: one internal step of all pendulums (target update, both
+passes, all spring steps); the same with son pursuit active (impulses on 10 % of the tips);
+the same with the bodies' frames given (``anchor_frame``: the sway turns the tails too); and
+the cost per 30 fps animation frame of a whole ``simulate`` run (sub-steps at the internal
+rate, interpolation and output poses included), without and with the bodies' frames. CPU
+time of the process and wall time, best of three rounds (the machine is shared). The thesis
+reports ≈3 ms per step in C++.
+
+``--baseline REV`` also times ``core/pendulum.py`` of git revision ``REV`` (loaded from a
+temporary copy) in the same rounds, on the same inputs, and reports the speed-up and the
+largest difference between the two ``simulate`` runs' errors (rad).
 
 Blender section (needs the ``bpy`` module, skipped with ``--no-blender``): Bake Secondary
 Motion on the Rigify wolf metarig's tail over 250 frames, the body animated by keyframes,
@@ -22,12 +28,18 @@ Ends with ``RESULT pendulums step_ms=<ms> n=<count> ...``.
 from __future__ import annotations
 
 import argparse
+import atexit
+import importlib.util
+import inspect
 import os
 import platform
+import shutil
+import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -74,8 +86,9 @@ def crowd_forest(n_chars: int) -> tuple[pend.PendulumForest, FloatArray, list[in
 
 def crowd_pose(
     t: float, rest: FloatArray, owner: npt.NDArray[np.int64], frames0: FloatArray, phase: FloatArray
-) -> tuple[FloatArray, FloatArray]:
-    """Animated heads and frames of every pendulum at time ``t``: bodies walk, bob and sway."""
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Animated heads (n, 3), frames (n, 3, 3) and body frames (n, 3, 3) of every pendulum at
+    time ``t``: bodies walk, bob and sway (a yaw about their origin)."""
     ph = phase[owner]
     x = 1.2 * t + 0.4 * ph
     bob = 0.02 * np.sin(2 * np.pi * 2.0 * t + ph)
@@ -85,10 +98,33 @@ def crowd_pose(
     heads = np.stack([x + c * px - s * py, 3.0 * owner + s * px + c * py, rest[:, 2] + bob], axis=-1)
     rot = np.zeros((rest.shape[0], 3, 3))
     rot[:, 0, 0], rot[:, 0, 1], rot[:, 1, 0], rot[:, 1, 1], rot[:, 2, 2] = c, -s, s, c, 1.0
-    return heads, rot @ frames0
+    return heads, rot @ frames0, rot
 
 
-def core_section(n_chars: int, repeat: int) -> dict[str, float]:
+def load_baseline(rev: str) -> ModuleType:
+    """``core/pendulum.py`` of git revision ``rev``, imported from a temporary copy (the module
+    needs numpy only)."""
+    root = Path(__file__).resolve().parent.parent
+    source = subprocess.run(["git", "-C", str(root), "show", f"{rev}:procloco_addon/core/pendulum.py"],
+                            check=True, capture_output=True).stdout
+    tmp = Path(tempfile.mkdtemp(prefix="procloco-baseline-"))
+    atexit.register(shutil.rmtree, tmp, ignore_errors=True)
+    path = tmp / "pendulum_baseline.py"
+    path.write_bytes(source)
+    spec = importlib.util.spec_from_file_location("pendulum_baseline", path)
+    if spec is None or spec.loader is None:
+        raise RuntimeError(f"cannot load the pendulum module of revision {rev}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["pendulum_baseline"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _takes_anchors(module: ModuleType) -> bool:
+    return "anchor_frame" in inspect.signature(module.simulate).parameters
+
+
+def core_section(n_chars: int, repeat: int, baseline: ModuleType | None, rev: str) -> dict[str, float]:
     forest, rest, owner_list = crowd_forest(n_chars)
     owner = np.asarray(owner_list)
     rng = np.random.default_rng(0)
@@ -104,62 +140,107 @@ def core_section(n_chars: int, repeat: int) -> dict[str, float]:
     frames0[:, :, 0] = np.cross(dirs, [0.0, 0.0, 1.0]) + np.array([1e-9, 0.0, 0.0])
     frames0 = pend.orthonormalize_frames(frames0)
 
-    sim = pend.PendulumSimulator(forest)
-    h = sim.h
-    head, frame = crowd_pose(0.0, rest, owner, frames0, phase)
+    modules: dict[str, Any] = {"current": pend}
+    if baseline is not None:
+        modules["baseline"] = baseline
+    forests = {k: m.PendulumForest(forest.parent, forest.length, 0.6, 0.35) for k, m in modules.items()}
+    sims = {k: m.PendulumSimulator(forests[k]) for k, m in modules.items()}
+    h = sims["current"].h
+    head, frame, body = crowd_pose(0.0, rest, owner, frames0, phase)
     velocity = (crowd_pose(1e-4, rest, owner, frames0, phase)[0] - head) / 1e-4
+    spin = np.tile([0.0, 0.0, 1.0], (forest.n, 1)) * (
+        0.15 * 2 * np.pi * 0.5 * np.cos(phase[owner]))[:, None]  # the sway's yaw rate at t = 0
     poses = [crowd_pose(k * h, rest, owner, frames0, phase) for k in range(1, repeat + 1)]
     impulse = np.zeros((forest.n, 3))
     hit = rng.choice(forest.n, forest.n // 10, replace=False)
     impulse[hit] = rng.normal(0.0, 0.01, (hit.size, 3))
 
-    def timed(run: Any, count: int) -> tuple[float, float]:
-        """(CPU ms, wall ms) per item, best of three rounds: the machine is shared."""
-        cpu, wall = np.inf, np.inf
-        for _ in range(3):
-            c0, w0 = time.process_time(), time.perf_counter()
-            run()
-            cpu = min(cpu, (time.process_time() - c0) / count * 1e3)
-            wall = min(wall, (time.perf_counter() - w0) / count * 1e3)
-        return cpu, wall
+    def plain(k: str) -> None:
+        sims[k].reset(head, frame, velocity)  # every round replays the same walk from its start
+        for hd, fr, _body in poses:
+            sims[k].step(hd, fr)
 
-    def plain() -> None:
-        sim.reset(head, frame, velocity)  # every round replays the same walk from its start
-        for hd, fr in poses:
-            sim.step(hd, fr)
+    def kicked(k: str) -> None:
+        sims[k].reset(head, frame, velocity)
+        for hd, fr, _body in poses:
+            sims[k].step(hd, fr, impulse)
 
-    def kicked() -> None:
-        sim.reset(head, frame, velocity)
-        for hd, fr in poses:
-            sim.step(hd, fr, impulse)
-
-    step_ms, step_wall = timed(plain, repeat)
-    pursuit_ms, pursuit_wall = timed(kicked, repeat)
+    def turning(k: str) -> None:
+        sims[k].reset(head, frame, velocity, anchor_frame=body, anchor_angular_velocity=spin)
+        for hd, fr, bd in poses:
+            sims[k].step(hd, fr, anchor_frame=bd)
 
     fps, seconds = 30.0, 4.0
     times = np.arange(int(seconds * fps) + 1) / fps
     anim = [crowd_pose(t, rest, owner, frames0, phase) for t in times]
     heads = np.stack([a[0] for a in anim])
     frames = np.stack([a[1] for a in anim])
-    box: list[pend.PendulumResult] = []
-    frame_ms, frame_wall = timed(lambda: box.append(pend.simulate(forest, times, heads, frames)), times.size)
-    swing = float(np.degrees(np.abs(box[-1].theta).max()))
+    bodies = np.stack([a[2] for a in anim])
+    results: dict[str, Any] = {}
+
+    def whole(k: str) -> None:
+        results[k] = modules[k].simulate(forests[k], times, heads, frames)
+
+    def whole_turning(k: str) -> None:
+        results[k + " turning"] = modules[k].simulate(forests[k], times, heads, frames, anchor_frame=bodies)
+
+    rows = [
+        ("one internal step, all pendulums (father pursuit, reactions, springs)", plain, repeat),
+        ("one internal step with son pursuit on 10 % of the tips", kicked, repeat),
+        ("one internal step, the bodies' turning felt (anchor frames)", turning, repeat),
+        (f"per 30 fps frame, whole `simulate` ({1.0 / (h * fps):.0f} sub-steps + I/O)", whole, times.size),
+        ("per 30 fps frame, whole `simulate` with anchor frames", whole_turning, times.size),
+    ]
+    anchored = {plain: False, kicked: False, turning: True, whole: False, whole_turning: True}
+    # (CPU ms, wall ms) per item, best of three rounds; the versions alternate within a round.
+    best: dict[tuple[int, str], tuple[float, float]] = {}
+    for _ in range(3):
+        for r, (_label, run, count) in enumerate(rows):
+            for k, m in modules.items():
+                if anchored[run] and not _takes_anchors(m):
+                    continue
+                c0, w0 = time.process_time(), time.perf_counter()
+                run(k)
+                cpu = (time.process_time() - c0) / count * 1e3
+                wall = (time.perf_counter() - w0) / count * 1e3
+                old = best.get((r, k), (np.inf, np.inf))
+                best[(r, k)] = (min(old[0], cpu), min(old[1], wall))
+    swing = float(np.degrees(np.abs(results["current"].theta).max()))
+    swing_turning = float(np.degrees(np.abs(results["current turning"].theta).max()))
 
     print(f"## Core: {n_chars} characters × 3 trees = {forest.n} pendulums, "
           f"{forest.n_trees} trees, depth {len(forest.levels)}")
-    print(f"internal rate {1.0 / h:.0f} Hz (h = {h * 1e3:.2f} ms); largest swing {swing:.1f}°")
+    print(f"internal rate {1.0 / h:.0f} Hz (h = {h * 1e3:.2f} ms); largest swing {swing:.1f}°, "
+          f"{swing_turning:.1f}° with the bodies' turning felt")
     print()
-    print("| measure | CPU ms | wall ms |")
-    print("|---|---:|---:|")
-    print(f"| one internal step, all pendulums (father pursuit, reactions, springs) | {step_ms:.3f} | "
-          f"{step_wall:.3f} |")
-    print(f"| one internal step with son pursuit on 10 % of the tips | {pursuit_ms:.3f} | "
-          f"{pursuit_wall:.3f} |")
-    print(f"| per 30 fps frame, whole `simulate` ({1.0 / (h * fps):.0f} sub-steps + I/O) | {frame_ms:.3f} | "
-          f"{frame_wall:.3f} |")
-    print("| thesis §5.5.3 (C++, 2012 hardware), per step | | ≈3 |")
+    extra = " baseline CPU ms | speed-up |" if baseline is not None else ""
+    print(f"| measure | CPU ms | wall ms |{extra}")
+    print("|---|---:|---:|" + ("---:|---:|" if baseline is not None else ""))
+    for r, (label, _run, _count) in enumerate(rows):
+        cpu, wall = best[(r, "current")]
+        line = f"| {label} | {cpu:.3f} | {wall:.3f} |"
+        if baseline is not None:
+            if (r, "baseline") in best:
+                base = best[(r, "baseline")][0]
+                line += f" {base:.3f} | {base / cpu:.2f}× |"
+            else:
+                line += " — | — |"
+        print(line)
+    thesis = "| thesis §5.5.3 (C++, 2012 hardware), per step | | ≈3 |"
+    print(thesis + (" | |" if baseline is not None else ""))
     print()
-    return {"step_ms": step_ms, "n": forest.n, "pursuit_ms": pursuit_ms, "frame_ms": frame_ms}
+    out = {"step_ms": best[(0, "current")][0], "n": forest.n, "pursuit_ms": best[(1, "current")][0],
+           "turning_step_ms": best[(2, "current")][0], "frame_ms": best[(3, "current")][0]}
+    if baseline is not None:
+        diff = float(np.abs(results["current"].theta - results["baseline"].theta).max())
+        print(f"Baseline: `core/pendulum.py` of revision {rev}, timed in the same rounds on the same inputs. "
+              f"Largest difference of the errors θ over the 4 s `simulate` run: {diff:.2e} rad "
+              f"(θ reaches {np.radians(swing):.3f} rad).")
+        print()
+        out["baseline_step_ms"] = best[(0, "baseline")][0]
+        out["baseline_frame_ms"] = best[(3, "baseline")][0]
+        out["max_dtheta"] = diff
+    return out
 
 
 def blender_section(frames: int) -> dict[str, float]:
@@ -227,12 +308,17 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=300)
     parser.add_argument("--frames", type=int, default=250)
     parser.add_argument("--no-blender", action="store_true")
+    parser.add_argument("--baseline", default="", help="git revision whose core/pendulum.py is timed too")
     args = parser.parse_args()
     print(f"# bench_pendulums — {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}, numpy {np.__version__}, {time.strftime('%Y-%m-%d')}")
     print()
-    core = core_section(args.chars, args.repeat)
+    baseline = load_baseline(args.baseline) if args.baseline else None
+    core = core_section(args.chars, args.repeat, baseline, args.baseline)
     extra = ""
+    if baseline is not None:
+        extra += (f" baseline_step_ms={core['baseline_step_ms']:.3f} baseline_frame_ms_30fps="
+                  f"{core['baseline_frame_ms']:.3f} max_dtheta={core['max_dtheta']:.2e}")
     if not args.no_blender:
         try:
             import bpy  # noqa: F401
@@ -240,9 +326,9 @@ def main() -> None:
             print("## Blender: skipped (no bpy module)")
         else:
             blender = blender_section(args.frames)
-            extra = f" wolf_tail_bake_s={blender['wolf_tail_bake_s']:.3f}"
+            extra += f" wolf_tail_bake_s={blender['wolf_tail_bake_s']:.3f}"
     print(f"RESULT pendulums step_ms={core['step_ms']:.3f} n={core['n']} "
-          f"frame_ms_30fps={core['frame_ms']:.3f}{extra}")
+          f"frame_ms_30fps={core['frame_ms']:.3f} turning_step_ms={core['turning_step_ms']:.3f}{extra}")
 
 
 if __name__ == "__main__":

@@ -364,8 +364,13 @@ def orthonormalize_frames(frame: ArrayLike) -> FloatArray:
     bone matrices that carry scale or numerical drift.
     """
     f = np.asarray(frame, dtype=np.float64)
-    y = _normalize(f[..., :, 1])
-    x = f[..., :, 0] - _dot(f[..., :, 0], y)[..., None] * y
+    return _frames_from_xy(f[..., :, 0], f[..., :, 1])
+
+
+def _frames_from_xy(x_axis: FloatArray, y_axis: FloatArray) -> FloatArray:
+    """:func:`orthonormalize_frames` of frames given by their x and y columns (..., 3)."""
+    y = _normalize(y_axis)
+    x = x_axis - _dot(x_axis, y)[..., None] * y
     xn = np.sqrt(_dot(x, x))
     degenerate = ~(xn > 1e-9)
     if np.any(degenerate):
@@ -379,7 +384,10 @@ def orthonormalize_frames(frame: ArrayLike) -> FloatArray:
     x = x / np.maximum(xn, 1e-300)[..., None]
     out[..., :, 0] = x
     out[..., :, 1] = y
-    out[..., :, 2] = _cross(x, y)
+    x0, x1, x2, y0, y1, y2 = x[..., 0], x[..., 1], x[..., 2], y[..., 0], y[..., 1], y[..., 2]
+    np.subtract(x1 * y2, x2 * y1, out=out[..., 0, 2])  # z = x × y
+    np.subtract(x2 * y0, x0 * y2, out=out[..., 1, 2])
+    np.subtract(x0 * y1, x1 * y0, out=out[..., 2, 2])
     return out
 
 
@@ -1213,15 +1221,27 @@ def _rotvec_matrix(rotvec: FloatArray) -> FloatArray:
     the identity for a zero vector, accurate for tiny ones.
     """
     w = np.asarray(rotvec, dtype=np.float64)
-    angle = np.sqrt(_dot(w, w))
-    a = np.sinc(angle / np.pi)
-    b = 0.5 * np.sinc(angle / (2.0 * np.pi)) ** 2
     shape = w.shape[:-1]
-    skew = (w.reshape(-1, 3) @ _SKEW).reshape(*shape, 3, 3)
-    out = (b[..., None, None] * w[..., :, None]) * w[..., None, :]  # b w wᵀ
-    out += a[..., None, None] * skew
-    out.reshape(-1, 9)[:, ::4] += (1.0 - b * angle * angle).reshape(-1, 1)  # a view: out is new
-    return out
+    w = w.reshape(-1, 3)
+    angle, a, b = _rodrigues_factors(w)
+    out = w[:, :, None] * (w * b[:, None])[:, None, :]  # b w wᵀ
+    out += ((w * a[:, None]) @ _SKEW).reshape(-1, 3, 3)
+    out.reshape(-1, 9)[:, ::4] += (1.0 - b * angle * angle)[:, None]  # a view: out is new
+    return out.reshape(*shape, 3, 3)
+
+
+def _rodrigues_factors(w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``θ = |w|``, ``sin θ / θ`` and ``(1 - cos θ) / θ² = ½ (sin(θ/2) / (θ/2))²`` of rotation
+    vectors (m, 3), without cancellation for tiny angles and exact at zero."""
+    square = np.einsum("mi,mi->m", w, w)
+    angle = np.sqrt(square)
+    if square.size == 0 or square.max() < 1e-4:
+        # Turns over one step are small: the series to θ⁴ are exact to rounding below 0.01 rad.
+        return angle, 1.0 - square / 6.0 * (1.0 - square / 20.0), 0.5 - square / 24.0 * (1.0 - square / 30.0)
+    t = angle + _TINY
+    half = 0.5 * angle + _TINY
+    sinc_half = np.sin(half) / half
+    return angle, np.sin(t) / t, 0.5 * sinc_half * sinc_half
 
 
 def _rotation_log(rot: FloatArray) -> FloatArray:
@@ -1258,11 +1278,11 @@ def _turn_back_delta(v: FloatArray, spin: FloatArray) -> FloatArray:
 
     How far a point at ``v`` from the centre of an unexplained turn was carried by it.
     """
-    angle = np.sqrt(_dot(spin, spin))
-    a = np.sinc(angle / np.pi)[:, None]
-    b = 0.5 * np.sinc(angle / (2.0 * np.pi))[:, None] ** 2
+    angle, a, b = _rodrigues_factors(spin)
     # Rᵀ v = v - a (s × v) + b (s (s·v) - θ² v)
-    return a * _cross(spin, v) - b * (spin * _dot(spin, v)[:, None] - (angle * angle)[:, None] * v)
+    across = np.einsum("mij,mj->mi", (spin @ _SKEW).reshape(-1, 3, 3), v)
+    along = spin * np.einsum("mi,mi->m", spin, v)[:, None] - (angle * angle)[:, None] * v
+    return a[:, None] * across - b[:, None] * along
 
 
 def _take_n(arr: FloatArray, order: IntArray) -> FloatArray:
@@ -1394,13 +1414,16 @@ def simulate(
     # call per batch instead of per step, the batch small enough (~4k pendulum-steps) for its
     # temporaries to stay in the processor's cache.
     batch = max(1, 4096 // n)
+    frame_xy = np.ascontiguousarray(frame[..., :2])  # (T, n, 3, 2): the columns blended
     for lo_k in range(0, n_steps, batch):
         hi_k = min(lo_k + batch, n_steps)
         a, b = seg[lo_k:hi_k], nxt[lo_k:hi_k]
         f = frac[lo_k:hi_k, None, None]
         dt = (t[b] - t[a])[:, None, None]
         heads_k = _hermite(head[a], head[b], tangent[a], tangent[b], dt, f)
-        frames_k = orthonormalize_frames(frame[a] + f[..., None] * (frame[b] - frame[a]))
+        xy_a = frame_xy[a]
+        xy_k = xy_a + f[..., None] * (frame_xy[b] - xy_a)  # x and y blended; z follows from them
+        frames_k = _frames_from_xy(xy_k[..., 0], xy_k[..., 1])
         for k in range(lo_k, hi_k):
             impulse = None
             if k + 1 in kicked:
