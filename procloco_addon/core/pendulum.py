@@ -997,28 +997,28 @@ class PendulumSimulator:
             lever = head[r:] - head.take(father, axis=0)  # each son's animated offset from its father
             anim_father = frame[:, :, 1].take(father, axis=0)
             mirrored = anim_father * (-2.0 * np.einsum("mi,mi->m", anim_father, lever))[:, None]
-            mirrored_lever = lever + mirrored  # w
+            twice_w = 2.0 * (lever + mirrored)  # 2 w
         new_dev = st.dev_prev  # overwritten level by level once read: the oldest deviation
         for lv in self._levels:
             sl = lv.sl
             tgt = target[sl]
             if lv.father is None:
-                anchor = head[sl]
+                st.head[sl] = head[sl]
                 pw = push[sl]
             else:
                 fp, ss = lv.father, lv.sons
                 half = anim_father[ss] + st.direction.take(fp, axis=0)  # h
                 hh = np.einsum("mi,mi->m", half, half)
-                w = mirrored_lever[ss]
+                w2 = twice_w[ss]
                 if hh.min() > 2e-9:
-                    turned = mirrored[ss] - half * (2.0 * np.einsum("mi,mi->m", half, w) / hh)[:, None]
+                    turned = mirrored[ss] - half * (np.einsum("mi,mi->m", half, w2) / hh)[:, None]
                 else:
-                    turned = self._turned_opposite(half, hh, w, mirrored[ss], lever[ss], frame[fp, :, 0])
+                    turned = self._turned_opposite(half, hh, w2, mirrored[ss], lever[ss], frame[fp, :, 0])
                 dev = new_dev.take(fp, axis=0) + turned
                 d2 = dev - 2.0 * st.dev[sl] + new_dev[sl]
                 new_dev[sl] = dev
                 pw = push[sl] + d2
-                anchor = head[sl] + dev
+                np.add(head[sl], dev, out=st.head[sl])
             held = hold is not None and lv.held
             theta = st.theta[sl]
             new_theta = lv.c1 * theta - lv.c2 * st.theta_prev[sl]
@@ -1031,8 +1031,9 @@ class PendulumSimulator:
                     assert hold is not None
                     bar = np.einsum("mij,mj->mi", hold[sl], bar)
                 bar -= np.einsum("mi,mij->mj", pw * lv.share, tgt)  # in target coordinates
-                new_theta = _nearest_turn(_log_local(bar), new_theta)
-                local = bar / np.sqrt(np.einsum("mi,mi->m", bar, bar))[:, None]
+                pushed, size = _log_local_sized(bar)
+                new_theta = _nearest_turn(pushed, new_theta)
+                local = bar / size[:, None]
             limited, new_theta = _limit_swing(theta, new_theta)
             if limited is not theta:
                 local = None
@@ -1043,7 +1044,6 @@ class PendulumSimulator:
             else:
                 st.local[sl] = local
             st.direction[sl] = np.einsum("mij,mj->mi", tgt, local)
-            st.head[sl] = anchor
         st.dev_prev, st.dev = st.dev, new_dev
         st.target = target
 
@@ -1051,7 +1051,7 @@ class PendulumSimulator:
     def _turned_opposite(
         half: FloatArray,
         hh: FloatArray,
-        w: FloatArray,
+        twice_w: FloatArray,
         mirrored: FloatArray,
         lever: FloatArray,
         axis: FloatArray,
@@ -1060,7 +1060,7 @@ class PendulumSimulator:
         turn by π about the father's x axis (``axis`` (m, 3)), ``R v = 2 x (x·v) - v``."""
         opposite = hh <= 2e-9
         safe = np.where(opposite, 1.0, hh)
-        turned = mirrored - half * (2.0 * np.einsum("mi,mi->m", half, w) / safe)[:, None]
+        turned = mirrored - half * (np.einsum("mi,mi->m", half, twice_w) / safe)[:, None]
         x, v = axis[opposite], lever[opposite]
         turned[opposite] = 2.0 * (x * np.einsum("mi,mi->m", x, v)[:, None] - v)
         return turned
@@ -1172,11 +1172,12 @@ def _exp_local(theta: FloatArray, out: FloatArray | None = None) -> FloatArray:
     return out
 
 
-def _log_local(bar: FloatArray) -> FloatArray:
-    """Errors (m, 2) of bars (m, 3) in target-local coordinates (any positive length)."""
+def _log_local_sized(bar: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Errors (m, 2) of bars (m, 3) in target-local coordinates (any positive length), and the
+    bars' lengths (m,)."""
     sn = np.hypot(bar[:, 0], bar[:, 2]) + _TINY
     scale = (np.arctan2(sn, bar[:, 1]) + _TINY) / sn
-    return bar[:, 0::2] * scale[:, None]
+    return bar[:, 0::2] * scale[:, None], np.hypot(sn, bar[:, 1])
 
 
 def _limit_swing(before: FloatArray, after: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -1414,7 +1415,7 @@ def simulate(
     # call per batch instead of per step, the batch small enough (~4k pendulum-steps) for its
     # temporaries to stay in the processor's cache.
     batch = max(1, 4096 // n)
-    frame_xy = np.ascontiguousarray(frame[..., :2])  # (T, n, 3, 2): the columns blended
+    frame_xy = np.ascontiguousarray(np.swapaxes(frame[..., :2], -1, -2))  # (T, n, 2, 3): x and y
     for lo_k in range(0, n_steps, batch):
         hi_k = min(lo_k + batch, n_steps)
         a, b = seg[lo_k:hi_k], nxt[lo_k:hi_k]
@@ -1423,7 +1424,7 @@ def simulate(
         heads_k = _hermite(head[a], head[b], tangent[a], tangent[b], dt, f)
         xy_a = frame_xy[a]
         xy_k = xy_a + f[..., None] * (frame_xy[b] - xy_a)  # x and y blended; z follows from them
-        frames_k = _frames_from_xy(xy_k[..., 0], xy_k[..., 1])
+        frames_k = _frames_from_xy(xy_k[..., 0, :], xy_k[..., 1, :])
         for k in range(lo_k, hi_k):
             impulse = None
             if k + 1 in kicked:

@@ -658,6 +658,22 @@ def test_a_hanging_chain_under_a_rolling_body_hangs_still(with_anchors: bool) ->
     assert np.degrees(np.abs(_hanging_under_rolling_body(24.0, with_anchors)).max()) < 0.1
 
 
+def test_a_chain_animated_straight_up_hangs_down_attached() -> None:
+    """Gravity bars whose animation points straight up swing opposite to it: each father's
+    swing is then a half turn, and its sons still hang from its tip."""
+    times = np.arange(0, 97) / 24.0
+    up = np.stack([np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), np.array([0.0, -1.0, 0.0])], axis=-1)
+    heads = np.zeros((times.size, 3, 3))
+    heads[:, :, 2] = [0.0, 0.2, 0.4]
+    heads[:, :, 0] = 0.3 * times[:, None]  # walking along X
+    frames = np.broadcast_to(up, (times.size, 3, 3, 3)).copy()
+    forest = P.PendulumForest([-1, 0, 1], [0.2] * 3, 0.5, 1.0, rest_mode=[P.REST_GRAVITY] * 3)
+    result = P.simulate(forest, times, heads, frames)
+    tails = result.head[:, :-1] + 0.2 * result.rotation[:, :-1, :, 1]
+    assert np.abs(tails - result.head[:, 1:]).max() < 1e-9
+    assert np.allclose(result.rotation[-1, :, :, 1], [0.0, 0.0, -1.0], atol=1e-6)
+
+
 def test_no_perturbation_is_exact_with_anchor_frames_too() -> None:
     """A hand-animated wag on a body at rest, anchors given: the wag is animation, not a turn."""
     times = np.arange(0, 73) / 24.0
