@@ -171,6 +171,32 @@ def test_same_motion_at_24_and_60_fps(empty_scene: Any) -> None:
     assert np.abs(poses[24][..., :3, 3] - poses[60][..., :3, 3]).max() < 5e-3
 
 
+def test_a_body_swaying_in_yaw_bakes_the_same_swing_at_24_and_60_fps(empty_scene: Any) -> None:
+    """The object sways ±15° in yaw, the same motion in seconds at both frame rates (a driver):
+    the tail lags behind it alike (the turn is interpolated between frames, the springs run at
+    their own rate)."""
+    poses, rest = {}, {}
+    for fps in (24, 60):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        scene = bpy.context.scene
+        lizard = _lizard(scene)
+        frames = _frames(scene, 1, 1 + 2 * fps, fps)
+        yaw = lizard.driver_add("rotation_euler", 2).driver
+        yaw.type = "SCRIPTED"
+        t = f"((frame - 1) / {fps})"
+        yaw.expression = f"radians(15) * sin(2 * pi * 1.2 * {t}) * min({t}, 1)"
+        shared = frames[:: fps // 12]  # every 1/12 s
+        rest[fps] = pose_matrices(lizard, shared, TAIL)
+        assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+        poses[fps] = pose_matrices(lizard, shared, TAIL)
+    cosine = np.sum(_bone_dirs(poses[60]) * _bone_dirs(rest[60]), -1)
+    swing = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    d24, d60 = _bone_dirs(poses[24]), _bone_dirs(poses[60])
+    angle = np.degrees(np.arccos(np.clip(np.sum(d24 * d60, -1), -1.0, 1.0)))
+    assert swing.max() > 5.0  # the tail swings
+    assert angle.max() < 0.3  # degrees
+
+
 def test_rig_without_animation_data_hangs_its_tail_with_gravity(empty_scene: Any) -> None:
     lizard = _lizard(empty_scene)
     frames = _frames(empty_scene, 1, 48)
