@@ -1,7 +1,8 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """3D pendulums (thesis §5.5.3): cost of secondary motion for a crowd, and a Blender bake.
 
-    python benchmarks/bench_pendulums.py [--chars 110] [--repeat 300] [--no-blender] [--baseline REV]
+    python benchmarks/bench_pendulums.py [--chars 110] [--repeat 300] [--no-blender]
+                                         [--baseline REV] [--current REV]
 
 Core section (numpy only): the thesis's figure 5.14 setting, 110 characters with 3 trees of
 pendulums each (a 6-bone tail, a head with two 2-bone antennae, a 3- or 4-bone body chain;
@@ -16,7 +17,8 @@ reports ≈3 ms per step in C++.
 
 ``--baseline REV`` also times ``core/pendulum.py`` of git revision ``REV`` (loaded from a
 temporary copy) in the same rounds, on the same inputs, and reports the speed-up and the
-largest difference between the two ``simulate`` runs' errors (rad).
+largest difference between the two ``simulate`` runs' errors (rad). ``--current REV`` times
+that revision's module in place of the working tree's (to compare two commits).
 
 Blender section (needs the ``bpy`` module, skipped with ``--no-blender``): Bake Secondary
 Motion on the Rigify wolf metarig's tail over 250 frames, the body animated by keyframes,
@@ -101,21 +103,21 @@ def crowd_pose(
     return heads, rot @ frames0, rot
 
 
-def load_baseline(rev: str) -> ModuleType:
-    """``core/pendulum.py`` of git revision ``rev``, imported from a temporary copy (the module
-    needs numpy only)."""
+def load_revision(rev: str, name: str = "pendulum_baseline") -> ModuleType:
+    """``core/pendulum.py`` of git revision ``rev``, imported from a temporary copy as module
+    ``name`` (the module needs numpy only)."""
     root = Path(__file__).resolve().parent.parent
     source = subprocess.run(["git", "-C", str(root), "show", f"{rev}:procloco_addon/core/pendulum.py"],
                             check=True, capture_output=True).stdout
     tmp = Path(tempfile.mkdtemp(prefix="procloco-baseline-"))
     atexit.register(shutil.rmtree, tmp, ignore_errors=True)
-    path = tmp / "pendulum_baseline.py"
+    path = tmp / f"{name}.py"
     path.write_bytes(source)
-    spec = importlib.util.spec_from_file_location("pendulum_baseline", path)
+    spec = importlib.util.spec_from_file_location(name, path)
     if spec is None or spec.loader is None:
         raise RuntimeError(f"cannot load the pendulum module of revision {rev}")
     module = importlib.util.module_from_spec(spec)
-    sys.modules["pendulum_baseline"] = module
+    sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
 
@@ -124,7 +126,9 @@ def _takes_anchors(module: ModuleType) -> bool:
     return "anchor_frame" in inspect.signature(module.simulate).parameters
 
 
-def core_section(n_chars: int, repeat: int, baseline: ModuleType | None, rev: str) -> dict[str, float]:
+def core_section(
+    n_chars: int, repeat: int, baseline: ModuleType | None, rev: str, current: ModuleType = pend
+) -> dict[str, float]:
     forest, rest, owner_list = crowd_forest(n_chars)
     owner = np.asarray(owner_list)
     rng = np.random.default_rng(0)
@@ -140,7 +144,7 @@ def core_section(n_chars: int, repeat: int, baseline: ModuleType | None, rev: st
     frames0[:, :, 0] = np.cross(dirs, [0.0, 0.0, 1.0]) + np.array([1e-9, 0.0, 0.0])
     frames0 = pend.orthonormalize_frames(frames0)
 
-    modules: dict[str, Any] = {"current": pend}
+    modules: dict[str, Any] = {"current": current}
     if baseline is not None:
         modules["baseline"] = baseline
     forests = {k: m.PendulumForest(forest.parent, forest.length, 0.6, 0.35) for k, m in modules.items()}
@@ -309,12 +313,18 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=250)
     parser.add_argument("--no-blender", action="store_true")
     parser.add_argument("--baseline", default="", help="git revision whose core/pendulum.py is timed too")
+    parser.add_argument("--current", default="", help="time this git revision's core/pendulum.py instead "
+                        "of the working tree's (e.g. to compare two commits)")
     args = parser.parse_args()
     print(f"# bench_pendulums — {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}, numpy {np.__version__}, {time.strftime('%Y-%m-%d')}")
     print()
-    baseline = load_baseline(args.baseline) if args.baseline else None
-    core = core_section(args.chars, args.repeat, baseline, args.baseline)
+    baseline = load_revision(args.baseline) if args.baseline else None
+    current = load_revision(args.current, "pendulum_current") if args.current else pend
+    if args.current:
+        print(f"(core section: `core/pendulum.py` of revision {args.current})")
+        print()
+    core = core_section(args.chars, args.repeat, baseline, args.baseline, current)
     extra = ""
     if baseline is not None:
         extra += (f" baseline_step_ms={core['baseline_step_ms']:.3f} baseline_frame_ms_30fps="
