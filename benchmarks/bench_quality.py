@@ -32,9 +32,11 @@ cells, slices and edge height in leg lengths), unless ``--core-defaults``.
 Each row gives, against its threshold: the largest stance-foot slide (2 mm), penetration
 below a surface and into an avoided obstacle (5 mm), IK error on reachable targets (1 cm),
 the largest target extension (legs asked to reach more than their length, 1), the worst
-gait-phase error (1 frame), then planner failures, forced steps and straight fallback
-steps. ``--crowd N`` adds N spiders of the crowd benchmark's scene (moving crates): how
-many legs were asked past their length, and planner failures per step. The last line is
+gait-phase error (1 frame), then planner failures, forced steps, straight fallback steps and
+swing frames bent to what the leg reaches (a swinging foot whose trajectory point the leg
+cannot reach goes to the closest point it can). ``--crowd N`` adds N spiders of the crowd
+benchmark's scene (moving crates): how many legs were asked past their length, and planner
+failures per step. The last line is
 ``RESULT quality scenarios=<n> failing=<n> worst_slide_mm=<mm> worst_reach_cm=<cm>``.
 """
 
@@ -236,6 +238,7 @@ class Row:
     failed: int
     forced: int
     fallback: int
+    bent: int
     seconds: float
 
     @property
@@ -281,7 +284,7 @@ def run_one(kind_name: str, terrain_name: str, speed_frac: float, frames: int, f
         kind_name, terrain_name, speed_frac, report,
         travel=float(np.linalg.norm(res.pelvis_position[-1, 0, :2] - res.pelvis_position[0, 0, :2])) / leg,
         failed=int(res.stats["n_failed"].sum()), forced=int(res.stats["n_forced"].sum()),
-        fallback=int(res.stats["n_fallback"].sum()), seconds=seconds,
+        fallback=int(res.stats["n_fallback"].sum()), bent=int(res.stats["n_bent"].sum()), seconds=seconds,
     )
     return row, res
 
@@ -293,7 +296,8 @@ def _fmt(value: float, limit: float, spec: str) -> str:
 
 def print_table(rows: list[Row]) -> None:
     head = (f"{'creature':<11}{'terrain':<13}{'speed':>5} {'slide mm':>9} {'pen mm':>8} {'avoid mm':>9} "
-            f"{'reach cm':>9} {'ext':>7} {'phase':>6} {'fail':>5} {'forced':>6} {'fallbk':>6} {'travel':>6} "
+            f"{'reach cm':>9} {'ext':>7} {'phase':>6} {'fail':>5} {'forced':>6} {'fallbk':>6} {'bent':>5} "
+            f"{'travel':>6} "
             f"{'s':>5}")
     print(head)
     print("-" * len(head))
@@ -308,7 +312,7 @@ def print_table(rows: list[Row]) -> None:
             f"{_fmt(float(rep.reach_error.max()) * 100, mx.MAX_REACH_ERROR * 100, '8.3f')} "
             f"{_fmt(float(rep.extension.max()), mx.MAX_EXTENSION, '6.3f')} "
             f"{_fmt(phase, mx.MAX_PHASE_ERROR_FRAMES, '5.2f')} "
-            f"{r.failed:>5d} {r.forced:>6d} {r.fallback:>6d} {r.travel:>6.2f} {r.seconds:>5.1f}"
+            f"{r.failed:>5d} {r.forced:>6d} {r.fallback:>6d} {r.bent:>5d} {r.travel:>6.2f} {r.seconds:>5.1f}"
         )
 
 

@@ -172,6 +172,27 @@ def stroke_limits(
     return out[:c]
 
 
+def leg_arch_shares(legs: LegBatch) -> FloatArray:
+    """``(N,)`` how high each leg's inner joints rise above its hip-foot line at rest, as a
+    share of the half-height a two-segment leg of the same length bends over that distance
+    (``sqrt(L² - C²) / 2``): near 1 for a spider's or an insect's legs (knees above the
+    hip), 0 for legs whose knees bend forward or back under the hip."""
+    joints = legs.rest_joints
+    rows = np.arange(legs.n_legs)
+    hip = joints[:, 0]
+    foot = joints[rows, legs.n_segments]
+    d = foot - hip
+    chord2 = np.einsum("ij,ij->i", d, d)
+    inner = joints[:, 1:]
+    along = np.einsum("nkj,nj->nk", inner - hip[:, None], d)
+    t = np.clip(along / np.maximum(chord2, 1e-18)[:, None], 0.0, 1.0)
+    above = inner[..., 2] - (hip[:, None, 2] + t * d[:, None, 2])
+    valid = np.arange(inner.shape[1])[None, :] < (legs.n_segments - 1)[:, None]
+    rise = np.where(valid, above, 0.0).max(axis=1, initial=0.0)
+    half = 0.5 * np.sqrt(np.maximum(legs.leg_length**2 - chord2, 0.0))
+    return np.asarray(np.clip(np.where(half > 1e-9, rise / np.maximum(half, 1e-12), 0.0), 0.0, 1.0))
+
+
 @dataclass(frozen=True)
 class ControllerParams:
     """Controller knobs. Lengths marked "× leg" are fractions of the character's mean leg
@@ -272,7 +293,8 @@ class StepControls:
 class StepStats:
     """Planner statistics of one step: plans, failed plans, couples and paths evaluated,
     windows cut, re-plans, forced steps, plans retried without the other feet and slices
-    (``n_relaxed``), straight fallback steps (``n_fallback``); and seconds per phase
+    (``n_relaxed``), straight fallback steps (``n_fallback``), swinging feet moved to the
+    closest point their leg reaches (``n_bent``); and seconds per phase
     (``maps``, ``planning``, ``ik``, ``physics``, ``spine``, ``rest``)."""
 
     n_plans: int = 0
@@ -284,6 +306,7 @@ class StepStats:
     n_forced: int = 0
     n_relaxed: int = 0
     n_fallback: int = 0
+    n_bent: int = 0
     seconds: dict[str, float] = field(default_factory=dict)
 
 
@@ -362,6 +385,7 @@ class Controller:
         self.rest_height = -rest_vec[:, 2]
         self.rest_horizontal = np.linalg.norm(rest_vec[:, :2], axis=1)
         rest_dist = np.linalg.norm(rest_vec, axis=1)
+        self.leg_arch = leg_arch_shares(legs)
         # comfortable reach: never tighter than the rest pose itself
         self.comfort_reach = np.minimum(
             np.maximum(p.step_early_reach * legs.leg_length, 1.02 * rest_dist), 0.995 * legs.leg_length
@@ -429,6 +453,7 @@ class Controller:
         self.preferred = self.foot.copy()
         self.swinging = np.zeros(n, dtype=bool)
         self.forced = np.zeros(n, dtype=bool)
+        self.forced_behind = np.zeros(n, dtype=bool)  # forced steps of feet left behind
         self.dodged = np.zeros(n, dtype=bool)  # this swing was re-planned for an obstacle closing in
         self.forced_elapsed = np.zeros(n)
         self.forced_duration = np.ones(n)
@@ -443,6 +468,7 @@ class Controller:
         self.plan_speed = np.zeros(n)
         self.plan_spacing = np.zeros((n, 2))
         self.plan_failed = np.zeros(n, dtype=bool)
+        self.blocked = np.zeros(n, dtype=bool)  # swings a moving obstacle cut this step
         self.restarts = np.zeros(n, dtype=np.int64)  # steps started again because the spot was taken
         self.angles = legs.rest_angles.copy()
         self.ik_result: IKResult | None = None
@@ -622,34 +648,59 @@ class Controller:
             pref[g.nodes] = h
         return pref
 
-    def planner_params(self, char: int, step_height: float, leg_reach: float | None = None) -> PlannerParams:
+    def planner_params(
+        self, char: int, step_height: float, leg_reach: float | None = None, leg: int | None = None,
+        sweep: float = 0.0, sink: bool = True,
+    ) -> PlannerParams:
         """The planner settings of a character for this step (``leg_reach``: horizontal
-        distance allowed from the hip reference, default the mean leg length)."""
+        distance allowed from the hip reference, default the mean leg length). With ``leg``,
+        also that leg's checks against its hip's height: its 3D reach (the comfortable
+        reach, ``sweep`` metres of coming stance sweep, the pelvis sinking by at most as much
+        as the reach guard lowers it, ``guard_max_drop`` of its thickness, or without
+        ``sink`` half of ``max_drop``: a foot stepping because it was left behind lands where
+        it will not be left behind again at once), its line to the hip clear of
+        the ground (bowed by half the arch its knees take at rest), and no footprint hanging
+        over a height step of more than ``snap_tolerance`` of the step height (or a 1:4 slope
+        under the foot)."""
         p = self.params
-        leg = float(self.char_leg_length[char])
-        reach = leg if leg_reach is None else float(leg_reach)
+        length = float(self.char_leg_length[char])
+        reach = length if leg_reach is None else float(leg_reach)
         level = self.lod[char]
-        base = PlannerParams(
-            step_height=float(step_height),
-            slice_size=p.slice_size if level is None else level.slice_size,
-            leg_reach=reach,
-            candidate_radius=p.candidate_radius * leg,
-            fixed_distance=p.fixed_distance * leg,
-            foot_half_extents=(float(self.foot_half[char, 0]), float(self.foot_half[char, 1])),
-            max_couples_after_first=p.max_couples_after_first
-            if level is None
-            else level.max_couples_after_first,
-            max_height_change=p.max_height_change * leg,
-        )
+        half = (float(self.foot_half[char, 0]), float(self.foot_half[char, 1]))
+        per_leg: dict[str, float] = {}
+        if leg is not None:
+            per_leg = {
+                "reach_3d": float(self.comfort_reach[leg]),
+                "reach_sweep": float(sweep),
+                "reach_sink": float(
+                    (p.guard_max_drop if sink else 0.5 * p.max_drop) * self.body_thickness[char]
+                ),
+                "leg_length": float(self.legs.leg_length[leg]),
+                "leg_arch": float(0.5 * self.leg_arch[leg]),
+                "max_straddle": max(p.snap_tolerance * float(step_height), 0.25 * max(half)),
+            }
         override = self._planner_override[char]
         if override is None:
-            return base
+            return PlannerParams(
+                step_height=float(step_height),
+                slice_size=p.slice_size if level is None else level.slice_size,
+                leg_reach=reach,
+                candidate_radius=p.candidate_radius * length,
+                fixed_distance=p.fixed_distance * length,
+                foot_half_extents=half,
+                max_couples_after_first=p.max_couples_after_first
+                if level is None
+                else level.max_couples_after_first,
+                max_height_change=p.max_height_change * length,
+                **per_leg,  # type: ignore[arg-type]
+            )
         return replace(
             override,
             step_height=float(step_height),
             leg_reach=reach,
-            foot_half_extents=base.foot_half_extents,
-            max_height_change=base.max_height_change,
+            foot_half_extents=half,
+            max_height_change=p.max_height_change * length,
+            **per_leg,  # type: ignore[arg-type]
         )
 
     # ---------------------------------------------------------------- the step
@@ -680,8 +731,9 @@ class Controller:
 
         # 3. feet: landings, forced steps, plans, swing positions
         timer.lap("rest")
+        # a forced step lands when its own time is up (not at the gait's touch-down)
         landing = (
-            gstep.landed | (self.forced & (self.forced_elapsed + dt >= self.forced_duration))
+            (gstep.landed & ~self.forced) | (self.forced & (self.forced_elapsed + dt >= self.forced_duration))
         ) & self.swinging
         # a moving obstacle may have taken the landing spot since the last check: step again
         bad_landing = self._spot_taken(self.target, landing) & (self.restarts < 2)
@@ -708,14 +760,22 @@ class Controller:
         # a foot still down in its swing sector (its plan failed) is planted like any other:
         # it must step when its support goes or when it is left behind
         planted = ~gstep.swing | self.plan_failed
-        forced_new = (
-            (self._check_supports() | self._overstretched()) & planted & ~self.forced
-        ) | bad_landing
+        support_gone = self._check_supports()
+        behind = self._overstretched() & ~support_gone
+        forced_new = ((support_gone | behind) & planted & ~self.forced) | bad_landing
+        # a foot left behind lands under its rest place at the latest (as at mid-stance):
+        # landed where its late stance would have it, it would be left behind again at once
+        self.forced_behind = np.where(
+            forced_new, behind & planted & ~bad_landing, self.forced_behind & self.forced
+        )
+        # a swing cut by a moving obstacle near its end gets the time of a forced step for its
+        # new way (in the frames left it would jump there)
+        forced_time = np.maximum(p.forced_swing * gstep.swing_time, 2.0 * dt)
+        rushed = replan & self.blocked & ~forced_new & (remaining < 0.5 * forced_time)
+        forced_new |= rushed
         if np.any(forced_new):
             self.forced |= forced_new
-            self.forced_duration[forced_new] = np.maximum(
-                p.forced_swing * gstep.swing_time[forced_new], 2.0 * dt
-            )
+            self.forced_duration[forced_new] = forced_time[forced_new]
             # a forced step leaves in the frame it starts (its first frame's share of the
             # swing is done): the leg is already stretched, a frame later it would be more
             self.forced_elapsed[forced_new] = dt
@@ -724,7 +784,7 @@ class Controller:
             start_u = np.where(forced_new, 0.0, start_u)
             swing_time = np.where(forced_new, self.forced_duration, swing_time)
             remaining = np.where(forced_new, self.forced_duration - dt, remaining)
-            stats.n_forced = int(forced_new.sum())
+            stats.n_forced = int((forced_new & ~rushed).sum())
         # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
         to_plan = lifted | forced_new | replan
         stats.n_replans = int((replan & ~lifted).sum())
@@ -735,6 +795,7 @@ class Controller:
                 np.clip(gstep.stance_progress + remaining / np.maximum(stance_time, 1e-9), 0.0, 1.0),
                 0.0,
             )
+            land_stance = np.where(self.forced_behind, np.minimum(land_stance, 0.5), land_stance)
             self._plan(
                 np.flatnonzero(to_plan), ctl, start_u, remaining, stance_time, land_stance, stats, timer
             )
@@ -800,7 +861,7 @@ class Controller:
 
         # 5. legs
         timer.lap("rest")
-        self._solve_ik(ctl)
+        stats.n_bent = self._solve_ik(ctl)
         timer.lap("ik")
         return stats
 
@@ -1002,8 +1063,10 @@ class Controller:
         speed = np.abs(v - v0) > np.maximum(p.replan_speed * np.maximum(v, v0), 0.05 * leg_len)
         spacing = np.linalg.norm(ctl.spacing - self.plan_spacing, axis=1) > p.replan_spacing * leg_len
         need = swing & early & (heading | speed | spacing)
+        self.blocked[:] = False
         if self.env_dynamic:
-            need |= swing & self._trajectory_blocked(swing, progress)
+            self.blocked = swing & self._trajectory_blocked(swing, progress)
+            need |= self.blocked
         return need
 
     def _trajectory_blocked(self, swing: BoolArray, progress: FloatArray) -> BoolArray:
@@ -1179,8 +1242,9 @@ class Controller:
         )
         low = self.rest_height[legs] * (1.0 - p.max_drop)
         horizontal = np.sqrt(np.maximum(self.comfort_reach[legs] ** 2 - low * low, 0.0))
+        sweep_half = 0.5 * ctl.speed[c_of] * rest_stance
         reach = np.maximum(
-            horizontal - 0.5 * ctl.speed[c_of] * rest_stance,
+            horizontal - sweep_half,
             self.rest_horizontal[legs] + 0.5 * p.candidate_radius * legs_data.leg_length[legs],
         )
         hip_offset_xy = legs_data.hip_offset[:, :2]
@@ -1211,7 +1275,8 @@ class Controller:
             sl = legs_data.leg_slice(c)
             for leg in legs[c_of == c].tolist():
                 j = row_of[leg]
-                params = self.planner_params(c, float(ctl.step_height[c]), float(reach[j]))
+                params = self.planner_params(c, float(ctl.step_height[c]), float(reach[j]), leg,
+                                             float(sweep_half[j]), sink=not self.forced[leg])
                 hips = pelvis_ref[j] + self._rotate_xy(
                     hip_offset_xy[sl] - ref_rest[j, :2],
                     np.full(sl.stop - sl.start, yaw_land[j] - rest_yaw[j]),
@@ -1225,7 +1290,8 @@ class Controller:
                     self.swinging[other_idx, None], self.target[other_idx, :2], self.foot[other_idx, :2]
                 )
                 requests.append(FootRequest(grids_of[c], self.foot[leg], preferred_xy[j], hips[own],
-                                            hips[others], other_feet, params, float(yaw_land[j])))
+                                            hips[others], other_feet, params, float(yaw_land[j]),
+                                            float(hip_now[j, 2])))
                 rows_of.append((leg, j, c, hips[own]))
         couples = plan_footsteps(requests)
         # every footprint near the preferred one is taken (an obstacle, another foot): look
@@ -1272,14 +1338,15 @@ class Controller:
                 and (self.forced[leg] or self._within_reach(leg, samples, hip_now[j], hip_land))
             ):
                 target = np.asarray(couple.footprint, dtype=np.float64).copy()
-            elif self.forced[leg] and not self.swinging[leg] and (
+            elif ((self.forced[leg] and not self.swinging[leg]) or self.blocked[leg]) and (
                 straight := self._straight_step(
                     leg, self.foot[leg], preferred_xy[j], u_grid, float(ctl.step_height[c]),
                     p.candidate_radius * float(legs_data.leg_length[leg]), hip_now[j], hip_land,
                 )
             ) is not None:
-                # a foot that must move (left behind, or its support gone) and that the
-                # planner cannot serve steps straight to its preferred spot
+                # a foot that must move (left behind, or its support gone), or whose swing a
+                # moving obstacle cut, and that the planner cannot serve steps straight to its
+                # preferred spot (or the nearest one it can)
                 samples, target = straight
                 stats.n_failed += 1
                 stats.n_fallback += 1
@@ -1393,13 +1460,22 @@ class Controller:
         leaving = np.logical_and.accumulate(forbidden, axis=1)
         crossing = (forbidden & ~leaving)[:, 1:-1].any(axis=1)
         end_z = np.where(surface[:, -1] > _VOID, surface[:, -1], start[2])
-        base = start[2] + u[None, :] * (end_z - start[2])[:, None]
-        under = np.where(surface > _VOID, surface, base)
+        # the arc rises from the ground under the start (a foot already in the air is not
+        # lifted a step height above where it is: re-plan after re-plan it would ratchet up)
+        z0 = min(float(start[2]), float(surface[0, 0])) if surface[0, 0] > _VOID else float(start[2])
+        base = z0 + u[None, :] * (end_z - z0)[:, None]
+        # a foot leaving an avoided obstacle that came at it goes out sideways at its height
+        # (as the planner's swings do, pathing.clearance_elevation), not over the top
+        tall = leaving & (surface > start[2] + step_height)
+        under = np.where((surface > _VOID) & ~tall, surface, base)
         climb = np.maximum((under - base).max(axis=1), 0.0)
         rest = float(self.rest_height[leg])
         ok = landing & ~crossing & (climb <= max(rest - step_height, 0.25 * rest))
         lift = climb + step_height
         z = base + 4.0 * u[None, :] * (1.0 - u[None, :]) * lift[:, None]
+        # from where the foot is: never below the straight line from it down to the landing
+        z = np.maximum(z, start[2] + u[None, :] * (end_z - start[2])[:, None])
+        z[:, 0] = start[2]
         inner = (u > 0.0) & (u < 1.0)
         z[:, inner] = np.maximum(z[:, inner], under[:, inner] + 0.25 * step_height)
         # and within the leg's length of the hip all the way (the hip moving to touch-down)
@@ -1552,7 +1628,9 @@ class Controller:
         self.pos[:, 2] -= self.guard_drop
 
     # ---------------------------------------------------------------- legs
-    def _solve_ik(self, ctl: StepControls) -> None:
+    def _solve_ik(self, ctl: StepControls) -> int:
+        """Pose every leg; returns how many swinging feet were moved to what their legs
+        reach."""
         rot = self.rotations()
         hips = self.hips_world(rot)
         leg_rot = self.leg_rotations() if self.spine_groups else rot[self.leg_char]
@@ -1561,7 +1639,23 @@ class Controller:
             self.legs, hips, leg_rot, self.foot, self.angles, mask=None if mask.all() else mask
         )
         self.angles = res.angles
+        # A swinging foot goes where its leg reaches: a point of its trajectory beyond the leg
+        # (the hip rose or moved on more than foreseen) or nearer the hip than its joints fold
+        # (a robot knee stopping at 160°) is replaced by the closest point the leg reaches,
+        # unless that point is under the ground. Planted feet never move.
+        missed = np.flatnonzero(self.swinging & mask & (res.error > 1e-3 * self.legs.leg_length))
+        if missed.size:
+            end = res.joints[missed, self.legs.n_segments[missed]]
+            ground = self.env.height_at(end[:, :2])
+            above = end[:, 2] >= ground - 1e-9
+            moved = missed[above]
+            if moved.size:
+                self.foot[moved] = end[above]
+                error = res.error.copy()
+                error[moved] = 0.0
+                res = replace(res, error=error)
         self.ik_result = res
+        return int(moved.size) if missed.size else 0
 
 
 def _sample_polyline(samples: FloatArray, u: FloatArray) -> FloatArray:

@@ -57,7 +57,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,6 +121,21 @@ class PlannerParams:
     ``max_targets``: cap on the number of candidates considered (best first), None for all.
     ``los_shortcut``: build no wavefront for a target in plain sight of the foot (the straight
     line is what the wavefront and line-of-sight steps would give anyway).
+
+    Checks that need the hip's height (the request's ``hip_z``; skipped without it):
+
+    ``reach_3d``: largest distance from the hip to a footprint in 3D (None: only the
+    horizontal ``leg_reach``), with ``reach_sweep`` added to the horizontal distance (half
+    the coming stance sweep) and the hip allowed to sink ``reach_sink`` toward a footprint
+    below it. ``leg_length``: the straight line from a footprint up to the hip should pass
+    over the elevation map (a lower leg beside a crate would otherwise run through it),
+    raised by ``leg_arch`` times the half-height a two-segment leg of that length bends over
+    that distance (legs whose knees rise above the hip-foot line; 0 for the others); a
+    footprint whose line does not is scored ``leg_clearance_score`` times lower (a fifth
+    criterion of §3.5.1: taken only when nothing better is left, e.g. with an obstacle under
+    the body); None: no such check. ``max_straddle``: a footprint whose foot box reaches
+    ground more than this above the ground at its own point hangs over a height step, it is
+    never a candidate (None: no check).
     """
 
     step_height: float = 0.1
@@ -139,6 +154,13 @@ class PlannerParams:
     exhaustive: bool = False
     max_targets: int | None = None
     los_shortcut: bool = True
+    reach_3d: float | None = None
+    reach_sweep: float = 0.0
+    reach_sink: float = 0.0
+    leg_length: float | None = None
+    leg_arch: float = 0.0
+    leg_clearance_score: float = 0.2
+    max_straddle: float | None = None
 
     def __post_init__(self) -> None:
         if self.slice_size is not None and not self.slice_size > 0.0:
@@ -255,8 +277,10 @@ def score_candidates(
     other_feet_xy: FloatArray,
     params: PlannerParams,
     foot_yaw: float = 0.0,
+    hip_z: float | None = None,
 ) -> Candidates:
-    """Candidate footprints around ``preferred_xy`` with their scores (thesis §3.5.1)."""
+    """Candidate footprints around ``preferred_xy`` with their scores (thesis §3.5.1);
+    ``hip_z``: the hip's height, for the checks that need it (:class:`PlannerParams`)."""
     grids = ctx.grids
     cell = grids.cell
     reg = ctx.region
@@ -287,6 +311,22 @@ def score_candidates(
     z = ctx.land_height(cells, land_kernel)
     max_dz = params.leg_reach if params.max_height_change is None else params.max_height_change
     ok &= np.abs(z - ctx.start[2]) <= max_dz
+    if hip_z is not None:
+        sel = np.flatnonzero(ok)
+        m = sel.size
+        window = ctx.grids
+
+        def heights(pts: FloatArray, rows: IntArray) -> FloatArray:
+            return _window_heights(window, pts)
+
+        clear = np.ones(ok.size, dtype=bool)
+        ok[sel], clear[sel] = _hip_checks(
+            xy[sel], z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
+            np.full(m, float(hip_z)), np.tile(_hip_settings(params), (m, 1)), heights,
+        )
+        clearance = np.where(clear[ok], 1.0, params.leg_clearance_score)
+    else:
+        clearance = np.ones(int(np.count_nonzero(ok)))
     cells, off, xy, z = cells[ok], off[ok], xy[ok], z[ok]
     r, c = cells[:, 0], cells[:, 1]
     # Neighbour criteria on the region, padded as "not free".
@@ -304,11 +344,76 @@ def score_candidates(
     free_score = free / 8.0
     edge = np.where(rim, params.edge_score, 1.0)
     crossing = np.where(legs_cross(hip_xy, xy, other_hips_xy, other_feet_xy), 0.0, 1.0)
-    score = distance * free_score * edge * crossing
+    score = distance * free_score * edge * clearance * crossing
     # Best first; ties: nearer the preferred footprint, then row, then column.
     order = np.lexsort((c, r, np.hypot(off[:, 0], off[:, 1]), -score))
     return Candidates(xy[order], cells[order], z[order], score[order], distance[order], free_score[order],
                       edge[order], crossing[order])
+
+
+#: Samples along the hip-footprint line of the leg clearance check (a leg's length is some
+#: fifteen planning cells: one sample per cell or closer).
+_LEG_SAMPLES = 16
+
+
+def _hip_checks(
+    xy: FloatArray, z: FloatArray, centre_z: FloatArray, hip: FloatArray, hip_z: FloatArray,
+    settings: FloatArray, heights: Callable[[FloatArray, IntArray], FloatArray],
+) -> tuple[BoolArray, BoolArray]:
+    """The checks of footprints ``xy (k, 2)`` landing at ``z (k,)`` (the ground at their own
+    point ``centre_z (k,)``) that need the hip ``hip (k, 2)`` at ``hip_z (k,)``
+    (:class:`PlannerParams`): which are candidates at all (``max_straddle``, ``reach_3d``)
+    and which of those have their leg line clear (``leg_length``; True where not checked).
+    ``settings`` ``(k, 7)``: per footprint ``max_straddle, reach_3d, reach_sweep,
+    reach_sink, leg_length, leg_arch, foot radius`` (``inf``: that check off).
+    ``heights(points (m, S, 2), rows (m,))`` gives the elevation map under points of the
+    footprints ``rows`` (``-inf`` outside)."""
+    straddle, reach, sweep, sink, leg, arch, foot_r = settings.T
+    ok = ~(z - centre_z > straddle)
+    dx = xy[:, 0] - hip[:, 0]
+    dy = xy[:, 1] - hip[:, 1]
+    dh = np.sqrt(dx * dx + dy * dy) + sweep
+    dz = hip_z - z
+    dz = np.where(dz > sink, dz - sink, np.where(dz < 0.0, -dz, 0.0))
+    ok &= ~(dh * dh + dz * dz > reach * reach)
+    clear = np.ones(ok.size, dtype=bool)
+    rows = np.flatnonzero(ok & np.isfinite(leg))
+    if rows.size == 0:
+        return ok, clear
+    # The leg as the straight line from the footprint up to the hip, bowed up by the arch its
+    # joints take over it: the ground under it must stay below.
+    t = (np.arange(_LEG_SAMPLES) + 0.5) / _LEG_SAMPLES
+    fx, fy, fz = xy[rows, 0], xy[rows, 1], z[rows]
+    vx, vy, vz = hip[rows, 0] - fx, hip[rows, 1] - fy, hip_z[rows] - fz
+    flat = np.sqrt(vx * vx + vy * vy)
+    chord = np.sqrt(vx * vx + vy * vy + vz * vz)
+    bow = arch[rows] * 0.5 * np.sqrt(np.maximum(leg[rows] * leg[rows] - chord * chord, 0.0))
+    pts = np.stack([fx[:, None] + t[None, :] * vx[:, None], fy[:, None] + t[None, :] * vy[:, None]], axis=-1)
+    line = fz[:, None] + t[None, :] * vz[:, None] + (4.0 * t * (1.0 - t))[None, :] * bow[:, None]
+    own = t[None, :] * flat[:, None] < foot_r[rows, None]  # under the foot itself
+    under = heights(pts, rows)
+    clear[rows[np.any((under > line + 1e-9) & ~own, axis=1)]] = False
+    return ok, clear
+
+
+def _window_heights(grids: WindowGrids, pts: FloatArray) -> FloatArray:
+    """The window's elevation at the cells of points ``(..., 2)`` (``-inf`` outside it)."""
+    ny, nx = grids.shape
+    col = np.rint((pts[..., 0] - float(grids.origin[0])) / grids.cell).astype(np.intp)
+    row = np.rint((pts[..., 1] - float(grids.origin[1])) / grids.cell).astype(np.intp)
+    inside = (row >= 0) & (row < ny) & (col >= 0) & (col < nx)
+    vals = grids.elevation[np.clip(row, 0, ny - 1), np.clip(col, 0, nx - 1)]
+    return np.asarray(np.where(inside, vals, -np.inf))
+
+
+def _hip_settings(params: PlannerParams) -> list[float]:
+    """A plan's row of :func:`_hip_checks` settings."""
+    inf = math.inf
+    half = params.foot_half_extents
+    return [inf if params.max_straddle is None else params.max_straddle,
+            inf if params.reach_3d is None else params.reach_3d, params.reach_sweep, params.reach_sink,
+            inf if params.leg_length is None else params.leg_length, params.leg_arch,
+            math.hypot(float(half[0]), float(half[1]))]
 
 
 @functools.lru_cache(maxsize=1024)
@@ -399,6 +504,7 @@ class FootRequest:
     other_feet_xy: npt.ArrayLike
     params: PlannerParams
     foot_yaw: float = 0.0
+    hip_z: float | None = None
 
 
 _NO_CANDIDATE = ("no candidate footprint: every cell near the preferred footprint is forbidden, "
@@ -415,6 +521,7 @@ class _Plan:
         "grids",
         "half",
         "hip",
+        "hip_z",
         "index",
         "o_feet",
         "o_hips",
@@ -434,6 +541,7 @@ class _Plan:
         self.start = start
         self.pref = pref
         self.hip = hip
+        self.hip_z = None if rq.hip_z is None else float(rq.hip_z)
         self.o_hips = o_hips
         self.o_feet = o_feet
         self.yaw = float(rq.foot_yaw)
@@ -455,6 +563,8 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     px, py = pref.tolist()
     hx, hy = hip.tolist()
     finite = all(map(math.isfinite, (sx, sy, sz, px, py, hx, hy)))
+    if rq.hip_z is not None:
+        finite = finite and math.isfinite(float(rq.hip_z))
     if finite and (o_hips.size or o_feet.size):
         finite = bool(np.isfinite(o_hips).all() and np.isfinite(o_feet).all())
     if not finite:
@@ -1077,7 +1187,7 @@ def plan_footsteps(requests: Sequence[FootRequest]) -> list[Couple]:
     if len(requests) == 1:  # nothing to share: the one-foot planner costs less
         rq = requests[0]
         return [plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
-                              rq.other_feet_xy, rq.params, rq.foot_yaw)]
+                              rq.other_feet_xy, rq.params, rq.foot_yaw, rq.hip_z)]
     results: list[Couple | None] = [None] * len(requests)
     plans: list[_Plan] = []
     for i, rq in enumerate(requests):
@@ -1159,8 +1269,28 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     max_dz = np.array([p.params.leg_reach if p.params.max_height_change is None
                        else p.params.max_height_change for p in plans])
     ok &= np.abs(z - z0[b]) <= max_dz[b]
+    hip_z = np.array([math.nan if p.hip_z is None else p.hip_z for p in plans])
+    if not np.isnan(hip_z).all():
+        sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
+        owner = b[sel]
+        lookup = _WindowLookup([p.grids for p in plans])
+        settings = np.array([_hip_settings(p.params) for p in plans])
+
+        def heights(pts: FloatArray, rows: IntArray) -> FloatArray:
+            return lookup.heights(pts, owner[rows])
+
+        clear = np.ones(ok.size, dtype=bool)
+        ok[sel], clear[sel] = _hip_checks(
+            np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
+            hip[owner], hip_z[owner], settings[owner], heights,
+        )
+        low = np.array([p.params.leg_clearance_score for p in plans])
+        clearance = np.where(clear, 1.0, low[b])
+    else:
+        clearance = np.ones(ok.size)
     keep = np.flatnonzero(ok)
     b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
+    clearance = clearance[keep]
     # Neighbour criteria, the search box padded as "not free".
     n_, H, W = elev.shape
     pad_forb = np.ones((n_, H + 2, W + 2), dtype=bool)
@@ -1183,7 +1313,7 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     free_score = free / 8.0
     edge = np.where(rim, np.array([p.params.edge_score for p in plans])[b], 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
-    partial = distance * free_score * edge
+    partial = distance * free_score * edge * clearance
     live = np.flatnonzero(partial > 0.0)
     b, d, r, c = b[live], d[live], r[live], c[live]
     x, y, z, partial = x[live], y[live], z[live], partial[live]
@@ -1211,6 +1341,42 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
     n_valid = [cuts[k + 1] - cuts[k] for k in range(n)]
     return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells.tolist())
+
+
+class _WindowLookup:
+    """:func:`_window_heights` for points of many plans, each in its own window."""
+
+    def __init__(self, grids: list[WindowGrids]) -> None:
+        index: dict[int, int] = {}
+        uniq: list[WindowGrids] = []
+        which = []
+        for g in grids:
+            k = index.setdefault(id(g), len(uniq))
+            if k == len(uniq):
+                uniq.append(g)
+            which.append(k)
+        sizes = [g.elevation.size for g in uniq]
+        self.flat = (np.concatenate([g.elevation.ravel() for g in uniq]) if len(uniq) > 1
+                     else uniq[0].elevation.ravel())
+        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+        w = np.asarray(which)
+        self.start = starts[w]
+        self.ox = np.array([float(g.origin[0]) for g in uniq])[w]
+        self.oy = np.array([float(g.origin[1]) for g in uniq])[w]
+        self.cell = np.array([g.cell for g in uniq])[w]
+        self.ny = np.array([g.shape[0] for g in uniq])[w]
+        self.nx = np.array([g.shape[1] for g in uniq])[w]
+
+    def heights(self, pts: FloatArray, plan: IntArray) -> FloatArray:
+        """Elevation under points ``(m, S, 2)`` of plans ``plan (m,)``."""
+        cl = self.cell[plan][:, None]
+        col = np.rint((pts[..., 0] - self.ox[plan][:, None]) / cl).astype(np.intp)
+        row = np.rint((pts[..., 1] - self.oy[plan][:, None]) / cl).astype(np.intp)
+        ny = self.ny[plan][:, None]
+        nx = self.nx[plan][:, None]
+        inside = (row >= 0) & (row < ny) & (col >= 0) & (col < nx)
+        at = self.start[plan][:, None] + np.clip(row, 0, ny - 1) * nx + np.clip(col, 0, nx - 1)
+        return np.asarray(np.where(inside, self.flat[at], -np.inf))
 
 
 def _offset_kernels(plans: list[_Plan], sub: FloatArray) -> tuple[IntArray, BoolArray]:
@@ -1281,6 +1447,7 @@ def plan_footstep(
     other_feet_xy: npt.ArrayLike,
     params: PlannerParams,
     foot_yaw: float = 0.0,
+    hip_z: float | None = None,
 ) -> Couple:
     """The best couple (footprint, 3D trajectory) for one swinging foot.
 
@@ -1288,7 +1455,8 @@ def plan_footstep(
     ``(3,)`` where the foot is now; ``preferred_xy``: ``(2,)`` the controller's preferred
     footprint; ``hip_xy``: ``(2,)`` this leg's hip (at touch-down); ``other_hips_xy``,
     ``other_feet_xy``: ``(k, 2)`` the other legs' hips and feet (their feet are forbidden,
-    their legs must not be crossed); ``foot_yaw``: the foot box's yaw. Never raises for an
+    their legs must not be crossed); ``foot_yaw``: the foot box's yaw; ``hip_z``: the hip's
+    height (at touch-down), for the checks that need it (see :class:`PlannerParams`). Never raises for an
     unreachable target; never returns NaN.
     """
     start = np.asarray(foot_start, dtype=np.float64).reshape(3)
@@ -1298,7 +1466,8 @@ def plan_footstep(
     o_feet = np.asarray(other_feet_xy, dtype=np.float64).reshape(-1, 2)
     safe_start = np.where(np.isfinite(start), start, 0.0)
     if not (np.all(np.isfinite(start)) and np.all(np.isfinite(pref)) and np.all(np.isfinite(hip))
-            and np.all(np.isfinite(o_hips)) and np.all(np.isfinite(o_feet))):
+            and np.all(np.isfinite(o_hips)) and np.all(np.isfinite(o_feet))
+            and (hip_z is None or math.isfinite(float(hip_z)))):
         return _fail(safe_start, "non-finite input")
     if o_hips.shape != o_feet.shape:
         return _fail(start, "other_hips_xy and other_feet_xy differ in shape")
@@ -1320,7 +1489,7 @@ def plan_footstep(
                              los_shortcut=params.los_shortcut)
     ctx = PathContext(grids, start, region, extra, half, foot_yaw, path_params,
                       per_target=not params.shared_wavefront)
-    cand = score_candidates(ctx, pref, hip, o_hips, o_feet, params, foot_yaw)
+    cand = score_candidates(ctx, pref, hip, o_hips, o_feet, params, foot_yaw, hip_z)
     valid = cand.score > 0.0
     n_targets = int(np.count_nonzero(valid))
     if n_targets == 0:

@@ -104,7 +104,8 @@ class SimResult:
       from its rest (body-frame) direction to the world (identity where there is no bone);
       ``spine_n_joints (C,)``: joints of each character's spine (0 without one).
     - ``stats``: per-step counters ``(F,)`` (``n_plans``, ``n_failed``, ``n_couples``,
-      ``n_paths``, ``n_windows``, ``n_replans``, ``n_forced``, ``n_relaxed``, ``n_fallback``);
+      ``n_paths``, ``n_windows``, ``n_replans``, ``n_forced``, ``n_relaxed``, ``n_fallback``,
+      ``n_bent``);
       ``seconds``: per-phase times
       ``(F,)`` (``maps``, ``planning``, ``ik``, ``physics``, ``spine``, ``rest``).
     """
@@ -443,6 +444,7 @@ class Simulation:
             "n_forced",
             "n_relaxed",
             "n_fallback",
+            "n_bent",
         )
         stats = {k: np.array([getattr(s, k) for s in self._stats], dtype=np.int64) for k in names}
         phases = ("maps", "planning", "ik", "physics", "spine", "rest")

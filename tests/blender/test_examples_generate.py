@@ -26,19 +26,7 @@ from tools.examples import scene as example_scene
 
 pytestmark = pytest.mark.blender
 
-# Failures of the core's motion on the example terrain, recorded precisely (the thresholds
-# are not loosened). strict: once the core is fixed the test passes and the mark must go.
-_CORE_FAILURES = {
-    "spider": "core: leg R1 planted beside the low crate with its tibia-tarsus joint 4.0 cm inside "
-              "the crate (frames 42-44, also 107 and 109): penetration 0.040 > 0.005",
-    "robot": "core: leg M1's IK misses its target by 1.37 cm at frame 118 on the hill: reach 0.0137 > 0.01",
-}
-KINDS = tuple(
-    pytest.param(kind, marks=pytest.mark.xfail(strict=True, raises=AssertionError,
-                                               reason=_CORE_FAILURES[kind]))
-    if kind in _CORE_FAILURES else kind
-    for kind in example_scene.CREATURE_NAMES
-)
+KINDS = example_scene.CREATURE_NAMES
 
 
 def _open_examples(repo_root: Path) -> None:

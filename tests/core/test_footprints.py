@@ -380,6 +380,10 @@ BATCH_SETTINGS = [
     replace(P, shared_wavefront=False, candidate_radius=0.1),
     replace(P, los_shortcut=False, candidate_radius=0.15),
     replace(P, max_targets=3, candidate_radius=0.3),
+    # the checks that need the hip's height (the requests give one)
+    replace(P, reach_3d=0.5, reach_sweep=0.05, reach_sink=0.03, leg_length=0.55, leg_arch=0.5,
+            max_straddle=0.05),
+    replace(P, leg_length=0.45, candidate_radius=0.25),
 ]
 
 
@@ -395,7 +399,9 @@ def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
             continue
         start, pref, hip, oh, of = foot
         params = BATCH_SETTINGS[int(rng.integers(len(BATCH_SETTINGS)))]
-        requests.append(FootRequest(w, start, pref, hip, oh, of, params, float(rng.uniform(-np.pi, np.pi))))
+        hip_z = float(rng.uniform(0.05, 0.4)) if rng.random() < 0.7 else None
+        requests.append(FootRequest(w, start, pref, hip, oh, of, params, float(rng.uniform(-np.pi, np.pi)),
+                                    hip_z))
     env, w, _ = scenes[0]
     # Feet that cannot be planned, and a foot on an avoided crate (it may step off it).
     # A window of another size and cell size in the same batch.
@@ -410,7 +416,7 @@ def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
     assert len(batched) == len(requests)
     for rq, got in zip(requests, batched, strict=True):
         alone = plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
-                              rq.other_feet_xy, rq.params, rq.foot_yaw)
+                              rq.other_feet_xy, rq.params, rq.foot_yaw, rq.hip_z)
         _same_couple(got, alone)
     assert any(c.ok for c in batched)
     assert plan_footsteps([]) == []
@@ -485,3 +491,64 @@ def test_a_foot_in_the_air_over_its_footprint_comes_down_without_lifting_again()
         assert c.trajectory is not None
         assert np.allclose(c.footprint, [0.0, 0.0, 0.0])
         assert c.trajectory.points[:, 2].max() <= 1.1 * P.step_height
+
+
+def _leg_hits_box(foot: np.ndarray, hip_xy: np.ndarray, hip_z: float, centre: tuple[float, float],
+                  half: float, height: float) -> bool:
+    """Whether the straight line from a footprint up to the hip runs through an upright box
+    (square footprint ``centre`` ± ``half``, from the ground to ``height``)."""
+    t = np.linspace(0.0, 1.0, 400)
+    pts = foot[None, :] + t[:, None] * (np.r_[hip_xy, hip_z] - foot)[None, :]
+    inside = ((np.abs(pts[:, 0] - centre[0]) < half) & (np.abs(pts[:, 1] - centre[1]) < half)
+              & (pts[:, 2] < height))
+    return bool(inside.any())
+
+
+def test_a_footprint_whose_leg_would_run_through_a_crate_gives_way_to_a_clear_one() -> None:
+    # A 25 cm crate between the hip (30 cm up) and the preferred footprint: without the leg
+    # check the foot lands behind the crate with its leg through it.
+    hip = np.array([0.2, 0.35])
+    w = window([(0.2, 0.2, 0.07, 0.07, 0.25, ROLE_AVOID)])
+    params = replace(P, candidate_radius=0.4)
+    blind = plan_footstep(w, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS, params, 0.0, 0.3)
+    checked = plan_footstep(w, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS,
+                            replace(params, leg_length=0.6), 0.0, 0.3)
+    assert blind.ok
+    assert checked.ok
+    assert _leg_hits_box(blind.footprint, hip, 0.3, (0.2, 0.2), 0.035, 0.25)
+    assert not _leg_hits_box(checked.footprint, hip, 0.3, (0.2, 0.2), 0.035, 0.25)
+    # with nothing clear left, a blocked footprint is still taken, scored lower
+    walled = window([(0.2, 0.15, 0.8, 0.06, 0.25, ROLE_AVOID)])
+    free = plan_footstep(walled, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS, params, 0.0, 0.3)
+    low = plan_footstep(walled, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS,
+                        replace(params, leg_length=0.6), 0.0, 0.3)
+    assert low.ok
+    assert low.target_score == pytest.approx(params.leg_clearance_score * free.target_score)
+
+
+@pytest.mark.parametrize("hip_z", [0.2, 0.3])
+def test_footprints_stay_within_the_legs_3d_reach_of_the_hip(hip_z: float) -> None:
+    w = window()
+    params = replace(P, reach_3d=0.4, candidate_radius=0.3)
+    far = plan_footstep(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params)  # no hip height
+    assert np.linalg.norm(np.r_[far.footprint[:2] - HIP, far.footprint[2] - hip_z]) > 0.4
+    c = plan_footstep(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params, 0.0, hip_z)
+    assert c.ok
+    assert np.linalg.norm(np.r_[c.footprint[:2] - HIP, c.footprint[2] - hip_z]) <= 0.4 + 1e-9
+    # a hip too high for any footprint: a clean failure, not a footprint out of reach
+    assert not plan_footstep(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params, 0.0, 0.45).ok
+
+
+def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
+    from procloco_addon.core.footprints import _hip_checks
+
+    # Two footprints on the ground (z at their own point 0), one whose foot box reaches 6 cm
+    # higher ground (it lands at 0.06): with max_straddle 1 cm only the first is a candidate.
+    xy = np.array([[0.3, 0.0], [0.3, 0.0]])
+    z = np.array([0.0, 0.06])
+    inf = math.inf
+    settings = np.tile([0.01, inf, 0.0, 0.0, inf, 0.0, 0.03], (2, 1))
+    ok, clear = _hip_checks(xy, z, np.zeros(2), np.zeros((2, 2)), np.full(2, 0.3), settings,
+                            lambda pts, rows: np.zeros(pts.shape[:2]))
+    assert ok.tolist() == [True, False]
+    assert clear.all()
