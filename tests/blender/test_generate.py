@@ -588,18 +588,17 @@ def test_follows_a_path_curve(empty_scene: Any) -> None:
     assert np.linalg.norm(body[-1] - poly[-1]) < 0.6
 
 
-def test_escape_cancels_and_changes_nothing(wolf_scene: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_escape_cancels_and_changes_nothing(wolf_scene: Any) -> None:
     """The modal path: Esc after some progress leaves the scene exactly as it was."""
     from types import SimpleNamespace
 
-    from procloco_addon.blender.locomotion import ops
     from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
 
-    monkeypatch.setattr(ops, "_TICK_BUDGET_S", 0.0)  # one frame per timer tick
-
     before = snapshot()
-    me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _jobs=[])
-    for name in ("_prepare", "_all_steps", "_stop", "_finish"):
+    # one frame per timer tick
+    me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _jobs=[], _tick_budget_s=0.0,
+                         _cancelled_message="cancelled", _run_errors=())
+    for name in ("_prepare", "_run", "_stop", "_abort", "_discard", "_finish"):
         setattr(me, name, getattr(Op, name).__get__(me))
     wm = SimpleNamespace(progress_update=lambda _v: None, progress_end=lambda: None,
                          event_timer_remove=lambda _t: None)
@@ -608,7 +607,7 @@ def test_escape_cancels_and_changes_nothing(wolf_scene: Any, monkeypatch: pytest
                               window_manager=wm, area=None,
                               evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get)
     assert me._prepare(context)
-    me._steps = me._all_steps()
+    me._steps = me._run(context, True)
     timer = SimpleNamespace(type="TIMER")
     for _ in range(3):
         assert Op.modal(me, context, timer) == {"RUNNING_MODAL"}
@@ -618,7 +617,7 @@ def test_escape_cancels_and_changes_nothing(wolf_scene: Any, monkeypatch: pytest
     assert snapshot() == before
     # Left to run, the same modal loop finishes and writes the Action.
     assert me._prepare(context)
-    me._steps = me._all_steps()
+    me._steps = me._run(context, True)
     results = [Op.modal(me, context, timer) for _ in range(20)]
     assert results.count({"FINISHED"}) == 1
     assert wolf_scene.animation_data.action.name.startswith("Wolf ProcLoco")

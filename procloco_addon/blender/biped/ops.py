@@ -35,6 +35,7 @@ from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from ...core.biped.skeleton import LEFT, forward_kinematics
 from ...core.biped.surface import WalkableSurface
 from .. import actions
+from ..modal import ProgressOperator, Steps, poll_armature
 from . import bridge
 
 __all__ = [
@@ -47,17 +48,6 @@ __all__ = [
     "prepare",
     "run",
 ]
-
-
-def _poll_rig(cls: Any, context: Any, what: str) -> bool:
-    obj = getattr(context, "active_object", None)
-    if obj is None or obj.type != "ARMATURE":
-        cls.poll_message_set(f"Select the biped's armature {what}")
-        return False
-    if getattr(context, "mode", "OBJECT") not in {"OBJECT", "POSE"}:
-        cls.poll_message_set("Leave edit mode first")
-        return False
-    return True
 
 
 # ---------------------------------------------------------------------------------------
@@ -225,20 +215,22 @@ def finish(context: bpy.types.Context, job: PlanJob) -> bpy.types.Action:
     return bridge.write_motion(obj, job.brig, job.result, job.start_frame)
 
 
-class PROCLOCO_OT_plan_biped_footsteps(bpy.types.Operator):
+class PROCLOCO_OT_plan_biped_footsteps(ProgressOperator, bpy.types.Operator):
     """Plan the biped's footsteps to the goal over the scene's surfaces and write the walk as a new Action"""
 
     bl_idname = "procloco.plan_biped_footsteps"
     bl_label = "Plan Biped Footsteps"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
 
-    _timer: Any = None
+    _cancelled_message: ClassVar[str] = "Planning cancelled: nothing was changed"
+    # the planning runs in a worker thread: each tick only reads its progress
+    _tick_budget_s: ClassVar[float] = 0.0
+    _timer_step_s: ClassVar[float] = 0.05
     _job: PlanJob | None = None
-    _thread: threading.Thread | None = None
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        if not _poll_rig(cls, context, "to plan for"):
+        if not poll_armature(cls, context, "Select the biped's armature to plan for"):
             return False
         settings = context.active_object.procloco_biped
         if settings.goal is None:
@@ -279,62 +271,24 @@ class PROCLOCO_OT_plan_biped_footsteps(bpy.types.Operator):
         )
         return {"FINISHED"}
 
-    def execute(self, context: Any) -> set[str]:
-        if not self._prepare(context):
-            return {"CANCELLED"}
-        assert self._job is not None
-        if bpy.app.background:
-            print(f"ProcLoco: planning the footsteps of {self._job.obj_name}", flush=True)
-        run(self._job)
-        return self._finish(context)
-
-    def invoke(self, context: Any, event: Any) -> set[str]:
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        if not self._prepare(context):
-            return {"CANCELLED"}
-        self._thread = threading.Thread(target=run, args=(self._job,), daemon=True)
-        self._thread.start()
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.05, window=context.window)
-        wm.progress_begin(0, 100)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def _stop(self, context: Any) -> None:
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        if context.area is not None:
-            context.area.header_text_set(None)
-
-    def modal(self, context: Any, event: Any) -> set[str]:
+    def _run(self, context: Any, modal: bool) -> Steps:
         job = self._job
-        if job is None:
-            return {"CANCELLED"}
-        if event.type == "ESC":
-            job.cancel.set()
-            self._stop(context)
-            self.report({"WARNING"}, "Planning cancelled: nothing was changed")
-            return {"CANCELLED"}
-        if event.type != "TIMER":
-            return {"PASS_THROUGH"}
-        context.window_manager.progress_update(int(100 * job.progress))
-        if context.area is not None:
-            context.area.header_text_set(
-                f"ProcLoco biped: {job.stage} {int(100 * job.progress)}% (Esc to cancel)"
-            )
-        if self._thread is not None and self._thread.is_alive():
-            return {"RUNNING_MODAL"}
-        self._stop(context)
-        return self._finish(context)
+        assert job is not None
+        if not modal:
+            yield f"planning the footsteps of {job.obj_name}", 0.0
+            run(job)
+            return
+        thread = threading.Thread(target=run, args=(job,), daemon=True)
+        thread.start()
+        try:
+            while thread.is_alive():
+                yield f"biped {job.stage}", job.progress
+        finally:
+            job.cancel.set()  # closed early (Esc): the worker stops at its next check
 
-    def cancel(self, context: Any) -> None:
+    def _discard(self, context: Any) -> None:
         if self._job is not None:
             self._job.cancel.set()
-        self._stop(context)
 
 
 # ---------------------------------------------------------------------------------------
@@ -350,7 +304,7 @@ class PROCLOCO_OT_add_biped_clip(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return _poll_rig(cls, context, "whose clips to list")
+        return poll_armature(cls, context, "Select the biped's armature whose clips to list")
 
     def execute(self, context: Any) -> set[str]:
         obj = context.active_object
@@ -377,7 +331,7 @@ class PROCLOCO_OT_remove_biped_clip(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        if not _poll_rig(cls, context, "whose clips to list"):
+        if not poll_armature(cls, context, "Select the biped's armature whose clips to list"):
             return False
         settings = context.active_object.procloco_biped
         if not 0 <= settings.active_clip_index < len(settings.clips):
@@ -404,7 +358,7 @@ class PROCLOCO_OT_make_biped_clips(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return _poll_rig(cls, context, "to make clips for")
+        return poll_armature(cls, context, "Select the biped's armature to make clips for")
 
     def execute(self, context: Any) -> set[str]:
         obj = context.active_object

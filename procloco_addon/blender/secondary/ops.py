@@ -10,13 +10,12 @@ background mode and from scripts (``EXEC_DEFAULT``).
 
 from __future__ import annotations
 
-import time
-from collections.abc import Generator
 from typing import Any, ClassVar
 
 import bpy
 
 from .. import actions
+from ..modal import ProgressOperator, Steps, poll_armature
 from . import bake
 
 __all__ = [
@@ -27,24 +26,9 @@ __all__ = [
     "suggest_chains",
 ]
 
-# Longest time one modal timer tick may sample frames before handing control back to the UI.
-_TICK_BUDGET_S = 0.05
-
-
 def suggest_chains(obj: Any) -> int:
     """Fill the rig's chain list with the suggested chains; returns how many were found."""
     return len(bake.suggest_into_settings(obj))
-
-
-def _poll_armature(cls: Any, context: Any, what: str) -> bool:
-    obj = getattr(context, "active_object", None)
-    if obj is None or obj.type != "ARMATURE":
-        cls.poll_message_set(f"Select an armature (the rig {what})")
-        return False
-    if getattr(context, "mode", "OBJECT") not in {"OBJECT", "POSE"}:
-        cls.poll_message_set("Leave edit mode first")
-        return False
-    return True
 
 
 class PROCLOCO_OT_suggest_secondary_chains(bpy.types.Operator):
@@ -56,7 +40,9 @@ class PROCLOCO_OT_suggest_secondary_chains(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return _poll_armature(cls, context, "whose tail, antennae or ears should swing")
+        return poll_armature(
+            cls, context, "Select an armature (the rig whose tail, antennae or ears should swing)"
+        )
 
     def execute(self, context: Any) -> set[str]:
         obj = context.active_object
@@ -79,7 +65,7 @@ class PROCLOCO_OT_add_secondary_chain(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return _poll_armature(cls, context, "to add a chain to")
+        return poll_armature(cls, context, "Select an armature (the rig to add a chain to)")
 
     def execute(self, context: Any) -> set[str]:
         obj = context.active_object
@@ -111,7 +97,7 @@ class PROCLOCO_OT_remove_secondary_chain(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        if not _poll_armature(cls, context, "whose chain to remove"):
+        if not poll_armature(cls, context, "Select an armature (the rig whose chain to remove)"):
             return False
         settings = context.active_object.procloco_secondary
         if not 0 <= settings.active_chain_index < len(settings.chains):
@@ -126,7 +112,7 @@ class PROCLOCO_OT_remove_secondary_chain(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PROCLOCO_OT_bake_secondary_motion(bpy.types.Operator):
+class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
     """Make the rig's tails, antennae and ears swing with its motion (3D pendulums), baked over the
     frame range into a new Action; the current Action is kept untouched"""
 
@@ -134,15 +120,14 @@ class PROCLOCO_OT_bake_secondary_motion(bpy.types.Operator):
     bl_label = "Bake Secondary Motion"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
 
-    _timer: Any = None
-    _steps: Generator[float, None, None] | None = None
+    _cancelled_message: ClassVar[str] = "Bake cancelled: nothing was changed"
+    _run_errors: ClassVar[tuple[type[Exception], ...]] = (bake.BakeError,)
     _job: bake.Job | None = None
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return _poll_armature(cls, context, "to bake")
+        return poll_armature(cls, context, "Select an armature (the rig to bake)")
 
-    # -- shared -------------------------------------------------------------------------
     def _prepare(self, context: Any) -> bool:
         obj = context.active_object
         if obj is not None and obj.type == "ARMATURE" and not len(obj.procloco_secondary.chains):
@@ -171,76 +156,16 @@ class PROCLOCO_OT_bake_secondary_motion(bpy.types.Operator):
                     f"into '{action.name}' (on {source}, which is kept)")
         return {"FINISHED"}
 
-    # -- straight through ---------------------------------------------------------------
-    def execute(self, context: Any) -> set[str]:
-        if not self._prepare(context):
-            return {"CANCELLED"}
+    def _run(self, context: Any, modal: bool) -> Steps:
         job = self._job
         assert job is not None
+        samples = bake.sample(context, job)
         try:
-            for _fraction in bake.sample(context, job):
-                pass
-        except bake.BakeError as err:
-            self.report({"ERROR"}, str(err))
-            return {"CANCELLED"}
-        return self._finish(context)
+            for fraction in samples:
+                yield "baking secondary motion", 0.9 * fraction  # the last tenth simulates and writes
+        finally:
+            samples.close()  # closed early (Esc): frame and Action put back
 
-    # -- modal --------------------------------------------------------------------------
-    def invoke(self, context: Any, event: Any) -> set[str]:
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        if not self._prepare(context):
-            return {"CANCELLED"}
-        assert self._job is not None
-        self._steps = bake.sample(context, self._job)
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.progress_begin(0, 100)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def _stop(self, context: Any) -> None:
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        if context.area is not None:
-            context.area.header_text_set(None)
-        self._steps = None
-
-    def modal(self, context: Any, event: Any) -> set[str]:
-        if event.type == "ESC":
-            self._abort(context)
-            self.report({"WARNING"}, "Bake cancelled: nothing was changed")
-            return {"CANCELLED"}
-        if event.type != "TIMER" or self._steps is None:
-            return {"PASS_THROUGH"}
-        deadline = time.perf_counter() + _TICK_BUDGET_S
-        try:
-            for fraction in self._steps:
-                percent = int(90 * fraction)  # the last tenth is simulating and writing
-                context.window_manager.progress_update(percent)
-                if context.area is not None:
-                    context.area.header_text_set(
-                        f"ProcLoco: baking secondary motion {percent}% (Esc to cancel)"
-                    )
-                if time.perf_counter() > deadline:
-                    return {"RUNNING_MODAL"}
-        except bake.BakeError as err:
-            self._stop(context)
-            self.report({"ERROR"}, str(err))
-            return {"CANCELLED"}
-        self._stop(context)
-        return self._finish(context)
-
-    def _abort(self, context: Any) -> None:
-        steps = self._steps
-        self._stop(context)
-        if steps is not None:
-            steps.close()  # runs the sampler's clean-up: frame and Action put back
+    def _discard(self, context: Any) -> None:
         if self._job is not None:
             bake.cancel(context, self._job)
-
-    def cancel(self, context: Any) -> None:
-        self._abort(context)
