@@ -22,6 +22,7 @@ from .gait import handler as gait_handler
 from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
+from .gait import ui_list as gait_ui_list
 from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
 from .locomotion import property_group as locomotion_props
@@ -34,6 +35,7 @@ from .ui import main as ui_main
 
 CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
+    locomotion_props.PROCLOCO_PG_gait_change,
     locomotion_props.PROCLOCO_PG_rig_settings,
     locomotion_ops.PROCLOCO_OT_detect_legs,
     locomotion_ops.PROCLOCO_OT_generate_locomotion,
@@ -57,6 +59,10 @@ CLASSES: tuple[type, ...] = (
     # The sidebar tab's parent panel before every feature's sub-panels.
     ui_main.PROCLOCO_PT_main,
     gait_ops.PROCLOCO_MT_gait_presets,
+    gait_ops.PROCLOCO_MT_add_gait_change,
+    gait_ops.PROCLOCO_OT_add_gait_change,
+    gait_ops.PROCLOCO_OT_remove_gait_change,
+    gait_ui_list.PROCLOCO_UL_gait_changes,
     gait_ops.PROCLOCO_OT_apply_gait_preset,
     gait_ops.PROCLOCO_OT_add_gait_preset,
     gait_ops.PROCLOCO_OT_remove_gait_preset,
@@ -64,6 +70,7 @@ CLASSES: tuple[type, ...] = (
     gait_ops.PROCLOCO_OT_edit_gait_overlay,
     locomotion_panel.PROCLOCO_PT_rig_legs,
     gait_panel.PROCLOCO_PT_gait,
+    gait_panel.PROCLOCO_PT_gait_changes,
     locomotion_panel.PROCLOCO_PT_locomotion,
     locomotion_panel.PROCLOCO_PT_terrain,
     secondary_panel.PROCLOCO_PT_secondary,

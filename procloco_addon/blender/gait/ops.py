@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
@@ -15,10 +16,13 @@ from . import geometry, handler, presets, rig_gait
 
 __all__ = [
     "OverlayEditor",
+    "PROCLOCO_MT_add_gait_change",
     "PROCLOCO_MT_gait_presets",
+    "PROCLOCO_OT_add_gait_change",
     "PROCLOCO_OT_add_gait_preset",
     "PROCLOCO_OT_apply_gait_preset",
     "PROCLOCO_OT_edit_gait_overlay",
+    "PROCLOCO_OT_remove_gait_change",
     "PROCLOCO_OT_remove_gait_preset",
     "PROCLOCO_OT_toggle_gait_overlay",
 ]
@@ -166,6 +170,111 @@ class PROCLOCO_OT_remove_gait_preset(bpy.types.Operator):
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self.report({"INFO"}, f"Removed gait preset {path.name}")
+        return {"FINISHED"}
+
+
+def sort_gait_changes(settings: Any) -> None:
+    """Keep the rig's gait changes in frame order (the active one stays active)."""
+    changes = settings.gait_changes
+    for i in range(1, len(changes)):
+        j = i
+        while j > 0 and changes[j - 1].frame > changes[j].frame:
+            changes.move(j, j - 1)
+            if settings.active_gait_change_index == j:
+                settings.active_gait_change_index = j - 1
+            elif settings.active_gait_change_index == j - 1:
+                settings.active_gait_change_index = j
+            j -= 1
+
+
+class PROCLOCO_MT_add_gait_change(bpy.types.Menu):
+    """Add a change of gait at the current frame: to a preset, or to the circles as they are."""
+
+    bl_idname = "PROCLOCO_MT_add_gait_change"
+    bl_label = "Add Gait Change"
+
+    def draw(self, _context: Any) -> None:
+        layout = self.layout
+        col = layout.column(align=True)
+        col.operator(PROCLOCO_OT_add_gait_change.bl_idname, text="Current Gait Circles", icon="MESH_CIRCLE")
+        col.separator()
+        for entry in presets.list_presets():
+            if entry.error is None:
+                props = col.operator(PROCLOCO_OT_add_gait_change.bl_idname, text=entry.name)
+                props.filepath = str(entry.path)
+
+
+class PROCLOCO_OT_add_gait_change(bpy.types.Operator):
+    """Change the gait (and speed) at the current frame: to a gait preset, or to the gait circles as
+    they are now. The circles themselves are not changed"""
+
+    bl_idname = "procloco.add_gait_change"
+    bl_label = "Add Gait Change"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    filepath: StringProperty(name="Preset File", subtype="FILE_PATH", options={"SKIP_SAVE", "HIDDEN"})
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        return _rig_with_legs(cls, context)
+
+    def execute(self, context: Any) -> set[str]:
+        obj = context.active_object
+        settings = obj.procloco
+        try:
+            if self.filepath:
+                preset = core_gait.load_gait_preset(self.filepath)
+                gait = rig_gait.read_rig_gait(obj)
+                assert gait is not None  # poll
+                preset.gait(gait.labels)  # the legs must match: raises before anything is added
+                leg_length = rig_gait.mean_leg_length(obj)
+                speed = preset.speed * leg_length if leg_length is not None else float(settings.speed)
+            else:
+                preset = rig_gait.preset_from_rig(obj, settings.gait_preset or "Gait circles")
+                speed = float(settings.speed)
+        except core_gait.GaitPresetError as error:
+            self.report({"ERROR"}, f"Bad {error}; nothing was changed")
+            return {"CANCELLED"}
+        except core_gait.GaitError as error:
+            self.report({"ERROR"}, f"Cannot change to this gait: {error}; nothing was changed")
+            return {"CANCELLED"}
+        item = settings.gait_changes.add()
+        item.name = preset.name
+        item.frame = int(context.scene.frame_current)
+        item.gait = json.dumps(preset.to_json())
+        item.speed = speed
+        item.transition_time = 0.5 * float(preset.cycle_time)
+        settings.active_gait_change_index = len(settings.gait_changes) - 1
+        sort_gait_changes(settings)
+        self.report({"INFO"}, f"Gait changes to {preset.name} at frame {item.frame}")
+        return {"FINISHED"}
+
+
+class PROCLOCO_OT_remove_gait_change(bpy.types.Operator):
+    """Remove the selected gait change (the gait circles are not touched)"""
+
+    bl_idname = "procloco.remove_gait_change"
+    bl_label = "Remove Gait Change"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        obj = getattr(context, "active_object", None)
+        if obj is None or obj.type != "ARMATURE":
+            cls.poll_message_set("Select an armature (the rig whose gait change to remove)")
+            return False
+        settings = obj.procloco
+        if not 0 <= settings.active_gait_change_index < len(settings.gait_changes):
+            cls.poll_message_set("Select a gait change in the list")
+            return False
+        return True
+
+    def execute(self, context: Any) -> set[str]:
+        settings = context.active_object.procloco
+        settings.gait_changes.remove(settings.active_gait_change_index)
+        settings.active_gait_change_index = max(
+            0, min(settings.active_gait_change_index, len(settings.gait_changes) - 1)
+        )
         return {"FINISHED"}
 
 

@@ -3,14 +3,14 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import bpy
 
 from ..ui.main import PANEL_ORDER, RigPanel, active_rig
-from . import handler, ops, rig_gait
+from . import handler, ops, rig_gait, ui_list
 
-__all__ = ["PROCLOCO_PT_gait"]
+__all__ = ["PROCLOCO_PT_gait", "PROCLOCO_PT_gait_changes"]
 
 
 class PROCLOCO_PT_gait(RigPanel, bpy.types.Panel):
@@ -69,6 +69,38 @@ class PROCLOCO_PT_gait(RigPanel, bpy.types.Panel):
             col.prop(view, "overlay_cell")
             box.operator(ops.PROCLOCO_OT_edit_gait_overlay.bl_idname, icon="MOUSE_LMB_DRAG")
         box.prop(view, "picture_scale")
+
+
+class PROCLOCO_PT_gait_changes(RigPanel, bpy.types.Panel):
+    """Changes of gait and speed over the generated frames"""
+
+    bl_parent_id = "PROCLOCO_PT_gait"
+    bl_label = "Gait Changes"
+    bl_options: ClassVar[set[str]] = {"DEFAULT_CLOSED"}
+
+    def draw(self, context: Any) -> None:
+        layout = self.layout
+        settings = active_rig(context).procloco
+        layout.label(text="The circles above are the gait the walk starts with")
+        row = layout.row()
+        row.template_list(ui_list.PROCLOCO_UL_gait_changes.bl_idname, "", settings, "gait_changes",
+                          settings, "active_gait_change_index", rows=3)
+        col = row.column(align=True)
+        col.menu(ops.PROCLOCO_MT_add_gait_change.bl_idname, text="", icon="ADD")
+        col.operator(ops.PROCLOCO_OT_remove_gait_change.bl_idname, text="", icon="REMOVE")
+        index = settings.active_gait_change_index
+        if not 0 <= index < len(settings.gait_changes):
+            return
+        item = settings.gait_changes[index]
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column()
+        col.prop(item, "frame")
+        col.prop(item, "transition_time")
+        col.prop(item, "use_speed")
+        sub = col.column()
+        sub.active = item.use_speed
+        sub.prop(item, "speed")
 
 
 def gait_swinging(gait: rig_gait.RigGait, phase: float) -> list[bool]:

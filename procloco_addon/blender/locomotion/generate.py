@@ -16,6 +16,7 @@ The work for one rig is a :class:`Job` in three stages:
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
@@ -30,6 +31,7 @@ from .. import actions, rig, scene_terrain
 from . import property_group
 
 __all__ = [
+    "GaitChange",
     "GenerateError",
     "Job",
     "default_gait",
@@ -145,6 +147,40 @@ def _gait_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings:
         raise GenerateError(f"Gait of '{obj.name}': {err}") from err
 
 
+@dataclass(frozen=True)
+class GaitChange:
+    """A change of gait (and of speed, unless None) that begins at ``frame_index`` of the
+    job's frames and takes ``transition_time`` seconds."""
+
+    frame_index: int
+    gait: core_gait.Gait
+    transition_time: float
+    speed: float | None
+    name: str
+
+
+def _gait_changes(
+    obj: bpy.types.Object, legs: Sequence[rig.LegChain], frames: np.ndarray, warnings: list[str]
+) -> tuple[GaitChange, ...]:
+    """The rig's gait changes in frame order, each gait mapped onto the legs by label.
+    Changes after the last frame are left out with a warning."""
+    labels = [leg.label for leg in legs]
+    out = []
+    for k, item in enumerate(obj.procloco.gait_changes):
+        where = f"Gait change {k + 1} of '{obj.name}' ({item.name or 'unnamed'} at frame {item.frame})"
+        try:
+            preset = core_gait.parse_gait_preset(json.loads(item.gait), f"{item.name or 'gait'}.json")
+            gait = preset.gait(labels)
+        except (ValueError, TypeError) as err:  # bad JSON, bad preset, legs not the rig's
+            raise GenerateError(f"{where} cannot be used: {err}. Remove it and add it again") from err
+        if item.frame > frames[-1]:
+            warnings.append(f"{where} is after the last frame: left out")
+            continue
+        out.append(GaitChange(max(int(item.frame - frames[0]), 0), gait, float(item.transition_time),
+                              float(item.speed) if item.use_speed else None, item.name))
+    return tuple(sorted(out, key=lambda c: c.frame_index))
+
+
 def _offsets_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings: bool) -> np.ndarray:
     out = np.zeros((len(legs), 2))
     if from_settings:
@@ -234,6 +270,8 @@ class Job:
     use_pelvis_physics: bool
     use_progression: bool
     use_gait_randomizer: bool
+    # changes of gait and speed over the frames (GaitChange), in frame order
+    gait_changes: tuple[GaitChange, ...] = ()
     # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
     use_visual_yaw: bool = False
     spine_turn_rate: float = float(np.radians(120.0))  # rad/s
@@ -314,6 +352,8 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     except scene_terrain.TerrainError as err:
         raise GenerateError(str(err)) from err
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
+    warnings = list(info.warnings)
+    changes = _gait_changes(obj, info.legs, frames, warnings)
     job = Job(
         obj_name=obj.name,
         info=info,
@@ -337,7 +377,8 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         spine_turn_rate=float(settings.spine_turn_rate),
         spine_relax_time=float(settings.spine_relax_time),
         visual_yaw_gain=float(settings.visual_yaw_gain),
-        warnings=list(info.warnings),
+        gait_changes=changes,
+        warnings=warnings,
         held_bones=tuple(pb.name for pb in obj.pose.bones
                          if pb.name in stale and pb.name not in info.driven_bones),
     )

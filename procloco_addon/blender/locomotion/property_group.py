@@ -79,6 +79,43 @@ class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
     )
 
 
+class PROCLOCO_PG_gait_change(bpy.types.PropertyGroup):
+    """A change of gait (and optionally of speed) at a frame of the generated walk.
+
+    ``name`` (inherited) is the gait's name; ``gait`` holds it as a preset file's JSON text
+    (legs by label, sectors, cycle time), written by Add Gait Change.
+    """
+
+    frame: IntProperty(name="Frame", description="Frame at which the change begins", default=1)
+    transition_time: FloatProperty(
+        name="Transition",
+        description="Time over which the gait circles move from the gait before to this one "
+        "(a leg takes its new sector only while its foot is down; 0: at each leg's next stance)",
+        default=0.5,
+        min=0.0,
+        soft_max=5.0,
+        unit="TIME_ABSOLUTE",
+    )
+    use_speed: BoolProperty(
+        name="Change Speed",
+        description="Also change the speed, evenly over the transition time",
+        default=True,
+    )
+    speed: FloatProperty(
+        name="Speed",
+        description="Pelvis speed from this change on",
+        default=0.3,
+        min=0.0,
+        soft_max=5.0,
+        unit="VELOCITY",
+    )
+    gait: StringProperty(
+        name="Gait",
+        description="The gait as a preset file's JSON text (set by Add Gait Change)",
+        options={"HIDDEN"},
+    )
+
+
 class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
     """Locomotion controls of one rig (``Object.procloco``)."""
 
@@ -155,6 +192,13 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         name="Gait Preset",
         description="Name of the gait preset last applied to this rig",
     )
+    gait_changes: CollectionProperty(
+        type=PROCLOCO_PG_gait_change,
+        name="Gait Changes",
+        description="Changes of gait and speed over the generated frames, in frame order; "
+        "the gait circles above are the gait the walk starts with",
+    )
+    active_gait_change_index: IntProperty(name="Active Gait Change", default=0, min=0)
 
     # --- time and randomness ------------------------------------------------------------
     use_scene_range: BoolProperty(

@@ -25,10 +25,11 @@ from ...core.spine import SpineParams
 from ...core.terrain import NO_SURFACE
 
 if TYPE_CHECKING:
-    from .generate import Job
+    from .generate import GaitChange, Job
 
 __all__ = [
-    "SimResult", "ground_function", "path_heading", "run", "spine_params", "spine_tracks", "world_tracks",
+    "SimResult", "ground_function", "path_heading", "run", "speed_schedule", "spine_params", "spine_tracks",
+    "world_tracks",
 ]
 
 
@@ -108,6 +109,27 @@ def spine_params(job: Job) -> SpineParams:
     )
 
 
+def speed_schedule(job: Job) -> Callable[[float], float]:
+    """The commanded speed at each time ``t`` (seconds from the first frame): the rig's
+    speed, then each gait change's speed reached evenly over its transition time from
+    whatever the speed was when the change began (a change at the first frame: at once)."""
+    ramps: list[tuple[float, float, float, float]] = []  # start, duration, from, to
+
+    def speed_at(t: float) -> float:
+        v = job.speed
+        for t0, duration, v0, v1 in ramps:
+            if t >= t0:
+                v = v1 if duration <= 0.0 else v0 + (v1 - v0) * min((t - t0) / duration, 1.0)
+        return v
+
+    for change in job.gait_changes:
+        if change.speed is not None:
+            t0 = change.frame_index * job.dt
+            duration = change.transition_time if change.frame_index > 0 else 0.0
+            ramps.append((t0, duration, speed_at(t0), change.speed))
+    return speed_at
+
+
 def run(job: Job) -> Iterator[float]:
     """Simulate ``job`` (one controller step per frame after the first); yields the fraction
     done and stores a :class:`SimResult` in ``job.result``."""
@@ -125,9 +147,18 @@ def run(job: Job) -> Iterator[float]:
     if job.use_gait_randomizer and not job.use_progression:
         # Thesis §4.3: without stalls the randomizer only draws the gait the creature starts with.
         gait = initial_gaits([legs.n_legs], rng)[0].to_gait(job.gait.cycle_time, "Random gait")
+    # Gait changes at the first frame set the gait the walk starts with; later ones start a
+    # transition at their frame.
+    changes_at: dict[int, list[GaitChange]] = {}
+    for change in job.gait_changes:
+        if change.frame_index == 0:
+            gait = change.gait
+        else:
+            changes_at.setdefault(change.frame_index, []).append(change)
+    speed_at = speed_schedule(job)
 
     def command(t: float, xy: np.ndarray) -> tuple[float, float]:
-        speed = job.speed
+        speed = speed_at(t)
         if job.path is not None:
             heading, left = path_heading(job.path, xy, max(leg_len, 0.5 * job.speed))
             if left < 0.05 * leg_len:
@@ -204,6 +235,8 @@ def run(job: Job) -> Iterator[float]:
             if 0 in effects.new_gaits:  # a stall: the next burst walks with a new random gait
                 new = effects.new_gaits[0].to_gait(job.gait.cycle_time, "Random gait")
                 sim.gait.start_transition([0], [new], 0.5 * job.gait.cycle_time)
+        for change in changes_at.get(f, ()):
+            sim.gait.start_transition([0], [change.gait], change.transition_time)
         sim.step(job.dt, _controls(job, legs, speed, heading))
         record(f)
         yield (f + 1) / n_frames
