@@ -153,3 +153,13 @@ def test_gait_changes_panel_and_menu(empty_scene: Any) -> None:
     item = obj.procloco.gait_changes[0]
     for name in ("frame", "transition_time", "use_speed", "speed"):
         assert ui.has_prop(name, data=item), name
+
+
+def test_the_gait_panel_says_which_change_rules_the_current_frame(empty_scene: Any) -> None:
+    make_rig(empty_scene, n_pairs=2)
+    empty_scene.frame_set(30)
+    assert bpy.ops.procloco.add_gait_change(filepath=str(TROT)) == {"FINISHED"}
+    empty_scene.frame_set(10)
+    assert not any("From frame" in t for t in draw_panel(gait_panel.PROCLOCO_PT_gait).labels())
+    empty_scene.frame_set(45)
+    assert "From frame 30: Quadruped trot (Gait Changes)" in draw_panel(gait_panel.PROCLOCO_PT_gait).labels()

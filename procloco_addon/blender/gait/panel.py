@@ -43,6 +43,13 @@ class PROCLOCO_PT_gait(RigPanel, bpy.types.Panel):
         info.alignment = "CENTER"
         info.label(text=f"Frame {context.scene.frame_current}: phase {phase:.2f}, "
                         f"swinging {', '.join(swinging) if swinging else 'none'}")
+        changed = [c for c in obj.procloco.gait_changes if c.frame <= context.scene.frame_current]
+        if changed:
+            # the circles are the starting gait: say which change rules this frame instead
+            last = max(changed, key=lambda c: c.frame)
+            note = layout.row()
+            note.alignment = "CENTER"
+            note.label(text=f"From frame {last.frame}: {last.name} (Gait Changes)", icon="INFO")
 
         settings = obj.procloco
         layout.use_property_split = True
