@@ -81,6 +81,9 @@ from .spine import (
     leg_frames,
     node_pitch,
     plan_spine,
+    pose_rows,
+    pose_with_rows,
+    refit,
     repeat_for_reach,
     terrain_guides,
     visual_yaw,
@@ -213,7 +216,8 @@ class ControllerParams:
     - ``reach_margin``: largest hip-to-foot distance allowed, as a share of the leg length;
       the pelvis sinks to keep it, by at most ``guard_max_drop`` (× body thickness). A
       spine's nodes are pulled toward the feet instead (step 4 repeated), each by at most
-      the same distance.
+      the same distance; ``reach_release_time`` (s): time constant over which a node's pull
+      lets go once no leg needs it (the pull itself acts at once).
     - ``height_time`` (× cycle): time constant of the pelvis height/pitch/roll filter.
     - ``trajectory_samples``: samples kept of each swing trajectory (constant speed).
     - ``snap_tolerance`` (× step height): a footprint may be lowered by up to this much onto
@@ -260,6 +264,7 @@ class ControllerParams:
     max_drop: float = 0.15
     step_early_reach: float = 0.92
     guard_max_drop: float = 0.5
+    reach_release_time: float = 0.2
     clock: Callable[[], float] = time.perf_counter
     physics: PelvisPhysicsParams = field(default_factory=PelvisPhysicsParams)
 
@@ -315,7 +320,9 @@ class _SpineGroup:
     """Characters stepped together through the spine functions: one shared ``SpineModel``
     and ``SpineParams``. ``chars (g,)``; ``legs (g, L)`` flat leg rows; ``nodes (g, K)`` flat
     pelvis-node rows; ``plan``/``pose``: the last steps 1-2 and step 4; ``height``,
-    ``pitch (g, K)``: each node's filtered preferred height and pitch (deviation from rest)."""
+    ``pitch (g, K)``: each node's filtered preferred height and pitch (deviation from rest);
+    ``reach_shift (g, K, 3)``: how far the last step 4 moved each node's guide so the legs
+    reach their feet (released gradually, see ``ControllerParams.reach_release_time``)."""
 
     model: SpineModel
     params: SpineParams
@@ -326,6 +333,7 @@ class _SpineGroup:
     pose: SpinePose | None = None
     height: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     pitch: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
+    reach_shift: FloatArray | None = None
 
 
 class Controller:
@@ -492,7 +500,7 @@ class Controller:
             self.pos[:, 2] = np.where(self._physics_on, centered[self.node_start[:-1]], height)
             pref_nodes = np.where(self._physics_on[self.node_char], centered, pref_nodes)
         if self.spine_groups:
-            self._spine_pose(pref_nodes, self._physics_on)
+            self._spine_pose(pref_nodes, self._physics_on, 0.0)
         # feet that start inside their swing sector are planned right away
         self._start_in_swing = np.zeros(n, dtype=bool)
         start_swing = self.gait.swing.copy()
@@ -853,7 +861,7 @@ class Controller:
             if rigid is not None and rigid.size:
                 self.pos[rigid, 2] = z[self.node_start[rigid]]
             timer.lap("rest")
-            self._spine_pose(z, physics_on)
+            self._spine_pose(z, physics_on, dt)
             timer.lap("spine")
         else:
             self.pos[:, 2] = z
@@ -912,7 +920,7 @@ class Controller:
             pref[g.nodes] = g.height
         return pref
 
-    def _spine_pose(self, node_z: FloatArray, physics_on: BoolArray) -> None:
+    def _spine_pose(self, node_z: FloatArray, physics_on: BoolArray, dt: float) -> None:
         """Step 4 (thesis §4.2.4): the spine curve through the nodes at ``node_z
         (n_nodes,)`` (nodes without legs keep their guide), turned by the visual yaw (§4.4),
         repeated on guides pulled toward the feet while a leg cannot reach; then the hips,
@@ -929,8 +937,32 @@ class Controller:
             self._spine_hips_free[g.legs] = hip_positions(m, pose)
             # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
             shift = self.params.guard_max_drop * float(self.body_thickness[g.chars[0]])
+            free = pose
             pose = repeat_for_reach(m, pose, self.foot[g.legs], self.guard_reach[g.legs[0]], iterations=6,
                                     max_shift=shift)
+            # A node pulled toward a stretched leg's foot goes back to its guide over
+            # reach_release_time, not in one frame when the foot steps (the chest would drop
+            # and spring back by centimetres per frame); the pull itself acts at once.
+            need = pose.guide_xyz - free.guide_xyz
+            held = need
+            if g.reach_shift is not None and g.reach_shift.shape == need.shape and dt > 0.0:
+                held = g.reach_shift * float(np.exp(-dt / max(self.params.reach_release_time, 1e-9)))
+                keep = np.linalg.norm(held, axis=-1) > np.linalg.norm(need, axis=-1)
+                if np.any(keep):
+                    held = np.where(keep[..., None], held, need)
+                    slow = refit(m, free, free.guide_xyz + held)
+                    # kept only where it leaves no leg further from its foot than the pull did
+                    reach = self.guard_reach[g.legs[0]]
+                    over = np.linalg.norm(self.foot[g.legs] - hip_positions(m, slow), axis=-1) > np.maximum(
+                        np.linalg.norm(self.foot[g.legs] - hip_positions(m, pose), axis=-1), reach[None, :]
+                    ) + 1e-9
+                    ok = ~over.any(axis=1)
+                    if np.any(ok):
+                        pose = pose_with_rows(pose, np.flatnonzero(ok), pose_rows(slow, np.flatnonzero(ok)))
+                    held = np.where(ok[:, None, None], held, need)
+                else:
+                    held = need
+            g.reach_shift = held
             g.pose = pose
             self._spine_hips[g.legs] = hip_positions(m, pose)
             self._spine_leg_rot[g.legs] = leg_frames(m, pose)

@@ -944,7 +944,7 @@ def repeat_for_reach(
     start = pose.guide_xyz
     rows = np.arange(pose.joints.shape[0])  # characters still stretched (only they are rebuilt)
     for _ in range(max(0, int(iterations))):
-        sub = _pose_rows(pose, rows)
+        sub = pose_rows(pose, rows)
         to_foot = feet[rows] - hip_positions(model, sub)
         dist = np.linalg.norm(to_foot, axis=-1)
         stretched = np.any(dist > reach[None, :] + 1e-12, axis=1)
@@ -955,20 +955,20 @@ def repeat_for_reach(
         pull = to_foot * (excess * excess / np.maximum(dist, _EPS))[..., None]
         weight = excess @ member  # (c, K)
         shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
-        sub = _pose_rows(pose, rows)
+        sub = pose_rows(pose, rows)
         moved = sub.guide_xyz + shift - start[rows]
         size = np.linalg.norm(moved, axis=-1, keepdims=True)
         moved *= np.minimum(1.0, max_shift / np.maximum(size, _EPS))
-        pose = _pose_with_rows(pose, rows, refit(model, sub, start[rows] + moved))
+        pose = pose_with_rows(pose, rows, refit(model, sub, start[rows] + moved))
     return pose
 
 
-def _pose_rows(pose: SpinePose, rows: IntArray) -> SpinePose:
+def pose_rows(pose: SpinePose, rows: IntArray) -> SpinePose:
     """The poses of characters ``rows`` only."""
     return SpinePose(*(getattr(pose, f.name)[rows] for f in fields(SpinePose)))
 
 
-def _pose_with_rows(pose: SpinePose, rows: IntArray, sub: SpinePose) -> SpinePose:
+def pose_with_rows(pose: SpinePose, rows: IntArray, sub: SpinePose) -> SpinePose:
     """``pose`` with the characters ``rows`` replaced by ``sub``."""
     if rows.size == pose.joints.shape[0]:
         return sub
@@ -1031,6 +1031,8 @@ __all__ = [
     "leg_frames",
     "node_pitch",
     "plan_spine",
+    "pose_rows",
+    "pose_with_rows",
     "refit",
     "repeat_for_reach",
     "spine_step",

@@ -537,3 +537,36 @@ def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytes
         dist = np.linalg.norm(ctrl.foot - ctrl.hips_world(), axis=1)
         assert np.all(dist <= legs.leg_length + 1e-9)
     assert failed > 0  # the detours were refused (the feet stepped when forced instead)
+
+
+@pytest.mark.parametrize("release", [0.2, 1e-6])
+def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(release: float) -> None:
+    from procloco_addon.core.spine import SpineParams
+
+    dog = morph.quadruped(spine=True)
+    legs = LegBatch.stack([dog])
+    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
+    ctrl = Controller(_flat(), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0),
+                      params=ControllerParams(reach_release_time=release), spine=[SpineParams()])
+    group = ctrl.spine_groups[0]
+    z = np.zeros(ctrl.n_nodes)
+    z[group.nodes[0]] = group.height[0]
+    off = np.zeros(1, dtype=bool)
+    dt = 1.0 / 30.0
+    reach = ctrl.guard_reach
+
+    def pose_and_check() -> float:
+        ctrl._spine_pose(z, off, dt)
+        assert np.all(np.linalg.norm(ctrl.foot - ctrl.hips_world(), axis=1) <= reach + 1e-6)
+        assert group.reach_shift is not None
+        return float(np.linalg.norm(group.reach_shift, axis=-1).max())
+
+    assert pose_and_check() == pytest.approx(0.0, abs=1e-12)  # standing at rest: no pull
+    rest = ctrl.foot.copy()
+    ctrl.foot[0] += [0.3 * legs.leg_length[0], 0.0, -0.1 * legs.leg_length[0]]  # a front foot far ahead
+    pulled = pose_and_check()
+    assert pulled > 0.02 * legs.leg_length[0]
+    ctrl.foot[:] = rest  # the foot has stepped back under its hip: no leg needs the pull now
+    kept = pose_and_check()
+    # let go over the release time, not at once (a very short release: at once)
+    assert kept == pytest.approx(pulled * np.exp(-dt / release), rel=1e-6, abs=1e-9)
