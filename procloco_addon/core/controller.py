@@ -235,7 +235,9 @@ class ControllerParams:
     - ``max_drop`` (× body thickness), ``step_early_reach`` (share of the leg length): a
       planted foot that would need the pelvis to sink more than ``max_drop`` to stay within
       ``step_early_reach`` of its hip steps early (a forced step) instead, before the leg is
-      stretched.
+      stretched. Such a step waits while it would leave its character with fewer than
+      ``min_planted`` feet down (one less than its legs at most), unless the pelvis would
+      have to drop more than ``urgent_drop`` (× body thickness) to keep the foot.
     """
 
     window_cells: int = 70
@@ -265,6 +267,8 @@ class ControllerParams:
     step_early_reach: float = 0.92
     guard_max_drop: float = 0.5
     reach_release_time: float = 0.2
+    min_planted: int = 2
+    urgent_drop: float = 0.3
     clock: Callable[[], float] = time.perf_counter
     physics: PelvisPhysicsParams = field(default_factory=PelvisPhysicsParams)
 
@@ -769,7 +773,9 @@ class Controller:
         # it must step when its support goes or when it is left behind
         planted = ~gstep.swing | self.plan_failed
         support_gone = self._check_supports()
-        behind = self._overstretched() & ~support_gone
+        behind, stretch = self._overstretched()
+        behind &= ~support_gone
+        behind &= ~self._wait_for_support(behind & planted & ~self.forced, stretch, lifted)
         forced_new = ((support_gone | behind) & planted & ~self.forced) | bad_landing
         # a foot left behind lands under its rest place at the latest (as at mid-stance):
         # landed where its late stance would have it, it would be left behind again at once
@@ -1197,11 +1203,12 @@ class Controller:
         self.foot[side, 2] = np.maximum(self.foot[side, 2], ring_h[aside, pick[aside]])
         self.foot[up, 2] = surface[~aside]
 
-    def _overstretched(self) -> BoolArray:
+    def _overstretched(self) -> tuple[BoolArray, FloatArray]:
         """Planted feet left so far behind (or aside) that keeping them would need the pelvis
         to drop more than ``max_drop`` of its body thickness: they step early. (A spine's
         hips are taken where the spine would put them before step 4 pulls them toward the
-        feet: a foot left behind must step, not drag the body back.)"""
+        feet: a foot left behind must step, not drag the body back.) Also returns how far
+        the pelvis would have to drop for each foot ``(N,)`` (inf: beyond reach)."""
         planted = ~self.swinging
         hips = self.hips_world()
         # judged from the height the pelvis wants, not from where the reach guard has already
@@ -1213,7 +1220,32 @@ class Controller:
         d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
         top = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         need = np.where(d_h < reach, hips[:, 2] - top, np.inf)
-        return np.asarray(planted & (need > self.params.max_drop * self.body_thickness[self.leg_char]))
+        over = planted & (need > self.params.max_drop * self.body_thickness[self.leg_char])
+        return np.asarray(over), np.asarray(need, dtype=np.float64)
+
+    def _wait_for_support(self, candidates: BoolArray, stretch: FloatArray, lifted: BoolArray) -> BoolArray:
+        """Which feet left behind (``candidates``) wait a little before their forced step:
+        those that would leave their character with fewer than ``min_planted`` feet on the
+        ground (a walking wolf or human does not fling every foot up at once), as long as
+        the pelvis would have to drop less than ``urgent_drop`` (× body thickness) to keep
+        them (``stretch (N,)``, metres; the reach guard lowers it meanwhile). The most
+        stretched feet of a character go first."""
+        wait = np.zeros(self.n_legs, dtype=bool)
+        if not np.any(candidates):
+            return wait
+        p = self.params
+        airborne = self.swinging | lifted
+        down = np.bincount(self.leg_char, weights=(~airborne).astype(np.float64), minlength=self.n_chars)
+        n_legs = np.bincount(self.leg_char, minlength=self.n_chars)
+        need = np.minimum(p.min_planted, n_legs - 1)
+        urgent = stretch > p.urgent_drop * self.body_thickness[self.leg_char]
+        for leg in np.flatnonzero(candidates)[np.argsort(-stretch[candidates], kind="stable")].tolist():
+            c = int(self.leg_char[leg])
+            if urgent[leg] or down[c] - 1 >= need[c]:
+                down[c] -= 1  # this one steps
+            else:
+                wait[leg] = True
+        return wait
 
     def _spot_taken(self, points: FloatArray, which: BoolArray) -> BoolArray:
         """Whether a moving obstacle now covers the footprints ``points (N, 3)`` of legs

@@ -570,3 +570,39 @@ def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(re
     kept = pose_and_check()
     # let go over the release time, not at once (a very short release: at once)
     assert kept == pytest.approx(pulled * np.exp(-dt / release), rel=1e-6, abs=1e-9)
+
+
+def test_a_foot_left_behind_waits_while_too_few_feet_would_stay_down() -> None:
+    dog = morph.quadruped()
+    legs = LegBatch.stack([dog])
+    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
+    ctrl = Controller(_flat(), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0))
+    thick = float(ctrl.body_thickness[0])
+    mild = np.full(4, 0.2 * thick)  # left behind, but the pelvis can still sink for it
+    none_lifted = np.zeros(4, dtype=bool)
+    hind = np.array([False, False, True, True])
+    # both front feet in the air: a hind foot stepping now would leave one foot down
+    ctrl.swinging[:] = [True, True, False, False]
+    assert ctrl._wait_for_support(hind, mild, none_lifted).tolist() == [False, False, True, True]
+    # unless keeping it would need the pelvis to drop too far: it steps, the other waits
+    urgent = mild.copy()
+    urgent[3] = 0.5 * thick
+    assert ctrl._wait_for_support(hind, urgent, none_lifted).tolist() == [False, False, True, False]
+    # one front foot in the air: the more stretched hind foot steps, the other waits
+    ctrl.swinging[:] = [True, False, False, False]
+    more = mild.copy()
+    more[2] = 0.25 * thick
+    assert ctrl._wait_for_support(hind, more, none_lifted).tolist() == [False, False, False, True]
+    # a foot the gait lifts this frame counts as in the air
+    lifting = np.array([False, True, False, False])
+    assert ctrl._wait_for_support(hind, more, lifting).tolist() == [False, False, True, True]
+    # a biped keeps one foot down (its other one), not two
+    human = morph.biped()
+    two = LegBatch.stack([human])
+    walk = find_gait_preset("biped_walk").gait(human.labels)
+    ctrl2 = Controller(_flat(), two, [walk], np.zeros((1, 2)), np.zeros(1), _controls(two, speed=0.0))
+    ctrl2.swinging[:] = False
+    behind, small, still = np.array([True, False]), np.full(2, 0.01), np.zeros(2, dtype=bool)
+    assert ctrl2._wait_for_support(behind, small, still).tolist() == [False, False]
+    ctrl2.swinging[:] = [False, True]
+    assert ctrl2._wait_for_support(behind, small, still).tolist() == [True, False]
