@@ -799,6 +799,14 @@ class Controller:
             swing_time = np.where(forced_new, self.forced_duration, swing_time)
             remaining = np.where(forced_new, self.forced_duration - dt, remaining)
             stats.n_forced = int((forced_new & ~rushed).sum())
+        # a gait lift that would leave too few feet down while another foot of the character
+        # is in a forced step waits for the next cycle: the foot stays planted, as when its
+        # plan fails (a forced step is off the gait's beat; both feet of a biped up at once,
+        # or three of a quadruple's, is a jump)
+        deferred = self._defer_lifts(lifted & ~forced_new, forced_new)
+        if np.any(deferred):
+            self.plan_failed |= deferred
+            lifted = lifted & ~deferred
         # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
         to_plan = lifted | forced_new | replan
         stats.n_replans = int((replan & ~lifted).sum())
@@ -1223,6 +1231,27 @@ class Controller:
         over = planted & (need > self.params.max_drop * self.body_thickness[self.leg_char])
         return np.asarray(over), np.asarray(need, dtype=np.float64)
 
+    def _defer_lifts(self, lifts: BoolArray, forced_new: BoolArray) -> BoolArray:
+        """Which of the gait's lifts this frame (``lifts``) wait for the next cycle: in a
+        character with a foot in a forced step (``forced_new``: started this frame), those
+        that would leave it with fewer than ``min_planted`` feet down."""
+        out = np.zeros(self.n_legs, dtype=bool)
+        forcing = np.bincount(self.leg_char, weights=(self.forced | forced_new).astype(np.float64),
+                              minlength=self.n_chars) > 0
+        cand = lifts & forcing[self.leg_char]
+        if not np.any(cand):
+            return out
+        airborne = self.swinging | self.forced | forced_new | lifts
+        down = np.bincount(self.leg_char, weights=(~airborne).astype(np.float64), minlength=self.n_chars)
+        n_legs = np.bincount(self.leg_char, minlength=self.n_chars)
+        need = np.minimum(self.params.min_planted, n_legs - 1)
+        for leg in np.flatnonzero(cand).tolist():
+            c = int(self.leg_char[leg])
+            if down[c] < need[c]:
+                out[leg] = True
+                down[c] += 1
+        return out
+
     def _wait_for_support(self, candidates: BoolArray, stretch: FloatArray, lifted: BoolArray) -> BoolArray:
         """Which feet left behind (``candidates``) wait a little before their forced step:
         those that would leave their character with fewer than ``min_planted`` feet on the
@@ -1541,7 +1570,12 @@ class Controller:
         z = np.maximum(z, start[2] + u[None, :] * (end_z - start[2])[:, None])
         z[:, 0] = start[2]
         inner = (u > 0.0) & (u < 1.0)
-        z[:, inner] = np.maximum(z[:, inner], under[:, inner] + 0.25 * step_height)
+        # clear of the ground at each sample and at its neighbours: the polyline between two
+        # samples must not cut the edge of a stair or crate lying between them
+        near = under.copy()
+        near[:, 1:] = np.maximum(near[:, 1:], under[:, :-1])
+        near[:, :-1] = np.maximum(near[:, :-1], under[:, 1:])
+        z[:, inner] = np.maximum(z[:, inner], near[:, inner] + 0.25 * step_height)
         # and within the leg's length of the hip all the way (the hip moving to touch-down)
         pts = np.concatenate([xy, z[..., None]], axis=2)
         dist = self._hip_distance(leg, pts, hip_start, hip_end_xy)
@@ -1549,7 +1583,25 @@ class Controller:
         if not np.any(ok):
             return None
         k = int(np.flatnonzero(ok)[0])
-        return pts[k], np.array([spots[k, 0], spots[k, 1], float(end_z[k])])
+        return self._clear_end_segments(pts[k].copy(), step_height), np.array(
+            [spots[k, 0], spots[k, 1], float(end_z[k])]
+        )
+
+    def _clear_end_segments(self, pts: FloatArray, step_height: float) -> FloatArray:
+        """The first and last segments of a straight step's samples ``pts (k + 1, 3)`` made
+        to clear any ground edge they cross (a foot lifting off just below a stair, or
+        landing just past one): the foot then rises straight up from its start, or comes
+        straight down onto its landing, from the height of the ground it passes."""
+        if pts.shape[0] < 3:
+            return pts
+        t = np.linspace(0.0, 1.0, 33)[1:-1]
+        for a, b, moved in ((0, 1, 1), (-1, -2, -2)):
+            line = pts[a][None, :] + t[:, None] * (pts[b] - pts[a])[None, :]
+            ground = self.env.height_at(line[:, :2])
+            if np.any(ground > line[:, 2]):
+                pts[moved, :2] = pts[a, :2]
+                pts[moved, 2] = max(float(pts[moved, 2]), float(ground.max()) + 0.25 * step_height)
+        return pts
 
     def _apply_feedback(self, dt: float) -> None:
         """Thesis figure 3.9: move the pelvis by the mean footprint error when it matters."""

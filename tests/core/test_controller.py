@@ -606,3 +606,62 @@ def test_a_foot_left_behind_waits_while_too_few_feet_would_stay_down() -> None:
     assert ctrl2._wait_for_support(behind, small, still).tolist() == [False, False]
     ctrl2.swinging[:] = [False, True]
     assert ctrl2._wait_for_support(behind, small, still).tolist() == [True, False]
+
+
+def test_a_straight_fallback_step_down_stairs_never_cuts_a_stair_edge() -> None:
+    # Stairs going down in +x: 8 cm risers every 12 cm (heightmap cells of 1 cm).
+    n = 400
+    x = -2.0 + 0.01 * np.arange(n)
+    heights = np.broadcast_to(-0.08 * np.floor(np.maximum(x, 0.0) / 0.12), (n, n)).copy()
+    env = Environment(Heightmap(heights, np.array([-2.0, -2.0]), 0.01))
+    ctrl, legs = _spider_controller(env)
+    leg = 0
+    u = np.linspace(0.0, 1.0, 7)  # coarse samples: edges fall between them
+    checked = 0
+    ahead, aside = np.array([0.3, 0.0]), np.array([0.0, 0.05])
+    y = float(ctrl.foot[leg, 1])
+    for x0 in np.linspace(-0.05, 0.1, 7):
+        start = np.array([x0, y, float(env.height_at(np.array([[x0, y]]))[0])])
+        hip = ctrl.hips_world()[leg].copy()
+        hip[:2] = start[:2] + aside
+        hip[2] = start[2] + 0.8 * legs.leg_length[leg]
+        got = ctrl._straight_step(leg, start, start[:2] + ahead, u, 0.03, 0.1, hip, hip[:2] + ahead)
+        if got is None:
+            continue
+        samples, _ = got
+        # the polyline densely, its vertical ends aside: never below the ground
+        t = np.linspace(0.0, 1.0, 60)[:, None]
+        dense = (samples[:-1, None, :] * (1.0 - t) + samples[1:, None, :] * t).reshape(-1, 3)
+        ground = env.height_at(dense[:, :2])
+        ends = samples[[0, -1], :2]
+        inner = ~np.isclose(dense[:, None, :2], ends[None, :, :]).all(axis=-1).any(axis=1)
+        assert np.all(dense[inner, 2] >= ground[inner] - 1e-9)
+        checked += 1
+    assert checked >= 4
+
+
+def test_a_gait_lift_waits_a_cycle_while_another_foot_takes_a_forced_step() -> None:
+    human = morph.biped()
+    legs = LegBatch.stack([human])
+    walk = find_gait_preset("biped_walk").gait(human.labels)
+    ctrl = Controller(_flat(), legs, [walk], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0))
+    ctrl.swinging[:] = False
+    ctrl.forced[:] = False
+    lift_right = np.array([False, True])
+    none = np.zeros(2, dtype=bool)
+    # no forced step under way: the gait lifts as it says
+    assert ctrl._defer_lifts(lift_right, none).tolist() == [False, False]
+    # the left foot in a forced step (under way, or starting this frame): the right waits
+    ctrl.forced[0] = ctrl.swinging[0] = True
+    assert ctrl._defer_lifts(lift_right, none).tolist() == [False, True]
+    ctrl.forced[0] = ctrl.swinging[0] = False
+    assert ctrl._defer_lifts(lift_right, np.array([True, False])).tolist() == [False, True]
+    # a quadruped with one foot in a forced step lifts one more foot, not two
+    dog = morph.quadruped()
+    four = LegBatch.stack([dog])
+    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
+    ctrl4 = Controller(_flat(), four, [gait], np.zeros((1, 2)), np.zeros(1), _controls(four, speed=0.0))
+    ctrl4.swinging[:] = [True, False, False, False]
+    ctrl4.forced[:] = [True, False, False, False]
+    deferred = ctrl4._defer_lifts(np.array([False, True, True, False]), np.zeros(4, dtype=bool))
+    assert deferred.tolist() == [False, True, False, False]
