@@ -217,7 +217,10 @@ class ControllerParams:
       the pelvis sinks to keep it, by at most ``guard_max_drop`` (× body thickness). A
       spine's nodes are pulled toward the feet instead (step 4 repeated), each by at most
       the same distance; ``reach_release_time`` (s): time constant over which a node's pull
-      lets go once no leg needs it (the pull itself acts at once).
+      lets go once no leg needs it (the pull itself acts at once); ``swing_reach_slack``: a
+      swinging foot pulls only beyond ``1 + swing_reach_slack × (1 - swing progress)`` of the
+      reach, so the body follows a foot going down a step as it comes down (the swinging
+      foot itself goes to the nearest point its leg reaches meanwhile).
     - ``height_time`` (× cycle): time constant of the pelvis height/pitch/roll filter.
     - ``trajectory_samples``: samples kept of each swing trajectory (constant speed).
     - ``snap_tolerance`` (× step height): a footprint may be lowered by up to this much onto
@@ -267,6 +270,7 @@ class ControllerParams:
     step_early_reach: float = 0.92
     guard_max_drop: float = 0.5
     reach_release_time: float = 0.2
+    swing_reach_slack: float = 0.1
     min_planted: int = 2
     urgent_drop: float = 0.3
     clock: Callable[[], float] = time.perf_counter
@@ -466,6 +470,7 @@ class Controller:
         self.swinging = np.zeros(n, dtype=bool)
         self.forced = np.zeros(n, dtype=bool)
         self.forced_behind = np.zeros(n, dtype=bool)  # forced steps of feet left behind
+        self._swing_u = np.ones(n)  # swing progress of each foot this step (1: planted)
         self.dodged = np.zeros(n, dtype=bool)  # this swing was re-planned for an obstacle closing in
         self.forced_elapsed = np.zeros(n)
         self.forced_duration = np.ones(n)
@@ -799,6 +804,7 @@ class Controller:
             swing_time = np.where(forced_new, self.forced_duration, swing_time)
             remaining = np.where(forced_new, self.forced_duration - dt, remaining)
             stats.n_forced = int((forced_new & ~rushed).sum())
+        self._swing_u = np.clip(progress, 0.0, 1.0)
         # a gait lift that would leave too few feet down while another foot of the character
         # is in a forced step waits for the next cycle: the foot stays planted, as when its
         # plan fails (a forced step is off the gait's beat; both feet of a biped up at once,
@@ -952,8 +958,11 @@ class Controller:
             # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
             shift = self.params.guard_max_drop * float(self.body_thickness[g.chars[0]])
             free = pose
-            pose = repeat_for_reach(m, pose, self.foot[g.legs], self.guard_reach[g.legs[0]], iterations=6,
-                                    max_shift=shift)
+            reach = self._spine_reach(g)
+            # a swinging foot pulls toward where it will land (within its growing reach), so
+            # the body is already where that foot needs it when it comes down
+            feet = np.where(self.swinging[g.legs][..., None], self.target[g.legs], self.foot[g.legs])
+            pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=shift)
             # A node pulled toward a stretched leg's foot goes back to its guide over
             # reach_release_time, not in one frame when the foot steps (the chest would drop
             # and spring back by centimetres per frame); the pull itself acts at once.
@@ -966,9 +975,8 @@ class Controller:
                     held = np.where(keep[..., None], held, need)
                     slow = refit(m, free, free.guide_xyz + held)
                     # kept only where it leaves no leg further from its foot than the pull did
-                    reach = self.guard_reach[g.legs[0]]
-                    over = np.linalg.norm(self.foot[g.legs] - hip_positions(m, slow), axis=-1) > np.maximum(
-                        np.linalg.norm(self.foot[g.legs] - hip_positions(m, pose), axis=-1), reach[None, :]
+                    over = np.linalg.norm(feet - hip_positions(m, slow), axis=-1) > np.maximum(
+                        np.linalg.norm(feet - hip_positions(m, pose), axis=-1), reach
                     ) + 1e-9
                     ok = ~over.any(axis=1)
                     if np.any(ok):
@@ -987,6 +995,17 @@ class Controller:
             self.pitch[g.chars] = np.arctan2(frame[:, 2, 0], np.hypot(frame[:, 0, 0], frame[:, 1, 0]))
             self.roll[g.chars] = 0.0
             self.height_target[g.chars] = self.pos[g.chars, 2]
+
+    def _spine_reach(self, g: _SpineGroup) -> FloatArray:
+        """``(g, L)`` how far each leg of a spine group may reach before it pulls its node
+        toward its foot: the guard's reach for a planted foot; for a swinging one (which pulls
+        toward its landing point), more the earlier in its swing (``swing_reach_slack``), so
+        that the body lowers gradually over a swing down a step, not all at once as the
+        foot lands."""
+        legs = g.legs
+        early = 1.0 - self._swing_u[legs]
+        slack = np.where(self.swinging[legs], self.params.swing_reach_slack * early, 0.0)
+        return np.asarray(self.guard_reach[legs] * (1.0 + slack))
 
     def _landing_refs(
         self, legs: IntArray, ctl: StepControls, remaining: FloatArray

@@ -932,14 +932,16 @@ def repeat_for_reach(
     the spine is rebuilt (:func:`refit`); at most ``iterations`` times. This is
     the hook of thesis §4.2.4 with reach as the legs' ability; a controller whose IK knows
     better (joint limits) can compute its own guides and call :func:`refit`.
-    ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)``; no guide moves further than
+    ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)`` or ``(C, L)``; no guide moves further than
     ``max_shift`` from where it was (a foot beyond help is the controller's to step).
     """
     if model.n_legs == 0:
         return pose
     feet = np.asarray(foot_world, dtype=np.float64)
-    reach = np.broadcast_to(np.asarray(leg_reach, dtype=np.float64), (model.n_legs,))
-    aim = slack * reach
+    n_chars = pose.joints.shape[0]
+    reach_all = np.asarray(leg_reach, dtype=np.float64)
+    reach_all = np.broadcast_to(reach_all if reach_all.ndim == 2 else reach_all[None, :],
+                                (n_chars, model.n_legs))
     member = _membership(model)
     start = pose.guide_xyz
     rows = np.arange(pose.joints.shape[0])  # characters still stretched (only they are rebuilt)
@@ -947,10 +949,11 @@ def repeat_for_reach(
         sub = pose_rows(pose, rows)
         to_foot = feet[rows] - hip_positions(model, sub)
         dist = np.linalg.norm(to_foot, axis=-1)
-        stretched = np.any(dist > reach[None, :] + 1e-12, axis=1)
+        reach = reach_all[rows]
+        stretched = np.any(dist > reach + 1e-12, axis=1)
         if not np.any(stretched):
             break
-        excess = np.maximum(dist - aim[None, :], 0.0)
+        excess = np.maximum(dist - slack * reach, 0.0)
         rows, to_foot, dist, excess = rows[stretched], to_foot[stretched], dist[stretched], excess[stretched]
         pull = to_foot * (excess * excess / np.maximum(dist, _EPS))[..., None]
         weight = excess @ member  # (c, K)

@@ -548,6 +548,7 @@ def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(re
     gait = find_gait_preset("quadruped_walk").gait(dog.labels)
     ctrl = Controller(_flat(), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0),
                       params=ControllerParams(reach_release_time=release), spine=[SpineParams()])
+    ctrl.swinging[:] = False  # every foot planted
     group = ctrl.spine_groups[0]
     z = np.zeros(ctrl.n_nodes)
     z[group.nodes[0]] = group.height[0]
@@ -665,3 +666,37 @@ def test_a_gait_lift_waits_a_cycle_while_another_foot_takes_a_forced_step() -> N
     ctrl4.forced[:] = [True, False, False, False]
     deferred = ctrl4._defer_lifts(np.array([False, True, True, False]), np.zeros(4, dtype=bool))
     assert deferred.tolist() == [False, True, False, False]
+
+
+def test_a_swinging_foot_pulls_its_node_toward_its_landing_as_it_comes_down() -> None:
+    from procloco_addon.core.spine import SpineParams
+
+    dog = morph.quadruped(spine=True)
+    legs = LegBatch.stack([dog])
+    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
+    ctrl = Controller(_flat(), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0),
+                      params=ControllerParams(reach_release_time=1e-6), spine=[SpineParams()])
+    ctrl.swinging[:] = False
+    group = ctrl.spine_groups[0]
+    z = np.zeros(ctrl.n_nodes)
+    z[group.nodes[0]] = group.height[0]
+    off = np.zeros(1, dtype=bool)
+    hip = ctrl.hips_world()[0].copy()
+    reach = float(ctrl.guard_reach[0])
+    slack = ctrl.params.swing_reach_slack
+    # leg 0 swings down a step toward a landing just beyond its reach (within the slack)
+    down = np.array([0.2, 0.0, -1.0]) / np.linalg.norm([0.2, 0.0, -1.0])
+    ctrl.swinging[0] = True
+    ctrl.target[0] = hip + down * reach * (1.0 + 0.5 * slack)
+
+    def pull_at(progress: float) -> float:
+        ctrl._swing_u[0] = progress
+        ctrl._spine_pose(z, off, 1.0 / 30.0)
+        assert group.reach_shift is not None
+        return float(np.linalg.norm(group.reach_shift, axis=-1).max())
+
+    assert pull_at(0.0) == pytest.approx(0.0, abs=1e-12)  # just lifted: no pull yet
+    mid, late = pull_at(0.6), pull_at(1.0)
+    assert 0.0 < mid < late  # more as the foot comes down
+    hip_now = ctrl.hips_world()[0]
+    assert np.linalg.norm(ctrl.target[0] - hip_now) <= reach + 1e-6  # the landing is in reach
