@@ -30,13 +30,14 @@ Planner settings are the ones the Blender shell passes (``blender/locomotion/sim
 cells, slices and edge height in leg lengths), unless ``--core-defaults``.
 
 Each row gives, against its threshold: the largest stance-foot slide (2 mm), penetration
-below a surface and into an avoided obstacle (5 mm), IK error on reachable targets (1 cm),
-the largest target extension (legs asked to reach more than their length, 1), the worst
-gait-phase error (1 frame), then planner failures, forced steps, straight fallback steps and
-swing frames bent to what the leg reaches (a swinging foot whose trajectory point the leg
-cannot reach goes to the closest point it can). ``--crowd N`` adds N spiders of the crowd
-benchmark's scene (moving crates): how many legs were asked past their length, and planner
-failures per step. The last line is
+below a surface, a planted foot hanging above the ground (hover) and penetration into an
+avoided obstacle (5 mm), IK error on reachable targets (1 cm), the largest target
+extension (legs asked to reach more than their length, 1), the worst gait-phase error (1
+frame), then planner failures, forced steps, straight fallback steps and swing frames bent
+to what the leg reaches (a swinging foot whose trajectory point the leg cannot reach goes
+to the closest point it can). ``--crowd N`` adds N spiders of the crowd benchmark's scene
+(moving crates): how many legs were asked past their length, and planner failures per
+step. The last line is
 ``RESULT quality scenarios=<n> failing=<n> worst_slide_mm=<mm> worst_reach_cm=<cm>``.
 """
 
@@ -295,7 +296,8 @@ def _fmt(value: float, limit: float, spec: str) -> str:
 
 
 def print_table(rows: list[Row]) -> None:
-    head = (f"{'creature':<11}{'terrain':<13}{'speed':>5} {'slide mm':>9} {'pen mm':>8} {'avoid mm':>9} "
+    head = (f"{'creature':<11}{'terrain':<13}{'speed':>5} {'slide mm':>9} {'pen mm':>8} {'hover mm':>9} "
+            f"{'avoid mm':>9} "
             f"{'reach cm':>9} {'ext':>7} {'phase':>6} {'fail':>5} {'forced':>6} {'fallbk':>6} {'bent':>5} "
             f"{'travel':>6} "
             f"{'s':>5}")
@@ -308,6 +310,7 @@ def print_table(rows: list[Row]) -> None:
             f"{r.kind:<11}{r.terrain:<13}{r.speed:>5.2f} "
             f"{_fmt(float(rep.stance_slide.max()) * 1000, mx.MAX_STANCE_SLIDE * 1000, '8.2f')} "
             f"{_fmt(rep.penetration * 1000, mx.MAX_PENETRATION * 1000, '7.2f')} "
+            f"{_fmt(rep.hover * 1000, mx.MAX_PENETRATION * 1000, '8.2f')} "
             f"{_fmt(rep.avoid_intrusion * 1000, mx.MAX_PENETRATION * 1000, '8.2f')} "
             f"{_fmt(float(rep.reach_error.max()) * 100, mx.MAX_REACH_ERROR * 100, '8.3f')} "
             f"{_fmt(float(rep.extension.max()), mx.MAX_EXTENSION, '6.3f')} "

@@ -805,14 +805,6 @@ class Controller:
             remaining = np.where(forced_new, self.forced_duration - dt, remaining)
             stats.n_forced = int((forced_new & ~rushed).sum())
         self._swing_u = np.clip(progress, 0.0, 1.0)
-        # a gait lift that would leave too few feet down while another foot of the character
-        # is in a forced step waits for the next cycle: the foot stays planted, as when its
-        # plan fails (a forced step is off the gait's beat; both feet of a biped up at once,
-        # or three of a quadruple's, is a jump)
-        deferred = self._defer_lifts(lifted & ~forced_new, forced_new)
-        if np.any(deferred):
-            self.plan_failed |= deferred
-            lifted = lifted & ~deferred
         # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
         to_plan = lifted | forced_new | replan
         stats.n_replans = int((replan & ~lifted).sum())
@@ -1250,34 +1242,13 @@ class Controller:
         over = planted & (need > self.params.max_drop * self.body_thickness[self.leg_char])
         return np.asarray(over), np.asarray(need, dtype=np.float64)
 
-    def _defer_lifts(self, lifts: BoolArray, forced_new: BoolArray) -> BoolArray:
-        """Which of the gait's lifts this frame (``lifts``) wait for the next cycle: in a
-        character with a foot in a forced step (``forced_new``: started this frame), those
-        that would leave it with fewer than ``min_planted`` feet down."""
-        out = np.zeros(self.n_legs, dtype=bool)
-        forcing = np.bincount(self.leg_char, weights=(self.forced | forced_new).astype(np.float64),
-                              minlength=self.n_chars) > 0
-        cand = lifts & forcing[self.leg_char]
-        if not np.any(cand):
-            return out
-        airborne = self.swinging | self.forced | forced_new | lifts
-        down = np.bincount(self.leg_char, weights=(~airborne).astype(np.float64), minlength=self.n_chars)
-        n_legs = np.bincount(self.leg_char, minlength=self.n_chars)
-        need = np.minimum(self.params.min_planted, n_legs - 1)
-        for leg in np.flatnonzero(cand).tolist():
-            c = int(self.leg_char[leg])
-            if down[c] < need[c]:
-                out[leg] = True
-                down[c] += 1
-        return out
-
     def _wait_for_support(self, candidates: BoolArray, stretch: FloatArray, lifted: BoolArray) -> BoolArray:
         """Which feet left behind (``candidates``) wait a little before their forced step:
         those that would leave their character with fewer than ``min_planted`` feet on the
         ground (a walking wolf or human does not fling every foot up at once), as long as
         the pelvis would have to drop less than ``urgent_drop`` (× body thickness) to keep
-        them (``stretch (N,)``, metres; the reach guard lowers it meanwhile). The most
-        stretched feet of a character go first."""
+        them (``stretch (N,)``, metres; the reach guard lowers it meanwhile) and its leg
+        still reaches it. The most stretched feet of a character go first."""
         wait = np.zeros(self.n_legs, dtype=bool)
         if not np.any(candidates):
             return wait
@@ -1287,6 +1258,8 @@ class Controller:
         n_legs = np.bincount(self.leg_char, minlength=self.n_chars)
         need = np.minimum(p.min_planted, n_legs - 1)
         urgent = stretch > p.urgent_drop * self.body_thickness[self.leg_char]
+        if self.ik_result is not None:  # a planted foot its leg no longer reaches: now
+            urgent |= self.ik_result.error > 1e-3 * self.legs.leg_length
         for leg in np.flatnonzero(candidates)[np.argsort(-stretch[candidates], kind="stable")].tolist():
             c = int(self.leg_char[leg])
             if urgent[leg] or down[c] - 1 >= need[c]:
@@ -1482,13 +1455,21 @@ class Controller:
         chars = np.array([d[2] for d in done])
         samples_all = np.stack([d[3] for d in done])
         targets = np.stack([d[4] for d in done])
+        ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
+        ease = ease * ease * (3.0 - 2.0 * ease)
+        # a footprint whose point hangs over a hole (its foot box only partly on the edge)
+        # moves onto the ground its box reaches, over the second half of the swing
+        hole = self.env.height_at(targets[:, :2]) <= _VOID
+        for i in np.flatnonzero(hole).tolist():
+            shift = self._onto_support(targets[i, :2], int(chars[i]))
+            if shift is not None:
+                samples_all[i, :, :2] += shift[None, :] * ease[:, None]
+                targets[i, :2] += shift
         exact = self._surface(targets[:, :2])
         drop = targets[:, 2] - exact
         snap = ((drop >= -1e-9) & (drop <= p.snap_tolerance * ctl.step_height[chars])) | (
             exact > targets[:, 2]
         )
-        ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
-        ease = ease * ease * (3.0 - 2.0 * ease)
         samples_all[..., 2] -= np.where(snap, drop, 0.0)[:, None] * ease[None, :]
         targets[:, 2] = np.where(snap, exact, targets[:, 2])
         samples_all[:, -1] = targets
@@ -1506,6 +1487,25 @@ class Controller:
         self.plan_spacing[leg_ids] = ctl.spacing[leg_ids]
         self.feedback[leg_ids] = targets[:, :2] - preferred_xy[rows]
         timer.lap("rest")
+
+    def _onto_support(self, xy: FloatArray, char: int) -> FloatArray | None:
+        """The shortest shift ``(2,)``, within the foot box's size, that puts a footprint's
+        point ``xy`` over ground (not over a hole, not into an avoided obstacle), with a
+        quarter of the box's half size to spare; None if there is none."""
+        half = float(np.max(self.foot_half[char]))
+        if half <= 0.0:
+            return None
+        grid = np.linspace(-2.0 * half, 2.0 * half, 17)
+        off = np.stack(np.meshgrid(grid, grid, indexing="ij"), axis=-1).reshape(-1, 2)
+        off = off[np.argsort(np.hypot(off[:, 0], off[:, 1]), kind="stable")][1:]
+        norm = np.hypot(off[:, 0], off[:, 1])[:, None]
+        spare = off + 0.25 * half * off / np.maximum(norm, 1e-12)
+        pts = np.concatenate([xy[None, :] + off, xy[None, :] + spare])
+        ok = (self.env.height_at(pts) > _VOID) & ~self.env.forbidden_at(pts)
+        good = ok[: off.shape[0]] & ok[off.shape[0]:]
+        if not np.any(good):
+            return None
+        return np.asarray(spare[int(np.flatnonzero(good)[0])], dtype=np.float64)
 
     def _within_reach(
         self, leg: int, samples: FloatArray, hip_start: FloatArray, hip_end_xy: FloatArray

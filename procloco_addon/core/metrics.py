@@ -285,6 +285,9 @@ class MotionReport:
     extension: FloatArray
     phase: PhaseErrors | None = None
     notes: tuple[str, ...] = field(default=())
+    #: highest a planted foot hangs above the ground under it (a foot planted where its leg
+    #: does not reach, or on a spot its point does not touch); judged like penetration
+    hover: float = 0.0
 
     def failures(self) -> list[str]:
         """One line per failed check (empty when everything passes)."""
@@ -298,6 +301,9 @@ class MotionReport:
             out.append(
                 f"foot {self.penetration * 1000:.2f} mm below a surface > {MAX_PENETRATION * 1000:.0f} mm"
             )
+        if self.hover > MAX_PENETRATION:
+            out.append(f"a planted foot hangs {self.hover * 1000:.2f} mm above the ground > "
+                       f"{MAX_PENETRATION * 1000:.0f} mm")
         if self.avoid_intrusion > MAX_PENETRATION:
             out.append(f"foot {self.avoid_intrusion * 1000:.2f} mm inside an avoided obstacle")
         if self.bone_length_error.size and self.bone_length_error.max() > MAX_BONE_LENGTH_ERROR:
@@ -327,6 +333,7 @@ class MotionReport:
             f"stance slide max      {top(self.stance_slide, 1000.0):8.3f} mm",
             f"penetration max       {self.penetration * 1000:8.3f} mm",
             f"avoid intrusion max   {self.avoid_intrusion * 1000:8.3f} mm",
+            f"planted foot hover    {self.hover * 1000:8.3f} mm",
             f"bone length rel err   {top(self.bone_length_error):8.2e}",
             f"joint limit excess    {top(self.joint_limit_excess, 180.0 / np.pi):8.4f} deg",
             f"reach error max       {top(self.reach_error, 100.0):8.3f} cm",

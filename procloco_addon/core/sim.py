@@ -36,7 +36,7 @@ from .footprints import PlannerParams
 from .gait import Gait
 from .morphology import LegBatch, Morphology
 from .spine import SpineParams
-from .terrain import ROLE_AVOID, Environment
+from .terrain import NO_SURFACE, ROLE_AVOID, Environment
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -549,4 +549,6 @@ def check_motion(
         extension=mx.target_extension(hips, target, leg_len),
         phase=phase,
         notes=tuple(notes),
+        hover=float(np.where(contact & (result.ground[:, leg_sel] > 0.5 * NO_SURFACE), -depth, 0.0).max(
+            initial=0.0)),
     )

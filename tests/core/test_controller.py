@@ -641,33 +641,6 @@ def test_a_straight_fallback_step_down_stairs_never_cuts_a_stair_edge() -> None:
     assert checked >= 4
 
 
-def test_a_gait_lift_waits_a_cycle_while_another_foot_takes_a_forced_step() -> None:
-    human = morph.biped()
-    legs = LegBatch.stack([human])
-    walk = find_gait_preset("biped_walk").gait(human.labels)
-    ctrl = Controller(_flat(), legs, [walk], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0))
-    ctrl.swinging[:] = False
-    ctrl.forced[:] = False
-    lift_right = np.array([False, True])
-    none = np.zeros(2, dtype=bool)
-    # no forced step under way: the gait lifts as it says
-    assert ctrl._defer_lifts(lift_right, none).tolist() == [False, False]
-    # the left foot in a forced step (under way, or starting this frame): the right waits
-    ctrl.forced[0] = ctrl.swinging[0] = True
-    assert ctrl._defer_lifts(lift_right, none).tolist() == [False, True]
-    ctrl.forced[0] = ctrl.swinging[0] = False
-    assert ctrl._defer_lifts(lift_right, np.array([True, False])).tolist() == [False, True]
-    # a quadruped with one foot in a forced step lifts one more foot, not two
-    dog = morph.quadruped()
-    four = LegBatch.stack([dog])
-    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
-    ctrl4 = Controller(_flat(), four, [gait], np.zeros((1, 2)), np.zeros(1), _controls(four, speed=0.0))
-    ctrl4.swinging[:] = [True, False, False, False]
-    ctrl4.forced[:] = [True, False, False, False]
-    deferred = ctrl4._defer_lifts(np.array([False, True, True, False]), np.zeros(4, dtype=bool))
-    assert deferred.tolist() == [False, True, False, False]
-
-
 def test_a_swinging_foot_pulls_its_node_toward_its_landing_as_it_comes_down() -> None:
     from procloco_addon.core.spine import SpineParams
 
@@ -700,3 +673,40 @@ def test_a_swinging_foot_pulls_its_node_toward_its_landing_as_it_comes_down() ->
     assert 0.0 < mid < late  # more as the foot comes down
     hip_now = ctrl.hips_world()[0]
     assert np.linalg.norm(ctrl.target[0] - hip_now) <= reach + 1e-6  # the landing is in reach
+
+
+def _gap_env(x0: float, x1: float) -> Environment:
+    """Flat ground with a hole (no surface) across the whole width for ``x0 <= x < x1``."""
+    n = 300
+    heights = np.zeros((n, n))
+    x = -5.0 + 0.02 * np.arange(n) + 0.01
+    heights[:, (x >= x0) & (x < x1)] = NO_SURFACE
+    return Environment(Heightmap(heights, np.array([-5.0, -5.0]), 0.02))
+
+
+def test_a_footprint_hanging_over_a_hole_moves_onto_the_ground_its_foot_reaches() -> None:
+    env = _gap_env(0.0, 0.3)
+    ctrl, _ = _spider_controller(env)
+    half = float(np.max(ctrl.foot_half[0]))
+    shift = ctrl._onto_support(np.array([0.01, 0.0]), 0)
+    assert shift is not None
+    assert shift[0] < 0.0
+    assert np.linalg.norm(shift) <= 2.5 * half + 1e-9
+    assert env.height_at(np.array([[0.01 + shift[0], shift[1]]]))[0] > NO_SURFACE / 2
+    assert ctrl._onto_support(np.array([0.15, 0.0]), 0) is None  # mid-gap: nothing in reach
+
+
+def test_walking_over_a_gap_never_plants_a_foot_over_the_hole() -> None:
+    dog = morph.quadruped()
+    legs = LegBatch.stack([dog])
+    gait = find_gait_preset("quadruped_walk").gait(dog.labels)
+    for x0 in np.linspace(0.4, 0.8, 9):  # the gap at several places along the strides
+        env = _gap_env(float(x0), float(x0) + 0.12)
+        ctrl = Controller(env, legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.4))
+        crossed = False
+        for _ in range(120):
+            ctrl.step(1.0 / 30.0, _controls(legs, speed=0.4))
+            planted = ~ctrl.swinging
+            assert np.all(env.height_at(ctrl.foot[planted, :2]) > NO_SURFACE / 2)
+            crossed |= bool(np.all(ctrl.foot[:, 0] > x0 + 0.12))
+        assert crossed

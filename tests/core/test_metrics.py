@@ -136,6 +136,7 @@ def test_report_lists_each_failed_check() -> None:
         joint_limit_excess=np.array([0.1]),
         reach_error=np.array([0.02]),
         extension=np.array([1.01]),
+        hover=0.006,
     )
     text = "\n".join(bad.failures())
     for word in (
@@ -146,6 +147,7 @@ def test_report_lists_each_failed_check() -> None:
         "limits",
         "misses",
         "stretched",
+        "hangs",
     ):
         assert word in text
-    assert len(bad.failures()) == 7
+    assert len(bad.failures()) == 8
