@@ -951,9 +951,12 @@ class Controller:
             shift = self.params.guard_max_drop * float(self.body_thickness[g.chars[0]])
             free = pose
             reach = self._spine_reach(g)
-            # a swinging foot pulls toward where it will land (within its growing reach), so
-            # the body is already where that foot needs it when it comes down
-            feet = np.where(self.swinging[g.legs][..., None], self.target[g.legs], self.foot[g.legs])
+            # a swinging foot pulls as if it were already down at its landing height (within
+            # its growing reach), so the body is as low as that foot needs when it lands
+            feet = self.foot[g.legs].copy()
+            swing = self.swinging[g.legs]
+            feet[..., 2] = np.where(swing, np.minimum(feet[..., 2], self.target[g.legs][..., 2]),
+                                    feet[..., 2])
             pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=shift)
             # A node pulled toward a stretched leg's foot goes back to its guide over
             # reach_release_time, not in one frame when the foot steps (the chest would drop
@@ -991,7 +994,7 @@ class Controller:
     def _spine_reach(self, g: _SpineGroup) -> FloatArray:
         """``(g, L)`` how far each leg of a spine group may reach before it pulls its node
         toward its foot: the guard's reach for a planted foot; for a swinging one (which pulls
-        toward its landing point), more the earlier in its swing (``swing_reach_slack``), so
+        as if already down at its landing height), more the earlier in its swing (``swing_reach_slack``), so
         that the body lowers gradually over a swing down a step, not all at once as the
         foot lands."""
         legs = g.legs

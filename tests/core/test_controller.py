@@ -641,7 +641,7 @@ def test_a_straight_fallback_step_down_stairs_never_cuts_a_stair_edge() -> None:
     assert checked >= 4
 
 
-def test_a_swinging_foot_pulls_its_node_toward_its_landing_as_it_comes_down() -> None:
+def test_a_swinging_foot_pulls_its_node_down_to_its_landing_height_as_it_comes_down() -> None:
     from procloco_addon.core.spine import SpineParams
 
     dog = morph.quadruped(spine=True)
@@ -657,10 +657,13 @@ def test_a_swinging_foot_pulls_its_node_toward_its_landing_as_it_comes_down() ->
     hip = ctrl.hips_world()[0].copy()
     reach = float(ctrl.guard_reach[0])
     slack = ctrl.params.swing_reach_slack
-    # leg 0 swings down a step toward a landing just beyond its reach (within the slack)
-    down = np.array([0.2, 0.0, -1.0]) / np.linalg.norm([0.2, 0.0, -1.0])
+    # leg 0 swings down a step: its landing is so low that, straight under where the foot is
+    # now, it lies just beyond the leg's reach (within the slack)
     ctrl.swinging[0] = True
-    ctrl.target[0] = hip + down * reach * (1.0 + 0.5 * slack)
+    ctrl.foot[0, :2] = hip[:2] + np.array([0.2 * reach, 0.0])
+    ctrl.foot[0, 2] = hip[2] - 0.5 * reach
+    low = hip[2] - np.sqrt((reach * (1.0 + 0.5 * slack)) ** 2 - (0.2 * reach) ** 2)
+    ctrl.target[0] = [ctrl.foot[0, 0] + 0.05, ctrl.foot[0, 1], low]
 
     def pull_at(progress: float) -> float:
         ctrl._swing_u[0] = progress
@@ -672,7 +675,8 @@ def test_a_swinging_foot_pulls_its_node_toward_its_landing_as_it_comes_down() ->
     mid, late = pull_at(0.6), pull_at(1.0)
     assert 0.0 < mid < late  # more as the foot comes down
     hip_now = ctrl.hips_world()[0]
-    assert np.linalg.norm(ctrl.target[0] - hip_now) <= reach + 1e-6  # the landing is in reach
+    down_here = np.array([ctrl.foot[0, 0], ctrl.foot[0, 1], low])
+    assert np.linalg.norm(down_here - hip_now) <= reach + 1e-6  # the landing height is in reach
 
 
 def _gap_env(x0: float, x1: float) -> Environment:
