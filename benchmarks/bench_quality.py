@@ -35,9 +35,10 @@ avoided obstacle (5 mm), IK error on reachable targets (1 cm), the largest targe
 extension (legs asked to reach more than their length, 1), the worst gait-phase error (1
 frame), then planner failures, forced steps, straight fallback steps and swing frames bent
 to what the leg reaches (a swinging foot whose trajectory point the leg cannot reach goes
-to the closest point it can). ``--crowd N`` adds N spiders of the crowd benchmark's scene
-(moving crates): how many legs were asked past their length, and planner failures per
-step. The last line is
+to the closest point it can), frames in which the character stands on fewer than min(2,
+legs - 1) feet (low) and on none (air). ``--crowd N`` adds N spiders of the crowd
+benchmark's scene (moving crates): how many legs were asked past their length, and planner
+failures per step. The last line is
 ``RESULT quality scenarios=<n> failing=<n> worst_slide_mm=<mm> worst_reach_cm=<cm>``.
 """
 
@@ -240,6 +241,8 @@ class Row:
     forced: int
     fallback: int
     bent: int
+    low: int
+    airborne: int
     seconds: float
 
     @property
@@ -281,11 +284,14 @@ def run_one(kind_name: str, terrain_name: str, speed_frac: float, frames: int, f
     res = sim.run(frames - 1, on_step=on_step if move is not None else None)
     seconds = time.perf_counter() - t0
     report = check_motion(res, ter.env, settle=preset.cycle_time)
+    down = res.contact.sum(axis=1)
+    n_legs = res.contact.shape[1]
     row = Row(
         kind_name, terrain_name, speed_frac, report,
         travel=float(np.linalg.norm(res.pelvis_position[-1, 0, :2] - res.pelvis_position[0, 0, :2])) / leg,
         failed=int(res.stats["n_failed"].sum()), forced=int(res.stats["n_forced"].sum()),
-        fallback=int(res.stats["n_fallback"].sum()), bent=int(res.stats["n_bent"].sum()), seconds=seconds,
+        fallback=int(res.stats["n_fallback"].sum()), bent=int(res.stats["n_bent"].sum()),
+        low=int((down < min(2, n_legs - 1)).sum()), airborne=int((down == 0).sum()), seconds=seconds,
     )
     return row, res
 
@@ -299,6 +305,7 @@ def print_table(rows: list[Row]) -> None:
     head = (f"{'creature':<11}{'terrain':<13}{'speed':>5} {'slide mm':>9} {'pen mm':>8} {'hover mm':>9} "
             f"{'avoid mm':>9} "
             f"{'reach cm':>9} {'ext':>7} {'phase':>6} {'fail':>5} {'forced':>6} {'fallbk':>6} {'bent':>5} "
+            f"{'low':>4} {'air':>4} "
             f"{'travel':>6} "
             f"{'s':>5}")
     print(head)
@@ -315,7 +322,8 @@ def print_table(rows: list[Row]) -> None:
             f"{_fmt(float(rep.reach_error.max()) * 100, mx.MAX_REACH_ERROR * 100, '8.3f')} "
             f"{_fmt(float(rep.extension.max()), mx.MAX_EXTENSION, '6.3f')} "
             f"{_fmt(phase, mx.MAX_PHASE_ERROR_FRAMES, '5.2f')} "
-            f"{r.failed:>5d} {r.forced:>6d} {r.fallback:>6d} {r.bent:>5d} {r.travel:>6.2f} {r.seconds:>5.1f}"
+            f"{r.failed:>5d} {r.forced:>6d} {r.fallback:>6d} {r.bent:>5d} {r.low:>4d} {r.airborne:>4d} "
+            f"{r.travel:>6.2f} {r.seconds:>5.1f}"
         )
 
 

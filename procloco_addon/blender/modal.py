@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 
 import bpy
 
-__all__ = ["ProgressOperator", "Steps", "poll_armature"]
+__all__ = ["ProgressOperator", "Steps", "poll_active_item", "poll_armature", "remove_active_item"]
 
 #: What ``_run`` returns: progress steps ``(text, fraction 0..1)``.
 Steps = Generator[tuple[str, float], None, None]
@@ -38,6 +38,27 @@ def poll_armature(cls: Any, context: Any, message: str) -> bool:
         cls.poll_message_set("Leave edit mode first")
         return False
     return True
+
+
+def poll_active_item(cls: Any, context: Any, settings: str, items: str, index: str, no_rig: str,
+                     no_item: str) -> bool:
+    """Poll for a Remove button of a list on the active armature: the armature's
+    ``settings`` group has a collection ``items`` whose ``index`` points at an item."""
+    if not poll_armature(cls, context, no_rig):
+        return False
+    group = getattr(context.active_object, settings)
+    if not 0 <= getattr(group, index) < len(getattr(group, items)):
+        cls.poll_message_set(no_item)
+        return False
+    return True
+
+
+def remove_active_item(group: Any, items: str, index: str) -> None:
+    """Remove the item ``index`` points at from the collection ``items`` of ``group`` and
+    keep the index on a neighbour."""
+    collection = getattr(group, items)
+    collection.remove(getattr(group, index))
+    setattr(group, index, max(0, min(getattr(group, index), len(collection) - 1)))
 
 
 class ProgressOperator:

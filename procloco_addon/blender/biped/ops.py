@@ -35,7 +35,7 @@ from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from ...core.biped.skeleton import LEFT, forward_kinematics
 from ...core.biped.surface import WalkableSurface
 from .. import actions
-from ..modal import ProgressOperator, Steps, poll_armature
+from ..modal import ProgressOperator, Steps, poll_active_item, poll_armature, remove_active_item
 from . import bridge
 
 __all__ = [
@@ -331,18 +331,12 @@ class PROCLOCO_OT_remove_biped_clip(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        if not poll_armature(cls, context, "Select the biped's armature whose clips to list"):
-            return False
-        settings = context.active_object.procloco_biped
-        if not 0 <= settings.active_clip_index < len(settings.clips):
-            cls.poll_message_set("Select a clip in the list")
-            return False
-        return True
+        return poll_active_item(cls, context, "procloco_biped", "clips", "active_clip_index",
+                                "Select the biped's armature whose clips to list",
+                                "Select a clip in the list")
 
     def execute(self, context: Any) -> set[str]:
-        settings = context.active_object.procloco_biped
-        settings.clips.remove(settings.active_clip_index)
-        settings.active_clip_index = max(0, min(settings.active_clip_index, len(settings.clips) - 1))
+        remove_active_item(context.active_object.procloco_biped, "clips", "active_clip_index")
         return {"FINISHED"}
 
 

@@ -12,6 +12,7 @@ import bpy
 from bpy.props import StringProperty
 
 from ...core import gait as core_gait
+from ..modal import poll_active_item, remove_active_item
 from . import geometry, handler, presets, rig_gait
 
 __all__ = [
@@ -259,22 +260,12 @@ class PROCLOCO_OT_remove_gait_change(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        obj = getattr(context, "active_object", None)
-        if obj is None or obj.type != "ARMATURE":
-            cls.poll_message_set("Select an armature (the rig whose gait change to remove)")
-            return False
-        settings = obj.procloco
-        if not 0 <= settings.active_gait_change_index < len(settings.gait_changes):
-            cls.poll_message_set("Select a gait change in the list")
-            return False
-        return True
+        return poll_active_item(cls, context, "procloco", "gait_changes", "active_gait_change_index",
+                                "Select an armature (the rig whose gait change to remove)",
+                                "Select a gait change in the list")
 
     def execute(self, context: Any) -> set[str]:
-        settings = context.active_object.procloco
-        settings.gait_changes.remove(settings.active_gait_change_index)
-        settings.active_gait_change_index = max(
-            0, min(settings.active_gait_change_index, len(settings.gait_changes) - 1)
-        )
+        remove_active_item(context.active_object.procloco, "gait_changes", "active_gait_change_index")
         return {"FINISHED"}
 
 

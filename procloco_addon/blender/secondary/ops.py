@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 import bpy
 
 from .. import actions
-from ..modal import ProgressOperator, Steps, poll_armature
+from ..modal import ProgressOperator, Steps, poll_active_item, poll_armature, remove_active_item
 from . import bake
 
 __all__ = [
@@ -97,18 +97,12 @@ class PROCLOCO_OT_remove_secondary_chain(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        if not poll_armature(cls, context, "Select an armature (the rig whose chain to remove)"):
-            return False
-        settings = context.active_object.procloco_secondary
-        if not 0 <= settings.active_chain_index < len(settings.chains):
-            cls.poll_message_set("The rig has no chain to remove")
-            return False
-        return True
+        return poll_active_item(cls, context, "procloco_secondary", "chains", "active_chain_index",
+                                "Select an armature (the rig whose chain to remove)",
+                                "The rig has no chain to remove")
 
     def execute(self, context: Any) -> set[str]:
-        settings = context.active_object.procloco_secondary
-        settings.chains.remove(settings.active_chain_index)
-        settings.active_chain_index = max(0, min(settings.active_chain_index, len(settings.chains) - 1))
+        remove_active_item(context.active_object.procloco_secondary, "chains", "active_chain_index")
         return {"FINISHED"}
 
 
