@@ -463,8 +463,11 @@ def test_rigid_characters_in_a_crowd_with_spines_are_unchanged_and_runs_repeat()
     for name in ("pelvis_position", "pelvis_rotation", "joints", "foot", "footprint", "contact"):
         np.testing.assert_array_equal(getattr(a, name)[:, :4] if getattr(a, name).shape[1] == 12
                                       else getattr(a, name)[:, :1], getattr(alone, name), err_msg=name)
+    # Runs repeat to the last bits that numpy's reductions keep: their SIMD grouping can follow
+    # the arrays' memory alignment, which differs between runs (seen once in 700 test runs, on
+    # values of 1e-18); Actions are written in float32, where that never shows.
     for name in ("spine_joints", "spine_rotation", "joints", "leg_frame"):
-        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+        np.testing.assert_allclose(getattr(a, name), getattr(b, name), rtol=0.0, atol=1e-12, err_msg=name)
     report = check_motion(a, env, chars=[1, 2])
     assert report.passed, report.failures()
 
