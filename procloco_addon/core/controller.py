@@ -1492,13 +1492,15 @@ class Controller:
         timer.lap("rest")
 
     def _onto_support(self, xy: FloatArray, char: int) -> FloatArray | None:
-        """The shortest shift ``(2,)``, within the foot box's size, that puts a footprint's
+        """The shortest shift ``(2,)``, within the foot box's size or a planning cell,
+        whichever is more (the planner sees the ground per cell), that puts a footprint's
         point ``xy`` over ground (not over a hole, not into an avoided obstacle), with a
         quarter of the box's half size to spare; None if there is none."""
         half = float(np.max(self.foot_half[char]))
         if half <= 0.0:
             return None
-        grid = np.linspace(-2.0 * half, 2.0 * half, 17)
+        radius = max(2.0 * half, float(self.window_cell[char]))
+        grid = np.linspace(-radius, radius, 17)
         off = np.stack(np.meshgrid(grid, grid, indexing="ij"), axis=-1).reshape(-1, 2)
         off = off[np.argsort(np.hypot(off[:, 0], off[:, 1]), kind="stable")][1:]
         norm = np.hypot(off[:, 0], off[:, 1])[:, None]
