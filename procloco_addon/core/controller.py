@@ -272,7 +272,7 @@ class ControllerParams:
     reach_release_time: float = 0.2
     swing_reach_slack: float = 0.1
     min_planted: int = 2
-    urgent_drop: float = 0.3
+    urgent_drop: float = 0.45
     clock: Callable[[], float] = time.perf_counter
     physics: PelvisPhysicsParams = field(default_factory=PelvisPhysicsParams)
 
