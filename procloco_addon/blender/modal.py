@@ -21,7 +21,7 @@ from typing import Any, ClassVar
 
 import bpy
 
-__all__ = ["ProgressOperator", "Steps", "poll_active_item", "poll_armature", "remove_active_item"]
+__all__ = ["ProgressOperator", "RemoveActiveItem", "Steps", "poll_armature"]
 
 #: What ``_run`` returns: progress steps ``(text, fraction 0..1)``.
 Steps = Generator[tuple[str, float], None, None]
@@ -40,25 +40,34 @@ def poll_armature(cls: Any, context: Any, message: str) -> bool:
     return True
 
 
-def poll_active_item(cls: Any, context: Any, settings: str, items: str, index: str, no_rig: str,
-                     no_item: str) -> bool:
-    """Poll for a Remove button of a list on the active armature: the armature's
-    ``settings`` group has a collection ``items`` whose ``index`` points at an item."""
-    if not poll_armature(cls, context, no_rig):
-        return False
-    group = getattr(context.active_object, settings)
-    if not 0 <= getattr(group, index) < len(getattr(group, items)):
-        cls.poll_message_set(no_item)
-        return False
-    return True
+class RemoveActiveItem:
+    """Mixin for the Remove button of a list on the active armature: the armature's
+    ``_settings`` group has a collection ``_items`` whose ``_index`` points at the item to
+    remove; ``_no_rig`` and ``_no_item`` say why the button is off. The index stays on a
+    neighbour."""
 
+    _settings: ClassVar[str]
+    _items: ClassVar[str]
+    _index: ClassVar[str]
+    _no_rig: ClassVar[str]
+    _no_item: ClassVar[str]
 
-def remove_active_item(group: Any, items: str, index: str) -> None:
-    """Remove the item ``index`` points at from the collection ``items`` of ``group`` and
-    keep the index on a neighbour."""
-    collection = getattr(group, items)
-    collection.remove(getattr(group, index))
-    setattr(group, index, max(0, min(getattr(group, index), len(collection) - 1)))
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        if not poll_armature(cls, context, cls._no_rig):
+            return False
+        group = getattr(context.active_object, cls._settings)
+        if not 0 <= getattr(group, cls._index) < len(getattr(group, cls._items)):
+            cls.poll_message_set(cls._no_item)  # type: ignore[attr-defined]
+            return False
+        return True
+
+    def execute(self, context: Any) -> set[str]:
+        group = getattr(context.active_object, self._settings)
+        collection = getattr(group, self._items)
+        collection.remove(getattr(group, self._index))
+        setattr(group, self._index, max(0, min(getattr(group, self._index), len(collection) - 1)))
+        return {"FINISHED"}
 
 
 class ProgressOperator:

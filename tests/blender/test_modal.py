@@ -156,3 +156,32 @@ def test_escape_midway_through_a_secondary_bake_leaves_the_scene_unchanged(empty
     assert empty_scene.frame_current != 7  # the bake is playing the animation
     assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
     assert snapshot() == before
+
+
+@pytest.mark.parametrize(("op", "settings", "items", "index", "empty_message"), [
+    ("remove_gait_change", "procloco", "gait_changes", "active_gait_change_index", "Select a gait change"),
+    ("remove_secondary_chain", "procloco_secondary", "chains", "active_chain_index", "no chain to remove"),
+    ("remove_biped_clip", "procloco_biped", "clips", "active_clip_index", "Select a clip"),
+])
+def test_remove_buttons_remove_the_active_item_and_keep_the_index_on_a_neighbour(
+    empty_scene: Any, op: str, settings: str, items: str, index: str, empty_message: str
+) -> None:
+    from tests.blender.test_gait_presets import make_rig
+
+    obj = make_rig(empty_scene)
+    operator = getattr(bpy.ops.procloco, op)
+    assert not operator.poll()
+    with pytest.raises(RuntimeError, match=empty_message):
+        operator()
+    group = getattr(obj, settings)
+    collection = getattr(group, items)
+    for name in ("a", "b", "c"):
+        collection.add().name = name
+    setattr(group, index, 2)
+    assert operator() == {"FINISHED"}
+    assert [item.name for item in collection] == ["a", "b"]
+    assert getattr(group, index) == 1  # the last one went: its neighbour is active
+    setattr(group, index, 0)
+    assert operator() == {"FINISHED"}
+    assert [item.name for item in collection] == ["b"]
+    assert getattr(group, index) == 0

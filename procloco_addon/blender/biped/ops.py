@@ -35,7 +35,7 @@ from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from ...core.biped.skeleton import LEFT, forward_kinematics
 from ...core.biped.surface import WalkableSurface
 from .. import actions
-from ..modal import ProgressOperator, Steps, poll_active_item, poll_armature, remove_active_item
+from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature
 from . import bridge
 
 __all__ = [
@@ -322,22 +322,15 @@ class PROCLOCO_OT_add_biped_clip(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PROCLOCO_OT_remove_biped_clip(bpy.types.Operator):
+class PROCLOCO_OT_remove_biped_clip(RemoveActiveItem, bpy.types.Operator):
     """Remove the selected clip from the biped's clip list (the Action itself is kept)"""
 
     bl_idname = "procloco.remove_biped_clip"
     bl_label = "Remove Biped Clip"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context: Any) -> bool:
-        return poll_active_item(cls, context, "procloco_biped", "clips", "active_clip_index",
-                                "Select the biped's armature whose clips to list",
-                                "Select a clip in the list")
-
-    def execute(self, context: Any) -> set[str]:
-        remove_active_item(context.active_object.procloco_biped, "clips", "active_clip_index")
-        return {"FINISHED"}
+    _settings, _items, _index = "procloco_biped", "clips", "active_clip_index"
+    _no_rig = "Select the biped's armature whose clips to list"
+    _no_item = "Select a clip in the list"
 
 
 class PROCLOCO_OT_make_biped_clips(bpy.types.Operator):

@@ -12,7 +12,7 @@ import bpy
 from bpy.props import StringProperty
 
 from ...core import gait as core_gait
-from ..modal import poll_active_item, remove_active_item
+from ..modal import RemoveActiveItem
 from . import geometry, handler, presets, rig_gait
 
 __all__ = [
@@ -251,22 +251,15 @@ class PROCLOCO_OT_add_gait_change(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PROCLOCO_OT_remove_gait_change(bpy.types.Operator):
+class PROCLOCO_OT_remove_gait_change(RemoveActiveItem, bpy.types.Operator):
     """Remove the selected gait change (the gait circles are not touched)"""
 
     bl_idname = "procloco.remove_gait_change"
     bl_label = "Remove Gait Change"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context: Any) -> bool:
-        return poll_active_item(cls, context, "procloco", "gait_changes", "active_gait_change_index",
-                                "Select an armature (the rig whose gait change to remove)",
-                                "Select a gait change in the list")
-
-    def execute(self, context: Any) -> set[str]:
-        remove_active_item(context.active_object.procloco, "gait_changes", "active_gait_change_index")
-        return {"FINISHED"}
+    _settings, _items, _index = "procloco", "gait_changes", "active_gait_change_index"
+    _no_rig = "Select an armature (the rig whose gait change to remove)"
+    _no_item = "Select a gait change in the list"
 
 
 class PROCLOCO_OT_toggle_gait_overlay(bpy.types.Operator):

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 import bpy
 
 from .. import actions
-from ..modal import ProgressOperator, Steps, poll_active_item, poll_armature, remove_active_item
+from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature
 from . import bake
 
 __all__ = [
@@ -88,22 +88,15 @@ class PROCLOCO_OT_add_secondary_chain(bpy.types.Operator):
         return {"FINISHED"}
 
 
-class PROCLOCO_OT_remove_secondary_chain(bpy.types.Operator):
+class PROCLOCO_OT_remove_secondary_chain(RemoveActiveItem, bpy.types.Operator):
     """Remove the active chain from the list (the bones are not touched)"""
 
     bl_idname = "procloco.remove_secondary_chain"
     bl_label = "Remove Chain"
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
-
-    @classmethod
-    def poll(cls, context: Any) -> bool:
-        return poll_active_item(cls, context, "procloco_secondary", "chains", "active_chain_index",
-                                "Select an armature (the rig whose chain to remove)",
-                                "The rig has no chain to remove")
-
-    def execute(self, context: Any) -> set[str]:
-        remove_active_item(context.active_object.procloco_secondary, "chains", "active_chain_index")
-        return {"FINISHED"}
+    _settings, _items, _index = "procloco_secondary", "chains", "active_chain_index"
+    _no_rig = "Select an armature (the rig whose chain to remove)"
+    _no_item = "The rig has no chain to remove"
 
 
 class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
