@@ -955,31 +955,9 @@ class Controller:
             # its growing reach), so the body is as low as that foot needs when it lands
             feet = self.foot[g.legs].copy()
             swing = self.swinging[g.legs]
-            feet[..., 2] = np.where(swing, np.minimum(feet[..., 2], self.target[g.legs][..., 2]),
-                                    feet[..., 2])
+            feet[swing, 2] = np.minimum(feet[swing, 2], self.target[g.legs][swing, 2])
             pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=shift)
-            # A node pulled toward a stretched leg's foot goes back to its guide over
-            # reach_release_time, not in one frame when the foot steps (the chest would drop
-            # and spring back by centimetres per frame); the pull itself acts at once.
-            need = pose.guide_xyz - free.guide_xyz
-            held = need
-            if g.reach_shift is not None and g.reach_shift.shape == need.shape and dt > 0.0:
-                held = g.reach_shift * float(np.exp(-dt / max(self.params.reach_release_time, 1e-9)))
-                keep = np.linalg.norm(held, axis=-1) > np.linalg.norm(need, axis=-1)
-                if np.any(keep):
-                    held = np.where(keep[..., None], held, need)
-                    slow = refit(m, free, free.guide_xyz + held)
-                    # kept only where it leaves no leg further from its foot than the pull did
-                    over = np.linalg.norm(feet - hip_positions(m, slow), axis=-1) > np.maximum(
-                        np.linalg.norm(feet - hip_positions(m, pose), axis=-1), reach
-                    ) + 1e-9
-                    ok = ~over.any(axis=1)
-                    if np.any(ok):
-                        pose = pose_with_rows(pose, np.flatnonzero(ok), pose_rows(slow, np.flatnonzero(ok)))
-                    held = np.where(ok[:, None, None], held, need)
-                else:
-                    held = need
-            g.reach_shift = held
+            pose, g.reach_shift = self._release_pull(g, free, pose, feet, reach, dt)
             g.pose = pose
             self._spine_hips[g.legs] = hip_positions(m, pose)
             self._spine_leg_rot[g.legs] = leg_frames(m, pose)
@@ -991,12 +969,40 @@ class Controller:
             self.roll[g.chars] = 0.0
             self.height_target[g.chars] = self.pos[g.chars, 2]
 
+    def _release_pull(
+        self, g: _SpineGroup, free: SpinePose, pulled: SpinePose, feet: FloatArray, reach: FloatArray,
+        dt: float,
+    ) -> tuple[SpinePose, FloatArray]:
+        """A node pulled toward a stretched leg's foot goes back to its guide over
+        ``reach_release_time``, not in one frame when the foot steps (the chest would drop and
+        spring back by centimetres per frame); the pull itself acts at once. ``free``: step
+        4 without pulls, ``pulled``: with this frame's pulls. Returns the pose and each
+        node's guide shift ``(g, K, 3)`` (kept for the next frame)."""
+        need = pulled.guide_xyz - free.guide_xyz
+        if g.reach_shift is None or g.reach_shift.shape != need.shape or dt <= 0.0:
+            return pulled, need
+        decayed = g.reach_shift * float(np.exp(-dt / max(self.params.reach_release_time, 1e-9)))
+        keep = np.linalg.norm(decayed, axis=-1) > np.linalg.norm(need, axis=-1)
+        if not np.any(keep):
+            return pulled, need
+        trial = np.where(keep[..., None], decayed, need)
+        m = g.model
+        slow = refit(m, free, free.guide_xyz + trial)
+        # kept only where it leaves no leg further from its foot than the pull did
+        over = np.linalg.norm(feet - hip_positions(m, slow), axis=-1) > np.maximum(
+            np.linalg.norm(feet - hip_positions(m, pulled), axis=-1), reach
+        ) + 1e-9
+        ok = ~over.any(axis=1)
+        rows = np.flatnonzero(ok)
+        pose = pose_with_rows(pulled, rows, pose_rows(slow, rows)) if rows.size else pulled
+        return pose, np.where(ok[:, None, None], trial, need)
+
     def _spine_reach(self, g: _SpineGroup) -> FloatArray:
         """``(g, L)`` how far each leg of a spine group may reach before it pulls its node
         toward its foot: the guard's reach for a planted foot; for a swinging one (which pulls
-        as if already down at its landing height), more the earlier in its swing (``swing_reach_slack``), so
-        that the body lowers gradually over a swing down a step, not all at once as the
-        foot lands."""
+        as if already down at its landing height), more the earlier in its swing
+        (``swing_reach_slack``), so that the body lowers gradually over a swing down a step,
+        not all at once as the foot lands."""
         legs = g.legs
         early = 1.0 - self._swing_u[legs]
         slack = np.where(self.swinging[legs], self.params.swing_reach_slack * early, 0.0)
