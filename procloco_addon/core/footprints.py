@@ -57,7 +57,7 @@ from __future__ import annotations
 import functools
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -314,15 +314,11 @@ def score_candidates(
     if hip_z is not None:
         sel = np.flatnonzero(ok)
         m = sel.size
-        window = ctx.grids
-
-        def heights(pts: FloatArray, rows: IntArray) -> FloatArray:
-            return _window_heights(window, pts)
-
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
             xy[sel], z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
-            np.full(m, float(hip_z)), np.tile(_hip_settings(params), (m, 1)), heights,
+            np.full(m, float(hip_z)), np.tile(_hip_settings(params), (m, 1)),
+            _WindowLookup([ctx.grids]), np.zeros(m, dtype=np.intp),
         )
         clearance = np.where(clear[ok], 1.0, params.leg_clearance_score)
     else:
@@ -358,7 +354,7 @@ _LEG_SAMPLES = 16
 
 def _hip_checks(
     xy: FloatArray, z: FloatArray, centre_z: FloatArray, hip: FloatArray, hip_z: FloatArray,
-    settings: FloatArray, heights: Callable[[FloatArray, IntArray], FloatArray],
+    settings: FloatArray, windows: _WindowLookup, window_of: IntArray,
 ) -> tuple[BoolArray, BoolArray]:
     """The checks of footprints ``xy (k, 2)`` landing at ``z (k,)`` (the ground at their own
     point ``centre_z (k,)``) that need the hip ``hip (k, 2)`` at ``hip_z (k,)``
@@ -366,8 +362,8 @@ def _hip_checks(
     and which of those have their leg line clear (``leg_length``; True where not checked).
     ``settings`` ``(k, 7)``: per footprint ``max_straddle, reach_3d, reach_sweep,
     reach_sink, leg_length, leg_arch, foot radius`` (``inf``: that check off).
-    ``heights(points (m, S, 2), rows (m,))`` gives the elevation map under points of the
-    footprints ``rows`` (``-inf`` outside)."""
+    ``windows``: the elevation maps, ``window_of (k,)``: which of them each footprint plans
+    in."""
     straddle, reach, sweep, sink, leg, arch, foot_r = settings.T
     ok = ~(z - centre_z > straddle)
     dx = xy[:, 0] - hip[:, 0]
@@ -391,19 +387,9 @@ def _hip_checks(
     pts = np.stack([fx[:, None] + t[None, :] * vx[:, None], fy[:, None] + t[None, :] * vy[:, None]], axis=-1)
     line = fz[:, None] + t[None, :] * vz[:, None] + (4.0 * t * (1.0 - t))[None, :] * bow[:, None]
     own = t[None, :] * flat[:, None] < foot_r[rows, None]  # under the foot itself
-    under = heights(pts, rows)
+    under = windows.heights(pts, window_of[rows])
     clear[rows[np.any((under > line + 1e-9) & ~own, axis=1)]] = False
     return ok, clear
-
-
-def _window_heights(grids: WindowGrids, pts: FloatArray) -> FloatArray:
-    """The window's elevation at the cells of points ``(..., 2)`` (``-inf`` outside it)."""
-    ny, nx = grids.shape
-    col = np.rint((pts[..., 0] - float(grids.origin[0])) / grids.cell).astype(np.intp)
-    row = np.rint((pts[..., 1] - float(grids.origin[1])) / grids.cell).astype(np.intp)
-    inside = (row >= 0) & (row < ny) & (col >= 0) & (col < nx)
-    vals = grids.elevation[np.clip(row, 0, ny - 1), np.clip(col, 0, nx - 1)]
-    return np.asarray(np.where(inside, vals, -np.inf))
 
 
 def _hip_settings(params: PlannerParams) -> list[float]:
@@ -1273,16 +1259,11 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
         owner = b[sel]
-        lookup = _WindowLookup([p.grids for p in plans])
         settings = np.array([_hip_settings(p.params) for p in plans])
-
-        def heights(pts: FloatArray, rows: IntArray) -> FloatArray:
-            return lookup.heights(pts, owner[rows])
-
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
             np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
-            hip[owner], hip_z[owner], settings[owner], heights,
+            hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
         )
         low = np.array([p.params.leg_clearance_score for p in plans])
         clearance = np.where(clear, 1.0, low[b])
@@ -1344,7 +1325,7 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
 
 
 class _WindowLookup:
-    """:func:`_window_heights` for points of many plans, each in its own window."""
+    """The elevation of many plans' windows at points (``-inf`` outside a window)."""
 
     def __init__(self, grids: list[WindowGrids]) -> None:
         index: dict[int, int] = {}

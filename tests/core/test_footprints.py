@@ -540,7 +540,7 @@ def test_footprints_stay_within_the_legs_3d_reach_of_the_hip(hip_z: float) -> No
 
 
 def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
-    from procloco_addon.core.footprints import _hip_checks
+    from procloco_addon.core.footprints import _hip_checks, _WindowLookup
 
     # Two footprints on the ground (z at their own point 0), one whose foot box reaches 6 cm
     # higher ground (it lands at 0.06): with max_straddle 1 cm only the first is a candidate.
@@ -549,6 +549,6 @@ def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
     inf = math.inf
     settings = np.tile([0.01, inf, 0.0, 0.0, inf, 0.0, 0.03], (2, 1))
     ok, clear = _hip_checks(xy, z, np.zeros(2), np.zeros((2, 2)), np.full(2, 0.3), settings,
-                            lambda pts, rows: np.zeros(pts.shape[:2]))
+                            _WindowLookup([window()]), np.zeros(2, dtype=np.intp))
     assert ok.tolist() == [True, False]
     assert clear.all()
