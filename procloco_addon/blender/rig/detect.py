@@ -172,11 +172,11 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
     """Chains by what a leg is: from each leaf up to where it joins the body, then down again.
 
     Walking up from a leaf, a branch is passed when every other child of it is an appendage
-    of the same limb: a small one (reaching less than half as far as the way walked so far:
-    a twist or helper bone) or a low one (all of it below half the branch's height above the
-    rig's lowest point, or in the lowest 15 % of the rig's height: toes, a heel, a paw's
-    pads). The first branch carrying anything else (another leg, the spine, an arm) is the
-    body; the bone below it is the hip. From each hip the chain goes
+    of the same limb: a small one (reaching less than half as far from the branch as the
+    limb walked so far: a twist or helper bone) or a low one (all of it below half the
+    branch's height above the rig's lowest point, or in the lowest 15 % of the rig's height:
+    toes, a heel, a paw's pads). The first branch carrying anything else (another leg, the
+    spine, an arm) is the body; the bone below it is the hip. From each hip the chain goes
     down through the continuing child (:func:`.rest._continuing_child`) to a leaf. Control
     bones (IK targets, poles) are ignored; chains with a non-leg name (jaw, fin, tail...)
     are dropped.
@@ -189,10 +189,11 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
     n = len(rest.names)
     kids = [rest.children(i) for i in range(n)]
 
-    def appendage(branch: int, other: int, walked: float) -> bool:
+    def appendage(branch: int, other: int, path: list[int]) -> bool:
         pts = _subtree_points(rest, other)
         reach = float(np.linalg.norm(pts - rest.head[branch], axis=1).max())
-        if reach < 0.5 * walked:
+        ours = np.vstack([rest.head[path], rest.end[path]])
+        if reach < 0.5 * float(np.linalg.norm(ours - rest.head[branch], axis=1).max()):
             return True
         low = max(0.5 * (float(rest.head[branch, 2]) - ground), foot_band)
         return float(pts[:, 2].max()) - ground <= low
@@ -201,17 +202,17 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
     for leaf in range(n):
         if kids[leaf] or control[leaf] or rest.phantom[leaf]:
             continue
-        cur, walked = leaf, 0.0
+        cur, path = leaf, [leaf]
         while True:
             p = int(rest.parent[cur])
             if p < 0:
                 cur = -1  # hangs from nothing: not a limb of a body
                 break
             others = [c for c in kids[p] if c != cur and not control[c]]
-            if others and not all(appendage(p, c, walked) for c in others):
+            if others and not all(appendage(p, c, path) for c in others):
                 break
-            walked += float(np.linalg.norm(rest.head[cur] - rest.head[p]))
             cur = p
+            path.append(p)
         if cur >= 0:
             hips.add(cur)
     chains = []
@@ -310,14 +311,18 @@ def find_legs(rest: _Rest, constrained: np.ndarray, rig_name: str) -> list[LegCh
     """
     found = _chains_along(rest)
     # Along which world axis do the legs stand? Another axis wins when its legs reach down
-    # twice as far for the rig's size (a wolf on its side: legs, against cheek bones).
+    # twice as far for the rig's size (a wolf on its side: legs, against cheek bones)...
     here = _stance(rest, [c for c, _r in found])
     turned = {name: _turned(rest, np.array(axis)) for name, axis in _AXES.items()}
     other = {name: [c for c, _r in _chains_along(t)] for name, t in turned.items()}
     score = {name: _stance(turned[name], chains) for name, chains in other.items()}
-    best_axis = max(score, key=lambda k: (score[k], k == "-Z"))
-    n_best = len(other[best_axis])
-    if n_best >= 2 and score[best_axis] > 2.0 * here:
+    # ... or when it finds more legs standing better (an upside-down rig's knees, a
+    # sprawling rig's legs on its side, against the few chains that hang down).
+    better = [k for k in score if len(other[k]) >= 2 and (
+        score[k] > 2.0 * here or (score[k] > here and len(other[k]) > len(found)))]
+    best_axis = max(better, key=lambda k: (len(other[k]), score[k], k == "-Z")) if better else ""
+    n_best = len(other[best_axis]) if better else 0
+    if better:
         how = "upside down" if best_axis == "-Z" else "on its side"
         instead = f" (found instead: {_describe(rest, [c for c, _r in found])})" if found else ""
         raise RigError(f"No legs reach the ground under the body of '{rig_name}': the rig's up axis is world "
