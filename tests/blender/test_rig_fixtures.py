@@ -247,3 +247,46 @@ def test_imported_rigs_walk_the_same(
     assert [(leg.label, leg.bones) for leg in job.info.legs] == built["legs"]
     assert m["travel"] == pytest.approx(built["travel"], rel=0.05), (m, built)
     check_motion(m)
+
+
+# ---------------------------------------------------------------------------------------
+# What the animator sees
+
+
+def test_the_panel_says_why_each_leg_was_chosen_and_the_viewport_draws_the_chains(empty_scene: Any) -> None:
+    from procloco_addon.blender.locomotion import handler
+    from procloco_addon.blender.locomotion.panel import PROCLOCO_PT_rig_legs
+    from tests.blender.ui_recorder import draw_panel
+
+    arm = FIXTURES["root_legs"].build(empty_scene, "root_legs")
+    _select_only(arm)
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    legs = arm.procloco.legs
+    assert [leg.reason for leg in legs] == ["reaches the ground; name; mirrored pair"] * 4
+    # The draw callback is registered; the chains are drawn while the panel is open.
+    assert handler._state.draw_handle is not None
+    assert handler.showing() == ""
+    ui = draw_panel(PROCLOCO_PT_rig_legs, bpy.context)
+    assert "Why: reaches the ground; name; mirrored pair" in ui.texts()
+    assert handler.showing() == arm.name
+    lines = handler.chain_lines(arm)
+    # two segments per leg (hip > shin > the toe's head), from the hips down to the feet
+    assert lines.shape == (8, 2, 3)
+    hips = np.array([tuple(arm.matrix_world @ arm.pose.bones[leg.hip].head) for leg in legs])
+    toes = np.array(
+        [
+            tuple(arm.pose.bones[b].head)
+            for b in ("FrontLeftToe", "FrontRightToe", "BackLeftToe", "BackRightToe")
+        ]
+    )
+    np.testing.assert_allclose(np.sort(lines[::2, 0], axis=0), np.sort(hips, axis=0), atol=1e-6)
+    np.testing.assert_allclose(np.sort(lines[1::2, 1], axis=0), np.sort(toes, axis=0), atol=1e-6)
+    # A bone chosen by hand: the reason no longer applies.
+    from procloco_addon.blender.locomotion.generate import leg_reason
+
+    assert leg_reason(legs[0]) == "reaches the ground; name; mirrored pair"
+    legs[0].end = "FrontLeftToe"
+    assert leg_reason(legs[0]) == ""
+    assert "Set by hand" in draw_panel(PROCLOCO_PT_rig_legs, bpy.context).texts()
+    legs[0].enabled = False
+    assert handler.chain_lines(arm).shape == (6, 2, 3)

@@ -112,6 +112,12 @@ def scaled_defaults(leg_length: float, cycle_time: float) -> dict[str, float]:
     return {"speed": STRIDE * leg_length / cycle, "step_height": STEP * leg_length, "cycle_time": cycle}
 
 
+def leg_reason(item: Any) -> str:
+    """Why Detect Legs chose the leg ``item`` (a ``PROCLOCO_PG_leg``); "" once its hip or
+    end-effector was changed by hand."""
+    return str(item.reason) if item.detected == f"{item.hip}>{item.end}" else ""
+
+
 def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     """Detect the legs of ``obj`` and store them in ``obj.procloco.legs``.
 
@@ -142,6 +148,7 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         item.hip = leg.hip
         item.end = leg.end
         item.reason = leg.reason
+        item.detected = f"{leg.hip}>{leg.end}"
         if leg.label in old:
             start, duration, offset, enabled = old[leg.label]
             item.swing_start, item.swing_duration = start, duration

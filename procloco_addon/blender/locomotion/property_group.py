@@ -53,8 +53,12 @@ class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
     )
     reason: StringProperty(
         name="Why",
-        description="Why Detect Legs chose this chain (reaches the ground, mirrored pair, name); "
-        "empty for a leg set by hand",
+        description="Why Detect Legs chose this chain (reaches the ground, mirrored pair, name)",
+    )
+    detected: StringProperty(
+        name="Detected Chain",
+        description="The hip and end-effector Detect Legs chose (\"hip>end\"): the reason holds while "
+        "they are unchanged",
     )
     enabled: BoolProperty(name="Enabled", description="Animate this leg", default=True)
     swing_start: FloatProperty(
