@@ -16,6 +16,8 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
   root bone beside the body, not from the body.
 - ``horse``: front legs scapula > humerus > radius > cannon > pastern > hoof.
 - ``swapped``: the horse with its L/R names on the wrong sides.
+- ``rigify_horse``, ``rigify_bird`` (9 cm legs), ``rigify_basic_human``: Blender's own
+  metarigs, which earlier detection got wrong (hoof-only front legs, legs ending at the knee).
 - ``shark``: Rigify's shark metarig (fins only); ``on_side`` / ``upside_down``: the horse
   turned 90° and 180° about its forward axis.
 """
@@ -435,15 +437,27 @@ def _horse(scene: Any, name: str, turn: Sequence[float] = (0.0, 0.0, 0.0), swap:
     return build(scene, name, _horse_bones(swap), turn=turn)
 
 
-def _shark(scene: Any, name: str) -> Any:
-    import addon_utils
+def _metarig(kind: str) -> Callable[[Any, str], Any]:
+    """A builder of Rigify's ``kind`` metarig (Blender's own, added by its operator)."""
 
-    if not addon_utils.check("rigify")[1]:
-        addon_utils.enable("rigify", default_set=True)
-    bpy.ops.object.armature_shark_metarig_add()
-    arm = bpy.context.view_layer.objects.active
-    arm.name = name
-    return arm
+    def build_metarig(scene: Any, name: str) -> Any:
+        import addon_utils
+
+        if not addon_utils.check("rigify")[1]:
+            addon_utils.enable("rigify", default_set=True)
+        getattr(bpy.ops.object, f"armature_{kind}_metarig_add")()
+        arm = bpy.context.view_layer.objects.active
+        arm.name = name
+        return arm
+
+    return build_metarig
+
+
+def _pair(hip: str, end: str, hind_hip: str = "", hind_end: str = "") -> Expected:
+    legs = {"L1": (f"{hip}.L", f"{end}.L"), "R1": (f"{hip}.R", f"{end}.R")}
+    if hind_hip:
+        legs |= {"L2": (f"{hind_hip}.L", f"{hind_end}.L"), "R2": (f"{hind_hip}.R", f"{hind_end}.R")}
+    return Expected(legs)
 
 
 HUMAN_LEGS = {"L1": ("thigh", "shin"), "R1": ("thigh", "shin")}
@@ -530,7 +544,12 @@ FIXTURES: dict[str, Fixture] = {
             }
         ),
     ),
-    "shark": Fixture(_shark, Expected(refusal="no chain of bones from the body reaches the ground"), False),
+    "rigify_horse": Fixture(_metarig("horse"), _pair("shoulder", "f_hoof", "thigh", "r_hoof"), False),
+    "rigify_bird": Fixture(_metarig("bird"), _pair("thigh", "shin"), False),
+    "rigify_basic_human": Fixture(_metarig("basic_human"), _pair("thigh", "shin"), False),
+    "shark": Fixture(
+        _metarig("shark"), Expected(refusal="no chain of bones from the body reaches the ground"), False
+    ),
     "on_side": Fixture(
         lambda sc, n: _horse(sc, n, turn=(0.0, math.pi / 2, 0.0)),
         Expected(refusal="the rig's up axis is world +X (it lies on its side"),

@@ -169,6 +169,7 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     )
     out["phase"], out["phase_events"] = phase.max_abs, phase.n_events
     out["travel"] = float(np.linalg.norm(res.body[-1, :2, 3] - res.body[0, :2, 3]))
+    out["leg"] = float(info.leg_length.mean())
     # Largest turn of each leg and foot bone from one frame to the next; for the foot bones
     # also while their foot stays planted (both frames in stance).
     turn = np.degrees(metrics.bone_turn_per_frame(mats[:, :, :3, :3]))
@@ -178,6 +179,18 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     stance = ~res.swing
     both = stance[:-1] & stance[1:]
     foot_cols = [(where[b], k) for k, leg in enumerate(info.legs) for b in leg.foot]
+    # Foot and toe bones move with the foot: each one's head keeps its rest distance from the
+    # end-effector's far joint (none stays behind at the start).
+    drift = [0.0]
+    for k, leg in enumerate(info.legs):
+        for b in leg.foot:
+            rest_d = np.linalg.norm(
+                np.array(obj.matrix_world) @ np.append(info.rest_local[b][:3, 3], 1.0)
+                - np.append(info.joints[k][-1], 1.0)
+            )
+            now_d = np.linalg.norm(mats[:, where[b], :3, 3] - ends[:, k], axis=-1)
+            drift.append(float(np.abs(now_d - rest_d).max()))
+    out["foot_drift"] = max(drift)
     out["planted_turn"] = max(
         (float(turn[both[:, k], i].max()) for i, k in foot_cols if both[:, k].any()), default=0.0
     )
@@ -188,6 +201,7 @@ def check_motion(m: dict[str, Any]) -> None:
     check_thresholds(m)
     assert m["planted_turn"] <= np.degrees(metrics.MAX_PLANTED_TURN), m
     assert m["turn"] <= np.degrees(metrics.MAX_BONE_TURN), m
+    assert m["foot_drift"] <= 1e-4 * m["leg"], m
 
 
 def walk(obj: Any) -> tuple[generate.Job, dict[str, Any]]:
