@@ -123,3 +123,18 @@ def test_openjd_run_stops_when_generation_fails(tmp_path: Path) -> None:
     assert "Frames(CHUNK[INT])" not in log  # no render task started
 
 
+
+
+@pytest.mark.parametrize(("params", "message"), [
+    (["FrameStart=10", "FrameEnd=1"], "descending range"),
+    (["ChunkSize=0"], "ChunkSize must be at least 1"),
+    (["ChunkSize=151"], "ChunkSize must be at most 150"),
+    (["SecondaryMotion=yes"], "SecondaryMotion"),
+])
+def test_bad_parameters_are_refused_when_the_job_is_made(params: list[str], message: str) -> None:
+    args = ["-p", "SceneFile=/shots/a.blend", "-p", "OutputDir=/renders/a"]
+    for param in params:
+        args += ["-p", param]
+    result = _openjd("summary", str(TEMPLATE), *args)
+    assert result.returncode != 0
+    assert message in result.stdout + result.stderr
