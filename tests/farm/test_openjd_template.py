@@ -27,9 +27,10 @@ _POSIX = pytest.mark.skipif(os.name != "posix" or shutil.which("sh") is None,
 
 
 def _openjd(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    exe = Path(sys.executable).with_name("openjd")
-    assert exe.exists(), "openjd-cli is missing: it is pinned in tools/requirements.txt"
-    return subprocess.run([str(exe), *args], capture_output=True, text=True, timeout=timeout, check=False)
+    beside = Path(sys.executable).with_name("openjd")  # the venv's own, when pytest runs from one
+    exe = str(beside) if beside.exists() else shutil.which("openjd")
+    assert exe, "openjd-cli is missing: it is pinned in tools/requirements.txt"
+    return subprocess.run([exe, *args], capture_output=True, text=True, timeout=timeout, check=False)
 
 
 def test_template_passes_openjd_check() -> None:
