@@ -55,6 +55,12 @@ class Tree:
         self.tail: list[np.ndarray] = []
         self.legs: list[list[str]] = []
 
+    def __repr__(self) -> str:
+        return (
+            f"Tree(parent={self.parent}, head={np.round(np.array(self.head), 4).tolist()}, "
+            f"tail={np.round(np.array(self.tail), 4).tolist()}, legs={self.legs})"
+        )
+
     def add(self, parent: int, head: np.ndarray, tail: np.ndarray) -> int:
         self.names.append(f"Bone{len(self.names):03d}")
         self.parent.append(parent)
@@ -71,9 +77,15 @@ class Tree:
 
 
 @st.composite
-def creatures(draw: st.DrawFn, knees_up: float = 1.3) -> tuple[Tree, np.ndarray, bool]:
+def creatures(
+    draw: st.DrawFn,
+    knees_up: float = 1.3,
+    reach: float = 0.4,
+    sprawl: float = 0.6,
+) -> tuple[Tree, np.ndarray, bool]:
     """A random limb tree standing on z = 0, its object matrix, and whether tails mean anything.
-    ``knees_up``: how high the legs' inner joints may be, in body heights."""
+    ``knees_up``: how high the legs' inner joints may be, ``sprawl``: how far out each leg
+    bone goes, ``reach``: how far sideways each bone of the other limbs goes, in body heights."""
     tree = Tree()
     height = draw(st.floats(0.3, 2.0))
     n_pairs = draw(st.integers(1, 4))
@@ -82,7 +94,7 @@ def creatures(draw: st.DrawFn, knees_up: float = 1.3) -> tuple[Tree, np.ndarray,
     for _ in range(n_pairs):
         k = draw(st.integers(2, 4))
         width = draw(st.floats(0.05, 0.5)) * height
-        out = np.cumsum([width] + [draw(st.floats(0.0, 0.6)) * height for _ in range(k)])
+        out = np.cumsum([width] + [draw(st.floats(0.0, sprawl)) * height for _ in range(k)])
         fwd = [0.0] + [draw(st.floats(-0.2, 0.2)) * height for _ in range(k)]
         z = [height] + [draw(st.floats(0.2, knees_up)) * height for _ in range(k - 1)] + [0.0]
         shapes.append(np.column_stack([out, fwd, z]))
@@ -105,7 +117,7 @@ def creatures(draw: st.DrawFn, knees_up: float = 1.3) -> tuple[Tree, np.ndarray,
         k = draw(st.integers(1, 4))
         start = tree.head[carrier]
         steps = [
-            np.array([draw(st.floats(-0.4, 0.4)), draw(st.floats(-0.4, 0.4)), draw(st.floats(-0.1, 0.3))])
+            np.array([draw(st.floats(-reach, reach)), draw(st.floats(-0.4, 0.4)), draw(st.floats(-0.1, 0.3))])
             * height
             for _ in range(k)
         ]
@@ -157,9 +169,10 @@ def test_every_chain_reaching_the_ground_is_found_and_none_other(
         assert np.sign(lateral) == leg.side, (leg, lateral)
 
 
-# Legs below the body: with knees far above it, a rig upside down still has chains hanging
-# from the body to its lowest points.
-@given(creatures(knees_up=0.9), st.sampled_from(["side", "upside down"]))
+# Legs below the body, not sprawling far, other limbs close to the midline: with knees far
+# above the body a rig upside down still has chains hanging from it to its lowest points, and
+# on its side a sprawling leg or an arm reaching out as far as the legs hangs down too.
+@given(creatures(knees_up=0.9, reach=0.05, sprawl=0.25), st.sampled_from(["side", "upside down"]))
 def test_a_rig_lying_down_is_refused_naming_its_up_axis(
     case: tuple[Tree, np.ndarray, bool], how: str
 ) -> None:

@@ -318,9 +318,10 @@ def find_legs(rest: _Rest, constrained: np.ndarray, rig_name: str) -> list[LegCh
     score = {name: _stance(turned[name], chains) for name, chains in other.items()}
     # ... or when it finds more legs standing better (an upside-down rig's knees, a
     # sprawling rig's legs on its side, against the few chains that hang down).
+    # One chain alone cannot hold a body up: two legs along another axis win over it.
     better = [k for k in score if len(other[k]) >= 2 and (
-        score[k] > 2.0 * here or (score[k] > here and len(other[k]) > len(found)))]
-    best_axis = max(better, key=lambda k: (len(other[k]), score[k], k == "-Z")) if better else ""
+        score[k] > 2.0 * here or len(found) < 2 or (score[k] > here and len(other[k]) > len(found)))]
+    best_axis = max(better, key=lambda k: (score[k] * len(other[k]), k == "-Z")) if better else ""
     n_best = len(other[best_axis]) if better else 0
     if better:
         how = "upside down" if best_axis == "-Z" else "on its side"
