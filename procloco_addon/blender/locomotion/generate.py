@@ -362,7 +362,8 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     warnings = list(info.warnings)
     changes = _gait_changes(obj, info.legs, frames, warnings)
     auto = None
-    if rig_gait.is_auto(obj) or not from_settings:  # a rig with no legs listed has no gait chosen
+    # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
+    if rig_gait.is_auto(obj) or not (from_settings or settings.is_property_set("gait_mode")):
         try:
             auto = rig_gait.auto_params(obj, info)
         except core_gait.GaitError as err:

@@ -137,6 +137,23 @@ def speed_schedule(job: Job) -> Callable[[float], float]:
     return speed_at
 
 
+def _window(job: Job, leg_len: float) -> tuple[int, float]:
+    """Cells and cell size of the planning window: 70 cells of 0.065 leg (4.5 legs across);
+    with Gait: Auto grown when the fastest stride would put a landing foot beyond its edge (the
+    window is centred on the pelvis; a front foot lands up to about a leg and a half plus a
+    stride ahead of where the pelvis was at lift-off). Cells and size grow alike, by the
+    square root of the needed growth, so planning stays affordable at a gallop."""
+    cells, cell = 70, 0.065 * leg_len
+    if job.auto_gait is None:  # (the circles' walks keep the window they were tuned with)
+        return cells, cell
+    v_max = max([job.speed] + [c.speed for c in job.gait_changes if c.speed is not None])
+    half = 1.5 * leg_len + v_max * float(job.auto_gait.schedule([v_max])[2][0])
+    growth = half / (0.5 * cells * cell)
+    if growth <= 1.0:
+        return cells, cell
+    return int(np.ceil(cells * np.sqrt(growth))), cell * float(np.sqrt(growth))
+
+
 def run(job: Job) -> Iterator[float]:
     """Simulate ``job`` (one controller step per frame after the first); yields the fraction
     done and stores a :class:`SimResult` in ``job.result``."""
@@ -186,7 +203,8 @@ def run(job: Job) -> Iterator[float]:
     # Planning cells and height slices scale with the creature (the core's defaults are
     # tuned for half-metre legs: 7 cm cells, 10 cm slices), so a rig scaled ×100 plans the
     # same steps on a 100 times larger terrain.
-    params = ControllerParams(window_cell=0.065 * leg_len, slice_size=0.14 * leg_len)
+    cells, cell = _window(job, leg_len)
+    params = ControllerParams(window_cells=cells, window_cell=cell, slice_size=0.14 * leg_len)
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
