@@ -146,6 +146,7 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
     if args.gait is not None:
         try:
             if args.gait.lower() not in ("auto", "circles") and not len(s.legs):
+                core_gait.find_gait_preset(args.gait)  # an unknown preset changes nothing
                 generate.detect_into_settings(obj)  # a preset is set on the legs
             rig_gait.choose_gait(obj, args.gait)
         except (core_gait.GaitError, rig.RigError) as err:

@@ -244,3 +244,49 @@ def test_the_panel_shows_the_current_gait_and_the_chart(empty_scene: Any) -> Non
         filepath=str(generate.core_gait.gait_preset_dir() / "quadruped_trot.json")) == {"FINISHED"}
     assert obj.procloco.gait_mode == "CIRCLES"
     assert rig_gait.auto_track(obj, empty_scene) is None
+
+
+def test_the_batch_command_sets_the_gait(empty_scene: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    from procloco_addon.blender import actions, cli
+
+    bpy.ops.mesh.primitive_plane_add(size=8.0)
+    robot = creatures.build_robot(empty_scene)
+    assert cli.main(["generate", "--rig", "Robot", "--frames", "1", "8", "--gait", "pentapod_robot"]) == 0
+    assert robot.procloco.gait_mode == "CIRCLES"
+    assert robot.procloco.gait_preset == "Pentapod robot"
+    assert cli.main(["generate", "--rig", "Robot", "--frames", "1", "8", "--gait", "auto"]) == 0
+    assert robot.procloco.gait_mode == "AUTO"
+    action = actions.generated_action(robot)
+    assert action is not None
+    assert rig_gait.TRACK_PROPERTY in action  # what Auto chose, kept for the panel
+    capsys.readouterr()
+    assert cli.main(["generate", "--rig", "Robot", "--gait", "moonwalk"]) == 1
+    assert "no gait preset named 'moonwalk'" in capsys.readouterr().err
+    assert robot.procloco.gait_mode == "AUTO"
+
+
+def test_a_preset_replaces_one_of_autos_gaits_and_the_speed_scale_moves_them(empty_scene: Any) -> None:
+    from procloco_addon.blender.gait import ops as gait_ops
+    from tests.blender.ui_recorder import draw_menu
+
+    obj, leg = _creature(empty_scene, "wolf", 4.0)
+    _ramp(obj, 40, 2.0 * leg, [])  # a trot
+    pace = generate.core_gait.gait_preset_dir() / "quadruped_pace.json"
+    menu = draw_menu(gait_ops.PROCLOCO_MT_auto_gait_presets)
+    assert "Quadruped pace" in [c.text for c in menu.operator_calls("procloco.set_auto_gait")]
+    assert bpy.ops.procloco.set_auto_gait(band="trot", filepath=str(pace)) == {"FINISHED"}
+    shown = rig_gait.circles_at_frame(obj, empty_scene, 20)
+    assert shown is not None
+    assert np.allclose(shown[1], generate.core_gait.load_gait_preset(pace).gait(shown[0]).swing_start)
+    with pytest.raises(RuntimeError, match="Cannot use this preset"):
+        bpy.ops.procloco.set_auto_gait(band="trot", filepath=str(pace.with_name("hexapod_tripod.json")))
+    assert bpy.ops.procloco.set_auto_gait(band="trot") == {"FINISHED"}  # back to the shipped trot
+    assert obj.procloco.auto_gait_overrides == ""
+    before = rig_gait.auto_track(obj, empty_scene)
+    obj.procloco.gait_speed_scale = 2.0  # trots only from twice the speed: a walk
+    after = rig_gait.auto_track(obj, empty_scene)
+    assert before is not None
+    assert after is not None
+    assert np.allclose(after.boundaries, 2.0 * before.boundaries)
+    assert set(before.band.tolist()) == {1}
+    assert set(after.band.tolist()) == {0}
