@@ -112,7 +112,7 @@ def export_auto_chart(out_dir: Path) -> Path:
     frame = 180
     width, height = 2 * handler.CHART_SIZE[0], 2 * handler.CHART_SIZE[1]
     chart = draw.render_auto_chart(params.names, rig_gait.boundary_speeds(params), speed, frame,
-                                   width=width, height=height)
+                                   width=width, height=height, band=band)
     circles = draw.render_gait_image(params.patterns[band[frame]], np.full(4, 1.0 - duty[frame]), labels,
                                      0.3, width=height, height=height)
     out_dir.mkdir(parents=True, exist_ok=True)

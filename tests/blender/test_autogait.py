@@ -290,3 +290,18 @@ def test_a_preset_replaces_one_of_autos_gaits_and_the_speed_scale_moves_them(emp
     assert np.allclose(after.boundaries, 2.0 * before.boundaries)
     assert set(before.band.tolist()) == {1}
     assert set(after.band.tolist()) == {0}
+
+
+def test_chart_layout_puts_the_bands_and_the_speed_on_one_axis() -> None:
+    from procloco_addon.blender.gait import geometry
+
+    speed = np.linspace(0.5, 7.0, 50)
+    layout = geometry.chart_layout(np.array([2.7, 6.1]), speed, 10, 320, 160)
+    bands = layout.bands
+    assert bands.shape == (3, 4)
+    assert np.all(np.diff(bands[:, 1]) > 0.0)  # walk at the bottom, gallop on top
+    assert np.allclose(bands[1:, 1], bands[:-1, 3])  # the bands touch at the boundaries
+    assert np.allclose(layout.speed_y(2.7), bands[1, 1])
+    assert np.all(np.diff(layout.curve[:, 1]) > 0.0)  # the speed rises: so does the line
+    assert layout.marker_x == pytest.approx(layout.curve[10, 0])
+    assert geometry.chart_layout(np.array([2.7]), speed, None, 320, 160).marker_x is None

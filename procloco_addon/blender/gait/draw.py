@@ -27,6 +27,7 @@ from .geometry import CircleLayout
 __all__ = [
     "BAND_COLORS",
     "DEFAULT_PALETTE",
+    "LINE_COLORS",
     "Palette",
     "draw_auto_chart",
     "draw_gait",
@@ -258,15 +259,34 @@ BAND_COLORS: tuple[Color, ...] = (
 )
 
 
+#: The speed line where each gait is chosen (bright, in the hue of its band).
+LINE_COLORS: tuple[Color, ...] = (
+    (0.45, 1.0, 0.55, 1.0),
+    (0.5, 0.75, 1.0, 1.0),
+    (1.0, 0.55, 0.4, 1.0),
+    (1.0, 0.9, 0.4, 1.0),
+)
+
+
 def draw_auto_chart(layout: geometry.ChartLayout, names: tuple[str, ...] | list[str],
-                    boundaries: np.ndarray, palette: Palette = DEFAULT_PALETTE) -> None:
+                    boundaries: np.ndarray, palette: Palette = DEFAULT_PALETTE,
+                    band: np.ndarray | None = None) -> None:
     """Draw the Auto gait chart (bands, the speed over the shot, the current frame) into the
-    bound framebuffer, in pixel coordinates."""
+    bound framebuffer, in pixel coordinates. ``band (F,)``: the gait chosen at each frame;
+    the speed line takes that gait's colour, so the hysteresis shows where it changes."""
     shader = gpu.shader.from_builtin("FLAT_COLOR")
     parts: list[tuple[np.ndarray, Color]] = []
     for k, rect in enumerate(layout.bands):
         parts.append((geometry.rect_triangles(rect), BAND_COLORS[k % len(BAND_COLORS)]))
-    parts.append((geometry.polyline_quads(layout.curve, 2.0), palette.label))
+    curve = layout.curve
+    if band is None or len(band) != curve.shape[0]:
+        parts.append((geometry.polyline_quads(curve, 2.0), palette.label))
+    else:
+        chosen = np.asarray(band, dtype=np.int64)
+        cuts = np.flatnonzero(np.diff(chosen)) + 1
+        for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, chosen.size], strict=True):
+            color = LINE_COLORS[int(chosen[lo]) % len(LINE_COLORS)]
+            parts.append((geometry.polyline_quads(curve[max(lo - 1, 0):hi], 3.0), color))
     if layout.marker_x is not None:
         x = layout.marker_x
         _, y0, _, y1 = layout.plot
@@ -300,15 +320,16 @@ def draw_auto_chart(layout: geometry.ChartLayout, names: tuple[str, ...] | list[
 
 def render_auto_chart(names: tuple[str, ...] | list[str], boundaries: np.ndarray, speed: np.ndarray,
                       frame_index: int | None, *, width: int = 320, height: int = 160,
-                      palette: Palette = DEFAULT_PALETTE) -> np.ndarray:
+                      palette: Palette = DEFAULT_PALETTE, band: np.ndarray | None = None) -> np.ndarray:
     """Draw the Auto gait chart off screen and read it back: ``names (B,)`` of the gaits,
     ``boundaries (B - 1,)`` m/s where each gait after the first begins, ``speed (F,)`` m/s
-    over the shot, ``frame_index`` the current frame's index (or None). Returns
+    over the shot, ``frame_index`` the current frame's index (or None), ``band (F,)`` the gait
+    chosen at each frame (colours the speed line; None: plain). Returns
     ``(height, width, 4)`` float32 RGBA, rows bottom to top. Needs a GPU context."""
     layout = geometry.chart_layout(boundaries, speed, frame_index, width, height)
 
     def draw_fn() -> None:
-        draw_auto_chart(layout, names, boundaries, palette)
+        draw_auto_chart(layout, names, boundaries, palette, band)
 
     return render_offscreen(width, height, draw_fn, palette.background)
 

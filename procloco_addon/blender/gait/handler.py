@@ -139,7 +139,8 @@ def chart_signature(context: Any = None) -> tuple[Any, ...] | None:
     if obj is None or track is None:
         return None
     return (obj.name, track.names, tuple(np.round(track.boundaries, 4)), track.recorded,
-            hash(np.round(track.speed, 4).tobytes()), track.index(ctx.scene.frame_current))
+            hash(np.round(track.speed, 4).tobytes()), hash(track.band.tobytes()),
+            track.index(ctx.scene.frame_current))
 
 
 def ensure_current(context: Any = None) -> None:
@@ -192,7 +193,8 @@ def _refresh_chart(ctx: Any, force: bool) -> bool:
         assert track is not None
         width, height = CHART_SIZE
         pixels = draw.render_auto_chart(track.names, track.boundaries, track.speed,
-                                        track.index(ctx.scene.frame_current), width=width, height=height)
+                                        track.index(ctx.scene.frame_current), width=width, height=height,
+                                        band=track.band)
     _set_pixels(image, pixels)
     _state.chart_signature = signature
     return True
