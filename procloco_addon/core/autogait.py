@@ -22,10 +22,10 @@ What this module computes from the speed, per creature family (``AutoBand`` list
   Each band's footfall pattern (the swing starts) is a shipped gait preset's.
 - **Stride and cycle** of mammals and birds: relative stride ``λ / h ≈ 2.3 Fr^0.3``
   (Alexander 1976, *Estimates of speeds of dinosaurs*, Nature 261), cycle ``λ / v``.
-- **Duty factor** falling with speed (Alexander & Jayes 1983, figure of duty factor against
-  Fr; Alexander 1984): interpolated in log Fr across each band between values within the
-  ranges they report (walks about 0.8 to 0.6, trots 0.6 to 0.45, gallops 0.4 to 0.25;
-  human walking about 0.65 to 0.55, running 0.4 to 0.3).
+- **Duty factor** falling with speed (Alexander & Jayes 1983; Alexander 1984): interpolated
+  in log Fr across each band between two values chosen within the usual ranges (walks about
+  0.8 to 0.6, trots 0.6 to 0.45, gallops 0.42 to 0.35 — lower ones make the controller's
+  front feet outrun it — human walking 0.65 to 0.55, running 0.4 to 0.3).
 - **Many legs**: the swing lasts about the same time at every speed and the stance shortens
   as the speed rises (Wilson 1966), so the duty factor is ``1 / (1 + k √Fr)`` (a constant
   swing time ``c √(h / g)`` and a constant stance sweep ``(c / k) h``); the band follows from
