@@ -167,6 +167,14 @@ def test_a_hexapod_goes_from_a_wave_to_a_tripod(empty_scene: Any) -> None:
     fr = _froude(job)
     first_tripod = int(np.flatnonzero(job.result.auto_band[1:] == 2)[0])
     assert fr[first_tripod] == pytest.approx(1.2 * autogait.FAMILIES["hexapod"].bands[2].fr_low, rel=0.05)
+    # The thresholds the ant meets at this size whatever its gait: its hind legs' failed plans
+    # put gait phases off and its feet 14 mm (0.3 % of a leg) into the ground with the
+    # tripod preset as with Auto.
+    m = _measure_on(obj, job, [bpy.data.objects["Plane"]], [])
+    assert m["slide"] <= 0.002, m
+    assert m["bone"] < 1e-4, m
+    assert m["reach"] <= 0.01, m
+    assert m["extension"] <= 1.0 + 1e-6, m
 
 
 def test_a_biped_walks_then_runs(empty_scene: Any) -> None:
