@@ -85,7 +85,7 @@ def cmd_lint(python: Path) -> int:
 
 #: What the 4.2 LTS run of ``test`` covers by default: everything that imports ``bpy``. The core
 #: suite is pure numpy with the same pinned numpy on both wheels, so it runs once, on 5.0.
-BLENDER_TESTS = ["tests/blender", "tests/test_packaging.py"]
+BLENDER_TESTS = ["tests/blender", "tests/farm", "tests/test_packaging.py"]
 
 
 def run_pytest(python: Path, args: list[str], env: dict[str, str] | None = None) -> int:
