@@ -17,6 +17,7 @@ import pytest
 from procloco_addon.blender import actions
 from procloco_addon.blender.locomotion import generate
 from procloco_addon.core import gait as core_gait
+from procloco_addon.core import metrics
 from tests.blender.scene_state import snapshot
 from tools.examples import creatures
 
@@ -343,11 +344,11 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
     casts into ``surfaces`` (moving ones where they are at each frame) and the boxes of the
     ``avoid`` objects (unit cubes scaled, possibly moving). Also returns the posed
     end-effectors as ``"ends"`` ``(F, L, 3)``."""
-    from procloco_addon.core import metrics
     from tests.blender.pose_eval import (
         bone_heads_tails,
         leg_joints,
         object_world_matrices,
+        pose_matrices,
         ray_heights_over_time,
     )
 
@@ -416,6 +417,21 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
     out["phase_events"] = phase.n_events
     out["travel"] = float(np.linalg.norm(res.body[-1, :2, 3] - res.body[0, :2, 3]))
     out["scale"] = scale
+    # No pops: the largest turn from one frame to the next of any leg or foot bone, and of a
+    # planted foot's bones (both frames in stance), in degrees.
+    names = [b for leg in info.legs for b in (*leg.bones, *leg.foot)]
+    turn = np.degrees(metrics.bone_turn_per_frame(pose_matrices(obj, frames, names)[:, :, :3, :3]))
+    out["bone_turn"] = float(turn.max())
+    stance = ~res.swing
+    both = stance[:-1] & stance[1:]
+    col = 0
+    out["planted_turn"] = 0.0
+    for k, leg in enumerate(info.legs):
+        col += len(leg.bones)
+        for _ in leg.foot:
+            if both[:, k].any():
+                out["planted_turn"] = max(out["planted_turn"], float(turn[both[:, k], col].max()))
+            col += 1
     return out
 
 
@@ -429,6 +445,38 @@ def check_thresholds(m: dict[str, Any]) -> None:
     assert m["extension"] <= 1.0 + 1e-6, m
     assert m["phase_events"] > 0, m
     assert m["phase"] <= 1.0, m
+    if "bone_turn" in m:
+        check_no_pops(m)
+
+
+def without_pops(m: dict[str, Any]) -> dict[str, Any]:
+    """``m`` without the per-frame bone turns, for :func:`check_thresholds` before
+    :func:`check_no_pops`."""
+    return {k: v for k, v in m.items() if k not in ("bone_turn", "planted_turn")}
+
+
+#: Creatures whose leg bones still pop (measured on the example terrain): the core IK's leg
+#: plane can turn over in one frame for a nearly straight leg of three or more bones, rolling
+#: the spider's and the ant's legs by 110-172°, and the lizard's planted foot turns 6.1° in
+#: one frame. Their other thresholds hold; the pop check is expected to fail until fixed.
+POPPING = {"spider", "ant", "lizard"}
+
+
+def check_no_pops(m: dict[str, Any], kind: str = "") -> None:
+    """No bone of a planted foot turns more than 5° in one frame, no leg bone more than 60°
+    (``metrics.MAX_PLANTED_TURN``, ``MAX_BONE_TURN``). For a ``kind`` in :data:`POPPING` the
+    check is a strict expected failure: it fails the test once the pops are gone, so the
+    entry gets removed. Call it last (an expected failure ends the test); check the other
+    thresholds first with ``check_thresholds(without_pops(m))``."""
+    ok = (m["planted_turn"] <= np.degrees(metrics.MAX_PLANTED_TURN)
+          and m["bone_turn"] <= np.degrees(metrics.MAX_BONE_TURN))
+    if kind in POPPING:
+        if ok:
+            pytest.fail(f"the {kind}'s leg bones no longer pop: take it out of POPPING")
+        pytest.xfail(f"the {kind}'s leg bones pop: {m['bone_turn']:.1f} deg, planted foot "
+                     f"{m['planted_turn']:.2f} deg in one frame")
+    assert m["planted_turn"] <= np.degrees(metrics.MAX_PLANTED_TURN), m
+    assert m["bone_turn"] <= np.degrees(metrics.MAX_BONE_TURN), m
 
 
 def _check(m: dict[str, float]) -> None:
@@ -755,8 +803,9 @@ def test_wolf_and_lizard_with_the_spine_meet_the_motion_thresholds_on_the_exampl
     avoid = [o for o in built.static_crates if o.procloco_role == "AVOID"]
     m = _measure_on(obj, job, solid, avoid)
     m.pop("ends")
-    check_thresholds(m)
+    check_thresholds(without_pops(m))
     assert m["travel"] > 3.0 * m["scale"], m
+    check_no_pops(m, kind)
     # The spine bones were keyed: the head moves relative to the hips (visual yaw, pitch).
     assert _spine_bend(obj, [int(f) for f in job.frames], job.info.spine).max() > 2.0
 
