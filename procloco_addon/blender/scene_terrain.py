@@ -23,7 +23,7 @@ simulation moves them with ``Environment.set_soup_vertices`` before each step.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
@@ -36,6 +36,7 @@ __all__ = [
     "TerrainError",
     "build_environment",
     "check_ground_under",
+    "hidden_note",
     "object_role",
     "read_triangles",
     "sample_motion",
@@ -74,6 +75,7 @@ class SceneTerrain:
     frames: np.ndarray
     motion: tuple[np.ndarray, ...]
     z_offset: float = 0.0
+    warnings: list[str] = field(default_factory=list)
 
     def apply_frame(self, f: int) -> None:
         """Move every dynamic soup to where it is at ``frames[f]``."""
@@ -187,13 +189,31 @@ def build_environment(
     dyn_index: list[int] = []
     dyn_motion: list[np.ndarray] = []
     offset = np.array([0.0, 0.0, z_offset])
+    warnings: list[str] = []
     for obj in objects:
         verts, tris = read_triangles(obj, depsgraph)
         if tris.shape[0] == 0:
             continue
         track = motion.get(obj.name)
-        moving = track is not None and track.shape[1] == verts.shape[0] and bool(
-            np.max(np.abs(track - track[:1])) > 1e-6)
+        if track is not None and track.shape[1] != verts.shape[0]:
+            track = None
+        # Vertices that are NaN or infinite (at any sampled frame) cannot be walked on: the
+        # triangles using them are left out and the object is named.
+        finite = np.all(np.isfinite(verts), axis=1)
+        if track is not None:
+            finite &= np.all(np.isfinite(track), axis=(0, 2))
+        if not np.all(finite):
+            keep = np.all(finite[tris], axis=1)
+            warnings.append(f"'{obj.name}' has {int(np.sum(~finite))} vertices that are not finite (NaN or "
+                            f"infinite): {int(np.sum(~keep))} of its {tris.shape[0]} triangles are left out "
+                            "of the terrain")
+            tris = tris[keep]
+            verts = np.where(finite[:, None], verts, 0.0)
+            if track is not None:
+                track = np.where(finite[None, :, None], track, 0.0)
+            if tris.shape[0] == 0:
+                continue
+        moving = track is not None and bool(np.max(np.abs(track - track[:1])) > 1e-6)
         role = object_role(obj, moving)
         if role not in _ROLE_CODES:
             continue
@@ -208,7 +228,7 @@ def build_environment(
         raise TerrainError("No ground mesh found: add a mesh under the creature "
                            "(or choose the terrain collection)")
     return SceneTerrain(Environment(soups=soups), tuple(names), tuple(roles), tuple(dyn_index), frames_a,
-                        tuple(dyn_motion), z_offset)
+                        tuple(dyn_motion), z_offset, warnings)
 
 
 def sample_motion(
@@ -256,10 +276,42 @@ def sample_motion(
     return out
 
 
-def check_ground_under(terrain: SceneTerrain, xy: np.ndarray, who: str) -> None:
-    """Raise :class:`TerrainError` unless there is a surface under every point ``(n, 2)``."""
-    h = terrain.environment.height_at(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+#: How far above the ground (in leg lengths) a creature's feet may start.
+MAX_START_GAP_LEGS = 2.0
+
+
+def check_ground_under(
+    terrain: SceneTerrain, points: np.ndarray, who: str, reach: float | None = None
+) -> None:
+    """Raise :class:`TerrainError` unless there is a surface under every point.
+
+    ``points``: ``(n, 2)`` ground positions, or ``(n, 3)`` feet contacts; with 3D points and
+    ``reach`` (the leg length), feet more than :data:`MAX_START_GAP_LEGS` leg lengths above
+    the surface under them are refused too (the creature would drop onto it in one frame).
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    h = terrain.environment.height_at(pts[:, :2].reshape(-1, 2))
     if np.any(h <= NO_SURFACE * 0.5):
         missing = int(np.sum(h <= NO_SURFACE * 0.5))
         raise TerrainError(f"No ground under '{who}': {missing} of its feet stand over no mesh "
                            "(move it over the terrain or choose the terrain collection)")
+    if reach is not None and pts.shape[1] == 3:
+        gap = float(np.min(pts[:, 2] - (h - terrain.z_offset)))
+        if gap > MAX_START_GAP_LEGS * reach:
+            raise TerrainError(f"'{who}' stands {gap:.3g} m above the ground under it ({gap / reach:.3g} leg "
+                               "lengths): move it down onto the terrain")
+
+
+def hidden_note(context: bpy.types.Context, rigs: Iterable[bpy.types.Object] = ()) -> str:
+    """`` ('A', 'B' hidden: ...)`` naming the hidden meshes of the view layer that would be
+    terrain if they were visible, or ``""``: said when no ground is found."""
+    rig_names = {r.name for r in rigs}
+    view_layer = context.view_layer
+    hidden = [o.name for o in view_layer.objects
+              if o.type in _MESHLIKE and o.name not in rig_names and not o.visible_get(view_layer=view_layer)
+              and getattr(o, "procloco_role", "AUTO") != "IGNORE" and not _rig_owned(o, rig_names)]
+    if not hidden:
+        return ""
+    names = ", ".join(f"'{n}'" for n in sorted(hidden)[:5]) + (" ..." if len(hidden) > 5 else "")
+    verb = "is" if len(hidden) == 1 else "are"
+    return f" ({names} {verb} hidden: unhide it to walk on it)"

@@ -114,9 +114,9 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
 
     def _finish(self, context: Any) -> set[str]:
         try:
-            made = [generate.write(context, job) for job in self._jobs]
-        except (actions.ActionError, rig.RigError, ValueError, KeyError) as err:
-            self.report({"ERROR"}, f"Could not write the Action: {err}")
+            made = generate.write_all(context, self._jobs)
+        except Exception as err:
+            self.report({"ERROR"}, f"Could not write the Actions (nothing was changed): {err}")
             return {"CANCELLED"}
         for job in self._jobs:
             for warning in job.warnings:

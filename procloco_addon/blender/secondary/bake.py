@@ -41,7 +41,7 @@ import bpy
 import numpy as np
 
 from ...core import pendulum as pend
-from .. import actions, rig
+from .. import actions, rig, validate
 from ..locomotion import property_group as locomotion_props
 
 __all__ = [
@@ -376,9 +376,10 @@ def prepare(context: Any, obj: Any) -> Job:
         raise BakeError("Select an armature: secondary motion is baked on a rig's bones")
     if getattr(context, "mode", "OBJECT") not in {"OBJECT", "POSE"}:
         raise BakeError("Leave edit mode first")
-    adt = obj.animation_data
-    if adt is not None and adt.use_tweak_mode:
-        raise BakeError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
+    problem = (validate.placement_problem(obj) or validate.tweak_mode_problem(obj)
+               or validate.non_finite_setting(obj.procloco_secondary, f"'{obj.name}'"))
+    if problem is not None:
+        raise BakeError(problem)
     settings = obj.procloco_secondary
     items = [c for c in settings.chains if c.enabled]
     if not settings.chains:
@@ -387,9 +388,9 @@ def prepare(context: Any, obj: Any) -> Job:
     if not items:
         raise BakeError(f"Every chain of '{obj.name}' is disabled: enable at least one")
     start, end = _frame_range(context, obj)
-    if end <= start:
-        what = "reversed" if end < start else "a single frame"
-        raise BakeError(f"The frame range {start}-{end} is {what}: baking needs at least two frames")
+    problem = validate.frame_range_problem(obj.name, start, end, "baking")
+    if problem is not None:
+        raise BakeError(problem)
     scale = np.linalg.norm(np.array(obj.matrix_world)[:3, :3], axis=0)
     if np.ptp(scale) > 1e-4 * scale.max():
         raise BakeError(f"'{obj.name}' has a non-uniform scale {tuple(np.round(scale, 4))}: apply it first")

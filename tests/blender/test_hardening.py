@@ -1,0 +1,287 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Misuse and faults: no traceback reaches the user, a refusal changes nothing, nothing of the
+user's is lost (NaN settings and terrain, tweak mode among several rigs, the batch command's
+bad options, Clear giving the pose back, clear messages)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+from procloco_addon.blender import actions, cli
+from procloco_addon.blender.locomotion import generate
+from tests.blender.scene_state import snapshot
+from tools.examples import creatures
+
+pytestmark = pytest.mark.blender
+
+
+def _ground(size: float = 6.0, name: str = "Ground", z: float = 0.0) -> Any:
+    bpy.ops.mesh.primitive_plane_add(size=size, location=(0.0, 0.0, z))
+    obj = bpy.context.active_object
+    obj.name = name
+    return obj
+
+
+def _select(*objs: Any) -> None:
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    for o in objs:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = objs[0]
+
+
+def _short_range(obj: Any, start: int = 1, end: int = 8) -> None:
+    obj.procloco.use_scene_range = False
+    obj.procloco.frame_start = start
+    obj.procloco.frame_end = end
+
+
+@pytest.fixture
+def robot(empty_scene: Any) -> Any:
+    _ground()
+    obj = creatures.build_robot(empty_scene)
+    _select(obj)
+    _short_range(obj)
+    return obj
+
+
+def _refused(op: Any, match: str) -> None:
+    """``op`` is refused with a message matching ``match`` (no traceback) and changes nothing."""
+    before = snapshot()
+    with pytest.raises(RuntimeError, match=match) as info:
+        op()
+    assert "Traceback" not in str(info.value), str(info.value)
+    assert snapshot() == before
+
+
+# ---------------------------------------------------------------------------------------
+# 1. No traceback: NaN settings and terrain, the batch command
+
+
+@pytest.mark.parametrize("name", ["speed", "step_height", "heading", "turn_rate", "cycle_time"])
+def test_a_nan_setting_is_refused_up_front_by_name(robot: Any, name: str) -> None:
+    setattr(robot.procloco, name, float("nan"))
+    label = robot.procloco.bl_rna.properties[name].name
+    _refused(bpy.ops.procloco.generate_locomotion, f"{label} of 'Robot' is not a number")
+
+
+def test_a_nan_leg_setting_is_refused_by_leg(robot: Any) -> None:
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    robot.procloco.legs[1].swing_start = float("nan")
+    _refused(bpy.ops.procloco.generate_locomotion, "Swing Start of leg .* of 'Robot' is not a number")
+
+
+def test_terrain_with_non_finite_vertices_is_used_without_them(empty_scene: Any) -> None:
+    verts = [(-3.0, -3.0, 0.0), (3.0, -3.0, 0.0), (3.0, 3.0, 0.0), (-3.0, 3.0, 0.0),
+             (5.0, 5.0, 0.0), (6.0, 5.0, 0.0), (5.0, 6.0, 0.0)]
+    mesh = bpy.data.meshes.new("Broken")
+    mesh.from_pydata(verts, [], [(0, 1, 2, 3), (4, 5, 6)])
+    mesh.vertices[5].co = (float("nan"), 5.0, 0.0)
+    mesh.vertices[6].co = (float("inf"), 6.0, 0.0)
+    ground = bpy.data.objects.new("Broken", mesh)
+    empty_scene.collection.objects.link(ground)
+    obj = creatures.build_robot(empty_scene)
+    _select(obj)
+    _short_range(obj)
+    job = generate.prepare(bpy.context, obj)
+    assert any("'Broken'" in w and "not finite" in w for w in job.warnings), job.warnings
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    assert actions.generated_action(obj) is not None
+
+
+@pytest.mark.parametrize("argv", [
+    ["--speed", "nan"], ["--speed", "inf"], ["--step-height", "nan"], ["--heading", "nan"],
+    ["--heading", "inf"], ["--seed", "99999999999"], ["--seed", "-1"], ["--speed", "-1"],
+    ["--step-height", "-0.1"], ["--resolution", "0", "0"], ["--frame-step", "0"],
+])
+def test_batch_command_refuses_bad_options_with_a_status(robot: Any, argv: list[str],
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    before = snapshot()
+    status = cli.main(["generate", "--rig", "Robot", *argv])
+    assert status == 2
+    err = capsys.readouterr().err
+    assert "error:" in err, err
+    assert argv[0] in err, err
+    assert "Traceback" not in err, err
+    assert snapshot() == before
+
+
+def test_batch_help_returns_zero(empty_scene: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["--help"]) == 0
+    assert "generate" in capsys.readouterr().out
+    assert cli.main(["generate", "--help"]) == 0
+
+
+def test_batch_command_turns_any_failure_into_a_status(robot: Any, monkeypatch: pytest.MonkeyPatch,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    def broken(*_args: Any, **_kwargs: Any) -> Any:
+        raise ZeroDivisionError("a fault nobody foresaw")
+
+    monkeypatch.setattr(generate, "generate", broken)
+    before = snapshot()
+    assert cli.main(["generate", "--rig", "Robot", "--speed", "0.2"]) == 1
+    assert "a fault nobody foresaw" in capsys.readouterr().err
+    assert snapshot() == before
+
+
+def test_an_unforeseen_fault_in_an_operator_is_reported_not_raised(robot: Any,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    from procloco_addon.blender.locomotion import simulation
+
+    def broken(_job: Any) -> Any:
+        raise ZeroDivisionError("a fault nobody foresaw")
+        yield 0.0
+
+    monkeypatch.setattr(simulation, "run", broken)
+    _refused(bpy.ops.procloco.generate_locomotion, "a fault nobody foresaw")
+
+
+# ---------------------------------------------------------------------------------------
+# 2. Clear gives the rig back
+
+
+def test_clear_gives_back_the_pose_of_every_bone_it_keyed(empty_scene: Any) -> None:
+    _ground()
+    wolf = creatures.build_wolf(empty_scene)
+    _select(wolf)
+    _short_range(wolf)
+    # A hand-posed, unkeyed neck and hind leg.
+    for name, angle in (("spine.006", 0.3), ("thigh.L", -0.4)):
+        pb = wolf.pose.bones[name]
+        pb.rotation_mode = "QUATERNION"
+        pb.rotation_quaternion = (np.cos(angle / 2), np.sin(angle / 2), 0.0, 0.0)
+    wolf.pose.bones["spine.004"].location = (0.0, 0.01, 0.02)
+    before = snapshot()
+    for _ in range(2):  # a re-generation still goes back to the pose the user had
+        assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+        bpy.context.scene.frame_set(5)
+    assert snapshot()["per_object"]["Wolf"]["pose"] != before["per_object"]["Wolf"]["pose"]
+    assert bpy.ops.procloco.clear_generated_action() == {"FINISHED"}
+    bpy.context.scene.frame_set(before["frame"][0])
+    assert snapshot() == before
+
+
+# ---------------------------------------------------------------------------------------
+# 3. All or nothing over the selected rigs
+
+
+def test_a_rig_in_nla_tweak_mode_among_selected_rigs_changes_nothing(robot: Any) -> None:
+    other = creatures.build_robot(bpy.context.scene, name="Robot2", location=(1.0, 0.0, 0.0))
+    _short_range(other)
+    user = bpy.data.actions.new("Robot2 walk")
+    other.animation_data_create()
+    other.animation_data.action = user
+    other.keyframe_insert("location", frame=1)
+    track = other.animation_data.nla_tracks.new()
+    track.strips.new("walk", 1, user)
+    other.animation_data.action = None
+    track.strips[0].select = True
+    other.animation_data.use_tweak_mode = True
+    assert other.animation_data.use_tweak_mode
+    _select(robot, other)
+    _refused(bpy.ops.procloco.generate_locomotion, "'Robot2' is in NLA tweak mode")
+
+
+def test_a_write_failing_on_the_second_rig_takes_back_the_first(robot: Any,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    other = creatures.build_robot(bpy.context.scene, name="Robot2", location=(1.0, 0.0, 0.0))
+    _short_range(other)
+    _select(robot, other)
+    real = actions.assign_generated_action
+
+    def fail_on_second(obj: Any, action: Any, **kwargs: Any) -> None:
+        if obj.name == "Robot2":
+            raise actions.ActionError("cannot write Robot2")
+        real(obj, action, **kwargs)
+
+    monkeypatch.setattr(actions, "assign_generated_action", fail_on_second)
+    _refused(bpy.ops.procloco.generate_locomotion, "cannot write Robot2")
+
+
+# ---------------------------------------------------------------------------------------
+# 6. A refusal leaves the settings as they were
+
+
+def test_a_refused_bake_does_not_leave_the_suggested_chains(empty_scene: Any) -> None:
+    _ground()
+    wolf = creatures.build_wolf(empty_scene)
+    _select(wolf)
+    _short_range(wolf, 5, 5)
+    assert not len(wolf.procloco_secondary.chains)
+    _refused(bpy.ops.procloco.bake_secondary_motion, r"is one frame \(5\): baking needs")
+
+
+@pytest.mark.parametrize("which", [["--rig", "Robot"], ["--all"]])
+def test_a_failed_batch_generate_leaves_the_settings_as_they_were(
+    empty_scene: Any, which: list[str], capsys: pytest.CaptureFixture[str]
+) -> None:
+    obj = creatures.build_robot(empty_scene)  # no ground anywhere
+    creatures.build_robot(empty_scene, name="Robot2", location=(1.0, 0.0, 0.0))
+    before = snapshot()
+    status = cli.main(["generate", *which, "--frames", "3", "9", "--speed", "0.7", "--step-height", "0.02",
+                       "--seed", "5", "--no-spine", "--bake-secondary"])
+    assert status == 1
+    assert "No ground mesh found" in capsys.readouterr().err
+    assert snapshot() == before
+    assert obj.procloco.speed != pytest.approx(0.7)
+
+
+# ---------------------------------------------------------------------------------------
+# 9. Messages that say what is wrong
+
+
+def test_a_one_frame_range_is_named_as_such(robot: Any) -> None:
+    _short_range(robot, 4, 4)
+    _refused(bpy.ops.procloco.generate_locomotion, r"one frame \(4\)")
+
+
+def test_a_nan_rig_location_is_named(robot: Any) -> None:
+    robot.location.x = float("nan")
+    _refused(bpy.ops.procloco.generate_locomotion, "placement of 'Robot' is not finite")
+
+
+def test_a_hidden_ground_is_named(robot: Any) -> None:
+    bpy.data.objects["Ground"].hide_set(True)
+    _refused(bpy.ops.procloco.generate_locomotion, "'Ground' is hidden")
+
+
+def test_a_rig_far_above_the_ground_is_refused(empty_scene: Any) -> None:
+    _ground(size=400.0, z=-100.0)
+    obj = creatures.build_robot(empty_scene)
+    _select(obj)
+    _short_range(obj)
+    _refused(bpy.ops.procloco.generate_locomotion, "'Robot' stands 100.* above the ground")
+
+
+# ---------------------------------------------------------------------------------------
+# 10. Minor
+
+
+def test_generating_again_supersedes_the_earlier_generation(robot: Any) -> None:
+    for _ in range(3):
+        assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    made = [a for a in bpy.data.actions if actions.is_generated(a)]
+    assert [a.name for a in made] == ["Robot ProcLoco"]
+    # A take the animator protected is kept.
+    made[0].use_fake_user = True
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    assert len([a for a in bpy.data.actions if actions.is_generated(a)]) == 2
+    assert bpy.ops.procloco.clear_generated_action() == {"FINISHED"}
+    assert [a.name for a in bpy.data.actions if actions.is_generated(a)] == ["Robot ProcLoco"]
+
+
+def test_save_creates_missing_folders(robot: Any, tmp_path: Path) -> None:
+    path = tmp_path / "new" / "folder" / "walk.blend"
+    assert cli.main(["generate", "--rig", "Robot", "--save", str(path)]) == 0
+    assert path.exists()
+
+
+def test_numbers_on_the_command_line_are_used_as_given_or_refused(robot: Any) -> None:
+    assert cli.main(["generate", "--rig", "Robot", "--speed", "0.25", "--step-height", "0.03"]) == 0
+    assert robot.procloco.speed == pytest.approx(0.25)
+    assert robot.procloco.step_height == pytest.approx(0.03)
