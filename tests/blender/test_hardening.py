@@ -285,3 +285,52 @@ def test_numbers_on_the_command_line_are_used_as_given_or_refused(robot: Any) ->
     assert cli.main(["generate", "--rig", "Robot", "--speed", "0.25", "--step-height", "0.03"]) == 0
     assert robot.procloco.speed == pytest.approx(0.25)
     assert robot.procloco.step_height == pytest.approx(0.03)
+
+
+# ---------------------------------------------------------------------------------------
+# 8. Biped goals
+
+
+@pytest.fixture(scope="module")
+def human_file(tmp_path_factory: pytest.TempPathFactory, procloco_registered: Any) -> Path:
+    """A floor, a Rigify human with its example clips and a wall, saved once for the module."""
+    from tests.blender.test_biped import _human, _plane
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    _plane("Floor", (6.0, 16.0), (0.0, -6.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(2.0, -6.0, 1.0))
+    bpy.context.active_object.name = "Wall"
+    bpy.context.active_object.scale = (0.2, 4.0, 2.0)
+    _human()
+    path = tmp_path_factory.mktemp("biped") / "human.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+@pytest.mark.parametrize(("where", "match"), [
+    ((1.0, -7.0, 5.0), "'Goal' is 5 m above the walkable surface"),
+    ((2.0, -6.0, 1.0), "'Goal' is 1 m below the walkable surface"),  # in the wall, under its top
+    ((30.0, 0.0, 0.0), "'Goal' is not on a walkable surface"),
+    ((0.05, 0.0, 0.0), "'Goal' is where 'metarig' already stands"),
+])
+def test_a_biped_goal_off_the_walkable_surface_or_at_the_start_is_refused(
+    human_file: Path, where: tuple[float, float, float], match: str
+) -> None:
+    from tests.blender.test_biped import _goal
+
+    bpy.ops.wm.open_mainfile(filepath=str(human_file))
+    rig = bpy.data.objects["metarig"]
+    rig.procloco_biped.goal = _goal(where)
+    _select(rig)
+    _refused(bpy.ops.procloco.plan_biped_footsteps, match)
+
+
+def test_a_nan_biped_setting_is_refused_by_name(human_file: Path) -> None:
+    from tests.blender.test_biped import _goal
+
+    bpy.ops.wm.open_mainfile(filepath=str(human_file))
+    rig = bpy.data.objects["metarig"]
+    rig.procloco_biped.goal = _goal((1.2, -7.0, 0.0))
+    rig.procloco_biped.crossfade = float("nan")
+    _select(rig)
+    _refused(bpy.ops.procloco.plan_biped_footsteps, "Cross-fade of 'metarig' is not a number")
