@@ -334,3 +334,74 @@ def test_a_nan_biped_setting_is_refused_by_name(human_file: Path) -> None:
     rig.procloco_biped.crossfade = float("nan")
     _select(rig)
     _refused(bpy.ops.procloco.plan_biped_footsteps, "Cross-fade of 'metarig' is not a number")
+
+
+# ---------------------------------------------------------------------------------------
+# 4. Animated terrain: work and memory follow what changes
+
+
+def _grid_ground(subdivisions: int = 60) -> Any:
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=subdivisions, y_subdivisions=subdivisions, size=8.0)
+    ground = bpy.context.active_object
+    ground.name = "Ground"
+    return ground
+
+
+def test_a_rigidly_moving_ground_is_read_once_and_placed_per_frame(empty_scene: Any) -> None:
+    ground = _grid_ground()
+    ground.keyframe_insert("location", frame=1)
+    ground.location.z = 0.001
+    ground.keyframe_insert("location", frame=8)
+    obj = creatures.build_robot(empty_scene)
+    _select(obj)
+    _short_range(obj)
+    job = generate.prepare(bpy.context, obj)
+    terrain = job.terrain
+    assert terrain is not None
+    assert terrain.dynamic_index == (0,)
+    motion = terrain.motion[0]
+    assert motion.vertices is None  # no per-frame copy of the mesh
+    assert motion.relative is not None
+    assert motion.relative.shape == (8, 4, 4)
+    probe = np.array([[0.3, -0.2]])
+    first = terrain.environment.height_at(probe)[0]
+    terrain.apply_frame(7)
+    assert terrain.environment.height_at(probe)[0] - first == pytest.approx(0.001, abs=1e-6)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+
+
+def test_a_deforming_ground_beyond_the_memory_budget_is_refused(empty_scene: Any,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    from procloco_addon.blender import scene_terrain
+
+    ground = _grid_ground()
+    wave = ground.modifiers.new("Wave", "WAVE")
+    wave.height = 0.01
+    obj = creatures.build_robot(empty_scene)
+    _select(obj)
+    _short_range(obj, 1, 40)
+    monkeypatch.setattr(scene_terrain, "DEFORM_BUDGET_BYTES", 1 << 16)
+    _refused(bpy.ops.procloco.generate_locomotion, "'Ground' deforms .* Shorten the frame range")
+
+
+def test_escape_while_the_terrain_is_read_changes_nothing(empty_scene: Any) -> None:
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
+    from tests.blender.test_modal import _context_for, _drive_modal
+
+    ground = _grid_ground()
+    ground.keyframe_insert("location", frame=1)
+    ground.location.x = 0.5
+    ground.keyframe_insert("location", frame=30)
+    obj = creatures.build_robot(empty_scene)
+    _select(obj)
+    _short_range(obj, 1, 30)
+    empty_scene.frame_set(1)
+    before = snapshot()
+    context = _context_for(empty_scene)
+    me = _drive_modal(Op, context, 3, _jobs=[])
+    assert all(job.terrain is None for job in me._jobs)  # still reading the terrain
+    assert empty_scene.frame_current != before["frame"][0]  # playing the range
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert snapshot() == before

@@ -6,7 +6,9 @@ The work for one rig is a :class:`Job` in three stages:
 
 1. :func:`prepare` reads everything from Blender and checks every bad input of the design
    ("Bad input") — it raises :class:`GenerateError` with a message for the user and changes
-   nothing in the scene;
+   nothing in the scene. It is :func:`read` (settings, rig: quick) then :func:`read_terrain`
+   (the scene's meshes, animated ones played over the range), the latter as progress steps
+   so the operator shows it and stops on Esc;
 2. :func:`simulate` runs the core simulation, one frame per step, as a generator yielding
    the fraction done (so a modal operator can show progress and stop on Esc with nothing
    written);
@@ -38,6 +40,8 @@ __all__ = [
     "detect_into_settings",
     "generate",
     "prepare",
+    "read",
+    "read_terrain",
     "settings_legs",
     "simulate",
     "stale_bones",
@@ -256,7 +260,7 @@ class Job:
     obj_name: str
     info: rig.RigInfo
     morphology: Morphology
-    terrain: scene_terrain.SceneTerrain
+    terrain: scene_terrain.SceneTerrain | None  # None until read_terrain
     gait: core_gait.Gait
     frames: np.ndarray  # (F,) scene frames
     dt: float  # seconds per frame
@@ -284,6 +288,9 @@ class Job:
     warnings: list[str] = field(default_factory=list)
     result: Any = None
     timings: dict[str, float] = field(default_factory=dict)
+    # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
+    terrain_objects: tuple[str, ...] = ()
+    lift: float = 0.0
 
 
 def stale_bones(obj: bpy.types.Object) -> set[str]:
@@ -307,6 +314,33 @@ def stale_bones(obj: bpy.types.Object) -> set[str]:
 
 def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     """Read and check everything for one rig. Raises :class:`GenerateError`; changes nothing."""
+    job = read(context, obj)
+    for _fraction in read_terrain(context, job):
+        pass
+    return job
+
+
+def read_terrain(context: bpy.types.Context, job: Job) -> Iterator[float]:
+    """Read the job's terrain (animated objects played over its frames), yielding the
+    fraction done, and check there is ground under the rig. Raises :class:`GenerateError`;
+    changes nothing (the scene's frame is put back, also when closed early)."""
+    t0 = time.perf_counter()
+    obj = bpy.data.objects[job.obj_name]
+    objs = [bpy.data.objects[name] for name in job.terrain_objects]
+    leg_len = float(np.mean(job.info.leg_length))
+    try:
+        terrain = yield from scene_terrain.build_environment_steps(context, objs, job.frames,
+                                                                   z_offset=job.lift)
+        scene_terrain.check_ground_under(terrain, job.info.contact, obj.name, reach=leg_len)
+    except scene_terrain.TerrainError as err:
+        raise GenerateError(str(err) + scene_terrain.hidden_note(context, [obj])) from err
+    job.terrain = terrain
+    job.warnings.extend(terrain.warnings)
+    job.timings["read_s"] = job.timings.get("read_s", 0.0) + time.perf_counter() - t0
+
+
+def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
+    """Read and check the rig and its settings (not the terrain: :func:`read_terrain`)."""
     t0 = time.perf_counter()
     if obj is None or obj.type != "ARMATURE":
         name = "Nothing" if obj is None else f"'{obj.name}'"
@@ -337,19 +371,19 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     leg_len = float(np.mean(info.leg_length))
     _check_scaled_settings(obj, leg_len)
     lift = float(np.mean(info.foot_height))
-    try:
-        terrain = scene_terrain.build_environment(context, objs, frames, z_offset=lift)
-        scene_terrain.check_ground_under(terrain, info.contact, obj.name, reach=leg_len)
-    except scene_terrain.TerrainError as err:
-        raise GenerateError(str(err) + scene_terrain.hidden_note(context, [obj])) from err
+    if not objs:
+        raise GenerateError("No ground mesh found: add a mesh under the creature (or choose the terrain "
+                            "collection)" + scene_terrain.hidden_note(context, [obj]))
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
-    warnings = list(info.warnings) + list(terrain.warnings)
+    warnings = list(info.warnings)
     changes = _gait_changes(obj, info.legs, frames, warnings)
     job = Job(
         obj_name=obj.name,
         info=info,
         morphology=morph,
-        terrain=terrain,
+        terrain=None,
+        terrain_objects=tuple(o.name for o in objs),
+        lift=lift,
         gait=gait,
         frames=frames,
         dt=1.0 / fps,

@@ -136,6 +136,8 @@ def run(job: Job) -> Iterator[float]:
     legs = LegBatch.stack([job.morphology])
     n_frames = job.frames.shape[0]
     terrain = job.terrain
+    if terrain is None:
+        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
     terrain.apply_frame(0)
     origin = job.info.body.origin
     start_yaw = float(np.arctan2(job.info.body.forward[1], job.info.body.forward[0]))
@@ -267,6 +269,8 @@ def ground_function(job: Job) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """``ground(frame_index (n,), xy (n, 2)) -> (n,)``: the scene's surface heights at those
     frames (moving obstacles where they are then), ``-inf`` over nothing."""
     terrain = job.terrain
+    if terrain is None:
+        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
 
     def heights(xy: np.ndarray) -> np.ndarray:
         h = terrain.environment.height_at(xy) - terrain.z_offset
