@@ -996,7 +996,8 @@ class Environment:
         shape = (math.ceil(hi[1] / cell) + 2 - i0, math.ceil(hi[0] / cell) + 2 - j0)
         origin = np.array([j0 * cell, i0 * cell])
         _, r, c, z = raster_triangles(origin, cell, shape, v[soup.faces])
-        out = (r + i0, c + j0, z)
+        order = np.argsort(r, kind="stable")  # by row, for windows to take theirs
+        out = (r[order] + i0, c[order] + j0, z[order])
         self._moving_raster[key] = out
         self._raster_offset[key] = off.copy()
         self.stats["moving_rasterised"] += 1
@@ -1099,6 +1100,10 @@ class Environment:
                 s_lo, s_hi = soup_box[i]
                 if np.all(s_hi >= lo_w[w]) and np.all(s_lo <= hi_w[w]):
                     r, c, z = self._moving_soup_cells(cell, i)
+                    # The raster is sorted by row: only the window's rows are taken (a moving
+                    # ground of a million triangles covers far more than one window).
+                    a, b = np.searchsorted(r, [i0, i0 + n])
+                    r, c, z = r[a:b], c[a:b], z[a:b]
                     rows.append(r)
                     cols.append(c)
                     tops.append(z)

@@ -405,3 +405,53 @@ def test_escape_while_the_terrain_is_read_changes_nothing(empty_scene: Any) -> N
     assert empty_scene.frame_current != before["frame"][0]  # playing the range
     assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
     assert snapshot() == before
+
+
+# ---------------------------------------------------------------------------------------
+# 5. A long bake simulates in slices: progress, and Esc with nothing written
+
+
+def test_a_long_bake_simulates_in_slices_and_escape_there_changes_nothing(
+    empty_scene: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.secondary import bake
+    from procloco_addon.blender.secondary.ops import PROCLOCO_OT_bake_secondary_motion as Op
+    from tests.blender.test_modal import TIMER, _context_for
+    from tests.blender.test_secondary import _frames, _key_object_path, _lizard
+
+    lizard = _lizard(empty_scene)
+    _frames(empty_scene, 1, 72)  # 3 s: 360 pendulum steps at 120 Hz, a report every 50
+    monkeypatch.setattr(bake, "SLICE_STEPS", 50)
+    _key_object_path(lizard, 24, 3.0)
+    assert bpy.ops.procloco.suggest_secondary_chains() == {"FINISHED"}
+    empty_scene.frame_set(1)
+    before = snapshot()
+    # The simulation alone reports its progress in slices and ends as simulate() does.
+    job = bake.prepare(bpy.context, lizard)
+    for _fraction in bake.sample(bpy.context, job):
+        pass
+    fractions = list(bake.simulate_steps(job))
+    assert len(fractions) >= 5
+    assert fractions == sorted(fractions)
+    assert 0.0 < fractions[0] < 1.0
+    assert job.swung is not None
+    # The operator shows "swinging the chains" steps and Esc there leaves the scene as it was.
+    context = _context_for(empty_scene)
+    me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _tick_budget_s=0.0,
+                         _cancelled_message="cancelled", _run_errors=Op._run_errors, _job=None)
+    for name in ("_prepare", "_run", "_stop", "_abort", "_discard", "_finish"):
+        setattr(me, name, getattr(Op, name).__get__(me))
+    assert me._prepare(context)
+    texts = []
+    me._steps = me._run(context, True)
+    for text, _fraction in me._steps:
+        texts.append(text)
+        if text == "swinging the chains":
+            break
+    assert texts[-1] == "swinging the chains"
+    assert me._job.swung is None  # stopped midway through the pendulums
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert Op.modal(me, context, TIMER) == {"PASS_THROUGH"}
+    assert snapshot() == before

@@ -165,9 +165,12 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
         samples = bake.sample(context, job)
         try:
             for fraction in samples:
-                yield "baking secondary motion", 0.9 * fraction  # the last tenth simulates and writes
+                yield "playing the animation", 0.5 * fraction
         finally:
             samples.close()  # closed early (Esc): frame and Action put back
+        # The pendulums in slices: progress, and Esc stops them with nothing written.
+        for fraction in bake.simulate_steps(job):
+            yield "swinging the chains", 0.5 + 0.45 * fraction
 
     def _discard(self, context: Any) -> None:
         if self._job is not None:
