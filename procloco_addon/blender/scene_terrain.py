@@ -82,6 +82,7 @@ class Motion:
     relative: np.ndarray | None = None
     base: np.ndarray | None = None
     vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None  # (f, 3) triangles, when read with the rigid base
 
     def at(self, f: int) -> np.ndarray:
         """World vertices ``(v, 3)`` at frame index ``f``."""
@@ -271,10 +272,13 @@ def build_environment_steps(
     offset = np.array([0.0, 0.0, z_offset])
     warnings: list[str] = []
     for obj in objects:
-        verts, tris = read_triangles(obj, depsgraph)
+        track = motion.get(obj.name)
+        if track is not None and track.faces is not None and track.base is not None:
+            verts, tris = track.base, track.faces  # read once, at the first frame
+        else:
+            verts, tris = read_triangles(obj, depsgraph)
         if tris.shape[0] == 0:
             continue
-        track = motion.get(obj.name)
         if track is not None:
             if track.base is not None:
                 verts = track.base  # where it is at the first frame
@@ -420,10 +424,10 @@ def sample_motion_steps(
         out: dict[str, Motion] = {name: Motion(vertices=v) for name, v in vertices.items()}
         for obj in rigid:
             m = matrices[obj.name]
-            base, _ = read_triangles(obj, depsgraph)  # at the first frame
+            base, faces = read_triangles(obj, depsgraph)  # at the first frame
             with np.errstate(all="ignore"):
                 rel = m @ np.linalg.inv(m[0]) if np.all(np.isfinite(m[0])) else m * np.nan
-            out[obj.name] = Motion(relative=rel, base=base)
+            out[obj.name] = Motion(relative=rel, base=base, faces=faces)
     finally:
         scene.frame_set(old_frame, subframe=old_sub)
     return out
