@@ -455,3 +455,39 @@ def test_a_long_bake_simulates_in_slices_and_escape_there_changes_nothing(
     assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
     assert Op.modal(me, context, TIMER) == {"PASS_THROUGH"}
     assert snapshot() == before
+
+
+# ---------------------------------------------------------------------------------------
+# 7. Size invariance
+
+
+@pytest.mark.slow
+def test_the_same_rig_at_any_size_walks_the_same_walk_to_scale(empty_scene: Any) -> None:
+    """The Rigify wolf built at x0.01 (7 mm legs), x1 and x100 on the same terrain scaled alike,
+    with every effect at its default (flexible spine, pelvis physics): the walks agree, back
+    at unit scale, to 0.1 mm (1.4e-4 leg lengths), and each meets the motion thresholds
+    scaled to its size."""
+    from tests.blender.test_generate import _generate, _leg_length, _measure, _terrain
+
+    walks = {}
+    for scale in (0.01, 1.0, 100.0):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        wolf = creatures.build_wolf(bpy.context.scene, scale=scale)
+        leg = _leg_length(wolf)
+        terrain = _terrain(leg)
+        wolf.procloco.speed = 0.8 * leg
+        wolf.procloco.step_height = 0.25 * leg
+        assert wolf.procloco.use_spine
+        assert wolf.procloco.use_pelvis_physics
+        job = _generate(wolf, frames=48)
+        m = _measure(wolf, job, terrain)
+        size = leg / 0.7325
+        assert m["slide"] <= 0.002 * size, m
+        assert m["reach"] <= 0.01 * size, m
+        assert m["penetration"] <= 0.005 * size, m
+        assert m["extension"] <= 1.0 + 1e-6, m
+        assert m["travel"] > 1.5 * leg, m
+        walks[scale] = (job.result.feet / scale, job.result.body[:, :3, 3] / scale)
+    for scale in (0.01, 100.0):
+        assert np.abs(walks[scale][0] - walks[1.0][0]).max() < 1e-4, scale
+        assert np.abs(walks[scale][1] - walks[1.0][1]).max() < 1e-4, scale

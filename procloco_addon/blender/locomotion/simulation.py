@@ -20,6 +20,7 @@ import numpy as np
 from ...core.controller import Controller, ControllerParams, StepControls
 from ...core.footprints import PlannerParams
 from ...core.morphology import LegBatch
+from ...core.pelvis_physics import PelvisPhysicsParams
 from ...core.progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
 from ...core.spine import SpineParams
 from ...core.terrain import NO_SURFACE
@@ -130,6 +131,10 @@ def speed_schedule(job: Job) -> Callable[[float], float]:
     return speed_at
 
 
+#: Leg length (m) at which the simulation's physical constants are the real ones.
+REFERENCE_LEG = 0.7325  # the Rigify wolf's
+
+
 def run(job: Job) -> Iterator[float]:
     """Simulate ``job`` (one controller step per frame after the first); yields the fraction
     done and stores a :class:`SimResult` in ``job.result``."""
@@ -175,7 +180,15 @@ def run(job: Job) -> Iterator[float]:
     # Planning cells and height slices scale with the creature (the core's defaults are
     # tuned for half-metre legs: 7 cm cells, 10 cm slices), so a rig scaled ×100 plans the
     # same steps on a 100 times larger terrain.
-    params = ControllerParams(window_cell=0.065 * leg_len, slice_size=0.14 * leg_len)
+    # The pelvis's pogo-stick bounces by about g T² for a cycle of T seconds whatever the
+    # creature's size: a 2 cm wolf would bob by its own leg length. Gravity scales with the
+    # creature (real gravity at REFERENCE_LEG), so a rig scaled x0.01 or x100 bobs the same
+    # for its size; so do the planted feet's support tolerance (2 mm at REFERENCE_LEG) and
+    # the leg IK's (10 µm there).
+    size = leg_len / REFERENCE_LEG
+    params = ControllerParams(window_cell=0.065 * leg_len, slice_size=0.14 * leg_len,
+                              support_tolerance=0.002 * size, ik_tolerance=1e-5 * size,
+                              physics=PelvisPhysicsParams(gravity=9.81 * size))
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
