@@ -413,8 +413,8 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
 
 #: Fastest walk accepted, in leg lengths per second (a cheetah's stride is under 10).
 _MAX_SPEED_LEGS = 25.0
-#: Highest step accepted, in leg lengths.
-_MAX_STEP_LEGS = 5.0
+#: Highest step accepted, in leg lengths (a foot cannot lift higher than its leg is long).
+_MAX_STEP_LEGS = 1.0
 
 
 def _check_scaled_settings(obj: bpy.types.Object, leg_len: float) -> None:
