@@ -411,8 +411,9 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     return job
 
 
-#: Fastest walk accepted, in leg lengths per second (a cheetah's stride is under 10).
-_MAX_SPEED_LEGS = 25.0
+#: Fastest walk accepted, in leg lengths per second (the controller keeps planted feet still
+#: up to about this; a gallop is 3-5).
+_MAX_SPEED_LEGS = 6.0
 #: Highest step accepted, in leg lengths (a foot cannot lift higher than its leg is long).
 _MAX_STEP_LEGS = 1.0
 
