@@ -46,7 +46,9 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..core import gait as core_gait
 from . import actions, render_chunk, rig
+from .gait import rig_gait
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
 from .secondary import bake
@@ -132,6 +134,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="heading in degrees relative to where the rig faces")
     gen.add_argument("--step-height", type=_number("float", 0.0), help="step height in metres")
     gen.add_argument("--seed", type=_number("int", 0, _INT_MAX), help="random seed")
+    gen.add_argument("--gait", metavar="auto|circles|PRESET",
+                     help="Gait: auto (follows the speed), circles, or a gait preset (file stem or name)")
     gen.add_argument("--spine", action=argparse.BooleanOptionalAction, default=None,
                      help="flexible spine on or off (Effects > Flexible Spine)")
     gen.add_argument("--visual-yaw", action=argparse.BooleanOptionalAction, default=None,
@@ -175,19 +179,46 @@ def _cmd_info(_args: argparse.Namespace) -> int:
     return 0
 
 
-_OVERRIDDEN = ("use_scene_range", "frame_start", "frame_end", "speed", "heading", "step_height", "seed",
-               "use_spine", "use_visual_yaw")
+def _group_values(group: Any) -> dict[str, Any]:
+    """Every writable property of a property group, its collections' items included."""
+    out: dict[str, Any] = {}
+    for prop in group.bl_rna.properties:
+        name = prop.identifier
+        if name == "rna_type":
+            continue
+        value = getattr(group, name)
+        if prop.type == "COLLECTION":
+            out[name] = [_group_values(item) for item in value]
+        elif prop.type == "POINTER" and isinstance(value, bpy.types.PropertyGroup):
+            out[name] = _group_values(value)
+        elif not prop.is_readonly:
+            out[name] = tuple(value) if getattr(prop, "array_length", 0) else value
+    return out
+
+
+def _set_group_values(group: Any, values: dict[str, Any]) -> None:
+    for name, value in values.items():
+        prop = group.bl_rna.properties[name]
+        if prop.type == "COLLECTION":
+            items = getattr(group, name)
+            items.clear()
+            for item_values in value:
+                _set_group_values(items.add(), item_values)
+        elif prop.type == "POINTER" and isinstance(value, dict):
+            _set_group_values(getattr(group, name), value)
+        else:
+            setattr(group, name, value)
 
 
 def _saved_settings(objs: Sequence[Any]) -> list[tuple[Any, dict[str, Any]]]:
-    """The settings the command line may override, as they are now (see :func:`_put_back`)."""
-    return [(obj, {name: getattr(obj.procloco, name) for name in _OVERRIDDEN}) for obj in objs]
+    """Each rig's settings as they are now, all of them (an override such as --gait also
+    fills the legs list): see :func:`_put_back`."""
+    return [(obj, _group_values(obj.procloco)) for obj in objs]
 
 
 def _put_back(saved: list[tuple[Any, dict[str, Any]]]) -> None:
     for obj, values in saved:
-        for name, value in values.items():
-            setattr(obj.procloco, name, value)
+        _set_group_values(obj.procloco, values)
 
 
 def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
@@ -201,6 +232,14 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
         s.step_height = float(args.step_height)
     if args.seed is not None:
         s.seed = int(args.seed)
+    if args.gait is not None:
+        try:
+            if args.gait.lower() not in ("auto", "circles") and not len(s.legs):
+                core_gait.find_gait_preset(args.gait)  # an unknown preset changes nothing
+                generate.detect_into_settings(obj)  # a preset is set on the legs
+            rig_gait.choose_gait(obj, args.gait)
+        except (core_gait.GaitError, rig.RigError) as err:
+            raise CliError(f"--gait {args.gait} for {obj.name}: {err}") from err
     if args.spine is not None:
         s.use_spine = bool(args.spine)
     if args.visual_yaw is not None:

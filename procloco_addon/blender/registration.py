@@ -67,6 +67,8 @@ CLASSES: tuple[type, ...] = (
     gait_ops.PROCLOCO_OT_add_gait_preset,
     gait_ops.PROCLOCO_OT_remove_gait_preset,
     gait_ops.PROCLOCO_OT_toggle_gait_overlay,
+    gait_ops.PROCLOCO_MT_auto_gait_presets,
+    gait_ops.PROCLOCO_OT_set_auto_gait,
     gait_ops.PROCLOCO_OT_edit_gait_overlay,
     locomotion_panel.PROCLOCO_PT_rig_legs,
     gait_panel.PROCLOCO_PT_gait,

@@ -224,7 +224,7 @@ def test_a_failed_batch_generate_leaves_the_settings_as_they_were(
     creatures.build_robot(empty_scene, name="Robot2", location=(1.0, 0.0, 0.0))
     before = snapshot()
     status = cli.main(["generate", *which, "--frames", "3", "9", "--speed", "0.7", "--step-height", "0.02",
-                       "--seed", "5", "--no-spine", "--bake-secondary"])
+                       "--seed", "5", "--no-spine", "--bake-secondary", "--gait", "pentapod_robot"])
     assert status == 1
     assert "No ground mesh found" in capsys.readouterr().err
     assert snapshot() == before
@@ -464,7 +464,8 @@ def test_a_long_bake_simulates_in_slices_and_escape_there_changes_nothing(
 @pytest.mark.slow
 def test_the_same_rig_at_any_size_walks_the_same_walk_to_scale(empty_scene: Any) -> None:
     """The Rigify wolf built at x0.01 (7 mm legs), x1 and x100 on the same terrain scaled alike,
-    with every effect at its default (flexible spine, pelvis physics): the walks agree, back
+    with the gait circles and every effect at its default (flexible spine, pelvis physics),
+    speeds in leg lengths per second: the walks agree, back
     at unit scale, to 0.1 mm (1.4e-4 leg lengths), and each meets the motion thresholds
     scaled to its size."""
     from tests.blender.test_generate import _generate, _leg_length, _measure, _terrain
@@ -477,6 +478,7 @@ def test_the_same_rig_at_any_size_walks_the_same_walk_to_scale(empty_scene: Any)
         terrain = _terrain(leg)
         wolf.procloco.speed = 0.8 * leg
         wolf.procloco.step_height = 0.25 * leg
+        wolf.procloco.gait_mode = "CIRCLES"  # (Auto chooses the gait by Froude number: not to scale)
         assert wolf.procloco.use_spine
         assert wolf.procloco.use_pelvis_physics
         job = _generate(wolf, frames=48)

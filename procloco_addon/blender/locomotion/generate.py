@@ -27,9 +27,11 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ...core import autogait
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
 from .. import actions, rig, scene_terrain, validate
+from ..gait import rig_gait
 from . import property_group
 
 __all__ = [
@@ -109,6 +111,8 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     """
     settings = obj.procloco
     legs = rig.detect_legs(obj)
+    if not settings.legs:
+        rig_gait.set_new_rig_default(obj)  # no gait chosen yet: Auto
     labels = [leg.label for leg in legs]
     old = {item.label or item.name: (item.swing_start, item.swing_duration, tuple(item.offset), item.enabled)
            for item in settings.legs}
@@ -277,6 +281,9 @@ class Job:
     use_gait_randomizer: bool
     # changes of gait and speed over the frames (GaitChange), in frame order
     gait_changes: tuple[GaitChange, ...] = ()
+    # Gait: Auto (core.autogait): the gait, stride and cycle follow the speed; None: the
+    # gait circles and the Gait Changes' gaits
+    auto_gait: autogait.AutoGaitParams | None = None
     # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
     use_visual_yaw: bool = False
     spine_turn_rate: float = float(np.radians(120.0))  # rad/s
@@ -377,6 +384,18 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
     warnings = list(info.warnings)
     changes = _gait_changes(obj, info.legs, frames, warnings)
+    auto = None
+    # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
+    if rig_gait.is_auto(obj) or not (from_settings or settings.is_property_set("gait_mode")):
+        try:
+            auto = rig_gait.auto_params(obj, info)
+        except core_gait.GaitError as err:
+            raise GenerateError(f"Gait of '{obj.name}': {err}") from err
+        if auto is None:
+            warnings.append(f"Auto gait knows no gaits for {len(info.legs)} legs: '{obj.name}' walks with "
+                            "its gait circles")
+        elif settings.use_gait_randomizer:
+            warnings.append(f"'{obj.name}' uses Auto gait: the gait randomizer is left out")
     job = Job(
         obj_name=obj.name,
         info=info,
@@ -403,6 +422,7 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         spine_relax_time=float(settings.spine_relax_time),
         visual_yaw_gain=float(settings.visual_yaw_gain),
         gait_changes=changes,
+        auto_gait=auto,
         warnings=warnings,
         held_bones=tuple(pb.name for pb in obj.pose.bones
                          if pb.name in stale and pb.name not in info.driven_bones),
@@ -508,6 +528,8 @@ def _keyed_action(context: bpy.types.Context, job: Job) -> bpy.types.Action:
             rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
             actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
+        if job.auto_gait is not None:
+            rig_gait.store_auto_track(action, simulation.auto_track(job))
     except Exception:
         bpy.data.actions.remove(action)
         raise
