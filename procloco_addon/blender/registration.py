@@ -23,6 +23,7 @@ from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
 from .gait import ui_list as gait_ui_list
+from .locomotion import handler as legs_handler
 from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
 from .locomotion import property_group as locomotion_props
@@ -105,6 +106,7 @@ def register() -> None:
         setattr(owner, attr, prop)
     cli.register()
     gait_handler.register()
+    legs_handler.register()
 
 
 def unregister() -> None:
@@ -112,6 +114,7 @@ def unregister() -> None:
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):
             delattr(owner, attr)
+    legs_handler.unregister()
     gait_handler.unregister()
     for owner, attr, _group in reversed(POINTERS):
         if hasattr(owner, attr):

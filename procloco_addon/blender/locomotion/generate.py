@@ -102,17 +102,49 @@ def default_gait(labels: Sequence[str]) -> core_gait.Gait:
     return core_gait.Gait(start, duration, max(0.6, 0.15 * n), "wave")
 
 
+#: Defaults for a rig with no speed or step height set yet, in leg lengths: a stride of
+#: ``STRIDE`` per cycle, feet lifted by ``STEP``; the gait's cycle scaled by the square root
+#: of the leg length over ``REFERENCE_LEG`` (dynamic similarity), within ``CYCLE_SCALE``.
+STRIDE = 0.8
+STEP = 0.15
+REFERENCE_LEG = 0.9
+CYCLE_SCALE = (0.5, 1.6)
+
+
+def scaled_defaults(leg_length: float, cycle_time: float) -> dict[str, float]:
+    """Speed, step height and cycle time for a creature whose legs are ``leg_length`` long,
+    walking the gait whose preset cycle is ``cycle_time`` seconds: a 9 cm bird and a 2 m
+    horse both get a first walk in proportion to their size."""
+    cycle = cycle_time * float(np.clip(np.sqrt(leg_length / REFERENCE_LEG), *CYCLE_SCALE))
+    return {"speed": STRIDE * leg_length / cycle, "step_height": STEP * leg_length, "cycle_time": cycle}
+
+
+def leg_reason(item: Any) -> str:
+    """Why Detect Legs chose the leg ``item`` (a ``PROCLOCO_PG_leg``); "" once its hip or
+    end-effector was changed by hand."""
+    return str(item.reason) if item.detected == f"{item.hip}>{item.end}" else ""
+
+
 def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     """Detect the legs of ``obj`` and store them in ``obj.procloco.legs``.
 
     A leg keeps its gait sector and foot offset when a leg with the same label was there
-    before; new legs get the default gait. Raises ``rig.RigError`` (and changes nothing) when
-    no leg is found.
+    before; new legs get the default gait. A rig whose speed and step height were never set
+    gets :func:`scaled_defaults` for its leg length. Each leg's ``reason`` says why it was
+    chosen. Raises ``rig.RigError`` (and changes nothing) when no leg is found.
     """
     settings = obj.procloco
     legs = rig.detect_legs(obj)
     if not settings.legs:
         rig_gait.set_new_rig_default(obj)  # no gait chosen yet: Auto
+    scaled = None
+    if not settings.is_property_set("speed") and not settings.is_property_set("step_height"):
+        try:
+            length = float(rig.read_rig(obj, legs).leg_length.mean())
+        except rig.RigError:
+            length = 0.0  # Generate will say what is wrong; the defaults stay as they are
+        if length > 0.0:
+            scaled = scaled_defaults(length, float(default_gait([leg.label for leg in legs]).cycle_time))
     labels = [leg.label for leg in legs]
     old = {item.label or item.name: (item.swing_start, item.swing_duration, tuple(item.offset), item.enabled)
            for item in settings.legs}
@@ -124,6 +156,8 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         item.label = leg.label
         item.hip = leg.hip
         item.end = leg.end
+        item.reason = leg.reason
+        item.detected = f"{leg.hip}>{leg.end}"
         if leg.label in old:
             start, duration, offset, enabled = old[leg.label]
             item.swing_start, item.swing_duration = start, duration
@@ -133,6 +167,9 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
             item.swing_duration = float(gait.swing_duration[k])
     if not all(label in old for label in labels):
         settings.cycle_time = float(gait.cycle_time)
+    if scaled is not None:
+        for key, value in scaled.items():
+            setattr(settings, key, value)
     settings.active_leg_index = min(settings.active_leg_index, len(legs) - 1)
     return legs
 

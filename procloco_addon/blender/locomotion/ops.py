@@ -53,7 +53,9 @@ class PROCLOCO_OT_detect_legs(bpy.types.Operator):
         except rig.RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"{obj.name}: {len(legs)} legs ({', '.join(leg.label for leg in legs)})")
+        facing = rig.facing_source(obj, legs)
+        self.report({"INFO"}, f"{obj.name}: {len(legs)} legs ({', '.join(leg.label for leg in legs)}); "
+                    f"forward from the {facing}")
         return {"FINISHED"}
 
 

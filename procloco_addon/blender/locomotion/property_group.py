@@ -51,6 +51,15 @@ class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
         description="Last bone solved by the IK; its tail is placed on the ground "
         "(often the bone before the foot)",
     )
+    reason: StringProperty(
+        name="Why",
+        description="Why Detect Legs chose this chain (reaches the ground, mirrored pair, name)",
+    )
+    detected: StringProperty(
+        name="Detected Chain",
+        description="The hip and end-effector Detect Legs chose (\"hip>end\"): the reason holds while "
+        "they are unchanged",
+    )
     enabled: BoolProperty(name="Enabled", description="Animate this leg", default=True)
     swing_start: FloatProperty(
         name="Swing Start",

@@ -1,0 +1,205 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Rest geometry of an armature as arrays, and the chain helpers shared by the rig modules.
+
+Numpy only: :class:`_Rest` holds every bone's world-space rest head, tail and parent, so
+detection and the spine search run on plain arrays (unit-testable without Blender).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+_UP = np.array([0.0, 0.0, 1.0])
+
+
+class RigError(ValueError):
+    """The armature cannot be animated as asked (the message is meant for the user)."""
+
+
+@dataclass(frozen=True)
+class _Rest:
+    """Rest geometry of every bone in world space (uniformly scaled rig)."""
+
+    names: tuple[str, ...]
+    index: dict[str, int]
+    parent: np.ndarray  # (B,) parent index or -1
+    head: np.ndarray  # (B, 3) world
+    tail: np.ndarray  # (B, 3) world
+    local: np.ndarray  # (B, 4, 4) armature-space rest matrices (bone.matrix_local)
+    world: np.ndarray  # (4, 4) object world matrix
+    scale: float
+    # (B, 3) world: where each bone's far joint is (see :func:`joint_ends`); from the tails
+    # when not given.
+    end: np.ndarray = None  # type: ignore[assignment]
+    tails_meaningful: bool = True
+    # (B,) bool: leaf bones an FBX exporter added at its parent's tail (``<parent>_end``):
+    # they mark a tail, not a joint, and are left out of the rig's geometry.
+    phantom: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.phantom is None:
+            has_kids = np.zeros(len(self.names), dtype=bool)
+            has_kids[self.parent[self.parent >= 0]] = True
+            object.__setattr__(self, "phantom", np.array(
+                [not has_kids[i] and p >= 0 and n == self.names[p] + "_end"
+                 for i, (n, p) in enumerate(zip(self.names, self.parent.tolist(), strict=True))], dtype=bool))
+        if self.end is None:
+            end, meaningful = joint_ends(np.where(self.phantom, -1, self.parent), self.head, self.tail)
+            object.__setattr__(self, "end", end)
+            object.__setattr__(self, "tails_meaningful", meaningful)
+
+    def children(self, i: int) -> list[int]:
+        return [int(c) for c in np.flatnonzero((self.parent == i) & ~self.phantom)]
+
+    def ancestors(self, i: int) -> list[int]:
+        out = []
+        p = int(self.parent[i])
+        while p >= 0:
+            out.append(p)
+            p = int(self.parent[p])
+        return out
+
+
+def joint_ends(parent: np.ndarray, head: np.ndarray, tail: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Each bone's far joint ``(B, 3)``, and whether the rig's tails mean anything.
+
+    Blender-made rigs put a bone's tail where its child starts: there the tails are the
+    joints. glTF and FBX importers give bones arbitrary tails (each along its own +Y, of a
+    guessed length): when fewer than three quarters of the bones with children have a child
+    starting at their tail, a bone's far joint is the head of its child with the largest
+    subtree (the chain's continuation), and a leaf's is its own head (its extent is unknown:
+    it comes from its children, the skin or nothing).
+    """
+    n = parent.shape[0]
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for i, p in enumerate(parent.tolist()):
+        if p >= 0:
+            kids[p].append(i)
+    span = float(np.ptp(np.vstack([head, tail]), axis=0).max()) if n else 0.0
+    tol = 1e-4 * max(span, 1e-12)
+    with_kids = [i for i in range(n) if kids[i]]
+    hits = sum(1 for i in with_kids if np.min(np.linalg.norm(head[kids[i]] - tail[i], axis=1)) < tol)
+    if not with_kids or hits >= 0.75 * len(with_kids):
+        return tail.copy(), True
+    size = np.ones(n, dtype=np.int64)
+    for i in sorted(range(n), key=lambda j: -_depth(parent, j)):  # children before parents
+        if parent[i] >= 0:
+            size[parent[i]] += size[i]
+    end = head.copy()
+    for i in with_kids:
+        away = [c for c in kids[i] if np.linalg.norm(head[c] - head[i]) > tol]
+        if away:
+            c = max(away, key=lambda c: (size[c], float(np.linalg.norm(head[c] - head[i]))))
+            end[i] = head[c]
+    return end, False
+
+
+def with_leaf_ends(rest: _Rest, skin: dict[int, np.ndarray]) -> _Rest:
+    """``rest`` with the far joint of leaf bones taken from their skin where the tail is
+    not to be trusted. skin: bone index -> ``(p, 3)`` world points weighted to that bone.
+
+    A leaf's far joint is its skin's point farthest from its head when the rig's tails mean
+    nothing, or when that point lies more than 30° off the tail's direction or at under half
+    or over 1.5 times the tail's distance (an importer's guess: a glTF leaf continues its
+    parent's direction). Otherwise the tail stays (a Blender-made rig with a skin around it).
+    """
+    end = rest.end.copy()
+    for i, pts in skin.items():
+        if rest.children(i) or pts.shape[0] == 0:
+            continue
+        d = pts - rest.head[i]
+        far = pts[int(np.argmax(np.linalg.norm(d, axis=1)))]
+        reach = float(np.linalg.norm(far - rest.head[i]))
+        bone = rest.tail[i] - rest.head[i]
+        length = float(np.linalg.norm(bone))
+        if rest.tails_meaningful and length > 0.0 and reach > 0.0:
+            cos = float((far - rest.head[i]) @ bone) / (reach * length)
+            if cos >= np.cos(np.radians(30.0)) and 0.5 * length <= reach <= 1.5 * length:
+                continue
+        end[i] = far
+    return _Rest(rest.names, rest.index, rest.parent, rest.head, rest.tail, rest.local, rest.world,
+                 rest.scale, end, rest.tails_meaningful, rest.phantom)
+
+
+def _depth(parent: np.ndarray, i: int) -> int:
+    d = 0
+    while parent[i] >= 0:
+        i = int(parent[i])
+        d += 1
+    return d
+
+
+def uniform_scale(world: np.ndarray) -> float | None:
+    """The object's uniform scale, or None when it is not uniform (or has shear)."""
+    m = world[:3, :3]
+    scales = np.linalg.norm(m, axis=0)
+    if np.any(scales < 1e-12):
+        return None
+    rot = m / scales
+    if np.max(np.abs(rot.T @ rot - np.eye(3))) > 1e-4 or np.ptp(scales) > 1e-4 * scales.max():
+        return None
+    if np.linalg.det(rot) < 0:
+        return None
+    return float(scales.mean())
+
+
+def _apply(m: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Affine 4x4 ``m`` applied to points ``(..., 3)``."""
+    return p @ m[:3, :3].T + m[:3, 3]
+
+
+def _length(points: np.ndarray) -> float:
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(n, 1e-300)
+
+
+def _chain_points(rest: _Rest, idx: Sequence[int]) -> np.ndarray:
+    """Joint points of a chain: each bone's head, then the last bone's far joint ``(k + 1, 3)``."""
+    return np.vstack([rest.head[list(idx)], rest.end[idx[-1]][None]])
+
+
+def _continuing_child(rest: _Rest, i: int, allowed: set[int] | None = None) -> int | None:
+    """The child that continues a chain: a connected one first, then the one reaching lowest."""
+    kids = [c for c in rest.children(i) if allowed is None or c in allowed]
+    if not kids:
+        return None
+    tol = 1e-6 * max(rest.scale, 1e-9)
+    connected = [c for c in kids if np.linalg.norm(rest.head[c] - rest.end[i]) < tol]
+    pool = connected or kids
+    return min(pool, key=lambda c: (_subtree_min_z(rest, c), c))
+
+
+def _subtree_min_z(rest: _Rest, i: int) -> float:
+    stack = [i]
+    low = np.inf
+    while stack:
+        j = stack.pop()
+        low = min(low, rest.head[j, 2], rest.end[j, 2])
+        stack.extend(rest.children(j))
+    return float(low)
+
+
+def _descendants(rest: _Rest, i: int) -> list[int]:
+    out = []
+    stack = rest.children(i)
+    while stack:
+        j = stack.pop()
+        out.append(j)
+        stack.extend(rest.children(j))
+    return out
+
+
+def _common_ancestor(rest: _Rest, idx: Sequence[int]) -> int | None:
+    """The deepest bone that is a proper ancestor of every bone in ``idx``."""
+    common: list[int] | None = None
+    for i in idx:
+        anc = rest.ancestors(i)
+        common = anc if common is None else [a for a in common if a in set(anc)]
+    return common[0] if common else None
