@@ -14,10 +14,14 @@ Scene: the Rigify wolf metarig (skinned with capsules) on a 12 m × 12 m wavy he
 * the same write step with every key inserted by ``pose_bone.keyframe_insert`` frame by
   frame (the usual way scripts key a pose), on a copy of the rig, and the key writing alone
   both ways;
-* the operator ``procloco.generate_locomotion`` timed as a whole.
+* the operator ``procloco.generate_locomotion`` timed as a whole;
+* heavy terrain: the wolf on a 1M-triangle grid, static and then moved by 1 mm over the
+  range (keyed location), ``--heavy-frames`` frames: time of reading (``generate.prepare``)
+  and simulating, and the peak memory numpy allocates meanwhile (``tracemalloc``), once each.
 
-Every row is the best of ``--repeat`` runs. Ends with
-``RESULT blender total_s=<s> write_s=<s> keyframe_insert_s=<s>``.
+Every row of the first table is the best of ``--repeat`` runs. ``--heavy-only`` runs only the
+heavy-terrain table. Ends with
+``RESULT blender total_s=<s> write_s=<s> keyframe_insert_s=<s> heavy_static_s=<s> heavy_animated_s=<s>``.
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ import platform
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -111,14 +116,59 @@ def keyframe_insert_write(job: generate.Job, obj: bpy.types.Object) -> tuple[flo
     return t1 - t0, t2 - t1, t4 - t3
 
 
+def heavy_terrain(n_frames: int, animated: bool) -> tuple[float, float, float]:
+    """The wolf on a 1M-triangle grid (moved 1 mm up over the range when ``animated``):
+    seconds to read, seconds to simulate, peak MB numpy allocated."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, n_frames
+    scene.render.fps = 24
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=708, y_subdivisions=708, size=20.0)  # 1,002,528 triangles
+    ground = bpy.context.active_object
+    ground.name = "Heavy"
+    if animated:
+        ground.keyframe_insert("location", frame=1)
+        ground.location.z = 0.001
+        ground.keyframe_insert("location", frame=n_frames)
+    wolf = creatures.build_wolf(scene)
+    wolf.procloco.speed = 1.0
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    wolf.select_set(True)
+    bpy.context.view_layer.objects.active = wolf
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    job = generate.prepare(bpy.context, wolf)
+    t1 = time.perf_counter()
+    for _fraction in generate.simulate(job):
+        pass
+    t2 = time.perf_counter()
+    peak = tracemalloc.get_traced_memory()[1] / 1e6
+    tracemalloc.stop()
+    return t1 - t0, t2 - t1, peak
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=250)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--heavy-frames", type=int, default=48)
+    parser.add_argument("--heavy-only", action="store_true")
     args = parser.parse_args()
 
     procloco_addon.register()
+    heavy = {kind: heavy_terrain(args.heavy_frames, kind == "animated") for kind in ("static", "animated")}
+    print(f"Heavy terrain: Rigify wolf on a 1M-triangle grid, {args.heavy_frames} frames, once each")
+    print(f"{'ground':24s} {'read s':>8s} {'simulate s':>11s} {'total s':>8s} {'peak MB':>8s}")
+    for kind, (read_s, sim_s, peak) in heavy.items():
+        print(f"{kind:24s} {read_s:8.2f} {sim_s:11.2f} {read_s + sim_s:8.2f} {peak:8.0f}")
+    (rs, ss, ps), (ra, sa, pa) = heavy["static"], heavy["animated"]
+    print(f"animated / static: time {(ra + sa) / (rs + ss):.2f}x, peak memory {pa / ps:.2f}x")
+    heavy_result = f"heavy_static_s={rs + ss:.3f} heavy_animated_s={ra + sa:.3f}"
+    if args.heavy_only:
+        print(f"RESULT blender {heavy_result}")
+        return 0
     best: dict[str, float] = {}
 
     def keep(name: str, seconds: float) -> None:
@@ -179,7 +229,7 @@ def main() -> int:
     print(f"write step {best['keyframe_insert'] / best['write']:.1f}x faster than with keyframe_insert; "
           f"keys alone {best['insert_keys'] / best['bulk_keys']:.0f}x")
     print(f"RESULT blender total_s={best['operator']:.3f} write_s={best['write']:.3f} "
-          f"keyframe_insert_s={best['keyframe_insert']:.3f}")
+          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result}")
     return 0
 
 

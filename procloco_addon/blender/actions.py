@@ -25,6 +25,13 @@ Rules this module keeps for the animator:
   the *user's* Action, not of the previous generation; a replaced generated Action gets a
   fake user so that it is never lost silently, unless the new one supersedes it (a re-bake)
   and nothing else uses it: then it is deleted and the new one takes its name.
+* The pose (``matrix_basis`` channels) of every bone a generated Action keys is remembered
+  as it was before ProcLoco first keyed it, so :func:`clear_generated_action` gives back a
+  hand-posed, unkeyed bone too.
+* Writing several rigs is all or nothing: :func:`remember_assignment` before assigning and
+  :func:`undo_assignment` take an assignment back, and an Action superseded during the
+  write can be collected (``superseded``) and deleted only once every rig is written
+  (:func:`delete_superseded`).
 * Rotations are keyed in each pose bone's (or object's) own rotation mode: quaternion, any
   Euler order, or axis-angle, with sign/branch continuity from frame to frame.
 
@@ -44,21 +51,26 @@ import numpy as np
 __all__ = [
     "GENERATED_TAG",
     "ActionError",
+    "Assignment",
     "Channel",
     "assign_action",
     "assign_generated_action",
     "channels_of",
     "clear_generated_action",
+    "delete_superseded",
     "generated_action",
     "is_generated",
     "is_slotted",
+    "keyed_pose_bones",
     "new_action",
     "previous_action",
     "push_to_nla",
     "quaternion_to_euler",
     "read_channel",
+    "remember_assignment",
     "restore_previous_action",
     "rotation_channels",
+    "undo_assignment",
     "write_channels",
     "write_object_transforms",
     "write_pose_bone_transforms",
@@ -70,6 +82,11 @@ GENERATED_TAG = "_procloco_generated"
 _PREV_ACTION = "_procloco_prev_action"
 _PREV_SLOT = "_procloco_prev_slot"
 _HAS_PREV = "_procloco_has_prev"
+_PREV_POSE = "_procloco_prev_pose"
+_HIDDEN_KEYS = (_HAS_PREV, _PREV_ACTION, _PREV_SLOT, _PREV_POSE)
+# A pose bone's channels, in the order they are remembered.
+_POSE_CHANNELS = (("location", 3), ("rotation_quaternion", 4), ("rotation_euler", 3),
+                  ("rotation_axis_angle", 4), ("scale", 3))
 
 _OBJECT_GROUP = "Object Transforms"
 _EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
@@ -172,8 +189,107 @@ def _current_slot_identifier(obj: bpy.types.Object) -> str:
     return str(adt.action_slot.identifier)
 
 
+def keyed_pose_bones(action: bpy.types.Action | None, obj: bpy.types.Object) -> set[str]:
+    """Names of the pose bones ``action`` animates on ``obj``."""
+    if action is None:
+        return set()
+    prefix = 'pose.bones["'
+    out = set()
+    for ch in channels_of(action, obj):
+        if ch.data_path.startswith(prefix):
+            end = ch.data_path.find('"]', len(prefix))
+            if end > 0:
+                out.add(ch.data_path[len(prefix):end].replace('\\"', '"').replace("\\\\", "\\"))
+    return out
+
+
+def _pose_values(pb: Any) -> list[float]:
+    out: list[float] = []
+    for name, _n in _POSE_CHANNELS:
+        out.extend(float(v) for v in getattr(pb, name))
+    return out
+
+
+def _set_pose_values(pb: Any, values: Sequence[float]) -> None:
+    k = 0
+    for name, n in _POSE_CHANNELS:
+        setattr(pb, name, tuple(values[k:k + n]))
+        k += n
+
+
+def _remember_pose(obj: bpy.types.Object, action: bpy.types.Action, fresh: bool) -> None:
+    """Remember the current pose of the bones ``action`` keys that are not remembered yet
+    (``fresh``: forget what was remembered before)."""
+    if obj.pose is None:
+        return
+    stored = {} if fresh or _PREV_POSE not in obj else {k: list(v) for k, v in obj[_PREV_POSE].items()}
+    for name in keyed_pose_bones(action, obj):
+        pb = obj.pose.bones.get(name)
+        if pb is not None and name not in stored:
+            stored[name] = _pose_values(pb)
+    obj[_PREV_POSE] = stored
+
+
+def _restore_pose(obj: bpy.types.Object, keyed_by_restored: set[str]) -> None:
+    """Put back the remembered pose of bones the restored Action does not key (those it keys
+    are its own again at the next evaluation)."""
+    if obj.pose is None or _PREV_POSE not in obj:
+        return
+    for name, values in obj[_PREV_POSE].items():
+        pb = obj.pose.bones.get(name)
+        if pb is not None and name not in keyed_by_restored:
+            _set_pose_values(pb, list(values))
+
+
+@dataclass
+class Assignment:
+    """What :func:`undo_assignment` needs to take an assignment back."""
+
+    action: bpy.types.Action | None
+    slot: str
+    fake_user: bool
+    hidden: dict[str, Any]
+
+
+def _copy_idprop(value: Any) -> Any:
+    return value.to_dict() if hasattr(value, "to_dict") else value
+
+
+def remember_assignment(obj: bpy.types.Object) -> Assignment:
+    """The object's Action, slot and ProcLoco's memory of the user's state, as they are now."""
+    adt = obj.animation_data
+    current = adt.action if adt is not None else None
+    return Assignment(current, _current_slot_identifier(obj),
+                      bool(current.use_fake_user) if current is not None else False,
+                      {k: _copy_idprop(obj[k]) for k in _HIDDEN_KEYS if k in obj})
+
+
+def undo_assignment(obj: bpy.types.Object, memo: Assignment) -> None:
+    """Give ``obj`` back what :func:`remember_assignment` saw (the Action, slot, memory)."""
+    assign_action(obj, memo.action, slot_identifier=memo.slot)
+    if memo.action is not None:
+        memo.action.use_fake_user = memo.fake_user
+    for key in _HIDDEN_KEYS:
+        if key in obj:
+            del obj[key]
+    for key, value in memo.hidden.items():
+        obj[key] = value
+
+
+def delete_superseded(pairs: Sequence[tuple[bpy.types.Action, bpy.types.Action]]) -> None:
+    """Delete each superseded Action of ``(superseded, new)`` that nothing uses any more; the
+    new one takes its name (see :func:`assign_generated_action`)."""
+    for superseded, action in pairs:
+        if superseded.users == 0 and not superseded.use_fake_user:
+            name = superseded.name
+            bpy.data.actions.remove(superseded)
+            if _unnumbered(action.name) == _unnumbered(name):
+                action.name = name  # "Lizard Secondary" again rather than "Lizard Secondary.001"
+
+
 def assign_generated_action(
-    obj: bpy.types.Object, action: bpy.types.Action, *, replace: bool = False
+    obj: bpy.types.Object, action: bpy.types.Action, *, replace: bool = False,
+    superseded: list[tuple[bpy.types.Action, bpy.types.Action]] | None = None,
 ) -> None:
     """Assign a generated ``action`` to ``obj``, remembering what the user had before.
 
@@ -185,32 +301,39 @@ def assign_generated_action(
     e.g. a re-bake). Then a current Action that ProcLoco generated and that nothing else
     uses (this object is its only user, no fake user) is deleted instead, and ``action``
     takes over its name. Anything else is kept as above; an Action the user made is never
-    deleted.
+    deleted. With ``superseded`` given, the Action to delete is appended there as
+    ``(old, action)`` instead, for :func:`delete_superseded` once every rig is written.
+
+    The current pose of every bone ``action`` keys and no earlier generation keyed is
+    remembered for :func:`clear_generated_action`.
     """
     adt = obj.animation_data
     if adt is not None and adt.use_tweak_mode:
         raise ActionError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
     current = adt.action if adt is not None else None
-    superseded = None
+    old = None
+    fresh = False
     if current is not None and is_generated(current):
         if current != action:
             if replace and current.users == 1 and not current.use_fake_user:
-                superseded = current
+                old = current
             else:
                 current.use_fake_user = True
     else:
+        fresh = True
         obj[_HAS_PREV] = 1
         obj[_PREV_SLOT] = _current_slot_identifier(obj)
         if current is not None:
             obj[_PREV_ACTION] = current
         elif _PREV_ACTION in obj:
             del obj[_PREV_ACTION]
+    _remember_pose(obj, action, fresh)
     assign_action(obj, action)
-    if superseded is not None and superseded.users == 0:
-        name = superseded.name
-        bpy.data.actions.remove(superseded)
-        if _unnumbered(action.name) == _unnumbered(name):
-            action.name = name  # "Lizard Secondary" again rather than "Lizard Secondary.001"
+    if old is not None:
+        if superseded is not None:
+            superseded.append((old, action))
+        else:
+            delete_superseded([(old, action)])
 
 
 def _unnumbered(name: str) -> str:
@@ -235,7 +358,7 @@ def previous_action(obj: bpy.types.Object) -> tuple[bool, bpy.types.Action | Non
 
 
 def _forget_previous(obj: bpy.types.Object) -> None:
-    for key in (_HAS_PREV, _PREV_ACTION, _PREV_SLOT):
+    for key in _HIDDEN_KEYS:
         if key in obj:
             del obj[key]
 
@@ -249,6 +372,7 @@ def restore_previous_action(obj: bpy.types.Object) -> bool:
     if not remembered:
         return False
     assign_action(obj, prev, slot_identifier=str(obj.get(_PREV_SLOT, "")))
+    _restore_pose(obj, keyed_pose_bones(prev, obj))
     _forget_previous(obj)
     return True
 

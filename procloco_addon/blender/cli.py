@@ -29,7 +29,9 @@ exit status. Commands::
         and output settings, as render farms do (see render_chunk.py)
 
 Progress lines go to stdout (``ProcLoco: ...``); errors to stderr with a non-zero status
-(1: the work failed, 2: bad command line).
+(1: the work failed, 2: bad command line; ``--help`` prints the usage and returns 0). Numbers
+are checked on the command line (finite, in range) and never clamped silently. A command
+that fails before writing anything leaves the rigs' settings as they were.
 """
 
 from __future__ import annotations
@@ -65,9 +67,44 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> Any:  # argparse would sys.exit; the caller needs a status
         raise _UsageError(f"{self.prog}: error: {message}")
 
+    def exit(self, status: int = 0, message: str | None = None) -> Any:  # --help: a status, no SystemExit
+        if message:
+            print(message, file=sys.stderr if status else sys.stdout, end="", flush=True)
+        raise _Exit(status)
+
 
 class _UsageError(Exception):
     pass
+
+
+class _Exit(Exception):  # noqa: N818 - argparse's exit, as a status
+    def __init__(self, status: int) -> None:
+        super().__init__(status)
+        self.status = status
+
+
+_INT_MAX = 2**31 - 1
+
+
+def _number(kind: str, low: float | None = None, high: float | None = None) -> Any:
+    """An argparse type: a finite float (``kind`` "float") or an int within ``[low, high]``."""
+
+    def parse(text: str) -> float | int:
+        try:
+            value: float | int = int(text) if kind == "int" else float(text)
+        except ValueError:
+            what = "an integer" if kind == "int" else "a number"
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+        if low is not None and value < low:
+            raise argparse.ArgumentTypeError(f"{text} is below {low:g}")
+        if high is not None and value > high:
+            raise argparse.ArgumentTypeError(f"{text} is above {high:g}")
+        return value
+
+    parse.__name__ = kind  # argparse names the type in its messages
+    return parse
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -78,21 +115,25 @@ def _parser() -> argparse.ArgumentParser:
     rigs.add_argument("--all", action="store_true", help="every armature of the scene")
     rigs.add_argument("--rigs", metavar="A,B,...",
                       help="armatures as one comma-separated list, '*' for all (for job templates)")
-    rigs.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
+    rigs.add_argument("--frames", nargs=2, type=_number("int", -1_048_574, 1_048_574),
+                      metavar=("START", "END"), help="frame range")
     output = _Parser(add_help=False)
     output.add_argument("--render", metavar="DIR", help="render Workbench PNG frames into DIR")
-    output.add_argument("--frame-step", type=int, default=1, help="render every N-th frame")
-    output.add_argument("--resolution", nargs=2, type=int, default=(640, 360), metavar=("W", "H"))
+    output.add_argument("--frame-step", type=_number("int", 1, _INT_MAX), default=1,
+                        help="render every N-th frame")
+    output.add_argument("--resolution", nargs=2, type=_number("int", 4, 16384), default=(640, 360),
+                        metavar=("W", "H"))
     output.add_argument("--contact-sheet", metavar="PNG", help="tile rendered frames into one image")
     output.add_argument("--save", metavar="BLEND", help="save the .blend file there")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     sub.add_parser("info", help="list armatures, their detected legs and their swinging chains")
     gen = sub.add_parser("generate", parents=[rigs, output],
                          help="generate locomotion (and bake secondary motion, render a preview)")
-    gen.add_argument("--speed", type=float, help="speed in metres per second")
-    gen.add_argument("--heading", type=float, help="heading in degrees relative to where the rig faces")
-    gen.add_argument("--step-height", type=float, help="step height in metres")
-    gen.add_argument("--seed", type=int, help="random seed")
+    gen.add_argument("--speed", type=_number("float", 0.0), help="speed in metres per second")
+    gen.add_argument("--heading", type=_number("float", -1e6, 1e6),
+                     help="heading in degrees relative to where the rig faces")
+    gen.add_argument("--step-height", type=_number("float", 0.0), help="step height in metres")
+    gen.add_argument("--seed", type=_number("int", 0, _INT_MAX), help="random seed")
     gen.add_argument("--gait", metavar="auto|circles|PRESET",
                      help="Gait: auto (follows the speed), circles, or a gait preset (file stem or name)")
     gen.add_argument("--spine", action=argparse.BooleanOptionalAction, default=None,
@@ -136,6 +177,48 @@ def _cmd_info(_args: argparse.Namespace) -> int:
             _say(f"{obj.name}: " + (f"suggested secondary chains {', '.join(found)}" if found
                                     else "no tail, antenna or ear chain"))
     return 0
+
+
+def _group_values(group: Any) -> dict[str, Any]:
+    """Every writable property of a property group, its collections' items included."""
+    out: dict[str, Any] = {}
+    for prop in group.bl_rna.properties:
+        name = prop.identifier
+        if name == "rna_type":
+            continue
+        value = getattr(group, name)
+        if prop.type == "COLLECTION":
+            out[name] = [_group_values(item) for item in value]
+        elif prop.type == "POINTER" and isinstance(value, bpy.types.PropertyGroup):
+            out[name] = _group_values(value)
+        elif not prop.is_readonly:
+            out[name] = tuple(value) if getattr(prop, "array_length", 0) else value
+    return out
+
+
+def _set_group_values(group: Any, values: dict[str, Any]) -> None:
+    for name, value in values.items():
+        prop = group.bl_rna.properties[name]
+        if prop.type == "COLLECTION":
+            items = getattr(group, name)
+            items.clear()
+            for item_values in value:
+                _set_group_values(items.add(), item_values)
+        elif prop.type == "POINTER" and isinstance(value, dict):
+            _set_group_values(getattr(group, name), value)
+        else:
+            setattr(group, name, value)
+
+
+def _saved_settings(objs: Sequence[Any]) -> list[tuple[Any, dict[str, Any]]]:
+    """Each rig's settings as they are now, all of them (an override such as --gait also
+    fills the legs list): see :func:`_put_back`."""
+    return [(obj, _group_values(obj.procloco)) for obj in objs]
+
+
+def _put_back(saved: list[tuple[Any, dict[str, Any]]]) -> None:
+    for obj, values in saved:
+        _set_group_values(obj.procloco, values)
 
 
 def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
@@ -273,18 +356,23 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "animate")
     if args.contact_sheet and not args.render:
         raise CliError("--contact-sheet needs --render DIR")
-    for obj in objs:
-        _apply_overrides(obj, args)
+    saved = _saved_settings(objs)
     unset = [o for o in objs if not len(o.procloco_secondary.chains)]
-    if args.bake_secondary:
-        _bake_jobs(objs, required=False)  # refuse bad chains before anything is written
-    _say(f"generating {', '.join(o.name for o in objs)}")
     try:
+        for obj in objs:
+            _apply_overrides(obj, args)
+        if args.bake_secondary:
+            _bake_jobs(objs, required=False)  # refuse bad chains before anything is written
+        _say(f"generating {', '.join(o.name for o in objs)}")
         made = generate.generate(bpy.context, objs, progress=_progress_printer())
-    except (generate.GenerateError, rig.RigError) as err:
-        for obj in unset:  # the chains suggested above are taken back
+    except BaseException as err:
+        # Nothing was written: the overrides and the chains suggested above are taken back.
+        for obj in unset:
             obj.procloco_secondary.chains.clear()
-        raise CliError(str(err)) from err
+        _put_back(saved)
+        if isinstance(err, generate.GenerateError | rig.RigError):
+            raise CliError(str(err)) from err
+        raise
     assert made is not None
     for obj, action in zip(objs, made, strict=True):
         _say(f"{obj.name}: wrote Action '{action.name}'")
@@ -298,9 +386,14 @@ def _cmd_bake_secondary(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "bake")
     if args.contact_sheet and not args.render:
         raise CliError("--contact-sheet needs --render DIR")
-    for obj in objs:
-        _set_frames(obj, args)
-    jobs = _bake_jobs(objs, required=not args.all)
+    saved = _saved_settings(objs)
+    try:
+        for obj in objs:
+            _set_frames(obj, args)
+        jobs = _bake_jobs(objs, required=not args.all)
+    except BaseException:
+        _put_back(saved)
+        raise
     _say(f"baking secondary motion on {', '.join(j.obj_name for j in jobs) or 'no rig'}")
     _run_bakes(jobs)
     _outputs(objs, args)
@@ -316,6 +409,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except _UsageError as err:
         print(str(err), file=sys.stderr, flush=True)
         return 2
+    except _Exit as done:
+        return done.status
     try:
         if args.command == "info":
             return _cmd_info(args)
@@ -326,6 +421,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _cmd_generate(args)
     except (CliError, OSError, RuntimeError) as err:
         print(f"{COMMAND}: error: {err}", file=sys.stderr, flush=True)
+        return 1
+    except Exception as err:
+        print(f"{COMMAND}: error: ProcLoco failed ({type(err).__name__}: {err})", file=sys.stderr, flush=True)
         return 1
 
 

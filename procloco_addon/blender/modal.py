@@ -101,28 +101,53 @@ class ProgressOperator:
     def _discard(self, context: Any) -> None:
         """Drop a half-done job after Esc or a cancelled operator (nothing by default)."""
 
+    def _fault(self, context: Any, err: Exception) -> set[str]:
+        """An error nobody foresaw: reported as a message (never a traceback in the user's
+        face), the half-done job dropped."""
+        try:
+            self._discard(context)
+        finally:
+            self.report({"ERROR"}, f"ProcLoco failed, nothing was changed: "  # type: ignore[attr-defined]
+                        f"{type(err).__name__}: {err}")
+        return {"CANCELLED"}
+
+    def _prepared(self, context: Any) -> bool:
+        try:
+            return self._prepare(context)
+        except Exception as err:
+            self._fault(context, err)
+            return False
+
     # -- straight through ---------------------------------------------------------------
     def execute(self, context: Any) -> set[str]:
-        if not self._prepare(context):
+        if not self._prepared(context):
             return {"CANCELLED"}
         background = bpy.app.background
         last = -1
+        steps = self._run(context, False)
         try:
-            for text, fraction in self._run(context, False):
+            for text, fraction in steps:
                 percent = int(100 * fraction)
                 if background and percent // 10 != last // 10:
                     print(f"ProcLoco: {text} {percent:3d}%", flush=True)
                 last = percent
         except self._run_errors as err:
+            self._discard(context)
             self.report({"ERROR"}, str(err))  # type: ignore[attr-defined]
             return {"CANCELLED"}
-        return self._finish(context)
+        except Exception as err:
+            steps.close()
+            return self._fault(context, err)
+        try:
+            return self._finish(context)
+        except Exception as err:
+            return self._fault(context, err)
 
     # -- modal --------------------------------------------------------------------------
     def invoke(self, context: Any, event: Any) -> set[str]:
         if bpy.app.background or context.window is None:
             return self.execute(context)
-        if not self._prepare(context):
+        if not self._prepared(context):
             return {"CANCELLED"}
         self._steps = self._run(context, True)
         wm = context.window_manager
@@ -169,8 +194,14 @@ class ProgressOperator:
             self._abort(context)
             self.report({"ERROR"}, str(err))  # type: ignore[attr-defined]
             return {"CANCELLED"}
+        except Exception as err:
+            self._abort(context)
+            return self._fault(context, err)
         self._stop(context)
-        return self._finish(context)
+        try:
+            return self._finish(context)
+        except Exception as err:
+            return self._fault(context, err)
 
     def cancel(self, context: Any) -> None:
         self._abort(context)

@@ -228,7 +228,7 @@ class ControllerParams:
       under the whole foot box).
     - ``body_samples``: terrain samples under the body box (along, across).
     - ``support_tolerance``: metres the support under a planted foot may move before the
-      foot steps again.
+      foot steps again; ``ik_tolerance``: metres within which the leg IK stops.
     - ``watch_distance`` (× leg): a planted foot also steps away when a moving obstacle comes
       within this distance of its foot box (the ground there rose above the foot or became
       forbidden since it landed), before the obstacle reaches it.
@@ -264,6 +264,7 @@ class ControllerParams:
     snap_tolerance: float = 0.5
     body_samples: tuple[int, int] = (5, 3)
     support_tolerance: float = 0.002
+    ik_tolerance: float = 1e-5
     watch_distance: float = 0.15
     forced_swing: float = 0.6
     max_drop: float = 0.15
@@ -1782,7 +1783,8 @@ class Controller:
         leg_rot = self.leg_rotations() if self.spine_groups else rot[self.leg_char]
         mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
         res = solve_legs(
-            self.legs, hips, leg_rot, self.foot, self.angles, mask=None if mask.all() else mask
+            self.legs, hips, leg_rot, self.foot, self.angles, mask=None if mask.all() else mask,
+            tolerance=self.params.ik_tolerance,
         )
         self.angles = res.angles
         # A swinging foot goes where its leg reaches: a point of its trajectory beyond the leg

@@ -97,6 +97,7 @@ twist and only swings the bar.
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from dataclasses import dataclass
 from typing import Literal
 
@@ -1341,7 +1342,32 @@ def simulate(
     impulses: Impulses | None = None,
     anchor_frame: ArrayLike | None = None,
 ) -> PendulumResult:
-    """Run the pendulums over a sampled animation and return the layered motion.
+    """Run the pendulums over a sampled animation and return the layered motion
+    (:func:`simulate_steps` run to its end; same arguments)."""
+    steps = simulate_steps(forest, times, head_anim, frame_anim, rate_hz=rate_hz, impulses=impulses,
+                           anchor_frame=anchor_frame)
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            result: PendulumResult = done.value
+            return result
+
+
+def simulate_steps(
+    forest: PendulumForest,
+    times: ArrayLike,
+    head_anim: ArrayLike,
+    frame_anim: ArrayLike,
+    *,
+    rate_hz: float = DEFAULT_RATE_HZ,
+    impulses: Impulses | None = None,
+    anchor_frame: ArrayLike | None = None,
+    slice_steps: int = 2048,
+) -> Generator[float, None, PendulumResult]:
+    """Run the pendulums over a sampled animation, yielding the fraction of internal steps
+    done about every ``slice_steps`` steps (so a caller can show progress and stop: closing
+    the generator stops the work), and return the layered motion.
 
     times: (T,) strictly increasing sample times (s), e.g. frame / fps;
     head_anim: (T, n, 3) animated world bone heads; frame_anim: (T, n, 3, 3) animated world
@@ -1414,9 +1440,13 @@ def simulate(
     # The animation at the internal steps, interpolated a batch of steps at a time: one numpy
     # call per batch instead of per step, the batch small enough (~4k pendulum-steps) for its
     # temporaries to stay in the processor's cache.
-    batch = max(1, 4096 // n)
+    batch = max(1, min(4096 // n, slice_steps))
     frame_xy = np.ascontiguousarray(np.swapaxes(frame[..., :2], -1, -2))  # (T, n, 2, 3): x and y
+    next_report = slice_steps
     for lo_k in range(0, n_steps, batch):
+        if lo_k >= next_report:
+            next_report = lo_k + slice_steps
+            yield lo_k / n_steps
         hi_k = min(lo_k + batch, n_steps)
         a, b = seg[lo_k:hi_k], nxt[lo_k:hi_k]
         f = frac[lo_k:hi_k, None, None]

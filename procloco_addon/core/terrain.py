@@ -627,8 +627,8 @@ class Environment:
 
     ``heightmap``: optional :class:`Heightmap`; ``boxes``: optional :class:`Boxes`;
     ``soups``: :class:`TriangleSoup` meshes. ``tile_cells``: side of the cached static tiles
-    in cells. Inputs are copied; move things only through :meth:`move_boxes` and
-    :meth:`set_soup_vertices`.
+    in cells. Inputs are copied; move things only through :meth:`move_boxes`,
+    :meth:`set_soup_vertices` and :meth:`move_soup`.
     """
 
     def __init__(
@@ -658,6 +658,11 @@ class Environment:
         self._box_index_dynamic: _BucketIndex | None = None
         self._soup_index: dict[int, _BucketIndex] = {}
         self._soup_tris: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        # Translation of each dynamic soup from its stored vertices (move_soup): the triangles,
+        # their index and their raster are kept and only the queries are shifted.
+        self._soup_offset: dict[int, FloatArray] = {}
+        # The offset each moving soup's cached lattice raster was made at.
+        self._raster_offset: dict[tuple[float, str, int], FloatArray] = {}
         # Which boxes' lattice rasters are current, per cell size (a box's raster is stale once
         # it moved); the moving boxes sorted by their min x (rebuilt after a move); the last
         # point query's (point, box) pairs (height_at and forbidden_at often ask for the same
@@ -677,7 +682,15 @@ class Environment:
 
     @property
     def soups(self) -> tuple[TriangleSoup, ...]:
-        return tuple(self._soups)
+        """The soups where they are now (a translated soup's vertices are materialised)."""
+        return tuple(self._soups[i] if i not in self._soup_offset else
+                     TriangleSoup(self._soups[i].vertices + self._soup_offset[i], self._soups[i].faces,
+                                  self._soups[i].role, True)
+                     for i in range(len(self._soups)))
+
+    def _offset(self, i: int) -> FloatArray:
+        off = self._soup_offset.get(i)
+        return off if off is not None else np.zeros(3)
 
     # -- moving things -------------------------------------------------------------------
     def move_boxes(self, index: npt.ArrayLike, center: npt.ArrayLike, yaw: npt.ArrayLike) -> None:
@@ -705,14 +718,34 @@ class Environment:
         self._soups[i] = TriangleSoup(v, soup.faces, soup.role, True)
         self._soup_index.pop(i, None)
         self._soup_tris.pop(i, None)
+        self._soup_offset.pop(i, None)
         self._last_pairs = None
         for key in [k for k in self._moving_raster if k[1] == "soup" and k[2] == i]:
             del self._moving_raster[key]
+            self._raster_offset.pop(key, None)
+
+    def move_soup(self, i: int, offset: npt.ArrayLike) -> None:
+        """Translate dynamic soup ``i`` to its stored vertices plus ``offset`` ``(3,)``.
+
+        The same as :meth:`set_soup_vertices` with the shifted vertices, but its triangles
+        and their index are kept (a rigidly sliding or lifting platform of a million
+        triangles costs a shift per frame, not a rebuild); its lattice raster is rebuilt
+        only when the horizontal offset changes.
+        """
+        soup = self._soups[i]
+        if not soup.dynamic:
+            raise ValueError("only soups created with dynamic=True can move")
+        off = np.asarray(offset, dtype=np.float64).reshape(3)
+        if not np.all(np.isfinite(off)):
+            raise ValueError("offset must be finite")
+        self._soup_offset[i] = off.copy()
+        self._last_pairs = None
 
     def clear_cache(self) -> None:
         """Forget every cached tile and raster (memory only; results do not change)."""
         self._tiles.clear()
         self._moving_raster.clear()
+        self._raster_offset.clear()
         self._raster_ok.clear()
 
     def _update_box_bounds(self, idx: IntArray | None = None) -> None:
@@ -781,6 +814,9 @@ class Environment:
         tris, tlo, thi = self._soup_triangles(i)
         if i not in self._soup_index:
             self._soup_index[i] = _BucketIndex(tlo, thi)
+        off = self._soup_offset.get(i)
+        if off is not None:
+            xy = xy - off[:2]
         point, tri = self._soup_index[i].pairs(xy)
         t = tris[tri]
         a = t[:, 0, :2]
@@ -795,6 +831,8 @@ class Environment:
         tol = -1e-9
         inside = good & (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
         z = t[:, 0, 2] + u * (t[:, 1, 2] - t[:, 0, 2]) + v * (t[:, 2, 2] - t[:, 0, 2])
+        if off is not None:
+            z = z + off[2]
         return point[inside], z[inside]
 
     def height_at(self, xy: npt.ArrayLike) -> FloatArray:
@@ -841,7 +879,7 @@ class Environment:
             avoid[r[a], c[a]] = True
         for i in soup_ids:
             soup = self._soups[i]
-            tris = soup.vertices[soup.faces]
+            tris = (soup.vertices + self._offset(i))[soup.faces]
             _, r, c, z = raster_triangles(origin, cell, shape, tris)
             np.maximum.at(elev, (r, c), z)
             if soup.role == ROLE_AVOID:
@@ -938,10 +976,19 @@ class Environment:
         """Lattice cells (I, J) and heights covered by one moving soup, cached until it moves."""
         key = (cell, "soup", ident)
         hit = self._moving_raster.get(key)
+        off = self._offset(ident)
         if hit is not None:
-            return hit
+            made_at = self._raster_offset.get(key, np.zeros(3))
+            if np.array_equal(made_at[:2], off[:2]):
+                if made_at[2] == off[2]:
+                    return hit
+                # Only lifted or lowered: the same cells, every height shifted.
+                hit = (hit[0], hit[1], hit[2] + (off[2] - made_at[2]))
+                self._moving_raster[key] = hit
+                self._raster_offset[key] = off.copy()
+                return hit
         soup = self._soups[ident]
-        v = soup.vertices
+        v = soup.vertices + off
         lo = v[:, :2].min(axis=0)
         hi = v[:, :2].max(axis=0)
         i0 = math.floor(lo[1] / cell) - 1
@@ -949,8 +996,10 @@ class Environment:
         shape = (math.ceil(hi[1] / cell) + 2 - i0, math.ceil(hi[0] / cell) + 2 - j0)
         origin = np.array([j0 * cell, i0 * cell])
         _, r, c, z = raster_triangles(origin, cell, shape, v[soup.faces])
-        out = (r + i0, c + j0, z)
+        order = np.argsort(r, kind="stable")  # by row, for windows to take theirs
+        out = (r[order] + i0, c[order] + j0, z[order])
         self._moving_raster[key] = out
+        self._raster_offset[key] = off.copy()
         self.stats["moving_rasterised"] += 1
         return out
 
@@ -1025,7 +1074,8 @@ class Environment:
             self._cache_moving_boxes(cell, np.unique(np.concatenate(near_arrays)))
             near_all = [a.tolist() for a in near_arrays]
         moving_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic and soup.faces.shape[0]]
-        soup_box = {i: (self._soup_triangles(i)[1].min(axis=0), self._soup_triangles(i)[2].max(axis=0))
+        soup_box = {i: (self._soup_triangles(i)[1].min(axis=0) + self._offset(i)[:2],
+                        self._soup_triangles(i)[2].max(axis=0) + self._offset(i)[:2])
                     for i in moving_soups}
         avoid_box = self._box_role == ROLE_AVOID
         out: list[WindowGrids] = []
@@ -1050,6 +1100,10 @@ class Environment:
                 s_lo, s_hi = soup_box[i]
                 if np.all(s_hi >= lo_w[w]) and np.all(s_lo <= hi_w[w]):
                     r, c, z = self._moving_soup_cells(cell, i)
+                    # The raster is sorted by row: only the window's rows are taken (a moving
+                    # ground of a million triangles covers far more than one window).
+                    a, b = np.searchsorted(r, [i0, i0 + n])
+                    r, c, z = r[a:b], c[a:b], z[a:b]
                     rows.append(r)
                     cols.append(c)
                     tops.append(z)

@@ -89,7 +89,7 @@ def test_failures_and_usage_errors_exit_non_zero(robot_scene: Any,
     robot_scene.procloco.use_scene_range = False
     robot_scene.procloco.frame_start, robot_scene.procloco.frame_end = 10, 2
     assert cli.main(["generate", "--rig", "Robot"]) == 1
-    assert "empty or reversed" in capsys.readouterr().err
+    assert "is reversed (10 to 2)" in capsys.readouterr().err
     assert cli.main(["generate"]) == 1
     assert "--rig NAME" in capsys.readouterr().err
     assert cli.main(["dance"]) == 2

@@ -84,7 +84,8 @@ def test_creature_has_its_leg_chains_standing_on_the_ground(empty_scene: Any, ki
         else:
             np.testing.assert_allclose(points[:, 0], location[0], atol=1e-6)
         # The foot is the lowest point; nothing of the leg is under the ground.
-        assert np.argmin(points[:, 2]) == len(points) - 1
+        # (The human's toe lies flat: its tip is as low as the ball of the foot.)
+        assert points[-1, 2] <= points[:, 2].min() + 1e-6
         lowest.append(points[-1, 2])
     lowest_arr = np.array(lowest)
     if kind == "human":  # Rigify's human metarig keeps its toes 1.7 cm above its heels' ground
@@ -132,6 +133,16 @@ def test_skin_follows_the_armature(empty_scene: Any, kind: str) -> None:
     # Unposing gives the rest shape back.
     pose_bone.rotation_euler = Euler((0.0, 0.0, 0.0))
     np.testing.assert_allclose(_evaluated_vertices(skin), rest, atol=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["wolf", "human"])
+def test_metarig_scale_multiplies_every_bone_once(empty_scene: Any, kind: str) -> None:
+    """Connected bones share a joint: scaling it once per bone would compound along chains."""
+    small = creatures.BUILDERS[kind](empty_scene, name="Small")
+    big = creatures.BUILDERS[kind](empty_scene, name="Big", scale=10.0)
+    for key in ("head_local", "tail_local"):
+        np.testing.assert_allclose(np.array([getattr(b, key) for b in big.data.bones]),
+                                   10.0 * np.array([getattr(b, key) for b in small.data.bones]), atol=1e-5)
 
 
 def test_scale_multiplies_bones_skin_and_settings(empty_scene: Any) -> None:

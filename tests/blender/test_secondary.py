@@ -373,7 +373,7 @@ def _bad(obj: Any, how: str, scene: Any) -> str:
     if how == "reversed":  # the rig's own range (the scene's cannot be reversed)
         obj.procloco.use_scene_range = False
         obj.procloco.frame_start, obj.procloco.frame_end = 20, 10
-        return "20-10 is reversed"
+        return "is reversed \\(20 to 10\\)"
     if how == "not_ancestor":
         chain.root, chain.tip = "Tail.004", "Tail.002"
         return "not an ancestor"

@@ -338,3 +338,29 @@ def test_point_queries_see_boxes_that_moved_even_for_the_same_points() -> None:
     assert env.forbidden_at(xy).tolist() == [False, True]
     xy[0] = [0.55, 0.45]  # the same array object, other points
     assert env.forbidden_at(xy).tolist() == [True, True]
+
+
+@given(st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.2, 0.2)),
+                min_size=1, max_size=4))
+def test_move_soup_is_the_same_as_setting_the_shifted_vertices(
+    offsets: list[tuple[float, float, float]],
+) -> None:
+    rng = np.random.default_rng(3)
+    n = 9
+    xs = np.linspace(-0.5, 0.5, n)
+    gx, gy = np.meshgrid(xs, xs)
+    verts = np.column_stack([gx.ravel(), gy.ravel(), 0.05 * rng.random(n * n)])
+    cells = [(i, j) for i in range(n - 1) for j in range(n - 1)]
+    faces = np.array([(i * n + j, i * n + j + 1, (i + 1) * n + j + 1) for i, j in cells]
+                     + [(i * n + j, (i + 1) * n + j + 1, (i + 1) * n + j) for i, j in cells])
+    moved = Environment(soups=[TriangleSoup(verts, faces, ROLE_STEP_OVER, True)])
+    reset = Environment(soups=[TriangleSoup(verts, faces, ROLE_STEP_OVER, True)])
+    probes = rng.uniform(-0.8, 0.8, (200, 2))
+    for off in [*offsets, (*offsets[0][:2], 0.1)]:  # the last one only lifts
+        moved.move_soup(0, off)
+        reset.set_soup_vertices(0, verts + np.array(off))
+        assert np.allclose(moved.height_at(probes), reset.height_at(probes), atol=1e-12)
+        for a, b in zip(moved.windows(probes[:3], SMALL), reset.windows(probes[:3], SMALL), strict=True):
+            assert np.allclose(a.elevation, b.elevation, atol=1e-12)
+            assert np.array_equal(a.forbidden, b.forbidden)
+        assert np.allclose(moved.soups[0].vertices, verts + np.array(off))

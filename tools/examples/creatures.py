@@ -587,9 +587,12 @@ def _build_metarig(kind: str, operator: Callable[[], Any], radius_of: Callable[[
         arm.location = tuple(location)
         if scale != 1.0:
             with _edit_mode(scene, arm):
-                for eb in arm.data.edit_bones:
-                    eb.head *= scale
-                    eb.tail *= scale
+                # Read every joint first: a connected bone's head is its parent's tail, so
+                # scaling bone by bone would scale shared joints twice (and compound).
+                rest = [(eb, eb.head.copy(), eb.tail.copy()) for eb in arm.data.edit_bones]
+                for eb, head, tail in rest:
+                    eb.head = head * scale
+                    eb.tail = tail * scale
         if before_skin is not None:
             before_skin(scene, arm)
     radii: dict[str, tuple[float, float]] = {}

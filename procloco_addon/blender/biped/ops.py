@@ -34,7 +34,7 @@ from ...core.biped.ik import IKSettings
 from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from ...core.biped.skeleton import LEFT, forward_kinematics
 from ...core.biped.surface import WalkableSurface
-from .. import actions
+from .. import actions, validate
 from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature
 from . import bridge
 
@@ -90,6 +90,12 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object) -> PlanJob:
     if obj is None or obj.type != "ARMATURE":
         raise bridge.BipedError("The active object is not an armature: select the biped rig")
     settings = obj.procloco_biped
+    problem = (validate.placement_problem(obj) or validate.tweak_mode_problem(obj)
+               or validate.non_finite_setting(settings, f"'{obj.name}'"))
+    if problem is None and settings.goal is not None:
+        problem = validate.placement_problem(settings.goal)
+    if problem is not None:
+        raise bridge.BipedError(problem)
     tagged = _used_clips(settings)
     if not tagged:
         raise bridge.BipedError(
@@ -141,6 +147,7 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object) -> PlanJob:
         0.5 * foot_length,
     )
     k = synth.body_scale(brig.skeleton)
+    _check_goal(surface, goal_obj.name, obj.name, goal, brig.root0, k)
     scene = context.scene
     fps = scene.render.fps / scene.render.fps_base
     graph = GraphSettings(
@@ -175,6 +182,31 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object) -> PlanJob:
     )
     job.timings["read_s"] = time.perf_counter() - t0
     return job
+
+
+#: How far (in body scales, about a leg length) the goal may be above or below the walkable
+#: surface under it, and how near the start it is "where the rig stands".
+_GOAL_HEIGHT_TOLERANCE = 0.3
+_GOAL_AT_START = 0.25
+
+
+def _check_goal(surface: WalkableSurface, goal_name: str, rig_name: str, goal: np.ndarray,
+                start: np.ndarray, k: float) -> None:
+    """Refuse a goal that is not on a walkable surface (in the air, up a wall, inside an
+    avoided object) or that is where the rig already stands."""
+    h = float(surface.height_at(goal[None, :2])[0])
+    if not np.isfinite(h):
+        raise bridge.BipedError(f"The goal '{goal_name}' is not on a walkable surface (no upward face of "
+                                "the terrain under it, or an avoided object covers it): move it onto the "
+                                "ground")
+    if abs(float(goal[2]) - h) > _GOAL_HEIGHT_TOLERANCE * k:
+        where = "above" if goal[2] > h else "below"
+        gap = abs(float(goal[2]) - h)
+        raise bridge.BipedError(f"The goal '{goal_name}' is {gap:.3g} m {where} the walkable surface under "
+                                "it: put it on the ground the character should reach")
+    if float(np.linalg.norm(goal[:2] - start[:2])) < _GOAL_AT_START * k:
+        raise bridge.BipedError(f"The goal '{goal_name}' is where '{rig_name}' already stands: move the goal "
+                                "away to plan a walk")
 
 
 def run(job: PlanJob) -> None:

@@ -6,7 +6,9 @@ The work for one rig is a :class:`Job` in three stages:
 
 1. :func:`prepare` reads everything from Blender and checks every bad input of the design
    ("Bad input") — it raises :class:`GenerateError` with a message for the user and changes
-   nothing in the scene;
+   nothing in the scene. It is :func:`read` (settings, rig: quick) then :func:`read_terrain`
+   (the scene's meshes, animated ones played over the range), the latter as progress steps
+   so the operator shows it and stops on Esc;
 2. :func:`simulate` runs the core simulation, one frame per step, as a generator yielding
    the fraction done (so a modal operator can show progress and stop on Esc with nothing
    written);
@@ -28,7 +30,7 @@ import numpy as np
 from ...core import autogait
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
-from .. import actions, rig, scene_terrain
+from .. import actions, rig, scene_terrain, validate
 from ..gait import rig_gait
 from . import property_group
 
@@ -40,10 +42,13 @@ __all__ = [
     "detect_into_settings",
     "generate",
     "prepare",
+    "read",
+    "read_terrain",
     "settings_legs",
     "simulate",
     "stale_bones",
     "write",
+    "write_all",
 ]
 
 # Presets tried, in this order, when a rig has no gait of its own yet.
@@ -296,7 +301,7 @@ class Job:
     obj_name: str
     info: rig.RigInfo
     morphology: Morphology
-    terrain: scene_terrain.SceneTerrain
+    terrain: scene_terrain.SceneTerrain | None  # None until read_terrain
     gait: core_gait.Gait
     frames: np.ndarray  # (F,) scene frames
     dt: float  # seconds per frame
@@ -327,20 +332,9 @@ class Job:
     warnings: list[str] = field(default_factory=list)
     result: Any = None
     timings: dict[str, float] = field(default_factory=dict)
-
-
-def _keyed_bones(action: bpy.types.Action | None, obj: bpy.types.Object) -> set[str]:
-    """Names of the pose bones ``action`` animates on ``obj``."""
-    if action is None:
-        return set()
-    prefix = 'pose.bones["'
-    out = set()
-    for ch in actions.channels_of(action, obj):
-        if ch.data_path.startswith(prefix):
-            end = ch.data_path.find('"]', len(prefix))
-            if end > 0:
-                out.add(ch.data_path[len(prefix):end].replace('\\"', '"').replace("\\\\", "\\"))
-    return out
+    # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
+    terrain_objects: tuple[str, ...] = ()
+    lift: float = 0.0
 
 
 def stale_bones(obj: bpy.types.Object) -> set[str]:
@@ -355,15 +349,42 @@ def stale_bones(obj: bpy.types.Object) -> set[str]:
     current = actions.generated_action(obj)
     if current is None:
         return set()
-    stale = _keyed_bones(current, obj)
+    stale = actions.keyed_pose_bones(current, obj)
     _remembered, previous = actions.previous_action(obj)
     if previous is not None and not actions.is_generated(previous):
-        stale -= _keyed_bones(previous, obj)
+        stale -= actions.keyed_pose_bones(previous, obj)
     return stale
 
 
 def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     """Read and check everything for one rig. Raises :class:`GenerateError`; changes nothing."""
+    job = read(context, obj)
+    for _fraction in read_terrain(context, job):
+        pass
+    return job
+
+
+def read_terrain(context: bpy.types.Context, job: Job) -> Iterator[float]:
+    """Read the job's terrain (animated objects played over its frames), yielding the
+    fraction done, and check there is ground under the rig. Raises :class:`GenerateError`;
+    changes nothing (the scene's frame is put back, also when closed early)."""
+    t0 = time.perf_counter()
+    obj = bpy.data.objects[job.obj_name]
+    objs = [bpy.data.objects[name] for name in job.terrain_objects]
+    leg_len = float(np.mean(job.info.leg_length))
+    try:
+        terrain = yield from scene_terrain.build_environment_steps(context, objs, job.frames,
+                                                                   z_offset=job.lift)
+        scene_terrain.check_ground_under(terrain, job.info.contact, obj.name, reach=leg_len)
+    except scene_terrain.TerrainError as err:
+        raise GenerateError(str(err) + scene_terrain.hidden_note(context, [obj])) from err
+    job.terrain = terrain
+    job.warnings.extend(terrain.warnings)
+    job.timings["read_s"] = job.timings.get("read_s", 0.0) + time.perf_counter() - t0
+
+
+def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
+    """Read and check the rig and its settings (not the terrain: :func:`read_terrain`)."""
     t0 = time.perf_counter()
     if obj is None or obj.type != "ARMATURE":
         name = "Nothing" if obj is None else f"'{obj.name}'"
@@ -371,8 +392,11 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     scene = context.scene
     settings = obj.procloco
     start, end = property_group.frame_range(settings, scene)
-    if end <= start:
-        raise GenerateError(f"The frame range of '{obj.name}' is empty or reversed ({start} to {end})")
+    problem = (validate.placement_problem(obj) or validate.tweak_mode_problem(obj)
+               or validate.non_finite_setting(settings, f"'{obj.name}'")
+               or validate.frame_range_problem(obj.name, start, end))
+    if problem is not None:
+        raise GenerateError(problem)
     stale = stale_bones(obj)
     try:
         legs = settings_legs(obj)
@@ -388,13 +412,12 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     frames = np.arange(start, end + 1, dtype=np.int64)
     fps = scene.render.fps / scene.render.fps_base
     objs = scene_terrain.terrain_objects(context, [obj], settings.terrain_collection)
+    leg_len = float(np.mean(info.leg_length))
+    _check_scaled_settings(obj, leg_len)
     lift = float(np.mean(info.foot_height))
-    try:
-        terrain = scene_terrain.build_environment(context, objs, frames, z_offset=lift)
-        contact_xy = info.contact[:, :2]
-        scene_terrain.check_ground_under(terrain, contact_xy, obj.name)
-    except scene_terrain.TerrainError as err:
-        raise GenerateError(str(err)) from err
+    if not objs:
+        raise GenerateError("No ground mesh found: add a mesh under the creature (or choose the terrain "
+                            "collection)" + scene_terrain.hidden_note(context, [obj]))
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
     warnings = list(info.warnings)
     changes = _gait_changes(obj, info.legs, frames, warnings)
@@ -414,7 +437,9 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         obj_name=obj.name,
         info=info,
         morphology=morph,
-        terrain=terrain,
+        terrain=None,
+        terrain_objects=tuple(o.name for o in objs),
+        lift=lift,
         gait=gait,
         frames=frames,
         dt=1.0 / fps,
@@ -443,6 +468,28 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     return job
 
 
+#: Fastest walk accepted, in leg lengths per second (the controller keeps planted feet still
+#: up to about this; a gallop is 3-5).
+_MAX_SPEED_LEGS = 6.0
+#: Highest step accepted, in leg lengths (a foot cannot lift higher than its leg is long).
+_MAX_STEP_LEGS = 1.0
+
+
+def _check_scaled_settings(obj: bpy.types.Object, leg_len: float) -> None:
+    """Refuse speeds and step heights no creature of this size could walk with."""
+    settings = obj.procloco
+    speeds = [("Speed", float(settings.speed))]
+    speeds += [(f"Speed of gait change {c.name or k + 1}", float(c.speed))
+               for k, c in enumerate(settings.gait_changes) if c.use_speed]
+    for what, speed in speeds:
+        if speed > _MAX_SPEED_LEGS * leg_len:
+            raise GenerateError(f"{what} of '{obj.name}' is {speed:g} m/s, more than {_MAX_SPEED_LEGS:g} leg "
+                                f"lengths ({leg_len:.3g} m) per second: lower it")
+    if float(settings.step_height) > _MAX_STEP_LEGS * leg_len:
+        raise GenerateError(f"Step Height of '{obj.name}' is {settings.step_height:g} m, more than "
+                            f"{_MAX_STEP_LEGS:g} leg lengths ({leg_len:.3g} m): lower it")
+
+
 def simulate(job: Job) -> Iterator[float]:
     """Run the core simulation for ``job``, yielding the fraction of frames done.
 
@@ -457,6 +504,46 @@ def simulate(job: Job) -> Iterator[float]:
 
 def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
     """Write ``job.result`` as a new Action on the rig and assign it (previous one remembered)."""
+    return write_all(context, [job])[0]
+
+
+def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types.Action]:
+    """Write every job's result as a new Action on its rig and assign them: all or nothing.
+
+    Every Action is keyed first, then all are assigned; when anything fails, the Actions made
+    so far are deleted, the rigs assigned so far get back what they had, and the error is
+    raised. A rig's earlier generated Action is superseded (deleted, its name taken over)
+    once all are written, unless the animator kept it (fake user, NLA, another object).
+    """
+    made: list[bpy.types.Action] = []
+    done: list[tuple[bpy.types.Object, actions.Assignment]] = []
+    superseded: list[tuple[bpy.types.Action, bpy.types.Action]] = []
+    try:
+        made.extend(_keyed_action(context, job) for job in jobs)
+        for job, action in zip(jobs, made, strict=True):
+            obj = bpy.data.objects[job.obj_name]
+            memo = actions.remember_assignment(obj)
+            current = actions.generated_action(obj)
+            # A re-generation supersedes the earlier walk, never a bake layered on one.
+            own = current is not None and _SECONDARY_SOURCE not in current
+            actions.assign_generated_action(obj, action, replace=own, superseded=superseded)
+            done.append((obj, memo))
+    except Exception:
+        for obj, memo in reversed(done):
+            actions.undo_assignment(obj, memo)
+        for action in made:
+            bpy.data.actions.remove(action)
+        raise
+    actions.delete_superseded(superseded)
+    return made
+
+
+# The key a bake's Action carries (see secondary.bake.SECONDARY_SOURCE).
+_SECONDARY_SOURCE = "_procloco_secondary_source"
+
+
+def _keyed_action(context: bpy.types.Context, job: Job) -> bpy.types.Action:
+    """A new generated Action holding ``job.result`` as pose-bone keys (not assigned)."""
     from . import simulation
 
     t0 = time.perf_counter()
@@ -478,7 +565,6 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
             rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
             actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
-        actions.assign_generated_action(obj, action)
         if job.auto_gait is not None:
             rig_gait.store_auto_track(action, simulation.auto_track(job))
     except Exception:
@@ -506,4 +592,4 @@ def generate(
                 progress(job.obj_name, fraction)
             if should_cancel is not None and should_cancel():
                 return None
-    return [write(context, job) for job in jobs]
+    return write_all(context, jobs)

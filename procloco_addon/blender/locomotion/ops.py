@@ -99,6 +99,7 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
     bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
 
     _cancelled_message: ClassVar[str] = "Generation cancelled: nothing was changed"
+    _run_errors: ClassVar[tuple[type[Exception], ...]] = (generate.GenerateError,)
     _jobs: list[generate.Job]
 
     @classmethod
@@ -108,7 +109,7 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
     def _prepare(self, context: Any) -> bool:
         rigs = rigs_to_generate(context)
         try:
-            self._jobs = [generate.prepare(context, obj) for obj in rigs]
+            self._jobs = [generate.read(context, obj) for obj in rigs]
         except generate.GenerateError as err:
             self.report({"ERROR"}, str(err))
             return False
@@ -116,9 +117,9 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
 
     def _finish(self, context: Any) -> set[str]:
         try:
-            made = [generate.write(context, job) for job in self._jobs]
-        except (actions.ActionError, rig.RigError, ValueError, KeyError) as err:
-            self.report({"ERROR"}, f"Could not write the Action: {err}")
+            made = generate.write_all(context, self._jobs)
+        except Exception as err:
+            self.report({"ERROR"}, f"Could not write the Actions (nothing was changed): {err}")
             return {"CANCELLED"}
         for job in self._jobs:
             for warning in job.warnings:
@@ -127,7 +128,12 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
         return {"FINISHED"}
 
     def _run(self, context: Any, modal: bool) -> Steps:
+        # Every rig's terrain is read and checked before any simulation: a refusal comes
+        # early. Reading is the first tenth of the progress bar.
         n = len(self._jobs)
         for k, job in enumerate(self._jobs):
+            for fraction in generate.read_terrain(context, job):
+                yield f"{job.obj_name}: reading the terrain", 0.1 * (k + fraction) / n
+        for k, job in enumerate(self._jobs):
             for fraction in generate.simulate(job):
-                yield job.obj_name, (k + fraction) / n
+                yield job.obj_name, 0.1 + 0.9 * (k + fraction) / n

@@ -21,6 +21,7 @@ from ...core.autogait import AutoGait
 from ...core.controller import Controller, ControllerParams, StepControls
 from ...core.footprints import PlannerParams
 from ...core.morphology import LegBatch
+from ...core.pelvis_physics import PelvisPhysicsParams
 from ...core.progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
 from ...core.spine import SpineParams
 from ...core.terrain import NO_SURFACE
@@ -137,6 +138,10 @@ def speed_schedule(job: Job) -> Callable[[float], float]:
     return speed_at
 
 
+#: Leg length (m) at which the simulation's physical constants are the real ones.
+REFERENCE_LEG = 0.7325  # the Rigify wolf's
+
+
 def _window(job: Job, leg_len: float) -> tuple[int, float]:
     """Cells and cell size of the planning window: 70 cells of 0.065 leg (4.5 legs across);
     with Gait: Auto grown when the fastest stride would put a landing foot beyond its edge (the
@@ -160,6 +165,8 @@ def run(job: Job) -> Iterator[float]:
     legs = LegBatch.stack([job.morphology])
     n_frames = job.frames.shape[0]
     terrain = job.terrain
+    if terrain is None:
+        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
     terrain.apply_frame(0)
     origin = job.info.body.origin
     start_yaw = float(np.arctan2(job.info.body.forward[1], job.info.body.forward[0]))
@@ -203,8 +210,19 @@ def run(job: Job) -> Iterator[float]:
     # Planning cells and height slices scale with the creature (the core's defaults are
     # tuned for half-metre legs: 7 cm cells, 10 cm slices), so a rig scaled ×100 plans the
     # same steps on a 100 times larger terrain.
+    # The pelvis's pogo-stick bounces by about g T² for a cycle of T seconds. With the gait
+    # circles T is the rig's cycle time whatever its size, and a 2 cm wolf would bob by its
+    # own leg length: gravity then scales with the creature (real gravity at REFERENCE_LEG),
+    # so a rig scaled x0.01 or x100 bobs the same for its size. With Gait: Auto the cycle
+    # follows the Froude number (T grows as the square root of the size) and real gravity
+    # keeps the bounce to scale. The planted feet's support tolerance (2 mm at
+    # REFERENCE_LEG) and the leg IK's (10 µm there) scale with the creature either way.
+    size = leg_len / REFERENCE_LEG
+    gravity = 9.81 * (size if job.auto_gait is None else 1.0)
     cells, cell = _window(job, leg_len)
-    params = ControllerParams(window_cells=cells, window_cell=cell, slice_size=0.14 * leg_len)
+    params = ControllerParams(window_cells=cells, window_cell=cell, slice_size=0.14 * leg_len,
+                              support_tolerance=0.002 * size, ik_tolerance=1e-5 * size,
+                              physics=PelvisPhysicsParams(gravity=gravity))
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
@@ -322,6 +340,8 @@ def ground_function(job: Job) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
     """``ground(frame_index (n,), xy (n, 2)) -> (n,)``: the scene's surface heights at those
     frames (moving obstacles where they are then), ``-inf`` over nothing."""
     terrain = job.terrain
+    if terrain is None:
+        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
 
     def heights(xy: np.ndarray) -> np.ndarray:
         h = terrain.environment.height_at(xy) - terrain.z_offset

@@ -41,7 +41,7 @@ import bpy
 import numpy as np
 
 from ...core import pendulum as pend
-from .. import actions, rig
+from .. import actions, rig, validate
 from ..locomotion import property_group as locomotion_props
 
 __all__ = [
@@ -341,6 +341,8 @@ class Job:
     values: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (F, C) channel values
     sampled: bool = False
     timings: dict[str, float] = field(default_factory=dict)
+    # Filled by simulate_steps(): local rotations (F, n, 4) and world matrices (F, n, 4, 4).
+    swung: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _frame_range(context: Any, obj: bpy.types.Object) -> tuple[int, int]:
@@ -376,9 +378,10 @@ def prepare(context: Any, obj: Any) -> Job:
         raise BakeError("Select an armature: secondary motion is baked on a rig's bones")
     if getattr(context, "mode", "OBJECT") not in {"OBJECT", "POSE"}:
         raise BakeError("Leave edit mode first")
-    adt = obj.animation_data
-    if adt is not None and adt.use_tweak_mode:
-        raise BakeError(f"'{obj.name}' is in NLA tweak mode; leave tweak mode first")
+    problem = (validate.placement_problem(obj) or validate.tweak_mode_problem(obj)
+               or validate.non_finite_setting(obj.procloco_secondary, f"'{obj.name}'"))
+    if problem is not None:
+        raise BakeError(problem)
     settings = obj.procloco_secondary
     items = [c for c in settings.chains if c.enabled]
     if not settings.chains:
@@ -387,9 +390,9 @@ def prepare(context: Any, obj: Any) -> Job:
     if not items:
         raise BakeError(f"Every chain of '{obj.name}' is disabled: enable at least one")
     start, end = _frame_range(context, obj)
-    if end <= start:
-        what = "reversed" if end < start else "a single frame"
-        raise BakeError(f"The frame range {start}-{end} is {what}: baking needs at least two frames")
+    problem = validate.frame_range_problem(obj.name, start, end, "baking")
+    if problem is not None:
+        raise BakeError(problem)
     scale = np.linalg.norm(np.array(obj.matrix_world)[:3, :3], axis=0)
     if np.ptp(scale) > 1e-4 * scale.max():
         raise BakeError(f"'{obj.name}' has a non-uniform scale {tuple(np.round(scale, 4))}: apply it first")
@@ -537,6 +540,20 @@ def cancel(context: Any, job: Job) -> None:
 def simulate(job: Job) -> tuple[np.ndarray, np.ndarray]:
     """Run the pendulums on the sampled poses: local rotations ``(F, n, 4)`` (w, x, y, z) of
     every chain bone for its ``matrix_basis``, and the world matrices ``(F, n, 4, 4)``."""
+    if job.swung is None:
+        for _fraction in simulate_steps(job):
+            pass
+    assert job.swung is not None
+    return job.swung
+
+
+#: Pendulum steps between two progress reports of :func:`simulate_steps`.
+SLICE_STEPS = 2048
+
+
+def simulate_steps(job: Job) -> Generator[float, None, None]:
+    """:func:`simulate` in slices, yielding the fraction done (a long bake shows progress and
+    stops on Esc); the result lands in ``job.swung``."""
     if not job.sampled:
         raise RuntimeError("sample() the job before simulating it")
     t0 = time.perf_counter()
@@ -546,7 +563,8 @@ def simulate(job: Job) -> tuple[np.ndarray, np.ndarray]:
     # Each chain hangs from its root's parent bone (or the object): that body turning,
     # swaying or rolling makes the chain lag and swing.
     anchors = pend.orthonormalize_frames((job.object_world[:, None] @ job.parent_pose)[..., :3, :3])
-    result = pend.simulate(job.forest, times, heads, frames, anchor_frame=anchors)
+    result = yield from pend.simulate_steps(job.forest, times, heads, frames, anchor_frame=anchors,
+                                            slice_steps=SLICE_STEPS)
     job.timings["simulate_s"] = time.perf_counter() - t0
 
     obj = bpy.data.objects[job.obj_name]
@@ -573,7 +591,7 @@ def simulate(job: Job) -> tuple[np.ndarray, np.ndarray]:
             basis = np.linalg.inv(parent_pose @ rest_rel) @ pose[:, i]
         basis_rot[:, i] = basis[:, :3, :3] / np.linalg.norm(basis[:, :3, :3], axis=-2, keepdims=True)
     quats = rig.matrix_to_quaternion(basis_rot.reshape(-1, 3, 3)).reshape(n_frames, n, 4)
-    return quats, new_world
+    job.swung = (quats, new_world)
 
 
 def write(context: Any, job: Job) -> bpy.types.Action:

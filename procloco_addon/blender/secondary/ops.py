@@ -14,7 +14,6 @@ from typing import Any, ClassVar
 
 import bpy
 
-from .. import actions
 from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature
 from . import bake
 
@@ -99,6 +98,16 @@ class PROCLOCO_OT_remove_secondary_chain(RemoveActiveItem, bpy.types.Operator):
     _no_item = "The rig has no chain to remove"
 
 
+def _take_back_suggestions(op: Any, context: Any) -> None:
+    """Empty the chain list again when the operator ``op`` filled it with suggestions and
+    then did not bake (refused, cancelled)."""
+    obj = context.active_object
+    if getattr(op, "_suggested", False) and obj is not None:
+        obj.procloco_secondary.chains.clear()
+        obj.procloco_secondary.active_chain_index = 0
+    op._suggested = False
+
+
 class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
     """Make the rig's tails, antennae and ears swing with its motion (3D pendulums), baked over the
     frame range into a new Action; the current Action is kept untouched"""
@@ -110,6 +119,7 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
     _cancelled_message: ClassVar[str] = "Bake cancelled: nothing was changed"
     _run_errors: ClassVar[tuple[type[Exception], ...]] = (bake.BakeError,)
     _job: bake.Job | None = None
+    _suggested: bool = False
 
     @classmethod
     def poll(cls, context: Any) -> bool:
@@ -117,24 +127,30 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
 
     def _prepare(self, context: Any) -> bool:
         obj = context.active_object
+        self._suggested = False
         if obj is not None and obj.type == "ARMATURE" and not len(obj.procloco_secondary.chains):
             # A rig nobody set up (a script, the batch command, a first click): the
-            # suggested chains are listed and baked.
+            # suggested chains are listed and baked (and taken back if the bake is not).
             bake.suggest_into_settings(obj)
+            self._suggested = True
         try:
             self._job = bake.prepare(context, obj)
         except bake.BakeError as err:
+            _take_back_suggestions(self, context)
             self.report({"ERROR"}, str(err))
             return False
         return True
+
+
 
     def _finish(self, context: Any) -> set[str]:
         job = self._job
         assert job is not None
         try:
             action = bake.write(context, job)
-        except (bake.BakeError, actions.ActionError, ValueError) as err:
-            self.report({"ERROR"}, f"Could not write the Action: {err}")
+        except Exception as err:
+            _take_back_suggestions(self, context)
+            self.report({"ERROR"}, f"Could not write the Action (nothing was changed): {err}")
             return {"CANCELLED"}
         for warning in job.warnings:
             self.report({"WARNING"}, f"{job.obj_name}: {warning}")
@@ -149,10 +165,14 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
         samples = bake.sample(context, job)
         try:
             for fraction in samples:
-                yield "baking secondary motion", 0.9 * fraction  # the last tenth simulates and writes
+                yield "playing the animation", 0.5 * fraction
         finally:
             samples.close()  # closed early (Esc): frame and Action put back
+        # The pendulums in slices: progress, and Esc stops them with nothing written.
+        for fraction in bake.simulate_steps(job):
+            yield "swinging the chains", 0.5 + 0.45 * fraction
 
     def _discard(self, context: Any) -> None:
         if self._job is not None:
             bake.cancel(context, self._job)
+        _take_back_suggestions(self, context)
