@@ -27,7 +27,7 @@ import numpy as np
 
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
-from .. import actions, rig, scene_terrain
+from .. import actions, controls, pose_writer, rig, scene_terrain
 from . import property_group
 
 __all__ = [
@@ -280,7 +280,13 @@ class Job:
     # Bones only an earlier generation (or bake) keyed, which this one does not drive: keyed
     # at rest so the new Action alone decides the pose (see stale_bones).
     held_bones: tuple[str, ...] = ()
+    # What gets keyed: the solved bones themselves, or the controls that drive them.
+    plan: controls.ControlPlan | None = None
+    # Whether something may pull the keyed bones off the plan (drivers, limits): then the
+    # evaluated feet are measured after writing.
+    check_after: bool = False
     warnings: list[str] = field(default_factory=list)
+    keyed_bones: tuple[str, ...] = ()
     result: Any = None
     timings: dict[str, float] = field(default_factory=dict)
 
@@ -352,7 +358,7 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     except scene_terrain.TerrainError as err:
         raise GenerateError(str(err)) from err
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
-    warnings = list(info.warnings)
+    plan, warnings = plan_keys(obj, info)
     changes = _gait_changes(obj, info.legs, frames, warnings)
     job = Job(
         obj_name=obj.name,
@@ -380,10 +386,31 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         gait_changes=changes,
         warnings=warnings,
         held_bones=tuple(pb.name for pb in obj.pose.bones
-                         if pb.name in stale and pb.name not in info.driven_bones),
+                         if pb.name in stale and pb.name not in info.driven_bones
+                         and pb.name not in plan.keyed_bones),
+        plan=plan,
+        check_after=any(w not in info.warnings for w in warnings),
     )
     job.timings["read_s"] = time.perf_counter() - t0
     return job
+
+
+def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.ControlPlan, list[str]]:
+    """What to key for ``info``'s solved bones (:func:`.controls.plan_controls`) and the
+    warnings for the user: the rig's own (constraints ProcLoco does not drive through, on
+    bones no control was found for), drivers on keyed channels, limit constraints and
+    constraints following objects outside the rig."""
+    others = [b for b in info.spine if b != info.body_bone] if info.spine_layout is not None else []
+    plan = controls.plan_controls(obj, [(leg.bones, leg.foot) for leg in info.legs], info.body_bone, others)
+    ik_bones = {t[0] for t in info.ik_targets if t is not None}
+    handled = set(info.driven_bones) - set(plan.uncovered)
+    # read_rig's warnings name bones whose constraints override their keys: on a control rig
+    # those bones are reached through their controls and are not keyed.
+    warnings = [w for w in info.warnings if not any(f"bone '{b}' " in w for b in handled)]
+    keyed = [*plan.keyed_bones, *ik_bones]
+    warnings += controls.driver_warnings(obj, keyed)
+    warnings += controls.constraint_warnings(controls.ConstraintGraph(obj), keyed, info.driven_bones)
+    return plan, list(dict.fromkeys(warnings))
 
 
 def simulate(job: Job) -> Iterator[float]:
@@ -408,25 +435,55 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
     leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
     tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job),
                             spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames)
+    info = job.info
+    plan = job.plan
+    if plan is None:
+        plan, _warnings = plan_keys(obj, info)
+    request = pose_writer.PoseRequest(
+        frames=job.frames,
+        bones=tracks.bones,
+        armature=pose_writer.armature_from_basis(tracks.bones, tracks.rotations, tracks.locations,
+                                                 info.rest_local, info.parents, info.basis),
+        keyed_location=tracks.keyed_location,
+        world0=info.world,
+        rest_local=info.rest_local,
+        parents=info.parents,
+        basis=info.basis,
+        legs=tuple(leg.bones for leg in info.legs),
+    )
     action = actions.new_action(obj)
     frames = job.frames.astype(np.float64)
+    remembered, _previous = actions.previous_action(obj)
+    before = obj.animation_data.action if obj.animation_data is not None else None
     try:
-        actions.write_pose_bone_transforms(action, obj, frames, tracks.bones, rotations=tracks.rotations)
-        loc = [i for i, k in enumerate(tracks.keyed_location) if k]
-        if loc:
-            actions.write_pose_bone_transforms(action, obj, frames, [tracks.bones[i] for i in loc],
-                                               locations=tracks.locations[:, loc])
         if job.held_bones:
             n = len(job.held_bones)
             rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
             actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
-        actions.assign_generated_action(obj, action)
+        report = pose_writer.write_pose(action, obj, request, plan, check=job.check_after)
     except Exception:
-        bpy.data.actions.remove(action)
+        _undo_assign(obj, action, before, remembered)
         raise
+    off = [(leg.label, err * info.scale) for leg, err in zip(info.legs, report.leg_error, strict=False)
+           if err * info.scale > 0.01]
+    if off:
+        job.warnings.append("after keying, the evaluated feet are off the plan: "
+                            + ", ".join(f"leg {label} by {100.0 * err:.1f} cm" for label, err in off))
+    job.keyed_bones = tuple(report.keyed)
     job.timings["write_s"] = time.perf_counter() - t0
     return action
+
+
+def _undo_assign(obj: bpy.types.Object, action: bpy.types.Action, before: bpy.types.Action | None,
+                 remembered: bool) -> None:
+    """Put the object's Action back as it was before :func:`write` and delete ``action``."""
+    adt = obj.animation_data
+    if adt is not None and adt.action == action:
+        actions.assign_action(obj, before)
+        if not remembered:
+            actions._forget_previous(obj)
+    bpy.data.actions.remove(action)
 
 
 def generate(
