@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Gait presets from the panel: list, apply, save, remove; bad files change nothing.
 
-Runs the real operators on a small armature whose legs were detected by ``rig.py`` (the
+Runs the real operators on a small armature whose legs were detected by ``rig`` (the
 way the Detect Legs button fills ``Object.procloco.legs``). User presets go to the user
 scripts folder, which the test session points into a temporary folder.
 """

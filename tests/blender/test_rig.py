@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""blender/rig.py: leg detection, world-space morphology, and poses written back to bones.
+"""blender/rig/: leg detection, world-space morphology, and poses written back to bones.
 
 Poses are checked by evaluating the rig through the depsgraph after the Action is written.
 """

@@ -1,0 +1,56 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The rig as the core's :class:`~procloco_addon.core.morphology.Morphology`, in its body frame."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...core.morphology import Morphology
+from ...core.spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT
+from .info import RigInfo
+from .rest import RigError, _apply
+
+FOOT_EXTENT_SHARE = 1.0
+
+
+def morphology_of(
+    info: RigInfo,
+    joint_yaw_limit: float = DEFAULT_JOINT_YAW_LIMIT,
+    joint_pitch_limit: float = DEFAULT_JOINT_PITCH_LIMIT,
+) -> Morphology:
+    """The core morphology of the rig, in its body frame (origin at the hips' centroid).
+
+    The end-effectors are the core's feet. A leg whose foot bones hold its end-effector above
+    the ground (a human's ankle) is handled by the caller, which raises the terrain the core
+    sees by :attr:`RigInfo.foot_height` (see ``locomotion.generate``). With a
+    :attr:`RigInfo.spine_layout` the morphology has the flexible spine
+    (``Morphology.with_spine``) with these per-joint limits (radians).
+    """
+    to_body = np.linalg.inv(info.body.matrix)
+    chains = [_apply(to_body, j) for j in info.joints]
+    hips = np.array([c[0] for c in chains])
+    ends = np.array([c[-1] for c in chains])
+    if float(np.mean(hips[:, 2] - ends[:, 2])) <= 0.0:
+        raise RigError("The hips are not above the feet: the rig must stand on its legs in its rest pose")
+    lo, hi = hips[:, :2].min(axis=0), hips[:, :2].max(axis=0)
+    reach = float(info.leg_length.mean())
+    # The footprint the planner keeps clear: at least 4 % of the leg, and as far as the foot
+    # bones (toes, paw) reach from the end-effector (its box is centred on the end-effector).
+    foot_half = np.maximum(FOOT_EXTENT_SHARE * info.foot_extent.max(axis=0), 0.04 * reach)
+    try:
+        morph = Morphology.from_rest_joints(
+            chains,
+            [leg.label for leg in info.legs],
+            body_box=(0.5 * (lo + hi), 0.5 * (hi - lo) + 0.1 * reach),
+            foot_half_extents=foot_half,
+        )
+        layout = info.spine_layout
+        if layout is not None:
+            morph = morph.with_spine(
+                _apply(to_body, layout.joints), key_joint=layout.key_joint, leg_key=layout.leg_key,
+                leg_bone=layout.leg_bone, joint_yaw_limit=joint_yaw_limit,
+                joint_pitch_limit=joint_pitch_limit,
+            )
+        return morph
+    except ValueError as err:
+        raise RigError(str(err)) from err

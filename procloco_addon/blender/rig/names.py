@@ -1,0 +1,73 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Bone names as hints: tokens, sides and the words that mark legs and helper bones."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+
+_PREFIX = re.compile(r"^(def|org|mch|ctrl|ctl|jnt|jt|bn|bone|b|mixamorig\d*|cc_base|bip\d*)[-_.:\s]+",
+                     re.IGNORECASE)
+_SIDE_SUFFIX = re.compile(r"[-_.\s](l|r|left|right|lft|rgt)((?:\.\d+)?)$", re.IGNORECASE)
+_SIDE_PREFIX = re.compile(r"^(l|r|left|right|lft|rgt)[-_.\s]", re.IGNORECASE)
+_SIDE_CAMEL = re.compile(r"^(Left|Right)(?=[A-Z0-9])|(?<=[a-z0-9])(Left|Right)$")
+_CAMEL = re.compile(r"(?<=[a-z])(?=[A-Z])|(?<=[A-Za-z])(?=[0-9])|(?<=[0-9])(?=[A-Za-z])")
+
+LEG_WORDS = frozenset({
+    "thigh", "shin", "calf", "knee", "foot", "feet", "toe", "toes", "leg", "legs", "upleg", "upperleg",
+    "lowerleg", "coxa", "trochanter", "femur", "tibia", "tarsus", "metatarsus", "ankle", "paw", "hoof",
+    "hock", "forearm", "hand", "arm", "claw", "pes", "manus", "limb",
+})
+# Words that make a bone a control, helper or mechanism bone, never part of a leg chain.
+HELPER_WORDS = frozenset({
+    "ik", "fk", "pole", "target", "tgt", "ctrl", "control", "mch", "helper", "twist", "roll", "heel",
+    "tweak", "parent", "socket", "pivot", "vis", "hint", "aim", "root", "master", "prop", "rot", "ctl",
+    "tip", "end", "nub", "null", "ref", "snap", "lock", "spin",
+})
+_SIDES = {"l": 1, "left": 1, "lft": 1, "r": -1, "right": -1, "rgt": -1}
+
+
+def split_name(name: str) -> tuple[int, tuple[str, ...]]:
+    """``(side, tokens)`` of a bone name: side +1 left, -1 right, 0 none; tokens lower-case.
+
+    ``"DEF-front_thigh.L"`` -> ``(1, ("front", "thigh"))``; ``"LeftUpLeg"`` -> ``(1, ("up", "leg"))``;
+    ``"Leg3_tarsus.R"`` -> ``(-1, ("leg", "3", "tarsus"))``.
+    """
+    base = name
+    for _ in range(2):
+        base = _PREFIX.sub("", base)
+    side = 0
+    m = _SIDE_SUFFIX.search(base)
+    if m:
+        side = _SIDES[m.group(1).lower()]
+        base = base[: m.start()] + (m.group(2) or "")
+    else:
+        m = _SIDE_PREFIX.match(base)
+        if m:
+            side = _SIDES[m.group(1).lower()]
+            base = base[m.end():]
+        else:
+            m = _SIDE_CAMEL.search(base)
+            if m:
+                side = 1 if (m.group(1) or m.group(2)) == "Left" else -1
+                base = base[: m.start()] + base[m.end():]
+    spaced = _CAMEL.sub(" ", base)
+    tokens = tuple(t for t in re.split(r"[^A-Za-z0-9]+", spaced.lower()) if t)
+    return side, tokens
+
+
+def _is_leg_name(tokens: Sequence[str]) -> bool:
+    words = set(tokens)
+    return bool(words & LEG_WORDS) and not (words & HELPER_WORDS)
+
+
+def _is_helper_name(tokens: Sequence[str]) -> bool:
+    return bool(set(tokens) & HELPER_WORDS)
+
+
+def _leg_number(tokens: Sequence[str]) -> str:
+    """The number written next to 'leg' (``Leg3_coxa`` -> ``"3"``), else ``""``."""
+    for i, t in enumerate(tokens):
+        if t in {"leg", "legs", "limb"} and i + 1 < len(tokens) and tokens[i + 1].isdigit():
+            return tokens[i + 1]
+    return ""

@@ -1,0 +1,343 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Poses back to bones: :func:`solve_pose` turns per-frame core results (world body frames,
+joint positions, spine rotations) into pose-bone ``matrix_basis`` channels."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .info import RigInfo
+from .rest import _UP, _apply, _unit
+
+
+@dataclass(frozen=True)
+class PoseTracks:
+    """Per-frame ``matrix_basis`` components of the driven bones.
+
+    ``rotations`` ``(F, B, 4)`` quaternions (w, x, y, z); ``locations`` ``(F, B, 3)``;
+    ``keyed_location[b]`` says whether bone ``b``'s location should be keyed.
+    """
+
+    bones: tuple[str, ...]
+    rotations: np.ndarray
+    locations: np.ndarray
+    keyed_location: np.ndarray
+
+
+def matrix_to_quaternion(m: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)`` rotation matrices -> ``(..., 4)`` unit quaternions (w, x, y, z), w >= 0."""
+    m = np.asarray(m, dtype=np.float64)
+    m00, m11, m22 = m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]
+    # |w|, |x|, |y|, |z| from the diagonal; signs from the off-diagonal terms relative to
+    # the largest component (Shepperd's method, numerically stable for any rotation).
+    diag = np.stack([1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22], -1)
+    k = np.argmax(diag, axis=-1)
+    s21, s02, s10 = m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]
+    a01, a02, a12 = m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1]
+    rows = np.stack([
+        np.stack([diag[..., 0], s21, s02, s10], -1),
+        np.stack([s21, diag[..., 1], a01, a02], -1),
+        np.stack([s02, a01, diag[..., 2], a12], -1),
+        np.stack([s10, a02, a12, diag[..., 3]], -1),
+    ], axis=-2)  # row k is proportional to q * q_k
+    q = np.take_along_axis(rows, k[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def _frames(direction: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """Orthonormal frames ``(..., 3, 3)`` with columns (direction, normal made perpendicular, cross)."""
+    e1 = _unit(direction)
+    e2 = normal - np.sum(normal * e1, axis=-1, keepdims=True) * e1
+    e2 = _unit(e2)
+    e3 = np.cross(e1, e2)
+    return np.stack([e1, e2, e3], axis=-1)
+
+
+def _bend_normal(joints: np.ndarray) -> np.ndarray:
+    """Sum of consecutive segment cross products ``(..., 3)`` for chains ``(..., k + 1, 3)``."""
+    seg = np.diff(joints, axis=-2)
+    if seg.shape[-2] < 2:
+        return np.zeros((*seg.shape[:-2], 3))
+    return np.cross(seg[..., :-1, :], seg[..., 1:, :]).sum(axis=-2)
+
+
+def _yaw_only(rot: np.ndarray) -> np.ndarray:
+    """The rotation about world Z that turns the x axis like ``rot`` does ``(..., 3, 3)``."""
+    x = rot[..., :, 0]
+    ang = np.arctan2(x[..., 1], x[..., 0])
+    c, s = np.cos(ang), np.sin(ang)
+    out = np.zeros(rot.shape)
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    out[..., 2, 2] = 1.0
+    return out
+
+
+#: ``ground(frame_index (n,), xy (n, 2)) -> (n,)`` world surface heights, ``-inf`` over nothing.
+GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _foot_pitch(
+    rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
+    lift: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pitch ``(F,)`` about each foot's horizontal cross axis that sets its sole on the ground.
+
+    rel: ``(F, P, 3)`` sole points relative to the end-effector ``end`` ``(F, 3)`` (foot at its
+    yaw-turned rest orientation); heights ``(F, P)`` ground under them. The smallest rotation
+    keeping every forward point above the ground: up a slope or onto an edge the toes lift,
+    down a slope they follow it. Points behind the end-effector (heels) are left alone.
+    ``lift`` ``(F,)``: how far the end-effector is above where it stands when planted (``inf``
+    over no ground); the downward pitch fades out as the foot rises by half its length, so a
+    lifted foot does not point its toes at the ground below (swing, or over a gap).
+    """
+    d = rel[..., :2].sum(axis=1)
+    d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
+    d = np.divide(d, d_norm, out=np.zeros_like(d), where=d_norm > 1e-12)
+    a = np.einsum("fpi,fi->fp", rel[..., :2], d)  # forward reach of each point
+    b = rel[..., 2]
+    c = heights - end[:, None, 2]
+    radius = np.hypot(a, b)
+    ok = (a > 1e-6 * np.maximum(radius, 1e-12)) & np.isfinite(heights)
+    need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
+    theta = np.where(ok, need, -np.inf).max(axis=1)
+    theta = np.where(np.isfinite(theta), theta, 0.0)
+    if lift is not None:
+        fade = 0.5 * np.where(ok, radius, 0.0).max(axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.clip(1.0 - np.maximum(lift, 0.0) / np.maximum(fade, 1e-12), 0.0, 1.0)
+        theta = np.where(theta < 0.0, theta * np.nan_to_num(share, nan=0.0), theta)
+    return np.clip(theta, -limit, limit), d
+
+
+def _axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotations ``(F, 3, 3)`` by ``angle (F,)`` about unit ``axis (F, 3)`` (Rodrigues)."""
+    k = axis
+    kx = np.zeros((*k.shape[:-1], 3, 3))
+    kx[..., 0, 1], kx[..., 0, 2] = -k[..., 2], k[..., 1]
+    kx[..., 1, 0], kx[..., 1, 2] = k[..., 2], -k[..., 0]
+    kx[..., 2, 0], kx[..., 2, 1] = -k[..., 1], k[..., 0]
+    s = np.sin(angle)[..., None, None]
+    c = np.cos(angle)[..., None, None]
+    return np.eye(3) + s * kx + (1.0 - c) * (kx @ kx)
+
+
+def solve_pose(
+    info: RigInfo,
+    body_world: np.ndarray,
+    joints_world: Sequence[np.ndarray],
+    ground: GroundFn | None = None,
+    max_foot_pitch: float = np.radians(50.0),
+    *,
+    spine_rotation: np.ndarray | None = None,
+    spine_joints: np.ndarray | None = None,
+    leg_frames: np.ndarray | None = None,
+) -> PoseTracks:
+    """Pose-bone channels that put the rig where the core says, frame by frame.
+
+    body_world: ``(F, 4, 4)`` rigid body-to-world transforms (the body frame of
+    :class:`BodyInfo` moved by the simulation). joints_world: per leg ``(F, k + 1, 3)``
+    world joint positions (hip, inner joints, end-effector), in ``info.legs`` order.
+
+    Each leg bone's rotation maps its rest segment onto the simulated one and its rest
+    leg-plane normal onto the simulated plane's normal (no added twist; a straight leg keeps
+    the body-turned rest normal). The body bone moves rigidly with the body frame; the first
+    foot bone keeps its rest orientation turned by the body's heading and, when ``ground``
+    is given (:data:`GroundFn`), pitches about its cross axis so its sole lies on the ground
+    (toes lift onto slopes and edges, up to ``max_foot_pitch``).
+
+    With a driven spine (:attr:`RigInfo.spine_layout`), ``spine_rotation`` ``(F, J - 1, 3, 3)``
+    (``core.spine.SpinePose.bone_rotation``: each core bone's rotation from its rest direction
+    in the body frame to the world) turns the spine bones, the body bone's head goes to
+    ``spine_joints[:, -1]`` (``(F, J, 3)``), and ``leg_frames`` ``(F, L, 3, 3)`` (body-to-world
+    rotation each leg hangs from) turns each leg's rest knee plane and foot instead of the
+    body frame.
+    """
+    body_world = np.asarray(body_world, dtype=np.float64)
+    n_frames = body_world.shape[0]
+    delta = body_world @ np.linalg.inv(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
+    delta_rot = delta[:, :3, :3]
+    body_rest_t = info.body.matrix[:3, :3].T  # world rest -> body frame
+    n_legs = len(info.legs)
+    if leg_frames is None:
+        leg_delta = np.broadcast_to(delta_rot[:, None], (n_frames, n_legs, 3, 3))
+    else:
+        leg_delta = np.asarray(leg_frames, dtype=np.float64) @ body_rest_t
+    leg_yaw = _yaw_only(leg_delta)
+    spine_on = info.spine_layout is not None
+    if spine_on and (spine_rotation is None or spine_joints is None):
+        raise ValueError("the rig's spine is driven: give its spine_rotation and spine_joints")
+    w = info.world
+    w_rot = w[:3, :3] / info.scale
+    w_inv = np.linalg.inv(w)
+
+    # Desired world rotation (F, 3, 3) of every driven bone; world head of the body bone.
+    rest_rot = {n: w_rot @ (m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0))
+                for n, m in info.rest_local.items()}
+    desired: dict[str, np.ndarray] = {}
+    desired[info.body_bone] = delta_rot @ rest_rot[info.body_bone]
+    body_head_rest = _apply(w, info.rest_local[info.body_bone][:3, 3][None])[0]
+    body_head = np.einsum("fij,j->fi", delta[:, :3, :3], body_head_rest) + delta[:, :3, 3]
+    if spine_on:
+        assert spine_rotation is not None
+        assert spine_joints is not None
+        turn = np.asarray(spine_rotation, dtype=np.float64) @ body_rest_t  # world rest -> now
+        for i, name in enumerate(info.spine[::-1]):  # core bones run from the head back
+            desired[name] = turn[:, i] @ rest_rot[name]
+        body_head = np.asarray(spine_joints, dtype=np.float64)[:, -1]
+
+    for k, (leg, rest_j, cur_j) in enumerate(zip(info.legs, info.joints, joints_world, strict=True)):
+        cur_j = np.asarray(cur_j, dtype=np.float64)
+        want = (n_frames, len(leg.bones) + 1, 3)
+        if cur_j.shape != want:
+            raise ValueError(f"leg {leg.label}: joints shape {cur_j.shape}, expected {want}")
+        n_rest = _bend_normal(rest_j)
+        if np.linalg.norm(n_rest) < 1e-9 * max(float(np.linalg.norm(np.diff(rest_j, axis=0))), 1e-9) ** 2:
+            # straight rest leg: bend like a knee, about the body's left axis
+            n_rest = np.cross(rest_j[-1] - rest_j[0], info.body.forward)
+        n_rest = _unit(n_rest)
+        n_turned = np.einsum("fij,j->fi", leg_delta[:, k], n_rest)
+        n_cur = _bend_normal(cur_j)
+        size = np.linalg.norm(n_cur, axis=-1)
+        scale2 = np.sum(np.diff(cur_j, axis=1) ** 2, axis=(1, 2))
+        weak = size < 1e-4 * scale2
+        n_cur = np.where(weak[:, None], n_turned, _unit(n_cur))
+        flip = np.sum(n_cur * n_turned, axis=-1) < 0.0
+        n_cur = np.where(flip[:, None], -n_cur, n_cur)
+        seg_rest = np.diff(rest_j, axis=0)
+        seg_cur = np.diff(cur_j, axis=1)
+        for b, name in enumerate(leg.bones):
+            f_rest = _frames(seg_rest[b], n_rest)
+            f_cur = _frames(seg_cur[:, b], n_cur)
+            desired[name] = f_cur @ np.swapaxes(f_rest, -1, -2)[None] @ rest_rot[name]
+        if leg.foot:
+            desired[leg.foot[0]] = leg_yaw[:, k] @ rest_rot[leg.foot[0]]
+
+    # Bones that IK constraints pull the legs to: placed where the simulated joint is,
+    # turned with the body's heading.
+    moved_heads: dict[str, np.ndarray] = {info.body_bone: body_head}
+    for k, target in enumerate(info.ik_targets):
+        if target is None:
+            continue
+        bone, joint = target
+        desired[bone] = leg_yaw[:, k] @ rest_rot[bone]
+        moved_heads[bone] = np.asarray(joints_world[k], dtype=np.float64)[:, joint]
+
+    if ground is not None:
+        _pitch_feet(info, joints_world, leg_yaw, rest_rot, desired, ground, max_foot_pitch)
+
+    bones = info.driven_bones
+    # Armature-space pose matrices, parents before children.
+    order = _hierarchy_order(info, bones)
+    pose: dict[str, np.ndarray] = {}
+    basis_out: dict[str, np.ndarray] = {}
+    for name in order:
+        parent = info.parents[name]
+        rest_l = info.rest_local[name]
+        if parent is None:
+            base = np.broadcast_to(rest_l, (n_frames, 4, 4))
+        else:
+            base = pose[parent] @ (np.linalg.inv(info.rest_local[parent]) @ rest_l)[None]
+        if name in desired:
+            goal = np.empty((n_frames, 4, 4))
+            goal[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
+            if name in moved_heads:
+                goal[:, :3, 3] = _apply(w_inv, moved_heads[name])
+            else:
+                goal[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
+            goal[:, 3] = (0.0, 0.0, 0.0, 1.0)
+            basis = np.linalg.inv(base) @ goal
+            basis_out[name] = basis
+            pose[name] = base @ basis
+        else:
+            pose[name] = base @ info.basis[name][None]
+
+    rotations = np.stack([matrix_to_quaternion(_orthonormal(basis_out[b][:, :3, :3])) for b in bones], axis=1)
+    locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)
+    keyed = np.array([b in moved_heads for b in bones])
+    return PoseTracks(bones, rotations, locations, keyed)
+
+
+def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.ndarray,
+                rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
+                limit: float) -> None:
+    """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`).
+    ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of what each leg hangs from."""
+    dynamic = bool(getattr(ground, "dynamic", True))
+    legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
+    if not legs:
+        return
+    n_frames = leg_yaw.shape[0]
+    rels, ends = [], []
+    for k in legs:
+        ends.append(np.asarray(joints_world[k], dtype=np.float64)[:, -1])
+        rels.append(np.einsum("fij,pj->fpi", leg_yaw[:, k], info.foot_points[k] - info.joints[k][-1]))
+    counts = [r.shape[1] for r in rels]
+    bounds = np.cumsum([0, *counts])
+    turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
+    pitched: list[np.ndarray | None] = [None] * len(legs)
+    # How far each end-effector is above where it would stand on the ground under it.
+    end_xy = np.concatenate([end[:, :2] for end in ends])
+    end_frame = np.tile(np.arange(n_frames), len(legs))
+    under = np.asarray(ground(end_frame if dynamic else np.zeros_like(end_frame), end_xy), dtype=np.float64)
+    lifts = [end[:, 2] - info.foot_height[k] - under[j * n_frames:(j + 1) * n_frames]
+             for j, (k, end) in enumerate(zip(legs, ends, strict=True))]
+    # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
+    # where the pitched points are, the pitch from the rest sole). After the first the pitch
+    # only rises: a toe pitched down past an edge onto the higher ground it now stands over
+    # is lifted, never pitched down again (a down-and-up swing could end inside the edge).
+    for _ in range(3):
+        xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
+                             for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
+        # Planted feet query the same places frame after frame: ask once per distinct place.
+        frame_of = np.repeat(np.arange(n_frames), xy.shape[1])
+        flat = xy.reshape(-1, 2)
+        key = frame_of if dynamic else np.zeros_like(frame_of)
+        uniq, inverse = np.unique(np.column_stack([key, flat]), axis=0, return_inverse=True)
+        found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
+        heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
+        for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
+            theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit, lifts[j])
+            before = pitched[j]
+            if before is not None:
+                theta = np.maximum(theta, before)
+            pitched[j] = theta
+            axis = np.cross(np.concatenate([d, np.zeros((n_frames, 1))], axis=1), _UP)
+            axis_n = np.linalg.norm(axis, axis=1, keepdims=True)
+            axis = np.divide(axis, axis_n, out=np.zeros_like(axis), where=axis_n > 1e-12)
+            turns[j] = _axis_rotation(axis, np.where(axis_n[:, 0] > 1e-12, theta, 0.0))
+    for j, k in enumerate(legs):
+        name = info.legs[k].foot[0]
+        desired[name] = turns[j] @ desired[name]
+
+
+def _orthonormal(m: np.ndarray) -> np.ndarray:
+    u, _s, vt = np.linalg.svd(m)
+    return u @ vt
+
+
+def _hierarchy_order(info: RigInfo, bones: Sequence[str]) -> list[str]:
+    """``bones`` and all their ancestors, parents first."""
+    needed: list[str] = []
+    for b in bones:
+        chain = []
+        cur: str | None = b
+        while cur is not None and cur not in needed and cur not in chain:
+            chain.append(cur)
+            cur = info.parents[cur]
+        needed.extend(reversed(chain))
+    depth = {}
+    for b in needed:
+        d = 0
+        cur = info.parents[b]
+        while cur is not None:
+            d += 1
+            cur = info.parents[cur]
+        depth[b] = d
+    return sorted(dict.fromkeys(needed), key=lambda b: depth[b])

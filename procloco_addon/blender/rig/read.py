@@ -1,0 +1,257 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Reading an armature (bpy): its rest arrays, detected or user-chosen legs, and
+:func:`read_rig`, everything one generation needs in one :class:`RigInfo`."""
+
+from __future__ import annotations
+
+from collections.abc import Collection, Sequence
+
+import bpy
+import numpy as np
+
+from .detect import LegChain, _forward_axis, _label_legs, find_legs, leg_between
+from .info import BodyInfo, RigInfo
+from .rest import (
+    _UP,
+    RigError,
+    _apply,
+    _chain_points,
+    _common_ancestor,
+    _descendants,
+    _length,
+    _Rest,
+    uniform_scale,
+)
+from .spine import _spine_chain, _spine_layout
+
+
+def _object_world(obj: bpy.types.Object) -> np.ndarray:
+    return np.array(obj.matrix_world, dtype=np.float64)
+
+
+def _rest_of(obj: bpy.types.Object) -> _Rest:
+    if obj is None or obj.type != "ARMATURE":
+        raise RigError("The active object is not an armature: select a rig")
+    world = _object_world(obj)
+    scale = uniform_scale(world)
+    if scale is None:
+        raise RigError(f"'{obj.name}' has a non-uniform or mirrored scale: apply its scale first (Ctrl A)")
+    bones = obj.data.bones
+    names = tuple(b.name for b in bones)
+    index = {n: i for i, n in enumerate(names)}
+    n = len(names)
+    if n == 0:
+        raise RigError(f"'{obj.name}' has no bones")
+    parent = np.array([index[b.parent.name] if b.parent else -1 for b in bones], dtype=np.int64)
+    local = np.empty(n * 16, dtype=np.float32)
+    bones.foreach_get("matrix_local", local)
+    local_m = local.reshape(n, 4, 4).transpose(0, 2, 1).astype(np.float64)
+    head_l = np.empty(n * 3, dtype=np.float32)
+    tail_l = np.empty(n * 3, dtype=np.float32)
+    bones.foreach_get("head_local", head_l)
+    bones.foreach_get("tail_local", tail_l)
+    head = _apply(world, head_l.reshape(n, 3).astype(np.float64))
+    tail = _apply(world, tail_l.reshape(n, 3).astype(np.float64))
+    return _Rest(names, index, parent, head, tail, local_m, world, scale)
+
+
+_OVERRIDING_CONSTRAINTS = frozenset({
+    "IK", "COPY_ROTATION", "COPY_TRANSFORMS", "DAMPED_TRACK", "LOCKED_TRACK", "TRACK_TO", "STRETCH_TO",
+    "CHILD_OF", "ARMATURE", "SPLINE_IK", "ACTION", "TRANSFORM", "CLAMP_TO", "FOLLOW_PATH",
+})
+
+
+def detect_legs(obj: bpy.types.Object) -> list[LegChain]:
+    """Find the legs of armature ``obj`` (see :func:`.detect.find_legs`).
+
+    Returns legs labelled and ordered front to back, left before right (``L1, R1, L2, ...``;
+    a leg on the midline is ``M<row>``). Raises :class:`RigError` when no leg is found.
+    """
+    rest = _rest_of(obj)
+    pbones = obj.pose.bones
+    constrained = np.array([any(c.type in _OVERRIDING_CONSTRAINTS for c in pbones[n].constraints)
+                            for n in rest.names], dtype=bool)
+    return find_legs(rest, constrained, obj.name)
+
+
+def leg_from_bones(obj: bpy.types.Object, hip: str, end: str, label: str = "") -> LegChain:
+    """A leg from user-chosen hip and end-effector bones, validated.
+
+    Raises :class:`RigError` when a bone is missing, the hip is not an ancestor of the end
+    (or the end itself), or a bone of the chain has zero length.
+    """
+    return leg_between(_rest_of(obj), hip, end, label, obj.name)
+
+def read_rig(
+    obj: bpy.types.Object, legs: Sequence[LegChain] | None = None, forward_axis: str = "AUTO",
+    spine: bool = False, at_rest: Collection[str] = (),
+) -> RigInfo:
+    """Read ``obj``'s legs (given, else detected), body bone, spine and rest geometry.
+
+    ``spine``: drive the spine chain when the rig has one that carries two girdles or more
+    (:attr:`RigInfo.spine_layout`); its bones are then read at rest, like the legs.
+    Bones that are not driven keep their current pose (:attr:`RigInfo.basis`), except those
+    named in ``at_rest``, which are taken at rest.
+    Raises :class:`RigError` for anything that cannot be animated (not an armature, bad
+    legs, legs with no common body bone, non-uniform scale).
+    """
+    rest = _rest_of(obj)
+    if legs is None:
+        legs = detect_legs(obj)
+    legs = list(legs)
+    if not legs:
+        raise RigError(f"'{obj.name}' has no enabled legs")
+    for leg in legs:
+        for b in (*leg.bones, *leg.foot):
+            if b not in rest.index:
+                raise RigError(f"Leg {leg.label}: '{obj.name}' has no bone '{b}'")
+    used = [b for leg in legs for b in leg.bones]
+    if len(set(used)) != len(used):
+        raise RigError("Two legs share a bone: each bone may belong to one leg only")
+    if any(not leg.label for leg in legs) or len({leg.label for leg in legs}) != len(legs):
+        legs = _label_legs(rest, [LegChain(leg.bones, leg.foot, leg.side) for leg in legs],
+                           _forward_axis(rest, legs, forward_axis))
+    forward = _forward_axis(rest, legs, forward_axis)
+    left = np.cross(_UP, forward)
+
+    hip_idx = [rest.index[leg.hip] for leg in legs]
+    body_idx = _common_ancestor(rest, hip_idx)
+    if body_idx is None:
+        raise RigError("The legs do not hang from one body: their hips have no common parent bone")
+    # A connected bone cannot be moved (its head is its parent's tail): the body motion goes
+    # to the first ancestor that can.
+    while obj.data.bones[rest.names[body_idx]].use_connect and rest.parent[body_idx] >= 0:
+        body_idx = int(rest.parent[body_idx])
+    mean_leg = float(np.mean([_length(_chain_points(rest, [rest.index[b] for b in leg.bones]))
+                              for leg in legs]))
+    chain = _spine_chain(rest, body_idx, hip_idx, forward, mean_leg)
+    carried = spine and _spine_layout(rest, chain, hip_idx, rest.head, rest.tail) is not None
+
+    basis = _current_basis(obj)
+    for name in at_rest:
+        if name in basis:
+            basis[name] = np.eye(4)
+    ik_targets = [_ik_target(obj, rest, leg) for leg in legs]
+    driven = {rest.index[b] for leg in legs for b in (*leg.bones, *leg.foot[:1])} | {body_idx}
+    if carried:
+        driven |= set(chain)
+    driven |= {rest.index[t[0]] for t in ik_targets if t is not None}
+    posed_local = _posed_rest(rest, basis, driven)
+    heads = _apply(rest.world, posed_local[:, :3, 3])
+    tails = _apply(rest.world, posed_local[:, :3, 3] + posed_local[:, :3, 1]
+                   * np.array([obj.data.bones[n].length for n in rest.names])[:, None])
+
+    joints = []
+    contact = []
+    foot_h = []
+    foot_ext = []
+    foot_pts = []
+    for leg in legs:
+        idx = [rest.index[b] for b in leg.bones]
+        pts = np.vstack([heads[idx], tails[idx[-1]][None]])
+        joints.append(pts)
+        below = [pts[-1]]
+        for f in leg.foot:
+            k = rest.index[f]
+            below += [heads[k], tails[k]]
+            below += [heads[c] for c in _descendants(rest, k)] + [tails[c] for c in _descendants(rest, k)]
+        below_a = np.array(below)
+        low = below_a[np.argmin(below_a[:, 2])]
+        contact.append(np.array([pts[-1, 0], pts[-1, 1], low[2]]))
+        foot_h.append(float(pts[-1, 2] - low[2]))
+        # How far the foot bones reach from the end-effector, along and across the body.
+        rel = below_a[:, :2] - pts[-1, :2]
+        foot_ext.append(np.array([np.abs(rel @ forward[:2]).max(), np.abs(rel @ left[:2]).max()]))
+        # Sole probes: the foot points reaching furthest from the end-effector (toe tips, heel).
+        probes = below_a[1:]
+        if probes.shape[0] > 6:
+            far = np.argsort(-np.linalg.norm(probes[:, :2] - pts[-1, :2], axis=1), kind="stable")[:6]
+            probes = probes[np.sort(far)]
+        foot_pts.append(probes)
+    origin = np.array([j[0] for j in joints]).mean(axis=0)
+    body = BodyInfo(origin, forward, left)
+    layout = _spine_layout(rest, chain, hip_idx, heads, tails) if carried else None
+
+    warnings = []
+    handled = {t[0] for t in ik_targets if t is not None}
+    for name in sorted(rest.names[i] for i in driven):
+        pb = obj.pose.bones[name]
+        bad = [c.type for c in pb.constraints
+               if c.enabled and c.influence > 0.0 and c.type in _OVERRIDING_CONSTRAINTS
+               and not (c.type == "IK" and c.target == obj and c.subtarget in handled)]
+        if bad:
+            warnings.append(f"bone '{name}' has {', '.join(sorted(set(bad)))} constraints that override the "
+                            "generated keys")
+
+    return RigInfo(
+        object_name=obj.name,
+        legs=tuple(legs),
+        body_bone=rest.names[body_idx],
+        spine=tuple(rest.names[i] for i in chain),
+        body=body,
+        joints=tuple(joints),
+        contact=np.array(contact),
+        foot_height=np.array(foot_h),
+        foot_extent=np.array(foot_ext),
+        foot_points=tuple(foot_pts),
+        ik_targets=tuple(ik_targets),
+        world=rest.world,
+        scale=rest.scale,
+        rest_local={n: rest.local[i] for i, n in enumerate(rest.names)},
+        parents={n: (rest.names[int(rest.parent[i])] if rest.parent[i] >= 0 else None)
+                 for i, n in enumerate(rest.names)},
+        basis=basis,
+        warnings=tuple(warnings),
+        spine_layout=layout,
+    )
+
+
+def _ik_target(obj: bpy.types.Object, rest: _Rest, leg: LegChain) -> tuple[str, int] | None:
+    """The bone an enabled IK constraint on ``leg`` pulls the chain to, and the index of the
+    joint it pulls (the constrained bone's tail, or its head with "Use Tail" off)."""
+    chain = set(leg.bones)
+    for k, name in enumerate(leg.bones):
+        for c in obj.pose.bones[name].constraints:
+            if c.type != "IK" or not c.enabled or c.influence <= 0.0 or c.target != obj:
+                continue
+            target = c.subtarget
+            if target not in rest.index or target in chain:
+                continue
+            # A target that moves with the chain itself would be a dependency cycle.
+            if any(rest.names[a] in chain for a in rest.ancestors(rest.index[target])):
+                continue
+            return target, (k + 1 if c.use_tail else k)
+    return None
+
+
+def _current_basis(obj: bpy.types.Object) -> dict[str, np.ndarray]:
+    pose = obj.pose
+    n = len(pose.bones)
+    buf = np.empty(n * 16, dtype=np.float32)
+    pose.bones.foreach_get("matrix_basis", buf)
+    mats = buf.reshape(n, 4, 4).transpose(0, 2, 1).astype(np.float64)
+    return {pb.name: mats[i] for i, pb in enumerate(pose.bones)}
+
+
+def _posed_rest(rest: _Rest, basis: dict[str, np.ndarray], driven: set[int]) -> np.ndarray:
+    """Armature-space matrices of every bone with driven bones at rest and the others as
+    currently posed (their pose persists under the generated Action). ``(B, 4, 4)``."""
+    n = len(rest.names)
+    out = np.empty((n, 4, 4))
+    done = np.zeros(n, dtype=bool)
+
+    def solve(i: int) -> np.ndarray:
+        if done[i]:
+            return out[i]
+        b = np.eye(4) if i in driven else basis[rest.names[i]]
+        p = int(rest.parent[i])
+        if p < 0:
+            out[i] = rest.local[i] @ b
+        else:
+            out[i] = solve(p) @ np.linalg.inv(rest.local[p]) @ rest.local[i] @ b
+        done[i] = True
+        return out[i]
+
+    for i in range(n):
+        solve(i)
+    return out
