@@ -6,17 +6,17 @@ they know where bones should be (armature-space pose matrices of *solved* bones,
 frame) and must key channels so that Blender's evaluated rig puts them there. This module
 does it, for plain rigs and for control rigs:
 
-- **Free solved bones** (:attr:`.controls.ControlPlan.direct`, a plain FK rig's bones) get the
+- **Free solved bones** (:attr:`.rig.controls.ControlPlan.direct`, a plain FK rig's bones) get the
   ``matrix_basis`` that puts them at their target under their parent's target pose
   (:func:`basis_from_armature`), exactly, without evaluating the rig.
-- **Controls** (:attr:`.controls.ControlPlan.controls`) are solved *through* Blender: the rig
+- **Controls** (:attr:`.rig.controls.ControlPlan.controls`) are solved *through* Blender: the rig
   is evaluated at every frame, each control is moved by the error of the solved bone it drives
   (``RIGID``: rigidly with it; ``IK``: turned like the foot, moved by the end-effector's error;
   ``POLE``: put on the knee's side of the leg's plane), keyed, and the rig is evaluated again,
   until the solved bones are within 0.1 mm of their targets (a few passes; a pass costs one
   depsgraph evaluation per frame). Whatever lies between the control and the deform bones
   (IK with stretch, foot-roll mechanisms, parent switches) is Blender's own.
-- **Switches** (:class:`.controls.Switch`) are keyed at their chosen value.
+- **Switches** (:class:`.rig.controls.Switch`) are keyed at their chosen value.
 
 The targets are given for the object's world matrix at the first frame (``world0``); when the
 object moves (an animated parent, object keys, constraints), each frame's target is carried
@@ -35,7 +35,7 @@ import bpy
 import numpy as np
 
 from . import actions
-from .controls import ControlKey, ControlPlan, Switch
+from .rig.controls import ControlKey, ControlPlan, Switch
 
 __all__ = [
     "PoseRequest",

@@ -27,7 +27,8 @@ import numpy as np
 
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
-from .. import actions, controls, pose_writer, rig, scene_terrain
+from .. import actions, pose_writer, rig, scene_terrain
+from ..rig import controls
 from . import property_group
 
 __all__ = [
