@@ -163,36 +163,32 @@ def _depth(parents: dict[str, str | None], name: str) -> int:
     return d
 
 
-def _current_pose(req: PoseRequest, name: str, cache: dict[str, np.ndarray]) -> np.ndarray:
-    """Armature-space matrix ``(4, 4)`` of a bone that is not solved, as currently posed."""
-    if name not in cache:
-        parent = req.parents[name]
-        rest = req.rest_local[name]
-        if parent is None:
-            cache[name] = rest @ req.basis[name]
-        else:
-            cache[name] = (_current_pose(req, parent, cache) @ np.linalg.inv(req.rest_local[parent]) @ rest
-                           @ req.basis[name])
-    return cache[name]
-
-
 def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """``matrix_basis`` ``(F, n, 4, 4)`` that puts free bones ``names`` (of ``req.bones``) at
-    ``armature`` ``(F, B, 4, 4)``, each under its parent's target (or current) pose."""
+    ``armature`` ``(F, B, 4, 4)``, each under its parent's pose: the parent's target when it
+    is solved, else its current pose under its own (possibly solved) parents."""
     index = {b: i for i, b in enumerate(req.bones)}
+    n_frames = armature.shape[0]
     cache: dict[str, np.ndarray] = {}
-    out = np.empty((armature.shape[0], len(names), 4, 4))
+
+    def pose(name: str) -> np.ndarray:
+        if name in index:
+            return armature[:, index[name]]
+        if name not in cache:
+            parent = req.parents[name]
+            rest = req.rest_local[name]
+            above = np.eye(4)[None] if parent is None else pose(parent) @ np.linalg.inv(req.rest_local[parent])
+            cache[name] = np.broadcast_to(above @ (rest @ req.basis[name])[None], (n_frames, 4, 4))
+        return cache[name]
+
+    out = np.empty((n_frames, len(names), 4, 4))
     for j, name in enumerate(names):
         parent = req.parents[name]
         rest = req.rest_local[name]
         if parent is None:
-            base = np.broadcast_to(rest, (armature.shape[0], 4, 4))
+            base = np.broadcast_to(rest, (n_frames, 4, 4))
         else:
-            rel = np.linalg.inv(req.rest_local[parent]) @ rest
-            if parent in index:
-                base = armature[:, index[parent]] @ rel
-            else:
-                base = _current_pose(req, parent, cache)[None] @ rel
+            base = pose(parent) @ (np.linalg.inv(req.rest_local[parent]) @ rest)[None]
         out[:, j] = np.linalg.inv(base) @ armature[:, index[name]]
     return out
 
@@ -209,15 +205,17 @@ def _quat_matrix(q: np.ndarray) -> np.ndarray:
 
 def armature_from_basis(
     bones: Sequence[str], rotations: np.ndarray, locations: np.ndarray, rest_local: dict[str, np.ndarray],
-    parents: dict[str, str | None], basis: dict[str, np.ndarray],
+    parents: dict[str, str | None], basis: dict[str, np.ndarray], keyed_location: np.ndarray,
 ) -> np.ndarray:
     """Armature-space pose ``(F, B, 4, 4)`` of ``bones`` given their ``matrix_basis`` as
-    rotations ``(F, B, 4)`` and locations ``(F, B, 3)``; other bones keep ``basis``."""
+    rotations ``(F, B, 4)`` and locations ``(F, B, 3)`` (used where ``keyed_location`` ``(B,)``,
+    elsewhere the bone keeps its current location); other bones keep ``basis``."""
     index = {b: i for i, b in enumerate(bones)}
     n_frames = rotations.shape[0]
     own = np.tile(np.eye(4), (n_frames, len(bones), 1, 1))
     own[..., :3, :3] = _quat_matrix(rotations)
-    own[..., :3, 3] = locations
+    current = np.array([basis[b][:3, 3] for b in bones]).reshape(len(bones), 3)
+    own[..., :3, 3] = np.where(np.asarray(keyed_location, dtype=bool)[None, :, None], locations, current[None])
     cache: dict[str, np.ndarray] = {}
 
     def pose(name: str) -> np.ndarray:
