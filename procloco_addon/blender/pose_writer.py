@@ -177,7 +177,10 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
         if name not in cache:
             parent = req.parents[name]
             rest = req.rest_local[name]
-            above = np.eye(4)[None] if parent is None else pose(parent) @ np.linalg.inv(req.rest_local[parent])
+            if parent is None:
+                above: np.ndarray = np.eye(4)[None]
+            else:
+                above = pose(parent) @ np.linalg.inv(req.rest_local[parent])
             cache[name] = np.broadcast_to(above @ (rest @ req.basis[name])[None], (n_frames, 4, 4))
         return cache[name]
 
@@ -215,7 +218,8 @@ def armature_from_basis(
     own = np.tile(np.eye(4), (n_frames, len(bones), 1, 1))
     own[..., :3, :3] = _quat_matrix(rotations)
     current = np.array([basis[b][:3, 3] for b in bones]).reshape(len(bones), 3)
-    own[..., :3, 3] = np.where(np.asarray(keyed_location, dtype=bool)[None, :, None], locations, current[None])
+    keyed = np.asarray(keyed_location, dtype=bool)[None, :, None]
+    own[..., :3, 3] = np.where(keyed, locations, current[None])
     cache: dict[str, np.ndarray] = {}
 
     def pose(name: str) -> np.ndarray:

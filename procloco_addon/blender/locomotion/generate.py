@@ -105,6 +105,7 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     """
     settings = obj.procloco
     legs = rig.detect_legs(obj)
+    keyed = leg_controls(obj, legs)
     labels = [leg.label for leg in legs]
     old = {item.label or item.name: (item.swing_start, item.swing_duration, tuple(item.offset), item.enabled)
            for item in settings.legs}
@@ -116,6 +117,7 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         item.label = leg.label
         item.hip = leg.hip
         item.end = leg.end
+        item.controls = keyed[k]
         if leg.label in old:
             start, duration, offset, enabled = old[leg.label]
             item.swing_start, item.swing_duration = start, duration
@@ -127,6 +129,17 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         settings.cycle_time = float(gait.cycle_time)
     settings.active_leg_index = min(settings.active_leg_index, len(legs) - 1)
     return legs
+
+
+def leg_controls(obj: bpy.types.Object, legs: Sequence[rig.LegChain]) -> list[str]:
+    """Per leg, the controls Generate Locomotion will key for it on a control rig
+    (``"IK foot_ik.L, pole thigh_ik_target.L"``), ``""`` when it keys the leg's own bones."""
+    try:
+        info = rig.read_rig(obj, legs, obj.procloco.forward_axis)
+    except rig.RigError:
+        return [""] * len(legs)
+    plan, _warnings = plan_keys(obj, info)
+    return [controls.describe_leg(lc) for lc in plan.legs]
 
 
 def _gait_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings: bool) -> core_gait.Gait:

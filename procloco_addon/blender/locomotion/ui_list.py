@@ -25,6 +25,8 @@ class PROCLOCO_UL_legs(bpy.types.UIList):
             sub.label(text=item.label or item.name, icon="BONE_DATA")
             chain = f"{item.hip} > {item.end}" if item.hip or item.end else "choose bones"
             sub.label(text=chain)
+            if item.controls:
+                sub.label(text=item.controls, icon="CON_KINEMATIC")
         else:
             layout.alignment = "CENTER"
             layout.label(text=item.label or item.name)

@@ -48,6 +48,7 @@ __all__ = [
     "ControlPlan",
     "LegControls",
     "Switch",
+    "describe_leg",
     "is_mechanism_name",
     "plan_controls",
 ]
@@ -528,6 +529,17 @@ def _nearest_solved(graph: ConstraintGraph, control: str, solved: Sequence[str])
         if d is not None and d < best_d:
             best, best_d = b, d
     return best
+
+
+def describe_leg(leg: LegControls) -> str:
+    """What is keyed for a leg, for the user: ``"IK foot_ik.L, pole thigh_ik_target.L"``."""
+    parts = []
+    if leg.ik:
+        parts.append(f"IK {leg.ik}")
+    if leg.pole:
+        parts.append(f"pole {leg.pole}")
+    parts.extend(f"{s.prop} = {s.value:g} on {s.bone}" for s in leg.switches)
+    return ", ".join(parts)
 
 
 def driver_warnings(obj: bpy.types.Object, keyed: Iterable[str]) -> list[str]:
