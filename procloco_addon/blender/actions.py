@@ -34,6 +34,7 @@ quaternions are ``(..., 4)`` in Blender's ``(w, x, y, z)`` order.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -57,6 +58,7 @@ __all__ = [
     "push_to_nla",
     "quaternion_to_euler",
     "read_channel",
+    "remember_pose",
     "restore_previous_action",
     "rotation_channels",
     "write_channels",
@@ -70,6 +72,9 @@ GENERATED_TAG = "_procloco_generated"
 _PREV_ACTION = "_procloco_prev_action"
 _PREV_SLOT = "_procloco_prev_slot"
 _HAS_PREV = "_procloco_has_prev"
+# On a generated Action: the pose channels and custom properties it animates, as they were
+# before the first generation (JSON), put back by Clear Generated Action.
+_RESTORE = "_procloco_restore"
 
 _OBJECT_GROUP = "Object Transforms"
 _EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
@@ -253,13 +258,62 @@ def restore_previous_action(obj: bpy.types.Object) -> bool:
     return True
 
 
+def remember_pose(action: bpy.types.Action, obj: bpy.types.Object, bones: Sequence[str],
+                  props: Sequence[tuple[str, str]] = ()) -> None:
+    """Store on ``action`` the current transform channels of pose ``bones`` and the custom
+    properties ``props`` (``(bone, name)``) of ``obj``, for :func:`clear_generated_action`.
+
+    When the object's current Action is a generated one that remembers the pose before it,
+    that older memory wins for the channels it holds (Clear goes back to the user's pose).
+    """
+    current = generated_action(obj)
+    data: dict[str, Any] = {"bones": {}, "props": {}}
+    if current is not None and _RESTORE in current:
+        data = json.loads(str(current[_RESTORE]))
+    pbones = obj.pose.bones
+    for name in bones:
+        pb = pbones.get(name)
+        if pb is None or name in data["bones"]:
+            continue
+        data["bones"][name] = {prop: list(getattr(pb, prop)) for prop in (
+            "location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle", "scale")}
+    for bone, prop in props:
+        key = json.dumps([bone, prop])
+        pb = pbones.get(bone)
+        if pb is not None and prop in pb and key not in data["props"]:
+            value = pb[prop]
+            if isinstance(value, (bool, int, float)):
+                data["props"][key] = [type(value).__name__, float(value)]
+    action[_RESTORE] = json.dumps(data)
+
+
+def _restore_pose(obj: bpy.types.Object, action: bpy.types.Action) -> None:
+    if _RESTORE not in action:
+        return
+    data = json.loads(str(action[_RESTORE]))
+    pbones = obj.pose.bones
+    for name, channels in data.get("bones", {}).items():
+        pb = pbones.get(name)
+        if pb is not None:
+            for prop, value in channels.items():
+                setattr(pb, prop, value)
+    kinds = {"bool": bool, "int": int, "float": float}
+    for key, (kind, value) in data.get("props", {}).items():
+        bone, prop = json.loads(key)
+        pb = pbones.get(bone)
+        if pb is not None and prop in pb:
+            pb[prop] = kinds.get(kind, float)(value)
+
+
 def clear_generated_action(obj: bpy.types.Object) -> bool:
     """Unassign the object's generated Action, restore the previous one and delete the generated
-    Action when nothing else uses it. Returns False (and changes nothing) when the object's
-    active Action is not a generated one."""
+    Action when nothing else uses it; channels the generated Action animated get back the values
+    they had before it (:func:`remember_pose`). Returns False (and changes nothing) when the
+    object's active Action is not a generated one."""
     action = generated_action(obj)
     if action is None:
         return False
+    _restore_pose(obj, action)
     if not restore_previous_action(obj):
         assign_action(obj, None)
     if action.users == 0 and not action.use_fake_user:

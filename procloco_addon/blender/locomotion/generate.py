@@ -476,6 +476,8 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
             rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
             actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
+        keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
+        actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
         report = pose_writer.write_pose(action, obj, request, plan, check=job.check_after)
     except Exception:
         _undo_assign(obj, action, before, remembered)
