@@ -75,6 +75,12 @@ class PoseRequest:
     parents: dict[str, str | None]
     basis: dict[str, np.ndarray]
     legs: tuple[tuple[str, ...], ...] = ()
+    # The targets are already in each frame's armature space (sampled from the evaluated rig):
+    # they are not carried along a moving object.
+    per_frame: bool = False
+    # Armature-space poses ``(F, 4, 4)`` of bones that are not solved but that solved bones
+    # hang from, as sampled (an animated body); others are taken as currently posed.
+    parent_pose: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 @dataclass
@@ -174,6 +180,8 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
     def pose(name: str) -> np.ndarray:
         if name in index:
             return armature[:, index[name]]
+        if name in req.parent_pose:
+            return np.broadcast_to(req.parent_pose[name], (n_frames, 4, 4))
         if name not in cache:
             parent = req.parents[name]
             rest = req.rest_local[name]
@@ -301,31 +309,32 @@ def _joints(mats: np.ndarray, lengths: np.ndarray) -> np.ndarray:
 
 def write_pose(
     action: bpy.types.Action, obj: bpy.types.Object, req: PoseRequest, plan: ControlPlan,
-    *, assign: bool = True, check: bool = False,
+    *, assign: bool = True, replace: bool = False, check: bool = False,
 ) -> WriteReport:
     """Key ``req`` on ``obj`` into ``action`` following ``plan`` (see the module doc).
 
-    With controls to solve, ``action`` is assigned to the object (``assign``, through
-    :func:`.actions.assign_generated_action`) before the passes that evaluate it.
+    ``action`` is assigned to the object (``assign``, through
+    :func:`.actions.assign_generated_action` with ``replace``) before the passes that evaluate
+    it. ``check``: with no controls, still evaluate the rig once and report how far each leg's
+    end-effector landed from its target (drivers and limits can pull it off).
     """
     report = WriteReport()
     frames = np.asarray(req.frames, dtype=np.float64)
     armature = np.asarray(req.armature, dtype=np.float64)
-    if object_moves(obj):
+    if not req.per_frame and object_moves(obj):
         worlds = object_worlds(obj, req.frames)
         # The plan is in the world: carry it into each frame's armature space.
         armature = (np.linalg.inv(worlds) @ req.world0[None])[:, None] @ armature
     index = {b: i for i, b in enumerate(req.bones)}
-    control_bones = {c.bone for c in plan.controls}
-    direct = [b for b in req.bones if b in plan.direct or b in control_bones]
-    controls = [c for c in plan.controls if c.bone not in index]
+    direct = [b for b in req.bones if b in plan.direct]
+    controls = list(plan.controls)
     if direct:
         basis = basis_from_armature(req, armature, direct)
         _key(action, obj, frames, direct, basis, [bool(req.keyed_location[index[b]]) for b in direct])
     _key_switches(action, obj, frames, plan.switches)
     report.keyed = [*direct, *(c.bone for c in controls)]
     if assign:
-        actions.assign_generated_action(obj, action)
+        actions.assign_generated_action(obj, action, replace=replace)
     if controls:
         _solve_controls(action, obj, frames, armature, req, controls, report, index)
     elif check and req.legs:

@@ -16,6 +16,7 @@ The work for one rig is a :class:`Job` in three stages:
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -417,6 +418,13 @@ def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.Contro
     others = [b for b in info.spine if b != info.body_bone] if info.spine_layout is not None else []
     plan = controls.plan_controls(obj, [(leg.bones, leg.foot) for leg in info.legs], info.body_bone, others)
     ik_bones = {t[0] for t in info.ik_targets if t is not None}
+    # Controls that read_rig already solves (an IK target beside a plain rig's foot) are
+    # keyed from that exact solution.
+    solved_too = [c for c in plan.controls if c.bone in info.driven_bones]
+    if solved_too:
+        plan = dataclasses.replace(
+            plan, direct=(*plan.direct, *(c.bone for c in solved_too)),
+            controls=tuple(c for c in plan.controls if c not in solved_too))
     handled = set(info.driven_bones) - set(plan.uncovered)
     # read_rig's warnings name bones whose constraints override their keys: on a control rig
     # those bones are reached through their controls and are not keyed.
