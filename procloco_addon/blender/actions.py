@@ -50,6 +50,7 @@ __all__ = [
     "assign_generated_action",
     "channels_of",
     "clear_generated_action",
+    "forget_previous",
     "generated_action",
     "is_generated",
     "is_slotted",
@@ -239,7 +240,8 @@ def previous_action(obj: bpy.types.Object) -> tuple[bool, bpy.types.Action | Non
     return True, prev if isinstance(prev, bpy.types.Action) else None
 
 
-def _forget_previous(obj: bpy.types.Object) -> None:
+def forget_previous(obj: bpy.types.Object) -> None:
+    """Forget the Action remembered as the object's previous one (nothing else changes)."""
     for key in (_HAS_PREV, _PREV_ACTION, _PREV_SLOT):
         if key in obj:
             del obj[key]
@@ -254,7 +256,7 @@ def restore_previous_action(obj: bpy.types.Object) -> bool:
     if not remembered:
         return False
     assign_action(obj, prev, slot_identifier=str(obj.get(_PREV_SLOT, "")))
-    _forget_previous(obj)
+    forget_previous(obj)
     return True
 
 

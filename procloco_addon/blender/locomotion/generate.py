@@ -507,7 +507,7 @@ def _undo_assign(obj: bpy.types.Object, action: bpy.types.Action, before: bpy.ty
     if adt is not None and adt.action == action:
         actions.assign_action(obj, before)
         if not remembered:
-            actions._forget_previous(obj)
+            actions.forget_previous(obj)
     bpy.data.actions.remove(action)
 
 
