@@ -7,10 +7,10 @@ exit status. Commands::
     procloco info
         list the armatures of the scene, the legs ProcLoco finds on each and the chains
         it would swing (tails, antennae, ears)
-    procloco generate --rig NAME [--rig NAME ...] | --all
+    procloco generate --rig NAME [--rig NAME ...] | --rigs A,B,... | --all
                       [--frames START END] [--speed M_PER_S] [--heading DEG] [--step-height M]
                       [--seed N] [--spine | --no-spine] [--visual-yaw | --no-visual-yaw]
-                      [--bake-secondary] [OUTPUT OPTIONS]
+                      [--bake-secondary | --no-bake-secondary] [OUTPUT OPTIONS]
         generate locomotion for the rigs (settings saved on each rig, overridden by the
         options given); with --bake-secondary, then bake secondary motion on every rig
         that has (or is suggested) pendulum chains
@@ -23,7 +23,10 @@ exit status. Commands::
     OUTPUT OPTIONS: [--render DIR] [--frame-step N] [--resolution W H] [--contact-sheet PNG]
                     [--save BLEND]
         render Workbench PNG frames of the rigs' frame range into DIR, tile them into a
-        contact sheet and save the .blend
+        contact sheet and save the .blend (a new file: the opened one is left as it was)
+    procloco render --frames A-B [--output PATH] [--format FORMAT]
+        render a chunk of frames (1-10, 1..10, 7) of the open file with the scene's engine
+        and output settings, as render farms do (see render_chunk.py)
 
 Progress lines go to stdout (``ProcLoco: ...``); errors to stderr with a non-zero status
 (1: the work failed, 2: bad command line).
@@ -41,7 +44,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from . import actions, rig
+from . import actions, render_chunk, rig
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
 from .secondary import bake
@@ -71,6 +74,8 @@ def _parser() -> argparse.ArgumentParser:
     rigs.add_argument("--rig", action="append", default=[], metavar="NAME",
                       help="armature to animate (repeatable)")
     rigs.add_argument("--all", action="store_true", help="every armature of the scene")
+    rigs.add_argument("--rigs", metavar="A,B,...",
+                      help="armatures as one comma-separated list, '*' for all (for job templates)")
     rigs.add_argument("--frames", nargs=2, type=int, metavar=("START", "END"), help="frame range")
     output = _Parser(add_help=False)
     output.add_argument("--render", metavar="DIR", help="render Workbench PNG frames into DIR")
@@ -90,10 +95,11 @@ def _parser() -> argparse.ArgumentParser:
                      help="flexible spine on or off (Effects > Flexible Spine)")
     gen.add_argument("--visual-yaw", action=argparse.BooleanOptionalAction, default=None,
                      help="the body sways with the feet, lizard-like (Effects > Visual Yaw)")
-    gen.add_argument("--bake-secondary", action="store_true",
+    gen.add_argument("--bake-secondary", action=argparse.BooleanOptionalAction, default=False,
                      help="then bake secondary motion on the rigs that have (or are suggested) chains")
     sub.add_parser("bake-secondary", parents=[rigs, output],
                    help="bake secondary motion (tails, antennae, ears) on the rigs' current animation")
+    render_chunk.add_parser(sub)
     return parser
 
 
@@ -155,10 +161,14 @@ def _set_frames(obj: Any, args: argparse.Namespace) -> None:
 def _rigs_of(args: argparse.Namespace, what: str) -> list[Any]:
     scene = bpy.context.scene
     arms = {o.name: o for o in scene.objects if o.type == "ARMATURE"}
-    names = sorted(arms) if args.all else list(args.rig)
+    listed = [n.strip() for n in (args.rigs or "").split(",") if n.strip()]
+    if listed == ["*"]:
+        args.all = True  # the same as --all everywhere (bake-secondary then skips rigs without chains)
+        listed = []
+    names = sorted(arms) if args.all else [*args.rig, *listed]
     if not names:
         known = f"; armatures: {', '.join(sorted(arms))}" if arms else "; the scene has no armature"
-        raise CliError(f"say which rigs to {what}: --rig NAME (repeatable) or --all" + known)
+        raise CliError(f"say which rigs to {what}: --rig NAME (repeatable), --rigs A,B or --all" + known)
     missing = [n for n in names if n not in arms]
     if missing:
         raise CliError(f"no armature named {', '.join(repr(n) for n in missing)} in scene '{scene.name}'"
@@ -242,6 +252,7 @@ def _outputs(objs: Sequence[Any], args: argparse.Namespace) -> None:
         raise CliError("--contact-sheet needs --render DIR")
     if args.save:
         path = str(Path(args.save).resolve())
+        Path(path).parent.mkdir(parents=True, exist_ok=True)  # a farm's output folder may be new
         bpy.ops.wm.save_as_mainfile(filepath=path, copy=False)
         _say(f"saved {path}")
 
@@ -298,6 +309,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_info(args)
         if args.command == "bake-secondary":
             return _cmd_bake_secondary(args)
+        if args.command == "render":
+            return render_chunk.run(args)  # its RenderError is a RuntimeError: status 1
         return _cmd_generate(args)
     except (CliError, OSError, RuntimeError) as err:
         print(f"{COMMAND}: error: {err}", file=sys.stderr, flush=True)

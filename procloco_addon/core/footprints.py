@@ -39,7 +39,11 @@ plan is a :class:`Couple` with ``ok=False`` and a ``message``.
 
 **Many feet at once.** :func:`plan_footsteps` takes a list of :class:`FootRequest` (the
 arguments of :func:`plan_footstep`; any characters, windows and settings) and returns, for
-each, exactly the :class:`Couple` that :func:`plan_footstep` returns (bit for bit). A crowd
+each, the :class:`Couple` that :func:`plan_footstep` returns: the same decisions (success,
+footprint cell and target, slice, every count) and the same numbers, computed with the same
+element-wise arithmetic (no BLAS call whose kernel depends on the CPU, see :mod:`.geometry`);
+floats are guaranteed equal only to a few ulps, since numpy may group a reduction differently
+for arrays of another length or alignment. A crowd
 step's feet are planned together: the search boxes of all feet are stacked into ``(n, H, W)``
 arrays (each foot's box at the top-left of its slice, blocked past its own size), and every
 step of the search that does not depend on the others runs once for all of them: the other
@@ -63,6 +67,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import planar_length
 from .pathing import (
     DistanceField,
     FootTrajectory,
@@ -77,6 +82,7 @@ from .pathing import (
     region_masks,
     search_region,
     segments_clear_each,
+    straightness_score,
     turning_each,
     vertical_factor,
     wavefront_each,
@@ -303,7 +309,8 @@ def score_candidates(
     elev = ctx.elevation
     ok = reg.mask[r, c] & ~forbidden[r, c] & (elev[r, c] > _VOID_BELOW)
     xy = grids.xy_of(cells[:, 0] + reg.r0 + sub[0], cells[:, 1] + reg.c0 + sub[1])
-    ok &= np.linalg.norm(xy - hip_xy, axis=1) <= params.leg_reach + 1e-9
+    to_hip = xy - hip_xy
+    ok &= planar_length(to_hip[:, 0], to_hip[:, 1]) <= params.leg_reach + 1e-9
     # Landing height: the highest surface under the foot box at its exact offset.
     half = np.asarray(params.foot_half_extents, dtype=np.float64)
     land_kernel = _offset_kernel(cell, float(half[0]), float(half[1]), float(foot_yaw),
@@ -336,7 +343,8 @@ def score_candidates(
     ne = pad_elev[nr, nc]  # (k, 8)
     free = np.count_nonzero(~pad_forb[nr, nc] & (np.abs(ne - here) <= params.edge_height), axis=1)
     rim = np.any(here - ne > params.edge_height, axis=1)
-    distance = np.clip(1.0 - np.linalg.norm(xy - preferred_xy, axis=1) / params.fixed_distance, 0.0, 1.0)
+    to_pref = xy - preferred_xy
+    distance = np.clip(1.0 - planar_length(to_pref[:, 0], to_pref[:, 1]) / params.fixed_distance, 0.0, 1.0)
     free_score = free / 8.0
     edge = np.where(rim, params.edge_score, 1.0)
     crossing = np.where(legs_cross(hip_xy, xy, other_hips_xy, other_feet_xy), 0.0, 1.0)
@@ -940,7 +948,7 @@ def _straight_plans(
     w1y = org[:, 1] + (end_rc[:, 0] + r0) * cl
     dx = w1x - w0x
     dy = w1y - w0y
-    length = np.sqrt(dx * dx + dy * dy)
+    length = planar_length(dx, dy)
     moving = length > 1e-9
     spacing = PathParams().sample_spacing * cl
     counts = np.where(moving, np.maximum(2, np.ceil(length / spacing).astype(np.intp) + 1), 1)
@@ -975,8 +983,7 @@ def _straight_plans(
         a, b = bl[j], bl[j + 1]
         ddx = float(sx[b - 1] - sx[a])
         ddy = float(sy[b - 1] - sy[a])
-        direct = math.sqrt(ddx * ddx + ddy * ddy)
-        s2.append(min(1.0, direct / lens[j]) / (1.0 + turning[j] / (2.0 * math.pi)))
+        s2.append(straightness_score(planar_length(ddx, ddy), lens[j], turning[j]))
     way = np.stack([np.column_stack([w0x, w0y]), np.column_stack([w1x, w1y])], axis=1)
     return status, s2, samples, arc, length, bl, rows, cols, way
 
@@ -1247,7 +1254,7 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     dx = x - hip[b, 0]
     dy = y - hip[b, 1]
     reach = np.array([p.params.leg_reach + 1e-9 for p in plans])
-    ok &= np.sqrt(dx * dx + dy * dy) <= reach[b]
+    ok &= planar_length(dx, dy) <= reach[b]
     # Landing height: the highest surface under the foot box at its exact offset.
     land_off, land_in = _offset_kernels(plans, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
@@ -1290,7 +1297,7 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     fixed = np.array([p.params.fixed_distance for p in plans])
     ex = x - pref[b, 0]
     ey = y - pref[b, 1]
-    distance = np.clip(1.0 - np.sqrt(ex * ex + ey * ey) / fixed[b], 0.0, 1.0)
+    distance = np.clip(1.0 - planar_length(ex, ey) / fixed[b], 0.0, 1.0)
     free_score = free / 8.0
     edge = np.where(rim, np.array([p.params.edge_score for p in plans])[b], 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.

@@ -38,7 +38,9 @@ sampled at constant speed by fractions of its arc length. :func:`trajectory_vali
 controller whether a running swing is still clear after obstacles moved (thesis §3.2.1).
 
 For planning many feet at once (:func:`~.footprints.plan_footsteps`) the steps also come
-batched, each giving exactly what the one-at-a-time function gives: :func:`region_masks`
+batched, each making the same decisions as the one-at-a-time function (cells, masks, counts)
+with the same element-wise arithmetic, so its floats equal the single function's to a few ulps
+(numpy may group a reduction differently for arrays of another length): :func:`region_masks`
 (search rectangles), :func:`wavefront_each` (distance fields of many grids, sweep for sweep),
 :func:`segments_clear_each` (line of sight, each segment on its own grid),
 :func:`turning_each` and :func:`lift_each` (3D trajectories of many 2D plans).
@@ -56,6 +58,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import planar_length
 from .hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .hull import upper_hull
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
@@ -669,7 +672,7 @@ def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
     ``(M, 2)``, polyline ``i`` being rows ``bounds[i]:bounds[i + 1]`` (same arithmetic)."""
     n = len(bounds) - 1
     d = np.diff(samples, axis=0)
-    length = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+    length = planar_length(d[:, 0], d[:, 1])
     owner = np.repeat(np.arange(n), np.diff(bounds))
     keep = (length > 1e-9) & (owner[:-1] == owner[1:])
     idx = np.flatnonzero(keep)
@@ -690,7 +693,7 @@ def lift_each(
     min_gap: list[float], waypoints_2d: list[FloatArray],
 ) -> list[FootTrajectory]:
     """:meth:`PathContext.lift` of many 2D plans at once (same arithmetic, so the same
-    trajectories): plan ``i`` has the samples ``samples[bounds[i]:bounds[i + 1]]`` ``(m, 2)``
+    trajectories to a few ulps): plan ``i`` has the samples ``samples[bounds[i]:bounds[i + 1]]`` ``(m, 2)``
     at strictly increasing arc lengths ``arc``, ``ground`` under them (what the swinging foot
     must clear), its 2D ``length`` (> 0) and ``waypoints_2d``; ``ramp`` is already capped at
     half the length."""
@@ -1023,7 +1026,8 @@ class PathContext:
         tension = self.params.tension
         for attempt in range(3):
             if waypoints.shape[0] == 2:  # a straight segment, whatever the tension
-                length = float(np.linalg.norm(waypoints[1] - waypoints[0]))
+                chord = waypoints[1] - waypoints[0]
+                length = planar_length(float(chord[0]), float(chord[1]))
                 arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
                 samples = waypoints[0] + (waypoints[1] - waypoints[0]) * (arc / length)[:, None]
             else:
@@ -1104,8 +1108,7 @@ def clearance_elevation(grids: WindowGrids, above: float) -> FloatArray:
 def _turning(samples: FloatArray) -> float:
     """Total absolute heading change along a 2D polyline, in radians."""
     d = np.diff(samples, axis=0)
-    n = np.linalg.norm(d, axis=1)
-    d = d[n > 1e-9]
+    d = d[planar_length(d[:, 0], d[:, 1]) > 1e-9]
     if d.shape[0] < 2:
         return 0.0
     ang = np.arctan2(d[:, 1], d[:, 0])
@@ -1136,9 +1139,14 @@ def path_score_2d(path: Path2D) -> float:
     ``1 / (1 + turning / 2π)``. 1 for a straight line."""
     if path.length <= 1e-9:
         return 1.0
-    direct = float(np.linalg.norm(path.samples[-1] - path.samples[0]))
-    straight = min(1.0, direct / path.length)
-    return straight / (1.0 + path.turning / (2.0 * math.pi))
+    chord = path.samples[-1] - path.samples[0]
+    return straightness_score(planar_length(float(chord[0]), float(chord[1])), path.length, path.turning)
+
+
+def straightness_score(direct: float, length: float, turning: float) -> float:
+    """:func:`path_score_2d` from a plan's ``direct`` distance, curve ``length`` (> 0) and total
+    ``turning`` (radians); the batched planner scores its straight plans through it too."""
+    return min(1.0, direct / length) / (1.0 + turning / (2.0 * math.pi))
 
 
 def vertical_factor(traj: FootTrajectory, step_height: float) -> float:

@@ -135,12 +135,16 @@ def _speed_in_segment(
 def _distance_in_segment(
     segment: IntArray, t0: FloatArray, t1: FloatArray, half_wave: FloatArray, vmax: FloatArray | float
 ) -> FloatArray:
-    """Exact integral of the speed over ``[t0, t1]`` inside one segment."""
+    """Exact integral of the speed over ``[t0, t1]`` inside one segment.
+
+    The speed is never negative, so neither is its integral: near the start of a rise (and the
+    end of a fall) ``span - sin_diff`` cancels to a few ulps of ``span`` and may round just
+    below zero; it is clamped at 0, which is within rounding of the exact value."""
     k = np.pi / half_wave
     sin_diff = (np.sin(k * t1) - np.sin(k * t0)) / k
     span = t1 - t0
-    rise = 0.5 * vmax * (span - sin_diff)
-    fall = 0.5 * vmax * (span + sin_diff)
+    rise = np.maximum(0.5 * vmax * (span - sin_diff), 0.0)
+    fall = np.maximum(0.5 * vmax * (span + sin_diff), 0.0)
     out = np.where(segment == RISE, rise, np.where(segment == FALL, fall, 0.0))
     return np.where(segment == HOLD, vmax * span, out)
 

@@ -50,6 +50,7 @@ from procloco_addon.core.terrain import (
     WindowParams,
     foot_kernel,
 )
+from tests.core.cross_path import assert_close
 
 PARAMS = WindowParams(n_cells=40, cell=0.07, foot_half_extents=(0.03, 0.03))
 
@@ -367,7 +368,10 @@ def test_many_wavefronts_at_once_equal_one_at_a_time(seed: int) -> None:
     for i, got in enumerate(wavefront_each(free, sources, shapes)):
         h, w = shapes[i]
         alone = wavefront(free[i, :h, :w], sources[i])
-        assert np.array_equal(got.dist, alone.dist)  # bit for bit, not just close
+        # The same relaxation sweep for sweep: the same parents and reached cells; distances
+        # (sums of 1 and √2) to a few ulps.
+        assert np.array_equal(np.isinf(got.dist), np.isinf(alone.dist))
+        assert_close(got.dist, alone.dist, "dist")
         assert np.array_equal(got.parent, alone.parent)
         assert got.iterations == alone.iterations
         assert got.source == alone.source
@@ -450,11 +454,10 @@ def test_lifting_many_plans_at_once_equals_lifting_each(seed: int) -> None:
                     [c.params.step_height for c in ctxs], ramps, gaps, [p.waypoints for p in paths])
     for c, p, z, traj in zip(ctxs, paths, tz, got, strict=True):
         alone = c.lift(p, z)
-        for name in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d"):
-            assert np.array_equal(getattr(traj, name), getattr(alone, name)), name
-        assert traj.length == alone.length
+        for name in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d", "length"):
+            assert_close(getattr(traj, name), getattr(alone, name), name)
     # The turning of every plan too.
-    assert turning_each(samples, bounds) == [_turning(p.samples) for p in paths]
+    assert_close(turning_each(samples, bounds), [_turning(p.samples) for p in paths], "turning")
 
 
 @given(st.integers(0, 100_000))

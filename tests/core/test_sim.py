@@ -460,9 +460,16 @@ def test_rigid_characters_in_a_crowd_with_spines_are_unchanged_and_runs_repeat()
 
     a, b = crowd(), crowd()
     assert a.spine_n_joints.tolist() == [0, 7, 9]
-    for name in ("pelvis_position", "pelvis_rotation", "joints", "foot", "footprint", "contact"):
-        np.testing.assert_array_equal(getattr(a, name)[:, :4] if getattr(a, name).shape[1] == 12
-                                      else getattr(a, name)[:, :1], getattr(alone, name), err_msg=name)
+    # The crowd steps the first dog in batches with the others, the lone run by itself: the
+    # same decisions (which feet are down), the same motion to a nanometre (two code paths:
+    # floats are not compared bit for bit, see tests/core/cross_path.py).
+    def first(res: SimResult, name: str) -> np.ndarray:
+        arr = getattr(res, name)
+        return arr[:, :4] if arr.shape[1] == 12 else arr[:, :1]
+
+    np.testing.assert_array_equal(first(a, "contact"), alone.contact)
+    for name in ("pelvis_position", "pelvis_rotation", "joints", "foot", "footprint"):
+        np.testing.assert_allclose(first(a, name), getattr(alone, name), rtol=0.0, atol=1e-9, err_msg=name)
     # Runs repeat to the last bits that numpy's reductions keep: their SIMD grouping can follow
     # the arrays' memory alignment, which differs between runs (seen once in 700 test runs, on
     # values of 1e-18); Actions are written in float32, where that never shows.

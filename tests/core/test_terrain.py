@@ -24,6 +24,7 @@ from procloco_addon.core.terrain import (
     foot_kernels,
     raster_boxes,
 )
+from tests.core.cross_path import assert_close
 
 SMALL = WindowParams(n_cells=30, cell=0.07, foot_half_extents=(0.03, 0.03))
 
@@ -248,7 +249,7 @@ def test_windows_batch_equals_single_windows_and_snaps_to_the_lattice() -> None:
     batch = env.windows(centres, SMALL)
     for c, w in zip(centres, batch, strict=True):
         single = env.window(c, SMALL)
-        assert np.array_equal(single.elevation, w.elevation)
+        assert_close(w.elevation, single.elevation, "elevation")
         assert np.array_equal(single.avoid, w.avoid)
         mid = w.xy_of(np.array(SMALL.n_cells // 2), np.array(SMALL.n_cells // 2))
         assert np.all(np.abs(mid - c) <= 0.5 * SMALL.cell + 1e-12)
@@ -319,9 +320,9 @@ def test_windows_with_their_own_params_equal_one_call_per_params() -> None:
     batch = env.windows(centres, params)
     for c, prm, w in zip(centres, params, batch, strict=True):
         single = Environment(env.heightmap, env.boxes, env.soups, tile_cells=16).window(c, prm)
-        assert np.array_equal(single.elevation, w.elevation)
+        assert_close(w.elevation, single.elevation, "elevation")
         assert np.array_equal(single.avoid, w.avoid)
-        assert np.array_equal(single.origin, w.origin)
+        assert_close(w.origin, single.origin, "origin")
         assert (w.foot_half_extents, w.foot_yaw) == (prm.foot_half_extents, prm.foot_yaw)
     with pytest.raises(ValueError, match="one WindowParams per centre"):
         env.windows(centres, params[:2])
