@@ -11,8 +11,9 @@ does it, for plain rigs and for control rigs:
   (:func:`basis_from_armature`), exactly, without evaluating the rig.
 - **Controls** (:attr:`.rig.controls.ControlPlan.controls`) are solved *through* Blender: the rig
   is evaluated at every frame, each control is moved by the error of the solved bone it drives
-  (``RIGID``: rigidly with it; ``IK``: turned like the foot, moved by the end-effector's error;
-  ``POLE``: put on the knee's side of the leg's plane), keyed, and the rig is evaluated again,
+  (``RIGID``: rigidly with it; ``TURN``: turned like it, rotation only; ``IK``: turned like
+  the foot, moved by the end-effector's error; ``POLE``: put on the knee's side of the leg's
+  plane), keyed, and the rig is evaluated again,
   until the solved bones are within 0.1 mm (and 0.1 degree) of their targets, or a pass no
   longer helps (two to four passes on generated Rigify rigs; a pass costs one depsgraph
   evaluation per frame). A pole is turned about the hip-to-end axis until the knee lands.
@@ -373,29 +374,28 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
     want_joints = {k: _joints(armature[:, [index[b] for b in chains[k]]], lengths[k]) for k in leg_ids}
     pole_offset = {c.bone: _pole_offset(req, chains[c.leg], lengths[c.leg], c.bone)
                    for c in controls if c.mode == "POLE"}
-    ik_anchors = {c.anchor for c in controls if c.mode == "IK"}
-    # Poles place the knee: their anchor's turn is the IK's business, its knee is measured.
-    turn_anchors = [c.anchor for c in controls if c.mode != "POLE"]
     pole_turn = {c.bone: np.zeros(frames.size) for c in controls if c.mode == "POLE"}
     basis = np.stack([np.broadcast_to(req.basis[c], (frames.size, 4, 4)) for c in ctrl_names], axis=1).copy()
     scale = max(float(np.mean([np.sum(v) for v in lengths.values()])) if lengths else 1.0, 1e-9)
-    last = (np.inf, np.inf)
+    last = worst = np.inf
+    stalled = 0
+    legged = any(c.mode in {"IK", "POLE"} for c in controls)
+    located = [c.mode != "TURN" for c in controls]
     for p in range(_MAX_PASSES + 1):
-        _key(action, obj, frames, ctrl_names, basis, [True] * len(ctrl_names))
+        _key(action, obj, frames, ctrl_names, basis, located)
         ev = evaluate_pose(obj, req.frames, names)
         report.passes = p + 1
         got_joints = {k: _joints(ev[:, [col[b] for b in chains[k]]], lengths[k]) for k in leg_ids}
         report.leg_error = [float(np.linalg.norm(got_joints[k][:, -1] - want_joints[k][:, -1], axis=-1).max())
                             for k in leg_ids]
-        moved = [float(np.linalg.norm(ev[:, col[a], :3, 3] - armature[:, index[a], :3, 3], axis=-1).max())
-                 for a in anchors if a not in ik_anchors]
-        moved += [float(np.linalg.norm(got_joints[c.leg][:, 1] - want_joints[c.leg][:, 1], axis=-1).max())
-                  for c in controls if c.mode == "POLE"]
-        turned = [_angle(armature[:, index[a], :3, :3], ev[:, col[a], :3, :3]) for a in turn_anchors]
-        worst = (max([*report.leg_error, *moved], default=0.0) / (_TOL * scale),
-                 max(turned, default=0.0) / _TOL_ANGLE)
-        # Done when close enough, or when a pass no longer helps (a rig that cannot get there).
-        if p == _MAX_PASSES or (p > 0 and (max(worst) < 1.0 or max(worst) > 0.8 * max(last))):
+        errors = [_control_error(c, ev, col, armature, index, got_joints, want_joints, scale)
+                  for c in controls]
+        worst = max(errors, default=0.0)
+        # Done when close enough, or when passes no longer help (a rig that cannot get there).
+        # Legs whose IK bends a little its own way stop improving after two or three passes;
+        # chains of controls may get worse before they get better, and run all passes.
+        stalled = stalled + 1 if legged and worst > 0.99 * last else 0
+        if worst < 1.0 or p == _MAX_PASSES or stalled >= 2:
             break
         last = worst
         for j, c in enumerate(controls):
@@ -403,6 +403,10 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             want = m.copy()
             if c.mode == "RIGID":  # carried rigidly with its anchor
                 want = armature[:, index[c.anchor]] @ np.linalg.inv(ev[:, col[c.anchor]]) @ m
+            elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
+                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
+                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
             elif c.mode == "IK":  # turned like its anchor, moved by the end-effector's error
                 d = _orthonormal(armature[:, index[c.anchor], :3, :3])
                 e = _orthonormal(ev[:, col[c.anchor], :3, :3])
@@ -422,6 +426,24 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             # The control's matrix is (what its parent and constraints give) @ basis.
             base = m @ np.linalg.inv(basis[:, j])
             basis[:, j] = np.linalg.inv(base) @ want
+
+
+def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature: np.ndarray,
+                   index: dict[str, int], got: dict[int, np.ndarray], want: dict[int, np.ndarray],
+                   scale: float) -> float:
+    """How far what control ``c`` places still is, in tolerances (under 1: close enough)."""
+    tol = _TOL * scale
+    if c.mode == "POLE":
+        return float(np.linalg.norm(got[c.leg][:, 1] - want[c.leg][:, 1], axis=-1).max()) / tol
+    turn = _angle(armature[:, index[c.anchor], :3, :3], ev[:, col[c.anchor], :3, :3]) / _TOL_ANGLE
+    if c.mode == "TURN":
+        return turn
+    if c.mode == "IK":
+        moved = float(np.linalg.norm(got[c.leg][:, -1] - want[c.leg][:, -1], axis=-1).max())
+    else:
+        moved = float(np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3],
+                                     axis=-1).max())
+    return max(moved / tol, turn)
 
 
 def _turn_about(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarray:

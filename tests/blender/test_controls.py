@@ -181,6 +181,44 @@ def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str]
     assert m["knee"] <= 0.03, m
 
 
+def test_secondary_motion_swings_the_generated_wolf_tail_controls(rigify_files: dict[str, str]) -> None:
+    from procloco_addon.blender.secondary import bake
+    from tests.blender.pose_eval import pose_matrices
+
+    rig, _ground_obj = _open_rig(rigify_files["wolf"])
+    _run(rig, frames=24)
+    found = bake.suggest_chains(rig)
+    assert not [b for s in found for b in s.bones if b.startswith(_MECHANISM)], found
+    tail = next(s for s in found if s.root == "spine.003")
+    assert tail.bones == ("spine.003", "spine.002", "spine.001", "spine")
+    assert len(found) <= 3, found  # the tail and one control per ear, not 16 one-bone chains
+    chains = rig.procloco_secondary.chains
+    chains.clear()
+    item = chains.add()
+    item.name, item.root, item.tip = tail.label, tail.root, tail.tip
+    frames = list(range(1, 25))
+    before = pose_matrices(rig, frames, list(tail.bones))
+    job = bake.prepare(bpy.context, rig)
+    for _ in bake.sample(bpy.context, job):
+        pass
+    _quats, planned = bake.simulate(job)
+    bake.write(bpy.context, job)
+    assert not job.warnings, job.warnings
+    after = pose_matrices(rig, frames, list(tail.bones))
+
+    def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        ya = a[..., :3, 1] / np.linalg.norm(a[..., :3, 1], axis=-1, keepdims=True)
+        yb = b[..., :3, 1] / np.linalg.norm(b[..., :3, 1], axis=-1, keepdims=True)
+        return np.degrees(np.arccos(np.clip(np.sum(ya * yb, axis=-1), -1.0, 1.0)))
+
+    assert angle(after, before).max() > 0.5, "the tail swings"
+    # The constrained controls (each copies its parent's rotation) land where the pendulums say.
+    assert angle(after, planned).max() < 0.05
+    keyed = _keyed_bones(rig)
+    assert set(tail.bones) <= keyed
+    assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
+
+
 def test_clear_gives_back_the_rigify_rig_as_it_was(rigify_files: dict[str, str]) -> None:
     rig, _ground_obj = _open_rig(rigify_files["human"])
     rig.pose.bones["thigh_parent.L"]["IK_FK"] = 1.0

@@ -254,7 +254,8 @@ class ControlKey:
     """One control and how its keys are found.
 
     ``mode``: ``"RIGID"`` (the control carries ``anchor`` rigidly: it moves by the anchor's
-    error), ``"IK"`` (it turns like ``anchor`` and moves by the error of the leg's
+    error), ``"TURN"`` (it turns by the anchor's rotation error, rotation keyed only),
+    ``"IK"`` (it turns like ``anchor`` and moves by the error of the leg's
     end-effector ``leg``), ``"POLE"`` (placed on the side of leg ``leg``'s knee, at its
     current distance from it).
     """
