@@ -8,6 +8,7 @@ Runs with Blender as a Python module (the ``bpy`` wheel in ``.venv``)::
     .venv/bin/python tools/export_gait_pngs.py --all           # every shipped preset
     .venv/bin/python tools/export_gait_pngs.py quadruped_trot --phase 0.3 --cell 160
     .venv/bin/python tools/export_gait_pngs.py --bench         # time one redraw per preset
+    .venv/bin/python tools/export_gait_pngs.py --auto-chart    # the Gait: Auto chart of the README
 
 Each image is ``docs/images/gait_<preset file stem>.png``, drawn by the same code as the
 panel's picture (``procloco_addon.blender.gait.draw``): one circle per leg laid out like
@@ -90,6 +91,38 @@ def export(names: list[str], out_dir: Path, *, cell: int = 140, phase: float = 0
     return written
 
 
+def export_auto_chart(out_dir: Path) -> Path:
+    """Write ``auto_gait_chart.png``: the panel's Gait: Auto chart and circles for a horse-sized
+    quadruped (hips 1.5 m high) speeding up from 0.5 to 7 m/s over 200 frames at 24 fps,
+    at frame 180 (galloping), side by side."""
+    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="procloco-export-"))
+    import bpy
+    import numpy as np
+
+    from procloco_addon.blender.gait import draw, handler, rig_gait
+    from procloco_addon.core import autogait
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    draw.ensure_gpu_context()
+    labels = ("L1", "R1", "L2", "R2")
+    params = autogait.auto_gait_params(labels, 1.5, 1.6)
+    assert params is not None
+    speed = 0.5 + 6.5 * np.clip(np.arange(200) / 160.0, 0.0, 1.0)
+    band, duty, _ = params.schedule(speed)
+    frame = 180
+    width, height = 2 * handler.CHART_SIZE[0], 2 * handler.CHART_SIZE[1]
+    chart = draw.render_auto_chart(params.names, rig_gait.boundary_speeds(params), speed, frame,
+                                   width=width, height=height, band=band)
+    circles = draw.render_gait_image(params.patterns[band[frame]], np.full(4, 1.0 - duty[frame]), labels,
+                                     0.3, width=height, height=height)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    target = out_dir / "auto_gait_chart.png"
+    write_png(target, np.concatenate([chart, circles], axis=1))
+    print(f"{target.relative_to(ROOT) if target.is_relative_to(ROOT) else target}  "
+          f"{params.names[band[frame]]} at {speed[frame]:.1f} m/s")
+    return target
+
+
 def bench(names: list[str], repeats: int = 20) -> None:
     """Print how long the panel's picture takes to draw and read back (the cost of one
     redraw after a change), per preset, at the panel's size and at the README's size."""
@@ -128,7 +161,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cell", type=int, default=140, help="pixels per leg circle (default 140)")
     parser.add_argument("--phase", type=float, default=0.12, help="needle phase in [0, 1) (default 0.12)")
     parser.add_argument("--bench", action="store_true", help="time the drawing instead of writing files")
+    parser.add_argument("--auto-chart", action="store_true", help="write the Gait: Auto chart picture")
     args = parser.parse_args(argv)
+    if args.auto_chart:
+        export_auto_chart(args.out)
+        return 0
 
     from procloco_addon.core import gait as core_gait
 

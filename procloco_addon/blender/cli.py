@@ -44,7 +44,9 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..core import gait as core_gait
 from . import actions, render_chunk, rig
+from .gait import rig_gait
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
 from .secondary import bake
@@ -91,6 +93,8 @@ def _parser() -> argparse.ArgumentParser:
     gen.add_argument("--heading", type=float, help="heading in degrees relative to where the rig faces")
     gen.add_argument("--step-height", type=float, help="step height in metres")
     gen.add_argument("--seed", type=int, help="random seed")
+    gen.add_argument("--gait", metavar="auto|circles|PRESET",
+                     help="Gait: auto (follows the speed), circles, or a gait preset (file stem or name)")
     gen.add_argument("--spine", action=argparse.BooleanOptionalAction, default=None,
                      help="flexible spine on or off (Effects > Flexible Spine)")
     gen.add_argument("--visual-yaw", action=argparse.BooleanOptionalAction, default=None,
@@ -145,6 +149,14 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
         s.step_height = float(args.step_height)
     if args.seed is not None:
         s.seed = int(args.seed)
+    if args.gait is not None:
+        try:
+            if args.gait.lower() not in ("auto", "circles") and not len(s.legs):
+                core_gait.find_gait_preset(args.gait)  # an unknown preset changes nothing
+                generate.detect_into_settings(obj)  # a preset is set on the legs
+            rig_gait.choose_gait(obj, args.gait)
+        except (core_gait.GaitError, rig.RigError) as err:
+            raise CliError(f"--gait {args.gait} for {obj.name}: {err}") from err
     if args.spine is not None:
         s.use_spine = bool(args.spine)
     if args.visual_yaw is not None:

@@ -23,6 +23,7 @@ from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
 from .gait import ui_list as gait_ui_list
+from .locomotion import handler as legs_handler
 from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
 from .locomotion import property_group as locomotion_props
@@ -67,6 +68,8 @@ CLASSES: tuple[type, ...] = (
     gait_ops.PROCLOCO_OT_add_gait_preset,
     gait_ops.PROCLOCO_OT_remove_gait_preset,
     gait_ops.PROCLOCO_OT_toggle_gait_overlay,
+    gait_ops.PROCLOCO_MT_auto_gait_presets,
+    gait_ops.PROCLOCO_OT_set_auto_gait,
     gait_ops.PROCLOCO_OT_edit_gait_overlay,
     locomotion_panel.PROCLOCO_PT_rig_legs,
     gait_panel.PROCLOCO_PT_gait,
@@ -103,6 +106,7 @@ def register() -> None:
         setattr(owner, attr, prop)
     cli.register()
     gait_handler.register()
+    legs_handler.register()
 
 
 def unregister() -> None:
@@ -110,6 +114,7 @@ def unregister() -> None:
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):
             delattr(owner, attr)
+    legs_handler.unregister()
     gait_handler.unregister()
     for owner, attr, _group in reversed(POINTERS):
         if hasattr(owner, attr):

@@ -427,6 +427,25 @@ class GaitManager:
             self.tr_t0[c] = self.time
             self.tr_duration[c] = max(float(transition_time), 0.0)
 
+    def retarget(self, char: int, gait: Gait) -> None:
+        """Change character ``char``'s destination to ``gait`` without restarting its
+        transition: outside a transition the disks become ``gait``'s as each leg reaches
+        stance, and the cycle time at once; during one, the transition ends on ``gait``.
+
+        For small changes of the same pattern (the auto gait's duty factor and cycle
+        following the speed); a new pattern goes through ``start_transition``.
+        """
+        legs = np.flatnonzero(self.leg_char == char)
+        if gait.n_legs != legs.size:
+            raise GaitError(f"character {char}: gait {gait.name!r} has {gait.n_legs} legs, "
+                            f"the character {legs.size}")
+        self.dst_start[legs] = gait.swing_start
+        self.dst_duration[legs] = gait.swing_duration
+        self.dst_cycle[char] = gait.cycle_time
+        if not self.tr_active[char]:
+            self.src_cycle[char] = gait.cycle_time
+            self.cycle_time[char] = gait.cycle_time
+
     # -------------------------------------------------------------- stepping
     def rate(self) -> FloatArray:
         """``(C,)`` needle speed in cycles per second."""

@@ -14,7 +14,9 @@ Thresholds (``DESIGN.md``):
 - reachable footprints reached: IK error at most ``MAX_REACH_ERROR`` (1 cm);
 - the gait is the one in the circles: lift-off and touch-down within ``MAX_PHASE_ERROR_FRAMES``
   (one frame) of the sector's start and finish;
-- no leg stretched beyond its length (``MAX_EXTENSION`` = 1).
+- no leg stretched beyond its length (``MAX_EXTENSION`` = 1);
+- no pops: no bone of a planted foot turns by more than ``MAX_PLANTED_TURN`` (5°) in one
+  frame, and no leg bone by more than ``MAX_BONE_TURN`` (60°) (:func:`bone_turn_per_frame`).
 """
 
 from __future__ import annotations
@@ -38,6 +40,8 @@ MAX_JOINT_LIMIT_EXCESS = 1e-6
 MAX_REACH_ERROR = 0.01
 MAX_PHASE_ERROR_FRAMES = 1.0
 MAX_EXTENSION = 1.0 + 1e-6
+MAX_PLANTED_TURN = float(np.radians(5.0))
+MAX_BONE_TURN = float(np.radians(60.0))
 
 
 def stance_runs(contact: BoolArray) -> tuple[IntArray, IntArray, IntArray]:
@@ -259,6 +263,19 @@ def swing_phase_errors(
     )
 
 
+def bone_turn_per_frame(rotation: FloatArray) -> FloatArray:
+    """Angle each bone turns from one frame to the next, radians ``(F - 1, B)``.
+
+    rotation: ``(F, B, 3, 3)`` world rotations (any uniform scale is divided out).
+    """
+    r = np.asarray(rotation, dtype=np.float64)
+    r = r / np.linalg.norm(r[..., :, :1], axis=-2, keepdims=True)
+    rel = np.einsum("fbji,fbjk->fbik", r[:-1], r[1:])  # R_f^T R_{f+1}
+    cos = np.clip(0.5 * (np.trace(rel, axis1=-2, axis2=-1) - 1.0), -1.0, 1.0)
+    out: FloatArray = np.arccos(cos)
+    return out
+
+
 def periodicity_error(series: FloatArray, period_frames: int, start: int = 0) -> float:
     """Largest difference between ``series[f]`` and ``series[f + period_frames]`` from
     ``start`` on (any trailing shape)."""
@@ -288,6 +305,10 @@ class MotionReport:
     #: highest a planted foot hangs above the ground under it (a foot planted where its leg
     #: does not reach, or on a spot its point does not touch); judged like penetration
     hover: float = 0.0
+    #: ``(B,)`` largest per-frame turn of each leg and foot bone while its foot is planted,
+    #: and at any time (radians; empty when not measured)
+    planted_turn: FloatArray = field(default_factory=lambda: np.zeros(0))
+    bone_turn: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def failures(self) -> list[str]:
         """One line per failed check (empty when everything passes)."""
@@ -319,6 +340,11 @@ class MotionReport:
             out.append(f"leg stretched to {self.extension.max():.4f} of its length")
         if self.phase is not None and self.phase.max_abs > MAX_PHASE_ERROR_FRAMES:
             out.append(f"lift-off/touch-down {self.phase.max_abs:.2f} frames away from the gait circles")
+        if self.planted_turn.size and self.planted_turn.max() > MAX_PLANTED_TURN:
+            out.append(f"a bone of a planted foot turns {np.degrees(self.planted_turn.max()):.1f} deg "
+                       "in one frame")
+        if self.bone_turn.size and self.bone_turn.max() > MAX_BONE_TURN:
+            out.append(f"a leg bone turns {np.degrees(self.bone_turn.max()):.1f} deg in one frame")
         return out
 
     @property
@@ -339,6 +365,9 @@ class MotionReport:
             f"reach error max       {top(self.reach_error, 100.0):8.3f} cm",
             f"extension max         {top(self.extension):8.4f} of leg length",
         ]
+        if self.bone_turn.size:
+            lines.append(f"bone turn per frame   {top(self.bone_turn, 180.0 / np.pi):8.2f} deg "
+                         f"(planted foot {top(self.planted_turn, 180.0 / np.pi):.2f} deg)")
         if self.phase is not None:
             lines.append(
                 f"phase error max       {self.phase.max_abs:8.3f} frames ({self.phase.n_events} events)"

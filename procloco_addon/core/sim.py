@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import metrics as mx
+from .autogait import AutoGait, AutoGaitParams
 from .controller import Controller, ControllerParams, PlannerLOD, StepControls, StepStats, wrap_angle
 from .footprints import PlannerParams
 from .gait import Gait
@@ -222,7 +223,10 @@ class Simulation:
     ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams``;
     ``lod``: optional per-character ``PlannerLOD`` (thesis §3.7); ``spine``: ``SpineParams``
     for every character (or one per character, None for a rigid body) walking with the
-    flexible spine of its morphology (``Morphology.with_spine``; thesis §4.2, §4.4).
+    flexible spine of its morphology (``Morphology.with_spine``; thesis §4.2, §4.4);
+    ``auto_gait``: ``AutoGaitParams`` per character (None: its gait as given) whose gait,
+    stride and cycle follow its commanded speed (``autogait.AutoGait``; its starting gait
+    replaces ``gaits`` and scheduled ``GaitChange``s leave it alone).
     """
 
     def __init__(
@@ -242,6 +246,7 @@ class Simulation:
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: SpineParams | Sequence[SpineParams | None] | None = None,
+        auto_gait: Sequence[AutoGaitParams | None] | None = None,
     ) -> None:
         if not dt > 0.0:
             raise ValueError("dt must be positive")
@@ -292,6 +297,8 @@ class Simulation:
         self._changes = sorted(gait_changes, key=lambda g: g.time)
         self._next_change = 0
         step0 = self._resolve(first, xy, yaw)
+        self.auto_gait = AutoGait(list(auto_gait) if auto_gait is not None else [None] * c, step0.speed)
+        gait_list = self.auto_gait.gaits(gait_list)
         self.controller = Controller(
             env,
             self.legs,
@@ -373,9 +380,13 @@ class Simulation:
             change = self._changes[self._next_change]
             chars = list(range(self.legs.n_chars)) if change.chars is None else list(change.chars)
             g = [change.gait] * len(chars) if isinstance(change.gait, Gait) else list(change.gait)
-            ctrl.gait.start_transition(chars, g, change.transition_time)
+            manual = [k for k, ch in enumerate(chars) if self.auto_gait.params[ch] is None]
+            if manual:
+                ctrl.gait.start_transition([chars[k] for k in manual], [g[k] for k in manual],
+                                           change.transition_time)
             self._next_change += 1
         step_ctl = self._resolve(ctl_user, ctrl.pos[:, :2], ctrl.yaw)
+        self.auto_gait.update(ctrl.gait, step_ctl.speed)
         stats = ctrl.step(self.dt, step_ctl)
         self.time += self.dt
         self._record(stats)

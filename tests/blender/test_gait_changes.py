@@ -33,6 +33,7 @@ def wolf(empty_scene: Any) -> Any:
     obj = creatures.build_wolf(empty_scene)
     _select_only(obj)
     assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    obj.procloco.gait_mode = "CIRCLES"  # the gait changes' gaits (Auto would use only their speeds)
     return obj
 
 

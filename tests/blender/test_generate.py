@@ -396,11 +396,21 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
                       for j, r in zip(joints, rest_seg, strict=True))
     out["reach"] = float(np.linalg.norm(ends - res.feet, axis=-1).max())
     out["extension"] = float((np.linalg.norm(ends - hips, axis=-1) / leg_len).max())
-    gait = job.gait
-    # Forced steps (a support moved or became forbidden) are not the gait's: not judged.
+    # Forced steps (a support moved or became forbidden) are not the gait's: not judged. The
+    # gait is each frame's circles (they change with Gait Changes and with Gait: Auto).
     forced = res.forced | np.roll(res.forced, 1, axis=0) | np.roll(res.forced, -1, axis=0)
-    phase = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, gait.swing_start,
-                                       gait.swing_duration, ignore=forced, first_frame=2)
+    # A foot lifts at the first frame it has moved to, and lands at the first frame it does
+    # not leave: lift-offs are judged on the motion into each frame, touch-downs on the
+    # motion out of it, so both are exact to the frame (a cycle that speeds up or slows
+    # down, as with Gait: Auto, does not blur them).
+    stayed = np.ones(ends.shape[:2], dtype=bool)
+    stayed[1:] = step < 1e-3 * scale
+    lifts = metrics.swing_phase_errors(stayed, res.needle, res.phase_rate * job.dt, res.disk_start,
+                                       res.disk_duration, ignore=forced, first_frame=2)
+    lands = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, res.disk_start,
+                                       res.disk_duration, ignore=forced, first_frame=2)
+    phase = metrics.PhaseErrors(lifts.lift_leg, lifts.lift_frame, lifts.lift_error,
+                                lands.land_leg, lands.land_frame, lands.land_error)
     out["forced"] = float(res.forced.any(axis=0).sum())
     out["phase"] = phase.max_abs
     out["phase_events"] = phase.n_events
@@ -485,6 +495,7 @@ def test_scaled_and_rotated_rig_meets_the_same_thresholds(empty_scene: Any) -> N
         bpy.ops.wm.read_homefile(use_empty=True)
         wolf, terrain, placement = _placed_wolf(bpy.context.scene, scale, yaw)
         wolf.procloco.use_pelvis_physics = False
+        wolf.procloco.gait_mode = "CIRCLES"  # the same gait at every size (Auto's depends on it)
         leg = _leg_length(wolf)
         assert leg == pytest.approx(scale * 0.7325, rel=1e-3)
         job = _generate(wolf)
@@ -639,6 +650,7 @@ def test_burst_progression_and_gait_randomizer(empty_scene: Any) -> None:
     s.step_height = 0.2 * leg
     s.use_progression = True
     s.use_gait_randomizer = True
+    s.gait_mode = "CIRCLES"  # the randomizer draws the gaits (with Auto, Auto chooses them)
     s.seed = 3
     job = _generate(spider, frames=120)
     body = job.result.body[:, :2, 3]

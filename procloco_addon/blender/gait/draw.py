@@ -25,11 +25,15 @@ from . import geometry
 from .geometry import CircleLayout
 
 __all__ = [
+    "BAND_COLORS",
     "DEFAULT_PALETTE",
+    "LINE_COLORS",
     "Palette",
+    "draw_auto_chart",
     "draw_gait",
     "ensure_gpu_context",
     "gpu_available",
+    "render_auto_chart",
     "render_gait_image",
     "render_offscreen",
 ]
@@ -243,3 +247,89 @@ def render_gait_image(swing_start: np.ndarray, swing_duration: np.ndarray,
         draw_gait(layout, swing_start, swing_duration, labels, phase, palette, show_handles=show_handles)
 
     return render_offscreen(width, height, draw_fn, palette.background)
+
+
+# ---------------------------------------------------------------------------- Auto gait chart
+#: Fill of each gait band of the Auto chart, slowest first (muted, so the curve stands out).
+BAND_COLORS: tuple[Color, ...] = (
+    (0.16, 0.30, 0.20, 1.0),  # walk, wave: green
+    (0.18, 0.24, 0.38, 1.0),  # trot, tetrapod, run: blue
+    (0.38, 0.20, 0.16, 1.0),  # gallop, tripod: red
+    (0.33, 0.28, 0.14, 1.0),
+)
+
+
+#: The speed line where each gait is chosen (bright, in the hue of its band).
+LINE_COLORS: tuple[Color, ...] = (
+    (0.45, 1.0, 0.55, 1.0),
+    (0.5, 0.75, 1.0, 1.0),
+    (1.0, 0.55, 0.4, 1.0),
+    (1.0, 0.9, 0.4, 1.0),
+)
+
+
+def draw_auto_chart(layout: geometry.ChartLayout, names: tuple[str, ...] | list[str],
+                    boundaries: np.ndarray, palette: Palette = DEFAULT_PALETTE,
+                    band: np.ndarray | None = None) -> None:
+    """Draw the Auto gait chart (bands, the speed over the shot, the current frame) into the
+    bound framebuffer, in pixel coordinates. ``band (F,)``: the gait chosen at each frame;
+    the speed line takes that gait's colour, so the hysteresis shows where it changes."""
+    shader = gpu.shader.from_builtin("FLAT_COLOR")
+    parts: list[tuple[np.ndarray, Color]] = []
+    for k, rect in enumerate(layout.bands):
+        parts.append((geometry.rect_triangles(rect), BAND_COLORS[k % len(BAND_COLORS)]))
+    curve = layout.curve
+    if band is None or len(band) != curve.shape[0]:
+        parts.append((geometry.polyline_quads(curve, 2.0), palette.label))
+    else:
+        chosen = np.asarray(band, dtype=np.int64)
+        cuts = np.flatnonzero(np.diff(chosen)) + 1
+        for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, chosen.size], strict=True):
+            color = LINE_COLORS[int(chosen[lo]) % len(LINE_COLORS)]
+            parts.append((geometry.polyline_quads(curve[max(lo - 1, 0):hi], 3.0), color))
+    if layout.marker_x is not None:
+        x = layout.marker_x
+        _, y0, _, y1 = layout.plot
+        parts.append((geometry.rect_triangles(np.array([x - 1.0, y0, x + 1.0, y1])), palette.needle))
+    pos, col = _colored_triangles(parts)
+    if len(pos):
+        batch_for_shader(shader, "TRIS", {"pos": pos, "color": col}).draw(shader)
+    size = max(8.0, min(13.0, layout.height / 12.0))
+    blf.size(_FONT_ID, size)
+    blf.color(_FONT_ID, *palette.label)
+    x0, y0, x1, _ = layout.plot
+    for k, rect in enumerate(layout.bands):
+        name = names[k] if k < len(names) else ""
+        _, h = blf.dimensions(_FONT_ID, name or "x")
+        if rect[3] - rect[1] >= h + 2:
+            blf.position(_FONT_ID, float(x0 + 4), float(rect[1] + 3), 0.0)
+            blf.draw(_FONT_ID, name)
+    # the speed axis: each boundary's speed at its edge, frames along the bottom
+    for v, rect in zip(boundaries, layout.bands[1:], strict=False):
+        text = f"{v:.2g}"
+        w, h = blf.dimensions(_FONT_ID, text)
+        blf.position(_FONT_ID, float(x0 - w - 3), float(rect[1] - 0.5 * h), 0.0)
+        blf.draw(_FONT_ID, text)
+    blf.position(_FONT_ID, float(x0 - blf.dimensions(_FONT_ID, "m/s")[0] - 3), float(y0), 0.0)
+    blf.draw(_FONT_ID, "m/s")
+    label = "speed over the shot"
+    w, _ = blf.dimensions(_FONT_ID, label)
+    blf.position(_FONT_ID, float(0.5 * (x0 + x1) - 0.5 * w), 3.0, 0.0)
+    blf.draw(_FONT_ID, label)
+
+
+def render_auto_chart(names: tuple[str, ...] | list[str], boundaries: np.ndarray, speed: np.ndarray,
+                      frame_index: int | None, *, width: int = 320, height: int = 160,
+                      palette: Palette = DEFAULT_PALETTE, band: np.ndarray | None = None) -> np.ndarray:
+    """Draw the Auto gait chart off screen and read it back: ``names (B,)`` of the gaits,
+    ``boundaries (B - 1,)`` m/s where each gait after the first begins, ``speed (F,)`` m/s
+    over the shot, ``frame_index`` the current frame's index (or None), ``band (F,)`` the gait
+    chosen at each frame (colours the speed line; None: plain). Returns
+    ``(height, width, 4)`` float32 RGBA, rows bottom to top. Needs a GPU context."""
+    layout = geometry.chart_layout(boundaries, speed, frame_index, width, height)
+
+    def draw_fn() -> None:
+        draw_auto_chart(layout, names, boundaries, palette, band)
+
+    return render_offscreen(width, height, draw_fn, palette.background)
+

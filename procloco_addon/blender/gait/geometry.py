@@ -21,10 +21,12 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "ChartLayout",
     "CircleLayout",
     "angle_to_phase",
     "annulus_sector_triangles",
     "canvas_size",
+    "chart_layout",
     "drag_sector",
     "hit_test",
     "layout_circles",
@@ -32,6 +34,8 @@ __all__ = [
     "needle_quad",
     "phase_to_angle",
     "point_phase",
+    "polyline_quads",
+    "rect_triangles",
     "snap_phase",
     "swing_active",
     "wrap_phase",
@@ -295,3 +299,75 @@ def drag_sector(handle: str, start: float, duration: float, grab_phase: float, p
     if handle == "START":
         return float(wrap_phase(start + duration - new_duration)), new_duration
     return float(wrap_phase(start)), new_duration
+
+
+# ---------------------------------------------------------------------------- Auto gait chart
+@dataclass(frozen=True, eq=False)
+class ChartLayout:
+    """The Auto gait chart in pixels: the rig's speed over the shot across the gait bands.
+
+    Frames run left to right over the plot, speeds bottom to top from 0 to ``v_max`` m/s.
+    ``plot``: ``(x0, y0, x1, y1)``; ``bands``: ``(B, 4)`` rectangles ``x0, y0, x1, y1`` of
+    the gaits' speed ranges (first gait at the bottom); ``curve``: ``(F, 2)`` the speed at
+    each frame; ``marker_x``: the current frame's x (None outside the shot)."""
+
+    width: int
+    height: int
+    plot: tuple[float, float, float, float]
+    v_max: float
+    bands: np.ndarray
+    curve: np.ndarray
+    marker_x: float | None
+
+    def speed_y(self, speed: np.ndarray | float) -> np.ndarray:
+        y0, y1 = self.plot[1], self.plot[3]
+        share = np.clip(np.asarray(speed, dtype=np.float64) / self.v_max, 0.0, 1.0)
+        return np.asarray(y0 + (y1 - y0) * share)
+
+
+def chart_layout(boundaries: np.ndarray, speed: np.ndarray, frame_index: int | None,
+                 width: int, height: int, margin: float = 6.0, axis: float = 14.0) -> ChartLayout:
+    """Place the chart for gait boundaries ``(B - 1,)`` m/s and speeds ``(F,)`` m/s in a
+    ``width × height`` picture; ``frame_index`` marks the current frame (None: no marker).
+    The speed axis reaches a bit past the highest of the speeds and the last boundary."""
+    edges = np.asarray(boundaries, dtype=np.float64).reshape(-1)
+    v = np.asarray(speed, dtype=np.float64).reshape(-1)
+    top = max(float(v.max(initial=0.0)) * 1.15, float(edges.max(initial=0.0)) * 1.3, 1e-6)
+    x0, y0, x1, y1 = margin + axis * 2.2, margin + axis, width - margin, height - margin
+    plot = (x0, y0, x1, y1)
+    layout = ChartLayout(width, height, plot, top, np.zeros((0, 4)), np.zeros((0, 2)), None)
+    lows = np.concatenate([[0.0], edges])
+    highs = np.concatenate([edges, [top]])
+    bands = np.column_stack([np.full(lows.size, x0), layout.speed_y(lows), np.full(lows.size, x1),
+                             layout.speed_y(highs)])
+    n = max(v.size - 1, 1)
+    xs = x0 + (x1 - x0) * np.arange(v.size) / n
+    curve = np.column_stack([xs, layout.speed_y(v)])
+    marker = None
+    if frame_index is not None and 0 <= frame_index < v.size:
+        marker = float(xs[frame_index])
+    return ChartLayout(width, height, plot, top, bands, curve, marker)
+
+
+def polyline_quads(points: np.ndarray, thickness: float) -> np.ndarray:
+    """Triangles ``(2 (n - 1), 3, 2)`` of a polyline ``(n, 2)`` drawn ``thickness`` pixels wide."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if p.shape[0] < 2:
+        return np.zeros((0, 3, 2))
+    a, b = p[:-1], p[1:]
+    d = b - a
+    length = np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+    normal = np.column_stack([-d[:, 1], d[:, 0]]) / length * (0.5 * thickness)
+    q0, q1, q2, q3 = a - normal, b - normal, b + normal, a + normal
+    return np.concatenate([np.stack([q0, q1, q2], axis=1), np.stack([q0, q2, q3], axis=1)])
+
+
+def rect_triangles(rects: np.ndarray) -> np.ndarray:
+    """Triangles ``(2 m, 3, 2)`` of axis-aligned rectangles ``(m, 4)`` (x0, y0, x1, y1)."""
+    r = np.asarray(rects, dtype=np.float64).reshape(-1, 4)
+    a = r[:, [0, 1]]
+    b = r[:, [2, 1]]
+    c = r[:, [2, 3]]
+    d = r[:, [0, 3]]
+    return np.concatenate([np.stack([a, b, c], axis=1), np.stack([a, c, d], axis=1)])
+

@@ -11,6 +11,10 @@ automatically; :func:`flush` redraws on demand (tests, the PNG export tool).
 
 The overlay is a ``SpaceView3D`` ``POST_PIXEL`` draw callback that draws the same
 circles straight into the viewport's corner when switched on.
+
+With Gait: Auto the circles are the gait Auto uses at the current frame
+(``rig_gait.circles_at_frame``), and a second preview holds the Auto chart (the gait
+bands and the rig's speed over the shot), kept current the same way.
 """
 
 from __future__ import annotations
@@ -24,8 +28,12 @@ from bpy.app.handlers import persistent
 from . import draw, geometry, rig_gait
 
 __all__ = [
+    "CHART_SIZE",
     "OVERLAY_PALETTE",
     "PREVIEW_SIZE",
+    "chart_icon_id",
+    "chart_pixels",
+    "chart_signature",
     "draw_overlay",
     "ensure_current",
     "flush",
@@ -44,12 +52,15 @@ __all__ = [
 
 PREVIEW_SIZE = 256
 _PREVIEW_NAME = "procloco_gait"
+CHART_SIZE = (320, 160)
+_CHART_NAME = "procloco_auto_chart"
 
 
 class _State:
     previews: Any = None
     dirty: bool = True
     signature: tuple[Any, ...] | None = None
+    chart_signature: tuple[Any, ...] | None = None
     draw_handle: Any = None
     editing: bool = False  # the overlay editor is running: draw the sector handles
 
@@ -58,12 +69,23 @@ _state = _State()
 
 
 # -------------------------------------------------------------------- the preview image
-def preview() -> Any:
+def preview(name: str = _PREVIEW_NAME) -> Any:
     """The ImagePreview holding the panel's picture (None before ``register``)."""
     if _state.previews is None:
         return None
     previews = _state.previews
-    return previews[_PREVIEW_NAME] if _PREVIEW_NAME in previews else previews.new(_PREVIEW_NAME)
+    return previews[name] if name in previews else previews.new(name)
+
+
+def chart_icon_id() -> int:
+    """Icon id of the Auto chart for ``layout.template_icon``; 0 when unavailable."""
+    image = preview(_CHART_NAME)
+    return int(image.icon_id) if image is not None else 0
+
+
+def chart_pixels() -> np.ndarray:
+    """The Auto chart currently shown, ``(h, w, 4)`` float32, rows bottom to top."""
+    return _pixels_of(preview(_CHART_NAME))
 
 
 def icon_id() -> int:
@@ -74,7 +96,10 @@ def icon_id() -> int:
 
 def preview_pixels() -> np.ndarray:
     """The picture currently shown, ``(h, w, 4)`` float32, rows bottom to top."""
-    image = preview()
+    return _pixels_of(preview())
+
+
+def _pixels_of(image: Any) -> np.ndarray:
     if image is None:
         return np.zeros((0, 0, 4), np.float32)
     width, height = image.image_size
@@ -92,22 +117,35 @@ def shown_signature(context: Any = None) -> tuple[Any, ...] | None:
     """
     ctx = bpy.context if context is None else context
     obj = getattr(ctx, "active_object", None)
-    gait = rig_gait.read_rig_gait(obj)
-    if obj is None or gait is None:
+    shown = rig_gait.circles_at_frame(obj, ctx.scene) if obj is not None else None
+    if obj is None or shown is None:
         return None
-    phase = rig_gait.phase_at_frame(gait, ctx.scene)
+    labels, start, duration, phase = shown
     return (
         obj.name,
-        gait.labels,
-        tuple(np.round(gait.swing_start, 4)),
-        tuple(np.round(gait.swing_duration, 4)),
+        labels,
+        tuple(np.round(start, 4)),
+        tuple(np.round(duration, 4)),
         round(phase, 3) % 1.0,
     )
 
 
+def chart_signature(context: Any = None) -> tuple[Any, ...] | None:
+    """What the Auto chart depends on: the track's gaits, boundaries and speeds, the frame.
+    None when the active rig is not in Auto."""
+    ctx = bpy.context if context is None else context
+    obj = getattr(ctx, "active_object", None)
+    track = rig_gait.auto_track(obj, ctx.scene) if obj is not None else None
+    if obj is None or track is None:
+        return None
+    return (obj.name, track.names, tuple(np.round(track.boundaries, 4)), track.recorded,
+            hash(np.round(track.speed, 4).tobytes()), hash(track.band.tobytes()),
+            track.index(ctx.scene.frame_current))
+
+
 def ensure_current(context: Any = None) -> None:
     """Ask for a redraw if the picture no longer shows the active rig's gait (cheap)."""
-    if shown_signature(context) != _state.signature:
+    if shown_signature(context) != _state.signature or chart_signature(context) != _state.chart_signature:
         request_refresh()
 
 
@@ -117,21 +155,48 @@ def refresh(context: Any = None, *, force: bool = False) -> bool:
     if image is None or not draw.gpu_available():
         return False
     ctx = bpy.context if context is None else context
+    drawn = _refresh_chart(ctx, force)
     signature = shown_signature(ctx)
     if signature == _state.signature and not force:
+        if drawn:
+            _tag_redraw()
+        return drawn
+    if signature is None:
+        pixels = np.zeros((1, 1, 4), np.float32)
+    else:
+        shown = rig_gait.circles_at_frame(ctx.active_object, ctx.scene)
+        assert shown is not None
+        labels, start, duration, phase = shown
+        pixels = draw.render_gait_image(start, duration, labels, phase,
+                                        width=PREVIEW_SIZE, height=PREVIEW_SIZE)
+    _set_pixels(image, pixels)
+    _state.signature = signature
+    _tag_redraw()
+    return True
+
+
+def _set_pixels(image: Any, pixels: np.ndarray) -> None:
+    image.image_size = (pixels.shape[1], pixels.shape[0])
+    image.image_pixels_float.foreach_set(pixels.ravel())
+
+
+def _refresh_chart(ctx: Any, force: bool) -> bool:
+    """Redraw the Auto chart if what it shows changed. True if redrawn."""
+    image = preview(_CHART_NAME)
+    signature = chart_signature(ctx)
+    if image is None or (signature == _state.chart_signature and not force):
         return False
     if signature is None:
         pixels = np.zeros((1, 1, 4), np.float32)
     else:
-        gait = rig_gait.read_rig_gait(ctx.active_object)
-        assert gait is not None
-        pixels = draw.render_gait_image(gait.swing_start, gait.swing_duration, gait.labels,
-                                        rig_gait.phase_at_frame(gait, ctx.scene),
-                                        width=PREVIEW_SIZE, height=PREVIEW_SIZE)
-    image.image_size = (pixels.shape[1], pixels.shape[0])
-    image.image_pixels_float.foreach_set(pixels.ravel())
-    _state.signature = signature
-    _tag_redraw()
+        track = rig_gait.auto_track(ctx.active_object, ctx.scene)
+        assert track is not None
+        width, height = CHART_SIZE
+        pixels = draw.render_auto_chart(track.names, track.boundaries, track.speed,
+                                        track.index(ctx.scene.frame_current), width=width, height=height,
+                                        band=track.band)
+    _set_pixels(image, pixels)
+    _state.chart_signature = signature
     return True
 
 
@@ -194,6 +259,7 @@ def _subscribe_overlay_settings() -> None:
 @persistent
 def _on_load_post(*_args: Any) -> None:
     _state.signature = None
+    _state.chart_signature = None
     _subscribe_overlay_settings()
     request_refresh()
 
@@ -237,15 +303,16 @@ def draw_overlay(context: Any, region: Any) -> bool:
     view = getattr(context.window_manager, "procloco_gait_view", None)
     if view is None or not view.show_overlay or region is None:
         return False
-    gait = rig_gait.read_rig_gait(getattr(context, "active_object", None), context.scene)
-    if gait is None:
+    obj = getattr(context, "active_object", None)
+    shown = rig_gait.circles_at_frame(obj, context.scene) if obj is not None else None
+    if shown is None:
         return False
-    layout, offset = overlay_layout(context, region, gait.labels)
+    labels, start, duration, phase = shown
+    layout, offset = overlay_layout(context, region, labels)
     import gpu
 
     gpu.state.blend_set("ALPHA")
-    draw.draw_gait(layout, gait.swing_start, gait.swing_duration, gait.labels,
-                   rig_gait.phase_at_frame(gait, context.scene), OVERLAY_PALETTE,
+    draw.draw_gait(layout, start, duration, labels, phase, OVERLAY_PALETTE,
                    offset=offset, show_handles=_state.editing, background=True)
     gpu.state.blend_set("NONE")
     return True
@@ -266,6 +333,7 @@ def register() -> None:
 
     _state.previews = bpy.utils.previews.new()
     _state.signature = None
+    _state.chart_signature = None
     _state.dirty = True
     for handlers, callback in _HANDLERS:
         if callback not in handlers:
@@ -290,4 +358,5 @@ def unregister() -> None:
         bpy.utils.previews.remove(_state.previews)
         _state.previews = None
     _state.signature = None
+    _state.chart_signature = None
     _state.editing = False

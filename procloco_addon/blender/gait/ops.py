@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 import bpy
 from bpy.props import StringProperty
 
+from ...core import autogait
 from ...core import gait as core_gait
 from ..modal import RemoveActiveItem
 from . import geometry, handler, presets, rig_gait
@@ -18,6 +19,7 @@ from . import geometry, handler, presets, rig_gait
 __all__ = [
     "OverlayEditor",
     "PROCLOCO_MT_add_gait_change",
+    "PROCLOCO_MT_auto_gait_presets",
     "PROCLOCO_MT_gait_presets",
     "PROCLOCO_OT_add_gait_change",
     "PROCLOCO_OT_add_gait_preset",
@@ -25,6 +27,7 @@ __all__ = [
     "PROCLOCO_OT_edit_gait_overlay",
     "PROCLOCO_OT_remove_gait_change",
     "PROCLOCO_OT_remove_gait_preset",
+    "PROCLOCO_OT_set_auto_gait",
     "PROCLOCO_OT_toggle_gait_overlay",
 ]
 
@@ -171,6 +174,77 @@ class PROCLOCO_OT_remove_gait_preset(bpy.types.Operator):
             self.report({"ERROR"}, str(error))
             return {"CANCELLED"}
         self.report({"INFO"}, f"Removed gait preset {path.name}")
+        return {"FINISHED"}
+
+
+class PROCLOCO_MT_auto_gait_presets(bpy.types.Menu):
+    """For each gait Auto uses, the presets for the rig's legs that can replace its pattern."""
+
+    bl_idname = "PROCLOCO_MT_auto_gait_presets"
+    bl_label = "Auto Gaits from Presets"
+
+    def draw(self, context: Any) -> None:
+        layout = self.layout
+        gait = rig_gait.read_rig_gait(getattr(context, "active_object", None))
+        family = autogait.family_for(gait.labels) if gait is not None else None
+        if gait is None or family is None:
+            layout.label(text="Auto knows no gaits for these legs")
+            return
+        fitting = []
+        for entry in presets.list_presets():
+            if entry.error is None:
+                try:
+                    preset = core_gait.load_gait_preset(entry.path)
+                except core_gait.GaitError:
+                    continue
+                if sorted(preset.legs) == sorted(gait.labels):
+                    fitting.append(entry)
+        col = layout.column(align=True)
+        for k, band in enumerate(family.bands):
+            if k:
+                col.separator()
+            col.label(text=band.name.capitalize())
+            reset = col.operator(PROCLOCO_OT_set_auto_gait.bl_idname, text="Shipped", icon="LOOP_BACK")
+            reset.band = band.name
+            for entry in fitting:
+                props = col.operator(PROCLOCO_OT_set_auto_gait.bl_idname, text=entry.name)
+                props.band = band.name
+                props.filepath = str(entry.path)
+
+
+class PROCLOCO_OT_set_auto_gait(bpy.types.Operator):
+    """Use a preset's footfall pattern for one of the gaits Auto chooses (no preset: the shipped one)"""
+
+    bl_idname = "procloco.set_auto_gait"
+    bl_label = "Set Auto Gait"
+    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+
+    band: StringProperty(name="Gait", description="The Auto gait to change (walk, trot...)",
+                         options={"SKIP_SAVE", "HIDDEN"})
+    filepath: StringProperty(name="Preset File", subtype="FILE_PATH", options={"SKIP_SAVE", "HIDDEN"})
+
+    @classmethod
+    def poll(cls, context: Any) -> bool:
+        return _rig_with_legs(cls, context)
+
+    def execute(self, context: Any) -> set[str]:
+        obj = context.active_object
+        gait = rig_gait.read_rig_gait(obj)
+        family = autogait.family_for(gait.labels) if gait is not None else None
+        if family is None or self.band not in [b.name for b in family.bands]:
+            self.report({"ERROR"}, f"Auto has no gait {self.band!r} for the legs of {obj.name}")
+            return {"CANCELLED"}
+        try:
+            preset = core_gait.load_gait_preset(self.filepath) if self.filepath else None
+            rig_gait.set_auto_override(obj, self.band, preset)
+        except core_gait.GaitPresetError as error:
+            self.report({"ERROR"}, f"Bad {error}; nothing was changed")
+            return {"CANCELLED"}
+        except core_gait.GaitError as error:
+            self.report({"ERROR"}, f"Cannot use this preset: {error}; nothing was changed")
+            return {"CANCELLED"}
+        handler.request_refresh()
+        self.report({"INFO"}, f"Auto {self.band}: {preset.name if preset else 'shipped pattern'}")
         return {"FINISHED"}
 
 
@@ -362,6 +436,9 @@ class PROCLOCO_OT_edit_gait_overlay(bpy.types.Operator):
         area = getattr(context, "area", None)
         if area is None or area.type != "VIEW_3D":
             cls.poll_message_set("Run this from a 3D viewport (the ProcLoco sidebar tab)")
+            return False
+        if rig_gait.is_auto(getattr(context, "active_object", None)):
+            cls.poll_message_set("The gait is Auto: switch the Gait to Circles to edit the circles")
             return False
         return _rig_with_legs(cls, context)
 

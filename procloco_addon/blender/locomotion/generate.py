@@ -26,9 +26,11 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ...core import autogait
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
 from .. import actions, pose_writer, rig, scene_terrain
+from ..gait import rig_gait
 from ..rig import controls
 from . import property_group
 
@@ -97,16 +99,50 @@ def default_gait(labels: Sequence[str]) -> core_gait.Gait:
     return core_gait.Gait(start, duration, max(0.6, 0.15 * n), "wave")
 
 
+#: Defaults for a rig with no speed or step height set yet, in leg lengths: a stride of
+#: ``STRIDE`` per cycle, feet lifted by ``STEP``; the gait's cycle scaled by the square root
+#: of the leg length over ``REFERENCE_LEG`` (dynamic similarity), within ``CYCLE_SCALE``.
+STRIDE = 0.8
+STEP = 0.15
+REFERENCE_LEG = 0.9
+CYCLE_SCALE = (0.5, 1.6)
+
+
+def scaled_defaults(leg_length: float, cycle_time: float) -> dict[str, float]:
+    """Speed, step height and cycle time for a creature whose legs are ``leg_length`` long,
+    walking the gait whose preset cycle is ``cycle_time`` seconds: a 9 cm bird and a 2 m
+    horse both get a first walk in proportion to their size."""
+    cycle = cycle_time * float(np.clip(np.sqrt(leg_length / REFERENCE_LEG), *CYCLE_SCALE))
+    return {"speed": STRIDE * leg_length / cycle, "step_height": STEP * leg_length, "cycle_time": cycle}
+
+
+def leg_reason(item: Any) -> str:
+    """Why Detect Legs chose the leg ``item`` (a ``PROCLOCO_PG_leg``); "" once its hip or
+    end-effector was changed by hand."""
+    return str(item.reason) if item.detected == f"{item.hip}>{item.end}" else ""
+
+
 def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     """Detect the legs of ``obj`` and store them in ``obj.procloco.legs``.
 
     A leg keeps its gait sector and foot offset when a leg with the same label was there
-    before; new legs get the default gait. Raises ``rig.RigError`` (and changes nothing) when
-    no leg is found.
+    before; new legs get the default gait. A rig whose speed and step height were never set
+    gets :func:`scaled_defaults` for its leg length. Each leg's ``reason`` says why it was
+    chosen. Raises ``rig.RigError`` (and changes nothing) when no leg is found.
     """
     settings = obj.procloco
     legs = rig.detect_legs(obj)
     keyed = leg_controls(obj, legs)
+    if not settings.legs:
+        rig_gait.set_new_rig_default(obj)  # no gait chosen yet: Auto
+    scaled = None
+    if not settings.is_property_set("speed") and not settings.is_property_set("step_height"):
+        try:
+            length = float(rig.read_rig(obj, legs).leg_length.mean())
+        except rig.RigError:
+            length = 0.0  # Generate will say what is wrong; the defaults stay as they are
+        if length > 0.0:
+            scaled = scaled_defaults(length, float(default_gait([leg.label for leg in legs]).cycle_time))
     labels = [leg.label for leg in legs]
     old = {item.label or item.name: (item.swing_start, item.swing_duration, tuple(item.offset), item.enabled)
            for item in settings.legs}
@@ -119,6 +155,8 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         item.hip = leg.hip
         item.end = leg.end
         item.controls = keyed[k]
+        item.reason = leg.reason
+        item.detected = f"{leg.hip}>{leg.end}"
         if leg.label in old:
             start, duration, offset, enabled = old[leg.label]
             item.swing_start, item.swing_duration = start, duration
@@ -128,6 +166,9 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
             item.swing_duration = float(gait.swing_duration[k])
     if not all(label in old for label in labels):
         settings.cycle_time = float(gait.cycle_time)
+    if scaled is not None:
+        for key, value in scaled.items():
+            setattr(settings, key, value)
     settings.active_leg_index = min(settings.active_leg_index, len(legs) - 1)
     return legs
 
@@ -287,6 +328,9 @@ class Job:
     use_gait_randomizer: bool
     # changes of gait and speed over the frames (GaitChange), in frame order
     gait_changes: tuple[GaitChange, ...] = ()
+    # Gait: Auto (core.autogait): the gait, stride and cycle follow the speed; None: the
+    # gait circles and the Gait Changes' gaits
+    auto_gait: autogait.AutoGaitParams | None = None
     # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
     use_visual_yaw: bool = False
     spine_turn_rate: float = float(np.radians(120.0))  # rad/s
@@ -375,6 +419,18 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
     plan, warnings = plan_keys(obj, info)
     changes = _gait_changes(obj, info.legs, frames, warnings)
+    auto = None
+    # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
+    if rig_gait.is_auto(obj) or not (from_settings or settings.is_property_set("gait_mode")):
+        try:
+            auto = rig_gait.auto_params(obj, info)
+        except core_gait.GaitError as err:
+            raise GenerateError(f"Gait of '{obj.name}': {err}") from err
+        if auto is None:
+            warnings.append(f"Auto gait knows no gaits for {len(info.legs)} legs: '{obj.name}' walks with "
+                            "its gait circles")
+        elif settings.use_gait_randomizer:
+            warnings.append(f"'{obj.name}' uses Auto gait: the gait randomizer is left out")
     job = Job(
         obj_name=obj.name,
         info=info,
@@ -399,6 +455,7 @@ def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         spine_relax_time=float(settings.spine_relax_time),
         visual_yaw_gain=float(settings.visual_yaw_gain),
         gait_changes=changes,
+        auto_gait=auto,
         warnings=warnings,
         held_bones=tuple(pb.name for pb in obj.pose.bones
                          if pb.name in stale and pb.name not in info.driven_bones
@@ -487,6 +544,8 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
         keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
         actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
         report = pose_writer.write_pose(action, obj, request, plan, check=job.check_after)
+        if job.auto_gait is not None:
+            rig_gait.store_auto_track(action, simulation.auto_track(job))
     except Exception:
         _undo_assign(obj, action, before, remembered)
         raise

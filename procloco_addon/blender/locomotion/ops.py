@@ -53,10 +53,12 @@ class PROCLOCO_OT_detect_legs(bpy.types.Operator):
         except rig.RigError as err:
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
+        facing = rig.facing_source(obj, legs)
         items = {item.label: item.controls for item in obj.procloco.legs}
         described = [f"{leg.label}: keys {items[leg.label]}" if items.get(leg.label) else leg.label
                      for leg in legs]
-        self.report({"INFO"}, f"{obj.name}: {len(legs)} legs ({'; '.join(described)})")
+        self.report({"INFO"}, f"{obj.name}: {len(legs)} legs ({'; '.join(described)}); "
+                    f"forward from the {facing}")
         return {"FINISHED"}
 
 

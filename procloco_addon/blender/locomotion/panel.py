@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import bpy
 
 from ..ui.main import PANEL_ORDER, PARENT, RigPanel, SidebarPanel, active_rig
+from . import generate, handler
 from .ops import PROCLOCO_OT_detect_legs
 from .ui_list import PROCLOCO_UL_legs
 
@@ -31,6 +32,7 @@ class PROCLOCO_PT_rig_legs(RigPanel, bpy.types.Panel):
         if not len(settings.legs):
             layout.label(text="Legs are detected when you generate; detect them to edit", icon="INFO")
             return
+        handler.panel_drawn(obj)  # the chosen chains are drawn in the viewport while this is open
         layout.template_list(PROCLOCO_UL_legs.bl_idname, "", settings, "legs", settings, "active_leg_index",
                              rows=min(max(len(settings.legs), 3), 8))
         index = settings.active_leg_index
@@ -46,6 +48,8 @@ class PROCLOCO_PT_rig_legs(RigPanel, bpy.types.Panel):
         if leg.controls:
             col.label(text=f"Keys {leg.controls}", icon="CON_KINEMATIC")
         col.prop(leg, "offset")
+        why = generate.leg_reason(leg)
+        col.label(text=f"Why: {why}" if why else "Set by hand", icon="CHECKMARK" if why else "HAND")
 
 
 class PROCLOCO_PT_locomotion(RigPanel, bpy.types.Panel):

@@ -51,6 +51,15 @@ class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
         description="Last bone solved by the IK; its tail is placed on the ground "
         "(often the bone before the foot)",
     )
+    reason: StringProperty(
+        name="Why",
+        description="Why Detect Legs chose this chain (reaches the ground, mirrored pair, name)",
+    )
+    detected: StringProperty(
+        name="Detected Chain",
+        description="The hip and end-effector Detect Legs chose (\"hip>end\"): the reason holds while "
+        "they are unchanged",
+    )
     enabled: BoolProperty(name="Enabled", description="Animate this leg", default=True)
     controls: StringProperty(
         name="Keyed Controls",
@@ -196,6 +205,31 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
     gait_preset: StringProperty(
         name="Gait Preset",
         description="Name of the gait preset last applied to this rig",
+    )
+    # Auto gait (gait/rig_gait.py reads and sets these). CIRCLES is the stored default so
+    # rigs saved before Auto existed keep their gait; Detect Legs on a new rig picks AUTO.
+    gait_mode: EnumProperty(
+        name="Gait",
+        description="How the gait is chosen",
+        items=(
+            ("AUTO", "Auto", "The gait, stride and cycle follow the speed at every frame, as animals do "
+             "(walk, trot, gallop...; chosen by the Froude number, Alexander & Jayes 1983)"),
+            ("CIRCLES", "Circles", "The gait circles below (a preset or your own), with the Gait Changes"),
+        ),
+        default="CIRCLES",
+    )
+    gait_speed_scale: FloatProperty(
+        name="Gait Speed Scale",
+        description="Multiplies the speeds at which Auto changes gait (above 1: keeps walking to higher "
+        "speeds; below 1: trots and gallops sooner)",
+        default=1.0,
+        min=0.25,
+        max=4.0,
+    )
+    auto_gait_overrides: StringProperty(
+        name="Auto Gait Overrides",
+        description="Per-gait presets used by Auto instead of the shipped ones (JSON: gait name to preset)",
+        options={"HIDDEN"},
     )
     gait_changes: CollectionProperty(
         type=PROCLOCO_PG_gait_change,

@@ -13,10 +13,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ...core.autogait import AutoGait
 from ...core.controller import Controller, ControllerParams, StepControls
 from ...core.footprints import PlannerParams
 from ...core.morphology import LegBatch
@@ -28,8 +29,8 @@ if TYPE_CHECKING:
     from .generate import GaitChange, Job
 
 __all__ = [
-    "SimResult", "ground_function", "path_heading", "run", "speed_schedule", "spine_params", "spine_tracks",
-    "world_tracks",
+    "SimResult", "auto_track", "ground_function", "path_heading", "run", "speed_schedule", "spine_params",
+    "spine_tracks", "world_tracks",
 ]
 
 
@@ -47,7 +48,10 @@ class SimResult:
     ``leg_frame`` ``(F, n_legs, 3, 3)`` body-to-world rotation of what each leg hangs from
     (the body, or its spine bone); with the flexible spine, ``spine_joints`` ``(F, J, 3)``
     world spine joints (head first) and ``spine_rotation`` ``(F, J - 1, 3, 3)`` each spine
-    bone's rotation from its rest (body-frame) direction (None without a spine)."""
+    bone's rotation from its rest (body-frame) direction (None without a spine);
+    ``disk_duration`` ``(F, n_legs)`` each leg's swing duration on the gait circle;
+    ``speed`` ``(F,)`` the speed asked of the controller (m/s, after burst progression and
+    a path's end); ``auto_band`` ``(F,)`` Auto's gait index (-1 without Auto)."""
 
     body: np.ndarray
     joints: np.ndarray
@@ -62,6 +66,9 @@ class SimResult:
     leg_frame: np.ndarray
     spine_joints: np.ndarray | None = None
     spine_rotation: np.ndarray | None = None
+    disk_duration: np.ndarray | None = None
+    speed: np.ndarray | None = None
+    auto_band: np.ndarray | None = None
 
 
 def path_heading(path: np.ndarray, xy: np.ndarray, lookahead: float) -> tuple[float, float]:
@@ -130,6 +137,23 @@ def speed_schedule(job: Job) -> Callable[[float], float]:
     return speed_at
 
 
+def _window(job: Job, leg_len: float) -> tuple[int, float]:
+    """Cells and cell size of the planning window: 70 cells of 0.065 leg (4.5 legs across);
+    with Gait: Auto grown when the fastest stride would put a landing foot beyond its edge (the
+    window is centred on the pelvis; a front foot lands up to about a leg and a half plus a
+    stride ahead of where the pelvis was at lift-off). Cells and size grow alike, by the
+    square root of the needed growth, so planning stays affordable at a gallop."""
+    cells, cell = 70, 0.065 * leg_len
+    if job.auto_gait is None:  # (the circles' walks keep the window they were tuned with)
+        return cells, cell
+    v_max = max([job.speed] + [c.speed for c in job.gait_changes if c.speed is not None])
+    half = 1.5 * leg_len + v_max * float(job.auto_gait.schedule([v_max])[2][0])
+    growth = half / (0.5 * cells * cell)
+    if growth <= 1.0:
+        return cells, cell
+    return int(np.ceil(cells * np.sqrt(growth))), cell * float(np.sqrt(growth))
+
+
 def run(job: Job) -> Iterator[float]:
     """Simulate ``job`` (one controller step per frame after the first); yields the fraction
     done and stores a :class:`SimResult` in ``job.result``."""
@@ -144,13 +168,15 @@ def run(job: Job) -> Iterator[float]:
     progression = ProgressionParams(max_speed=max(job.speed, 0.0))
     prog_state = ProgressionState.start(1, progression, rng) if job.use_progression else None
     gait = job.gait
-    if job.use_gait_randomizer and not job.use_progression:
+    randomize = job.use_gait_randomizer and job.auto_gait is None  # Auto chooses the gait itself
+    if randomize and not job.use_progression:
         # Thesis §4.3: without stalls the randomizer only draws the gait the creature starts with.
         gait = initial_gaits([legs.n_legs], rng)[0].to_gait(job.gait.cycle_time, "Random gait")
     # Gait changes at the first frame set the gait the walk starts with; later ones start a
     # transition at their frame.
     changes_at: dict[int, list[GaitChange]] = {}
-    for change in job.gait_changes:
+    # With Auto the changes' speeds still count (speed_schedule), their gaits do not.
+    for change in job.gait_changes if job.auto_gait is None else ():
         if change.frame_index == 0:
             gait = change.gait
         else:
@@ -169,11 +195,16 @@ def run(job: Job) -> Iterator[float]:
     speed0, heading0 = command(0.0, origin[:2])
     if job.path is not None:
         start_yaw = heading0 if abs(np.angle(np.exp(1j * (heading0 - start_yaw)))) < 0.5 else start_yaw
-    ctl = _controls(job, legs, 0.0 if prog_state is not None else speed0, heading0)
+    speed0 = 0.0 if prog_state is not None else speed0
+    ctl = _controls(job, legs, speed0, heading0)
+    auto = AutoGait([job.auto_gait], [speed0]) if job.auto_gait is not None else None
+    if auto is not None:
+        gait = auto.gaits([gait])[0]
     # Planning cells and height slices scale with the creature (the core's defaults are
     # tuned for half-metre legs: 7 cm cells, 10 cm slices), so a rig scaled ×100 plans the
     # same steps on a 100 times larger terrain.
-    params = ControllerParams(window_cell=0.065 * leg_len, slice_size=0.14 * leg_len)
+    cells, cell = _window(job, leg_len)
+    params = ControllerParams(window_cells=cells, window_cell=cell, slice_size=0.14 * leg_len)
     planner = PlannerParams(step_height=job.step_height, slice_size=0.14 * leg_len, leg_reach=leg_len,
                             candidate_radius=params.candidate_radius * leg_len,
                             fixed_distance=params.fixed_distance * leg_len, edge_height=0.055 * leg_len)
@@ -193,6 +224,9 @@ def run(job: Job) -> Iterator[float]:
     forced = np.zeros((n_frames, n_legs), dtype=bool)
     failed = np.zeros((n_frames, n_legs), dtype=bool)
     disk_start = np.zeros((n_frames, n_legs))
+    disk_duration = np.zeros((n_frames, n_legs))
+    speed_track = np.zeros(n_frames)
+    auto_band = np.full(n_frames, -1, dtype=np.int64)
     leg_frame = np.empty((n_frames, n_legs, 3, 3))
     n_spine = job.morphology.spine.n_joints if spine is not None and job.morphology.spine is not None else 0
     spine_joints = np.empty((n_frames, n_spine, 3)) if n_spine else None
@@ -213,6 +247,9 @@ def run(job: Job) -> Iterator[float]:
         forced[f] = sim.forced
         failed[f] = sim.plan_failed
         disk_start[f] = sim.gait.disk_start
+        disk_duration[f] = sim.gait.disk_duration
+        if auto is not None:
+            auto_band[f] = int(auto.band[0])
         leg_frame[f] = sim.leg_rotations()
         if spine_joints is not None and spine_rotation is not None:
             spine_joints[f] = sim.spine_joints()[0]
@@ -221,6 +258,7 @@ def run(job: Job) -> Iterator[float]:
     # The controller's initial pose does not yet keep the hips within reach of the feet (its
     # reach guard runs in step()): a vanishing step settles frame 0 without moving anything.
     sim.step(1e-9 * job.dt, ctl)
+    speed_track[0] = speed0
     record(0)
     yield 1.0 / n_frames
     for f in range(1, n_frames):
@@ -230,18 +268,35 @@ def run(job: Job) -> Iterator[float]:
         if prog_state is not None:
             progression = ProgressionParams(max_speed=max(speed, 0.0))
             prog_state, effects = effects_step(prog_state, progression, job.dt, rng, [legs.n_legs],
-                                               randomize_gait=job.use_gait_randomizer)
+                                               randomize_gait=randomize)
             speed = float(effects.progression.speed[0])
             if 0 in effects.new_gaits:  # a stall: the next burst walks with a new random gait
                 new = effects.new_gaits[0].to_gait(job.gait.cycle_time, "Random gait")
                 sim.gait.start_transition([0], [new], 0.5 * job.gait.cycle_time)
         for change in changes_at.get(f, ()):
             sim.gait.start_transition([0], [change.gait], change.transition_time)
+        if auto is not None:
+            auto.update(sim.gait, [speed])
+        speed_track[f] = speed
         sim.step(job.dt, _controls(job, legs, speed, heading))
         record(f)
         yield (f + 1) / n_frames
     job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed,
-                           disk_start, leg_frame, spine_joints, spine_rotation)
+                           disk_start, leg_frame, spine_joints, spine_rotation, disk_duration, speed_track,
+                           auto_band)
+
+
+def auto_track(job: Job) -> Any:
+    """What Auto chose over a finished job's frames, as ``gait.rig_gait.AutoTrack``."""
+    from ..gait import rig_gait
+
+    res: SimResult = job.result
+    params = job.auto_gait
+    if res is None or params is None or res.speed is None or res.auto_band is None:
+        raise RuntimeError("the simulation has not run with Auto gait")
+    return rig_gait.AutoTrack(job.frames.copy(), res.speed.copy(), res.auto_band.copy(), params.names,
+                              rig_gait.boundary_speeds(params), res.disk_start.copy(),
+                              np.asarray(res.disk_duration).copy(), res.needle.copy(), True)
 
 
 def world_tracks(job: Job) -> tuple[np.ndarray, list[np.ndarray]]:

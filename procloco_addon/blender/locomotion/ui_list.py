@@ -1,11 +1,14 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The legs list of the Rig & Legs panel: one row per leg (label, hip > end-effector, on/off)."""
+"""The legs list of the Rig & Legs panel: one row per leg (label, hip > end-effector, why
+it was chosen, on/off)."""
 
 from __future__ import annotations
 
 from typing import Any
 
 import bpy
+
+from .generate import leg_reason
 
 __all__ = ["PROCLOCO_UL_legs"]
 
@@ -25,6 +28,8 @@ class PROCLOCO_UL_legs(bpy.types.UIList):
             sub.label(text=item.label or item.name, icon="BONE_DATA")
             chain = f"{item.hip} > {item.end}" if item.hip or item.end else "choose bones"
             sub.label(text=chain)
+            # why detection chose it: reaches the ground, mirrored pair, name
+            sub.label(text=leg_reason(item) or "by hand")
             if item.controls:
                 sub.label(text=item.controls, icon="CON_KINEMATIC")
         else:

@@ -64,7 +64,7 @@ from .pose import GroundFn, PoseTracks, _bend_normal, _frames, matrix_to_quatern
 from .rest import RigError, _unit, uniform_scale
 
 if TYPE_CHECKING:
-    from .read import detect_legs, leg_from_bones, read_rig
+    from .read import detect_legs, facing_source, leg_from_bones, read_rig
 
 __all__ = [
     "FOOT_EXTENT_SHARE",
@@ -81,6 +81,7 @@ __all__ = [
     "_frames",
     "_unit",
     "detect_legs",
+    "facing_source",
     "leg_from_bones",
     "matrix_to_quaternion",
     "morphology_of",
@@ -90,7 +91,7 @@ __all__ = [
     "uniform_scale",
 ]
 
-_READ = frozenset({"detect_legs", "leg_from_bones", "read_rig"})
+_READ = frozenset({"detect_legs", "facing_source", "leg_from_bones", "read_rig"})
 
 
 def __getattr__(name: str) -> Any:

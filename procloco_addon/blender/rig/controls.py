@@ -470,7 +470,7 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
                 if proots:
                     pole_ctrl = proots[0]
         sw = tuple(switches[k])
-        all_switches.extend(sw)
+        all_switches.extend(s for s in sw if (s.bone, s.prop) not in {(o.bone, o.prop) for o in all_switches})
         if ik_ctrl is not None:
             # The control turns like the solved bone nearest to it downstream.
             anchor = _nearest_solved(graph, ik_ctrl, [*foot[:1], *bones[::-1]])

@@ -16,13 +16,23 @@ _CAMEL = re.compile(r"(?<=[a-z])(?=[A-Z])|(?<=[A-Za-z])(?=[0-9])|(?<=[0-9])(?=[A
 LEG_WORDS = frozenset({
     "thigh", "shin", "calf", "knee", "foot", "feet", "toe", "toes", "leg", "legs", "upleg", "upperleg",
     "lowerleg", "coxa", "trochanter", "femur", "tibia", "tarsus", "metatarsus", "ankle", "paw", "hoof",
-    "hock", "forearm", "hand", "arm", "claw", "pes", "manus", "limb",
+    "hock", "forearm", "hand", "arm", "claw", "pes", "manus", "limb", "ball", "toebase", "upperarm",
+    "lowerarm", "scapula", "humerus", "radius", "ulna", "cannon", "pastern", "fetlock", "carpus",
+    "metacarpus", "metatarsal", "femoral", "tarsal", "hind", "fore",
 })
+# Words of appendages that may reach down but are not legs (jaws, palps, fins, face bones).
+NON_LEG_WORDS = frozenset({
+    "jaw", "jaws", "pincer", "pedipalp", "palp", "chelicera", "chelicerae", "antenna", "antennae", "fin",
+    "fins", "tail", "wing", "mandible", "fang", "tongue", "ear", "teeth", "tooth", "mouth", "lip", "cheek",
+    "nose", "brow", "eyebrow", "eye", "lid", "chin", "whisker", "tentacle", "hair", "beak",
+})
+# Helper words that may end a leg chain: the leaf bone marking a toe's tip (``LeftToe_End``).
+TIP_WORDS = frozenset({"tip", "end", "nub", "null"})
 # Words that make a bone a control, helper or mechanism bone, never part of a leg chain.
 HELPER_WORDS = frozenset({
     "ik", "fk", "pole", "target", "tgt", "ctrl", "control", "mch", "helper", "twist", "roll", "heel",
     "tweak", "parent", "socket", "pivot", "vis", "hint", "aim", "root", "master", "prop", "rot", "ctl",
-    "tip", "end", "nub", "null", "ref", "snap", "lock", "spin",
+    "tip", "end", "nub", "null", "snap", "lock", "spin",
 })
 _SIDES = {"l": 1, "left": 1, "lft": 1, "r": -1, "right": -1, "rgt": -1}
 
@@ -53,6 +63,11 @@ def split_name(name: str) -> tuple[int, tuple[str, ...]]:
                 base = base[: m.start()] + base[m.end():]
     spaced = _CAMEL.sub(" ", base)
     tokens = tuple(t for t in re.split(r"[^A-Za-z0-9]+", spaced.lower()) if t)
+    if side == 0:  # a side word inside the name: FrontLeftLeg, Leg_L_01
+        sided = [t for t in tokens if t in _SIDES]
+        if len(sided) == 1:
+            side = _SIDES[sided[0]]
+            tokens = tuple(t for t in tokens if t != sided[0])
     return side, tokens
 
 
@@ -63,6 +78,15 @@ def _is_leg_name(tokens: Sequence[str]) -> bool:
 
 def _is_helper_name(tokens: Sequence[str]) -> bool:
     return bool(set(tokens) & HELPER_WORDS)
+
+
+def _is_control_name(tokens: Sequence[str]) -> bool:
+    """A control or mechanism bone (IK target, pole, twist...); a toe's tip bone is not."""
+    return bool(set(tokens) & (HELPER_WORDS - TIP_WORDS))
+
+
+def _is_non_leg_name(tokens: Sequence[str]) -> bool:
+    return bool(set(tokens) & NON_LEG_WORDS)
 
 
 def _leg_number(tokens: Sequence[str]) -> str:

@@ -9,7 +9,7 @@ from collections.abc import Collection, Sequence
 import bpy
 import numpy as np
 
-from .detect import LegChain, _forward_axis, _label_legs, find_legs, leg_between
+from .detect import LegChain, _forward_axis, _label_legs, find_legs, forward_of, leg_between
 from .info import BodyInfo, RigInfo
 from .rest import (
     _UP,
@@ -21,6 +21,7 @@ from .rest import (
     _length,
     _Rest,
     uniform_scale,
+    with_leaf_ends,
 )
 from .spine import _spine_chain, _spine_layout
 
@@ -52,7 +53,36 @@ def _rest_of(obj: bpy.types.Object) -> _Rest:
     bones.foreach_get("tail_local", tail_l)
     head = _apply(world, head_l.reshape(n, 3).astype(np.float64))
     tail = _apply(world, tail_l.reshape(n, 3).astype(np.float64))
-    return _Rest(names, index, parent, head, tail, local_m, world, scale)
+    rest = _Rest(names, index, parent, head, tail, local_m, world, scale)
+    leaves = [i for i in range(n) if not rest.children(i) and not rest.phantom[i]]
+    skin = _skin_points(obj, [names[i] for i in leaves])
+    if not skin:
+        return rest
+    return with_leaf_ends(rest, {index[k]: v for k, v in skin.items()})
+
+
+def _skin_points(obj: bpy.types.Object, bone_names: Sequence[str]) -> dict[str, np.ndarray]:
+    """World rest positions ``(p, 3)`` of the skin vertices weighted mostly (>= 0.5) to each
+    of ``bone_names``, over the meshes deformed by ``obj`` (Armature modifier)."""
+    wanted = set(bone_names)
+    out: dict[str, list[np.ndarray]] = {}
+    for mesh_obj in bpy.data.objects:
+        if mesh_obj.type != "MESH" or not any(m.type == "ARMATURE" and m.object == obj
+                                              for m in mesh_obj.modifiers):
+            continue
+        groups = {g.index: g.name for g in mesh_obj.vertex_groups if g.name in wanted}
+        if not groups:
+            continue
+        mesh = mesh_obj.data
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        world = _apply(np.array(mesh_obj.matrix_world, dtype=np.float64),
+                       co.reshape(-1, 3).astype(np.float64))
+        for v in mesh.vertices:
+            for g in v.groups:
+                if g.group in groups and g.weight >= 0.5:
+                    out.setdefault(groups[g.group], []).append(world[v.index])
+    return {k: np.array(v) for k, v in out.items() if len(v) >= 3}
 
 
 _OVERRIDING_CONSTRAINTS = frozenset({
@@ -72,6 +102,12 @@ def detect_legs(obj: bpy.types.Object) -> list[LegChain]:
     constrained = np.array([any(c.type in _OVERRIDING_CONSTRAINTS for c in pbones[n].constraints)
                             for n in rest.names], dtype=bool)
     return find_legs(rest, constrained, obj.name)
+
+
+def facing_source(obj: bpy.types.Object, legs: Sequence[LegChain]) -> str:
+    """What says which way ``obj`` faces with these legs: ``"toes"``, ``"head"``,
+    ``"L/R names"`` or ``"object's -Y axis"`` (see :func:`.detect.forward_of`)."""
+    return forward_of(_rest_of(obj), legs)[1]
 
 
 def leg_from_bones(obj: bpy.types.Object, hip: str, end: str, label: str = "") -> LegChain:
@@ -125,7 +161,7 @@ def read_rig(
     mean_leg = float(np.mean([_length(_chain_points(rest, [rest.index[b] for b in leg.bones]))
                               for leg in legs]))
     chain = _spine_chain(rest, body_idx, hip_idx, forward, mean_leg)
-    carried = spine and _spine_layout(rest, chain, hip_idx, rest.head, rest.tail) is not None
+    carried = spine and _spine_layout(rest, chain, hip_idx, rest.head, rest.end) is not None
 
     basis = _current_basis(obj)
     for name in at_rest:
@@ -138,8 +174,11 @@ def read_rig(
     driven |= {rest.index[t[0]] for t in ik_targets if t is not None}
     posed_local = _posed_rest(rest, basis, driven)
     heads = _apply(rest.world, posed_local[:, :3, 3])
-    tails = _apply(rest.world, posed_local[:, :3, 3] + posed_local[:, :3, 1]
-                   * np.array([obj.data.bones[n].length for n in rest.names])[:, None])
+    # Each bone's far joint (its tail, or on imported rigs the next bone's head) moves with the bone.
+    end_arm = _apply(np.linalg.inv(rest.world), rest.end)
+    end_bone = np.einsum("bij,bj->bi", np.linalg.inv(rest.local)[:, :3, :3], end_arm - rest.local[:, :3, 3])
+    ends = _apply(rest.world,
+                  np.einsum("bij,bj->bi", posed_local[:, :3, :3], end_bone) + posed_local[:, :3, 3])
 
     joints = []
     contact = []
@@ -148,13 +187,13 @@ def read_rig(
     foot_pts = []
     for leg in legs:
         idx = [rest.index[b] for b in leg.bones]
-        pts = np.vstack([heads[idx], tails[idx[-1]][None]])
+        pts = np.vstack([heads[idx], ends[idx[-1]][None]])
         joints.append(pts)
         below = [pts[-1]]
         for f in leg.foot:
             k = rest.index[f]
-            below += [heads[k], tails[k]]
-            below += [heads[c] for c in _descendants(rest, k)] + [tails[c] for c in _descendants(rest, k)]
+            below += [heads[k], ends[k]]
+            below += [heads[c] for c in _descendants(rest, k)] + [ends[c] for c in _descendants(rest, k)]
         below_a = np.array(below)
         low = below_a[np.argmin(below_a[:, 2])]
         contact.append(np.array([pts[-1, 0], pts[-1, 1], low[2]]))
@@ -170,7 +209,7 @@ def read_rig(
         foot_pts.append(probes)
     origin = np.array([j[0] for j in joints]).mean(axis=0)
     body = BodyInfo(origin, forward, left)
-    layout = _spine_layout(rest, chain, hip_idx, heads, tails) if carried else None
+    layout = _spine_layout(rest, chain, hip_idx, heads, ends) if carried else None
 
     warnings = []
     handled = {t[0] for t in ik_targets if t is not None}

@@ -7,6 +7,7 @@ detection and the spine search run on plain arrays (unit-testable without Blende
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -31,9 +32,36 @@ class _Rest:
     local: np.ndarray  # (B, 4, 4) armature-space rest matrices (bone.matrix_local)
     world: np.ndarray  # (4, 4) object world matrix
     scale: float
+    # (B, 3) world: where each bone's far joint is (see :func:`joint_ends`); from the tails
+    # when not given.
+    end: np.ndarray = None  # type: ignore[assignment]
+    tails_meaningful: bool = True
+    # (B,) bool: leaf bones an FBX exporter added at its parent's tail (``<parent>_end``):
+    # they mark a tail, not a joint, and are left out of the rig's geometry.
+    phantom: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.phantom is None:
+            has_kids = np.zeros(len(self.names), dtype=bool)
+            has_kids[self.parent[self.parent >= 0]] = True
+            object.__setattr__(self, "phantom", np.array(
+                [not has_kids[i] and p >= 0 and n == self.names[p] + "_end"
+                 for i, (n, p) in enumerate(zip(self.names, self.parent.tolist(), strict=True))], dtype=bool))
+        if self.end is None:
+            # A control rig's mechanism and control bones (Rigify's MCH-, tweak, IK, FK and
+            # face bones, Auto-Rig Pro's c_ controls) sit anywhere on their parents: only its
+            # skeleton (Rigify's ORG-/DEF- bones, else the bones not named as controls) says
+            # whether the tails are joints.
+            copies = np.array([bool(re.match(r"^(ORG|DEF)[-_.]", n)) for n in self.names], dtype=bool)
+            skeleton = copies if copies.any() else np.array(
+                [not re.match(r"^(MCH|VIS|WGT|c)[-_.]", n) for n in self.names], dtype=bool)
+            end, meaningful = joint_ends(np.where(self.phantom, -1, self.parent), self.head, self.tail,
+                                         skeleton)
+            object.__setattr__(self, "end", end)
+            object.__setattr__(self, "tails_meaningful", meaningful)
 
     def children(self, i: int) -> list[int]:
-        return [int(c) for c in np.flatnonzero(self.parent == i)]
+        return [int(c) for c in np.flatnonzero((self.parent == i) & ~self.phantom)]
 
     def ancestors(self, i: int) -> list[int]:
         out = []
@@ -42,6 +70,78 @@ class _Rest:
             out.append(p)
             p = int(self.parent[p])
         return out
+
+
+def joint_ends(parent: np.ndarray, head: np.ndarray, tail: np.ndarray,
+               counted: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+    """Each bone's far joint ``(B, 3)``, and whether the rig's tails mean anything (judged on
+    the ``counted`` ``(B,)`` bones, all by default).
+
+    Blender-made rigs put a bone's tail where its child starts: there the tails are the
+    joints. glTF and FBX importers give bones arbitrary tails (each along its own +Y, of a
+    guessed length): when fewer than three quarters of the bones with children have a child
+    starting at their tail, a bone's far joint is the head of its child with the largest
+    subtree (the chain's continuation), and a leaf's is its own head (its extent is unknown:
+    it comes from its children, the skin or nothing).
+    """
+    n = parent.shape[0]
+    kids: list[list[int]] = [[] for _ in range(n)]
+    for i, p in enumerate(parent.tolist()):
+        if p >= 0:
+            kids[p].append(i)
+    span = float(np.ptp(np.vstack([head, tail]), axis=0).max()) if n else 0.0
+    tol = 1e-4 * max(span, 1e-12)
+    with_kids = [i for i in range(n) if kids[i]]
+    judged = [i for i in with_kids if counted is None or counted[i]] or with_kids
+    hits = sum(1 for i in judged if np.min(np.linalg.norm(head[kids[i]] - tail[i], axis=1)) < tol)
+    if not with_kids or hits >= 0.75 * len(judged):
+        return tail.copy(), True
+    size = np.ones(n, dtype=np.int64)
+    for i in sorted(range(n), key=lambda j: -_depth(parent, j)):  # children before parents
+        if parent[i] >= 0:
+            size[parent[i]] += size[i]
+    end = head.copy()
+    for i in with_kids:
+        away = [c for c in kids[i] if np.linalg.norm(head[c] - head[i]) > tol]
+        if away:
+            c = max(away, key=lambda c: (size[c], float(np.linalg.norm(head[c] - head[i]))))
+            end[i] = head[c]
+    return end, False
+
+
+def with_leaf_ends(rest: _Rest, skin: dict[int, np.ndarray]) -> _Rest:
+    """``rest`` with the far joint of leaf bones taken from their skin where the tail is
+    not to be trusted. skin: bone index -> ``(p, 3)`` world points weighted to that bone.
+
+    A leaf's far joint is its skin's point farthest from its head when the rig's tails mean
+    nothing, or when that point lies more than 30° off the tail's direction or at under half
+    or over 1.5 times the tail's distance (an importer's guess: a glTF leaf continues its
+    parent's direction). Otherwise the tail stays (a Blender-made rig with a skin around it).
+    """
+    end = rest.end.copy()
+    for i, pts in skin.items():
+        if rest.children(i) or pts.shape[0] == 0:
+            continue
+        d = pts - rest.head[i]
+        far = pts[int(np.argmax(np.linalg.norm(d, axis=1)))]
+        reach = float(np.linalg.norm(far - rest.head[i]))
+        bone = rest.tail[i] - rest.head[i]
+        length = float(np.linalg.norm(bone))
+        if rest.tails_meaningful and length > 0.0 and reach > 0.0:
+            cos = float((far - rest.head[i]) @ bone) / (reach * length)
+            if cos >= np.cos(np.radians(30.0)) and 0.5 * length <= reach <= 1.5 * length:
+                continue
+        end[i] = far
+    return _Rest(rest.names, rest.index, rest.parent, rest.head, rest.tail, rest.local, rest.world,
+                 rest.scale, end, rest.tails_meaningful, rest.phantom)
+
+
+def _depth(parent: np.ndarray, i: int) -> int:
+    d = 0
+    while parent[i] >= 0:
+        i = int(parent[i])
+        d += 1
+    return d
 
 
 def uniform_scale(world: np.ndarray) -> float | None:
@@ -73,8 +173,8 @@ def _unit(v: np.ndarray) -> np.ndarray:
 
 
 def _chain_points(rest: _Rest, idx: Sequence[int]) -> np.ndarray:
-    """Joint points of a chain: each bone's head, then the last bone's tail ``(k + 1, 3)``."""
-    return np.vstack([rest.head[list(idx)], rest.tail[idx[-1]][None]])
+    """Joint points of a chain: each bone's head, then the last bone's far joint ``(k + 1, 3)``."""
+    return np.vstack([rest.head[list(idx)], rest.end[idx[-1]][None]])
 
 
 def _continuing_child(rest: _Rest, i: int, allowed: set[int] | None = None) -> int | None:
@@ -83,7 +183,7 @@ def _continuing_child(rest: _Rest, i: int, allowed: set[int] | None = None) -> i
     if not kids:
         return None
     tol = 1e-6 * max(rest.scale, 1e-9)
-    connected = [c for c in kids if np.linalg.norm(rest.head[c] - rest.tail[i]) < tol]
+    connected = [c for c in kids if np.linalg.norm(rest.head[c] - rest.end[i]) < tol]
     pool = connected or kids
     return min(pool, key=lambda c: (_subtree_min_z(rest, c), c))
 
@@ -93,7 +193,7 @@ def _subtree_min_z(rest: _Rest, i: int) -> float:
     low = np.inf
     while stack:
         j = stack.pop()
-        low = min(low, rest.head[j, 2], rest.tail[j, 2])
+        low = min(low, rest.head[j, 2], rest.end[j, 2])
         stack.extend(rest.children(j))
     return float(low)
 

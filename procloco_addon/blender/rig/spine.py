@@ -38,13 +38,13 @@ def _spine_chain(
     def spine_like(parent: int, i: int) -> bool:
         if i in hip_set or _is_helper_name(split_name(rest.names[i])[1]):
             return False
-        ends = np.stack([rest.head[i], rest.tail[i]])
+        ends = np.stack([rest.head[i], rest.end[i]])
         if np.abs((ends - centre) @ left).max() > tol:
             return False
-        parent_len = float(np.linalg.norm(rest.tail[parent] - rest.head[parent]))
-        if np.linalg.norm(rest.head[i] - rest.tail[parent]) > 0.25 * parent_len + 1e-9 * rest.scale:
+        parent_len = float(np.linalg.norm(rest.end[parent] - rest.head[parent]))
+        if np.linalg.norm(rest.head[i] - rest.end[parent]) > 0.25 * parent_len + 1e-9 * rest.scale:
             return False
-        return float((rest.tail[i] - rest.head[i]) @ forward) > 1e-3 * leg_length
+        return float((rest.end[i] - rest.head[i]) @ forward) > 1e-3 * leg_length
 
     chain = [body]
     while len(chain) < len(rest.names):
@@ -55,7 +55,7 @@ def _spine_chain(
         if holding:
             chain.append(max(holding, key=lambda k: (carried(k), -k)))
         else:
-            chain.append(max(kids, key=lambda k: (float(rest.tail[k] @ forward), -k)))
+            chain.append(max(kids, key=lambda k: (float(rest.end[k] @ forward), -k)))
     return chain
 
 

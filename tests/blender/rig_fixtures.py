@@ -1,0 +1,563 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Rigs named and built the way users bring them, made by script (no third-party asset).
+
+Each builder returns an armature object standing on ``z = 0`` with a capsule skin (one vertex
+group per bone), so Blender's glTF and FBX exporters write it like a game asset. Geometry is
+given in creature space: facing -Y, left at +X, Z up, metres. :data:`FIXTURES` lists them by
+name with the legs detection must find (:class:`Expected`) or the refusal it must give.
+
+- Humanoids named by Mixamo (T pose and A pose), the Unreal mannequin (facing +Y), Character
+  Creator and 3ds Max Biped: arms that do not reach the ground, twist and IK helper bones.
+- ``gltf_quadruped``: numbered game names (``b_LeftLeg01_015``), every bone pointing along
+  its own +Y with a fixed length (what importers make of a file), the object turned 90°
+  about X as a Y-up file arrives.
+- ``spider8``: game names ``Leg1Base.L`` ... ``Leg4Fore.R``, jaws, pedipalps and antennae.
+- ``root_legs``: four legs ``FrontLeftLeg > FrontLeftShin > FrontLeftToe`` hanging from the
+  root bone beside the body, not from the body.
+- ``horse``: front legs scapula > humerus > radius > cannon > pastern > hoof.
+- ``swapped``: the horse with its L/R names on the wrong sides.
+- ``rigify_horse``, ``rigify_bird`` (9 cm legs), ``rigify_basic_human``: Blender's own
+  metarigs, which earlier detection got wrong (hoof-only front legs, legs ending at the knee).
+- ``shark``: Rigify's shark metarig (fins only); ``on_side`` / ``upside_down``: the horse
+  turned 90° and 180° about its forward axis.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+from tools.examples import creatures
+
+Vec = tuple[float, float, float]
+#: (name, parent, head, tail) in creature space.
+Spec = tuple[str, str | None, Vec, Vec]
+
+
+@dataclass(frozen=True)
+class Expected:
+    """What Detect Legs must find: ``label -> (hip, end-effector)``; or a refusal."""
+
+    legs: dict[str, tuple[str, str]] = field(default_factory=dict)
+    refusal: str = ""
+
+
+def _chain(names: Sequence[str], parent: str | None, points: Sequence[Vec]) -> list[Spec]:
+    return [(n, parent if i == 0 else names[i - 1], points[i], points[i + 1]) for i, n in enumerate(names)]
+
+
+def _mirror(specs: Sequence[Spec], rename: Callable[[str], str]) -> list[Spec]:
+    def flip(p: Vec) -> Vec:
+        return (-p[0], p[1], p[2])
+
+    return [(rename(n), rename(p) if p else None, flip(h), flip(t)) for n, p, h, t in specs]
+
+
+def _swap(a: str, b: str) -> Callable[[str], str]:
+    return lambda name: name.replace(a, b)
+
+
+# ---------------------------------------------------------------------------------------
+# Humanoids
+
+
+def _humanoid(
+    names: dict[str, str],
+    rename: Callable[[str], str],
+    pose: str = "T",
+    root: str | None = None,
+    extras: Sequence[Spec] = (),
+) -> list[Spec]:
+    """A 1.75 m humanoid. ``names`` maps roles to the left side's bone names; ``rename`` makes
+    the right side's from them. ``pose``: ``"T"`` (arms level) or ``"A"`` (45° down)."""
+    n = names
+    hips_parent = root
+    bones: list[Spec] = []
+    if root is not None:
+        bones.append((root, None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.2)))
+    bones += _chain(
+        [n["hips"], n["spine"], n["chest"], n["neck"], n["head"]],
+        hips_parent,
+        [
+            (0.0, 0.0, 1.0),
+            (0.0, 0.0, 1.1),
+            (0.0, 0.0, 1.3),
+            (0.0, 0.0, 1.5),
+            (0.0, 0.0, 1.58),
+            (0.0, 0.0, 1.75),
+        ],
+    )
+    # The legs hang from the hips bone, the arms from the chest.
+    left = _chain(
+        [n["thigh"], n["shin"], n["foot"], n["toe"]],
+        n["hips"],
+        [(0.1, 0.0, 0.95), (0.1, -0.02, 0.5), (0.1, 0.03, 0.08), (0.1, -0.1, 0.0), (0.1, -0.17, 0.0)],
+    )
+    c, s = (1.0, 0.0) if pose == "T" else (math.cos(math.radians(45)), math.sin(math.radians(45)))
+    sh = (0.17, 0.0, 1.45)
+
+    def along(d: float) -> Vec:
+        return (sh[0] + c * d, 0.0, sh[2] - s * d)
+
+    left += _chain([n["shoulder"]], n["chest"], [(0.03, 0.0, 1.45), sh])
+    left += _chain(
+        [n["upper_arm"], n["forearm"], n["hand"], n["finger"]],
+        n["shoulder"],
+        [sh, along(0.28), along(0.54), along(0.62), along(0.7)],
+    )
+    for role, parent in (("thigh_twist", "thigh"), ("calf_twist", "shin")):
+        if role in n:
+            i = [b[0] for b in left].index(n[parent])
+            h, t = np.array(left[i][2]), np.array(left[i][3])
+            left.append((n[role], n[parent], tuple(h + 0.3 * (t - h)), tuple(h + 0.5 * (t - h))))
+    left += list(extras)
+    return bones + left + _mirror(left, rename)
+
+
+MIXAMO = {
+    "hips": "mixamorig:Hips",
+    "spine": "mixamorig:Spine",
+    "chest": "mixamorig:Spine2",
+    "neck": "mixamorig:Neck",
+    "head": "mixamorig:Head",
+    "thigh": "mixamorig:LeftUpLeg",
+    "shin": "mixamorig:LeftLeg",
+    "foot": "mixamorig:LeftFoot",
+    "toe": "mixamorig:LeftToeBase",
+    "shoulder": "mixamorig:LeftShoulder",
+    "upper_arm": "mixamorig:LeftArm",
+    "forearm": "mixamorig:LeftForeArm",
+    "hand": "mixamorig:LeftHand",
+    "finger": "mixamorig:LeftHandIndex1",
+}
+UNREAL = {
+    "hips": "pelvis",
+    "spine": "spine_01",
+    "chest": "spine_03",
+    "neck": "neck_01",
+    "head": "head",
+    "thigh": "thigh_l",
+    "shin": "calf_l",
+    "foot": "foot_l",
+    "toe": "ball_l",
+    "shoulder": "clavicle_l",
+    "upper_arm": "upperarm_l",
+    "forearm": "lowerarm_l",
+    "hand": "hand_l",
+    "finger": "index_01_l",
+    "thigh_twist": "thigh_twist_01_l",
+    "calf_twist": "calf_twist_01_l",
+}
+CC = {
+    "hips": "CC_Base_Hip",
+    "spine": "CC_Base_Waist",
+    "chest": "CC_Base_Spine02",
+    "neck": "CC_Base_NeckTwist01",
+    "head": "CC_Base_Head",
+    "thigh": "CC_Base_L_Thigh",
+    "shin": "CC_Base_L_Calf",
+    "foot": "CC_Base_L_Foot",
+    "toe": "CC_Base_L_ToeBase",
+    "shoulder": "CC_Base_L_Clavicle",
+    "upper_arm": "CC_Base_L_Upperarm",
+    "forearm": "CC_Base_L_Forearm",
+    "hand": "CC_Base_L_Hand",
+    "finger": "CC_Base_L_Index1",
+    "calf_twist": "CC_Base_L_CalfTwist01",
+}
+BIPED = {
+    "hips": "Bip01 Pelvis",
+    "spine": "Bip01 Spine",
+    "chest": "Bip01 Spine1",
+    "neck": "Bip01 Neck",
+    "head": "Bip01 Head",
+    "thigh": "Bip01 L Thigh",
+    "shin": "Bip01 L Calf",
+    "foot": "Bip01 L Foot",
+    "toe": "Bip01 L Toe0",
+    "shoulder": "Bip01 L Clavicle",
+    "upper_arm": "Bip01 L UpperArm",
+    "forearm": "Bip01 L Forearm",
+    "hand": "Bip01 L Hand",
+    "finger": "Bip01 L Finger0",
+}
+
+
+def _unreal_bones() -> list[Spec]:
+    ik = [
+        ("ik_foot_root", "root", (0.0, 0.0, 0.0), (0.0, 0.0, 0.1)),
+        ("ik_foot_l", "ik_foot_root", (0.1, 0.03, 0.08), (0.1, 0.13, 0.08)),
+        ("ik_foot_r", "ik_foot_root", (-0.1, 0.03, 0.08), (-0.1, 0.13, 0.08)),
+    ]
+    bones = _humanoid(UNREAL, _swap("_l", "_r"), pose="A", root="root") + ik
+    # The mannequin faces +Y: turned half a turn about Z.
+    return [(n, p, (-h[0], -h[1], h[2]), (-t[0], -t[1], t[2])) for n, p, h, t in bones]
+
+
+# ---------------------------------------------------------------------------------------
+# Creatures
+
+
+def _quadruped(
+    front: Sequence[str],
+    hind: Sequence[str],
+    body: dict[str, str],
+    rename: Callable[[str], str],
+    front_points: Sequence[Vec],
+    hind_points: Sequence[Vec],
+    front_parent: str,
+    hind_parent: str,
+    size: float = 1.0,
+) -> list[Spec]:
+    b = body
+    spine = _chain(
+        [b["hips"], b["spine"], b["chest"]],
+        b.get("root"),
+        [(0.0, 0.4, 1.4), (0.0, 0.1, 1.42), (0.0, -0.2, 1.45), (0.0, -0.45, 1.5)],
+    )
+    spine += _chain(
+        [b["neck"], b["head"]], b["chest"], [(0.0, -0.45, 1.5), (0.0, -0.75, 1.75), (0.0, -1.05, 1.6)]
+    )
+    spine += _chain(
+        [b["tail"], b["tail"] + "_end"], b["hips"], [(0.0, 0.4, 1.4), (0.0, 0.7, 1.2), (0.0, 0.9, 0.9)]
+    )
+    left = _chain(list(front), front_parent, list(front_points)) + _chain(
+        list(hind), hind_parent, list(hind_points)
+    )
+    bones = spine + left + _mirror(left, rename)
+    return [(n, p, tuple(size * x for x in h), tuple(size * x for x in t)) for n, p, h, t in bones]  # type: ignore[misc]
+
+
+HORSE_FRONT = [
+    (0.15, -0.35, 1.5),
+    (0.17, -0.55, 1.15),
+    (0.17, -0.45, 0.9),
+    (0.17, -0.47, 0.45),
+    (0.17, -0.47, 0.15),
+    (0.17, -0.53, 0.06),
+    (0.17, -0.6, 0.0),
+]
+HORSE_HIND = [
+    (0.17, 0.45, 1.35),
+    (0.2, 0.25, 0.95),
+    (0.2, 0.55, 0.6),
+    (0.2, 0.55, 0.15),
+    (0.2, 0.5, 0.06),
+    (0.2, 0.44, 0.0),
+]
+
+
+def _horse_bones(swap_names: bool = False) -> list[Spec]:
+    front = ["scapula.L", "humerus.L", "radius.L", "cannon.L", "pastern.L", "hoof.L"]
+    hind = ["femur.L", "tibia.L", "metatarsus.L", "hind_pastern.L", "hind_hoof.L"]
+    body = {
+        "hips": "pelvis",
+        "spine": "spine",
+        "chest": "chest",
+        "neck": "neck",
+        "head": "head",
+        "tail": "tail",
+    }
+    bones = _quadruped(front, hind, body, _swap(".L", ".R"), HORSE_FRONT, HORSE_HIND, "chest", "pelvis")
+    if swap_names:
+
+        def swapped(name: str) -> str:
+            return name.replace(".L", ".X").replace(".R", ".L").replace(".X", ".R")
+
+        bones = [(swapped(n), swapped(p) if p else None, h, t) for n, p, h, t in bones]
+    return bones
+
+
+def _gltf_quadruped_bones() -> list[Spec]:
+    body = {
+        "root": "b_Root_00",
+        "hips": "b_Hips_01",
+        "spine": "b_Spine01_02",
+        "chest": "b_Spine02_03",
+        "neck": "b_Neck_04",
+        "head": "b_Head_05",
+        "tail": "b_Tail01_019",
+    }
+    front = ["b_LeftUpperArm_09", "b_LeftForeArm_010", "b_LeftHand_011", "b_LeftFinger_012"]
+    hind = ["b_LeftLeg01_015", "b_LeftLeg02_016", "b_LeftFoot01_017", "b_LeftFoot02_018"]
+    # A bent front leg (elbow back, wrist forward): nearly straight columns make the IK jump (see README)
+    fp = [
+        (0.14, -0.3, 1.25),
+        (0.15, -0.18, 0.78),
+        (0.15, -0.26, 0.24),
+        (0.15, -0.34, 0.06),
+        (0.15, -0.42, 0.0),
+    ]
+    hp = [(0.15, 0.4, 1.25), (0.16, 0.2, 0.8), (0.16, 0.45, 0.35), (0.16, 0.4, 0.05), (0.16, 0.32, 0.0)]
+    bones = _quadruped(
+        front, hind, body, _swap("Left", "Right"), fp, hp, "b_Spine02_03", "b_Hips_01", size=0.5
+    )
+    root = ("b_Root_00", None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.1))
+    return [root, *bones]
+
+
+def _spider_bones() -> list[Spec]:
+    s = 0.3  # body height (m)
+    bones: list[Spec] = [
+        ("Body", None, (0.0, 0.1 * s, s), (0.0, -0.2 * s, s)),
+        ("Abdomen", "Body", (0.0, 0.15 * s, s), (0.0, 0.8 * s, 1.1 * s)),
+        ("Head", "Body", (0.0, -0.2 * s, s), (0.0, -0.35 * s, 1.02 * s)),
+    ]
+    left: list[Spec] = []
+    for n, azimuth in enumerate((40.0, 75.0, 110.0, 150.0), start=1):
+        a = math.radians(azimuth)
+        out = np.array([math.sin(a), -math.cos(a), 0.0])
+        hip = np.array([0.0, -0.05 * s, s]) + 0.15 * s * out
+        knee = hip + 0.25 * s * out + np.array([0.0, 0.0, 0.1 * s])
+        top = knee + 0.6 * s * out + np.array([0.0, 0.0, 0.5 * s])
+        foot = top + 0.7 * s * out
+        foot[2] = 0.0
+        left += _chain(
+            [f"Leg{n}Base.L", f"Leg{n}Mid.L", f"Leg{n}Fore.L"],
+            "Body",
+            [tuple(hip), tuple(knee), tuple(top), tuple(foot)],
+        )
+    left += _chain(
+        ["JawBase.L", "Pincer.L"],
+        "Head",
+        [(0.03 * s, -0.3 * s, 0.95 * s), (0.05 * s, -0.45 * s, 0.7 * s), (0.04 * s, -0.5 * s, 0.5 * s)],
+    )
+    left += _chain(
+        ["Pedipalp1.L", "Pedipalp2.L"],
+        "Body",
+        [(0.08 * s, -0.2 * s, 0.95 * s), (0.15 * s, -0.5 * s, 0.8 * s), (0.18 * s, -0.7 * s, 0.45 * s)],
+    )
+    left += _chain(
+        ["Antenna1.L", "Antenna2.L"],
+        "Head",
+        [(0.03 * s, -0.35 * s, 1.05 * s), (0.1 * s, -0.7 * s, 1.4 * s), (0.15 * s, -1.1 * s, 1.6 * s)],
+    )
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _root_legs_bones() -> list[Spec]:
+    bones: list[Spec] = [
+        ("root", None, (0.0, 0.0, 0.0), (0.0, 0.2, 0.0)),
+        ("Body", "root", (0.0, 0.35, 0.5), (0.0, -0.35, 0.5)),
+        ("Head", "Body", (0.0, -0.35, 0.5), (0.0, -0.55, 0.6)),
+    ]
+    left: list[Spec] = []
+    for row, y in (("Front", -0.25), ("Back", 0.25)):
+        left += _chain(
+            [f"{row}LeftLeg", f"{row}LeftShin", f"{row}LeftToe"],
+            "root",
+            [(0.15, y, 0.48), (0.17, y - 0.02, 0.25), (0.17, y + 0.01, 0.04), (0.17, y - 0.07, 0.0)],
+        )
+    return bones + left + _mirror(left, _swap("Left", "Right"))
+
+
+# ---------------------------------------------------------------------------------------
+# Building
+
+
+def build(
+    scene: Any,
+    name: str,
+    bones: Sequence[Spec],
+    *,
+    plus_y: float = 0.0,
+    rotation: Sequence[float] = (0.0, 0.0, 0.0),
+    connect: bool = True,
+    turn: Sequence[float] = (0.0, 0.0, 0.0),
+) -> Any:
+    """An armature of ``bones`` (creature space) with a capsule skin, standing on z = 0.
+
+    ``rotation``: the object's Euler rotation; the bones are placed so that the rig still
+    stands in the world; ``turn`` then turns the object (and the rig with it).
+    ``plus_y > 0``: every bone points along its own armature +Y with that length, as glTF/FBX
+    importers leave them (the tails mean nothing).
+    """
+    data = bpy.data.armatures.new(name)
+    arm = bpy.data.objects.new(name, data)
+    scene.collection.objects.link(arm)
+    arm.rotation_euler = tuple(rotation)
+    inv = Matrix.LocRotScale(None, arm.rotation_euler, None).inverted().to_3x3()
+    bpy.context.view_layer.objects.active = arm
+    bpy.ops.object.mode_set(mode="EDIT")
+    eb = data.edit_bones
+    for n, _p, h, t in bones:
+        b = eb.new(n)
+        b.head = inv @ Vector(h)
+        b.tail = b.head + Vector((0.0, plus_y, 0.0)) if plus_y > 0.0 else inv @ Vector(t)
+    for n, p, _h, _t in bones:
+        if p is not None:
+            eb[n].parent = eb[p]
+            if connect and plus_y == 0.0 and (Vector(eb[p].tail) - Vector(eb[n].head)).length < 1e-6:
+                eb[n].use_connect = True
+    bpy.ops.object.mode_set(mode="OBJECT")
+    _skin(arm, bones, np.array(inv), scene)
+    if any(turn):
+        arm.rotation_euler = tuple(turn)
+    bpy.context.view_layer.update()
+    return arm
+
+
+def _skin(arm: Any, bones: Sequence[Spec], to_armature: np.ndarray, scene: Any) -> Any:
+    """A capsule around each bone's real segment (head to tail in creature space, whatever
+    the bone's own tail), rigidly weighted to it and deformed by ``arm``: the skin shows where
+    the creature is, as an asset's mesh does."""
+    verts_all, faces_all, groups = [], [], []
+    offset = 0
+    for n, _p, h, t in bones:
+        d = Vector(t) - Vector(h)
+        if d.length < 1e-9:
+            continue
+        verts, faces = creatures._capsule(d.length, 0.012, 0.008, n_around=6)
+        turn = np.array(Vector((0.0, 1.0, 0.0)).rotation_difference(d.normalized()).to_matrix())
+        world = verts @ turn.T + np.array(h)
+        verts_all.append(world @ to_armature.T)
+        faces_all += [tuple(i + offset for i in f) for f in faces]
+        groups.append((n, range(offset, offset + len(verts))))
+        offset += len(verts)
+    mesh = bpy.data.meshes.new(f"{arm.name}_Skin")
+    mesh.from_pydata(np.concatenate(verts_all).tolist(), [], faces_all)
+    mesh.update()
+    skin = bpy.data.objects.new(f"{arm.name}_Skin", mesh)
+    scene.collection.objects.link(skin)
+    skin.parent = arm
+    for name, idx in groups:
+        skin.vertex_groups.new(name=name).add(list(idx), 1.0, "REPLACE")
+    modifier = skin.modifiers.new("Armature", "ARMATURE")
+    modifier.object = arm
+    return skin
+
+
+def _horse(scene: Any, name: str, turn: Sequence[float] = (0.0, 0.0, 0.0), swap: bool = False) -> Any:
+    return build(scene, name, _horse_bones(swap), turn=turn)
+
+
+def _metarig(kind: str) -> Callable[[Any, str], Any]:
+    """A builder of Rigify's ``kind`` metarig (Blender's own, added by its operator)."""
+
+    def build_metarig(scene: Any, name: str) -> Any:
+        import addon_utils
+
+        if not addon_utils.check("rigify")[1]:
+            addon_utils.enable("rigify", default_set=True)
+        getattr(bpy.ops.object, f"armature_{kind}_metarig_add")()
+        arm = bpy.context.view_layer.objects.active
+        arm.name = name
+        return arm
+
+    return build_metarig
+
+
+def _pair(hip: str, end: str, hind_hip: str = "", hind_end: str = "") -> Expected:
+    legs = {"L1": (f"{hip}.L", f"{end}.L"), "R1": (f"{hip}.R", f"{end}.R")}
+    if hind_hip:
+        legs |= {"L2": (f"{hind_hip}.L", f"{hind_end}.L"), "R2": (f"{hind_hip}.R", f"{hind_end}.R")}
+    return Expected(legs)
+
+
+HUMAN_LEGS = {"L1": ("thigh", "shin"), "R1": ("thigh", "shin")}
+
+
+def _human_expected(names: dict[str, str], rename: Callable[[str], str]) -> Expected:
+    return Expected(
+        {"L1": (names["thigh"], names["shin"]), "R1": (rename(names["thigh"]), rename(names["shin"]))}
+    )
+
+
+@dataclass(frozen=True)
+class Fixture:
+    build: Callable[[Any, str], Any]
+    expected: Expected
+    round_trip: bool = True  # exported and imported through glTF and FBX in the tests
+
+
+FIXTURES: dict[str, Fixture] = {
+    "mixamo_t": Fixture(
+        lambda sc, n: build(sc, n, _humanoid(MIXAMO, _swap("Left", "Right"))),
+        _human_expected(MIXAMO, _swap("Left", "Right")),
+    ),
+    "mixamo_a": Fixture(
+        lambda sc, n: build(sc, n, _humanoid(MIXAMO, _swap("Left", "Right"), pose="A")),
+        _human_expected(MIXAMO, _swap("Left", "Right")),
+    ),
+    "unreal": Fixture(
+        lambda sc, n: build(sc, n, _unreal_bones()), _human_expected(UNREAL, _swap("_l", "_r"))
+    ),
+    "cc": Fixture(
+        lambda sc, n: build(sc, n, _humanoid(CC, _swap("_L_", "_R_"), pose="A", root="CC_Base_BoneRoot")),
+        _human_expected(CC, _swap("_L_", "_R_")),
+    ),
+    "biped": Fixture(
+        lambda sc, n: build(sc, n, _humanoid(BIPED, _swap(" L ", " R "), root="Bip01")),
+        _human_expected(BIPED, _swap(" L ", " R ")),
+    ),
+    "gltf_quadruped": Fixture(
+        lambda sc, n: build(sc, n, _gltf_quadruped_bones(), plus_y=0.05, rotation=(math.pi / 2, 0.0, 0.0)),
+        Expected(
+            {
+                "L1": ("b_LeftUpperArm_09", "b_LeftHand_011"),
+                "R1": ("b_RightUpperArm_09", "b_RightHand_011"),
+                "L2": ("b_LeftLeg01_015", "b_LeftFoot01_017"),
+                "R2": ("b_RightLeg01_015", "b_RightFoot01_017"),
+            }
+        ),
+    ),
+    "spider8": Fixture(
+        lambda sc, n: build(sc, n, _spider_bones()),
+        Expected({f"{s}{k}": (f"Leg{k}Base.{s}", f"Leg{k}Fore.{s}") for k in range(1, 5) for s in "LR"}),
+    ),
+    "root_legs": Fixture(
+        lambda sc, n: build(sc, n, _root_legs_bones()),
+        Expected(
+            {
+                "L1": ("FrontLeftLeg", "FrontLeftShin"),
+                "R1": ("FrontRightLeg", "FrontRightShin"),
+                "L2": ("BackLeftLeg", "BackLeftShin"),
+                "R2": ("BackRightLeg", "BackRightShin"),
+            }
+        ),
+    ),
+    "horse": Fixture(
+        lambda sc, n: _horse(sc, n),
+        Expected(
+            {
+                "L1": ("scapula.L", "pastern.L"),
+                "R1": ("scapula.R", "pastern.R"),
+                "L2": ("femur.L", "hind_pastern.L"),
+                "R2": ("femur.R", "hind_pastern.R"),
+            }
+        ),
+    ),
+    "swapped": Fixture(
+        lambda sc, n: _horse(sc, n, swap=True),
+        Expected(
+            {
+                "L1": ("scapula.R", "pastern.R"),
+                "R1": ("scapula.L", "pastern.L"),
+                "L2": ("femur.R", "hind_pastern.R"),
+                "R2": ("femur.L", "hind_pastern.L"),
+            }
+        ),
+    ),
+    "rigify_horse": Fixture(_metarig("horse"), _pair("shoulder", "f_hoof", "thigh", "r_hoof"), False),
+    "rigify_bird": Fixture(_metarig("bird"), _pair("thigh", "shin"), False),
+    "rigify_basic_human": Fixture(_metarig("basic_human"), _pair("thigh", "shin"), False),
+    "shark": Fixture(
+        _metarig("shark"), Expected(refusal="no chain of bones from the body reaches the ground"), False
+    ),
+    "on_side": Fixture(
+        lambda sc, n: _horse(sc, n, turn=(0.0, math.pi / 2, 0.0)),
+        Expected(refusal="the rig's up axis is world +X (it lies on its side"),
+        False,
+    ),
+    "upside_down": Fixture(
+        lambda sc, n: _horse(sc, n, turn=(0.0, math.pi, 0.0)),
+        Expected(refusal="the rig's up axis is world -Z (it lies upside down"),
+        False,
+    ),
+}

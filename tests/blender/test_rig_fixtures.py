@@ -1,0 +1,306 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Detect Legs and Generate Locomotion on rigs named and built the way users bring them
+(``rig_fixtures``), as built and after Blender's own glTF and FBX exporters and importers.
+
+Motion is measured on the evaluated rig: joints are bone heads and the next joint, never an
+imported bone's tail (which points anywhere).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+from procloco_addon.blender import rig
+from procloco_addon.blender.locomotion import generate
+from procloco_addon.core import metrics
+from tests.blender.pose_eval import pose_matrices, ray_heights_over_time
+from tests.blender.rig_fixtures import FIXTURES
+from tests.blender.test_generate import check_thresholds
+
+pytestmark = pytest.mark.blender
+
+FRAMES = 48
+#: (format, importer options): the importers' defaults, then another bone direction.
+IMPORTS = [
+    ("gltf", {}),
+    ("gltf", {"bone_heuristic": "TEMPERANCE"}),
+    ("fbx", {}),
+    ("fbx", {"automatic_bone_orientation": True}),
+]
+#: Fixture rigs that also walk after an import (the others are only detected there): the
+#: quadruped whose tails mean nothing through every importer setting, the humanoid once.
+WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [("mixamo_t", "fbx", {})]
+
+
+def _select_only(obj: Any) -> None:
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+
+
+def _import(arm: Any, fmt: str, options: dict[str, Any], tmp: str) -> Any:
+    """``arm`` (and its skin) written with Blender's exporter and read back into a new empty
+    scene with the importer's ``options``; returns the imported armature."""
+    import addon_utils
+
+    for module in ("io_scene_gltf2", "io_scene_fbx"):
+        if not addon_utils.check(module)[1]:
+            addon_utils.enable(module, default_set=True)
+    path = os.path.join(tmp, f"{arm.name}.{'glb' if fmt == 'gltf' else 'fbx'}")
+    if fmt == "gltf":
+        bpy.ops.export_scene.gltf(filepath=path, export_format="GLB")
+    else:
+        bpy.ops.export_scene.fbx(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    if fmt == "gltf":
+        bpy.ops.import_scene.gltf(filepath=path, **options)
+    else:
+        bpy.ops.import_scene.fbx(filepath=path, **options)
+    return next(o for o in bpy.data.objects if o.type == "ARMATURE")
+
+
+def _legs(arm: Any) -> dict[str, tuple[str, str]]:
+    return {leg.label: (leg.hip, leg.end) for leg in rig.detect_legs(arm)}
+
+
+def _check_detection(arm: Any, name: str) -> None:
+    expected = FIXTURES[name].expected
+    if expected.refusal:
+        _select_only(arm)
+        with pytest.raises(rig.RigError, match=re.escape(expected.refusal)):
+            rig.detect_legs(arm)
+        # The operator refuses too and leaves the legs list as it was (empty).
+        with pytest.raises(RuntimeError, match=re.escape(expected.refusal)):
+            bpy.ops.procloco.detect_legs()
+        assert len(arm.procloco.legs) == 0
+    else:
+        assert _legs(arm) == expected.legs
+
+
+@pytest.mark.parametrize("name", sorted(FIXTURES))
+def test_detects_the_legs_of_rigs_users_bring(empty_scene: Any, name: str) -> None:
+    arm = FIXTURES[name].build(empty_scene, name)
+    _check_detection(arm, name)
+
+
+@pytest.mark.parametrize("name", sorted(n for n, f in FIXTURES.items() if f.round_trip))
+def test_imported_rigs_give_the_same_legs(empty_scene: Any, name: str, tmp_path: Any) -> None:
+    for fmt, options in IMPORTS:
+        bpy.ops.wm.read_homefile(use_empty=True)
+        arm = FIXTURES[name].build(bpy.context.scene, name)
+        imported = _import(arm, fmt, options, str(tmp_path))
+        assert _legs(imported) == FIXTURES[name].expected.legs, (fmt, options)
+
+
+# ---------------------------------------------------------------------------------------
+# The walk, measured on the posed rig
+
+
+def _far_joint_offsets(obj: Any, info: rig.RigInfo) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per leg, the end-effector's far joint ``(3,)`` and the sole probes ``(p, 3)`` in the
+    local frame of the bone carrying them (the last leg bone; the first foot bone)."""
+    world = np.array(obj.matrix_world)
+    ends, soles = [], []
+    for leg, joints, probes in zip(info.legs, info.joints, info.foot_points, strict=True):
+        last = world @ info.rest_local[leg.end]
+        ends.append((np.linalg.inv(last) @ np.append(joints[-1], 1.0))[:3])
+        carrier = world @ info.rest_local[leg.foot[0] if leg.foot else leg.end]
+        inv = np.linalg.inv(carrier)
+        soles.append(probes @ inv[:3, :3].T + inv[:3, 3] if probes.size else np.zeros((0, 3)))
+    return ends, soles
+
+
+def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
+    """The numbers of "What done means for the motion" from the evaluated rig on ``ground``:
+    the keys of ``test_generate.check_thresholds``, plus ``travel`` and the largest per-frame
+    turn of the leg and foot bones (``turn``, ``planted_turn``, degrees)."""
+    info, res = job.info, job.result
+    frames = [int(f) for f in job.frames]
+    names = [b for leg in info.legs for b in (*leg.bones, *leg.foot)]
+    mats = pose_matrices(obj, frames, names)
+    where = {n: i for i, n in enumerate(names)}
+    end_off, sole_off = _far_joint_offsets(obj, info)
+    joints, soles = [], []
+    for k, leg in enumerate(info.legs):
+        heads = mats[:, [where[b] for b in leg.bones]][..., :3, 3]
+        last = mats[:, where[leg.end]]
+        tip = np.einsum("fij,j->fi", last[:, :3, :3], end_off[k]) + last[:, :3, 3]
+        joints.append(np.concatenate([heads, tip[:, None]], axis=1))
+        carrier = mats[:, where[leg.foot[0] if leg.foot else leg.end]]
+        soles.append(np.einsum("fij,pj->fpi", carrier[:, :3, :3], sole_off[k]) + carrier[:, None, :3, 3])
+    ends = np.stack([j[:, -1] for j in joints], axis=1)
+    hips = np.stack([j[:, 0] for j in joints], axis=1)
+    out: dict[str, Any] = {"slide": float(metrics.stance_sliding(ends, ~res.swing).max()), "avoid": 0.0}
+    probes = np.concatenate([ends, *soles], axis=1)
+    lift = np.concatenate(
+        [np.broadcast_to(info.foot_height, ends.shape[:2]), *[np.zeros(s.shape[:2]) for s in soles]], axis=1
+    )
+    heights = ray_heights_over_time(frames, probes[..., :2], [ground])
+    depth = np.where(heights > -np.inf, heights + lift - probes[..., 2], -np.inf)
+    out["penetration"] = float(depth.max())
+    rest_seg = [np.linalg.norm(np.diff(j, axis=0), axis=1) for j in info.joints]
+    out["bone"] = max(
+        float(np.max(np.abs(np.linalg.norm(np.diff(j, axis=1), axis=-1) - r) / r))
+        for j, r in zip(joints, rest_seg, strict=True)
+    )
+    out["reach"] = float(np.linalg.norm(ends - res.feet, axis=-1).max())
+    out["extension"] = float((np.linalg.norm(ends - hips, axis=-1) / info.leg_length).max())
+    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)
+    planted = np.zeros(ends.shape[:2], dtype=bool)
+    planted[:-1] = step < 1e-3 * float(info.leg_length.mean())
+    planted[-1] = planted[-2]
+    gait = job.gait
+    forced = res.forced | np.roll(res.forced, 1, axis=0) | np.roll(res.forced, -1, axis=0)
+    phase = metrics.swing_phase_errors(
+        planted,
+        res.needle,
+        res.phase_rate * job.dt,
+        gait.swing_start,
+        gait.swing_duration,
+        ignore=forced,
+        first_frame=2,
+    )
+    out["phase"], out["phase_events"] = phase.max_abs, phase.n_events
+    out["travel"] = float(np.linalg.norm(res.body[-1, :2, 3] - res.body[0, :2, 3]))
+    out["leg"] = float(info.leg_length.mean())
+    # Largest turn of each leg and foot bone from one frame to the next; for the foot bones
+    # also while their foot stays planted (both frames in stance).
+    turn = np.degrees(metrics.bone_turn_per_frame(mats[:, :, :3, :3]))
+    out["turn"] = float(turn.max())
+    f_max, b_max = np.unravel_index(int(np.argmax(turn)), turn.shape)
+    out["turn_at"] = (names[int(b_max)], int(frames[int(f_max)]))
+    stance = ~res.swing
+    both = stance[:-1] & stance[1:]
+    foot_cols = [(where[b], k) for k, leg in enumerate(info.legs) for b in leg.foot]
+    # Foot and toe bones move with the foot: each one's head keeps its rest distance from the
+    # end-effector's far joint (none stays behind at the start).
+    drift = [0.0]
+    for k, leg in enumerate(info.legs):
+        for b in leg.foot:
+            rest_d = np.linalg.norm(
+                np.array(obj.matrix_world) @ np.append(info.rest_local[b][:3, 3], 1.0)
+                - np.append(info.joints[k][-1], 1.0)
+            )
+            now_d = np.linalg.norm(mats[:, where[b], :3, 3] - ends[:, k], axis=-1)
+            drift.append(float(np.abs(now_d - rest_d).max()))
+    out["foot_drift"] = max(drift)
+    out["planted_turn"] = max(
+        (float(turn[both[:, k], i].max()) for i, k in foot_cols if both[:, k].any()), default=0.0
+    )
+    return out
+
+
+def check_motion(m: dict[str, Any]) -> None:
+    check_thresholds(m)
+    assert m["planted_turn"] <= np.degrees(metrics.MAX_PLANTED_TURN), m
+    assert m["turn"] <= np.degrees(metrics.MAX_BONE_TURN), m
+    assert m["foot_drift"] <= 1e-4 * m["leg"], m
+
+
+def walk(obj: Any) -> tuple[generate.Job, dict[str, Any]]:
+    """Detect Legs, then Generate Locomotion with the defaults for ``FRAMES`` frames on a
+    ground plane; the measured numbers."""
+    bpy.ops.mesh.primitive_plane_add(size=200.0, location=(0.0, 0.0, 0.0))
+    ground = bpy.context.active_object
+    _select_only(obj)
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    obj.procloco.use_scene_range = False
+    obj.procloco.frame_start, obj.procloco.frame_end = 1, FRAMES
+    job = generate.prepare(bpy.context, obj)
+    for _ in generate.simulate(job):
+        pass
+    generate.write(bpy.context, job)
+    return job, measure(obj, job, ground)
+
+
+def _report(name: str, job: generate.Job, m: dict[str, Any]) -> None:
+    legs = " ".join(f"{leg.label}:{leg.hip}>{leg.end}" for leg in job.info.legs)
+    print(
+        f"\nRIGTABLE | {name} | {legs} | travel {m['travel']:.3f} m | slide {m['slide'] * 1000:.3f} mm | "
+        f"penetration {m['penetration'] * 1000:.2f} mm | turn {m['turn']:.1f} deg | "
+        f"planted {m['planted_turn']:.2f} deg | leg {float(job.info.leg_length.mean()):.3f} m"
+    )
+
+
+_BUILT_WALKS: dict[str, dict[str, Any]] = {}
+
+
+@pytest.mark.parametrize("name", sorted(n for n, f in FIXTURES.items() if not f.expected.refusal))
+def test_generate_walks_the_rigs_users_bring(empty_scene: Any, name: str) -> None:
+    obj = FIXTURES[name].build(empty_scene, name)
+    job, m = walk(obj)
+    _report(name, job, m)
+    _BUILT_WALKS[name] = {"legs": [(leg.label, leg.bones) for leg in job.info.legs], **m}
+    assert m["travel"] > 0.5 * float(job.info.leg_length.mean()), m
+    check_motion(m)
+
+
+@pytest.mark.parametrize(
+    ("name", "fmt", "options"),
+    WALK_IMPORTED,
+    ids=[f"{n}-{f}-{'-'.join(str(v) for v in o.values()) or 'default'}" for n, f, o in WALK_IMPORTED],
+)
+def test_imported_rigs_walk_the_same(
+    empty_scene: Any, name: str, fmt: str, options: dict[str, Any], tmp_path: Any
+) -> None:
+    if name not in _BUILT_WALKS:  # run alone: walk the rig as built first
+        test_generate_walks_the_rigs_users_bring(empty_scene, name)
+        bpy.ops.wm.read_homefile(use_empty=True)
+    built = _BUILT_WALKS[name]
+    arm = FIXTURES[name].build(bpy.context.scene, name)
+    imported = _import(arm, fmt, options, str(tmp_path))
+    job, m = walk(imported)
+    _report(f"{name} via {fmt} {options}", job, m)
+    assert [(leg.label, leg.bones) for leg in job.info.legs] == built["legs"]
+    assert m["travel"] == pytest.approx(built["travel"], rel=0.05), (m, built)
+    check_motion(m)
+
+
+# ---------------------------------------------------------------------------------------
+# What the animator sees
+
+
+def test_the_panel_says_why_each_leg_was_chosen_and_the_viewport_draws_the_chains(empty_scene: Any) -> None:
+    from procloco_addon.blender.locomotion import handler
+    from procloco_addon.blender.locomotion.panel import PROCLOCO_PT_rig_legs
+    from tests.blender.ui_recorder import draw_panel
+
+    arm = FIXTURES["root_legs"].build(empty_scene, "root_legs")
+    _select_only(arm)
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    legs = arm.procloco.legs
+    assert [leg.reason for leg in legs] == ["reaches the ground; name; mirrored pair"] * 4
+    # The draw callback is registered; the chains are drawn while the panel is open.
+    assert handler._state.draw_handle is not None
+    assert handler.showing() == ""
+    ui = draw_panel(PROCLOCO_PT_rig_legs, bpy.context)
+    assert "Why: reaches the ground; name; mirrored pair" in ui.texts()
+    assert handler.showing() == arm.name
+    lines = handler.chain_lines(arm)
+    # two segments per leg (hip > shin > the toe's head), from the hips down to the feet
+    assert lines.shape == (8, 2, 3)
+    hips = np.array([tuple(arm.matrix_world @ arm.pose.bones[leg.hip].head) for leg in legs])
+    toes = np.array(
+        [
+            tuple(arm.pose.bones[b].head)
+            for b in ("FrontLeftToe", "FrontRightToe", "BackLeftToe", "BackRightToe")
+        ]
+    )
+    np.testing.assert_allclose(np.sort(lines[::2, 0], axis=0), np.sort(hips, axis=0), atol=1e-6)
+    np.testing.assert_allclose(np.sort(lines[1::2, 1], axis=0), np.sort(toes, axis=0), atol=1e-6)
+    # A bone chosen by hand: the reason no longer applies.
+    from procloco_addon.blender.locomotion.generate import leg_reason
+
+    assert leg_reason(legs[0]) == "reaches the ground; name; mirrored pair"
+    legs[0].end = "FrontLeftToe"
+    assert leg_reason(legs[0]) == ""
+    assert "Set by hand" in draw_panel(PROCLOCO_PT_rig_legs, bpy.context).texts()
+    legs[0].enabled = False
+    assert handler.chain_lines(arm).shape == (6, 2, 3)

@@ -1,0 +1,265 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""blender/rig/detect.py on plain arrays (no bpy): legs are found by what they are.
+
+Random limb trees: a spine of one to three bones, mirrored pairs of legs of two to four
+bones hanging from its bones down to the ground, limbs that do not reach the ground (arms,
+antennae, a raised tail), random proportions, a random turn, scale and place of the object,
+and tails that either meet the next bone or point anywhere (as importers leave them). Every
+chain reaching the ground is found, whole, and none that does not.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import subprocess
+import sys
+from typing import Any
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from procloco_addon.blender.rig.detect import _ground_chains, find_legs, forward_of
+from procloco_addon.blender.rig.names import split_name
+from procloco_addon.blender.rig.rest import RigError, _Rest, joint_ends, with_leaf_ends
+
+
+def _rest(
+    names: list[str], parent: list[int], head: np.ndarray, tail: np.ndarray, world: np.ndarray | None = None
+) -> _Rest:
+    world = np.eye(4) if world is None else world
+    scale = float(np.linalg.norm(world[:3, 0]))
+    n = len(names)
+    local = np.repeat(np.eye(4)[None], n, axis=0)
+    return _Rest(
+        tuple(names),
+        {nm: i for i, nm in enumerate(names)},
+        np.array(parent, dtype=np.int64),
+        head @ world[:3, :3].T + world[:3, 3],
+        tail @ world[:3, :3].T + world[:3, 3],
+        local,
+        world,
+        scale,
+    )
+
+
+class Tree:
+    """A random creature: bones as parallel lists, and the leg chains it was built with."""
+
+    def __init__(self) -> None:
+        self.names: list[str] = []
+        self.parent: list[int] = []
+        self.head: list[np.ndarray] = []
+        self.tail: list[np.ndarray] = []
+        self.legs: list[list[str]] = []
+
+    def __repr__(self) -> str:
+        return (
+            f"Tree(parent={self.parent}, head={np.round(np.array(self.head), 4).tolist()}, "
+            f"tail={np.round(np.array(self.tail), 4).tolist()}, legs={self.legs})"
+        )
+
+    def add(self, parent: int, head: np.ndarray, tail: np.ndarray) -> int:
+        self.names.append(f"Bone{len(self.names):03d}")
+        self.parent.append(parent)
+        self.head.append(np.asarray(head, dtype=np.float64))
+        self.tail.append(np.asarray(tail, dtype=np.float64))
+        return len(self.names) - 1
+
+    def chain(self, parent: int, points: np.ndarray) -> list[int]:
+        out = []
+        for a, b in itertools.pairwise(points):
+            parent = self.add(parent, a, b)
+            out.append(parent)
+        return out
+
+
+@st.composite
+def creatures(
+    draw: st.DrawFn,
+    knees_up: float = 1.3,
+    reach: float = 0.4,
+    sprawl: float = 0.6,
+) -> tuple[Tree, np.ndarray, bool]:
+    """A random limb tree standing on z = 0, its object matrix, and whether tails mean anything.
+    ``knees_up``: how high the legs' inner joints may be, ``sprawl``: how far out each leg
+    bone goes, ``reach``: how far sideways each bone of the other limbs goes, in body heights."""
+    tree = Tree()
+    height = draw(st.floats(0.3, 2.0))
+    n_pairs = draw(st.integers(1, 4))
+    # each pair: bones, hip width, joints outward and down (inner ones 0.2 to ``knees_up`` body heights up)
+    shapes = []
+    for _ in range(n_pairs):
+        k = draw(st.integers(2, 4))
+        width = draw(st.floats(0.05, 0.5)) * height
+        out = np.cumsum([width] + [draw(st.floats(0.0, sprawl)) * height for _ in range(k)])
+        fwd = [0.0] + [draw(st.floats(-0.2, 0.2)) * height for _ in range(k)]
+        z = [height] + [draw(st.floats(0.2, knees_up)) * height for _ in range(k - 1)] + [0.0]
+        shapes.append(np.column_stack([out, fwd, z]))
+    longest = max(float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) for p in shapes)
+    # pairs a fifth of the longest leg apart at least: distinct legs, not copies of one
+    length = max(draw(st.floats(0.3, 1.5)) * height, 0.2 * (n_pairs + 1) * longest)
+    n_spine = draw(st.integers(1, 3))
+    y = np.linspace(0.5 * length, -0.5 * length, n_spine + 1)
+    spine = tree.chain(-1, np.array([[0.0, yy, height] for yy in y]))
+    for p, pts in enumerate(shapes):
+        y0 = 0.5 * length - (p + 1) * length / (n_pairs + 1)
+        carrier = spine[min(int((0.5 * length - y0) / length * n_spine), n_spine - 1)]
+        placed = pts + np.array([0.0, y0, 0.0])
+        for side in (1.0, -1.0):
+            mirrored = placed * np.array([side, 1.0, 1.0])
+            tree.legs.append([tree.names[i] for i in tree.chain(carrier, mirrored)])
+    # limbs that do not reach the ground: at least 0.6 body heights up everywhere
+    for _ in range(draw(st.integers(0, 3))):
+        carrier = spine[draw(st.integers(0, n_spine - 1))]
+        k = draw(st.integers(1, 4))
+        start = tree.head[carrier]
+        steps = [
+            np.array([draw(st.floats(-reach, reach)), draw(st.floats(-0.4, 0.4)), draw(st.floats(-0.1, 0.3))])
+            * height
+            for _ in range(k)
+        ]
+        pts = np.vstack([start, start + np.cumsum(steps, axis=0)])
+        pts[:, 2] = np.maximum(pts[:, 2], 0.6 * height)
+        tree.chain(carrier, pts)
+    yaw = draw(st.floats(-np.pi, np.pi))
+    scale = draw(st.floats(0.01, 100.0))
+    world = np.eye(4)
+    c, s = np.cos(yaw), np.sin(yaw)
+    world[:3, :3] = scale * np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    world[:3, 3] = [draw(st.floats(-5, 5)), draw(st.floats(-5, 5)), draw(st.floats(-5, 5))]
+    return tree, world, draw(st.booleans())
+
+
+def _arrays(tree: Tree, meaningful: bool, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    head = np.array(tree.head)
+    tail = np.array(tree.tail)
+    if not meaningful:
+        # every bone along a random direction of a fixed length: only heads are joints, and
+        # each leg's tip is the head of an end bone (as glTF files carry them)
+        tail = head + 0.05 * rng.normal(size=head.shape)
+    return head, tail
+
+
+@given(creatures(), st.integers(0, 2**32 - 1))
+def test_every_chain_reaching_the_ground_is_found_and_none_other(
+    case: tuple[Tree, np.ndarray, bool], seed: int
+) -> None:
+    tree, world, meaningful = case
+    rng = np.random.default_rng(seed)
+    if not meaningful:
+        for leg in tree.legs:  # the tip as a bone of its own
+            last = tree.names.index(leg[-1])
+            end = tree.add(last, tree.tail[last], tree.tail[last])
+            leg.append(tree.names[end])
+    head, tail = _arrays(tree, meaningful, rng)
+    rest = _rest(tree.names, tree.parent, head, tail, world)
+    legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "creature")
+    found = sorted([*leg.bones, *leg.foot] for leg in legs)
+    assert found == sorted(tree.legs)
+    assert all("reaches the ground" in leg.reason for leg in legs)
+    # mirrored pairs get one row each, left and right by where the hips are
+    forward, _source = forward_of(rest, legs)
+    left = np.cross([0.0, 0.0, 1.0], forward)
+    centre = np.mean([rest.head[rest.index[leg.hip]] for leg in legs], axis=0)
+    for leg in legs:
+        lateral = float((rest.head[rest.index[leg.hip]] - centre) @ left)
+        assert np.sign(lateral) == leg.side, (leg, lateral)
+
+
+# Legs below the body, not sprawling far, other limbs close to the midline: with knees far
+# above the body a rig upside down still has chains hanging from it to its lowest points, and
+# on its side a sprawling leg or an arm reaching out as far as the legs hangs down too.
+@given(creatures(knees_up=0.9, reach=0.05, sprawl=0.25), st.sampled_from(["side", "upside down"]))
+def test_a_rig_lying_down_is_refused_naming_its_up_axis(
+    case: tuple[Tree, np.ndarray, bool], how: str
+) -> None:
+    tree, world, _meaningful = case
+    turn = np.eye(4)
+    if how == "side":
+        turn[:3, :3] = [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]  # 90 degrees about Y
+    else:
+        turn[:3, :3] = np.diag([-1.0, 1.0, -1.0])  # 180 degrees about Y
+    rest = _rest(tree.names, tree.parent, np.array(tree.head), np.array(tree.tail), turn @ world)
+    axis = "+X" if how == "side" else "-Z"
+    with pytest.raises(RigError, match=re.escape(f"the rig's up axis is world {axis}")):
+        find_legs(rest, np.zeros(len(tree.names), dtype=bool), "creature")
+
+
+def test_joint_ends_follow_children_when_tails_point_anywhere() -> None:
+    parent = np.array([-1, 0, 1])
+    head = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 0.5], [0.0, 0.1, 0.0]])
+    tails_ok = np.array([[0.0, 0.0, 0.5], [0.0, 0.1, 0.0], [0.0, 0.3, 0.0]])
+    end, meaningful = joint_ends(parent, head, tails_ok)
+    assert meaningful
+    np.testing.assert_array_equal(end, tails_ok)
+    plus_y = head + np.array([0.0, 0.05, 0.0])
+    end, meaningful = joint_ends(parent, head, plus_y)
+    assert not meaningful
+    np.testing.assert_array_equal(end, [head[1], head[2], head[2]])  # the leaf's extent is unknown
+
+
+def test_a_leaf_takes_its_far_end_from_the_skin_when_its_tail_is_a_guess() -> None:
+    names = ["body", "thigh", "shin", "foot"]
+    parent = [-1, 0, 1, 2]
+    head = np.array([[0.0, 0.2, 1.0], [0.1, 0.0, 1.0], [0.1, 0.0, 0.5], [0.1, 0.0, 0.1]])
+    tail = np.array([head[1], head[2], head[3], [0.1, 0.0, -0.3]])  # the foot continues the shin: a guess
+    rest = _rest(names, parent, head, tail)
+    skin = {3: np.array([[0.1, 0.0, 0.1], [0.1, -0.1, 0.02], [0.1, -0.2, 0.0]])}
+    np.testing.assert_allclose(with_leaf_ends(rest, skin).end[3], [0.1, -0.2, 0.0])
+    # a skin around the bone's own tail keeps the tail
+    tail[3] = [0.1, -0.2, 0.0]
+    rest = _rest(names, parent, head, tail)
+    np.testing.assert_allclose(with_leaf_ends(rest, skin).end[3], tail[3])
+
+
+@pytest.mark.parametrize(
+    ("name", "side", "tokens"),
+    [
+        ("mixamorig:LeftUpLeg", 1, ("up", "leg")),
+        ("thigh_l", 1, ("thigh",)),
+        ("CC_Base_L_Thigh", 1, ("thigh",)),
+        ("Bip01 R Calf", -1, ("calf",)),
+        ("thigh_ref.l", 1, ("thigh", "ref")),
+        ("b_LeftLeg01_015", 1, ("leg", "01", "015")),
+        ("Leg1Base.L", 1, ("leg", "1", "base")),
+        ("FrontLeftLeg", 1, ("front", "leg")),
+        ("BackRightToe", -1, ("back", "toe")),
+    ],
+)
+def test_names_of_the_tools_animators_get_rigs_from(name: str, side: int, tokens: tuple[str, ...]) -> None:
+    assert split_name(name) == (side, tokens)
+
+
+def test_jaws_and_antennae_reaching_the_ground_are_not_legs() -> None:
+    tree = Tree()
+    body = tree.add(-1, [0.0, 0.2, 0.3], [0.0, -0.2, 0.3])
+    for side in (1.0, -1.0):
+        for y in (-0.1, 0.1):
+            tree.legs.append(
+                [
+                    tree.names[i]
+                    for i in tree.chain(
+                        body, np.array([[0.1 * side, y, 0.3], [0.3 * side, y, 0.4], [0.5 * side, y, 0.0]])
+                    )
+                ]
+            )
+    jaw = tree.chain(body, np.array([[0.02, -0.2, 0.3], [0.05, -0.3, 0.1], [0.05, -0.35, 0.0]]))
+    names = list(tree.names)
+    names[jaw[0]], names[jaw[1]] = "JawBase.L", "Pincer.L"
+    rest = _rest(names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    assert len(_ground_chains(rest)) == 4
+    legs = find_legs(rest, np.zeros(len(names), dtype=bool), "spider")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
+def test_detection_imports_without_bpy(repo_root: Any) -> None:
+    # sys.modules["bpy"] = None makes any "import bpy" fail, as where Blender is absent.
+    code = (
+        "import sys; sys.modules['bpy'] = None; "
+        "import procloco_addon.blender.rig.detect, procloco_addon.blender.rig.pose, "
+        "procloco_addon.blender.rig.morphology"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=repo_root)
