@@ -41,6 +41,7 @@ quaternions are ``(..., 4)`` in Blender's ``(w, x, y, z)`` order.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -58,6 +59,7 @@ __all__ = [
     "channels_of",
     "clear_generated_action",
     "delete_superseded",
+    "forget_previous",
     "generated_action",
     "is_generated",
     "is_slotted",
@@ -68,6 +70,7 @@ __all__ = [
     "quaternion_to_euler",
     "read_channel",
     "remember_assignment",
+    "remember_pose",
     "restore_previous_action",
     "rotation_channels",
     "undo_assignment",
@@ -87,6 +90,9 @@ _HIDDEN_KEYS = (_HAS_PREV, _PREV_ACTION, _PREV_SLOT, _PREV_POSE)
 # A pose bone's channels, in the order they are remembered.
 _POSE_CHANNELS = (("location", 3), ("rotation_quaternion", 4), ("rotation_euler", 3),
                   ("rotation_axis_angle", 4), ("scale", 3))
+# On a generated Action: the pose channels and custom properties it animates, as they were
+# before the first generation (JSON), put back by Clear Generated Action.
+_RESTORE = "_procloco_restore"
 
 _OBJECT_GROUP = "Object Transforms"
 _EULER_ORDERS = ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX")
@@ -230,7 +236,7 @@ def _remember_pose(obj: bpy.types.Object, action: bpy.types.Action, fresh: bool)
     obj[_PREV_POSE] = stored
 
 
-def _restore_pose(obj: bpy.types.Object, keyed_by_restored: set[str]) -> None:
+def _restore_remembered_pose(obj: bpy.types.Object, keyed_by_restored: set[str]) -> None:
     """Put back the remembered pose of bones the restored Action does not key (those it keys
     are its own again at the next evaluation)."""
     if obj.pose is None or _PREV_POSE not in obj:
@@ -357,7 +363,9 @@ def previous_action(obj: bpy.types.Object) -> tuple[bool, bpy.types.Action | Non
     return True, prev if isinstance(prev, bpy.types.Action) else None
 
 
-def _forget_previous(obj: bpy.types.Object) -> None:
+def forget_previous(obj: bpy.types.Object) -> None:
+    """Forget what was remembered of the user's state before the first generation (the
+    Action, slot and pose); nothing else changes."""
     for key in _HIDDEN_KEYS:
         if key in obj:
             del obj[key]
@@ -372,18 +380,68 @@ def restore_previous_action(obj: bpy.types.Object) -> bool:
     if not remembered:
         return False
     assign_action(obj, prev, slot_identifier=str(obj.get(_PREV_SLOT, "")))
-    _restore_pose(obj, keyed_pose_bones(prev, obj))
-    _forget_previous(obj)
+    _restore_remembered_pose(obj, keyed_pose_bones(prev, obj))
+    forget_previous(obj)
     return True
+
+
+def remember_pose(action: bpy.types.Action, obj: bpy.types.Object, bones: Sequence[str],
+                  props: Sequence[tuple[str, str]] = ()) -> None:
+    """Store on ``action`` the current transform channels of pose ``bones`` and the custom
+    properties ``props`` (``(bone, name)``) of ``obj``, for :func:`clear_generated_action`.
+
+    When the object's current Action is a generated one that remembers the pose before it,
+    that older memory wins for the channels it holds (Clear goes back to the user's pose).
+    """
+    current = generated_action(obj)
+    data: dict[str, Any] = {"bones": {}, "props": {}}
+    if current is not None and _RESTORE in current:
+        data = json.loads(str(current[_RESTORE]))
+    pbones = obj.pose.bones
+    for name in bones:
+        pb = pbones.get(name)
+        if pb is None or name in data["bones"]:
+            continue
+        data["bones"][name] = {prop: list(getattr(pb, prop)) for prop in (
+            "location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle", "scale")}
+    for bone, prop in props:
+        key = json.dumps([bone, prop])
+        pb = pbones.get(bone)
+        if pb is not None and prop in pb and key not in data["props"]:
+            value = pb[prop]
+            if isinstance(value, (bool, int, float)):
+                data["props"][key] = [type(value).__name__, float(value)]
+    action[_RESTORE] = json.dumps(data)
+
+
+def _restore_from_action(obj: bpy.types.Object, action: bpy.types.Action) -> None:
+    """Put back the channels and switch properties :func:`remember_pose` stored on ``action``."""
+    if _RESTORE not in action:
+        return
+    data = json.loads(str(action[_RESTORE]))
+    pbones = obj.pose.bones
+    for name, channels in data.get("bones", {}).items():
+        pb = pbones.get(name)
+        if pb is not None:
+            for prop, value in channels.items():
+                setattr(pb, prop, value)
+    kinds = {"bool": bool, "int": int, "float": float}
+    for key, (kind, value) in data.get("props", {}).items():
+        bone, prop = json.loads(key)
+        pb = pbones.get(bone)
+        if pb is not None and prop in pb:
+            pb[prop] = kinds.get(kind, float)(value)
 
 
 def clear_generated_action(obj: bpy.types.Object) -> bool:
     """Unassign the object's generated Action, restore the previous one and delete the generated
-    Action when nothing else uses it. Returns False (and changes nothing) when the object's
-    active Action is not a generated one."""
+    Action when nothing else uses it; channels the generated Action animated get back the values
+    they had before it (:func:`remember_pose`). Returns False (and changes nothing) when the
+    object's active Action is not a generated one."""
     action = generated_action(obj)
     if action is None:
         return False
+    _restore_from_action(obj, action)
     if not restore_previous_action(obj):
         assign_action(obj, None)
     if action.users == 0 and not action.use_fake_user:

@@ -50,7 +50,8 @@ from ...core.biped.clip import Clip, ClipRole, detect_contacts, extract_cycle, r
 from ...core.biped.planner import BipedMotion
 from ...core.biped.skeleton import LEFT, RIGHT, LegJoints, Skeleton, foot_points, forward_kinematics
 from ...core.biped.surface import WalkableSurface
-from .. import actions, rig, scene_terrain
+from .. import actions, pose_writer, rig, scene_terrain
+from ..rig import controls
 
 __all__ = [
     "BipedError",
@@ -351,12 +352,54 @@ def _write_pose(
     frames: np.ndarray,
     rotations: np.ndarray,
     location: np.ndarray,
-) -> None:
-    keep = keyed_bones(obj, brig, rotations)
-    actions.write_pose_bone_transforms(
-        action, obj, frames, [brig.bones[b] for b in keep], rotations=rotations[:, keep]
-    )
-    actions.write_pose_bone_transforms(action, obj, frames, brig.bones[:1], locations=location[:, None, :])
+    *,
+    assign: bool = True,
+) -> pose_writer.WriteReport:
+    """Key the motion through :mod:`..pose_writer` (and assign ``action``): the joint bones
+    themselves on a plain rig, the controls that drive them on a control rig (the legs' IK
+    controls, poles and switches, the body's root control). ``assign=False`` (clips, which are
+    not assigned): on a control rig the clip is assigned only while its controls are solved."""
+    bones = obj.data.bones
+    rest = {b.name: np.array(b.matrix_local, dtype=np.float64) for b in bones}
+    parents = {b.name: (b.parent.name if b.parent else None) for b in bones}
+    basis = {pb.name: np.array(pb.matrix_basis, dtype=np.float64) for pb in obj.pose.bones}
+    locations = np.zeros((*rotations.shape[:2], 3))
+    locations[:, 0] = location
+    keyed_location = np.zeros(brig.n_bones, dtype=bool)
+    keyed_location[0] = True
+    joints = brig.bones[: brig.n_bones]
+    armature = pose_writer.armature_from_basis(joints, rotations, locations, rest, parents, basis,
+                                               keyed_location)
+    skel = brig.skeleton
+    legs = [(brig.bones[lj.hip], brig.bones[lj.knee]) for lj in (skel.left, skel.right)]
+    feet = [(brig.bones[lj.ankle],) for lj in (skel.left, skel.right)]
+    keep = [brig.bones[b] for b in keyed_bones(obj, brig, rotations)]
+    plan = controls.plan_controls(obj, list(zip(legs, feet, strict=True)), brig.bones[0])
+    if not plan.uses_controls:
+        plan = controls.ControlPlan(direct=tuple(keep), controls=(), legs=(), switches=(), uncovered=())
+    request = pose_writer.PoseRequest(
+        frames=frames, bones=tuple(joints), armature=armature, keyed_location=keyed_location,
+        world0=brig.world, rest_local=rest, parents=parents, basis=basis, legs=tuple(legs))
+    if assign:
+        actions.remember_pose(action, obj, [*plan.keyed_bones], [(s.bone, s.prop) for s in plan.switches])
+        return pose_writer.write_pose(action, obj, request, plan)
+    if not plan.uses_controls:
+        return pose_writer.write_pose(action, obj, request, plan, assign=False)
+    adt = obj.animation_data
+    prev = adt.action if adt is not None else None
+    prev_slot = str(adt.action_slot.identifier) if (adt is not None and actions.is_slotted()
+                                                    and adt.action_slot is not None) else ""
+    basis_before = [pb.matrix_basis.copy() for pb in obj.pose.bones]
+    props_before = {(s.bone, s.prop): obj.pose.bones[s.bone][s.prop] for s in plan.switches}
+    try:
+        actions.assign_action(obj, action)
+        return pose_writer.write_pose(action, obj, request, plan, assign=False)
+    finally:
+        actions.assign_action(obj, prev, slot_identifier=prev_slot)
+        for pb, m in zip(obj.pose.bones, basis_before, strict=True):
+            pb.matrix_basis = m
+        for (bone, prop), value in props_before.items():
+            obj.pose.bones[bone][prop] = value
 
 
 # ---------------------------------------------------------------------------------------
@@ -500,7 +543,7 @@ def write_clip_action(
     action = actions.new_action(obj, suffix=clip.name)
     frames = start_frame + np.arange(clip.n_frames, dtype=np.float64)
     try:
-        _write_pose(action, obj, brig, frames, rotations, location)
+        _write_pose(action, obj, brig, frames, rotations, location, assign=False)
     except Exception:
         bpy.data.actions.remove(action)
         raise
@@ -581,10 +624,16 @@ def write_motion(
     )
     action = actions.new_action(obj, suffix="ProcLoco Biped")
     frames = start_frame + np.arange(motion.n_frames, dtype=np.float64)
+    adt = obj.animation_data
+    before = adt.action if adt is not None else None
+    remembered, _previous = actions.previous_action(obj)
     try:
         _write_pose(action, obj, brig, frames, rotations, location)
-        actions.assign_generated_action(obj, action)
     except Exception:
+        if obj.animation_data is not None and obj.animation_data.action == action:
+            actions.assign_action(obj, before)
+            if not remembered:
+                actions.forget_previous(obj)
         bpy.data.actions.remove(action)
         raise
     return action

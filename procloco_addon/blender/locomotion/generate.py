@@ -18,6 +18,7 @@ The work for one rig is a :class:`Job` in three stages:
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -30,8 +31,9 @@ import numpy as np
 from ...core import autogait
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
-from .. import actions, rig, scene_terrain, validate
+from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait
+from ..rig import controls
 from . import property_group
 
 __all__ = [
@@ -135,6 +137,7 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     """
     settings = obj.procloco
     legs = rig.detect_legs(obj)
+    keyed = leg_controls(obj, legs)
     if not settings.legs:
         rig_gait.set_new_rig_default(obj)  # no gait chosen yet: Auto
     scaled = None
@@ -156,6 +159,7 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         item.label = leg.label
         item.hip = leg.hip
         item.end = leg.end
+        item.controls = keyed[k]
         item.reason = leg.reason
         item.detected = f"{leg.hip}>{leg.end}"
         if leg.label in old:
@@ -172,6 +176,17 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
             setattr(settings, key, value)
     settings.active_leg_index = min(settings.active_leg_index, len(legs) - 1)
     return legs
+
+
+def leg_controls(obj: bpy.types.Object, legs: Sequence[rig.LegChain]) -> list[str]:
+    """Per leg, the controls Generate Locomotion will key for it on a control rig
+    (``"IK foot_ik.L, pole thigh_ik_target.L"``), ``""`` when it keys the leg's own bones."""
+    try:
+        info = rig.read_rig(obj, legs, obj.procloco.forward_axis)
+    except rig.RigError:
+        return [""] * len(legs)
+    plan, _warnings = plan_keys(obj, info)
+    return [controls.describe_leg(lc) for lc in plan.legs]
 
 
 def _gait_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings: bool) -> core_gait.Gait:
@@ -329,7 +344,13 @@ class Job:
     # Bones only an earlier generation (or bake) keyed, which this one does not drive: keyed
     # at rest so the new Action alone decides the pose (see stale_bones).
     held_bones: tuple[str, ...] = ()
+    # What gets keyed: the solved bones themselves, or the controls that drive them.
+    plan: controls.ControlPlan | None = None
+    # Whether something may pull the keyed bones off the plan (drivers, limits): then the
+    # evaluated feet are measured after writing.
+    check_after: bool = False
     warnings: list[str] = field(default_factory=list)
+    keyed_bones: tuple[str, ...] = ()
     result: Any = None
     timings: dict[str, float] = field(default_factory=dict)
     # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
@@ -419,7 +440,7 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError("No ground mesh found: add a mesh under the creature (or choose the terrain "
                             "collection)" + scene_terrain.hidden_note(context, [obj]))
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
-    warnings = list(info.warnings)
+    plan, warnings = plan_keys(obj, info)
     changes = _gait_changes(obj, info.legs, frames, warnings)
     auto = None
     # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
@@ -462,7 +483,10 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         auto_gait=auto,
         warnings=warnings,
         held_bones=tuple(pb.name for pb in obj.pose.bones
-                         if pb.name in stale and pb.name not in info.driven_bones),
+                         if pb.name in stale and pb.name not in info.driven_bones
+                         and pb.name not in plan.keyed_bones),
+        plan=plan,
+        check_after=any(w not in info.warnings for w in warnings),
     )
     job.timings["read_s"] = time.perf_counter() - t0
     return job
@@ -490,6 +514,31 @@ def _check_scaled_settings(obj: bpy.types.Object, leg_len: float) -> None:
                             f"{_MAX_STEP_LEGS:g} leg lengths ({leg_len:.3g} m): lower it")
 
 
+def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.ControlPlan, list[str]]:
+    """What to key for ``info``'s solved bones (:func:`.controls.plan_controls`) and the
+    warnings for the user: the rig's own (constraints ProcLoco does not drive through, on
+    bones no control was found for), drivers on keyed channels, limit constraints and
+    constraints following objects outside the rig."""
+    others = [b for b in info.spine if b != info.body_bone] if info.spine_layout is not None else []
+    plan = controls.plan_controls(obj, [(leg.bones, leg.foot) for leg in info.legs], info.body_bone, others)
+    ik_bones = {t[0] for t in info.ik_targets if t is not None}
+    # Controls that read_rig already solves (an IK target beside a plain rig's foot) are
+    # keyed from that exact solution.
+    solved_too = [c for c in plan.controls if c.bone in info.driven_bones]
+    if solved_too:
+        plan = dataclasses.replace(
+            plan, direct=(*plan.direct, *(c.bone for c in solved_too)),
+            controls=tuple(c for c in plan.controls if c not in solved_too))
+    handled = set(info.driven_bones) - set(plan.uncovered)
+    # read_rig's warnings name bones whose constraints override their keys: on a control rig
+    # those bones are reached through their controls and are not keyed.
+    warnings = [w for w in info.warnings if not any(f"bone '{b}' " in w for b in handled)]
+    keyed = [*plan.keyed_bones, *ik_bones]
+    warnings += controls.driver_warnings(obj, keyed)
+    warnings += controls.constraint_warnings(controls.ConstraintGraph(obj), keyed, info.driven_bones)
+    return plan, list(dict.fromkeys(warnings))
+
+
 def simulate(job: Job) -> Iterator[float]:
     """Run the core simulation for ``job``, yielding the fraction of frames done.
 
@@ -508,26 +557,26 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
 
 
 def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types.Action]:
-    """Write every job's result as a new Action on its rig and assign them: all or nothing.
+    """Write every job's result as a new Action on its rig and assign it: all or nothing.
 
-    Every Action is keyed first, then all are assigned; when anything fails, the Actions made
-    so far are deleted, the rigs assigned so far get back what they had, and the error is
-    raised. A rig's earlier generated Action is superseded (deleted, its name taken over)
-    once all are written, unless the animator kept it (fake user, NLA, another object).
+    Each Action is keyed and assigned in turn (the controls of a control rig are solved
+    through the evaluated rig, so its Action must be assigned while it is written); when
+    anything fails, the Actions made so far are deleted, every rig gets back what it had, and
+    the error is raised. A rig's earlier generated Action is superseded (deleted, its name
+    taken over) once all are written, unless the animator kept it (fake user, NLA, another
+    object).
     """
     made: list[bpy.types.Action] = []
     done: list[tuple[bpy.types.Object, actions.Assignment]] = []
     superseded: list[tuple[bpy.types.Action, bpy.types.Action]] = []
     try:
-        made.extend(_keyed_action(context, job) for job in jobs)
-        for job, action in zip(jobs, made, strict=True):
+        for job in jobs:
             obj = bpy.data.objects[job.obj_name]
-            memo = actions.remember_assignment(obj)
+            done.append((obj, actions.remember_assignment(obj)))
             current = actions.generated_action(obj)
             # A re-generation supersedes the earlier walk, never a bake layered on one.
             own = current is not None and _SECONDARY_SOURCE not in current
-            actions.assign_generated_action(obj, action, replace=own, superseded=superseded)
-            done.append((obj, memo))
+            made.append(_keyed_action(context, job, own, superseded))
     except Exception:
         for obj, memo in reversed(done):
             actions.undo_assignment(obj, memo)
@@ -542,8 +591,12 @@ def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types
 _SECONDARY_SOURCE = "_procloco_secondary_source"
 
 
-def _keyed_action(context: bpy.types.Context, job: Job) -> bpy.types.Action:
-    """A new generated Action holding ``job.result`` as pose-bone keys (not assigned)."""
+def _keyed_action(context: bpy.types.Context, job: Job, replace: bool,
+                  superseded: list[tuple[bpy.types.Action, bpy.types.Action]]) -> bpy.types.Action:
+    """A new generated Action holding ``job.result``, keyed on the rig's bones or their
+    controls (:mod:`..pose_writer`) and assigned to the rig (``replace``, ``superseded``: see
+    :func:`.actions.assign_generated_action`). On failure the Action is deleted; the caller
+    puts back the rig's assignment."""
     from . import simulation
 
     t0 = time.perf_counter()
@@ -552,24 +605,46 @@ def _keyed_action(context: bpy.types.Context, job: Job) -> bpy.types.Action:
     leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
     tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job),
                             spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames)
+    info = job.info
+    plan = job.plan
+    if plan is None:
+        plan, _warnings = plan_keys(obj, info)
+    request = pose_writer.PoseRequest(
+        frames=job.frames,
+        bones=tracks.bones,
+        armature=pose_writer.armature_from_basis(tracks.bones, tracks.rotations, tracks.locations,
+                                                 info.rest_local, info.parents, info.basis,
+                                                 tracks.keyed_location),
+        keyed_location=tracks.keyed_location,
+        world0=info.world,
+        rest_local=info.rest_local,
+        parents=info.parents,
+        basis=info.basis,
+        legs=tuple(leg.bones for leg in info.legs),
+    )
     action = actions.new_action(obj)
     frames = job.frames.astype(np.float64)
     try:
-        actions.write_pose_bone_transforms(action, obj, frames, tracks.bones, rotations=tracks.rotations)
-        loc = [i for i, k in enumerate(tracks.keyed_location) if k]
-        if loc:
-            actions.write_pose_bone_transforms(action, obj, frames, [tracks.bones[i] for i in loc],
-                                               locations=tracks.locations[:, loc])
         if job.held_bones:
             n = len(job.held_bones)
             rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
             actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
+        keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
+        actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
+        report = pose_writer.write_pose(action, obj, request, plan, check=job.check_after,
+                                        replace=replace, superseded=superseded)
         if job.auto_gait is not None:
             rig_gait.store_auto_track(action, simulation.auto_track(job))
     except Exception:
         bpy.data.actions.remove(action)
         raise
+    off = [(leg.label, err * info.scale) for leg, err in zip(info.legs, report.leg_error, strict=False)
+           if err * info.scale > 0.01]
+    if off:
+        job.warnings.append("after keying, the evaluated feet are off the plan: "
+                            + ", ".join(f"leg {label} by {100.0 * err:.1f} cm" for label, err in off))
+    job.keyed_bones = tuple(report.keyed)
     job.timings["write_s"] = time.perf_counter() - t0
     return action
 

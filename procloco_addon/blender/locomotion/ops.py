@@ -54,7 +54,10 @@ class PROCLOCO_OT_detect_legs(bpy.types.Operator):
             self.report({"ERROR"}, str(err))
             return {"CANCELLED"}
         facing = rig.facing_source(obj, legs)
-        self.report({"INFO"}, f"{obj.name}: {len(legs)} legs ({', '.join(leg.label for leg in legs)}); "
+        items = {item.label: item.controls for item in obj.procloco.legs}
+        described = [f"{leg.label}: keys {items[leg.label]}" if items.get(leg.label) else leg.label
+                     for leg in legs]
+        self.report({"INFO"}, f"{obj.name}: {len(legs)} legs ({'; '.join(described)}); "
                     f"forward from the {facing}")
         return {"FINISHED"}
 

@@ -45,6 +45,8 @@ class PROCLOCO_PT_rig_legs(RigPanel, bpy.types.Panel):
         col.prop(leg, "label")
         col.prop_search(leg, "hip", obj.data, "bones", text="Hip")
         col.prop_search(leg, "end", obj.data, "bones", text="End-Effector")
+        if leg.controls:
+            col.label(text=f"Keys {leg.controls}", icon="CON_KINEMATIC")
         col.prop(leg, "offset")
         why = generate.leg_reason(leg)
         col.label(text=f"Why: {why}" if why else "Set by hand", icon="CHECKMARK" if why else "HAND")

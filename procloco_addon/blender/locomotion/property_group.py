@@ -61,6 +61,11 @@ class PROCLOCO_PG_leg(bpy.types.PropertyGroup):
         "they are unchanged",
     )
     enabled: BoolProperty(name="Enabled", description="Animate this leg", default=True)
+    controls: StringProperty(
+        name="Keyed Controls",
+        description="On a control rig, the controls Generate Locomotion keys for this leg "
+        "(found by Detect Legs)",
+    )
     swing_start: FloatProperty(
         name="Swing Start",
         description="Where in the cycle the foot lifts off (fraction of the cycle)",

@@ -30,6 +30,8 @@ class PROCLOCO_UL_legs(bpy.types.UIList):
             sub.label(text=chain)
             # why detection chose it: reaches the ground, mirrored pair, name
             sub.label(text=leg_reason(item) or "by hand")
+            if item.controls:
+                sub.label(text=item.controls, icon="CON_KINEMATIC")
         else:
             layout.alignment = "CENTER"
             layout.label(text=item.label or item.name)

@@ -4,9 +4,11 @@
 One job per module: :mod:`.names` (bone names as hints), :mod:`.rest` (rest geometry as
 arrays), :mod:`.detect` (leg detection on those arrays), :mod:`.spine` (the spine chain),
 :mod:`.info` (:class:`RigInfo`), :mod:`.read` (reading an armature with ``bpy``),
-:mod:`.morphology` (the core morphology) and :mod:`.pose` (poses back to bones). Only
-:mod:`.read` imports ``bpy``; its names load on first use, so the numpy modules import
-without Blender. Names with a leading underscore are private to this package.
+:mod:`.morphology` (the core morphology), :mod:`.pose` (poses back to bones) and
+:mod:`.controls` (on a control rig, the controls that drive the solved bones: imported on
+its own). Only :mod:`.read` and :mod:`.controls` import ``bpy``; the names of :mod:`.read`
+load on first use, so the numpy modules import without Blender. Names with a leading
+underscore are private to this package.
 
 A **leg** is the bone chain from its *hip* bone down to its *end-effector* bone (thesis
 §3.1: "the name of each leg hip joint and the name of its end-effector, e.g. the joint

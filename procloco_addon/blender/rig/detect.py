@@ -148,8 +148,11 @@ def _dedupe(rest: _Rest, chains: list[list[int]], constrained: np.ndarray) -> li
     for chain in ranked:
         pts = _chain_points(rest, chain)
         tol = 0.02 * _length(pts)
+        # The tips, or the last bones' heads: a leaf toe's far end is a guess that differs
+        # between the copies (an ORG toe with children, a DEF toe without).
         if any(np.linalg.norm(pts[0] - _chain_points(rest, k)[0]) < tol
-               and np.linalg.norm(pts[-1] - _chain_points(rest, k)[-1]) < tol for k in kept):
+               and (np.linalg.norm(pts[-1] - _chain_points(rest, k)[-1]) < tol
+                    or np.linalg.norm(pts[-2] - _chain_points(rest, k)[-2]) < tol) for k in kept):
             continue
         kept.append(chain)
     return sorted(kept, key=lambda c: c[0])

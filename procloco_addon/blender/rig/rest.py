@@ -7,6 +7,7 @@ detection and the spine search run on plain arrays (unit-testable without Blende
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -47,7 +48,15 @@ class _Rest:
                 [not has_kids[i] and p >= 0 and n == self.names[p] + "_end"
                  for i, (n, p) in enumerate(zip(self.names, self.parent.tolist(), strict=True))], dtype=bool))
         if self.end is None:
-            end, meaningful = joint_ends(np.where(self.phantom, -1, self.parent), self.head, self.tail)
+            # A control rig's mechanism and control bones (Rigify's MCH-, tweak, IK, FK and
+            # face bones, Auto-Rig Pro's c_ controls) sit anywhere on their parents: only its
+            # skeleton (Rigify's ORG-/DEF- bones, else the bones not named as controls) says
+            # whether the tails are joints.
+            copies = np.array([bool(re.match(r"^(ORG|DEF)[-_.]", n)) for n in self.names], dtype=bool)
+            skeleton = copies if copies.any() else np.array(
+                [not re.match(r"^(MCH|VIS|WGT|c)[-_.]", n) for n in self.names], dtype=bool)
+            end, meaningful = joint_ends(np.where(self.phantom, -1, self.parent), self.head, self.tail,
+                                         skeleton)
             object.__setattr__(self, "end", end)
             object.__setattr__(self, "tails_meaningful", meaningful)
 
@@ -63,8 +72,10 @@ class _Rest:
         return out
 
 
-def joint_ends(parent: np.ndarray, head: np.ndarray, tail: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Each bone's far joint ``(B, 3)``, and whether the rig's tails mean anything.
+def joint_ends(parent: np.ndarray, head: np.ndarray, tail: np.ndarray,
+               counted: np.ndarray | None = None) -> tuple[np.ndarray, bool]:
+    """Each bone's far joint ``(B, 3)``, and whether the rig's tails mean anything (judged on
+    the ``counted`` ``(B,)`` bones, all by default).
 
     Blender-made rigs put a bone's tail where its child starts: there the tails are the
     joints. glTF and FBX importers give bones arbitrary tails (each along its own +Y, of a
@@ -81,8 +92,9 @@ def joint_ends(parent: np.ndarray, head: np.ndarray, tail: np.ndarray) -> tuple[
     span = float(np.ptp(np.vstack([head, tail]), axis=0).max()) if n else 0.0
     tol = 1e-4 * max(span, 1e-12)
     with_kids = [i for i in range(n) if kids[i]]
-    hits = sum(1 for i in with_kids if np.min(np.linalg.norm(head[kids[i]] - tail[i], axis=1)) < tol)
-    if not with_kids or hits >= 0.75 * len(with_kids):
+    judged = [i for i in with_kids if counted is None or counted[i]] or with_kids
+    hits = sum(1 for i in judged if np.min(np.linalg.norm(head[kids[i]] - tail[i], axis=1)) < tol)
+    if not with_kids or hits >= 0.75 * len(judged):
         return tail.copy(), True
     size = np.ones(n, dtype=np.int64)
     for i in sorted(range(n), key=lambda j: -_depth(parent, j)):  # children before parents

@@ -5,7 +5,10 @@
 like appendages (tail, antenna, ear, palp, tentacle, hair, abdomen...) anywhere outside the
 legs (ears not on two-legged rigs: a human's ears do not flop), and unnamed chains of three
 bones or more that hang from the body or spine bones and are neither legs, arms, face nor
-helper bones (the Rigify wolf's tail is ``spine.003 > ...``).
+helper bones (the Rigify wolf metarig's tail is ``spine.003 > ...``). On a control rig (a
+generated Rigify rig: mechanism bones driven by constraints) chains are made of the controls
+the animator moves only (the generated wolf's tail controls ``spine.003 > ... > spine``, one
+master control per ear), never of their ``ORG-``/``MCH-``/``DEF-`` copies.
 Legs come from the rig's leg list (``Object.procloco.legs``), else from leg detection
 (:func:`..rig.detect_legs`); the body and spine from :func:`..rig.read_rig`.
 
@@ -19,8 +22,10 @@ Legs come from the rig's leg list (``Object.procloco.legs``), else from leg dete
    :func:`cancel` puts the scene back as it was;
 3. :func:`write` runs the pendulums (``core.pendulum``) and writes a **new** Action: the
    source's channels sampled at every frame, with the chain bones' rotations replaced by
-   the swinging ones. Each chain hangs from its root's parent bone (or from the object):
-   that body moving *and turning* (a hip sway, a turn starting) makes the chain swing.
+   the swinging ones, keyed through :mod:`..pose_writer` (bones that constraints also move,
+   like a Rigify tail's controls, are solved through the evaluated rig). Each chain hangs
+   from its root's parent bone (or from the object): that body moving *and turning* (a hip
+   sway, a turn starting) makes the chain swing.
    The source Action is left untouched and stays reachable (it is remembered as the rig's
    previous Action, see :mod:`..actions`).
 
@@ -41,8 +46,9 @@ import bpy
 import numpy as np
 
 from ...core import pendulum as pend
-from .. import actions, rig, validate
+from .. import actions, pose_writer, rig, validate
 from ..locomotion import property_group as locomotion_props
+from ..rig import controls
 
 __all__ = [
     "SECONDARY_SOURCE",
@@ -152,6 +158,19 @@ def suggest_chains(obj: bpy.types.Object) -> list[ChainSuggestion]:
     bones = obj.data.bones
     names = [b.name for b in bones]
     parent = {b.name: (b.parent.name if b.parent else None) for b in bones}
+    below_of = {n: [c.name for c in bones[n].children] for n in names}
+    movable = _controls_of(obj)
+    if movable is not None:
+        # A control rig: chains are made of the controls the animator moves, each hanging
+        # from its nearest control ancestor (mechanism and deform copies are never offered).
+        def control_parent(n: str) -> str | None:
+            up = parent[n]
+            while up is not None and up not in movable:
+                up = parent[up]
+            return up
+
+        parent = {n: control_parent(n) for n in names if n in movable}
+        names = [n for n in names if n in movable]
     children: dict[str, list[str]] = {n: [] for n in names}
     for n in names:
         p = parent[n]
@@ -169,9 +188,11 @@ def suggest_chains(obj: bpy.types.Object) -> list[ChainSuggestion]:
         while stack:  # everything below a hip: feet, toes, claws, fingers
             below = stack.pop()
             excluded.add(below)
-            stack.extend(children[below])
+            stack.extend(below_of[below])
     attach: set[str] = set(spine)
-    if body is not None:
+    if movable is not None:
+        attach.update(names)  # controls hang from other controls, not from the solved bones
+    elif body is not None:
         up: str | None = body
         while up is not None:
             excluded.add(up)
@@ -199,8 +220,8 @@ def suggest_chains(obj: bpy.types.Object) -> list[ChainSuggestion]:
         if n not in named:
             continue
         p = parent[n]
-        if p is not None and p in named and named_next(p) == n:
-            continue  # continues its parent's chain
+        if p is not None and p in named and (named_next(p) == n or movable is not None):
+            continue  # continues its parent's chain (on a control rig: is one of its controls)
         run = [n]
         while (nxt := named_next(run[-1])) is not None:
             run.append(nxt)
@@ -233,6 +254,16 @@ def suggest_chains(obj: bpy.types.Object) -> list[ChainSuggestion]:
     order = {n: i for i, n in enumerate(names)}
     chains.sort(key=lambda item: order[item[1][0]])
     return [ChainSuggestion(label, run[0], run[-1], tuple(run)) for label, run in chains]
+
+
+def _controls_of(obj: bpy.types.Object) -> set[str] | None:
+    """On a control rig (mechanism bones driven by constraints), the bones the animator moves;
+    None on a plain rig."""
+    graph = controls.ConstraintGraph(obj)
+    driven = [n for n in graph.names if controls.is_mechanism_name(n) and not graph.free(n)]
+    if not driven:
+        return None
+    return {n for n in graph.names if graph.keyable(n) and not (_tokens(n) & _CONTROL_WORDS)}
 
 
 def _dedupe(obj: bpy.types.Object, chains: list[tuple[str, list[str]]]) -> list[tuple[str, list[str]]]:
@@ -423,12 +454,11 @@ def prepare(context: Any, obj: Any) -> Job:
     except ValueError as err:
         raise BakeError(f"Chains of '{obj.name}': {err}") from err
 
-    warnings = []
+    # Constraints between the bones of the rig are solved through (see write); drivers, limits
+    # and constraints following other objects are not.
+    warnings = controls.driver_warnings(obj, bones)
+    warnings += controls.constraint_warnings(controls.ConstraintGraph(obj), bones, ())
     for b in bones:
-        pb = obj.pose.bones[b]
-        active = sorted({c.type for c in pb.constraints if c.enabled and c.influence > 0.0})
-        if active:
-            warnings.append(f"bone '{b}' has {', '.join(active)} constraints, which act after the baked keys")
         bone = obj.data.bones[b]
         if not bone.use_inherit_rotation or bone.inherit_scale not in {"FULL", "NONE_LEGACY"}:
             warnings.append(f"bone '{b}' does not inherit its parent's rotation or scale fully; "
@@ -599,7 +629,7 @@ def write(context: Any, job: Job) -> bpy.types.Action:
     obj = bpy.data.objects.get(job.obj_name)
     if obj is None:
         raise BakeError(f"'{job.obj_name}' was deleted during the bake")
-    quats, _world = simulate(job)
+    _quats, world = simulate(job)
     t0 = time.perf_counter()
     frames = job.frames.astype(np.float64)
     action = actions.new_action(obj, suffix="Secondary")
@@ -612,7 +642,6 @@ def write(context: Any, job: Job) -> bpy.types.Action:
         good = [c for c in range(len(job.channels)) if np.all(np.isfinite(job.values[:, c]))]
         if good:
             actions.write_channels(action, obj, [job.channels[c] for c in good], frames, job.values[:, good])
-        actions.write_pose_bone_transforms(action, obj, frames, job.bones, rotations=quats)
         # Over an earlier bake, this bake supersedes it: the earlier one is deleted (and this
         # one takes its name) unless something else uses it or it was given a fake user, in
         # which case it is kept with a fake user. The remembered previous Action stays the
@@ -620,12 +649,39 @@ def write(context: Any, job: Job) -> bpy.types.Action:
         adt = obj.animation_data
         current = adt.action if adt is not None else None
         rebake = current is not None and actions.is_generated(current) and SECONDARY_SOURCE in current
-        actions.assign_generated_action(obj, action, replace=rebake)
+        request, plan = _pose_request(obj, job, world)
+        actions.remember_pose(action, obj, job.bones)
+        pose_writer.write_pose(action, obj, request, plan, replace=rebake)
     except Exception:
         bpy.data.actions.remove(action)
         raise
     job.timings["write_s"] = time.perf_counter() - t0
     return action
+
+
+def _pose_request(obj: bpy.types.Object, job: Job,
+                  world: np.ndarray) -> tuple[pose_writer.PoseRequest, controls.ControlPlan]:
+    """The swinging chain bones (world matrices ``world`` ``(F, n, 4, 4)``) as targets for
+    :mod:`..pose_writer`, rotations only: free bones keyed themselves, bones that constraints
+    also move (a Rigify tail's controls copy each other's
+    rotation) solved through the evaluated rig, each as its own anchor."""
+    bones = obj.data.bones
+    rest = {b.name: np.array(b.matrix_local, dtype=np.float64) for b in bones}
+    parents = {b.name: (b.parent.name if b.parent else None) for b in bones}
+    basis = {pb.name: np.array(pb.matrix_basis, dtype=np.float64) for pb in obj.pose.bones}
+    pose = np.linalg.inv(job.object_world)[:, None] @ world  # (F, n, 4, 4) armature space
+    hung = {p: job.parent_pose[:, i] for i, p in enumerate(job.parents)
+            if p is not None and p not in job.bones}
+    graph = controls.ConstraintGraph(obj)
+    free = tuple(b for b in job.bones if graph.free(b))
+    plan = controls.ControlPlan(
+        direct=free, controls=tuple(controls.ControlKey(b, "RIGID", b) for b in job.bones if b not in free),
+        legs=(), switches=(), uncovered=())
+    request = pose_writer.PoseRequest(
+        frames=job.frames, bones=tuple(job.bones), armature=pose,
+        keyed_location=np.zeros(len(job.bones), dtype=bool), world0=np.eye(4), rest_local=rest,
+        parents=parents, basis=basis, per_frame=True, parent_pose=hung)
+    return request, plan
 
 
 def bake(context: Any, obj: Any) -> bpy.types.Action:

@@ -1,0 +1,467 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""World poses to keys: the one place where a pose ProcLoco solved becomes keyable channels.
+
+Generate Locomotion, Bake Secondary Motion and Plan Biped Footsteps all end the same way:
+they know where bones should be (armature-space pose matrices of *solved* bones, frame by
+frame) and must key channels so that Blender's evaluated rig puts them there. This module
+does it, for plain rigs and for control rigs:
+
+- **Free solved bones** (:attr:`.rig.controls.ControlPlan.direct`, a plain FK rig's bones) get the
+  ``matrix_basis`` that puts them at their target under their parent's target pose
+  (:func:`basis_from_armature`), exactly, without evaluating the rig.
+- **Controls** (:attr:`.rig.controls.ControlPlan.controls`) are solved *through* Blender: the rig
+  is evaluated at every frame, each control is moved by the error of the solved bone it drives
+  (``RIGID``: rigidly with it; ``TURN``: turned like it, rotation only; ``IK``: turned like
+  the foot, moved by the end-effector's error; ``POLE``: put on the knee's side of the leg's
+  plane), keyed, and the rig is evaluated again,
+  until the solved bones are within 0.1 mm (and 0.1 degree) of their targets, or a pass no
+  longer helps (two to four passes on generated Rigify rigs; a pass costs one depsgraph
+  evaluation per frame). A pole is turned about the hip-to-end axis until the knee lands.
+  Whatever lies between the control and the deform bones
+  (IK with stretch, foot-roll mechanisms, parent switches) is Blender's own.
+- **Switches** (:class:`.rig.controls.Switch`) are keyed at their chosen value.
+
+The targets are given for the object's world matrix at the first frame (``world0``); when the
+object moves (an animated parent, object keys, constraints), each frame's target is carried
+into the armature space of that frame, so the bones stay where they were planned *in the
+world*.
+
+Shapes: ``frames`` ``(F,)``; ``armature`` ``(F, B, 4, 4)`` for the ``bones`` ``(B,)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from . import actions
+from .rig.controls import ControlKey, ControlPlan, Switch
+
+__all__ = [
+    "PoseRequest",
+    "WriteReport",
+    "armature_from_basis",
+    "basis_from_armature",
+    "evaluate_pose",
+    "object_moves",
+    "object_worlds",
+    "write_pose",
+]
+
+#: Stop correcting controls once every solved bone is this close to its target (metres, in
+#: units of the rig's scale) and turned by less than ``_TOL_ANGLE`` radians.
+_TOL = 1e-4
+_TOL_ANGLE = 2e-3
+_MAX_PASSES = 5
+
+
+@dataclass(frozen=True)
+class PoseRequest:
+    """What to key: ``armature[f, b]`` is where solved bone ``bones[b]`` should be at
+    ``frames[f]`` (armature space for world matrix ``world0``). ``keyed_location[b]``: key the
+    free bone's location too (else rotation only). ``legs``: per leg the solved chain (hip to
+    end-effector) whose end the ``IK`` and ``POLE`` controls place.
+
+    ``rest_local`` / ``parents`` / ``basis``: every bone's armature rest matrix, parent and
+    current ``matrix_basis`` (bones that are not solved keep their pose).
+    """
+
+    frames: np.ndarray
+    bones: tuple[str, ...]
+    armature: np.ndarray
+    keyed_location: np.ndarray
+    world0: np.ndarray
+    rest_local: dict[str, np.ndarray]
+    parents: dict[str, str | None]
+    basis: dict[str, np.ndarray]
+    legs: tuple[tuple[str, ...], ...] = ()
+    # The targets are already in each frame's armature space (sampled from the evaluated rig):
+    # they are not carried along a moving object.
+    per_frame: bool = False
+    # Armature-space poses ``(F, 4, 4)`` of bones that are not solved but that solved bones
+    # hang from, as sampled (an animated body); others are taken as currently posed.
+    parent_pose: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+@dataclass
+class WriteReport:
+    """What :func:`write_pose` keyed and how close the evaluated rig came."""
+
+    keyed: list[str] = field(default_factory=list)
+    passes: int = 0
+    # per leg, the largest distance (m) between the evaluated and the planned end-effector
+    leg_error: list[float] = field(default_factory=list)
+    body_error: float = 0.0
+
+
+def object_moves(obj: bpy.types.Object) -> bool:
+    """Whether the object's world matrix may change over time (its own or a parent's
+    animation, drivers or constraints)."""
+    cur: bpy.types.Object | None = obj
+    while cur is not None:
+        adt = cur.animation_data
+        animated = adt is not None and (adt.action is not None or len(adt.drivers) or len(adt.nla_tracks))
+        if animated and (cur is not obj or _animates_object(adt)):
+            return True
+        if len(cur.constraints):
+            return True
+        cur = cur.parent
+    return False
+
+
+def _animates_object(adt: bpy.types.AnimData) -> bool:
+    """Whether the object's own Action, NLA or drivers touch its transform (not its bones)."""
+    paths: list[str] = [d.data_path for d in adt.drivers]
+    if adt.action is not None:
+        paths += [ch.data_path for ch in _fcurves(adt)]
+    if len(adt.nla_tracks):
+        return True
+    return any(p.split("[")[0] in {"location", "rotation_euler", "rotation_quaternion", "rotation_axis_angle",
+                                   "scale", "delta_location", "delta_rotation_euler", "delta_scale"}
+               for p in paths)
+
+
+def _fcurves(adt: bpy.types.AnimData) -> list[actions.Channel]:
+    obj_id = adt.id_data
+    return actions.channels_of(adt.action, obj_id)
+
+
+def _frame_loop(frames: Sequence[int]) -> Iterator[int]:
+    """Set the scene to each frame in turn (yielding its index); the frame is put back after."""
+    scene = bpy.context.scene
+    old = scene.frame_current
+    try:
+        for f, frame in enumerate(frames):
+            scene.frame_set(int(frame))
+            yield f
+    finally:
+        scene.frame_set(old)
+
+
+def object_worlds(obj: bpy.types.Object, frames: np.ndarray) -> np.ndarray:
+    """The object's evaluated world matrix at each frame ``(F, 4, 4)``."""
+    out = np.empty((len(frames), 4, 4))
+    for f in _frame_loop([int(x) for x in frames]):
+        ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        out[f] = np.array(ev.matrix_world, dtype=np.float64)
+    return out
+
+
+def evaluate_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """Evaluated armature-space pose matrices ``(F, n, 4, 4)`` of ``names`` at each frame."""
+    all_names = [pb.name for pb in obj.pose.bones]
+    index = np.array([all_names.index(n) for n in names], dtype=np.int64)
+    buf = np.empty(len(all_names) * 16, dtype=np.float32)
+    out = np.empty((len(frames), len(names), 4, 4))
+    for f in _frame_loop([int(x) for x in frames]):
+        ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+        ev.pose.bones.foreach_get("matrix", buf)
+        out[f] = buf.reshape(-1, 4, 4).transpose(0, 2, 1)[index]
+    return out
+
+
+def _depth(parents: dict[str, str | None], name: str) -> int:
+    d = 0
+    cur = parents[name]
+    while cur is not None:
+        d += 1
+        cur = parents[cur]
+    return d
+
+
+def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """``matrix_basis`` ``(F, n, 4, 4)`` that puts free bones ``names`` (of ``req.bones``) at
+    ``armature`` ``(F, B, 4, 4)``, each under its parent's pose: the parent's target when it
+    is solved, else its current pose under its own (possibly solved) parents."""
+    index = {b: i for i, b in enumerate(req.bones)}
+    n_frames = armature.shape[0]
+    cache: dict[str, np.ndarray] = {}
+
+    def pose(name: str) -> np.ndarray:
+        if name in index:
+            return armature[:, index[name]]
+        if name in req.parent_pose:
+            return np.broadcast_to(req.parent_pose[name], (n_frames, 4, 4))
+        if name not in cache:
+            parent = req.parents[name]
+            rest = req.rest_local[name]
+            if parent is None:
+                above: np.ndarray = np.eye(4)[None]
+            else:
+                above = pose(parent) @ np.linalg.inv(req.rest_local[parent])
+            cache[name] = np.broadcast_to(above @ (rest @ req.basis[name])[None], (n_frames, 4, 4))
+        return cache[name]
+
+    out = np.empty((n_frames, len(names), 4, 4))
+    for j, name in enumerate(names):
+        parent = req.parents[name]
+        rest = req.rest_local[name]
+        if parent is None:
+            base = np.broadcast_to(rest, (n_frames, 4, 4))
+        else:
+            base = pose(parent) @ (np.linalg.inv(req.rest_local[parent]) @ rest)[None]
+        out[:, j] = np.linalg.inv(base) @ armature[:, index[name]]
+    return out
+
+
+def _quat_matrix(q: np.ndarray) -> np.ndarray:
+    """``(..., 4)`` unit quaternions (w, x, y, z) -> ``(..., 3, 3)`` rotation matrices."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def armature_from_basis(
+    bones: Sequence[str], rotations: np.ndarray, locations: np.ndarray, rest_local: dict[str, np.ndarray],
+    parents: dict[str, str | None], basis: dict[str, np.ndarray], keyed_location: np.ndarray,
+) -> np.ndarray:
+    """Armature-space pose ``(F, B, 4, 4)`` of ``bones`` given their ``matrix_basis`` as
+    rotations ``(F, B, 4)`` and locations ``(F, B, 3)`` (used where ``keyed_location`` ``(B,)``,
+    elsewhere the bone keeps its current location); other bones keep ``basis``."""
+    index = {b: i for i, b in enumerate(bones)}
+    n_frames = rotations.shape[0]
+    own = np.tile(np.eye(4), (n_frames, len(bones), 1, 1))
+    own[..., :3, :3] = _quat_matrix(rotations)
+    current = np.array([basis[b][:3, 3] for b in bones]).reshape(len(bones), 3)
+    keyed = np.asarray(keyed_location, dtype=bool)[None, :, None]
+    own[..., :3, 3] = np.where(keyed, locations, current[None])
+    cache: dict[str, np.ndarray] = {}
+
+    def pose(name: str) -> np.ndarray:
+        if name not in cache:
+            parent = parents[name]
+            b = own[:, index[name]] if name in index else basis[name][None]
+            rest = rest_local[name]
+            if parent is None:
+                cache[name] = rest[None] @ b
+            else:
+                cache[name] = pose(parent) @ (np.linalg.inv(rest_local[parent]) @ rest)[None] @ b
+        return cache[name]
+
+    return np.stack([np.broadcast_to(pose(b), (n_frames, 4, 4)) for b in bones], axis=1)
+
+
+def _orthonormal(m: np.ndarray) -> np.ndarray:
+    u, _s, vt = np.linalg.svd(m)
+    r = u @ vt
+    return r
+
+
+def _key(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
+         basis: np.ndarray, location: np.ndarray | Sequence[bool]) -> None:
+    """Key rotation (and location where ``location[b]``) of ``basis`` ``(F, n, 4, 4)``."""
+    from .rig import matrix_to_quaternion
+
+    if not names:
+        return
+    rot = _orthonormal(basis[..., :3, :3])
+    quats = matrix_to_quaternion(rot)
+    actions.write_pose_bone_transforms(action, obj, frames, names, rotations=quats)
+    loc = [i for i, k in enumerate(location) if k]
+    if loc:
+        actions.write_pose_bone_transforms(action, obj, frames, [names[i] for i in loc],
+                                           locations=basis[:, loc][..., :3, 3])
+
+
+def _key_switches(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray,
+                  switches: Sequence[Switch]) -> None:
+    if not switches:
+        return
+    ends = frames[[0, -1]] if frames.size > 1 else frames[:1]
+    chans = [actions.Channel(s.data_path, 0, s.bone) for s in switches]
+    values = np.tile(np.array([s.value for s in switches], dtype=np.float64), (ends.size, 1))
+    actions.write_channels(action, obj, chans, ends, values, interpolation="CONSTANT")
+
+
+def _leg_frame(joints: np.ndarray) -> np.ndarray:
+    """Per frame the leg's frame ``(F, 3, 3)``: hip to end, the bend normal, their cross."""
+    hip, knee, end = joints[:, 0], joints[:, 1], joints[:, -1]
+    e1 = end - hip
+    e1 /= np.maximum(np.linalg.norm(e1, axis=-1, keepdims=True), 1e-12)
+    n = np.cross(knee - hip, end - knee)
+    n = n - np.sum(n * e1, axis=-1, keepdims=True) * e1
+    size = np.linalg.norm(n, axis=-1, keepdims=True)
+    # a straight leg keeps the last good normal
+    good = size[:, 0] > 1e-9
+    if not good.any():
+        n = np.cross(e1, np.array([0.0, 0.0, 1.0]))
+        size = np.linalg.norm(n, axis=-1, keepdims=True)
+        good = size[:, 0] > 1e-12
+    n = np.where(good[:, None], n / np.maximum(size, 1e-12), np.nan)
+    idx = np.where(good, np.arange(len(n)), 0)
+    idx = np.maximum.accumulate(idx)
+    first = int(np.argmax(good))
+    idx[: first] = first
+    n = n[idx]
+    e3 = np.cross(e1, n)
+    return np.stack([e1, n, e3], axis=-1)
+
+
+def _joints(mats: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Chain joints ``(F, k + 1, 3)``: each bone's head, then the last bone's tail."""
+    heads = mats[..., :3, 3]
+    tail = heads[:, -1] + mats[:, -1, :3, 1] * lengths[-1]
+    return np.concatenate([heads, tail[:, None]], axis=1)
+
+
+def write_pose(
+    action: bpy.types.Action, obj: bpy.types.Object, req: PoseRequest, plan: ControlPlan,
+    *, assign: bool = True, replace: bool = False, check: bool = False,
+    superseded: list[tuple[bpy.types.Action, bpy.types.Action]] | None = None,
+) -> WriteReport:
+    """Key ``req`` on ``obj`` into ``action`` following ``plan`` (see the module doc).
+
+    ``action`` is assigned to the object (``assign``, through
+    :func:`.actions.assign_generated_action` with ``replace`` and ``superseded``) before the
+    passes that evaluate it. ``check``: with no controls, still evaluate the rig once and
+    report how far each leg's end-effector landed from its target (drivers and limits can
+    pull it off).
+    """
+    report = WriteReport()
+    frames = np.asarray(req.frames, dtype=np.float64)
+    armature = np.asarray(req.armature, dtype=np.float64)
+    if not req.per_frame and object_moves(obj):
+        worlds = object_worlds(obj, req.frames)
+        # The plan is in the world: carry it into each frame's armature space.
+        armature = (np.linalg.inv(worlds) @ req.world0[None])[:, None] @ armature
+    index = {b: i for i, b in enumerate(req.bones)}
+    direct = [b for b in req.bones if b in plan.direct]
+    controls = list(plan.controls)
+    if direct:
+        basis = basis_from_armature(req, armature, direct)
+        _key(action, obj, frames, direct, basis, [bool(req.keyed_location[index[b]]) for b in direct])
+    _key_switches(action, obj, frames, plan.switches)
+    report.keyed = [*direct, *(c.bone for c in controls)]
+    if assign:
+        actions.assign_generated_action(obj, action, replace=replace, superseded=superseded)
+    if controls:
+        _solve_controls(action, obj, frames, armature, req, controls, report, index)
+    elif check and req.legs:
+        report.leg_error = _leg_errors(obj, req, armature, index)
+    return report
+
+
+def _leg_errors(obj: bpy.types.Object, req: PoseRequest, armature: np.ndarray,
+                index: dict[str, int]) -> list[float]:
+    """Per leg the largest distance (m, armature space) between the evaluated and the planned end."""
+    names = list(dict.fromkeys(b for leg in req.legs for b in leg))
+    ev = evaluate_pose(obj, req.frames, names)
+    col = {n: i for i, n in enumerate(names)}
+    out = []
+    for leg in req.legs:
+        lengths = np.array([obj.data.bones[b].length for b in leg])
+        got = _joints(ev[:, [col[b] for b in leg]], lengths)
+        want = _joints(armature[:, [index[b] for b in leg]], lengths)
+        out.append(float(np.linalg.norm(got[:, -1] - want[:, -1], axis=-1).max()))
+    return out
+
+
+def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, armature: np.ndarray,
+                    req: PoseRequest, controls: Sequence[ControlKey], report: WriteReport,
+                    index: dict[str, int]) -> None:
+    """Key ``controls`` by passes of evaluate-and-correct (see the module doc)."""
+    ctrl_names = [c.bone for c in controls]
+    anchors = list(dict.fromkeys(c.anchor for c in controls))
+    leg_ids = sorted({c.leg for c in controls if c.leg >= 0})
+    chains = {k: list(req.legs[k]) for k in leg_ids}
+    names = list(dict.fromkeys([*ctrl_names, *anchors, *(b for k in leg_ids for b in chains[k])]))
+    col = {n: i for i, n in enumerate(names)}
+    lengths = {k: np.array([obj.data.bones[b].length for b in chains[k]]) for k in leg_ids}
+    want_joints = {k: _joints(armature[:, [index[b] for b in chains[k]]], lengths[k]) for k in leg_ids}
+    pole_offset = {c.bone: _pole_offset(req, chains[c.leg], lengths[c.leg], c.bone)
+                   for c in controls if c.mode == "POLE"}
+    pole_turn = {c.bone: np.zeros(frames.size) for c in controls if c.mode == "POLE"}
+    basis = np.stack([np.broadcast_to(req.basis[c], (frames.size, 4, 4)) for c in ctrl_names], axis=1).copy()
+    scale = max(float(np.mean([np.sum(v) for v in lengths.values()])) if lengths else 1.0, 1e-9)
+    last = worst = np.inf
+    stalled = 0
+    legged = any(c.mode in {"IK", "POLE"} for c in controls)
+    located = [c.mode != "TURN" for c in controls]
+    for p in range(_MAX_PASSES + 1):
+        _key(action, obj, frames, ctrl_names, basis, located)
+        ev = evaluate_pose(obj, req.frames, names)
+        report.passes = p + 1
+        got_joints = {k: _joints(ev[:, [col[b] for b in chains[k]]], lengths[k]) for k in leg_ids}
+        report.leg_error = [float(np.linalg.norm(got_joints[k][:, -1] - want_joints[k][:, -1], axis=-1).max())
+                            for k in leg_ids]
+        errors = [_control_error(c, ev, col, armature, index, got_joints, want_joints, scale)
+                  for c in controls]
+        worst = max(errors, default=0.0)
+        # Done when close enough, or when passes no longer help (a rig that cannot get there).
+        # Legs whose IK bends a little its own way stop improving after two or three passes;
+        # chains of controls may get worse before they get better, and run all passes.
+        stalled = stalled + 1 if legged and worst > 0.99 * last else 0
+        if worst < 1.0 or p == _MAX_PASSES or stalled >= 2:
+            break
+        last = worst
+        for j, c in enumerate(controls):
+            m = ev[:, col[c.bone]]
+            want = m.copy()
+            if c.mode == "RIGID":  # carried rigidly with its anchor
+                want = armature[:, index[c.anchor]] @ np.linalg.inv(ev[:, col[c.anchor]]) @ m
+            elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
+                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
+                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
+            elif c.mode == "IK":  # turned like its anchor, moved by the end-effector's error
+                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
+                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
+                want[:, :3, 3] += want_joints[c.leg][:, -1] - got_joints[c.leg][:, -1]
+            else:  # POLE: at its rest offset from the knee in the leg's frame, turned about the
+                # hip-to-end axis by what the knee still misses
+                joints = want_joints[c.leg]
+                frame_w = _leg_frame(joints)
+                frame_g = _leg_frame(got_joints[c.leg])
+                miss = np.arctan2(np.einsum("fi,fi->f", frame_w[..., 1], frame_g[..., 2]),
+                                  np.einsum("fi,fi->f", frame_w[..., 1], frame_g[..., 1]))
+                pole_turn[c.bone] = pole_turn[c.bone] + miss
+                pole = joints[:, 1] + np.einsum("fij,j->fi", frame_w, pole_offset[c.bone])
+                turned_pole = _turn_about(frame_w[..., 0], pole_turn[c.bone], pole - joints[:, 0])
+                want[:, :3, 3] = joints[:, 0] + turned_pole
+            # The control's matrix is (what its parent and constraints give) @ basis.
+            base = m @ np.linalg.inv(basis[:, j])
+            basis[:, j] = np.linalg.inv(base) @ want
+
+
+def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature: np.ndarray,
+                   index: dict[str, int], got: dict[int, np.ndarray], want: dict[int, np.ndarray],
+                   scale: float) -> float:
+    """How far what control ``c`` places still is, in tolerances (under 1: close enough)."""
+    tol = _TOL * scale
+    if c.mode == "POLE":
+        return float(np.linalg.norm(got[c.leg][:, 1] - want[c.leg][:, 1], axis=-1).max()) / tol
+    turn = _angle(armature[:, index[c.anchor], :3, :3], ev[:, col[c.anchor], :3, :3]) / _TOL_ANGLE
+    if c.mode == "TURN":
+        return turn
+    if c.mode == "IK":
+        moved = float(np.linalg.norm(got[c.leg][:, -1] - want[c.leg][:, -1], axis=-1).max())
+    else:
+        moved = float(np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3],
+                                     axis=-1).max())
+    return max(moved / tol, turn)
+
+
+def _turn_about(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``v`` ``(F, 3)`` turned by ``angle`` ``(F,)`` about unit ``axis`` ``(F, 3)`` (Rodrigues)."""
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    return v * c + np.cross(axis, v) * s + axis * np.sum(axis * v, axis=-1, keepdims=True) * (1.0 - c)
+
+
+def _angle(want: np.ndarray, got: np.ndarray) -> float:
+    """Largest angle (radians) between rotations ``want`` and ``got`` ``(F, 3, 3)`` (got may be scaled)."""
+    got = got / np.linalg.norm(got, axis=-2, keepdims=True)
+    cos = (np.trace(np.swapaxes(want, -1, -2) @ got, axis1=-2, axis2=-1) - 1.0) / 2.0
+    return float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
+
+
+def _pole_offset(req: PoseRequest, chain: Sequence[str], lengths: np.ndarray, pole: str) -> np.ndarray:
+    """The pole's rest head relative to the knee, in the leg's rest frame ``(3,)``."""
+    rest = _joints(np.stack([req.rest_local[b] for b in chain])[None], lengths)
+    return _leg_frame(rest)[0].T @ (req.rest_local[pole][:3, 3] - rest[0, 1])

@@ -1,0 +1,578 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Which bones the animator moves: from the bones ProcLoco solves to the controls that drive them.
+
+On a control rig (a generated Rigify rig, an Auto-Rig Pro rig, a studio's IK rig) the bones
+ProcLoco solves (a leg's chain, the body bone, the spine) are not keyed: constraints copy them
+from mechanism bones that IK chains and parent switches move, and those follow the bones the
+animator poses. This module follows that **constraint graph** upstream and says which bones to
+key so the evaluated (deform) bones land where the core put them.
+
+The graph (:class:`ConstraintGraph`) is read from the *evaluated* rig, so influences, mutes and
+parent-switch weights that drivers set are the ones in effect. Each bone depends on
+
+- its parent, unless a later constraint replaces its whole transform (Copy Transforms at full
+  influence, Armature): then on nothing before that constraint;
+- the bone targets of its enabled constraints (Copy Location/Rotation/Transforms, Child Of,
+  Armature targets with a weight, Damped Track, Stretch To, ...);
+- for every bone of an IK chain, the IK's target and pole.
+
+A **control** is a bone the animator is meant to move: its own transform counts (not replaced
+by a constraint, not rotated by an IK chain) and it is not a mechanism bone (Rigify's and
+Auto-Rig Pro's ``ORG-``/``MCH-``/``DEF-``/``VIS_``/``WGT-`` bones, or bones only in hidden bone
+collections).
+
+Per leg (:func:`plan_controls`): the **IK control** is the most upstream control feeding the
+leg's IK target that does not also carry the leg's hip (the body's controls and the rig's root
+move the whole leg); the **pole** is the one feeding the IK's pole. Properties that drivers
+read to switch a leg between FK and IK (Rigify's ``IK_FK`` on ``thigh_parent.L``, Auto-Rig
+Pro's ``ik_fk_switch``) and to turn its pole on (Rigify's ``pole_vector``) are
+:class:`Switch` es: they are set to the value that puts the leg in IK with a pole, and keyed.
+The **body control** is the most upstream control that carries the body bone and every hip but
+no IK control (Rigify's ``torso``, Auto-Rig Pro's ``c_root_master.x``, not ``root``/``c_traj``).
+Any other solved bone that is driven gets the nearest control upstream of it (spine and tail
+FK controls). Solved bones that are free are keyed themselves, as on plain FK rigs.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import deque
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import bpy
+
+__all__ = [
+    "ConstraintGraph",
+    "ControlKey",
+    "ControlPlan",
+    "LegControls",
+    "Switch",
+    "describe_leg",
+    "is_mechanism_name",
+    "plan_controls",
+]
+
+_MECHANISM = re.compile(r"^(ORG|MCH|DEF|VIS|WGT|TGT|MCH_|ROT)[-_.]", re.IGNORECASE)
+_PROP_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]\["((?:[^"\\]|\\.)*)"\]$')
+_CONSTRAINT_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]\.constraints\["((?:[^"\\]|\\.)*)"\]')
+_CHANNEL_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]\.'
+                           r'(location|rotation_quaternion|rotation_euler|rotation_axis_angle|scale)$')
+# Constraints that only clip the transform: they never carry a dependency, but a keyed bone
+# under one may not reach its keys.
+LIMIT_CONSTRAINTS = frozenset({"LIMIT_ROTATION", "LIMIT_LOCATION", "LIMIT_SCALE", "LIMIT_DISTANCE"})
+# Constraints that replace the whole transform of their owner (at full influence).
+_REPLACING = frozenset({"COPY_TRANSFORMS", "ARMATURE"})
+_NAMES = {
+    "COPY_TRANSFORMS": "Copy Transforms", "COPY_LOCATION": "Copy Location", "COPY_ROTATION": "Copy Rotation",
+    "CHILD_OF": "Child Of", "DAMPED_TRACK": "Damped Track", "STRETCH_TO": "Stretch To",
+    "TRACK_TO": "Track To",
+    "LOCKED_TRACK": "Locked Track", "LIMIT_ROTATION": "Limit Rotation", "LIMIT_LOCATION": "Limit Location",
+    "LIMIT_SCALE": "Limit Scale", "LIMIT_DISTANCE": "Limit Distance", "IK": "IK", "ARMATURE": "Armature",
+}
+
+
+def _unescape(s: str) -> str:
+    return s.replace('\\"', '"').replace("\\\\", "\\")
+
+
+def constraint_label(kind: str) -> str:
+    """A constraint type as the user reads it (``LIMIT_ROTATION`` -> ``Limit Rotation``)."""
+    return _NAMES.get(kind, kind.replace("_", " ").title())
+
+
+def is_mechanism_name(name: str) -> bool:
+    """Whether a bone's name marks it as rig mechanism (``ORG-``, ``MCH-``, ``DEF-``, ...)."""
+    return bool(_MECHANISM.match(name))
+
+
+def _active(c: bpy.types.Constraint) -> bool:
+    return bool(getattr(c, "enabled", not getattr(c, "mute", False))) and float(c.influence) > 1e-6
+
+
+@dataclass
+class _Node:
+    deps: dict[str, int] = field(default_factory=dict)  # bone -> 0 parent, 1 constraint, 2 IK
+    replaced: bool = False  # its own basis is overwritten by a constraint
+    in_ik: bool = False  # an IK chain sets its rotation
+    ik: list[tuple[str, str | None]] = field(default_factory=list)  # IKs reaching it: (target, pole)
+    limits: list[str] = field(default_factory=list)  # limit constraint types on it
+    external: list[tuple[str, str]] = field(default_factory=list)  # (constraint type, object name)
+
+
+class ConstraintGraph:
+    """The dependencies between the bones of armature ``obj``, as evaluated now (see module doc)."""
+
+    def __init__(self, obj: bpy.types.Object) -> None:
+        self.obj = obj
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        ev = obj.evaluated_get(depsgraph)
+        bones = obj.data.bones
+        self.names = [b.name for b in bones]
+        self.nodes: dict[str, _Node] = {n: _Node() for n in self.names}
+        hidden = self._hidden_bones(obj)
+        self.controls = {n for n in self.names if not is_mechanism_name(n) and n not in hidden}
+        for pb in ev.pose.bones:
+            node = self.nodes[pb.name]
+            parent_kept = True
+            for c in reversed(list(pb.constraints)):
+                if not _active(c):
+                    continue
+                kind = c.type
+                if kind in LIMIT_CONSTRAINTS:
+                    node.limits.append(kind)
+                    continue
+                for target, sub in self._targets(c):
+                    if target is None:
+                        continue
+                    if target.original.name != obj.name or target.type != "ARMATURE":
+                        node.external.append((kind, target.original.name))
+                    elif sub and sub in self.nodes:
+                        node.deps.setdefault(sub, 1)
+                if kind == "IK":
+                    self._add_ik(ev, pb, c)
+                full = float(c.influence) >= 0.999 and getattr(c, "mix_mode", "REPLACE") == "REPLACE"
+                if kind in _REPLACING and full:
+                    node.replaced = True
+                    parent_kept = False
+                    break
+            if parent_kept and pb.parent is not None:
+                node.deps.setdefault(pb.parent.name, 0)
+
+    @staticmethod
+    def _hidden_bones(obj: bpy.types.Object) -> set[str]:
+        """Bones only in hidden bone collections (mechanism on rigs that sort their bones)."""
+        out: set[str] = set()
+        for b in obj.data.bones:
+            colls = list(getattr(b, "collections", ()))
+            if colls and not any(getattr(c, "is_visible", True) for c in colls):
+                out.add(b.name)
+        return out
+
+    @staticmethod
+    def _targets(c: bpy.types.Constraint) -> list[tuple[bpy.types.Object | None, str]]:
+        if c.type == "ARMATURE":
+            return [(t.target, t.subtarget) for t in c.targets if float(t.weight) > 1e-6]
+        out: list[tuple[bpy.types.Object | None, str]] = []
+        if hasattr(c, "target"):
+            out.append((c.target, getattr(c, "subtarget", "")))
+        if c.type == "IK" and getattr(c, "pole_target", None) is not None:
+            out.append((c.pole_target, c.pole_subtarget))
+        return out
+
+    def _add_ik(self, ev: bpy.types.Object, pb: bpy.types.PoseBone, c: bpy.types.Constraint) -> None:
+        target = c.subtarget if c.target is not None and c.target.original.name == self.obj.name else ""
+        pole = (c.pole_subtarget if getattr(c, "pole_target", None) is not None
+                and c.pole_target.original.name == self.obj.name else None) or None
+        count = int(c.chain_count)
+        cur: bpy.types.PoseBone | None = pb
+        k = 0
+        while cur is not None and (count == 0 or k < count):
+            node = self.nodes[cur.name]
+            node.in_ik = True
+            node.ik.append((target, pole))
+            if target:
+                node.deps.setdefault(target, 2)
+            if pole:
+                node.deps.setdefault(pole, 2)
+            cur = cur.parent
+            k += 1
+
+    # -- queries --------------------------------------------------------------------------
+
+    def free(self, name: str) -> bool:
+        """Whether a bone's own keys decide its pose (no constraint replaces it, no IK turns it)."""
+        node = self.nodes[name]
+        return not node.replaced and not node.in_ik and not any(
+            v == 1 for v in node.deps.values())
+
+    def keyable(self, name: str) -> bool:
+        """Whether a bone is a control the animator moves (its own transform counts)."""
+        node = self.nodes[name]
+        return name in self.controls and not node.replaced and not node.in_ik
+
+    def upstream(self, names: Iterable[str], blocked: Iterable[str] = ()) -> dict[str, int]:
+        """Every bone ``names`` depend on, with its distance (the bones themselves at 0),
+        not walking through ``blocked`` bones."""
+        stop = set(blocked)
+        dist: dict[str, int] = {}
+        queue: deque[str] = deque()
+        for n in names:
+            if n in self.nodes and n not in dist:
+                dist[n] = 0
+                queue.append(n)
+        while queue:
+            cur = queue.popleft()
+            for d in self.nodes[cur].deps:
+                if d not in dist and d not in stop:
+                    dist[d] = dist[cur] + 1
+                    queue.append(d)
+        return dist
+
+    def controls_upstream(self, names: Iterable[str], blocked: Iterable[str] = ()) -> dict[str, int]:
+        return {n: d for n, d in self.upstream(names, blocked).items() if self.keyable(n)}
+
+    def iks_upstream(self, names: Iterable[str]) -> list[tuple[str, str | None]]:
+        """The (target, pole) of every IK that turns a bone ``names`` depend on, nearest first."""
+        up = self.upstream(names)
+        out: list[tuple[str, str | None]] = []
+        for n in sorted(up, key=lambda n: (up[n], n)):
+            for ik in self.nodes[n].ik:
+                if ik not in out:
+                    out.append(ik)
+        return out
+
+    def roots(self, candidates: Iterable[str]) -> list[str]:
+        """The candidates that depend on no other candidate (the most upstream ones)."""
+        cands = list(dict.fromkeys(candidates))
+        cand_set = set(cands)
+        out = []
+        for c in cands:
+            up = self.upstream([c])
+            if not any(o in cand_set and o != c for o in up):
+                out.append(c)
+        return out
+
+
+@dataclass(frozen=True)
+class Switch:
+    """A custom property ``prop`` of pose bone ``bone`` set (and keyed) to ``value``."""
+
+    bone: str
+    prop: str
+    value: float
+    kind: str  # "IK_FK" or "POLE"
+
+    @property
+    def data_path(self) -> str:
+        bone, prop = bpy.utils.escape_identifier(self.bone), bpy.utils.escape_identifier(self.prop)
+        return f'pose.bones["{bone}"]["{prop}"]'
+
+
+@dataclass(frozen=True)
+class ControlKey:
+    """One control and how its keys are found.
+
+    ``mode``: ``"RIGID"`` (the control carries ``anchor`` rigidly: it moves by the anchor's
+    error), ``"TURN"`` (it turns by the anchor's rotation error, rotation keyed only),
+    ``"IK"`` (it turns like ``anchor`` and moves by the error of the leg's
+    end-effector ``leg``), ``"POLE"`` (placed on the side of leg ``leg``'s knee, at its
+    current distance from it).
+    """
+
+    bone: str
+    mode: str
+    anchor: str
+    leg: int = -1
+
+
+@dataclass(frozen=True)
+class LegControls:
+    """The controls of one leg: IK target, pole and switches (empty when the leg is free)."""
+
+    ik: str | None = None
+    pole: str | None = None
+    switches: tuple[Switch, ...] = ()
+
+
+@dataclass(frozen=True)
+class ControlPlan:
+    """What to key for the solved bones of one rig (see :func:`plan_controls`)."""
+
+    direct: tuple[str, ...]  # solved bones keyed themselves
+    controls: tuple[ControlKey, ...]  # controls keyed in their place
+    legs: tuple[LegControls, ...]
+    switches: tuple[Switch, ...]
+    uncovered: tuple[str, ...]  # driven solved bones no control was found for
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def uses_controls(self) -> bool:
+        return bool(self.controls or self.switches)
+
+    @property
+    def keyed_bones(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys([*self.direct, *(c.bone for c in self.controls)]))
+
+
+def _driver_switches(obj: bpy.types.Object, bones: set[str]) -> list[tuple[str, str]]:
+    """Custom properties ``(bone, prop)`` read by drivers on constraints of ``bones``."""
+    adt = obj.animation_data
+    if adt is None:
+        return []
+    out: list[tuple[str, str]] = []
+    for fc in adt.drivers:
+        m = _CONSTRAINT_PATH.match(fc.data_path)
+        if m is None or _unescape(m.group(1)) not in bones:
+            continue
+        for var in fc.driver.variables:
+            for t in var.targets:
+                if t.id is None or getattr(t.id, "name", None) != obj.name:
+                    continue
+                pm = _PROP_PATH.match(t.data_path or "")
+                if pm is not None:
+                    item = (_unescape(pm.group(1)), _unescape(pm.group(2)))
+                    if item not in out:
+                        out.append(item)
+    return out
+
+
+def _switch_kind(prop: str) -> str | None:
+    words = set(re.split(r"[^a-z]+", prop.lower()))
+    low = prop.lower().replace("_", "").replace(" ", "")
+    if ("ik" in words and "fk" in words) or "ikfk" in low or "fkik" in low:
+        return "IK_FK"
+    if "pole" in words and not ({"parent", "space"} & words):
+        return "POLE"
+    return None
+
+
+def _all_upstream(obj: bpy.types.Object, names: Iterable[str]) -> set[str]:
+    """Bones ``names`` reach through any constraint, whatever its influence (for switches)."""
+    pbones = obj.pose.bones
+    seen: set[str] = set()
+    stack = [n for n in names if n in pbones]
+    while stack:
+        n = stack.pop()
+        if n in seen:
+            continue
+        seen.add(n)
+        pb = pbones[n]
+        if pb.parent is not None:
+            stack.append(pb.parent.name)
+        for c in pb.constraints:
+            for _t, sub in ConstraintGraph._targets(c):
+                if sub and sub in pbones:
+                    stack.append(sub)
+            if c.type == "ARMATURE":
+                stack.extend(t.subtarget for t in c.targets if t.subtarget in pbones)
+        # IK chains reaching n from below
+        for child in pb.children_recursive:
+            for c in child.constraints:
+                if c.type == "IK" and c.subtarget in pbones:
+                    chain = int(c.chain_count)
+                    up, k = child, 0
+                    while up is not None and (chain == 0 or k < chain):
+                        if up.name == n:
+                            stack.append(c.subtarget)
+                            if c.pole_subtarget in pbones:
+                                stack.append(c.pole_subtarget)
+                        up, k = up.parent, k + 1
+    return seen
+
+
+def _set_props(obj: bpy.types.Object, values: dict[tuple[str, str], float]) -> None:
+    for (bone, prop), value in values.items():
+        pb = obj.pose.bones[bone]
+        old = pb[prop]
+        pb[prop] = type(old)(value) if isinstance(old, (bool, int, float)) else value
+    obj.update_tag()
+    bpy.context.view_layer.update()
+
+
+def _choose_switches(obj: bpy.types.Object, leg_bones: Sequence[str], chain: Sequence[str],
+                     originals: dict[tuple[str, str], float]) -> list[Switch]:
+    """The IK/FK and pole switches of a leg, set to IK with a pole (left set on the rig; the
+    values they had are added to ``originals``)."""
+    found = _driver_switches(obj, _all_upstream(obj, leg_bones))
+    out: list[Switch] = []
+    for kind in ("IK_FK", "POLE"):
+        for bone, prop in found:
+            if _switch_kind(prop) != kind:
+                continue
+            old = obj.pose.bones[bone][prop]
+            if not isinstance(old, (bool, int, float)):
+                continue
+            originals.setdefault((bone, prop), float(old))
+            best = None
+            for value in (0.0, 1.0) if kind == "IK_FK" else (1.0, 0.0):
+                _set_props(obj, {(bone, prop): value})
+                iks = ConstraintGraph(obj).iks_upstream(chain)
+                if kind == "IK_FK" and iks:
+                    best = value
+                    break
+                if kind == "POLE" and any(pole for _t, pole in iks):
+                    best = value
+                    break
+            if best is None:
+                _set_props(obj, {(bone, prop): float(old)})
+            else:
+                out.append(Switch(bone, prop, best, kind))
+    return out
+
+
+def plan_controls(
+    obj: bpy.types.Object,
+    legs: Sequence[tuple[Sequence[str], Sequence[str]]],
+    body: str,
+    others: Sequence[str] = (),
+) -> ControlPlan:
+    """Which bones to key for the solved bones of ``obj`` (see the module doc).
+
+    legs: per leg ``(bones hip to end-effector, foot bones)``; ``body``: the body bone;
+    ``others``: further solved bones (spine, chain bones), parents first. The rig is left as
+    it was (switches are tried and put back).
+    """
+    solved = [body, *others, *(b for bones, foot in legs for b in (*bones, *foot[:1]))]
+    originals: dict[tuple[str, str], float] = {}
+    try:
+        switches: list[list[Switch]] = []
+        for bones, foot in legs:
+            switches.append(_choose_switches(obj, [*bones, *foot[:1]], bones, originals))
+        # _choose_switches leaves its choices set: read the graph in that state.
+        graph = ConstraintGraph(obj)
+        return _plan(graph, legs, body, list(others), solved, switches)
+    finally:
+        if originals:
+            _set_props(obj, originals)
+
+
+def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[str]]], body: str,
+          others: list[str], solved: list[str], switches: list[list[Switch]]) -> ControlPlan:
+    free = [b for b in dict.fromkeys(solved) if b in graph.nodes and graph.free(b)]
+    # On a control rig (some solved bone is driven), mechanism bones are never keyed: their
+    # controls are. On a plain rig every solved bone is keyed itself, whatever its name.
+    control_rig = len(free) < len(dict.fromkeys(solved))
+    direct = [b for b in free if not control_rig or b in graph.controls]
+    controls: list[ControlKey] = []
+    used: set[str] = set()
+    uncovered: list[str] = []
+    leg_out: list[LegControls] = []
+    pbones = graph.obj.pose.bones
+    all_switches: list[Switch] = []
+
+    ik_controls: list[str] = []
+    for k, (bones, foot) in enumerate(legs):
+        hip = bones[0]
+        hip_parent = pbones[hip].parent
+        base = set(graph.controls_upstream([hip_parent.name])) if hip_parent is not None else set()
+        leg_bones = [*bones, *foot[:1]]
+        if all(b in direct for b in leg_bones):
+            leg_out.append(LegControls())
+            continue
+        iks = graph.iks_upstream(bones)
+        ik_ctrl = pole_ctrl = None
+        if iks:
+            targets = [t for t, _p in iks if t]
+            poles = [p for _t, p in iks if p]
+            # The foot control moves the IK target without riding on the body (knee-swing
+            # and FK controls hang from the hip's parent) and not through the pole.
+            cands = [c for c in graph.controls_upstream(targets, blocked=poles) if c not in base
+                     and (hip_parent is None or hip_parent.name not in graph.upstream([c]))]
+            roots = graph.roots(cands)
+            if roots:
+                up = graph.upstream(leg_bones)
+                ik_ctrl = min(roots, key=lambda c: (up.get(c, 1 << 30), c))
+            if poles:
+                target_side = set(graph.controls_upstream(targets, blocked=poles)) | base
+                pcands = [c for c in graph.controls_upstream(poles) if c not in target_side]
+                proots = graph.roots(pcands)
+                if proots:
+                    pole_ctrl = proots[0]
+        sw = tuple(switches[k])
+        all_switches.extend(s for s in sw if (s.bone, s.prop) not in {(o.bone, o.prop) for o in all_switches})
+        if ik_ctrl is not None:
+            # The control turns like the solved bone nearest to it downstream.
+            anchor = _nearest_solved(graph, ik_ctrl, [*foot[:1], *bones[::-1]])
+            controls.append(ControlKey(ik_ctrl, "IK", anchor, k))
+            used.add(ik_ctrl)
+            ik_controls.append(ik_ctrl)
+            if pole_ctrl is not None and pole_ctrl not in used:
+                controls.append(ControlKey(pole_ctrl, "POLE", bones[0], k))
+                used.add(pole_ctrl)
+            covered = set(leg_bones)
+        else:
+            covered = set()
+        leg_out.append(LegControls(ik_ctrl, pole_ctrl, sw))
+        uncovered.extend(b for b in leg_bones if b not in covered and b not in direct)
+
+    # The body: the most upstream control carrying the body bone and every hip, no IK control.
+    ik_up = set(graph.upstream(ik_controls)) if ik_controls else set()
+    if body not in direct:
+        hips = [bones[0] for bones, _f in legs]
+        body_cands = set(graph.controls_upstream([body]))
+        for h in hips:
+            parent = pbones[h].parent
+            body_cands &= set(graph.controls_upstream([parent.name if parent is not None else h]))
+        roots = graph.roots(sorted(body_cands - ik_up - used))
+        if roots:
+            up = graph.upstream([body])
+            ctrl = min(roots, key=lambda c: (up[c], c))
+            controls.append(ControlKey(ctrl, "RIGID", body))
+            used.add(ctrl)
+        else:
+            uncovered.append(body)
+    # Anything else that is driven: the nearest control upstream of it, not yet used.
+    body_up = set(graph.upstream([body]))
+    for name in others:
+        if name in direct or name == body:
+            continue
+        up = graph.controls_upstream([name])
+        cands = [c for c in up if c not in used and c not in ik_up and (c not in body_up or up[c] <= 1)]
+        if cands:
+            ctrl = min(cands, key=lambda c: (up[c], c))
+            controls.append(ControlKey(ctrl, "RIGID", name))
+            used.add(ctrl)
+        else:
+            uncovered.append(name)
+    # Keys on a solved bone that is also driven would fight its controls: not keyed.
+    direct = [b for b in direct if b not in uncovered]
+    return ControlPlan(tuple(direct), tuple(controls), tuple(leg_out), tuple(all_switches),
+                       tuple(dict.fromkeys(uncovered)))
+
+
+def _nearest_solved(graph: ConstraintGraph, control: str, solved: Sequence[str]) -> str:
+    """The solved bone (of ``solved``) the fewest graph steps downstream of ``control``."""
+    best = solved[0]
+    best_d = 1 << 30
+    for b in solved:
+        d = graph.upstream([b]).get(control)
+        if d is not None and d < best_d:
+            best, best_d = b, d
+    return best
+
+
+def describe_leg(leg: LegControls) -> str:
+    """What is keyed for a leg, for the user: ``"IK foot_ik.L, pole thigh_ik_target.L"``."""
+    parts = []
+    if leg.ik:
+        parts.append(f"IK {leg.ik}")
+    if leg.pole:
+        parts.append(f"pole {leg.pole}")
+    parts.extend(f"{s.prop} = {s.value:g} on {s.bone}" for s in leg.switches)
+    return ", ".join(parts)
+
+
+def driver_warnings(obj: bpy.types.Object, keyed: Iterable[str]) -> list[str]:
+    """A warning per driver on a transform channel of a ``keyed`` bone (it overrides the keys)."""
+    adt = obj.animation_data
+    if adt is None:
+        return []
+    keyed = set(keyed)
+    out = []
+    for fc in adt.drivers:
+        m = _CHANNEL_PATH.match(fc.data_path)
+        if m is None or fc.mute:
+            continue
+        bone = _unescape(m.group(1))
+        if bone in keyed:
+            out.append(f"bone '{bone}': a driver on {m.group(2)}[{fc.array_index}] overrides the generated "
+                       "keys, so the bone will not follow them (the feet may be off the plan)")
+    return out
+
+
+def constraint_warnings(graph: ConstraintGraph, keyed: Iterable[str], solved: Iterable[str]) -> list[str]:
+    """Warnings for limit constraints on keyed or solved bones and constraints with targets
+    outside the rig on them: ProcLoco cannot drive through either."""
+    out: list[str] = []
+    for bone in dict.fromkeys([*keyed, *solved]):
+        node = graph.nodes.get(bone)
+        if node is None:
+            continue
+        out.extend(f"bone '{bone}': a {constraint_label(kind)} constraint clips its pose, so it may "
+                   "not reach the generated keys (the feet may be off the plan)"
+                   for kind in dict.fromkeys(node.limits))
+        out.extend(f"bone '{bone}': a {constraint_label(kind)} constraint follows '{target}', outside "
+                   "the rig, which ProcLoco does not drive (the bone may not land where planned)"
+                   for kind, target in dict.fromkeys(node.external))
+    return out

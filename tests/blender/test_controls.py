@@ -1,0 +1,389 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Control rigs: ProcLoco keys the controls the animator moves, and the deform bones walk.
+
+Generated Rigify rigs (``bpy.ops.pose.rigify_generate()``, built once per module and reloaded
+from a temporary .blend), an Auto-Rig Pro-style rig built here, a rig under an animated empty,
+and plain rigs with a driver or a Limit Rotation constraint. Every motion figure is measured on
+the evaluated **deform** bones against ray casts into the ground, never on the keys written.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+from procloco_addon.blender import actions
+from procloco_addon.blender.locomotion import generate
+from procloco_addon.core import metrics
+from tests.blender.pose_eval import bone_heads_tails, ray_heights_over_time
+from tools.examples import creatures
+
+pytestmark = pytest.mark.blender
+
+_MECHANISM = ("ORG-", "MCH-", "DEF-")
+
+
+@pytest.fixture(scope="module")
+def rigify_files(tmp_path_factory: Any, procloco_registered: Any) -> dict[str, str]:
+    """Generated Rigify wolf and human, each saved once to a temporary .blend."""
+    import addon_utils
+
+    addon_utils.enable("rigify", default_set=True)
+    folder = tmp_path_factory.mktemp("rigify")
+    out = {}
+    for kind in ("wolf", "human"):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        getattr(bpy.ops.object, f"armature_{kind}_metarig_add")()
+        bpy.ops.pose.rigify_generate()
+        path = Path(folder) / f"{kind}.blend"
+        bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+        out[kind] = str(path)
+    return out
+
+
+def _select_only(obj: Any) -> None:
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    bpy.context.view_layer.objects.active = obj
+
+
+def _ground(size: float = 30.0) -> Any:
+    bpy.ops.mesh.primitive_plane_add(size=size, location=(0.0, 0.0, 0.0))
+    obj = bpy.context.active_object
+    obj.name = "Ground"
+    return obj
+
+
+def _open_rig(path: str) -> tuple[Any, Any]:
+    bpy.ops.wm.open_mainfile(filepath=path)
+    ground = _ground()
+    rig = bpy.data.objects["rig"]
+    _select_only(rig)
+    return rig, ground
+
+
+def _run(obj: Any, frames: int = 48, speed: float | None = None) -> generate.Job:
+    _select_only(obj)
+    s = obj.procloco
+    s.use_scene_range = False
+    s.frame_start, s.frame_end = 1, frames
+    if speed is not None:
+        s.speed = speed
+    job = generate.prepare(bpy.context, obj)
+    for _ in generate.simulate(job):
+        pass
+    generate.write(bpy.context, job)
+    return job
+
+
+def _keyed_bones(obj: Any) -> set[str]:
+    out = set()
+    for ch in actions.channels_of(obj.animation_data.action, obj):
+        if ch.data_path.startswith('pose.bones["') and not ch.data_path.endswith('"]'):
+            out.add(ch.data_path.split('"')[1])
+    return out
+
+
+def _prop_keys(obj: Any) -> dict[tuple[str, str], float]:
+    out = {}
+    action = obj.animation_data.action
+    for ch in actions.channels_of(action, obj):
+        if ch.data_path.startswith('pose.bones["') and ch.data_path.endswith('"]'):
+            parts = ch.data_path.split('"')
+            out[(parts[1], parts[3])] = float(actions.read_channel(action, obj, ch.data_path, ch.index)[1][0])  # type: ignore[index]
+    return out
+
+
+def _measure(obj: Any, job: generate.Job, feet: list[str], probes: list[str], pelvis: str,
+             ground: Any, knees: list[str] | None = None) -> dict[str, float]:
+    """Slide of the deform feet (their heads) over each stance, penetration of the deform foot
+    bones' heads and tails under the ground (ray casts), travel of the deform pelvis, and how
+    far the deform knees (heads of ``knees``) are from the planned ones."""
+    frames = [int(f) for f in job.frames]
+    knee_error = 0.0
+    if knees:
+        knee_heads, _kt = bone_heads_tails(obj, frames, knees)
+        knee_error = float(np.linalg.norm(knee_heads - job.result.joints[:, :, 1], axis=-1).max())
+    heads, _tails = bone_heads_tails(obj, frames, feet)
+    ph, pt = bone_heads_tails(obj, frames, probes)
+    pts = np.concatenate([ph, pt], axis=1)
+    under = ray_heights_over_time(frames, pts[..., :2], [ground])
+    pelvis_head, _pt = bone_heads_tails(obj, frames, [pelvis])
+    fps = bpy.context.scene.render.fps / bpy.context.scene.render.fps_base
+    return {
+        "slide": float(metrics.stance_sliding(heads, ~job.result.swing).max()),
+        "penetration": float(np.max(under - pts[..., 2])),
+        "travel": float(np.linalg.norm(pelvis_head[-1, 0, :2] - pelvis_head[0, 0, :2])),
+        "asked": float(job.speed) * (len(frames) - 1) / fps,
+        "reach": float(np.linalg.norm(heads - job.result.feet, axis=-1).max()),
+        "knee": knee_error,
+    }
+
+
+def _check_motion(m: dict[str, float]) -> None:
+    assert m["slide"] <= 0.002, m
+    assert m["penetration"] <= 0.005, m
+    assert 0.75 * m["asked"] <= m["travel"] <= 1.25 * m["asked"], m
+
+
+# ---------------------------------------------------------------------------------------
+# Generated Rigify rigs
+
+_RIGIFY = {
+    # kind: (feet deform bones, probe bones, pelvis deform bone, controls, switch bones)
+    "wolf": (["DEF-front_toe.L", "DEF-front_toe.R", "DEF-toe.L", "DEF-toe.R"],
+             ["DEF-front_toe.L", "DEF-front_toe.R", "DEF-toe.L", "DEF-toe.R", "DEF-foot.L", "DEF-foot.R"],
+             "DEF-spine.004",
+             {"torso", "foot_ik.L", "foot_ik.R", "front_foot_ik.L", "front_foot_ik.R", "thigh_ik_target.L",
+              "thigh_ik_target.R", "front_thigh_ik_target.L", "front_thigh_ik_target.R"},
+             ["thigh_parent.L", "thigh_parent.R", "front_thigh_parent.L", "front_thigh_parent.R"]),
+    "human": (["DEF-foot.L", "DEF-foot.R"], ["DEF-foot.L", "DEF-foot.R", "DEF-toe.L", "DEF-toe.R"],
+              "DEF-spine",
+              {"torso", "foot_ik.L", "foot_ik.R", "thigh_ik_target.L", "thigh_ik_target.R"},
+              ["thigh_parent.L", "thigh_parent.R"]),
+}
+
+
+@pytest.mark.parametrize("kind", ["wolf", "human"])
+def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str], kind: str) -> None:
+    rig, ground = _open_rig(rigify_files[kind])
+    feet, probes, pelvis, wanted, switch_bones = _RIGIFY[kind]
+    # The animator left the legs in FK: the result must not depend on it.
+    for b in switch_bones:
+        rig.pose.bones[b]["IK_FK"] = 1.0
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    listed = {item.label: item.controls for item in rig.procloco.legs}
+    for text in listed.values():
+        assert text.startswith("IK "), listed
+        assert "pole " in text, listed
+        assert "IK_FK = 0" in text, listed
+    job = _run(rig, speed=0.6 if kind == "wolf" else 0.8)
+    keyed = _keyed_bones(rig)
+    assert wanted <= keyed, keyed
+    assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
+    switches = _prop_keys(rig)
+    for b in switch_bones:
+        assert switches[(b, "IK_FK")] == 0.0
+        assert switches[(b, "pole_vector")] == 1.0
+    assert not job.warnings, job.warnings
+    knees = [f.replace("foot", "shin") for f in feet] if kind == "human" else None
+    m = _measure(rig, job, feet, probes, pelvis, ground, knees)
+    _check_motion(m)
+    assert m["reach"] <= 0.01, m
+    # The poles put the knees on the side the walk bends them; Rigify's own IK bends them a
+    # little its own way (a wolf's three-bone legs are bent by its paw mechanism, unchecked).
+    assert m["knee"] <= 0.03, m
+
+
+def test_secondary_motion_swings_the_generated_wolf_tail_controls(rigify_files: dict[str, str]) -> None:
+    from procloco_addon.blender.secondary import bake
+    from tests.blender.pose_eval import pose_matrices
+
+    rig, _ground_obj = _open_rig(rigify_files["wolf"])
+    _run(rig, frames=24)
+    found = bake.suggest_chains(rig)
+    assert not [b for s in found for b in s.bones if b.startswith(_MECHANISM)], found
+    tail = next(s for s in found if s.root == "spine.003")
+    assert tail.bones == ("spine.003", "spine.002", "spine.001", "spine")
+    assert len(found) <= 3, found  # the tail and one control per ear, not 16 one-bone chains
+    chains = rig.procloco_secondary.chains
+    chains.clear()
+    item = chains.add()
+    item.name, item.root, item.tip = tail.label, tail.root, tail.tip
+    frames = list(range(1, 25))
+    before = pose_matrices(rig, frames, list(tail.bones))
+    job = bake.prepare(bpy.context, rig)
+    for _ in bake.sample(bpy.context, job):
+        pass
+    _quats, planned = bake.simulate(job)
+    bake.write(bpy.context, job)
+    assert not job.warnings, job.warnings
+    after = pose_matrices(rig, frames, list(tail.bones))
+
+    def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        ya = a[..., :3, 1] / np.linalg.norm(a[..., :3, 1], axis=-1, keepdims=True)
+        yb = b[..., :3, 1] / np.linalg.norm(b[..., :3, 1], axis=-1, keepdims=True)
+        return np.degrees(np.arccos(np.clip(np.sum(ya * yb, axis=-1), -1.0, 1.0)))
+
+    assert angle(after, before).max() > 0.5, "the tail swings"
+    # The constrained controls (each copies its parent's rotation) land where the pendulums say.
+    assert angle(after, planned).max() < 0.05
+    keyed = _keyed_bones(rig)
+    assert set(tail.bones) <= keyed
+    assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
+
+
+def test_clear_gives_back_the_rigify_rig_as_it_was(rigify_files: dict[str, str]) -> None:
+    rig, _ground_obj = _open_rig(rigify_files["human"])
+    rig.pose.bones["thigh_parent.L"]["IK_FK"] = 1.0
+    rig.pose.bones["foot_ik.R"].location = (0.0, 0.05, 0.02)
+    bpy.context.view_layer.update()
+
+    def state() -> tuple[Any, ...]:
+        bpy.context.view_layer.update()
+        props = [(pb.name, k, float(pb[k])) for pb in rig.pose.bones for k in pb.keys()  # noqa: SIM118 (an ID property group)
+                 if isinstance(pb[k], (int, float, bool))]
+        basis = np.array([np.array(pb.matrix_basis) for pb in rig.pose.bones])
+        deform = np.array([np.array(pb.matrix) for pb in rig.evaluated_get(
+            bpy.context.evaluated_depsgraph_get()).pose.bones if pb.name.startswith("DEF-")])
+        return props, basis, deform
+
+    before = state()
+    _run(rig, frames=12)
+    assert bpy.ops.procloco.clear_generated_action() == {"FINISHED"}
+    after = state()
+    assert after[0] == before[0]
+    assert np.allclose(after[1], before[1], atol=1e-6)
+    assert np.allclose(after[2], before[2], atol=1e-5)
+
+
+# ---------------------------------------------------------------------------------------
+# An Auto-Rig Pro-style rig
+
+
+def _arp_rig(scene: Any) -> Any:
+    """A biped named and wired like Auto-Rig Pro: ``c_traj`` > ``c_root_master.x`` > ``root.x``;
+    per leg deform ``thigh/leg/foot`` copying an FK chain (``c_thigh_fk`` ...) or an IK chain
+    (``thigh_ik``, ``leg_ik`` with IK to ``c_foot_ik`` and pole ``c_leg_pole``), switched by
+    ``ik_fk_switch`` on ``c_foot_ik`` (0 IK, 1 FK). Mechanism and deform bones sit in hidden
+    bone collections."""
+    arm = bpy.data.armatures.new("ARP")
+    obj = bpy.data.objects.new("ARP", arm)
+    scene.collection.objects.link(obj)
+    _select_only(obj)
+    bpy.ops.object.mode_set(mode="EDIT")
+    eb = arm.edit_bones
+
+    def bone(name: str, head: tuple[float, float, float], tail: tuple[float, float, float],
+             parent: str | None = None) -> Any:
+        b = eb.new(name)
+        b.head, b.tail = head, tail
+        if parent:
+            b.parent = eb[parent]
+        return b
+
+    bone("c_traj", (0, 0, 0), (0, 0.3, 0))
+    bone("c_root_master.x", (0, 0, 0.95), (0, 0.2, 0.95), "c_traj")
+    bone("root.x", (0, 0, 0.95), (0, 0, 1.1), "c_root_master.x")
+    for side, x in (("l", 0.1), ("r", -0.1)):
+        hip, knee, ankle, toe = (x, 0.0, 0.9), (x, -0.03, 0.5), (x, 0.0, 0.1), (x, -0.14, 0.02)
+        for kind, prefix in (("fk", "c_"), ("ik", "")):
+            suffix = f"_{kind}.{side}"
+            bone(f"{prefix}thigh{suffix}", hip, knee, "root.x")
+            bone(f"{prefix}leg{suffix}", knee, ankle, f"{prefix}thigh{suffix}").use_connect = True
+        bone(f"c_foot_fk.{side}", ankle, toe, f"c_leg_fk.{side}")
+        bone(f"c_foot_ik.{side}", ankle, toe, "c_traj")
+        bone(f"foot_ik.{side}", ankle, toe, f"c_foot_ik.{side}")
+        bone(f"c_leg_pole.{side}", (x, -0.5, 0.5), (x, -0.6, 0.5), "c_traj")
+        bone(f"thigh.{side}", hip, knee, "root.x")
+        bone(f"leg.{side}", knee, ankle, f"thigh.{side}").use_connect = True
+        bone(f"foot.{side}", ankle, toe, f"leg.{side}").use_connect = True
+    bpy.ops.object.mode_set(mode="OBJECT")
+    hidden = arm.collections.new("mch")
+    visible = arm.collections.new("controls")
+    for b in arm.bones:
+        (visible if b.name.startswith("c_") else hidden).assign(b)
+    hidden.is_visible = False
+    pbones = obj.pose.bones
+    for side in ("l", "r"):
+        switch = pbones[f"c_foot_ik.{side}"]
+        switch["ik_fk_switch"] = 1.0  # the animator left it in FK
+        for deform, fk, ik in (("thigh", "c_thigh_fk", "thigh_ik"), ("leg", "c_leg_fk", "leg_ik"),
+                               ("foot", "c_foot_fk", "foot_ik")):
+            pb = pbones[f"{deform}.{side}"]
+            c_fk = pb.constraints.new("COPY_TRANSFORMS")
+            c_fk.target, c_fk.subtarget = obj, f"{fk}.{side}"
+            c_ik = pb.constraints.new("COPY_TRANSFORMS")
+            c_ik.target, c_ik.subtarget = obj, f"{ik}.{side}"
+            fc = c_ik.driver_add("influence")
+            var = fc.driver.variables.new()
+            var.name, var.type = "switch", "SINGLE_PROP"
+            var.targets[0].id = obj
+            var.targets[0].data_path = f'pose.bones["c_foot_ik.{side}"]["ik_fk_switch"]'
+            fc.driver.expression = "1 - switch"
+        ik = pbones[f"leg_ik.{side}"].constraints.new("IK")
+        ik.target, ik.subtarget, ik.chain_count = obj, f"c_foot_ik.{side}", 2
+        ik.pole_target, ik.pole_subtarget = obj, f"c_leg_pole.{side}"
+        # The pole angle that keeps the rest pose (depends on the bones' rolls).
+        best = None
+        for angle in (0.0, 90.0, -90.0, 180.0):
+            ik.pole_angle = math.radians(angle)
+            bpy.context.view_layer.update()
+            knee = pbones[f"leg_ik.{side}"].matrix.to_translation()
+            err = (knee - arm.bones[f"leg_ik.{side}"].head_local).length
+            if best is None or err < best[0]:
+                best = (err, angle)
+        assert best is not None
+        ik.pole_angle = math.radians(best[1])
+    bpy.context.view_layer.update()
+    return obj
+
+
+def test_auto_rig_pro_style_rig_walks_on_its_controls(empty_scene: Any) -> None:
+    ground = _ground()
+    rig = _arp_rig(empty_scene)
+    job = _run(rig, speed=0.8)
+    keyed = _keyed_bones(rig)
+    assert {"c_root_master.x", "c_foot_ik.l", "c_foot_ik.r", "c_leg_pole.l", "c_leg_pole.r"} <= keyed, keyed
+    assert all(b.startswith("c_") for b in keyed), keyed
+    assert "c_traj" not in keyed
+    assert _prop_keys(rig) == {("c_foot_ik.l", "ik_fk_switch"): 0.0, ("c_foot_ik.r", "ik_fk_switch"): 0.0}
+    assert not job.warnings, job.warnings
+    m = _measure(rig, job, ["foot.l", "foot.r"], ["foot.l", "foot.r"], "root.x", ground, ["leg.l", "leg.r"])
+    _check_motion(m)
+    assert m["knee"] <= 0.01, m
+
+
+# ---------------------------------------------------------------------------------------
+# Parents, drivers and limits on plain rigs
+
+
+def test_rig_under_an_animated_empty_keeps_its_feet_planted_in_the_world(empty_scene: Any) -> None:
+    ground = _ground()
+    wolf = creatures.build_wolf(empty_scene)
+    carrier = bpy.data.objects.new("Platform", None)
+    empty_scene.collection.objects.link(carrier)
+    carrier.location = (0.0, 0.0, 0.0)
+    carrier.keyframe_insert("location", frame=1)
+    carrier.location = (0.4, 0.3, 0.0)
+    carrier.keyframe_insert("location", frame=48)
+    wolf.parent = carrier
+    bpy.context.view_layer.update()
+    job = _run(wolf)
+    feet = [job.info.legs[k].bones[-1] for k in range(len(job.info.legs))]
+    frames = [int(f) for f in job.frames]
+    _heads, tails = bone_heads_tails(wolf, frames, feet)
+    assert float(metrics.stance_sliding(tails, ~job.result.swing).max()) <= 0.002
+    assert float(np.linalg.norm(tails - job.result.feet, axis=-1).max()) <= 0.01
+    del ground
+
+
+def test_a_driver_and_a_limit_rotation_are_named_and_their_effect_reported(empty_scene: Any) -> None:
+    _ground()
+    wolf = creatures.build_wolf(empty_scene)
+    plain = _run(wolf, frames=24)
+    assert not plain.warnings, plain.warnings
+    thigh = wolf.pose.bones["thigh.L"]
+    channel = "rotation_quaternion" if thigh.rotation_mode == "QUATERNION" else "rotation_euler"
+    fc = thigh.driver_add(channel, 1)
+    fc.driver.type = "AVERAGE"
+    var = fc.driver.variables.new()
+    var.type = "SINGLE_PROP"
+    var.targets[0].id = wolf
+    var.targets[0].data_path = "location.z"  # 0 here: the thigh is held still
+    limit = wolf.pose.bones["front_shin.R"].constraints.new("LIMIT_ROTATION")
+    limit.use_limit_x = limit.use_limit_y = limit.use_limit_z = True
+    limit.owner_space = "LOCAL"
+    job = _run(wolf, frames=24)
+    text = "\n".join(job.warnings)
+    assert "bone 'thigh.L': a driver on rotation_" in text, text
+    assert "bone 'front_shin.R': a Limit Rotation constraint" in text, text
+    assert "evaluated feet are off the plan" in text, text
+    assert "leg R1" in text, text
+    assert "leg L2" in text, text
