@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender import actions, cli
+from tests.blender.pose_eval import image_pixels
 from tests.blender.scene_state import snapshot
 from tools.examples import creatures
 
@@ -24,17 +25,6 @@ def robot_scene(empty_scene: Any) -> Any:
     robot = creatures.build_robot(empty_scene)
     empty_scene.frame_start, empty_scene.frame_end = 1, 10
     return robot
-
-
-def _image(path: Path) -> np.ndarray:
-    img = bpy.data.images.load(str(path), check_existing=False)
-    try:
-        w, h = img.size
-        px = np.empty(w * h * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)
 
 
 def test_generate_renders_frames_and_a_contact_sheet(robot_scene: Any, tmp_path: Path,
@@ -50,10 +40,10 @@ def test_generate_renders_frames_and_a_contact_sheet(robot_scene: Any, tmp_path:
     assert "wrote Action 'Robot ProcLoco'" in printed
     files = sorted(out.glob("frame_*.png"))
     assert [f.name for f in files] == ["frame_0001.png", "frame_0004.png", "frame_0007.png", "frame_0010.png"]
-    first, last = _image(files[0]), _image(files[-1])
+    first, last = image_pixels(files[0]), image_pixels(files[-1])
     assert first.shape == (54, 96, 4)
     assert np.abs(first - last).max() > 0.05, "the robot moved between the first and the last frame"
-    assert _image(sheet).shape == (54, 4 * 96, 4)  # four tiles in one row
+    assert image_pixels(sheet).shape == (54, 4 * 96, 4)  # four tiles in one row
     assert saved.exists()
     assert robot_scene.animation_data.action.name == "Robot ProcLoco"
     # The scene's render settings and camera are left as they were.

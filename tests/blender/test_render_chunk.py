@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender import cli, render_chunk
+from tests.blender.pose_eval import image_pixels
 from tests.blender.scene_state import snapshot
 from tools.examples import creatures
 
@@ -52,17 +53,6 @@ def walking_robot(empty_scene: Any) -> Any:
     return empty_scene
 
 
-def _image(path: Path) -> np.ndarray:
-    img = bpy.data.images.load(str(path), check_existing=False)
-    try:
-        w, h = img.size
-        px = np.empty(w * h * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)
-
-
 def test_render_a_chunk_with_the_scenes_settings(walking_robot: Any, tmp_path: Path,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
     scene = walking_robot
@@ -73,7 +63,7 @@ def test_render_a_chunk_with_the_scenes_settings(walking_robot: Any, tmp_path: P
     assert "with BLENDER_WORKBENCH" in printed
     assert "rendered 3 frames" in printed
     assert sorted(p.name for p in tmp_path.iterdir()) == [f"frame_{f:04d}.png" for f in (3, 4, 5)]
-    first, last = _image(tmp_path / "frame_0003.png"), _image(tmp_path / "frame_0005.png")
+    first, last = image_pixels(tmp_path / "frame_0003.png"), image_pixels(tmp_path / "frame_0005.png")
     assert first.shape == (27, 48, 4)
     assert np.abs(first - last).max() > 0.02, "the generated walk moves the robot between frames 3 and 5"
     # Frames after the scene's range, in Blender's notation and another format.
@@ -94,7 +84,8 @@ def test_render_uses_the_scenes_engine(walking_robot: Any, tmp_path: Path) -> No
     scene.cycles.device = "CPU"
     assert cli.main(["render", "--frames", "4", "--output", str(tmp_path / "cycles_####")]) == 0
     assert scene.render.engine == "CYCLES"
-    workbench, cycles = _image(tmp_path / "workbench_0004.png"), _image(tmp_path / "cycles_0004.png")
+    workbench = image_pixels(tmp_path / "workbench_0004.png")
+    cycles = image_pixels(tmp_path / "cycles_0004.png")
     assert workbench.shape == cycles.shape
     assert np.abs(workbench - cycles).max() > 0.1, "Cycles and Workbench render the frame differently"
 
