@@ -65,6 +65,27 @@ def _bend_normal(joints: np.ndarray) -> np.ndarray:
     return np.cross(seg[..., :-1, :], seg[..., 1:, :]).sum(axis=-2)
 
 
+#: Below this |cos| between a leg's bend normal and its turned rest normal the side is taken
+#: from the previous frame instead.
+_SIDE_CLEAR = 0.5
+
+
+def _side_of(normal: np.ndarray, turned: np.ndarray) -> np.ndarray:
+    """``normal`` ``(F, 3)`` (unit) flipped to face like ``turned`` ``(F, 3)``, the leg's rest
+    bend normal turned with its body. Where the two are nearly perpendicular (a splayed leg
+    whose foot has swung a quarter turn from its rest direction: the core turns the leg plane
+    with the foot) that choice is a coin toss that rolls every bone of the leg by 180° from
+    one frame to the next; there the side follows the previous frame's."""
+    dots = np.sum(normal * turned, axis=-1)
+    out = np.where((dots < 0.0)[:, None], -normal, normal)
+    for f in np.flatnonzero(np.abs(dots) < _SIDE_CLEAR):
+        if f > 0 and float(normal[f] @ out[f - 1]) < 0.0:
+            out[f] = -normal[f]
+        elif f > 0:
+            out[f] = normal[f]
+    return out
+
+
 def _yaw_only(rot: np.ndarray) -> np.ndarray:
     """The rotation about world Z that turns the x axis like ``rot`` does ``(..., 3, 3)``."""
     x = rot[..., :, 0]
@@ -207,9 +228,7 @@ def solve_pose(
         size = np.linalg.norm(n_cur, axis=-1)
         scale2 = np.sum(np.diff(cur_j, axis=1) ** 2, axis=(1, 2))
         weak = size < 1e-4 * scale2
-        n_cur = np.where(weak[:, None], n_turned, _unit(n_cur))
-        flip = np.sum(n_cur * n_turned, axis=-1) < 0.0
-        n_cur = np.where(flip[:, None], -n_cur, n_cur)
+        n_cur = _side_of(np.where(weak[:, None], n_turned, _unit(n_cur)), n_turned)
         seg_rest = np.diff(rest_j, axis=0)
         seg_cur = np.diff(cur_j, axis=1)
         for b, name in enumerate(leg.bones):
