@@ -78,11 +78,8 @@ def _side_of(normal: np.ndarray, turned: np.ndarray) -> np.ndarray:
     one frame to the next; there the side follows the previous frame's."""
     dots = np.sum(normal * turned, axis=-1)
     out = np.where((dots < 0.0)[:, None], -normal, normal)
-    for f in np.flatnonzero(np.abs(dots) < _SIDE_CLEAR):
-        if f > 0 and float(normal[f] @ out[f - 1]) < 0.0:
-            out[f] = -normal[f]
-        elif f > 0:
-            out[f] = normal[f]
+    for f in np.flatnonzero(np.abs(dots[1:]) < _SIDE_CLEAR) + 1:
+        out[f] = -normal[f] if float(normal[f] @ out[f - 1]) < 0.0 else normal[f]
     return out
 
 
