@@ -489,6 +489,8 @@ class Controller:
         self.blocked = np.zeros(n, dtype=bool)  # swings a moving obstacle cut this step
         self.restarts = np.zeros(n, dtype=np.int64)  # steps started again because the spot was taken
         self.angles = legs.rest_angles.copy()
+        # last step's leg-plane normals (body frame): the plane turns on from them
+        self.leg_normals: FloatArray | None = None
         self.ik_result: IKResult | None = None
         # initial pelvis pose from the hull
         height, pitch, roll = self._hull_pose(controls)
@@ -1784,9 +1786,10 @@ class Controller:
         mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
         res = solve_legs(
             self.legs, hips, leg_rot, self.foot, self.angles, mask=None if mask.all() else mask,
-            tolerance=self.params.ik_tolerance,
+            tolerance=self.params.ik_tolerance, prev_normal=self.leg_normals,
         )
         self.angles = res.angles
+        self.leg_normals = res.normal_body
         # A swinging foot goes where its leg reaches: a point of its trajectory beyond the leg
         # (the hip rose or moved on more than foreseen) or nearer the hip than its joints fold
         # (a robot knee stopping at 160°) is replaced by the closest point the leg reaches,

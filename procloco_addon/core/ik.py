@@ -7,6 +7,10 @@ A leg is solved in two stages (joint model in ``morphology``):
    normal, turned about the body's up axis by the foot's horizontal yaw for splayed legs,
    then made perpendicular to the hip-target line (the smallest twist that puts the target
    in the plane). Knees therefore keep bending the way they do at rest and never flip.
+   Solved frame after frame (``prev_normal``), the plane turns from last frame's toward
+   that one by a bounded angle per frame: where the wanted plane jumps (the foot half a turn
+   from its rest direction, or the hip-target line along the turned rest normal) the leg
+   turns over a few frames instead of in one, and returns to the wanted plane after.
 2. the planar chain. Two-segment legs use the closed-form law-of-cosines solution. Longer
    legs start from a shape-preserving guess (the rest bend scaled by one factor found by
    safeguarded Newton iterations, so the leg keeps its silhouette and the pose depends on
@@ -46,12 +50,15 @@ class IKResult:
     - ``angles``: ``(N, s)`` joint angles (hip pitch, then hinges); pass back as ``init`` of the
       next solve for temporal coherence.
     - ``error``: ``(N,)`` distance from end effector to target (0 when reachable).
+    - ``normal_body``: ``(N, 3)`` the leg-plane normals in each leg's body frame; pass back as
+      ``prev_normal`` of the next solve so the leg plane turns continuously.
     """
 
     joints: FloatArray
     plane_normal: FloatArray
     angles: FloatArray
     error: FloatArray
+    normal_body: FloatArray | None = None
 
 
 def wrap_to_limits(angle: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
@@ -310,6 +317,32 @@ def leg_plane_normals(
     return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), rest_normal_body)
 
 
+def follow_normals(
+    normal: FloatArray, prev: FloatArray, axis: FloatArray, max_turn: float
+) -> FloatArray:
+    """Leg-plane normals ``(N, 3)`` that turn from last frame's ``prev (N, 3)`` toward the
+    wanted ``normal (N, 3)`` by at most ``max_turn`` radians.
+
+    ``normal`` is perpendicular to the unit hip-target lines ``axis (N, 3)``; ``prev`` is first
+    made so too (the smallest twist that puts this frame's target in last frame's plane), then
+    turned about ``axis`` toward ``normal``. The wanted normal is a function of the target
+    alone but not a continuous one: the turned rest normal's yaw wraps at half a turn behind
+    the hip, and its projection is unstable where the hip-target line nearly lies along it.
+    Followed this way the plane never flips from one frame to the next, and it comes back to
+    the wanted one as soon as that stops jumping (so poses do not drift). Where ``prev`` lies
+    along the axis the wanted normal is taken as it is.
+    """
+    p = prev - np.einsum("ij,ij->i", prev, axis)[:, None] * axis
+    p_len = np.linalg.norm(p, axis=1, keepdims=True)
+    p = p / np.maximum(p_len, 1e-12)
+    sin = np.einsum("ij,ij->i", np.cross(p, normal), axis)
+    cos = np.einsum("ij,ij->i", p, normal)
+    turn = np.clip(np.arctan2(sin, cos), -max_turn, max_turn)
+    # Rodrigues about the axis; p is perpendicular to it
+    out = np.cos(turn)[:, None] * p + np.sin(turn)[:, None] * np.cross(axis, p)
+    return np.where(p_len > 1e-6, out, normal)
+
+
 def solve_legs(
     legs: LegBatch,
     hip_world: FloatArray,
@@ -322,6 +355,8 @@ def solve_legs(
     tolerance: float = 1e-5,
     shape_preserving: bool = True,
     mask: npt.NDArray[np.bool_] | None = None,
+    prev_normal: FloatArray | None = None,
+    max_plane_turn: float = 0.35,
 ) -> IKResult:
     """Pose every leg so its end effector reaches ``target_world``.
 
@@ -333,6 +368,11 @@ def solve_legs(
       is False; with it True (the default) those legs start from ``solve_bend``.
     - ``mask``: optional ``(N,)`` legs to solve; the others keep ``init`` (and their joints
       are rebuilt from it), e.g. off-screen characters under LOD.
+    - ``prev_normal``: ``(N, 3)`` last frame's leg-plane normals in the body frame
+      (``IKResult.normal_body``); the plane then turns toward this frame's wanted one by at
+      most ``max_plane_turn`` radians (:func:`follow_normals`), and legs of three or more
+      segments start from ``init`` moved toward the shape-preserving pose by at most that
+      much per joint, so a foot moving by small steps moves every bone by small steps.
     """
     n = legs.n_legs
     rows = np.arange(n)
@@ -344,6 +384,11 @@ def solve_legs(
     normal_body = leg_plane_normals(
         target_body, zero, rest_foot_rel, legs.plane_normal, legs.yaw_weight, legs.leg_length
     )
+    if prev_normal is not None:
+        t_len = np.linalg.norm(target_body, axis=1, keepdims=True)
+        axis = np.divide(target_body, t_len, out=np.zeros_like(target_body), where=t_len > 1e-12)
+        prev = np.asarray(prev_normal, dtype=np.float64)
+        normal_body = follow_normals(normal_body, prev, axis, max_plane_turn)
     a, b = plane_axes(normal_body, np.broadcast_to(_UP, (n, 3)))
     target_2d = np.stack(
         [np.einsum("ij,ij->i", target_body, a), np.einsum("ij,ij->i", target_body, b)], axis=1
@@ -373,7 +418,17 @@ def solve_legs(
             legs.joint_min[idx],
             legs.joint_max[idx],
         )
-        start = solve_bend(*args, legs.rest_angles[idx]) if init is None or shape_preserving else theta0[idx]
+        if init is None or shape_preserving:
+            start = solve_bend(*args, legs.rest_angles[idx])
+            if init is not None and prev_normal is not None:
+                # from last frame's pose toward the shape-preserving one, a bounded step per
+                # joint: where the two agree (most frames) this is the shape-preserving pose
+                # itself; where that one jumps (a limit reached, a different fold) the leg
+                # gets there over a few frames, CCD and the polish reaching the target
+                prev = theta0[idx]
+                start = prev + np.clip(start - prev, -max_plane_turn, max_plane_turn)
+        else:
+            start = theta0[idx]
         rows_i = np.arange(idx.size)
         err_start = np.linalg.norm(forward_planar(start, args[1])[rows_i, args[2]] - args[0], axis=1)
         theta[idx] = start
@@ -401,4 +456,6 @@ def solve_legs(
     end = joints_world[rows, legs.n_segments]
     error = np.linalg.norm(end - target_world, axis=1)
     normal_world = np.einsum("nij,nj->ni", body_rot, normal_body)
-    return IKResult(joints=joints_world, plane_normal=normal_world, angles=theta, error=error)
+    return IKResult(
+        joints=joints_world, plane_normal=normal_world, angles=theta, error=error, normal_body=normal_body
+    )

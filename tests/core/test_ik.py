@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from procloco_addon.core import ik
@@ -173,3 +173,79 @@ def test_mask_leaves_unsolved_legs_at_their_initial_angles() -> None:
     res = ik.solve_legs(batch, batch.hip_offset, _identity(8), target, mask=mask)
     assert res.error[:4].max() < 1e-6
     np.testing.assert_allclose(res.angles[4:], batch.rest_angles[4:])
+
+
+def _follow(batch: LegBatch, leg: int, path: np.ndarray) -> tuple[np.ndarray, float]:
+    """Solve ``leg`` frame by frame along ``path`` ``(F, 3)`` (foot relative to its hip, body
+    frame) the way the controller does (last frame's angles and plane in); the other legs
+    stand at rest. Returns the bone directions ``(F, k, 3)`` and the worst reach error."""
+    n = batch.n_legs
+    hip = batch.hip_offset
+    angles, normal = batch.rest_angles.copy(), None
+    dirs, worst = [], 0.0
+    for p in path:
+        target = batch.rest_foot.copy()
+        target[leg] = hip[leg] + p
+        res = ik.solve_legs(batch, hip, _identity(n), target, angles, prev_normal=normal)
+        angles, normal = res.angles, res.normal_body
+        seg = np.diff(res.joints[leg, : batch.n_segments[leg] + 1], axis=0)
+        lengths = batch.segment_lengths[leg, : len(seg)]
+        np.testing.assert_allclose(np.linalg.norm(seg, axis=1), lengths, rtol=1e-9)
+        dirs.append(seg / np.linalg.norm(seg, axis=1, keepdims=True))
+        worst = max(worst, float(res.error[leg]))
+    return np.array(dirs), worst
+
+
+_FOOT = st.tuples(
+    st.floats(-np.pi, np.pi), st.floats(0.02, 0.7), st.floats(-0.7, -0.25)
+)  # yaw about the hip, horizontal distance and height in leg lengths
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    name=st.sampled_from(["spider", "hexapod"]),
+    leg=st.integers(0, 5),
+    start=_FOOT,
+    end=_FOOT,
+    extra_turn=st.floats(-np.pi, np.pi),
+)
+# the example spider's hind leg: its foot swings in under the hip and out behind it, half a
+# turn from its rest direction (the turned rest normal's yaw wraps there)
+@example(name="spider", leg=5, start=(2.08, 0.14, -0.42), end=(0.18, 0.19, -0.48), extra_turn=0.0)
+# the foot passing a quarter turn from its rest side: the normal's projection is unstable
+@example(name="hexapod", leg=4, start=(-2.55, 0.04, -0.35), end=(-0.14, 0.11, -0.55), extra_turn=0.0)
+def test_a_foot_moving_by_small_steps_moves_every_bone_by_small_steps(
+    name: str, leg: int, start: tuple[float, float, float], end: tuple[float, float, float], extra_turn: float
+) -> None:
+    """Legs of three and four segments following a foot along a continuous path (steps of at
+    most 2 % of the leg's length): bone lengths kept, the foot reached, and no bone turns by
+    more than 0.5 rad (29°) from one step to the next, wherever the foot goes around the hip
+    (before, a bone could turn up to 150° in one step where the leg plane flipped)."""
+    batch = LegBatch.stack([getattr(morph, name)()])
+    leg = leg % batch.n_legs
+    length = float(batch.leg_length[leg])
+    a = np.array(start)
+    b = np.array(end) + np.array([extra_turn, 0.0, 0.0])
+    span = np.abs(b - a) * np.array([0.7, 1.0, 1.0])  # arc length bound, in leg lengths
+    k = max(int(np.ceil(span.sum() / 0.02)), 2)
+    c = a + np.linspace(0.0, 1.0, k + 1)[:, None] * (b - a)
+    path = length * np.stack([c[:, 1] * np.cos(c[:, 0]), c[:, 1] * np.sin(c[:, 0]), c[:, 2]], axis=1)
+    assert np.linalg.norm(np.diff(path, axis=0), axis=1).max() <= 0.021 * length
+    dirs, error = _follow(batch, leg, path)
+    assert error <= 1e-4 * length
+    turn = np.arccos(np.clip(np.sum(dirs[1:] * dirs[:-1], axis=-1), -1.0, 1.0))
+    assert turn.max() <= 0.5, f"a bone turns {np.degrees(turn.max()):.1f} deg in one step"
+
+
+def test_the_plane_comes_back_to_the_target_only_pose() -> None:
+    """Followed from another plane, a leg held at one target ends in the pose the target
+    alone gives (the continuity does not make poses drift)."""
+    batch = LegBatch.stack([morph.spider()])
+    target = batch.rest_foot + np.array([0.05, -0.03, 0.02])
+    fresh = ik.solve_legs(batch, batch.hip_offset, _identity(8), target)
+    flipped = -fresh.normal_body  # type: ignore[operator]
+    hip, rot = batch.hip_offset, _identity(8)
+    res = ik.solve_legs(batch, hip, rot, target, batch.rest_angles, prev_normal=flipped)
+    for _ in range(30):
+        res = ik.solve_legs(batch, hip, rot, target, res.angles, prev_normal=res.normal_body)
+    np.testing.assert_allclose(res.joints, fresh.joints, atol=1e-9)
