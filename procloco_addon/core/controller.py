@@ -793,6 +793,10 @@ class Controller:
         # a swing cut by a moving obstacle near its end gets the time of a forced step for its
         # new way (in the frames left it would jump there)
         forced_time = np.maximum(p.forced_swing * gstep.swing_time, 2.0 * dt)
+        # a foot left behind for cycles (its plans failed) has more than a stride to cover
+        if np.any(forced_new & self.forced_behind):
+            catch_up = np.maximum(forced_time, self._catch_up_time(ctl, gstep.swing_time))
+            forced_time = np.where(self.forced_behind, catch_up, forced_time)
         rushed = replan & self.blocked & ~forced_new & (remaining < 0.5 * forced_time)
         forced_new |= rushed
         if np.any(forced_new):
@@ -1233,6 +1237,19 @@ class Controller:
         self.foot[side, :2] += offsets[aside, pick[aside]]
         self.foot[side, 2] = np.maximum(self.foot[side, 2], ring_h[aside, pick[aside]])
         self.foot[up, 2] = surface[~aside]
+
+    def _catch_up_time(self, ctl: StepControls, swing_time: FloatArray) -> FloatArray:
+        """Seconds ``(N,)`` a foot left behind takes to come back under its rest place at
+        twice the mean ground speed of a gait swing (its stride over its swing time), at
+        most a cycle: a foot held back for cycles (its plans failed) covers more than a
+        stride, and in a forced step's fixed share of a swing its leg would whip over."""
+        share = np.maximum(self.gait.disk_duration, 1e-9)
+        cycle = swing_time / share  # the needle's cycle now (sped up for long strides)
+        stride_speed = ctl.speed[self.leg_char] / share
+        rot = self.leg_rotations()
+        rest = self.hips_world() + np.einsum("nij,nj->ni", rot, self.legs.rest_foot - self.legs.hip_offset)
+        gap = np.linalg.norm(rest[:, :2] - self.foot[:, :2], axis=1)
+        return np.asarray(np.minimum(gap / np.maximum(2.0 * stride_speed, 1e-9), cycle))
 
     def _overstretched(self) -> tuple[BoolArray, FloatArray]:
         """Planted feet left so far behind (or aside) that keeping them would need the pelvis

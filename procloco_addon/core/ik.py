@@ -418,20 +418,34 @@ def solve_legs(
             legs.joint_min[idx],
             legs.joint_max[idx],
         )
-        if init is None or shape_preserving:
-            start = solve_bend(*args, legs.rest_angles[idx])
-            if init is not None and prev_normal is not None:
-                # from last frame's pose toward the shape-preserving one, a bounded step per
-                # joint: where the two agree (most frames) this is the shape-preserving pose
-                # itself; where that one jumps (a limit reached, a different fold) the leg
-                # gets there over a few frames, CCD and the polish reaching the target
-                prev = theta0[idx]
-                start = prev + np.clip(start - prev, -max_plane_turn, max_plane_turn)
-        else:
-            start = theta0[idx]
         rows_i = np.arange(idx.size)
-        err_start = np.linalg.norm(forward_planar(start, args[1])[rows_i, args[2]] - args[0], axis=1)
+
+        def miss_of(th: FloatArray) -> FloatArray:
+            return np.asarray(np.linalg.norm(forward_planar(th, args[1])[rows_i, args[2]] - args[0], axis=1))
+
+        start = solve_bend(*args, legs.rest_angles[idx]) if init is None or shape_preserving else theta0[idx]
+        err_start = miss_of(start)
         theta[idx] = start
+        if init is not None and shape_preserving and prev_normal is not None:
+            # Frame after frame: from last frame's pose toward the shape-preserving one by a
+            # bounded step per joint. Where the two agree (most frames) that is the
+            # shape-preserving pose itself; where it jumps (a joint reaching its limit folds
+            # the leg another way) the leg gets there over a few frames, the damped least
+            # squares (the smallest joint motion) reaching the target from the stepped pose.
+            prev = theta0[idx]
+            far = np.flatnonzero(np.any(np.abs(start - prev) > max_plane_turn, axis=1))
+            if far.size:
+                t_f, len_f, nseg_f = args[0][far], args[1][far], args[2][far]
+                stepped = prev[far] + np.clip(start[far] - prev[far], -max_plane_turn, max_plane_turn)
+                followed = solve_dls(
+                    t_f, len_f, nseg_f, args[3][far], args[4][far], stepped,
+                    max_iterations=polish_iterations, tolerance=tolerance,
+                )
+                end_f = forward_planar(followed, len_f)[np.arange(far.size), nseg_f]
+                # where it does not get there, the shape-preserving start and CCD below
+                ok = np.linalg.norm(end_f - t_f, axis=1) <= tolerance
+                theta[idx[far[ok]]] = followed[ok]
+                err_start[far[ok]] = 0.0
         # CCD and the polish only where the start misses (joint limits, odd targets)
         miss = np.flatnonzero(err_start > tolerance)
         if miss.size:

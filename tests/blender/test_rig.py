@@ -241,6 +241,48 @@ def test_solved_pose_reproduces_joint_positions(empty_scene: Any, kind: str, mod
     assert np.allclose(mats, want_mats, atol=1e-4 * scale)
 
 
+def test_planted_foot_keeps_its_heading_while_the_body_turns(empty_scene: Any) -> None:
+    """A planted foot does not turn on the ground with the body (the example lizard's girdle
+    yaws 6 deg a frame): it keeps the heading it landed with; in its swing it comes round to
+    the body's heading, and lands with it."""
+    arm = creatures.build_wolf(empty_scene)
+    info = rig.read_rig(arm)
+    n = 10
+    yaw = np.radians(4.0) * np.arange(n)  # the body turns 4 deg a frame about its origin
+    body = np.repeat(info.body.matrix[None], n, axis=0)
+    for f in range(n):
+        body[f, :3, :3] = np.array(Matrix.Rotation(yaw[f], 3, "Z")) @ info.body.matrix[:3, :3]
+    delta = body @ np.linalg.inv(info.body.matrix)
+    joints = [np.einsum("fij,kj->fki", delta[:, :3, :3], j) + delta[:, None, :3, 3] for j in info.joints]
+    planted = np.ones((n, len(info.legs)), dtype=bool)
+    planted[5:8] = False  # down for frames 1-5, a swing for 6-8, down again from 9
+    tracks = rig.solve_pose(info, body, joints, planted=planted)
+    action = actions.new_action(arm)
+    actions.write_pose_bone_transforms(action, arm, np.arange(1, n + 1), tracks.bones, tracks.rotations,
+                                       tracks.locations)
+    actions.assign_generated_action(arm, action)
+    frames = list(range(1, n + 1))
+    feet = [leg.foot[0] for leg in info.legs if leg.foot]
+    assert feet
+    rot = pose_matrices(arm, frames, feet)[..., :3, :3]
+    rest = np.stack([np.array(arm.matrix_world)[:3, :3] @ np.array(arm.data.bones[b].matrix_local)[:3, :3]
+                     for b in feet])
+    rest = rest / np.linalg.norm(rest, axis=-2, keepdims=True)
+
+    def turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        cos = (np.trace(np.swapaxes(a, -1, -2) @ b, axis1=-2, axis2=-1) - 1.0) / 2.0
+        return np.asarray(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+    # planted: the heading it landed with (at rest here) on frames 1-5
+    assert turn(rot[:5], rest[None]).max() < 0.01
+    # it lands with the body's heading (frame 9) and keeps it (frame 10)
+    for f in (8, 9):
+        want = np.array(Matrix.Rotation(yaw[8], 3, "Z"))[None] @ rest
+        assert turn(rot[f], want).max() < 0.01, f
+    # and gets there in its swing, a few degrees a frame
+    assert turn(rot[1:], rot[:-1]).max() < 20.0
+
+
 def test_knee_plane_kept_without_twist(empty_scene: Any) -> None:
     """Each leg bone's local axes keep their rest relation to the leg plane: no added twist."""
     arm = creatures.build_wolf(empty_scene)

@@ -604,7 +604,8 @@ def _keyed_action(context: bpy.types.Context, job: Job, replace: bool,
     body_world, joints_world = simulation.world_tracks(job)
     leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
     tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job),
-                            spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames)
+                            spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
+                            planted=~np.asarray(job.result.swing, dtype=bool))
     info = job.info
     plan = job.plan
     if plan is None:

@@ -97,6 +97,43 @@ def _yaw_only(rot: np.ndarray) -> np.ndarray:
     return out
 
 
+def _held_foot_yaw(leg_yaw: np.ndarray, planted: np.ndarray) -> np.ndarray:
+    """Heading turns ``(F, L, 3, 3)`` of the feet: a planted foot keeps the heading it landed
+    with while what its leg hangs from turns (a flexible spine's girdle yaws by several
+    degrees a frame, and a foot turning on the ground would grind), and in the next swing
+    the difference fades out, so the foot lands with its leg's heading again.
+
+    leg_yaw: ``(F, L, 3, 3)`` yaw-only rotations (:func:`_yaw_only`); planted ``(F, L)``."""
+    ang = np.arctan2(leg_yaw[..., 1, 0], leg_yaw[..., 0, 0])  # (F, L)
+    out = ang.copy()
+    n_frames = ang.shape[0]
+    for k in range(ang.shape[1]):
+        f = 1
+        while f < n_frames:
+            if planted[f, k] and planted[f - 1, k]:
+                out[f, k] = out[f - 1, k]
+                f += 1
+                continue
+            if not planted[f, k] and planted[f - 1, k]:
+                # a swing from f to its landing: the held offset fades to 0 by then
+                land = f
+                while land < n_frames and not planted[land, k]:
+                    land += 1
+                offset = np.angle(np.exp(1j * (out[f - 1, k] - ang[f - 1, k])))
+                span = land - f + 1
+                for i, g in enumerate(range(f, land)):
+                    out[g, k] = ang[g, k] + offset * (1.0 - (i + 1) / span)
+                f = land + 1 if land < n_frames else land
+                continue
+            f += 1
+    c, s = np.cos(out), np.sin(out)
+    held = np.zeros(leg_yaw.shape)
+    held[..., 0, 0], held[..., 0, 1] = c, -s
+    held[..., 1, 0], held[..., 1, 1] = s, c
+    held[..., 2, 2] = 1.0
+    return held
+
+
 #: ``ground(frame_index (n,), xy (n, 2)) -> (n,)`` world surface heights, ``-inf`` over nothing.
 GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
@@ -156,6 +193,7 @@ def solve_pose(
     spine_rotation: np.ndarray | None = None,
     spine_joints: np.ndarray | None = None,
     leg_frames: np.ndarray | None = None,
+    planted: np.ndarray | None = None,
 ) -> PoseTracks:
     """Pose-bone channels that put the rig where the core says, frame by frame.
 
@@ -176,6 +214,9 @@ def solve_pose(
     ``spine_joints[:, -1]`` (``(F, J, 3)``), and ``leg_frames`` ``(F, L, 3, 3)`` (body-to-world
     rotation each leg hangs from) turns each leg's rest knee plane and foot instead of the
     body frame.
+
+    ``planted`` ``(F, L)``: feet on the ground; a planted foot keeps the heading it landed
+    with (:func:`_held_foot_yaw`) instead of turning with what its leg hangs from.
     """
     body_world = np.asarray(body_world, dtype=np.float64)
     n_frames = body_world.shape[0]
@@ -188,6 +229,7 @@ def solve_pose(
     else:
         leg_delta = np.asarray(leg_frames, dtype=np.float64) @ body_rest_t
     leg_yaw = _yaw_only(leg_delta)
+    foot_yaw = leg_yaw if planted is None else _held_foot_yaw(leg_yaw, np.asarray(planted, dtype=bool))
     spine_on = info.spine_layout is not None
     if spine_on and (spine_rotation is None or spine_joints is None):
         raise ValueError("the rig's spine is driven: give its spine_rotation and spine_joints")
@@ -233,7 +275,7 @@ def solve_pose(
             f_cur = _frames(seg_cur[:, b], n_cur)
             desired[name] = f_cur @ np.swapaxes(f_rest, -1, -2)[None] @ rest_rot[name]
         if leg.foot:
-            desired[leg.foot[0]] = leg_yaw[:, k] @ rest_rot[leg.foot[0]]
+            desired[leg.foot[0]] = foot_yaw[:, k] @ rest_rot[leg.foot[0]]
 
     # Bones that IK constraints pull the legs to: placed where the simulated joint is,
     # turned with the body's heading.
@@ -242,11 +284,11 @@ def solve_pose(
         if target is None:
             continue
         bone, joint = target
-        desired[bone] = leg_yaw[:, k] @ rest_rot[bone]
+        desired[bone] = foot_yaw[:, k] @ rest_rot[bone]
         moved_heads[bone] = np.asarray(joints_world[k], dtype=np.float64)[:, joint]
 
     if ground is not None:
-        _pitch_feet(info, joints_world, leg_yaw, rest_rot, desired, ground, max_foot_pitch)
+        _pitch_feet(info, joints_world, foot_yaw, rest_rot, desired, ground, max_foot_pitch)
 
     bones = info.driven_bones
     # Armature-space pose matrices, parents before children.
@@ -284,7 +326,7 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
                 rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
                 limit: float) -> None:
     """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`).
-    ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of what each leg hangs from."""
+    ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of each foot (:func:`_held_foot_yaw`)."""
     dynamic = bool(getattr(ground, "dynamic", True))
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
     if not legs:
