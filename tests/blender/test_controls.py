@@ -182,6 +182,17 @@ def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str]
     assert not job.warnings, job.warnings
     knees = [f.replace("foot", "shin") for f in feet] if kind == "human" else None
     m = _measure(rig, job, feet, probes, pelvis, ground, knees)
+    if kind != "human":  # the quadrupeds' flexible spine, keyed on Rigify's spine tweaks
+        spine = list(job.info.spine[::-1])  # the core's bones, head first
+        assert len(spine) >= 5, job.info.spine
+        assert {b.replace("ORG-spine", "tweak_spine") for b in spine[2:-1]} <= keyed, keyed
+        frames = [int(f) for f in job.frames]
+        heads, tails = bone_heads_tails(rig, frames, [b.replace("ORG-", "DEF-") for b in spine])
+        assert job.result.spine_joints is not None
+        assert np.linalg.norm(heads - job.result.spine_joints[:, 1:], axis=-1).max() < 1e-3
+        way = (tails - heads) / np.linalg.norm(tails - heads, axis=-1, keepdims=True)
+        bend = np.degrees(np.arccos(np.clip(np.sum(way[:, 1] * way[:, -1], axis=-1), -1.0, 1.0)))
+        assert np.ptp(bend) > 3.0, "the spine flexes as it walks"
     _check_motion(m)
     assert m["reach"] <= 0.01, m
     # The poles put the knees on the side the walk bends them; Rigify's own IK bends them a

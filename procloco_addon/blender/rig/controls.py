@@ -67,6 +67,8 @@ _CHANNEL_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]\.'
 LIMIT_CONSTRAINTS = frozenset({"LIMIT_ROTATION", "LIMIT_LOCATION", "LIMIT_SCALE", "LIMIT_DISTANCE"})
 # Constraints that replace the whole transform of their owner (at full influence).
 _REPLACING = frozenset({"COPY_TRANSFORMS", "ARMATURE"})
+# Constraints that only turn their owner towards their target.
+_AIMING = frozenset({"STRETCH_TO", "DAMPED_TRACK", "TRACK_TO", "LOCKED_TRACK"})
 _NAMES = {
     "COPY_TRANSFORMS": "Copy Transforms", "COPY_LOCATION": "Copy Location", "COPY_ROTATION": "Copy Rotation",
     "CHILD_OF": "Child Of", "DAMPED_TRACK": "Damped Track", "STRETCH_TO": "Stretch To",
@@ -102,6 +104,7 @@ class _Node:
     ik: list[tuple[str, str | None]] = field(default_factory=list)  # IKs reaching it: (target, pole)
     limits: list[str] = field(default_factory=list)  # limit constraint types on it
     external: list[tuple[str, str]] = field(default_factory=list)  # (constraint type, object name)
+    aims: set[str] = field(default_factory=set)  # bones it only points at (Stretch To, Damped Track...)
 
 
 class ConstraintGraph:
@@ -133,6 +136,8 @@ class ConstraintGraph:
                         node.external.append((kind, target.original.name))
                     elif sub and sub in self.nodes:
                         node.deps.setdefault(sub, 1)
+                        if kind in _AIMING:
+                            node.aims.add(sub)
                 if kind == "IK":
                     self._add_ik(ev, pb, c)
                 full = float(c.influence) >= 0.999 and getattr(c, "mix_mode", "REPLACE") == "REPLACE"
@@ -258,7 +263,8 @@ class ControlKey:
     """One control and how its keys are found.
 
     ``mode``: ``"RIGID"`` (the control carries ``anchor`` rigidly: it moves by the anchor's
-    error), ``"TURN"`` (it turns by the anchor's rotation error, rotation keyed only),
+    error), ``"MOVE"`` (it moves by the anchor's head error only: the anchor points at
+    another bone, which turns it), ``"TURN"`` (it turns by the anchor's rotation error, rotation keyed only),
     ``"IK"`` (it turns like ``anchor`` and moves by the error of the leg's
     end-effector ``leg``), ``"POLE"`` (placed on the side of leg ``leg``'s knee, at its
     current distance from it).
@@ -533,8 +539,12 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         up = graph.controls_upstream([name])
         cands = [c for c in up if c not in used and c not in ik_up and (c not in body_up or up[c] <= 1)]
         if cands:
-            ctrl = min(cands, key=lambda c: (up[c], c))
-            controls.append(ControlKey(ctrl, "RIGID", name))
+            # What it copies its transform from before what it only points at (Rigify's
+            # ORG-spine.010 copies tweak_spine.010 and stretches to the head control).
+            aims = graph.nodes[name].aims
+            ctrl = min(cands, key=lambda c: (up[c], c in aims, c))
+            # A bone that points at another bone is turned by that one, not by its control.
+            controls.append(ControlKey(ctrl, "MOVE" if aims else "RIGID", name))
             used.add(ctrl)
         else:
             uncovered.append(name)

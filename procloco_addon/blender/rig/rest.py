@@ -64,12 +64,7 @@ class _Rest:
         return [int(c) for c in np.flatnonzero((self.parent == i) & ~self.phantom)]
 
     def ancestors(self, i: int) -> list[int]:
-        out = []
-        p = int(self.parent[i])
-        while p >= 0:
-            out.append(p)
-            p = int(self.parent[p])
-        return out
+        return _ancestors_of(self.parent, i)
 
 
 def joint_ends(parent: np.ndarray, head: np.ndarray, tail: np.ndarray,
@@ -140,6 +135,53 @@ def with_leaf_ends(rest: _Rest, skin: dict[int, np.ndarray]) -> _Rest:
         end[i] = far
     return _Rest(rest.names, rest.index, rest.parent, rest.head, rest.tail, rest.local, rest.world,
                  rest.scale, end, rest.tails_meaningful, rest.phantom)
+
+
+_COPY_PREFIX = re.compile(r"^ORG[-_.]")
+
+
+def skeleton_view(rest: _Rest) -> _Rest:
+    """``rest`` with the metarig's hierarchy put back among a generated rig's ``ORG-`` bones.
+
+    Rigify parents each ``ORG-`` spine bone to its own tweak control, so the spine is no
+    parent chain: ``ORG-spine.006`` hangs from ``tweak_spine.006``, not from
+    ``ORG-spine.005``. Here an ``ORG-`` bone whose parent is not an ``ORG-`` bone takes as its
+    parent the ``ORG-`` bone whose tail is at its head (where the metarig connected them), else
+    its nearest ``ORG-`` ancestor; other bones keep theirs. For reading the body and the spine
+    only: poses are always composed along the real parents. ``rest`` itself when the rig has
+    no such bones.
+    """
+    org = np.array([bool(_COPY_PREFIX.match(n)) for n in rest.names], dtype=bool)
+    if not org.any():
+        return rest
+    tol = 1e-5 * max(rest.scale, 1e-9) * max(float(np.ptp(rest.head, axis=0).max()), 1e-9)
+    org_idx = np.flatnonzero(org)
+    parent = rest.parent.copy()
+    changed = False
+    for i in org_idx.tolist():
+        p = int(rest.parent[i])
+        if p < 0 or org[p]:
+            continue
+        at_head = [int(j) for j in org_idx if j != i and np.linalg.norm(rest.tail[j] - rest.head[i]) < tol
+                   and i not in _ancestors_of(rest.parent, int(j))]
+        new = at_head[0] if len(at_head) == 1 else next((a for a in rest.ancestors(i) if org[a]), p)
+        if new != p and i not in _ancestors_of(parent, new):
+            parent[i] = new
+            changed = True
+    if not changed:
+        return rest
+    return _Rest(rest.names, rest.index, parent, rest.head, rest.tail, rest.local, rest.world,
+                 rest.scale, rest.end, rest.tails_meaningful, rest.phantom)
+
+
+def _ancestors_of(parent: np.ndarray, i: int) -> list[int]:
+    """Bone ``i``'s ancestors in the ``(B,)`` parent array, nearest first."""
+    out: list[int] = []
+    p = int(parent[i])
+    while p >= 0:
+        out.append(p)
+        p = int(parent[p])
+    return out
 
 
 def _depth(parent: np.ndarray, i: int) -> int:
