@@ -27,8 +27,12 @@ move the whole leg); the **pole** is the one feeding the IK's pole. Properties t
 read to switch a leg between FK and IK (Rigify's ``IK_FK`` on ``thigh_parent.L``, Auto-Rig
 Pro's ``ik_fk_switch``) and to turn its pole on (Rigify's ``pole_vector``) are
 :class:`Switch` es: they are set to the value that puts the leg in IK with a pole, and keyed.
+A leg with no IK upstream (an FK control rig) has each of its driven bones turned by the
+nearest control upstream of it that does not carry the hip (its FK control: Auto-Rig Pro's
+``c_thigh_fk.l``), parent first.
 The **body control** is the most upstream control that carries the body bone and every hip but
-no IK control (Rigify's ``torso``, Auto-Rig Pro's ``c_root_master.x``, not ``root``/``c_traj``).
+no IK control and, where another one does, has a parent (Rigify's ``torso``, Auto-Rig Pro's
+``c_root_master.x``, not the placement roots ``root``/``c_traj``).
 Any other solved bone that is driven gets the nearest control upstream of it (spine and tail
 FK controls). Solved bones that are free are keyed themselves, as on plain FK rigs.
 """
@@ -268,11 +272,13 @@ class ControlKey:
 
 @dataclass(frozen=True)
 class LegControls:
-    """The controls of one leg: IK target, pole and switches (empty when the leg is free)."""
+    """The controls of one leg: IK target, pole and switches, or its FK controls (hip first;
+    all empty when the leg is free)."""
 
     ik: str | None = None
     pole: str | None = None
     switches: tuple[Switch, ...] = ()
+    fk: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -481,9 +487,22 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
                 controls.append(ControlKey(pole_ctrl, "POLE", bones[0], k))
                 used.add(pole_ctrl)
             covered = set(leg_bones)
-        else:
+        else:  # an FK leg: each driven bone turned by its nearest control (its FK control)
             covered = set()
-        leg_out.append(LegControls(ik_ctrl, pole_ctrl, sw))
+            fk_ctrls: list[str] = []
+            for b in leg_bones:
+                if b in direct:
+                    continue
+                up = graph.controls_upstream([b])
+                fk = [c for c in up if c not in used and c not in base]
+                if not fk:
+                    break
+                ctrl = min(fk, key=lambda c: (up[c], c))
+                controls.append(ControlKey(ctrl, "TURN", b))
+                used.add(ctrl)
+                covered.add(b)
+                fk_ctrls.append(ctrl)
+        leg_out.append(LegControls(ik_ctrl, pole_ctrl, sw, () if ik_ctrl else tuple(fk_ctrls)))
         uncovered.extend(b for b in leg_bones if b not in covered and b not in direct)
 
     # The body: the most upstream control carrying the body bone and every hip, no IK control.
@@ -494,7 +513,11 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         for h in hips:
             parent = pbones[h].parent
             body_cands &= set(graph.controls_upstream([parent.name if parent is not None else h]))
-        roots = graph.roots(sorted(body_cands - ik_up - used))
+        body_cands -= ik_up | used
+        # Not the rig's placement root (Rigify's ``root``, Auto-Rig Pro's ``c_traj``: no parent)
+        # while a control under it carries the body too.
+        placed = {c for c in body_cands if pbones[c].parent is not None}
+        roots = graph.roots(sorted(placed or body_cands))
         if roots:
             up = graph.upstream([body])
             ctrl = min(roots, key=lambda c: (up[c], c))
@@ -533,8 +556,9 @@ def _nearest_solved(graph: ConstraintGraph, control: str, solved: Sequence[str])
 
 
 def describe_leg(leg: LegControls) -> str:
-    """What is keyed for a leg, for the user: ``"IK foot_ik.L, pole thigh_ik_target.L"``."""
-    parts = []
+    """What is keyed for a leg, for the user: ``"IK foot_ik.L, pole thigh_ik_target.L"``,
+    ``"FK c_thigh_fk.l, c_leg_fk.l"``."""
+    parts = [f"FK {', '.join(leg.fk)}"] if leg.fk else []
     if leg.ik:
         parts.append(f"IK {leg.ik}")
     if leg.pole:
