@@ -457,9 +457,10 @@ def without_pops(m: dict[str, Any]) -> dict[str, Any]:
 
 
 #: Creatures whose leg bones still pop (measured on the example terrain): the pop check is a
-#: strict expected failure for them. Empty: the spider's and the ant's legs no longer jump
-#: (the IK's leg plane and bend follow the previous frame, a foot left behind for cycles
-#: catches up at a bounded speed) and the lizard's planted feet keep their heading.
+#: strict expected failure for them. Empty: the spider's legs no longer jump (the IK's leg
+#: plane and bend follow the previous frame), the lizard's planted feet keep their heading,
+#: and the ant's feet are kept off each other's soles (a foot left behind for cycles also
+#: catches up at a bounded speed).
 POPPING: set[str] = set()
 
 

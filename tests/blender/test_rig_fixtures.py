@@ -8,7 +8,6 @@ imported bone's tail (which points anywhere).
 
 from __future__ import annotations
 
-import os
 import re
 from typing import Any
 
@@ -19,6 +18,7 @@ import pytest
 from procloco_addon.blender import rig
 from procloco_addon.blender.locomotion import generate
 from procloco_addon.core import metrics
+from tests.blender import export_fixtures
 from tests.blender.pose_eval import pose_matrices, ray_heights_over_time
 from tests.blender.rig_fixtures import FIXTURES
 from tests.blender.test_generate import check_thresholds
@@ -26,13 +26,7 @@ from tests.blender.test_generate import check_thresholds
 pytestmark = pytest.mark.blender
 
 FRAMES = 48
-#: (format, importer options): the importers' defaults, then another bone direction.
-IMPORTS = [
-    ("gltf", {}),
-    ("gltf", {"bone_heuristic": "TEMPERANCE"}),
-    ("fbx", {}),
-    ("fbx", {"automatic_bone_orientation": True}),
-]
+IMPORTS = export_fixtures.IMPORTS
 #: Fixture rigs that also walk after an import (the others are only detected there): the
 #: quadruped whose tails mean nothing through every importer setting, the humanoid once.
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [("mixamo_t", "fbx", {})]
@@ -45,24 +39,21 @@ def _select_only(obj: Any) -> None:
     bpy.context.view_layer.objects.active = obj
 
 
-def _import(arm: Any, fmt: str, options: dict[str, Any], tmp: str) -> Any:
-    """``arm`` (and its skin) written with Blender's exporter and read back into a new empty
-    scene with the importer's ``options``; returns the imported armature."""
-    import addon_utils
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: Any) -> str:
+    """A folder with every round-tripped fixture, written by Blender's glTF and FBX exporters
+    and read back by its importers with each of :data:`IMPORTS` (``export_fixtures``: in a
+    Blender of its own), one .blend per import."""
+    out = tmp_path_factory.mktemp("exported")
+    names = sorted({n for n, f in FIXTURES.items() if f.round_trip} | {n for n, _, _ in WALK_IMPORTED})
+    export_fixtures.round_trip_in_subprocess(out, names)
+    return str(out)
 
-    for module in ("io_scene_gltf2", "io_scene_fbx"):
-        if not addon_utils.check(module)[1]:
-            addon_utils.enable(module, default_set=True)
-    path = os.path.join(tmp, f"{arm.name}.{'glb' if fmt == 'gltf' else 'fbx'}")
-    if fmt == "gltf":
-        bpy.ops.export_scene.gltf(filepath=path, export_format="GLB")
-    else:
-        bpy.ops.export_scene.fbx(filepath=path)
-    bpy.ops.wm.read_homefile(use_empty=True)
-    if fmt == "gltf":
-        bpy.ops.import_scene.gltf(filepath=path, **options)
-    else:
-        bpy.ops.import_scene.fbx(filepath=path, **options)
+
+def _import(name: str, fmt: str, options: dict[str, Any], exported: str) -> Any:
+    """The fixture ``name`` as Blender's ``fmt`` importer read it back with ``options`` (the
+    scene it was imported into, opened); returns the imported armature."""
+    bpy.ops.wm.open_mainfile(filepath=str(export_fixtures.imported_path(exported, name, fmt, options)))
     return next(o for o in bpy.data.objects if o.type == "ARMATURE")
 
 
@@ -91,11 +82,9 @@ def test_detects_the_legs_of_rigs_users_bring(empty_scene: Any, name: str) -> No
 
 
 @pytest.mark.parametrize("name", sorted(n for n, f in FIXTURES.items() if f.round_trip))
-def test_imported_rigs_give_the_same_legs(empty_scene: Any, name: str, tmp_path: Any) -> None:
+def test_imported_rigs_give_the_same_legs(empty_scene: Any, name: str, exported: str) -> None:
     for fmt, options in IMPORTS:
-        bpy.ops.wm.read_homefile(use_empty=True)
-        arm = FIXTURES[name].build(bpy.context.scene, name)
-        imported = _import(arm, fmt, options, str(tmp_path))
+        imported = _import(name, fmt, options, exported)
         assert _legs(imported) == FIXTURES[name].expected.legs, (fmt, options)
 
 
@@ -243,17 +232,16 @@ def test_generate_walks_the_rigs_users_bring(empty_scene: Any, name: str) -> Non
 @pytest.mark.parametrize(
     ("name", "fmt", "options"),
     WALK_IMPORTED,
-    ids=[f"{n}-{f}-{'-'.join(str(v) for v in o.values()) or 'default'}" for n, f, o in WALK_IMPORTED],
+    ids=[f"{n}-{f}-{export_fixtures.options_id(o)}" for n, f, o in WALK_IMPORTED],
 )
 def test_imported_rigs_walk_the_same(
-    empty_scene: Any, name: str, fmt: str, options: dict[str, Any], tmp_path: Any
+    empty_scene: Any, name: str, fmt: str, options: dict[str, Any], exported: str
 ) -> None:
     if name not in _BUILT_WALKS:  # run alone: walk the rig as built first
         test_generate_walks_the_rigs_users_bring(empty_scene, name)
         bpy.ops.wm.read_homefile(use_empty=True)
     built = _BUILT_WALKS[name]
-    arm = FIXTURES[name].build(bpy.context.scene, name)
-    imported = _import(arm, fmt, options, str(tmp_path))
+    imported = _import(name, fmt, options, exported)
     job, m = walk(imported)
     _report(f"{name} via {fmt} {options}", job, m)
     assert [(leg.label, leg.bones) for leg in job.info.legs] == built["legs"]
