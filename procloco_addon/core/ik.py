@@ -439,9 +439,10 @@ def solve_legs(
                 stepped = prev[far] + np.clip(start[far] - prev[far], -max_plane_turn, max_plane_turn)
                 followed = solve_dls(
                     t_f, len_f, nseg_f, args[3][far], args[4][far], stepped,
-                    max_iterations=polish_iterations, tolerance=tolerance,
+                    max_iterations=polish_iterations, tolerance=1e-3 * tolerance,
                 )
                 end_f = forward_planar(followed, len_f)[np.arange(far.size), nseg_f]
+                # (to well within the tolerance: planted feet would creep by it otherwise);
                 # where it does not get there, the shape-preserving start and CCD below
                 ok = np.linalg.norm(end_f - t_f, axis=1) <= tolerance
                 theta[idx[far[ok]]] = followed[ok]
