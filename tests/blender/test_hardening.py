@@ -407,6 +407,77 @@ def test_escape_while_the_terrain_is_read_changes_nothing(empty_scene: Any) -> N
     assert snapshot() == before
 
 
+def _run_until(me: Any, text: str, fraction: float) -> list[tuple[str, float]]:
+    """Drive a modal operator stand-in's steps until one says ``text`` at ``fraction`` or more."""
+    seen = []
+    for step in me._steps:
+        seen.append(step)
+        if step[0] == text and step[1] >= fraction:
+            break
+    return seen
+
+
+def test_generate_writes_with_progress_and_escape_while_writing_changes_nothing(empty_scene: Any) -> None:
+    """Writing is the last tenth of Generate's progress, in steps (pose solving bone by
+    bone, then keying); Esc there, with the new Action already keyed and assigned and the
+    rig evaluated in its walk, deletes it and gives the rig back its Action and pose (a
+    hand-posed, unkeyed leg included); run through, the same steps write the walk."""
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
+    from tests.blender.test_modal import _context_for, _drive_modal
+
+    _ground(20.0)
+    wolf = creatures.build_wolf(empty_scene)
+    _select(wolf)
+    _short_range(wolf, 1, 12)
+    wolf.pose.bones["thigh.L"].rotation_mode = "XYZ"
+    wolf.pose.bones["thigh.L"].rotation_euler = (0.3, 0.0, 0.1)  # posed by hand, not keyed
+    empty_scene.frame_set(1)
+    before = snapshot()
+    context = _context_for(empty_scene)
+    me = _drive_modal(Op, context, 0, _jobs=[], _made=None)
+    seen = _run_until(me, "writing the Actions", 0.954)  # keyed and assigned: 0.955
+    writing = [f for text, f in seen if text == "writing the Actions"]
+    assert len(writing) >= 10, writing  # a step per leg and per bone, then the keys
+    assert writing == sorted(writing) and 0.9 <= writing[0] and writing[-1] < 1.0
+    assert actions.generated_action(wolf) is not None  # keyed and assigned already
+    empty_scene.frame_set(6)  # the UI redraws the rig in its new walk between two ticks
+    assert snapshot()["per_object"][wolf.name]["pose"] != before["per_object"][wolf.name]["pose"]
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert snapshot() == before
+    # The same steps run through write the walk.
+    me = _drive_modal(Op, context, 0, _jobs=[], _made=None)
+    assert [text for text, _f in me._steps][-1] == "writing the Actions"
+    assert me._finish(context) == {"FINISHED"}
+    assert actions.generated_action(wolf) is not None
+
+
+def test_escape_while_a_bake_writes_changes_nothing(empty_scene: Any) -> None:
+    """Bake Secondary Motion's write step is in steps too; Esc there, over an earlier bake,
+    leaves the scene as it was (the earlier bake kept and assigned, the pose as before)."""
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.secondary.ops import PROCLOCO_OT_bake_secondary_motion as Op
+    from tests.blender.test_modal import _context_for, _drive_modal
+    from tests.blender.test_secondary import _frames, _key_object_path, _lizard
+
+    lizard = _lizard(empty_scene)
+    _frames(empty_scene, 1, 24)
+    _key_object_path(lizard, 24, 1.0)
+    assert bpy.ops.procloco.bake_secondary_motion() == {"FINISHED"}
+    empty_scene.frame_set(3)
+    before = snapshot()
+    context = _context_for(empty_scene)
+    me = _drive_modal(Op, context, 0, _job=None, _made=None)
+    seen = _run_until(me, "writing the Action", 0.0)
+    assert seen[-1][0] == "writing the Action"
+    assert actions.generated_action(lizard) is not None
+    empty_scene.frame_set(9)
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert snapshot() == before
+
+
 # ---------------------------------------------------------------------------------------
 # 5. A long bake simulates in slices: progress, and Esc with nothing written
 
