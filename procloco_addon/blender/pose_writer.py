@@ -11,7 +11,8 @@ does it, for plain rigs and for control rigs:
   (:func:`basis_from_armature`), exactly, without evaluating the rig.
 - **Controls** (:attr:`.rig.controls.ControlPlan.controls`) are solved *through* Blender: the rig
   is evaluated at every frame, each control is moved by the error of the solved bone it drives
-  (``RIGID``: rigidly with it; ``TURN``: turned like it, rotation only; ``IK``: turned like
+  (``RIGID``: rigidly with it; ``MOVE``: by its head's error only, when it points at
+  another bone; ``TURN``: turned like it, rotation only; ``IK``: turned like
   the foot, moved by the end-effector's error; ``POLE``: put on the knee's side of the leg's
   plane), keyed, and the rig is evaluated again,
   until the solved bones are within 0.1 mm (and 0.1 degree) of their targets, or a pass no
@@ -467,6 +468,8 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             want = m.copy()
             if c.mode == "RIGID":  # carried rigidly with its anchor
                 want = armature[:, index[c.anchor]] @ np.linalg.inv(ev[:, col[c.anchor]]) @ m
+            elif c.mode == "MOVE":  # moved by its anchor's head error; its turn is another's
+                want[:, :3, 3] += armature[:, index[c.anchor], :3, 3] - ev[:, col[c.anchor], :3, 3]
             elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
                 d = _orthonormal(armature[:, index[c.anchor], :3, :3])
                 e = _orthonormal(ev[:, col[c.anchor], :3, :3])
@@ -504,6 +507,9 @@ def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature:
         return turn
     if c.mode == "IK":
         moved = float(np.linalg.norm(got[c.leg][:, -1] - want[c.leg][:, -1], axis=-1).max())
+    elif c.mode == "MOVE":
+        return float(np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3],
+                                    axis=-1).max()) / tol
     else:
         moved = float(np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3],
                                      axis=-1).max())

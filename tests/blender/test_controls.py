@@ -30,13 +30,13 @@ _MECHANISM = ("ORG-", "MCH-", "DEF-")
 
 @pytest.fixture(scope="module")
 def rigify_files(tmp_path_factory: Any, procloco_registered: Any) -> dict[str, str]:
-    """Generated Rigify wolf and human, each saved once to a temporary .blend."""
+    """Generated Rigify wolf, human and cat, each saved once to a temporary .blend."""
     import addon_utils
 
     addon_utils.enable("rigify", default_set=True)
     folder = tmp_path_factory.mktemp("rigify")
     out = {}
-    for kind in ("wolf", "human"):
+    for kind in ("wolf", "human", "cat"):
         bpy.ops.wm.read_homefile(use_empty=True)
         getattr(bpy.ops.object, f"armature_{kind}_metarig_add")()
         bpy.ops.pose.rigify_generate()
@@ -147,10 +147,18 @@ _RIGIFY = {
               "DEF-spine",
               {"torso", "foot_ik.L", "foot_ik.R", "thigh_ik_target.L", "thigh_ik_target.R"},
               ["thigh_parent.L", "thigh_parent.R"]),
+    # The cat's paws: Rigify's three-bone IK legs, whose toes (its metarig's palms and toes
+    # do not meet tail to head) once made the whole rig's tails count as meaningless.
+    "cat": (["DEF-f_toe.L", "DEF-f_toe.R", "DEF-r_toe.L", "DEF-r_toe.R"],
+            ["DEF-f_toe.L", "DEF-f_toe.R", "DEF-r_toe.L", "DEF-r_toe.R"],
+            "DEF-spine.001",
+            {"torso", "hand_ik.L", "hand_ik.R", "foot_ik.L", "foot_ik.R", "upper_arm_ik_target.L",
+             "upper_arm_ik_target.R", "thigh_ik_target.L", "thigh_ik_target.R"},
+            ["upper_arm_parent.L", "upper_arm_parent.R", "thigh_parent.L", "thigh_parent.R"]),
 }
 
 
-@pytest.mark.parametrize("kind", ["wolf", "human"])
+@pytest.mark.parametrize("kind", ["wolf", "human", "cat"])
 def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str], kind: str) -> None:
     rig, ground = _open_rig(rigify_files[kind])
     feet, probes, pelvis, wanted, switch_bones = _RIGIFY[kind]
@@ -163,7 +171,7 @@ def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str]
         assert text.startswith("IK "), listed
         assert "pole " in text, listed
         assert "IK_FK = 0" in text, listed
-    job = _run(rig, speed=0.6 if kind == "wolf" else 0.8)
+    job = _run(rig, speed={"wolf": 0.6, "human": 0.8, "cat": 0.3}[kind])
     keyed = _keyed_bones(rig)
     assert wanted <= keyed, keyed
     assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
@@ -174,6 +182,17 @@ def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str]
     assert not job.warnings, job.warnings
     knees = [f.replace("foot", "shin") for f in feet] if kind == "human" else None
     m = _measure(rig, job, feet, probes, pelvis, ground, knees)
+    if kind != "human":  # the quadrupeds' flexible spine, keyed on Rigify's spine tweaks
+        spine = list(job.info.spine[::-1])  # the core's bones, head first
+        assert len(spine) >= 5, job.info.spine
+        assert {b.replace("ORG-spine", "tweak_spine") for b in spine[2:-1]} <= keyed, keyed
+        frames = [int(f) for f in job.frames]
+        heads, tails = bone_heads_tails(rig, frames, [b.replace("ORG-", "DEF-") for b in spine])
+        assert job.result.spine_joints is not None
+        assert np.linalg.norm(heads - job.result.spine_joints[:, 1:], axis=-1).max() < 1e-3
+        way = (tails - heads) / np.linalg.norm(tails - heads, axis=-1, keepdims=True)
+        bend = np.degrees(np.arccos(np.clip(np.sum(way[:, 1] * way[:, -1], axis=-1), -1.0, 1.0)))
+        assert np.ptp(bend) > 3.0, "the spine flexes as it walks"
     _check_motion(m)
     assert m["reach"] <= 0.01, m
     # The poles put the knees on the side the walk bends them; Rigify's own IK bends them a
@@ -387,3 +406,90 @@ def test_a_driver_and_a_limit_rotation_are_named_and_their_effect_reported(empty
     assert "evaluated feet are off the plan" in text, text
     assert "leg R1" in text, text
     assert "leg L2" in text, text
+
+
+def test_fk_only_control_rig_keys_its_fk_controls(empty_scene: Any) -> None:
+    # The Auto-Rig Pro-style rig switched to FK for good: the deform legs copy only the FK
+    # chain (the IK copies are removed), so the FK controls are what moves them.
+    ground = _ground()
+    rig = _arp_rig(empty_scene)
+    for side in ("l", "r"):
+        for deform in ("thigh", "leg", "foot"):
+            pb = rig.pose.bones[f"{deform}.{side}"]
+            ik_copy = next(c for c in pb.constraints if c.subtarget.endswith(f"_ik.{side}"))
+            pb.driver_remove(f'constraints["{ik_copy.name}"].influence')
+            pb.constraints.remove(ik_copy)
+        del rig.pose.bones[f"c_foot_ik.{side}"]["ik_fk_switch"]
+    bpy.context.view_layer.update()
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    assert [leg.controls for leg in rig.procloco.legs] == [
+        f"FK c_thigh_fk.{s}, c_leg_fk.{s}, c_foot_fk.{s}" for s in ("l", "r")]
+    job = _run(rig, speed=0.8)
+    keyed = _keyed_bones(rig)
+    fk = {f"c_{b}_fk.{s}" for b in ("thigh", "leg") for s in ("l", "r")}
+    assert fk | {"c_root_master.x"} <= keyed, keyed
+    assert not keyed & {"c_foot_ik.l", "c_foot_ik.r", "c_leg_pole.l", "c_leg_pole.r"}, keyed
+    assert all(b.startswith("c_") for b in keyed), keyed
+    assert not job.warnings, job.warnings
+    m = _measure(rig, job, ["foot.l", "foot.r"], ["foot.l", "foot.r"], "root.x", ground, ["leg.l", "leg.r"])
+    _check_motion(m)
+    assert m["reach"] <= 0.01, m
+    assert m["knee"] <= 0.01, m
+
+
+def test_generated_rigify_wolf_under_an_animated_empty_keeps_its_feet_planted(
+    rigify_files: dict[str, str],
+) -> None:
+    rig, ground = _open_rig(rigify_files["wolf"])
+    carrier = bpy.data.objects.new("Platform", None)
+    bpy.context.scene.collection.objects.link(carrier)
+    carrier.keyframe_insert("location", frame=1)
+    carrier.location = (0.4, 0.3, 0.0)
+    carrier.keyframe_insert("location", frame=48)
+    rig.parent = carrier
+    bpy.context.view_layer.update()
+    feet, probes, pelvis, wanted, _switches = _RIGIFY["wolf"]
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    job = _run(rig, speed=0.6)
+    assert wanted <= _keyed_bones(rig)
+    assert not job.warnings, job.warnings
+    m = _measure(rig, job, feet, probes, pelvis, ground)
+    _check_motion(m)  # planted in the world: the platform's 0.5 m are not in the slide
+    assert m["reach"] <= 0.01, m
+
+
+def test_plan_biped_footsteps_walks_the_generated_rigify_human_on_its_controls(
+    rigify_files: dict[str, str],
+) -> None:
+    from procloco_addon.blender.biped import ops as biped_ops
+    from procloco_addon.core.biped.planner import stance_slide
+    from tests.blender.test_biped import _held_points
+
+    rig, _ground_obj = _open_rig(rigify_files["human"])
+    rig.pose.bones["thigh_parent.L"]["IK_FK"] = 1.0  # left in FK by the animator
+    assert bpy.ops.procloco.make_biped_clips() == {"FINISHED"}
+    goal = bpy.data.objects.new("Goal", None)
+    bpy.context.scene.collection.objects.link(goal)
+    goal.location = (1.2, -7.0, 0.0)
+    rig.procloco_biped.goal = goal
+    _select_only(rig)
+    job = biped_ops.prepare(bpy.context, rig)
+    biped_ops.run(job)
+    assert job.error is None, job.error
+    biped_ops.finish(bpy.context, job)
+    keyed = _keyed_bones(rig)
+    assert {"torso", "foot_ik.L", "foot_ik.R", "thigh_ik_target.L", "thigh_ik_target.R"} <= keyed, keyed
+    assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
+    assert _prop_keys(rig)[("thigh_parent.L", "IK_FK")] == 0.0
+    motion = job.result
+    assert motion is not None
+    frames = job.start_frame + np.arange(motion.n_frames)
+    # The planner's heel and toe points ride on the ORG foot bones; the deform feet follow them.
+    pts = _held_points(rig, job.brig, frames)
+    org, _t = bone_heads_tails(rig, list(frames), ["ORG-foot.L", "ORG-foot.R", "ORG-toe.L", "ORG-toe.R"])
+    deform, _t = bone_heads_tails(rig, list(frames), ["DEF-foot.L", "DEF-foot.R", "DEF-toe.L", "DEF-toe.R"])
+    assert np.abs(org - deform).max() < 1e-4
+    assert np.nanmax(stance_slide(pts, motion.ik.ik_point, motion.contact)) <= 0.002
+    f, s = np.nonzero(motion.ik.ik_point >= 0)
+    assert np.abs(pts[f, s, motion.ik.ik_point[f, s]][:, 2]).max() < 0.005
+    assert np.linalg.norm(pts[-1].mean(axis=(0, 1))[:2] - np.array([1.2, -7.0])) < 0.10

@@ -27,8 +27,12 @@ move the whole leg); the **pole** is the one feeding the IK's pole. Properties t
 read to switch a leg between FK and IK (Rigify's ``IK_FK`` on ``thigh_parent.L``, Auto-Rig
 Pro's ``ik_fk_switch``) and to turn its pole on (Rigify's ``pole_vector``) are
 :class:`Switch` es: they are set to the value that puts the leg in IK with a pole, and keyed.
+A leg with no IK upstream (an FK control rig) has each of its driven bones turned by the
+nearest control upstream of it that does not carry the hip (its FK control: Auto-Rig Pro's
+``c_thigh_fk.l``), parent first.
 The **body control** is the most upstream control that carries the body bone and every hip but
-no IK control (Rigify's ``torso``, Auto-Rig Pro's ``c_root_master.x``, not ``root``/``c_traj``).
+no IK control and, where another one does, has a parent (Rigify's ``torso``, Auto-Rig Pro's
+``c_root_master.x``, not the placement roots ``root``/``c_traj``).
 Any other solved bone that is driven gets the nearest control upstream of it (spine and tail
 FK controls). Solved bones that are free are keyed themselves, as on plain FK rigs.
 """
@@ -63,6 +67,8 @@ _CHANNEL_PATH = re.compile(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]\.'
 LIMIT_CONSTRAINTS = frozenset({"LIMIT_ROTATION", "LIMIT_LOCATION", "LIMIT_SCALE", "LIMIT_DISTANCE"})
 # Constraints that replace the whole transform of their owner (at full influence).
 _REPLACING = frozenset({"COPY_TRANSFORMS", "ARMATURE"})
+# Constraints that only turn their owner towards their target.
+_AIMING = frozenset({"STRETCH_TO", "DAMPED_TRACK", "TRACK_TO", "LOCKED_TRACK"})
 _NAMES = {
     "COPY_TRANSFORMS": "Copy Transforms", "COPY_LOCATION": "Copy Location", "COPY_ROTATION": "Copy Rotation",
     "CHILD_OF": "Child Of", "DAMPED_TRACK": "Damped Track", "STRETCH_TO": "Stretch To",
@@ -98,6 +104,7 @@ class _Node:
     ik: list[tuple[str, str | None]] = field(default_factory=list)  # IKs reaching it: (target, pole)
     limits: list[str] = field(default_factory=list)  # limit constraint types on it
     external: list[tuple[str, str]] = field(default_factory=list)  # (constraint type, object name)
+    aims: set[str] = field(default_factory=set)  # bones it only points at (Stretch To, Damped Track...)
 
 
 class ConstraintGraph:
@@ -129,6 +136,8 @@ class ConstraintGraph:
                         node.external.append((kind, target.original.name))
                     elif sub and sub in self.nodes:
                         node.deps.setdefault(sub, 1)
+                        if kind in _AIMING:
+                            node.aims.add(sub)
                 if kind == "IK":
                     self._add_ik(ev, pb, c)
                 full = float(c.influence) >= 0.999 and getattr(c, "mix_mode", "REPLACE") == "REPLACE"
@@ -254,7 +263,8 @@ class ControlKey:
     """One control and how its keys are found.
 
     ``mode``: ``"RIGID"`` (the control carries ``anchor`` rigidly: it moves by the anchor's
-    error), ``"TURN"`` (it turns by the anchor's rotation error, rotation keyed only),
+    error), ``"MOVE"`` (it moves by the anchor's head error only: the anchor points at
+    another bone, which turns it), ``"TURN"`` (it turns by the anchor's rotation error, rotation keyed only),
     ``"IK"`` (it turns like ``anchor`` and moves by the error of the leg's
     end-effector ``leg``), ``"POLE"`` (placed on the side of leg ``leg``'s knee, at its
     current distance from it).
@@ -268,11 +278,13 @@ class ControlKey:
 
 @dataclass(frozen=True)
 class LegControls:
-    """The controls of one leg: IK target, pole and switches (empty when the leg is free)."""
+    """The controls of one leg: IK target, pole and switches, or its FK controls (hip first;
+    all empty when the leg is free)."""
 
     ik: str | None = None
     pole: str | None = None
     switches: tuple[Switch, ...] = ()
+    fk: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -481,9 +493,22 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
                 controls.append(ControlKey(pole_ctrl, "POLE", bones[0], k))
                 used.add(pole_ctrl)
             covered = set(leg_bones)
-        else:
+        else:  # an FK leg: each driven bone turned by its nearest control (its FK control)
             covered = set()
-        leg_out.append(LegControls(ik_ctrl, pole_ctrl, sw))
+            fk_ctrls: list[str] = []
+            for b in leg_bones:
+                if b in direct:
+                    continue
+                up = graph.controls_upstream([b])
+                fk = [c for c in up if c not in used and c not in base]
+                if not fk:
+                    break
+                ctrl = min(fk, key=lambda c: (up[c], c))
+                controls.append(ControlKey(ctrl, "TURN", b))
+                used.add(ctrl)
+                covered.add(b)
+                fk_ctrls.append(ctrl)
+        leg_out.append(LegControls(ik_ctrl, pole_ctrl, sw, () if ik_ctrl else tuple(fk_ctrls)))
         uncovered.extend(b for b in leg_bones if b not in covered and b not in direct)
 
     # The body: the most upstream control carrying the body bone and every hip, no IK control.
@@ -494,7 +519,11 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         for h in hips:
             parent = pbones[h].parent
             body_cands &= set(graph.controls_upstream([parent.name if parent is not None else h]))
-        roots = graph.roots(sorted(body_cands - ik_up - used))
+        body_cands -= ik_up | used
+        # Not the rig's placement root (Rigify's ``root``, Auto-Rig Pro's ``c_traj``: no parent)
+        # while a control under it carries the body too.
+        placed = {c for c in body_cands if pbones[c].parent is not None}
+        roots = graph.roots(sorted(placed or body_cands))
         if roots:
             up = graph.upstream([body])
             ctrl = min(roots, key=lambda c: (up[c], c))
@@ -510,8 +539,12 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         up = graph.controls_upstream([name])
         cands = [c for c in up if c not in used and c not in ik_up and (c not in body_up or up[c] <= 1)]
         if cands:
-            ctrl = min(cands, key=lambda c: (up[c], c))
-            controls.append(ControlKey(ctrl, "RIGID", name))
+            # What it copies its transform from before what it only points at (Rigify's
+            # ORG-spine.010 copies tweak_spine.010 and stretches to the head control).
+            aims = graph.nodes[name].aims
+            ctrl = min(cands, key=lambda c: (up[c], c in aims, c))
+            # A bone that points at another bone is turned by that one, not by its control.
+            controls.append(ControlKey(ctrl, "MOVE" if aims else "RIGID", name))
             used.add(ctrl)
         else:
             uncovered.append(name)
@@ -533,8 +566,9 @@ def _nearest_solved(graph: ConstraintGraph, control: str, solved: Sequence[str])
 
 
 def describe_leg(leg: LegControls) -> str:
-    """What is keyed for a leg, for the user: ``"IK foot_ik.L, pole thigh_ik_target.L"``."""
-    parts = []
+    """What is keyed for a leg, for the user: ``"IK foot_ik.L, pole thigh_ik_target.L"``,
+    ``"FK c_thigh_fk.l, c_leg_fk.l"``."""
+    parts = [f"FK {', '.join(leg.fk)}"] if leg.fk else []
     if leg.ik:
         parts.append(f"IK {leg.ik}")
     if leg.pole:

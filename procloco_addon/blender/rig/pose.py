@@ -228,12 +228,18 @@ def solve_pose_steps(
     desired[info.body_bone] = delta_rot @ rest_rot[info.body_bone]
     body_head_rest = _apply(w, info.rest_local[info.body_bone][:3, 3][None])[0]
     body_head = np.einsum("fij,j->fi", delta[:, :3, :3], body_head_rest) + delta[:, :3, 3]
+    spine_heads: dict[str, np.ndarray] = {}
     if spine_on:
         assert spine_rotation is not None
         assert spine_joints is not None
         turn = np.asarray(spine_rotation, dtype=np.float64) @ body_rest_t  # world rest -> now
+        solved = set(info.driven_bones)
         for i, name in enumerate(info.spine[::-1]):  # core bones run from the head back
             desired[name] = turn[:, i] @ rest_rot[name]
+            if info.parents[name] not in solved:
+                # hung from a bone not solved (a generated rig's ORG- spine bone from its
+                # tweak control): its head goes to its core joint, not along its parent
+                spine_heads[name] = np.asarray(spine_joints, dtype=np.float64)[:, i + 1]
         body_head = np.asarray(spine_joints, dtype=np.float64)[:, -1]
 
     for k, (leg, rest_j, cur_j) in enumerate(zip(info.legs, info.joints, joints_world, strict=True)):
@@ -265,7 +271,7 @@ def solve_pose_steps(
 
     # Bones that IK constraints pull the legs to: placed where the simulated joint is,
     # turned with the body's heading.
-    moved_heads: dict[str, np.ndarray] = {info.body_bone: body_head}
+    moved_heads: dict[str, np.ndarray] = {**spine_heads, info.body_bone: body_head}
     for k, target in enumerate(info.ik_targets):
         if target is None:
             continue

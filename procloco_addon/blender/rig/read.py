@@ -20,6 +20,7 @@ from .rest import (
     _descendants,
     _length,
     _Rest,
+    skeleton_view,
     uniform_scale,
     with_leaf_ends,
 )
@@ -151,7 +152,10 @@ def read_rig(
     left = np.cross(_UP, forward)
 
     hip_idx = [rest.index[leg.hip] for leg in legs]
-    body_idx = _common_ancestor(rest, hip_idx)
+    # The body and the spine in the skeleton's hierarchy (a generated rig's ORG- bones as
+    # its metarig had them); poses are composed along the real one.
+    skel = skeleton_view(rest)
+    body_idx = _common_ancestor(skel, hip_idx)
     if body_idx is None:
         raise RigError("The legs do not hang from one body: their hips have no common parent bone")
     # A connected bone cannot be moved (its head is its parent's tail): the body motion goes
@@ -160,8 +164,8 @@ def read_rig(
         body_idx = int(rest.parent[body_idx])
     mean_leg = float(np.mean([_length(_chain_points(rest, [rest.index[b] for b in leg.bones]))
                               for leg in legs]))
-    chain = _spine_chain(rest, body_idx, hip_idx, forward, mean_leg)
-    carried = spine and _spine_layout(rest, chain, hip_idx, rest.head, rest.end) is not None
+    chain = _spine_chain(skel, body_idx, hip_idx, forward, mean_leg)
+    carried = spine and _spine_layout(skel, chain, hip_idx, rest.head, rest.end) is not None
 
     basis = _current_basis(obj)
     for name in at_rest:
@@ -209,7 +213,7 @@ def read_rig(
         foot_pts.append(probes)
     origin = np.array([j[0] for j in joints]).mean(axis=0)
     body = BodyInfo(origin, forward, left)
-    layout = _spine_layout(rest, chain, hip_idx, heads, ends) if carried else None
+    layout = _spine_layout(skel, chain, hip_idx, heads, ends) if carried else None
 
     warnings = []
     handled = {t[0] for t in ik_targets if t is not None}
