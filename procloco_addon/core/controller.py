@@ -391,6 +391,13 @@ class Controller:
         self.box_center = np.array([m.body_box_center for m in legs.morphologies])
         self.box_half = np.array([m.body_box_half for m in legs.morphologies])
         self.foot_half = np.array([m.foot_half_extents for m in legs.morphologies])
+        # the part of each foot the others may not land on (a foot box unless the
+        # morphology gives a smaller sole)
+        self.sole_half = np.array([m.foot_half_extents if m.sole_half_extents is None else m.sole_half_extents
+                                   for m in legs.morphologies])
+        # how far each end-effector stands above the ground the feet are planned on (a rig's
+        # feet of different heights on ground raised by their mean height)
+        self.foot_lift = legs.foot_lift
         self.window_cell = (
             np.clip(0.065 * mean_leg, 0.005, 0.25)
             if p.window_cell is None
@@ -412,7 +419,9 @@ class Controller:
         )
         # the longest stance sweep the legs allow (the needle runs faster beyond it), never
         # less than a quarter of max_stroke: a leg's reach with the pelvis half its allowed
-        # drop lower, and neighbouring feet kept a foot box and half a planning cell apart
+        # drop lower, and neighbouring feet kept two foot boxes and half a planning cell apart
+        # (their toes do not meet as they sweep; a foot may land nearer, its box off the
+        # other's sole, but a longer sweep then crowds the next footfalls)
         cap = p.max_stroke * mean_leg
         low = self.rest_height - 0.5 * p.max_drop * self.body_thickness[legs.leg_char]
         clearance = 2.0 * self.foot_half.max(axis=1) + 0.5 * self.window_cell
@@ -685,6 +694,7 @@ class Controller:
         reach = length if leg_reach is None else float(leg_reach)
         level = self.lod[char]
         half = (float(self.foot_half[char, 0]), float(self.foot_half[char, 1]))
+        sole = (float(self.sole_half[char, 0]), float(self.sole_half[char, 1]))
         per_leg: dict[str, float] = {}
         if leg is not None:
             per_leg = {
@@ -706,6 +716,7 @@ class Controller:
                 candidate_radius=p.candidate_radius * length,
                 fixed_distance=p.fixed_distance * length,
                 foot_half_extents=half,
+                sole_half_extents=sole,
                 max_couples_after_first=p.max_couples_after_first
                 if level is None
                 else level.max_couples_after_first,
@@ -717,6 +728,7 @@ class Controller:
             step_height=float(step_height),
             leg_reach=reach,
             foot_half_extents=half,
+            sole_half_extents=sole,
             max_height_change=p.max_height_change * length,
             **per_leg,  # type: ignore[arg-type]
         )
@@ -957,6 +969,7 @@ class Controller:
             feet = self.foot[g.legs].copy()
             swing = self.swinging[g.legs]
             feet[swing, 2] = np.minimum(feet[swing, 2], self.target[g.legs][swing, 2])
+            feet[..., 2] += self.foot_lift[g.legs]
             pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=shift)
             pose, g.reach_shift = self._release_pull(g, free, pose, feet, reach, dt)
             g.pose = pose
@@ -1247,7 +1260,7 @@ class Controller:
             hips[self.spine_legs] = self._spine_hips_free[self.spine_legs]
         reach = self.comfort_reach
         d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
-        top = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
+        top = self.foot[:, 2] + self.foot_lift + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         need = np.where(d_h < reach, hips[:, 2] - top, np.inf)
         over = planted & (need > self.params.max_drop * self.body_thickness[self.leg_char])
         return np.asarray(over), np.asarray(need, dtype=np.float64)
@@ -1544,7 +1557,7 @@ class Controller:
         hip = hip_start + u[:, None] * (end[..., None, :] - hip_start)
         horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
         drop = self.params.guard_max_drop * float(self.body_thickness[self.leg_char[leg]])
-        below = hip[..., 2] - samples[..., 2]
+        below = hip[..., 2] - (samples[..., 2] + self.foot_lift[leg])
         vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
         return np.asarray(np.hypot(horizontal, vertical))
 
@@ -1763,7 +1776,7 @@ class Controller:
         hips = self.hips_world(rot)
         reach = self.guard_reach
         d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
-        allowed = self.foot[:, 2] + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
+        allowed = self.foot[:, 2] + self.foot_lift + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         excess = np.maximum(hips[:, 2] - allowed, 0.0)
         if self.spine_groups:
             # spines keep their legs within reach in step 4 (repeat_for_reach)
@@ -1775,6 +1788,13 @@ class Controller:
         self.pos[:, 2] -= self.guard_drop
 
     # ---------------------------------------------------------------- legs
+    def ik_targets(self) -> FloatArray:
+        """``(N, 3)`` where each leg's end-effector goes: its foot, raised by its
+        ``Morphology.foot_lift``."""
+        out = self.foot.copy()
+        out[:, 2] += self.foot_lift
+        return out
+
     def _solve_ik(self, ctl: StepControls) -> int:
         """Pose every leg; returns how many swinging feet were moved to what their legs
         reach."""
@@ -1783,7 +1803,7 @@ class Controller:
         leg_rot = self.leg_rotations() if self.spine_groups else rot[self.leg_char]
         mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
         res = solve_legs(
-            self.legs, hips, leg_rot, self.foot, self.angles, mask=None if mask.all() else mask,
+            self.legs, hips, leg_rot, self.ik_targets(), self.angles, mask=None if mask.all() else mask,
             tolerance=self.params.ik_tolerance,
         )
         self.angles = res.angles
@@ -1794,6 +1814,7 @@ class Controller:
         missed = np.flatnonzero(self.swinging & mask & (res.error > 1e-3 * self.legs.leg_length))
         if missed.size:
             end = res.joints[missed, self.legs.n_segments[missed]]
+            end[:, 2] -= self.foot_lift[missed]  # the foot, on the ground it is planned on
             ground = self.env.height_at(end[:, :2])
             above = end[:, 2] >= ground - 1e-9
             moved = missed[above]

@@ -115,7 +115,12 @@ class PlannerParams:
     rectangle's width (``search_half_width`` defaults to ``max(candidate_radius, reach / 2)``).
     ``candidate_radius``: candidates within this distance of the preferred footprint.
     ``fixed_distance``: distance at which the distance criterion reaches 0.
-    ``foot_half_extents``: the foot's ground box (forward, left half sizes).
+    ``foot_half_extents``: the foot's ground box (forward, left half sizes): what it keeps
+    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of another foot
+    this foot may not land on, a box about that foot's point (None: a foot box). A foot whose
+    toes reach far from its end-effector has a large foot box but stands on a small sole: two
+    such feet may stand closer than two foot boxes, as long as neither's box covers the
+    other's sole.
     ``max_couples_after_first``: LOD budget (None: full search; 0: first valid couple).
     ``edge_height``: a height step larger than this between neighbour cells is an edge.
     ``edge_score``: the criterion's value on an obstacle rim (thesis: 0.8).
@@ -150,6 +155,7 @@ class PlannerParams:
     candidate_radius: float = 0.2
     fixed_distance: float = 0.3
     foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    sole_half_extents: tuple[float, float] | None = None
     max_couples_after_first: int | None = None
     edge_height: float = 0.04
     edge_score: float = 0.8
@@ -426,6 +432,14 @@ def _offset_kernel(cell: float, hx: float, hy: float, yaw: float, sub_r: float, 
     return off
 
 
+def _sole(params: PlannerParams, half: tuple[float, float]) -> tuple[float, float]:
+    """The half sizes of the box each other foot is forbidden as: its sole, else a foot box."""
+    if params.sole_half_extents is None:
+        return half
+    sole = np.asarray(params.sole_half_extents, dtype=np.float64).reshape(2)
+    return float(sole[0]), float(sole[1])
+
+
 def _other_feet_mask(
     grids: WindowGrids, feet_xy: FloatArray, half: FloatArray, yaw: float
 ) -> BoolArray | None:
@@ -521,6 +535,7 @@ class _Plan:
         "o_hips",
         "params",
         "pref",
+        "sole",
         "start",
         "start_rc",
         "yaw",
@@ -530,6 +545,7 @@ class _Plan:
                  o_hips: FloatArray, o_feet: FloatArray, start_rc: tuple[float, float], frame: RegionFrame,
                  half: tuple[float, float]) -> None:
         self.index = index
+        self.sole = _sole(rq.params, half)
         self.grids = rq.grids
         self.params = rq.params
         self.start = start
@@ -697,6 +713,8 @@ class _Batch:
         # candidates. The margin holds the widest of them.
         self.half_x = np.array([p.half[0] for p in plans])
         self.half_y = np.array([p.half[1] for p in plans])
+        self.sole_x = np.array([p.sole[0] for p in plans])
+        self.sole_y = np.array([p.sole[1] for p in plans])
         self.yaw = np.array([p.yaw for p in plans])
         self.sweep_off, self.sweep_in = foot_kernels(self.cell, self.half_x, self.half_y, self.yaw, True)
         land_reach = max(math.ceil((abs(p.half[0]) + abs(p.half[1])) / p.cell + 1.0) for p in plans)
@@ -723,13 +741,14 @@ class _Batch:
                      & (np.arange(W)[None, None, :] < ww[:, None, None]))
             self.elev = np.where(inbox, inner, -np.inf)
         core = avoid.copy()
-        # Other feet: forbidden (their foot boxes, with this foot's shape and yaw).
+        # Other feet: forbidden as their soles (or foot boxes), with this foot's yaw; the
+        # dilation by this foot's box keeps its whole box off them.
         n_other = np.array([p.o_feet.shape[0] for p in plans])
         if n_other.sum():
             owner = np.repeat(np.arange(n), n_other)
             feet = np.concatenate([p.o_feet for p in plans])
-            hx = self.half_x[owner]
-            hy = self.half_y[owner]
+            hx = self.sole_x[owner]
+            hy = self.sole_y[owner]
             grid = (self.ny[owner], self.nx[owner])
             yaw_o = self.yaw[owner]
             box, fr, fc = raster_boxes(self.origin[owner], self.cell[owner], grid, feet, hx, hy, yaw_o)
@@ -1472,7 +1491,8 @@ def plan_footstep(
     foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
     region = search_region(grids.shape, start_rc, pref_rc, half_width / cell + foot_cells,
                            params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
-    extra = _other_feet_mask(grids, o_feet, half, foot_yaw)
+    extra = _other_feet_mask(grids, o_feet, np.asarray(_sole(params, (float(half[0]), float(half[1])))),
+                             foot_yaw)
     path_params = PathParams(step_height=params.step_height, tension=params.tension,
                              los_shortcut=params.los_shortcut)
     ctx = PathContext(grids, start, region, extra, half, foot_yaw, path_params,

@@ -96,7 +96,14 @@ class Morphology:
     - ``body_box_center``, ``body_box_half``: ``(2,)`` projected body box in the xy plane.
     - ``body_thickness``: height of the pelvis origin above the terrain's upper hull when
       standing (thesis figure 3.8); defaults to the rest height above the feet.
-    - ``foot_half_extents``: ``(2,)`` half size of the projected foot shape (x along the foot).
+    - ``foot_half_extents``: ``(2,)`` half size of the projected foot shape (x along the foot):
+      the box the planner keeps clear of obstacles, holes and other feet.
+    - ``sole_half_extents``: ``(2,)`` half size of the part of a foot another foot may not land
+      on, about its point (None: the foot box). Smaller than the foot box for feet whose toes
+      reach far from the end-effector (``core.footprints.PlannerParams``).
+    - ``foot_lift``: ``(n,)`` how far each end-effector stands above the ground its foot is
+      planned on (None: 0). A rig whose end-effectors stand at different heights above their
+      soles walks on ground raised by their mean height, each end-effector this much above it.
     - ``spine``: the flexible spine (``core.spine.SpineModel``, in this body frame), or None
       for a rigid body; see :meth:`with_spine`.
     """
@@ -115,6 +122,8 @@ class Morphology:
     body_thickness: float
     foot_half_extents: FloatArray
     spine: SpineModel | None = None
+    sole_half_extents: FloatArray | None = None
+    foot_lift: FloatArray | None = None
 
     # ------------------------------------------------------------------ derived values
     @property
@@ -206,6 +215,8 @@ class Morphology:
         body_thickness: float | None = None,
         foot_half_extents: npt.ArrayLike | None = None,
         hinge_margin: float = np.radians(160.0),
+        sole_half_extents: npt.ArrayLike | None = None,
+        foot_lift: npt.ArrayLike | None = None,
     ) -> Morphology:
         """Build a morphology from each leg's rest joint chain (hip first, end effector last).
 
@@ -224,6 +235,8 @@ class Morphology:
         - ``body_box``: ``(center (2,), half (2,))``; default the box around the hips.
         - ``body_thickness``: the pelvis height above the mean rest foot height.
         - ``foot_half_extents``: 4 % of the mean leg length, square.
+        - ``sole_half_extents``: None (other feet are kept a foot box away).
+        - ``foot_lift``: None (every end-effector on the ground).
         """
         chains = [np.asarray(c, dtype=np.float64) for c in rest_joints]
         n = len(chains)
@@ -326,6 +339,9 @@ class Morphology:
             body_box_half=half,
             body_thickness=thickness,
             foot_half_extents=foot_half,
+            sole_half_extents=None if sole_half_extents is None
+            else np.abs(np.asarray(sole_half_extents, dtype=np.float64).reshape(2)),
+            foot_lift=None if foot_lift is None else np.asarray(foot_lift, dtype=np.float64).reshape(n),
         )
 
 
@@ -449,6 +465,13 @@ class LegBatch:
     @property
     def rest_foot(self) -> FloatArray:
         return self.rest_joints[np.arange(self.n_legs), self.n_segments]
+
+    @property
+    def foot_lift(self) -> FloatArray:
+        """``(N,)`` each end-effector's height above the ground its foot is planned on
+        (``Morphology.foot_lift``; 0 where a character has none)."""
+        return np.concatenate([np.zeros(m.n_legs) if m.foot_lift is None else m.foot_lift
+                               for m in self.morphologies])
 
     @property
     def leg_length(self) -> FloatArray:

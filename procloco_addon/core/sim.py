@@ -418,7 +418,7 @@ class Simulation:
                 "joints": res.joints.copy(),
                 "normal": res.plane_normal.copy(),
                 "angles": res.angles.copy(),
-                "foot": ctrl.foot.copy(),
+                "foot": ctrl.ik_targets(),
                 "contact": ~ctrl.swinging,
                 "forced": ctrl.forced.copy(),
                 "failed": ctrl.plan_failed.copy(),
@@ -519,7 +519,8 @@ def check_motion(
     leg_len = legs.leg_length[leg_sel]
     target = result.foot[:, leg_sel]
     body_up = result.leg_frame[:, leg_sel][..., 2]
-    depth = result.ground[:, leg_sel] - end[..., 2]
+    # an end-effector stands its foot lift above the ground (a rig's ankle over its sole)
+    depth = result.ground[:, leg_sel] + legs.foot_lift[leg_sel] - end[..., 2]
     boxes = env.boxes
     # moving boxes are judged by the per-frame ground (their top), static ones also from the side
     avoid = (boxes.role == ROLE_AVOID) & ~boxes.dynamic

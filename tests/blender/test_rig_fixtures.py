@@ -26,13 +26,7 @@ from tests.blender.test_generate import check_thresholds
 pytestmark = pytest.mark.blender
 
 FRAMES = 48
-#: (format, importer options): the importers' defaults, then another bone direction.
-IMPORTS = [
-    ("gltf", {}),
-    ("gltf", {"bone_heuristic": "TEMPERANCE"}),
-    ("fbx", {}),
-    ("fbx", {"automatic_bone_orientation": True}),
-]
+IMPORTS = export_fixtures.IMPORTS
 #: Fixture rigs that also walk after an import (the others are only detected there): the
 #: quadruped whose tails mean nothing through every importer setting, the humanoid once.
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [("mixamo_t", "fbx", {})]
@@ -47,24 +41,19 @@ def _select_only(obj: Any) -> None:
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory: Any) -> str:
-    """A folder with every round-tripped fixture written by Blender's glTF and FBX exporters
-    (``export_fixtures``: in a Blender of its own)."""
+    """A folder with every round-tripped fixture, written by Blender's glTF and FBX exporters
+    and read back by its importers with each of :data:`IMPORTS` (``export_fixtures``: in a
+    Blender of its own), one .blend per import."""
     out = tmp_path_factory.mktemp("exported")
     names = sorted({n for n, f in FIXTURES.items() if f.round_trip} | {n for n, _, _ in WALK_IMPORTED})
-    export_fixtures.export_in_subprocess(out, names)
+    export_fixtures.round_trip_in_subprocess(out, names)
     return str(out)
 
 
 def _import(name: str, fmt: str, options: dict[str, Any], exported: str) -> Any:
-    """The fixture ``name`` as Blender's ``fmt`` exporter wrote it, read back into a new empty
-    scene with the importer's ``options``; returns the imported armature."""
-    export_fixtures.enable_io()
-    path = str(export_fixtures.path_of(exported, name, fmt))
-    bpy.ops.wm.read_homefile(use_empty=True)
-    if fmt == "gltf":
-        bpy.ops.import_scene.gltf(filepath=path, **options)
-    else:
-        bpy.ops.import_scene.fbx(filepath=path, **options)
+    """The fixture ``name`` as Blender's ``fmt`` importer read it back with ``options`` (the
+    scene it was imported into, opened); returns the imported armature."""
+    bpy.ops.wm.open_mainfile(filepath=str(export_fixtures.imported_path(exported, name, fmt, options)))
     return next(o for o in bpy.data.objects if o.type == "ARMATURE")
 
 
@@ -243,7 +232,7 @@ def test_generate_walks_the_rigs_users_bring(empty_scene: Any, name: str) -> Non
 @pytest.mark.parametrize(
     ("name", "fmt", "options"),
     WALK_IMPORTED,
-    ids=[f"{n}-{f}-{'-'.join(str(v) for v in o.values()) or 'default'}" for n, f, o in WALK_IMPORTED],
+    ids=[f"{n}-{f}-{export_fixtures.options_id(o)}" for n, f, o in WALK_IMPORTED],
 )
 def test_imported_rigs_walk_the_same(
     empty_scene: Any, name: str, fmt: str, options: dict[str, Any], exported: str

@@ -335,6 +335,29 @@ def test_other_feet_are_forbidden_and_legs_do_not_cross() -> None:
     assert not legs_cross(HIP, c.footprint[None, :2], other_hip, other)[0]
 
 
+def test_a_foot_box_keeps_off_the_other_feet_soles_not_their_whole_boxes() -> None:
+    """A foot with long toes (a large box) stands on a small sole: another foot may land with
+    its box beside that sole, nearer than two boxes, never with its box over it."""
+    w = window()
+    pref = np.array([0.35, 0.0])  # a cell centre
+    other_foot = np.array([[0.35, 0.28]])  # two boxes (0.2) and a cell or so beside it
+    other_hip = np.array([[0.35, 0.4]])
+    long_toes = replace(P, foot_half_extents=(0.1, 0.1))
+    on_soles = replace(long_toes, sole_half_extents=(0.02, 0.02))
+    boxes = plan(w, tuple(pref), long_toes, other_hips=other_hip, other_feet=other_foot)
+    soles = plan(w, tuple(pref), on_soles, other_hips=other_hip, other_feet=other_foot)
+    # kept two boxes apart, the foot moves off its preferred footprint, away from the other;
+    # kept a box and a sole apart, it lands there
+    assert boxes.ok
+    assert boxes.footprint[1] < -1e-9
+    assert soles.ok
+    np.testing.assert_allclose(soles.footprint[:2], pref, atol=1e-9)
+    assert np.max(np.abs(soles.footprint[:2] - other_foot[0])) >= 0.1 + 0.02
+    # the same with the batch planner
+    rq = FootRequest(w, START, pref, HIP, other_hip, other_foot, on_soles)
+    _same_couple(plan_footsteps([rq])[0], soles)
+
+
 def test_legs_cross_is_a_proper_segment_intersection() -> None:
     hip = np.array([0.0, 0.0])
     feet = np.array([[1.0, 1.0], [1.0, -1.0], [1.0, 0.2]])
@@ -379,6 +402,8 @@ BATCH_SETTINGS = [
     replace(P, max_couples_after_first=0, slice_size=None),
     replace(P, max_couples_after_first=1, slice_size=0.15),
     replace(P, slice_size=0.05, foot_half_extents=(0.05, 0.02)),
+    # long toes on a small sole: other feet forbidden as their soles only
+    replace(P, foot_half_extents=(0.12, 0.09), sole_half_extents=(0.02, 0.02)),
     replace(P, exhaustive=True, candidate_radius=0.1),
     replace(P, shared_wavefront=False, candidate_radius=0.1),
     replace(P, los_shortcut=False, candidate_radius=0.15),

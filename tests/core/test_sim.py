@@ -124,6 +124,33 @@ def test_same_inputs_give_identical_arrays() -> None:
     assert not np.array_equal(a.needle, c.needle)
 
 
+def test_each_end_effector_stands_its_foot_lift_above_the_ground() -> None:
+    """A rig's end-effectors of different heights above their soles (``foot_lift``): planted,
+    each stands its own lift above the ground its foot is planned on, the IK targets too; a
+    lift of zero walks exactly as none."""
+    from dataclasses import replace
+
+    env = flat()
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    controls = Controls(speed=0.3, heading=0.0, step_height=0.05)
+    lift = np.where(np.arange(m.n_legs) % 2 == 0, 0.0, 0.03)
+
+    def run(mm: morph.Morphology) -> SimResult:
+        return Simulation(env, [mm], gait, controls=controls).run(40)
+
+    lifted = run(replace(m, foot_lift=lift))
+    planted = lifted.contact
+    heights = np.broadcast_to(lift, planted.shape)[planted]
+    np.testing.assert_allclose(lifted.end_effector[..., 2][planted], heights, atol=1e-4)
+    np.testing.assert_allclose(lifted.foot[..., 2][planted], heights, atol=1e-12)
+    assert check_motion(lifted, env).passed
+    plain, zero = run(m), run(replace(m, foot_lift=np.zeros(m.n_legs)))
+    for name in ("pelvis_position", "joints", "foot", "contact"):
+        assert np.array_equal(getattr(plain, name), getattr(zero, name)), name
+    assert not np.array_equal(plain.joints, lifted.joints)
+
+
 def test_spider_on_a_heightmap_with_static_and_moving_crates() -> None:
     env, centers = bumpy_with_crates()
     m = morph.spider()

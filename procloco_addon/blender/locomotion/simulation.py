@@ -259,7 +259,7 @@ def run(job: Job) -> Iterator[float]:
         joints[f] = res.joints
         ik_error[f] = res.error
         swing[f] = sim.swinging
-        feet[f] = sim.foot
+        feet[f] = sim.ik_targets()
         needle[f] = float(sim.gait.needle[0])
         phase_rate[f] = float(sim.gait.rate()[0])
         forced[f] = sim.forced

@@ -22,7 +22,8 @@ def morphology_of(
 
     The end-effectors are the core's feet. A leg whose foot bones hold its end-effector above
     the ground (a human's ankle) is handled by the caller, which raises the terrain the core
-    sees by :attr:`RigInfo.foot_height` (see ``locomotion.generate``). With a
+    sees by the mean :attr:`RigInfo.foot_height` (see ``locomotion.generate``); each leg's
+    ``foot_lift`` is its own foot height's difference from that mean. With a
     :attr:`RigInfo.spine_layout` the morphology has the flexible spine
     (``Morphology.with_spine``) with these per-joint limits (radians).
     """
@@ -34,15 +35,25 @@ def morphology_of(
         raise RigError("The hips are not above the feet: the rig must stand on its legs in its rest pose")
     lo, hi = hips[:, :2].min(axis=0), hips[:, :2].max(axis=0)
     reach = float(info.leg_length.mean())
-    # The footprint the planner keeps clear: at least 4 % of the leg, and as far as the foot
-    # bones (toes, paw) reach from the end-effector (its box is centred on the end-effector).
+    # The footprint the planner keeps clear of obstacles and of the other feet's soles: at
+    # least 4 % of the leg, and as far as the foot bones (toes, paw, tarsus) reach from the
+    # end-effector (its box is centred on the end-effector), so toes stay out of obstacles.
     foot_half = np.maximum(FOOT_EXTENT_SHARE * info.foot_extent.max(axis=0), 0.04 * reach)
+    # The sole another foot may not land on: the end-effector's own print, the box of a foot
+    # without foot bones. Keeping other feet a whole foot box away instead would keep them two
+    # toe reaches apart: the example ant's tarsi reach 0.37 of its leg, and its hind feet
+    # found no footprint beside the middle ones.
+    sole_half = np.full(2, 0.04 * reach)
     try:
         morph = Morphology.from_rest_joints(
             chains,
             [leg.label for leg in info.legs],
             body_box=(0.5 * (lo + hi), 0.5 * (hi - lo) + 0.1 * reach),
             foot_half_extents=foot_half,
+            sole_half_extents=np.minimum(sole_half, foot_half),
+            # the terrain is raised by the mean foot height (locomotion.generate): each
+            # end-effector stands its own foot height above the ground
+            foot_lift=info.foot_height - float(np.mean(info.foot_height)),
         )
         layout = info.spine_layout
         if layout is not None:
