@@ -34,6 +34,7 @@ import tempfile
 import time
 import tracemalloc
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
@@ -148,6 +149,51 @@ def heavy_terrain(n_frames: int, animated: bool) -> tuple[float, float, float]:
     return t1 - t0, t2 - t1, peak
 
 
+def long_range(n_frames: int) -> dict[str, tuple[float, float]]:
+    """Generate Locomotion and then Bake Secondary Motion (the tail, on the generated walk)
+    over ``n_frames`` frames, the Rigify wolf on a flat 400 m plane: per stage seconds and
+    the peak MB numpy allocated in it (``tracemalloc``), once each."""
+    from procloco_addon.blender.secondary import bake
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, n_frames
+    scene.render.fps = 24
+    bpy.ops.mesh.primitive_plane_add(size=400.0)
+    wolf = creatures.build_wolf(scene)
+    wolf.procloco.speed = 0.5
+    wolf.procloco.turn_rate = 0.05  # in circles of 10 m: the walk stays on the plane
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    wolf.select_set(True)
+    bpy.context.view_layer.objects.active = wolf
+    rows: dict[str, tuple[float, float]] = {}
+
+    def stage(name: str, work: Any) -> Any:
+        tracemalloc.start()
+        t0 = time.perf_counter()
+        out = work()
+        rows[name] = (time.perf_counter() - t0, tracemalloc.get_traced_memory()[1] / 1e6)
+        tracemalloc.stop()
+        return out
+
+    def drain(steps: Any) -> None:
+        for _fraction in steps:
+            pass
+
+    job = stage("generate: read", lambda: generate.prepare(bpy.context, wolf))
+    stage("generate: simulate", lambda: drain(generate.simulate(job)))
+    stage("generate: write", lambda: generate.write(bpy.context, job))
+    bake.suggest_into_settings(wolf)
+    for chain in wolf.procloco_secondary.chains:  # the tail only
+        chain.enabled = chain.root == "spine.003"
+    bjob = stage("bake: read", lambda: bake.prepare(bpy.context, wolf))
+    stage("bake: play the animation", lambda: drain(bake.sample(bpy.context, bjob)))
+    stage("bake: pendulums", lambda: drain(bake.simulate_steps(bjob)))
+    stage("bake: write", lambda: bake.write(bpy.context, bjob))
+    return rows
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -155,9 +201,23 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--heavy-frames", type=int, default=48)
     parser.add_argument("--heavy-only", action="store_true")
+    parser.add_argument("--long-frames", type=int, default=10_000)
+    parser.add_argument("--long-only", action="store_true")
     args = parser.parse_args()
 
     procloco_addon.register()
+    long = long_range(args.long_frames)
+    print(f"Long range: Rigify wolf, Generate then Bake Secondary Motion (tail), {args.long_frames} frames, "
+          "once each")
+    print(f"{'stage':28s} {'seconds':>9s} {'ms/frame':>9s} {'peak MB':>8s}")
+    for name, (sec, peak) in long.items():
+        print(f"{name:28s} {sec:9.2f} {1000 * sec / args.long_frames:9.3f} {peak:8.0f}")
+    gen_s = sum(sec for name, (sec, _) in long.items() if name.startswith("generate"))
+    bake_s = sum(sec for name, (sec, _) in long.items() if name.startswith("bake"))
+    long_result = f"long_generate_s={gen_s:.3f} long_bake_s={bake_s:.3f}"
+    if args.long_only:
+        print(f"RESULT blender {long_result}")
+        return 0
     heavy = {kind: heavy_terrain(args.heavy_frames, kind == "animated") for kind in ("static", "animated")}
     print(f"Heavy terrain: Rigify wolf on a 1M-triangle grid, {args.heavy_frames} frames, once each")
     print(f"{'ground':24s} {'read s':>8s} {'simulate s':>11s} {'total s':>8s} {'peak MB':>8s}")
@@ -167,7 +227,7 @@ def main() -> int:
     print(f"animated / static: time {(ra + sa) / (rs + ss):.2f}x, peak memory {pa / ps:.2f}x")
     heavy_result = f"heavy_static_s={rs + ss:.3f} heavy_animated_s={ra + sa:.3f}"
     if args.heavy_only:
-        print(f"RESULT blender {heavy_result}")
+        print(f"RESULT blender {heavy_result} {long_result}")
         return 0
     best: dict[str, float] = {}
 
@@ -229,7 +289,7 @@ def main() -> int:
     print(f"write step {best['keyframe_insert'] / best['write']:.1f}x faster than with keyframe_insert; "
           f"keys alone {best['insert_keys'] / best['bulk_keys']:.0f}x")
     print(f"RESULT blender total_s={best['operator']:.3f} write_s={best['write']:.3f} "
-          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result}")
+          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result} {long_result}")
     return 0
 
 

@@ -32,8 +32,9 @@ Shapes: ``frames`` ``(F,)``; ``armature`` ``(F, B, 4, 4)`` for the ``bones`` ``(
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import TypeVar
 
 import bpy
 import numpy as np
@@ -43,14 +44,20 @@ from .rig.controls import ControlKey, ControlPlan, Switch
 
 __all__ = [
     "PoseRequest",
+    "Steps",
     "WriteReport",
     "armature_from_basis",
     "basis_from_armature",
     "evaluate_pose",
     "object_moves",
     "object_worlds",
+    "run_steps",
+    "scaled_steps",
     "write_pose",
+    "write_pose_steps",
 ]
+
+_T = TypeVar("_T")
 
 #: Stop correcting controls once every solved bone is this close to its target (metres, in
 #: units of the rig's scale) and turned by less than ``_TOL_ANGLE`` radians.
@@ -142,17 +149,39 @@ def _frame_loop(frames: Sequence[int]) -> Iterator[int]:
         scene.frame_set(old)
 
 
-def object_worlds(obj: bpy.types.Object, frames: np.ndarray) -> np.ndarray:
-    """The object's evaluated world matrix at each frame ``(F, 4, 4)``."""
+#: What the stepwise writers yield: the fraction done; their return value is the result.
+Steps = Generator[float, None, "WriteReport"]
+
+#: Frames evaluated between two progress steps (a step stays well under a tenth of a second).
+_FRAMES_PER_STEP = 32
+
+
+def run_steps(steps: Generator[float, None, _T]) -> _T:
+    """Run a stepwise writer through and return its result."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
+def _object_worlds_steps(obj: bpy.types.Object, frames: np.ndarray) -> Generator[float, None, np.ndarray]:
     out = np.empty((len(frames), 4, 4))
     for f in _frame_loop([int(x) for x in frames]):
         ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
         out[f] = np.array(ev.matrix_world, dtype=np.float64)
+        if f % _FRAMES_PER_STEP == _FRAMES_PER_STEP - 1:
+            yield (f + 1) / len(frames)
     return out
 
 
-def evaluate_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str]) -> np.ndarray:
-    """Evaluated armature-space pose matrices ``(F, n, 4, 4)`` of ``names`` at each frame."""
+def object_worlds(obj: bpy.types.Object, frames: np.ndarray) -> np.ndarray:
+    """The object's evaluated world matrix at each frame ``(F, 4, 4)``."""
+    return run_steps(_object_worlds_steps(obj, frames))
+
+
+def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray,
+                         names: Sequence[str]) -> Generator[float, None, np.ndarray]:
     all_names = [pb.name for pb in obj.pose.bones]
     index = np.array([all_names.index(n) for n in names], dtype=np.int64)
     buf = np.empty(len(all_names) * 16, dtype=np.float32)
@@ -161,7 +190,24 @@ def evaluate_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str
         ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
         ev.pose.bones.foreach_get("matrix", buf)
         out[f] = buf.reshape(-1, 4, 4).transpose(0, 2, 1)[index]
+        if f % _FRAMES_PER_STEP == _FRAMES_PER_STEP - 1:
+            yield (f + 1) / len(frames)
     return out
+
+
+def evaluate_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """Evaluated armature-space pose matrices ``(F, n, 4, 4)`` of ``names`` at each frame."""
+    return run_steps(_evaluate_pose_steps(obj, frames, names))
+
+
+def scaled_steps(steps: Generator[float, None, _T], low: float, high: float) -> Generator[float, None, _T]:
+    """``steps`` with its fractions mapped onto ``[low, high]``."""
+    while True:
+        try:
+            fraction = next(steps)
+        except StopIteration as done:
+            return done.value
+        yield low + (high - low) * fraction
 
 
 def _depth(parents: dict[str, str | None], name: str) -> int:
@@ -316,7 +362,19 @@ def write_pose(
     *, assign: bool = True, replace: bool = False, check: bool = False,
     superseded: list[tuple[bpy.types.Action, bpy.types.Action]] | None = None,
 ) -> WriteReport:
-    """Key ``req`` on ``obj`` into ``action`` following ``plan`` (see the module doc).
+    """:func:`write_pose_steps` run through (same arguments and result)."""
+    return run_steps(write_pose_steps(action, obj, req, plan, assign=assign, replace=replace, check=check,
+                                      superseded=superseded))
+
+
+def write_pose_steps(
+    action: bpy.types.Action, obj: bpy.types.Object, req: PoseRequest, plan: ControlPlan,
+    *, assign: bool = True, replace: bool = False, check: bool = False,
+    superseded: list[tuple[bpy.types.Action, bpy.types.Action]] | None = None,
+) -> Steps:
+    """Key ``req`` on ``obj`` into ``action`` following ``plan`` (see the module doc),
+    yielding the fraction done while it evaluates the rig frame by frame (closed early, the
+    scene gets its frame back; the caller deletes ``action`` and puts back the assignment).
 
     ``action`` is assigned to the object (``assign``, through
     :func:`.actions.assign_generated_action` with ``replace`` and ``superseded``) before the
@@ -328,7 +386,7 @@ def write_pose(
     frames = np.asarray(req.frames, dtype=np.float64)
     armature = np.asarray(req.armature, dtype=np.float64)
     if not req.per_frame and object_moves(obj):
-        worlds = object_worlds(obj, req.frames)
+        worlds = yield from scaled_steps(_object_worlds_steps(obj, req.frames), 0.0, 0.1)
         # The plan is in the world: carry it into each frame's armature space.
         armature = (np.linalg.inv(worlds) @ req.world0[None])[:, None] @ armature
     index = {b: i for i, b in enumerate(req.bones)}
@@ -341,18 +399,19 @@ def write_pose(
     report.keyed = [*direct, *(c.bone for c in controls)]
     if assign:
         actions.assign_generated_action(obj, action, replace=replace, superseded=superseded)
+    yield 0.1
     if controls:
-        _solve_controls(action, obj, frames, armature, req, controls, report, index)
+        yield from _solve_controls(action, obj, frames, armature, req, controls, report, index)
     elif check and req.legs:
-        report.leg_error = _leg_errors(obj, req, armature, index)
+        report.leg_error = yield from scaled_steps(_leg_errors(obj, req, armature, index), 0.1, 1.0)
     return report
 
 
 def _leg_errors(obj: bpy.types.Object, req: PoseRequest, armature: np.ndarray,
-                index: dict[str, int]) -> list[float]:
+                index: dict[str, int]) -> Generator[float, None, list[float]]:
     """Per leg the largest distance (m, armature space) between the evaluated and the planned end."""
     names = list(dict.fromkeys(b for leg in req.legs for b in leg))
-    ev = evaluate_pose(obj, req.frames, names)
+    ev = yield from _evaluate_pose_steps(obj, req.frames, names)
     col = {n: i for i, n in enumerate(names)}
     out = []
     for leg in req.legs:
@@ -365,8 +424,9 @@ def _leg_errors(obj: bpy.types.Object, req: PoseRequest, armature: np.ndarray,
 
 def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, armature: np.ndarray,
                     req: PoseRequest, controls: Sequence[ControlKey], report: WriteReport,
-                    index: dict[str, int]) -> None:
-    """Key ``controls`` by passes of evaluate-and-correct (see the module doc)."""
+                    index: dict[str, int]) -> Generator[float, None, None]:
+    """Key ``controls`` by passes of evaluate-and-correct (see the module doc); yields the
+    fraction done, from 0.1 (each pass a share of the rest; one that converges early ends)."""
     ctrl_names = [c.bone for c in controls]
     anchors = list(dict.fromkeys(c.anchor for c in controls))
     leg_ids = sorted({c.leg for c in controls if c.leg >= 0})
@@ -386,7 +446,9 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
     located = [c.mode != "TURN" for c in controls]
     for p in range(_MAX_PASSES + 1):
         _key(action, obj, frames, ctrl_names, basis, located)
-        ev = evaluate_pose(obj, req.frames, names)
+        share = 0.9 / (_MAX_PASSES + 1)
+        ev = yield from scaled_steps(_evaluate_pose_steps(obj, req.frames, names), 0.1 + p * share,
+                                0.1 + (p + 1) * share)
         report.passes = p + 1
         got_joints = {k: _joints(ev[:, [col[b] for b in chains[k]]], lengths[k]) for k in leg_ids}
         report.leg_error = [float(np.linalg.norm(got_joints[k][:, -1] - want_joints[k][:, -1], axis=-1).max())

@@ -21,7 +21,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -557,31 +557,54 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
 
 
 def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types.Action]:
+    """:func:`write_all_steps` run through."""
+    return pose_writer.run_steps(write_all_steps(context, jobs))
+
+
+def write_all_steps(context: bpy.types.Context,
+                    jobs: Sequence[Job]) -> Generator[float, None, list[bpy.types.Action]]:
     """Write every job's result as a new Action on its rig and assign it: all or nothing.
+    Yields the fraction done; returns the new Actions.
 
     Each Action is keyed and assigned in turn (the controls of a control rig are solved
     through the evaluated rig, so its Action must be assigned while it is written); when
-    anything fails, the Actions made so far are deleted, every rig gets back what it had, and
-    the error is raised. A rig's earlier generated Action is superseded (deleted, its name
-    taken over) once all are written, unless the animator kept it (fake user, NLA, another
-    object).
+    anything fails, or the steps are closed before the end (Esc), the Actions made so far are
+    deleted, every rig gets back what it had (its Action, slot and pose), and an error is
+    raised again. A rig's earlier generated Action is superseded (deleted, its name taken
+    over) once all are written, unless the animator kept it (fake user, NLA, another object).
     """
     made: list[bpy.types.Action] = []
     done: list[tuple[bpy.types.Object, actions.Assignment]] = []
     superseded: list[tuple[bpy.types.Action, bpy.types.Action]] = []
+    frame = (context.scene.frame_current, context.scene.frame_subframe)
     try:
-        for job in jobs:
+        for k, job in enumerate(jobs):
             obj = bpy.data.objects[job.obj_name]
             done.append((obj, actions.remember_assignment(obj)))
             current = actions.generated_action(obj)
             # A re-generation supersedes the earlier walk, never a bake layered on one.
             own = current is not None and _SECONDARY_SOURCE not in current
-            made.append(_keyed_action(context, job, own, superseded))
-    except Exception:
+            steps = _keyed_action_steps(context, job, own, superseded)
+            while True:
+                try:
+                    fraction = next(steps)
+                except StopIteration as finished:
+                    made.append(finished.value)
+                    break
+                try:
+                    yield (k + fraction) / len(jobs)
+                except BaseException:
+                    steps.close()  # this rig's Action deleted, its pose put back
+                    raise
+    except BaseException:  # an error, or closed early (GeneratorExit): nothing is left
+        for action, (obj, _memo) in zip(made, done, strict=False):
+            actions.restore_pose(obj, action)
         for obj, memo in reversed(done):
             actions.undo_assignment(obj, memo)
         for action in made:
             bpy.data.actions.remove(action)
+        # the Actions given back animate the rig again as they did
+        context.scene.frame_set(frame[0], subframe=frame[1])
         raise
     actions.delete_superseded(superseded)
     return made
@@ -591,21 +614,27 @@ def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types
 _SECONDARY_SOURCE = "_procloco_secondary_source"
 
 
-def _keyed_action(context: bpy.types.Context, job: Job, replace: bool,
-                  superseded: list[tuple[bpy.types.Action, bpy.types.Action]]) -> bpy.types.Action:
+def _keyed_action_steps(
+    context: bpy.types.Context, job: Job, replace: bool,
+    superseded: list[tuple[bpy.types.Action, bpy.types.Action]],
+) -> Generator[float, None, bpy.types.Action]:
     """A new generated Action holding ``job.result``, keyed on the rig's bones or their
     controls (:mod:`..pose_writer`) and assigned to the rig (``replace``, ``superseded``: see
-    :func:`.actions.assign_generated_action`). On failure the Action is deleted; the caller
-    puts back the rig's assignment."""
+    :func:`.actions.assign_generated_action`); yields the fraction done. On failure (or closed
+    early) the Action is deleted and the rig's pose put back; the caller puts back the rig's
+    assignment."""
     from . import simulation
 
     t0 = time.perf_counter()
     obj = bpy.data.objects[job.obj_name]
     body_world, joints_world = simulation.world_tracks(job)
     leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
-    tracks = rig.solve_pose(job.info, body_world, joints_world, ground=simulation.ground_function(job),
-                            spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
-                            planted=~np.asarray(job.result.swing, dtype=bool))
+    # Solving the pose is the first half of the work (numpy over every frame), keying and
+    # checking it on the evaluated rig the second.
+    tracks = yield from pose_writer.scaled_steps(rig.solve_pose_steps(
+        job.info, body_world, joints_world, ground=simulation.ground_function(job),
+        spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
+        planted=~np.asarray(job.result.swing, dtype=bool)), 0.0, 0.5)
     info = job.info
     plan = job.plan
     if plan is None:
@@ -633,11 +662,13 @@ def _keyed_action(context: bpy.types.Context, job: Job, replace: bool,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
         keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
         actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
-        report = pose_writer.write_pose(action, obj, request, plan, check=job.check_after,
-                                        replace=replace, superseded=superseded)
+        report = yield from pose_writer.scaled_steps(pose_writer.write_pose_steps(
+            action, obj, request, plan, check=job.check_after, replace=replace, superseded=superseded),
+            0.5, 1.0)
         if job.auto_gait is not None:
             rig_gait.store_auto_track(action, simulation.auto_track(job))
-    except Exception:
+    except BaseException:  # an error, or closed early (Esc)
+        actions.restore_pose(obj, action)
         bpy.data.actions.remove(action)
         raise
     off = [(leg.label, err * info.scale) for leg, err in zip(info.legs, report.leg_error, strict=False)

@@ -104,6 +104,7 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
     _cancelled_message: ClassVar[str] = "Generation cancelled: nothing was changed"
     _run_errors: ClassVar[tuple[type[Exception], ...]] = (generate.GenerateError,)
     _jobs: list[generate.Job]
+    _made: list[Any]
 
     @classmethod
     def poll(cls, context: Any) -> bool:
@@ -119,11 +120,7 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
         return True
 
     def _finish(self, context: Any) -> set[str]:
-        try:
-            made = generate.write_all(context, self._jobs)
-        except Exception as err:
-            self.report({"ERROR"}, f"Could not write the Actions (nothing was changed): {err}")
-            return {"CANCELLED"}
+        made = self._made
         for job in self._jobs:
             for warning in job.warnings:
                 self.report({"WARNING"}, f"{job.obj_name}: {warning}")
@@ -139,4 +136,20 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
                 yield f"{job.obj_name}: reading the terrain", 0.1 * (k + fraction) / n
         for k, job in enumerate(self._jobs):
             for fraction in generate.simulate(job):
-                yield job.obj_name, 0.1 + 0.9 * (k + fraction) / n
+                yield job.obj_name, 0.1 + 0.8 * (k + fraction) / n
+        # Writing is the last tenth; Esc there deletes what was written and gives every rig
+        # back its Action and pose (generate.write_all_steps).
+        steps = generate.write_all_steps(context, self._jobs)
+        try:
+            while True:
+                try:
+                    fraction = next(steps)
+                except StopIteration as done:
+                    self._made = done.value
+                    return
+                yield "writing the Actions", 0.9 + 0.1 * fraction
+        except GeneratorExit:
+            steps.close()
+            raise
+        except Exception as err:
+            raise generate.GenerateError(f"Could not write the Actions (nothing was changed): {err}") from err

@@ -60,7 +60,15 @@ from .detect import LegChain
 from .info import BodyInfo, RigInfo, SpineLayout
 from .morphology import FOOT_EXTENT_SHARE, morphology_of
 from .names import HELPER_WORDS, LEG_WORDS, split_name
-from .pose import GroundFn, PoseTracks, _bend_normal, _frames, matrix_to_quaternion, solve_pose
+from .pose import (
+    GroundFn,
+    PoseTracks,
+    _bend_normal,
+    _frames,
+    matrix_to_quaternion,
+    solve_pose,
+    solve_pose_steps,
+)
 from .rest import RigError, _unit, uniform_scale
 
 if TYPE_CHECKING:
@@ -87,6 +95,7 @@ __all__ = [
     "morphology_of",
     "read_rig",
     "solve_pose",
+    "solve_pose_steps",
     "split_name",
     "uniform_scale",
 ]

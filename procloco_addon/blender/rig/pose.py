@@ -4,7 +4,7 @@ joint positions, spine rotations) into pose-bone ``matrix_basis`` channels."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -195,6 +195,29 @@ def solve_pose(
     leg_frames: np.ndarray | None = None,
     planted: np.ndarray | None = None,
 ) -> PoseTracks:
+    """:func:`solve_pose_steps` run through (same arguments and result)."""
+    steps = solve_pose_steps(info, body_world, joints_world, ground, max_foot_pitch,
+                             spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
+                             planted=planted)
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
+
+
+def solve_pose_steps(
+    info: RigInfo,
+    body_world: np.ndarray,
+    joints_world: Sequence[np.ndarray],
+    ground: GroundFn | None = None,
+    max_foot_pitch: float = np.radians(50.0),
+    *,
+    spine_rotation: np.ndarray | None = None,
+    spine_joints: np.ndarray | None = None,
+    leg_frames: np.ndarray | None = None,
+    planted: np.ndarray | None = None,
+) -> Generator[float, None, PoseTracks]:
     """Pose-bone channels that put the rig where the core says, frame by frame.
 
     body_world: ``(F, 4, 4)`` rigid body-to-world transforms (the body frame of
@@ -220,6 +243,11 @@ def solve_pose(
     """
     body_world = np.asarray(body_world, dtype=np.float64)
     n_frames = body_world.shape[0]
+    # Yields the fraction done after each leg and each bone (each step's work grows with the
+    # frame count only: a long range shows progress and can stop between two of them).
+    order = _hierarchy_order(info, info.driven_bones)  # parents before children
+    n_steps = len(info.legs) + len(order) + 1
+    done = 0
     delta = body_world @ np.linalg.inv(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
     delta_rot = delta[:, :3, :3]
     body_rest_t = info.body.matrix[:3, :3].T  # world rest -> body frame
@@ -282,6 +310,8 @@ def solve_pose(
             desired[name] = f_cur @ np.swapaxes(f_rest, -1, -2)[None] @ rest_rot[name]
         if leg.foot:
             desired[leg.foot[0]] = foot_yaw[:, k] @ rest_rot[leg.foot[0]]
+        done += 1
+        yield done / n_steps
 
     # Bones that IK constraints pull the legs to: placed where the simulated joint is,
     # turned with the body's heading.
@@ -295,10 +325,11 @@ def solve_pose(
 
     if ground is not None:
         _pitch_feet(info, joints_world, foot_yaw, rest_rot, desired, ground, max_foot_pitch)
+    done += 1
+    yield done / n_steps
 
     bones = info.driven_bones
     # Armature-space pose matrices, parents before children.
-    order = _hierarchy_order(info, bones)
     pose: dict[str, np.ndarray] = {}
     basis_out: dict[str, np.ndarray] = {}
     for name in order:
@@ -321,6 +352,8 @@ def solve_pose(
             pose[name] = base @ basis
         else:
             pose[name] = base @ info.basis[name][None]
+        done += 1
+        yield done / n_steps
 
     rotations = np.stack([matrix_to_quaternion(_orthonormal(basis_out[b][:, :3, :3])) for b in bones], axis=1)
     locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)

@@ -626,6 +626,12 @@ def simulate_steps(job: Job) -> Generator[float, None, None]:
 
 def write(context: Any, job: Job) -> bpy.types.Action:
     """Simulate and write a new Action on the rig, assigned in place of the source."""
+    return pose_writer.run_steps(write_steps(context, job))
+
+
+def write_steps(context: Any, job: Job) -> Generator[float, None, bpy.types.Action]:
+    """:func:`write`, yielding the fraction done; closed early (Esc) or failing, it deletes
+    the new Action and gives the rig back its Action, slot and pose."""
     obj = bpy.data.objects.get(job.obj_name)
     if obj is None:
         raise BakeError(f"'{job.obj_name}' was deleted during the bake")
@@ -651,10 +657,21 @@ def write(context: Any, job: Job) -> bpy.types.Action:
         rebake = current is not None and actions.is_generated(current) and SECONDARY_SOURCE in current
         request, plan = _pose_request(obj, job, world)
         actions.remember_pose(action, obj, job.bones)
-        pose_writer.write_pose(action, obj, request, plan, replace=rebake)
-    except Exception:
+        memo = actions.remember_assignment(obj)
+        frame = (context.scene.frame_current, context.scene.frame_subframe)
+        superseded: list[tuple[bpy.types.Action, bpy.types.Action]] = []
+        try:
+            yield from pose_writer.write_pose_steps(action, obj, request, plan, replace=rebake,
+                                                    superseded=superseded)
+        except BaseException:
+            actions.restore_pose(obj, action)
+            actions.undo_assignment(obj, memo)
+            context.scene.frame_set(frame[0], subframe=frame[1])
+            raise
+    except BaseException:  # an error, or closed early (Esc)
         bpy.data.actions.remove(action)
         raise
+    actions.delete_superseded(superseded)  # the earlier bake, once this one is written
     job.timings["write_s"] = time.perf_counter() - t0
     return action
 

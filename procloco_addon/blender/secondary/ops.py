@@ -119,6 +119,7 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
     _cancelled_message: ClassVar[str] = "Bake cancelled: nothing was changed"
     _run_errors: ClassVar[tuple[type[Exception], ...]] = (bake.BakeError,)
     _job: bake.Job | None = None
+    _made: Any = None
     _suggested: bool = False
 
     @classmethod
@@ -146,12 +147,7 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
     def _finish(self, context: Any) -> set[str]:
         job = self._job
         assert job is not None
-        try:
-            action = bake.write(context, job)
-        except Exception as err:
-            _take_back_suggestions(self, context)
-            self.report({"ERROR"}, f"Could not write the Action (nothing was changed): {err}")
-            return {"CANCELLED"}
+        action = self._made
         for warning in job.warnings:
             self.report({"WARNING"}, f"{job.obj_name}: {warning}")
         source = f"'{job.source.name}'" if job.source is not None else "the rig's pose (no Action)"
@@ -171,6 +167,21 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
         # The pendulums in slices: progress, and Esc stops them with nothing written.
         for fraction in bake.simulate_steps(job):
             yield "swinging the chains", 0.5 + 0.45 * fraction
+        # Writing: Esc there deletes the new Action and gives the rig back what it had.
+        steps = bake.write_steps(context, job)
+        try:
+            while True:
+                try:
+                    fraction = next(steps)
+                except StopIteration as done:
+                    self._made = done.value
+                    return
+                yield "writing the Action", 0.95 + 0.05 * fraction
+        except GeneratorExit:
+            steps.close()
+            raise
+        except Exception as err:
+            raise bake.BakeError(f"Could not write the Action (nothing was changed): {err}") from err
 
     def _discard(self, context: Any) -> None:
         if self._job is not None:
