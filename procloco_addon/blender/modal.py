@@ -21,10 +21,30 @@ from typing import Any, ClassVar
 
 import bpy
 
-__all__ = ["ProgressOperator", "RemoveActiveItem", "Steps", "poll_armature"]
+__all__ = ["ProgressOperator", "RemoveActiveItem", "Steps", "poll_armature", "steps_with_result"]
 
 #: What ``_run`` returns: progress steps ``(text, fraction 0..1)``.
 Steps = Generator[tuple[str, float], None, None]
+
+
+def steps_with_result(steps: Generator[float, None, Any], text: str, start: float, share: float,
+                      error: type[Exception], what: str) -> Generator[tuple[str, float], None, Any]:
+    """Progress ``(text, start + share * fraction)`` for each fraction ``steps`` yields; returns
+    what ``steps`` returns. Closed early (Esc), it closes ``steps`` (which takes back what it
+    wrote); a failure in ``steps`` becomes ``error("Could not write <what> (nothing was
+    changed): ...")``."""
+    try:
+        while True:
+            try:
+                fraction = next(steps)
+            except StopIteration as done:
+                return done.value
+            yield text, start + share * fraction
+    except GeneratorExit:
+        steps.close()
+        raise
+    except Exception as err:
+        raise error(f"Could not write {what} (nothing was changed): {err}") from err
 
 
 def poll_armature(cls: Any, context: Any, message: str) -> bool:

@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 import bpy
 
 from .. import actions, rig
-from ..modal import ProgressOperator, Steps, poll_armature
+from ..modal import ProgressOperator, Steps, poll_armature, steps_with_result
 from . import generate
 
 __all__ = [
@@ -139,17 +139,6 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
                 yield job.obj_name, 0.1 + 0.8 * (k + fraction) / n
         # Writing is the last tenth; Esc there deletes what was written and gives every rig
         # back its Action and pose (generate.write_all_steps).
-        steps = generate.write_all_steps(context, self._jobs)
-        try:
-            while True:
-                try:
-                    fraction = next(steps)
-                except StopIteration as done:
-                    self._made = done.value
-                    return
-                yield "writing the Actions", 0.9 + 0.1 * fraction
-        except GeneratorExit:
-            steps.close()
-            raise
-        except Exception as err:
-            raise generate.GenerateError(f"Could not write the Actions (nothing was changed): {err}") from err
+        self._made = yield from steps_with_result(generate.write_all_steps(context, self._jobs),
+                                                  "writing the Actions", 0.9, 0.1, generate.GenerateError,
+                                                  "the Actions")

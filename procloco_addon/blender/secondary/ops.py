@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 import bpy
 
-from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature
+from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature, steps_with_result
 from . import bake
 
 __all__ = [
@@ -168,20 +168,8 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
         for fraction in bake.simulate_steps(job):
             yield "swinging the chains", 0.5 + 0.45 * fraction
         # Writing: Esc there deletes the new Action and gives the rig back what it had.
-        steps = bake.write_steps(context, job)
-        try:
-            while True:
-                try:
-                    fraction = next(steps)
-                except StopIteration as done:
-                    self._made = done.value
-                    return
-                yield "writing the Action", 0.95 + 0.05 * fraction
-        except GeneratorExit:
-            steps.close()
-            raise
-        except Exception as err:
-            raise bake.BakeError(f"Could not write the Action (nothing was changed): {err}") from err
+        self._made = yield from steps_with_result(bake.write_steps(context, job), "writing the Action", 0.95,
+                                                  0.05, bake.BakeError, "the Action")
 
     def _discard(self, context: Any) -> None:
         if self._job is not None:
