@@ -191,11 +191,39 @@ def check_motion(m: dict[str, Any]) -> None:
     assert m["foot_drift"] <= 1e-4 * m["leg"], m
 
 
-def walk(obj: Any) -> tuple[generate.Job, dict[str, Any]]:
-    """Detect Legs, then Generate Locomotion with the defaults for ``FRAMES`` frames on a
-    ground plane; the measured numbers."""
-    bpy.ops.mesh.primitive_plane_add(size=200.0, location=(0.0, 0.0, 0.0))
+def _height(obj: Any) -> float:
+    """The rig's height in the world (its bounding box's, after the object's rotation; 4.2
+    gives a rotated armature's ``dimensions`` with a negative size)."""
+    world = np.array(obj.matrix_world)
+    corners = np.array([tuple(c) for c in obj.bound_box]) @ world[:3, :3].T + world[:3, 3]
+    return max(float(np.ptp(corners[:, 2])), 1e-3)
+
+
+def _bumpy_ground(obj: Any) -> Any:
+    """Gently bumpy ground under ``obj`` sized to it: a grid ten rig heights across (1-12 m),
+    bumps of 2 % of the rig's height every two heights, its rest under the rig's feet."""
+    height = _height(obj)
+    size = min(max(10.0 * height, 1.0), 12.0)
+    centre = np.array(obj.matrix_world.translation)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=120, y_subdivisions=120, size=size,
+                                    location=(float(centre[0]), float(centre[1]), 0.0))
     ground = bpy.context.active_object
+    mesh = ground.data
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    k = np.pi / height  # a bump every two heights
+    bumps = np.sin(k * co[:, 0] + 0.3) * np.cos(k * co[:, 1] + 1.1) - np.sin(0.3) * np.cos(1.1)
+    co[:, 2] = 0.02 * height * bumps
+    mesh.vertices.foreach_set("co", co.ravel())
+    mesh.update()
+    return ground
+
+
+def walk(obj: Any) -> tuple[generate.Job, dict[str, Any]]:
+    """Detect Legs, then Generate Locomotion with the defaults for ``FRAMES`` frames on
+    gently bumpy ground (as the issue's users tried them); the measured numbers."""
+    ground = _bumpy_ground(obj)
     _select_only(obj)
     assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
     obj.procloco.use_scene_range = False
@@ -204,7 +232,11 @@ def walk(obj: Any) -> tuple[generate.Job, dict[str, Any]]:
     for _ in generate.simulate(job):
         pass
     generate.write(bpy.context, job)
-    return job, measure(obj, job, ground)
+    m = measure(obj, job, ground)
+    # The feet did meet the bumps: the ground under them spans over 0.5 % of the rig's height.
+    under = ray_heights_over_time([int(f) for f in job.frames], job.result.feet[..., :2], [ground])
+    assert float(np.ptp(under)) > 0.005 * _height(obj), float(np.ptp(under))
+    return job, m
 
 
 def _report(name: str, job: generate.Job, m: dict[str, Any]) -> None:
