@@ -34,11 +34,11 @@ from __future__ import annotations
 
 from collections.abc import Generator, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TypeVar
 
 import bpy
 import numpy as np
 
+from ..core.steps import run_steps, scaled_steps
 from . import actions
 from .rig.controls import ControlKey, ControlPlan, Switch
 
@@ -51,13 +51,10 @@ __all__ = [
     "evaluate_pose",
     "object_moves",
     "object_worlds",
-    "run_steps",
-    "scaled_steps",
     "write_pose",
     "write_pose_steps",
 ]
 
-_T = TypeVar("_T")
 
 #: Stop correcting controls once every solved bone is this close to its target (metres, in
 #: units of the rig's scale) and turned by less than ``_TOL_ANGLE`` radians.
@@ -156,15 +153,6 @@ Steps = Generator[float, None, "WriteReport"]
 _FRAMES_PER_STEP = 32
 
 
-def run_steps(steps: Generator[float, None, _T]) -> _T:
-    """Run a stepwise writer through and return its result."""
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            return done.value
-
-
 def _object_worlds_steps(obj: bpy.types.Object, frames: np.ndarray) -> Generator[float, None, np.ndarray]:
     out = np.empty((len(frames), 4, 4))
     for f in _frame_loop([int(x) for x in frames]):
@@ -198,16 +186,6 @@ def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray,
 def evaluate_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """Evaluated armature-space pose matrices ``(F, n, 4, 4)`` of ``names`` at each frame."""
     return run_steps(_evaluate_pose_steps(obj, frames, names))
-
-
-def scaled_steps(steps: Generator[float, None, _T], low: float, high: float) -> Generator[float, None, _T]:
-    """``steps`` with its fractions mapped onto ``[low, high]``."""
-    while True:
-        try:
-            fraction = next(steps)
-        except StopIteration as done:
-            return done.value
-        yield low + (high - low) * fraction
 
 
 def _depth(parents: dict[str, str | None], name: str) -> int:

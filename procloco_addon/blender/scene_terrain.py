@@ -34,6 +34,7 @@ from typing import Any
 import bpy
 import numpy as np
 
+from ..core.steps import run_steps
 from ..core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Environment, TriangleSoup
 
 __all__ = [
@@ -240,13 +241,7 @@ def build_environment(
     of them (:func:`sample_motion`) and those that really move become dynamic soups.
     Raises :class:`TerrainError` when there is nothing to walk on.
     """
-    steps = build_environment_steps(context, objects, frames, z_offset)
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            result: SceneTerrain = done.value
-            return result
+    return run_steps(build_environment_steps(context, objects, frames, z_offset))
 
 
 def build_environment_steps(
@@ -336,13 +331,7 @@ def sample_motion(
 ) -> dict[str, Motion]:
     """How each object moves over ``frames``: name -> :class:`Motion` (see
     :func:`sample_motion_steps`)."""
-    steps = sample_motion_steps(context, objects, frames)
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            result: dict[str, Motion] = done.value
-            return result
+    return run_steps(sample_motion_steps(context, objects, frames))
 
 
 def _deforms(obj: bpy.types.Object) -> bool:

@@ -104,6 +104,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .steps import run_steps
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -1344,14 +1346,8 @@ def simulate(
 ) -> PendulumResult:
     """Run the pendulums over a sampled animation and return the layered motion
     (:func:`simulate_steps` run to its end; same arguments)."""
-    steps = simulate_steps(forest, times, head_anim, frame_anim, rate_hz=rate_hz, impulses=impulses,
-                           anchor_frame=anchor_frame)
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            result: PendulumResult = done.value
-            return result
+    return run_steps(simulate_steps(forest, times, head_anim, frame_anim, rate_hz=rate_hz, impulses=impulses,
+                                    anchor_frame=anchor_frame))
 
 
 def simulate_steps(

@@ -31,6 +31,7 @@ import numpy as np
 from ...core import autogait
 from ...core import gait as core_gait
 from ...core.morphology import Morphology
+from ...core.steps import run_steps, scaled_steps
 from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait
 from ..rig import controls
@@ -558,7 +559,7 @@ def write(context: bpy.types.Context, job: Job) -> bpy.types.Action:
 
 def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types.Action]:
     """:func:`write_all_steps` run through."""
-    return pose_writer.run_steps(write_all_steps(context, jobs))
+    return run_steps(write_all_steps(context, jobs))
 
 
 def write_all_steps(context: bpy.types.Context,
@@ -631,7 +632,7 @@ def _keyed_action_steps(
     leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
     # Solving the pose is the first half of the work (numpy over every frame), keying and
     # checking it on the evaluated rig the second.
-    tracks = yield from pose_writer.scaled_steps(rig.solve_pose_steps(
+    tracks = yield from scaled_steps(rig.solve_pose_steps(
         job.info, body_world, joints_world, ground=simulation.ground_function(job),
         spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
         planted=~np.asarray(job.result.swing, dtype=bool)), 0.0, 0.5)
@@ -662,7 +663,7 @@ def _keyed_action_steps(
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
         keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
         actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
-        report = yield from pose_writer.scaled_steps(pose_writer.write_pose_steps(
+        report = yield from scaled_steps(pose_writer.write_pose_steps(
             action, obj, request, plan, check=job.check_after, replace=replace, superseded=superseded),
             0.5, 1.0)
         if job.auto_gait is not None:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.steps import run_steps
 from .info import RigInfo
 from .rest import _UP, _apply, _unit
 
@@ -199,11 +200,7 @@ def solve_pose(
     steps = solve_pose_steps(info, body_world, joints_world, ground, max_foot_pitch,
                              spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
                              planted=planted)
-    while True:
-        try:
-            next(steps)
-        except StopIteration as done:
-            return done.value
+    return run_steps(steps)
 
 
 def solve_pose_steps(

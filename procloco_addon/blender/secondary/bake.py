@@ -46,6 +46,7 @@ import bpy
 import numpy as np
 
 from ...core import pendulum as pend
+from ...core.steps import run_steps
 from .. import actions, pose_writer, rig, validate
 from ..locomotion import property_group as locomotion_props
 from ..rig import controls
@@ -626,7 +627,7 @@ def simulate_steps(job: Job) -> Generator[float, None, None]:
 
 def write(context: Any, job: Job) -> bpy.types.Action:
     """Simulate and write a new Action on the rig, assigned in place of the source."""
-    return pose_writer.run_steps(write_steps(context, job))
+    return run_steps(write_steps(context, job))
 
 
 def write_steps(context: Any, job: Job) -> Generator[float, None, bpy.types.Action]:
