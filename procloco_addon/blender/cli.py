@@ -53,7 +53,7 @@ from .locomotion import generate
 from .locomotion import property_group as locomotion_props
 from .secondary import bake
 
-__all__ = ["contact_sheet", "main", "register", "render_frames", "unregister"]
+__all__ = ["contact_sheet", "image_pixels", "main", "register", "render_frames", "unregister"]
 
 COMMAND = "procloco"
 _handle: Any = None
@@ -506,6 +506,19 @@ def render_frames(
             bpy.data.cameras.remove(data)
 
 
+def image_pixels(path: Path) -> np.ndarray:
+    """The RGBA pixels ``(h, w, 4)`` of the image file at ``path`` (row 0 at the bottom),
+    read through Blender."""
+    img = bpy.data.images.load(str(path), check_existing=False)
+    try:
+        w, h = img.size
+        px = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+    return px.reshape(h, w, 4)
+
+
 def contact_sheet(files: Sequence[Path], out: Path, columns: int = 4, max_tiles: int = 12) -> Path:
     """Tile up to ``max_tiles`` evenly spaced images of ``files`` into one PNG at ``out``."""
     if not files:
@@ -514,18 +527,13 @@ def contact_sheet(files: Sequence[Path], out: Path, columns: int = 4, max_tiles:
     tiles = []
     size = None
     for k in idx:
-        img = bpy.data.images.load(str(files[k]), check_existing=False)
-        try:
-            w, h = img.size
-            px = np.empty(w * h * 4, dtype=np.float32)
-            img.pixels.foreach_get(px)
-        finally:
-            bpy.data.images.remove(img)
+        tile = image_pixels(files[k])
+        h, w = tile.shape[:2]
         if size is None:
             size = (w, h)
         if (w, h) != size:
             raise CliError("frames of a contact sheet must have one size")
-        tiles.append(px.reshape(h, w, 4))
+        tiles.append(tile)
     assert size is not None
     w, h = size
     cols = min(columns, len(tiles))

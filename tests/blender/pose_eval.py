@@ -12,7 +12,6 @@ Shapes: ``frames`` ``(n_frames,)``; matrices ``(n_frames, n_bones, 4, 4)``; poin
 from __future__ import annotations
 
 from collections.abc import Sequence
-from pathlib import Path
 
 import bpy
 import numpy as np
@@ -149,13 +148,3 @@ def ray_heights_over_time(
     return out
 
 
-def image_pixels(path: Path) -> np.ndarray:
-    """The RGBA pixels ``(h, w, 4)`` of the image file at ``path``, read through Blender."""
-    img = bpy.data.images.load(str(path), check_existing=False)
-    try:
-        w, h = img.size
-        px = np.empty(w * h * 4, dtype=np.float32)
-        img.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(img)
-    return px.reshape(h, w, 4)

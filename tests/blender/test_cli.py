@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender import actions, cli
-from tests.blender.pose_eval import image_pixels
+from procloco_addon.blender.cli import image_pixels
 from tests.blender.scene_state import snapshot
 from tools.examples import creatures
 
