@@ -23,6 +23,8 @@ from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
 from .gait import ui_list as gait_ui_list
+from .live_preview import handler as live_preview_handler
+from .live_preview import ops as live_preview_ops
 from .locomotion import handler as legs_handler
 from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
@@ -41,6 +43,7 @@ CLASSES: tuple[type, ...] = (
     locomotion_ops.PROCLOCO_OT_detect_legs,
     locomotion_ops.PROCLOCO_OT_generate_locomotion,
     locomotion_ops.PROCLOCO_OT_clear_generated_action,
+    live_preview_ops.PROCLOCO_OT_discard_live_preview,
     locomotion_ui_list.PROCLOCO_UL_legs,
     gait_props.PROCLOCO_PG_gait_view,
     biped_props.PROCLOCO_PG_biped_clip,
@@ -107,6 +110,7 @@ def register() -> None:
     cli.register()
     gait_handler.register()
     legs_handler.register()
+    live_preview_handler.register()
 
 
 def unregister() -> None:
@@ -114,6 +118,7 @@ def unregister() -> None:
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):
             delattr(owner, attr)
+    live_preview_handler.unregister()
     legs_handler.unregister()
     gait_handler.unregister()
     for owner, attr, _group in reversed(POINTERS):

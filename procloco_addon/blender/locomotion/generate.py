@@ -353,6 +353,8 @@ class Job:
     warnings: list[str] = field(default_factory=list)
     keyed_bones: tuple[str, ...] = ()
     result: Any = None
+    # While the simulation runs: the results of its first n frames (``simulation.SimResult``).
+    partial: Callable[[int], Any] | None = None
     timings: dict[str, float] = field(default_factory=dict)
     # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
     terrain_objects: tuple[str, ...] = ()
@@ -421,9 +423,11 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError(problem)
     stale = stale_bones(obj)
     try:
-        legs = settings_legs(obj)
-        from_settings = legs is not None
-        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine), at_rest=stale)
+        with rig.reading_once():  # one reading of the rest arrays for every leg and the rig
+            legs = settings_legs(obj)
+            from_settings = legs is not None
+            info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine),
+                                at_rest=stale)
         morph = rig.morphology_of(info, float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
     except rig.RigError as err:
         raise GenerateError(str(err)) from err

@@ -247,6 +247,13 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
     )
     frame_start: IntProperty(name="Start", description="First generated frame", default=1)
     frame_end: IntProperty(name="End", description="Last generated frame", default=250)
+    live_preview: BoolProperty(
+        name="Live Preview",
+        description="Re-generate the walk whenever a setting, the gait circles, the path curve or a terrain "
+        "object changes, without blocking the interface (switching it off keeps the previewed walk "
+        "as the generated Action)",
+        default=False,
+    )
     seed: IntProperty(
         name="Seed",
         description="Seed of every random choice; the same seed gives the same Action",
