@@ -274,7 +274,7 @@ def wake() -> None:
     """Make sure the timer runs (a setting was edited, a file loaded, the panel drew)."""
     if not _state.registered or bpy.app.timers.is_registered(tick):
         return
-    bpy.app.timers.register(tick, first_interval=0.0)
+    bpy.app.timers.register(tick, first_interval=0.0, persistent=True)  # (kept across file loads)
 
 
 def discard(obj: bpy.types.Object) -> None:
