@@ -252,6 +252,27 @@ def test_a_failure_after_the_current_frame_was_shown_gives_the_last_preview_back
     assert snapshot() == before
 
 
+def test_a_failure_in_the_first_regeneration_leaves_an_earlier_walk_as_it_was(
+        wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
+    bpy.ops.procloco.generate_locomotion()
+    bpy.context.scene.frame_set(2)
+    wolf.procloco.live_preview = True
+    before = snapshot()
+    real = generate.write_all_steps
+
+    def failing(context: Any, jobs: Any) -> Any:
+        if jobs[0].frames.size > 1:
+            raise RuntimeError("out of memory")
+        return (yield from real(context, jobs))
+
+    monkeypatch.setattr(preview.generate, "write_all_steps", failing)
+    settle(clock)
+    assert handler.status(wolf).state == "error"
+    assert "out of memory" in handler.status(wolf).text
+    assert snapshot() == before  # the earlier walk assigned, no fake user, no bookkeeping left
+    assert not preview.is_previewing(wolf)
+
+
 def test_switching_off_keeps_the_walk_and_discard_gives_back_the_users_action(wolf: Any,
                                                                               clock: Clock) -> None:
     mine = user_action(wolf)

@@ -141,8 +141,8 @@ def input_signature(context: bpy.types.Context, obj: bpy.types.Object) -> tuple[
 
 def preview_action(obj: bpy.types.Object) -> bpy.types.Action | None:
     """The rig's current Action if Live Preview made it, else None."""
-    action = actions.generated_action(obj)
-    return action if action is not None and action.get(PREVIEW_TAG) == obj.name else None
+    action = actions.generated_action(obj)  # (its tag names the rig; a renamed rig's is still its own)
+    return action if action is not None and action.get(PREVIEW_TAG) is not None else None
 
 
 def is_previewing(obj: bpy.types.Object) -> bool:
@@ -168,7 +168,7 @@ def _begin(obj: bpy.types.Object) -> None:
     adt = obj.animation_data
     current = adt.action if adt is not None else None
     if is_previewing(obj):
-        if current is None or current == _base(obj) or current.get(PREVIEW_TAG) == obj.name:
+        if current is None or current == _base(obj) or current.get(PREVIEW_TAG) is not None:
             return
         _release_base(obj, None)
     obj[_HAS_BASE] = 1
@@ -322,6 +322,7 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
     yield "reading the terrain", 0.0
     for fraction in _read_terrain(context, job, cache, signature[1]):
         yield "reading the terrain", 0.1 * fraction
+    began = not is_previewing(obj)
     _begin(obj)
     memo = actions.remember_assignment(obj)
     before = memo.action
@@ -348,10 +349,12 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
             bpy.data.actions.remove(early)
         elif before is not None:
             before.use_fake_user = memo.fake_user
+        if began:  # the first regeneration of this preview: the rig as it was, bookkeeping included
+            _release_base(obj, None)
         raise
     _mark(made[0], signature[0], partial=False)
     if before is not None and before != _base(obj):
         before.use_fake_user = memo.fake_user
-        if before.get(PREVIEW_TAG) == obj_name:
+        if before.get(PREVIEW_TAG) is not None:
             actions.delete_superseded([(before, made[0])])
     done.append(job)
