@@ -207,6 +207,38 @@ def test_moving_a_terrain_object_regenerates(wolf: Any, clock: Clock) -> None:
     assert len(procloco_actions()) == 1
 
 
+def test_editing_the_path_curve_and_dragging_a_gait_sector_regenerate(wolf: Any, clock: Clock) -> None:
+    from procloco_addon.blender.gait import rig_gait
+
+    curve = bpy.data.curves.new("Path", "CURVE")
+    spline = curve.splines.new("POLY")
+    spline.points.add(1)
+    spline.points[0].co = (0.0, 0.0, 0.0, 1.0)
+    spline.points[1].co = (0.3, -1.5, 0.0, 1.0)
+    path = bpy.data.objects.new("Path", curve)
+    bpy.context.scene.collection.objects.link(path)
+    wolf.procloco.path = path
+    wolf.procloco.gait_mode = "CIRCLES"  # (the viewport gait editor edits the circles, not Auto)
+    wolf.procloco.live_preview = True
+    settle(clock)
+    track = hips_track(wolf)
+    right = track[-1, 0] - track[0, 0]
+    clock.now += 1.0
+    spline.points[1].co = (-0.3, -1.5, 0.0, 1.0)  # the curve edited: its end to the other side
+    bpy.context.view_layer.update()  # the depsgraph handler sees the curve change
+    settle(clock)
+    track = hips_track(wolf)
+    left = track[-1, 0] - track[0, 0]
+    assert right - left > 0.03, (right, left)  # the walk follows the edited curve
+    feet = pose_eval.pose_matrices(wolf, [FRAMES], list(FEET))[0, :, :3, 3]
+    clock.now += 1.0
+    rig_gait.set_leg_sector(wolf, 0, 0.5, 0.3)  # what the viewport gait editor does while dragging
+    settle(clock)
+    moved = pose_eval.pose_matrices(wolf, [FRAMES], list(FEET))[0, :, :3, 3]
+    assert np.max(np.linalg.norm(moved - feet, axis=1)) > 0.01
+    assert len(procloco_actions()) == 1
+
+
 def test_an_error_stops_the_preview_and_changes_nothing(wolf: Any, clock: Clock) -> None:
     wolf.procloco.live_preview = True
     settle(clock)
