@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from . import handler
+from . import handler, preview
 from .ops import PROCLOCO_OT_discard_live_preview
 
 __all__ = ["draw_live_preview"]
@@ -17,7 +17,8 @@ def draw_live_preview(layout: Any, obj: Any) -> None:
     row = layout.row(align=True)
     row.prop(settings, "live_preview", toggle=1, icon="PLAY" if not settings.live_preview else "PAUSE")
     row.operator(PROCLOCO_OT_discard_live_preview.bl_idname, text="", icon="TRASH")
-    handler.wake()
+    if settings.live_preview or preview.is_previewing(obj):
+        handler.wake()  # (the timer stops when no rig is watched; a file loaded without the add-on)
     shown = handler.status(obj)
     col = layout.column(align=True)
     if shown.state == "error":
