@@ -25,6 +25,7 @@ pytestmark = pytest.mark.blender
 FRAMES = 10
 HIPS = "spine.004"  # the wolf metarig's hips
 FEET = ("front_foot.L", "front_foot.R", "foot.L", "foot.R")
+NOT_INPUTS = {"live_preview", "active_leg_index", "active_gait_change_index"}
 
 
 class Clock:
@@ -101,6 +102,42 @@ def user_action(obj: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------------------
+
+
+def test_every_setting_of_the_rig_is_an_input_of_the_preview(wolf: Any) -> None:
+    """A change to any ProcLoco setting (a leg's and a gait change's too) changes what the
+    preview is made from; the toggle and the lists' cursors do not."""
+    scene = bpy.context.scene
+    change = wolf.procloco.gait_changes.add()
+    groups = [wolf.procloco, wolf.procloco.legs[0], change]
+    checked = []
+    for group in groups:
+        for prop in group.bl_rna.properties:
+            key = prop.identifier
+            if prop.is_readonly or prop.type in {"COLLECTION", "POINTER"} or key == "rna_type":
+                continue
+            before = preview.settings_signature(wolf, scene)
+            old = getattr(group, key)
+            if prop.type == "BOOLEAN":
+                new: Any = not old
+            elif prop.type == "ENUM":
+                new = next(item.identifier for item in prop.enum_items if item.identifier != old)
+            elif prop.type == "STRING":
+                new = old + "x"
+            elif getattr(prop, "is_array", False):
+                new = tuple(v + 0.25 for v in old)
+            else:
+                step = 1 if prop.type == "INT" else 0.25
+                new = old + step if old + step <= prop.hard_max else old - step
+            setattr(group, key, new)
+            changed = preview.settings_signature(wolf, scene) != before
+            setattr(group, key, old)
+            assert changed == (key not in NOT_INPUTS), key
+            checked.append(key)
+    assert {"speed", "swing_start", "offset", "transition_time", "use_spine", "gait_mode"} <= set(checked)
+    before = preview.settings_signature(wolf, scene)
+    wolf.procloco.path = bpy.data.objects["Ground"]
+    assert preview.settings_signature(wolf, scene) != before
 
 
 def test_a_settings_change_regenerates_and_supersedes_the_last_preview(wolf: Any, clock: Clock) -> None:
