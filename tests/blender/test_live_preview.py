@@ -438,3 +438,22 @@ def _generate_panel() -> type:
     from procloco_addon.blender.ui.main import PROCLOCO_PT_generate
 
     return PROCLOCO_PT_generate
+
+
+def test_generate_clicked_during_a_preview_becomes_its_new_base(wolf: Any, clock: Clock) -> None:
+    wolf.procloco.live_preview = True
+    settle(clock)
+    bpy.ops.procloco.generate_locomotion()  # supersedes the preview Action, as any earlier walk
+    clicked = actions.generated_action(wolf)
+    assert preview.preview_action(wolf) is None
+    settle(clock)
+    assert handler.status(wolf).state == "idle"
+    assert any("not a preview" in text for text in draw_panel(_generate_panel()).labels())
+    clock.now += 1.0
+    wolf.procloco.speed = 1.2
+    settle(clock)
+    assert preview.preview_action(wolf) is not None
+    assert clicked.name in bpy.data.actions  # kept for Discard Preview
+    wolf.procloco.live_preview = False
+    settle(clock)
+    assert procloco_actions() == [actions.generated_action(wolf)]  # kept: the clicked walk superseded

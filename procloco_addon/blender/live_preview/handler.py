@@ -103,7 +103,7 @@ _state = _State()
 @dataclass(frozen=True)
 class Status:
     """What the panel shows for a rig: ``state`` is ``"off"``, ``"waiting"``, ``"running"``,
-    ``"ready"`` or ``"error"``."""
+    ``"ready"``, ``"idle"`` (on, but the rig's Action is not a preview) or ``"error"``."""
 
     state: str
     text: str = ""
@@ -121,8 +121,10 @@ def status(obj: bpy.types.Object) -> Status:
         return Status("error", watch.error[1])
     if not obj.procloco.live_preview:
         return Status("off")
-    if watch is None or watch.due is not None or preview.preview_action(obj) is None:
+    if watch is None or watch.due is not None:
         return Status("waiting")
+    if preview.preview_action(obj) is None:  # e.g. Generate Locomotion clicked meanwhile
+        return Status("idle")
     return Status("ready", warnings=tuple(watch.warnings))
 
 

@@ -29,6 +29,8 @@ def draw_live_preview(layout: Any, obj: Any) -> None:
         col.label(text=f"Updating: {shown.text} {int(100 * shown.fraction)}%", icon="SORTTIME")
     elif shown.state == "waiting":
         col.label(text="Waiting for the edits to settle", icon="TIME")
+    elif shown.state == "idle":
+        col.label(text="The rig's Action is not a preview: edit a setting to preview again", icon="INFO")
     elif shown.state == "ready":
         col.label(text="Up to date. Off keeps this walk", icon="CHECKMARK")
         for warning in shown.warnings[:2]:
