@@ -457,3 +457,26 @@ def test_generate_clicked_during_a_preview_becomes_its_new_base(wolf: Any, clock
     wolf.procloco.live_preview = False
     settle(clock)
     assert procloco_actions() == [actions.generated_action(wolf)]  # kept: the clicked walk superseded
+
+
+def test_a_file_saved_in_the_middle_of_a_regeneration_leaves_no_preview_behind(
+        wolf: Any, clock: Clock, tmp_path: Any) -> None:
+    wolf.procloco.live_preview = True
+    settle(clock)
+    bpy.context.scene.frame_set(3)
+    clock.now += 1.0
+    wolf.procloco.speed = 1.2
+    for _ in range(500):  # until the current frame's pose is shown, the rest still to come
+        handler.tick()
+        clock.now += 0.01
+        if wolf.animation_data.action.get(preview.PARTIAL_TAG):
+            break
+    # the last whole walk is kept meanwhile, by a fake user
+    assert len([a for a in bpy.data.actions if a.get(preview.PREVIEW_TAG)]) == 2
+    path = str(tmp_path / "midway.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Wolf"]
+    settle(clock)
+    assert [a for a in bpy.data.actions if a.get(preview.PREVIEW_TAG)] == [obj.animation_data.action]
+    assert preview.up_to_date(obj, preview.input_signature(bpy.context, obj)[0])

@@ -226,10 +226,12 @@ def discard(obj: bpy.types.Object) -> None:
 
 
 def sweep(rig_name: str) -> None:
-    """Delete the preview Actions of ``rig_name`` that nothing uses (left by an undo or a
-    file saved in the middle of a regeneration)."""
+    """Delete the preview Actions of ``rig_name`` that nothing but a fake user keeps (left by
+    an undo or a file saved in the middle of a regeneration, when the previous preview Action
+    is kept by a fake user until the new one is written). A preview Action is ProcLoco's until
+    it is kept."""
     for action in list(bpy.data.actions):
-        if action.get(PREVIEW_TAG) == rig_name and action.users == 0 and not action.use_fake_user:
+        if action.get(PREVIEW_TAG) == rig_name and action.users - int(action.use_fake_user) == 0:
             bpy.data.actions.remove(action)
 
 
