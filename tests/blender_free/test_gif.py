@@ -56,6 +56,15 @@ def _lzw_decode(data: bytes, min_code_size: int) -> list[int]:
     return out
 
 
+def _sub_blocks(gif: bytes, pos: int) -> tuple[bytes, int]:
+    """The data of the sub-blocks starting at ``pos``, and the position after their end."""
+    data = b""
+    while gif[pos]:
+        data += gif[pos + 1:pos + 1 + gif[pos]]
+        pos += 1 + gif[pos]
+    return data, pos + 1
+
+
 def decode(gif: bytes) -> dict[str, Any]:
     """Frames ``(n, h, w, 3)`` uint8 as a viewer composes them, delays, loop flag, rectangles."""
     assert gif[:6] == b"GIF89a"
@@ -74,12 +83,7 @@ def decode(gif: bytes) -> dict[str, Any]:
             break
         if block == 0x21:
             label = gif[pos + 1]
-            pos += 2
-            body = b""
-            while gif[pos]:
-                body += gif[pos + 1:pos + 1 + gif[pos]]
-                pos += 1 + gif[pos]
-            pos += 1
+            body, pos = _sub_blocks(gif, pos + 2)
             if label == 0xF9:
                 packed, delay, tindex = struct.unpack("<BHB", body[:4])
                 transparent = tindex if packed & 1 else None
@@ -92,12 +96,7 @@ def decode(gif: bytes) -> dict[str, Any]:
         assert fflags == 0  # no local table, not interlaced
         pos += 10
         min_code = gif[pos]
-        pos += 1
-        data = b""
-        while gif[pos]:
-            data += gif[pos + 1:pos + 1 + gif[pos]]
-            pos += 1 + gif[pos]
-        pos += 1
+        data, pos = _sub_blocks(gif, pos + 1)
         idx = np.array(_lzw_decode(data, min_code), dtype=np.int64)
         assert idx.size == fw * fh, (idx.size, fw, fh)
         idx = idx.reshape(fh, fw)
