@@ -35,6 +35,7 @@ from .secondary import panel as secondary_panel
 from .secondary import property_group as secondary_props
 from .secondary import ui_list as secondary_ui_list
 from .ui import main as ui_main
+from .ui import menu as ui_menu
 
 CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
@@ -84,6 +85,8 @@ CLASSES: tuple[type, ...] = (
     ui_main.PROCLOCO_PT_effects,
     locomotion_panel.PROCLOCO_PT_spine,
     ui_main.PROCLOCO_PT_generate,
+    ui_menu.PROCLOCO_MT_lists,
+    ui_menu.PROCLOCO_MT_animation,
 )
 
 # (owner ID type, attribute name, property) for plain properties (not groups)
@@ -111,9 +114,11 @@ def register() -> None:
     gait_handler.register()
     legs_handler.register()
     live_preview_handler.register()
+    ui_menu.register()
 
 
 def unregister() -> None:
+    ui_menu.unregister()
     cli.unregister()
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):
