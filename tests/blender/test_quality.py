@@ -282,6 +282,26 @@ def test_a_bad_setup_shows_its_figures_above_the_thresholds(procloco_registered:
     assert rows["slide"].alert == (panel["slide"][0] > measure.LIMITS["slide"])
 
 
+def test_a_failed_measurement_leaves_the_walk_and_says_so(procloco_registered: Any,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    from procloco_addon.blender import actions
+    from procloco_addon.core.steps import run_steps
+
+    wolf = _scene_with_wolf()
+    wolf.procloco.frame_end = 8
+    job = _plan(wolf)
+
+    def broken(context: Any, job: Any) -> Any:
+        raise RuntimeError("no ground today")
+        yield 0.0
+
+    monkeypatch.setattr(measure, "measure_steps", broken)
+    made = run_steps(generate.write_all_steps(bpy.context, [job], measure=True))
+    assert actions.generated_action(wolf) == made[0]
+    assert "could not measure the result: no ground today" in job.warnings
+    assert not wolf.procloco.quality.measured
+
+
 # ---------------------------------------------------------------------------------------
 # The batch command
 

@@ -606,6 +606,7 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
                     raise
         for k, job in enumerate(jobs if measure else ()):
             low = share + (1.0 - share) * k / len(jobs)
+            yield low  # written and assigned; Esc from here on still takes everything back
             try:
                 measured.append((yield from scaled_steps(quality.measure_steps(context, job), low,
                                                          low + (1.0 - share) / len(jobs))))

@@ -114,11 +114,12 @@ def store(obj: bpy.types.Object, action: bpy.types.Action, job: Any, quality: me
 
 
 def clear(obj: bpy.types.Object) -> None:
-    """Forget the figures of ``obj`` (its generated Action was cleared)."""
+    """Forget the figures of ``obj`` (its generated Action was cleared): every value back to
+    its default, as before the first generation."""
     q = obj.procloco.quality
-    q.measured = False
-    q.token = ""
-    q.action = ""
+    for prop in q.bl_rna.properties:
+        if prop.identifier != "rna_type" and not prop.is_readonly:
+            q.property_unset(prop.identifier)
 
 
 def is_current(obj: bpy.types.Object) -> bool:
@@ -134,12 +135,15 @@ def failed(obj: bpy.types.Object, key: str) -> bool:
     return float(getattr(obj.procloco.quality, key)) > LIMITS[key]
 
 
-def value_text(obj: bpy.types.Object, key: str) -> str:
-    """Figure ``key`` of ``obj`` as the panel and the batch command show it."""
+def value_text(obj: bpy.types.Object, key: str, short: bool = False) -> str:
+    """Figure ``key`` of ``obj`` as the batch command shows it (``short``: as the panel
+    does, without the worst hover or stretch of the frame counts)."""
     q = obj.procloco.quality
     value = getattr(q, key)
     if _KIND[key] == "frames":
         text = f"{int(value)} frame{'' if int(value) == 1 else 's'}"
+        if short:
+            return text
         if key == "few_feet_down" and value:
             text += " (over no ground)" if q.hover < 0.0 else f" (hangs {q.hover * 1000:.1f} mm)"
         if key == "over_stretched" and value:

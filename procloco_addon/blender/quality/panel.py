@@ -41,19 +41,17 @@ def draw_quality(layout: Any, obj: Any) -> None:
         split = row.split(factor=0.42, align=True)
         split.label(text=label)
         split = split.split(factor=0.55, align=True)
-        split.label(text=measure.value_text(obj, key))
+        split.label(text=measure.value_text(obj, key, short=True))
         leg = getattr(q, f"{key}_leg")
         sub = split.row(align=True)
         sub.enabled = bool(leg) and current
         text = f"{getattr(q, f'{key}_frame')}" if leg else "-"
         op = sub.operator(PROCLOCO_OT_jump_to_worst_frame.bl_idname, text=text, icon="TIME")
         op.figure = key
-    # The thresholds, short enough for the sidebar: DESIGN.md, "What done means for the motion".
-    col = layout.column(align=True)
-    col.scale_y = 0.8
-    col.label(text="Red above " + ", ".join(measure.limit_text(key)[4:] for key, _l, kind in FIGURES
-                                            if kind == "length") + ";")
-    col.label(text="and at any frame too few feet down or over-stretched")
+    # The thresholds (DESIGN.md, "What done means for the motion"), short enough for the sidebar.
+    limits = [measure.limit_text(key)[4:] for key, _label, kind in FIGURES if kind == "length"]
+    layout.label(text=f"Red above {', '.join(limits)}, or 0 frames")
+
 
 class PROCLOCO_PT_quality(SidebarPanel, bpy.types.Panel):
     """What was measured on the generated walk, each figure with its worst frame"""
