@@ -15,7 +15,7 @@ from bpy.props import EnumProperty
 from . import measure
 from .property_group import FIGURES
 
-__all__ = ["PROCLOCO_OT_jump_to_worst_frame"]
+__all__ = ["PROCLOCO_MT_worst_frames", "PROCLOCO_OT_jump_to_worst_frame"]
 
 _ITEMS = [(key, label, f"The frame where the {label.lower()} is worst") for key, label, _kind in FIGURES]
 
@@ -56,3 +56,14 @@ class PROCLOCO_OT_jump_to_worst_frame(bpy.types.Operator):
         context.scene.frame_set(frame)
         self.report({"INFO"}, f"Frame {frame}: {label.lower()} {measure.value_text(obj, key)} (leg {leg})")
         return {"FINISHED"}
+
+
+class PROCLOCO_MT_worst_frames(bpy.types.Menu):
+    """Go to the frame where a quality figure of the generated walk is worst"""
+
+    bl_idname = "PROCLOCO_MT_worst_frames"
+    bl_label = "Jump to Worst Frame"
+
+    def draw(self, _context: Any) -> None:
+        for key, label, _kind in FIGURES:
+            self.layout.operator(PROCLOCO_OT_jump_to_worst_frame.bl_idname, text=label).figure = key
