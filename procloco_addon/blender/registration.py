@@ -30,6 +30,9 @@ from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
 from .locomotion import property_group as locomotion_props
 from .locomotion import ui_list as locomotion_ui_list
+from .quality import ops as quality_ops
+from .quality import panel as quality_panel
+from .quality import property_group as quality_props
 from .secondary import ops as secondary_ops
 from .secondary import panel as secondary_panel
 from .secondary import property_group as secondary_props
@@ -40,11 +43,13 @@ from .ui import menu as ui_menu
 CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
     locomotion_props.PROCLOCO_PG_gait_change,
+    quality_props.PROCLOCO_PG_quality,
     locomotion_props.PROCLOCO_PG_rig_settings,
     locomotion_ops.PROCLOCO_OT_detect_legs,
     locomotion_ops.PROCLOCO_OT_generate_locomotion,
     locomotion_ops.PROCLOCO_OT_clear_generated_action,
     live_preview_ops.PROCLOCO_OT_discard_live_preview,
+    quality_ops.PROCLOCO_OT_jump_to_worst_frame,
     locomotion_ui_list.PROCLOCO_UL_legs,
     gait_props.PROCLOCO_PG_gait_view,
     biped_props.PROCLOCO_PG_biped_clip,
@@ -85,6 +90,8 @@ CLASSES: tuple[type, ...] = (
     ui_main.PROCLOCO_PT_effects,
     locomotion_panel.PROCLOCO_PT_spine,
     ui_main.PROCLOCO_PT_generate,
+    quality_panel.PROCLOCO_PT_quality,
+    quality_ops.PROCLOCO_MT_worst_frames,
     ui_menu.PROCLOCO_MT_lists,
     ui_menu.PROCLOCO_MT_animation,
 )

@@ -21,6 +21,7 @@ from bpy.props import (
     StringProperty,
 )
 
+from ..quality.property_group import PROCLOCO_PG_quality
 from ..scene_terrain import ROLE_ITEMS
 
 
@@ -340,6 +341,9 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         soft_max=2.0,
         subtype="FACTOR",
     )
+
+    # --- what was measured on the generated walk (quality panel) --------------------
+    quality: PointerProperty(type=PROCLOCO_PG_quality, name="Quality")
 
 
 def frame_range(settings: PROCLOCO_PG_rig_settings, scene: bpy.types.Scene) -> tuple[int, int]:
