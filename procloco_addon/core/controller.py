@@ -95,6 +95,9 @@ IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
 _VOID = NO_SURFACE * 0.5
+#: A change of the needle rate in one step by more than this factor re-makes the pelvis
+#: particles' orbit (see ``Controller.step``).
+RATE_JUMP = 2.0
 
 
 def wrap_angle(a: npt.ArrayLike) -> FloatArray:
@@ -508,6 +511,8 @@ class Controller:
         self.pos[:, 2] = height
         self.physics = PelvisPhysics(self.leg_node, self.n_nodes, params=p.physics)
         self._physics_on = np.asarray(controls.pelvis_physics, dtype=bool).copy()
+        # the needle rate the pelvis particles' orbit was made for (re-made when it jumps)
+        self._physics_rate = self.gait.rate()[self.leg_char].copy()
         pref_nodes = self._spine_start(height)
         if np.any(self._physics_on):
             self.physics.reset(
@@ -871,6 +876,15 @@ class Controller:
             timer.lap("spine")
         physics_on = np.asarray(ctl.pelvis_physics, dtype=bool)
         switched_on = physics_on & ~self._physics_on
+        # The particles' orbit belongs to a needle rate: one much faster or slower at once (a
+        # turn on the spot speeding the gait up from the first frame) leaves them on an orbit
+        # whose flights are sized for the old cycle, metres high on a slow gait's long stance.
+        # Such a jump (over RATE_JUMP in one step) puts them on the new rate's orbit.
+        ratio = rate_leg / np.maximum(self._physics_rate, 1e-12)
+        jumped = np.zeros(self.n_chars, dtype=bool)
+        np.logical_or.at(jumped, self.leg_char, (ratio > RATE_JUMP) | (ratio < 1.0 / RATE_JUMP))
+        switched_on |= physics_on & jumped
+        self._physics_rate = rate_leg.copy()
         if np.any(switched_on):
             self.physics.reset(
                 pref,

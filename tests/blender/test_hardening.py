@@ -610,14 +610,12 @@ def test_a_rig_scaled_as_an_object_walks_as_the_rig_scaled_in_its_bones(empty_sc
         assert np.abs(joints - ref).max() < 1e-4 * leg, key
 
 
-@pytest.mark.xfail(strict=True, reason="a slow walk (under ~0.2 leg lengths/s) turning to a new "
-                   "heading drags its planted feet out of reach: the body turns at the full turn "
-                   "rate, every foot's plan fails (out of reach) and no foot steps for 14 frames "
-                   "(core controller; the example robot at any size; the wolf and the spider at 0.05 m/s "
-                   "keep their feet in reach)")
 def test_a_slow_walk_turning_to_its_heading_keeps_its_feet_in_reach(robot: Any) -> None:
     """The example robot at 0.1 m/s (0.15 leg lengths/s), asked to head 2.1 rad from the way
-    it faces: its feet stay within reach (1 cm) of where the core put them."""
+    it faces: its feet stay within reach (1 cm) of where the core put them, and the pelvis
+    bounces gently. (The turn on the spot speeds its gait up 4.8 times from the first frame;
+    the pelvis particles' orbit, made for the slow cycle, flew the body 1.6 m up until it is
+    re-made for the new rate.)"""
     from tests.blender.test_generate import _measure_on
 
     robot.procloco.speed = 0.1
@@ -630,3 +628,5 @@ def test_a_slow_walk_turning_to_its_heading_keeps_its_feet_in_reach(robot: Any) 
         pass
     m = _measure_on(robot, job, [bpy.data.objects["Ground"]], [])
     assert m["reach"] <= 0.01, m
+    height = job.result.body[:, 2, 3]
+    assert float(np.ptp(height)) < 0.05 * float(job.info.leg_length.mean()), height
