@@ -108,15 +108,19 @@ def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> F
     cy, sy = np.cos(yaw), np.sin(yaw)
     cp, sp = np.cos(pitch), np.sin(pitch)
     cr, sr = np.cos(roll), np.sin(roll)
-    n = yaw.shape[0]
-    rz = np.zeros((n, 3, 3))
-    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = cy, -sy, sy, cy, 1.0
-    # nose up = rotation about -y
-    ry = np.zeros((n, 3, 3))
-    ry[:, 0, 0], ry[:, 0, 2], ry[:, 2, 0], ry[:, 2, 2], ry[:, 1, 1] = cp, -sp, sp, cp, 1.0
-    rx = np.zeros((n, 3, 3))
-    rx[:, 1, 1], rx[:, 1, 2], rx[:, 2, 1], rx[:, 2, 2], rx[:, 0, 0] = cr, -sr, sr, cr, 1.0
-    return np.asarray(rz @ ry @ rx)
+    # Rz(yaw) @ Ry'(pitch, nose up = about -y) @ Rx(roll) multiplied out (the step asks for
+    # these a few times; two stacked 3x3 products cost more than the nine entries)
+    out = np.empty((yaw.shape[0], 3, 3))
+    out[:, 0, 0] = cy * cp
+    out[:, 0, 1] = -sy * cr - cy * sp * sr
+    out[:, 0, 2] = sy * sr - cy * sp * cr
+    out[:, 1, 0] = sy * cp
+    out[:, 1, 1] = cy * cr - sy * sp * sr
+    out[:, 1, 2] = -cy * sr - sy * sp * cr
+    out[:, 2, 0] = sp
+    out[:, 2, 1] = cp * sr
+    out[:, 2, 2] = cp * cr
+    return out
 
 
 def stroke_limits(
@@ -572,7 +576,10 @@ class Controller:
     @staticmethod
     def _rotate_xy(v: FloatArray, yaw: FloatArray) -> FloatArray:
         c, s = np.cos(yaw), np.sin(yaw)
-        return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], axis=1)
+        out = np.empty((v.shape[0], 2))
+        out[:, 0] = c * v[:, 0] - s * v[:, 1]
+        out[:, 1] = s * v[:, 0] + c * v[:, 1]
+        return out
 
     def _surface(self, xy: FloatArray) -> FloatArray:
         h = self.env.height_at(xy)
@@ -584,6 +591,8 @@ class Controller:
 
     def hips_world(self, rot: FloatArray | None = None) -> FloatArray:
         """``(N, 3)`` world hips: the rigid body's, or where the spine put them."""
+        if self.spine_legs.size == self.legs.n_legs:  # every leg on a spine: nothing rigid
+            return np.array(self._spine_hips, copy=True)
         r = self.rotations() if rot is None else rot
         hips = self.pos[self.leg_char] + np.einsum("nij,nj->ni", r[self.leg_char], self.legs.hip_offset)
         if self.spine_groups:
@@ -593,6 +602,8 @@ class Controller:
     def leg_rotations(self) -> FloatArray:
         """``(N, 3, 3)`` body-to-world rotation of the body part each leg hangs from: the
         pelvis, or the leg's spine node (or carrier bone)."""
+        if self.spine_legs.size == self.legs.n_legs:
+            return np.array(self._spine_leg_rot, copy=True)
         rot = self.rotations()[self.leg_char]
         if self.spine_groups:
             rot[self.spine_legs] = self._spine_leg_rot[self.spine_legs]

@@ -183,9 +183,8 @@ class PelvisPhysics:
         n_sub = max(1, math.ceil(float(total.max()) / self.params.max_substep))
         h = total / n_sub
         preferred = self.height.copy()
-        for k in range(n_sub):
-            phase = mid_stance + (k + 0.5) * h * rate_leg
-            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        phases = mid_stance + (np.arange(n_sub)[:, None] + 0.5) * h * rate_leg
+        self._substeps(phases, rate_leg, disk_start, disk_duration, preferred, h)
         # one more cycle, every leg of a node in step, to measure the orbit's mean offset
         n_sub = max(1, math.ceil(float(period.max()) / self.params.max_substep))
         h = period / n_sub
@@ -193,35 +192,37 @@ class PelvisPhysics:
         acc = np.zeros(self.n_nodes)
         for k in range(n_sub):
             phase = needle_leg + (k + 0.5) * h * rate_leg
-            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+            self._substeps(phase[None], rate_leg, disk_start, disk_duration, preferred, h)
             acc += self.node_height() - pref_node
         self.offset = acc / n_sub
 
-    def _substep(
+    def _substeps(
         self,
-        phase: FloatArray,
+        phases: FloatArray,
         rate_leg: FloatArray,
         disk_start: FloatArray,
         disk_duration: FloatArray,
         preferred: FloatArray,
         h: FloatArray | float,
     ) -> None:
+        """Integrate one sub-step of length ``h`` per row of needle ``phases`` ``(K, N)`` (each
+        leg's phase at the middle of the sub-step), in order. What depends on the phases
+        alone (swing or stance, stance progress) is found for all rows at once; only the
+        particles' update runs per sub-step."""
         period = 1.0 / np.maximum(rate_leg, 1e-9)
-        swing = in_swing(phase, disk_start, disk_duration)
-        progress = stance_elapsed(phase, disk_start, disk_duration) / (1.0 - disk_duration)
-        a_foot = foot_acceleration(
-            swing,
-            progress,
-            (1.0 - disk_duration) * period,
-            disk_duration * period,
-            self.height,
-            self.velocity,
-            preferred,
-            self.params.gravity,
-            float(np.max(h)),
-        )
-        self.velocity = self.velocity + (a_foot - self.params.gravity) * h
-        self.height = self.height + self.velocity * h
+        swing = in_swing(phases, disk_start, disk_duration)
+        progress = stance_elapsed(phases, disk_start, disk_duration) / (1.0 - disk_duration)
+        stance_time = (1.0 - disk_duration) * period
+        swing_time = disk_duration * period
+        gravity = self.params.gravity
+        min_time = float(np.max(h))
+        for k in range(phases.shape[0]):
+            a_foot = foot_acceleration(
+                swing[k], progress[k], stance_time, swing_time, self.height, self.velocity, preferred,
+                gravity, min_time,
+            )
+            self.velocity = self.velocity + (a_foot - gravity) * h
+            self.height = self.height + self.velocity * h
 
     def step(
         self,
@@ -242,9 +243,8 @@ class PelvisPhysics:
         h = dt / n_sub
         pref_node = np.asarray(preferred_node_height, dtype=np.float64)
         preferred = pref_node[self.leg_node]
-        for k in range(n_sub):
-            phase = needle_leg + (k + 0.5) * h * rate_leg
-            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        phases = needle_leg + (np.arange(n_sub)[:, None] + 0.5) * h * rate_leg
+        self._substeps(phases, rate_leg, disk_start, disk_duration, preferred, h)
         # running mean of the offset over about two cycles of each node's legs
         period = np.zeros(self.n_nodes)
         np.maximum.at(period, self.leg_node, 1.0 / np.maximum(rate_leg, 1e-9))
