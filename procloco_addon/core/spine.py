@@ -583,7 +583,7 @@ def _turn_from_head(model: SpineModel, xy: FloatArray, turn: FloatArray) -> Floa
         share = np.clip(remaining, lo, hi)
         xy[:, :i] = _rotate_about(xy[:, :i], xy[:, i], share)
         remaining = remaining - share
-    others = np.r_[0, 2:k] if k > 2 else np.array([0])
+    others = np.array([0, *range(2, k)], dtype=np.intp)  # (np.r_ costs more than the rotation)
     xy[:, others] = _rotate_about(xy[:, others], xy[:, 1], remaining)
     return xy
 
@@ -915,9 +915,16 @@ def _limit_joints(
     model: SpineModel, yaw_dev: FloatArray, pitch_dev: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Limit the change of turn at every joint, working outward from the anchor joint."""
+    n_b = yaw_dev.shape[1]
+    # Mostly no joint is at its limit: then every turn stays as it is (the walk below would
+    # only add rounding), found with a few array operations instead of a loop over bones.
+    if n_b < 2 or (
+        np.all(np.abs(yaw_dev[:, 1:] - yaw_dev[:, :-1]) < model.joint_yaw_limit[1:n_b])
+        and np.all(np.abs(pitch_dev[:, 1:] - pitch_dev[:, :-1]) < model.joint_pitch_limit[1:n_b])
+    ):
+        return yaw_dev.copy(), pitch_dev.copy()
     yaw = yaw_dev.copy()
     pitch = pitch_dev.copy()
-    n_b = yaw.shape[1]
     anchor_joint = int(model.key_joint[model.anchor_key])
     # Bones behind the anchor keep the first one's turn as reference; so do bones ahead.
     ref_back = min(anchor_joint, n_b - 1)

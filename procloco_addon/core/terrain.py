@@ -434,16 +434,17 @@ def raster_triangles(
     col = j0[tri] + local % np.maximum(wcols[tri], 1)
     row = i0[tri] + local // np.maximum(wcols[tri], 1)
     hit = np.ones(tri.size, dtype=bool)
-    vx = fx[tri]  # (m, 3)
-    vy = fy[tri]
     for a in range(3):
+        # Each edge normal and the triangle's extent along it are the triangle's own: found
+        # per triangle, then looked up per (triangle, cell) pair.
         b = (a + 1) % 3
-        nxa = -(vy[:, b] - vy[:, a])
-        nya = vx[:, b] - vx[:, a]
-        proj = vx * nxa[:, None] + vy * nya[:, None]
-        centre = col * nxa + row * nya
-        reach = 0.5 * (np.abs(nxa) + np.abs(nya))
-        hit &= (proj.max(axis=1) >= centre - reach - 1e-12) & (proj.min(axis=1) <= centre + reach + 1e-12)
+        nxa = -(fy[:, b] - fy[:, a])  # (k,)
+        nya = fx[:, b] - fx[:, a]
+        proj = fx * nxa[:, None] + fy * nya[:, None]  # (k, 3)
+        centre = col * nxa[tri] + row * nya[tri]
+        reach = (0.5 * (np.abs(nxa) + np.abs(nya)))[tri]
+        hit &= ((proj.max(axis=1)[tri] >= centre - reach - 1e-12)
+                & (proj.min(axis=1)[tri] <= centre + reach + 1e-12))
     tri, row, col = tri[hit], row[hit], col[hit]
     normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     flat_ok = np.abs(normal[:, 2]) > 1e-12
@@ -799,6 +800,9 @@ class Environment:
         """(point, box) pairs of points ``(n, 2)`` inside boxes' ground footprints. The last
         query's answer is kept: asking again for the same points (until something moves) costs
         a comparison."""
+        if self._box_center.shape[0] == 0:  # (a scene of meshes only: the shell's)
+            e = np.zeros(0, dtype=np.intp)
+            return e, e
         key = xy.tobytes()
         last = self._last_pairs
         if last is not None and last[0] == xy.shape and last[1] == key:
@@ -879,7 +883,8 @@ class Environment:
         if self.heightmap is not None:
             out = np.maximum(out, self.heightmap.sample(p))
         point, box = self._box_pairs(p)
-        np.maximum.at(out, point, self._box_top[box])
+        if point.size:
+            np.maximum.at(out, point, self._box_top[box])
         pt, z, _ = self._static_soup_hits(p)
         np.maximum.at(out, pt, z)
         for i, soup in enumerate(self._soups):
