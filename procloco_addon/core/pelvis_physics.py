@@ -76,13 +76,52 @@ def foot_acceleration(
     particle state, ``preferred`` the height ``y_T``. Remaining times are floored at
     ``min_time`` (one integration step) so the last step of a phase is not singular.
     """
+    t = phase_times(swing, stance_progress, stance_time, swing_time, gravity, min_time)
+    return _acceleration(t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight,
+                         height, velocity, preferred, gravity)
+
+
+@dataclass(frozen=True)
+class PhaseTimes:
+    """What :func:`foot_acceleration` needs from the feet's phases alone, shape ``(..., N)``
+    each: in ``reception`` / ``propulsion``, the time left of the reception ``t_rec`` and
+    of the propulsion ``t_prop``, and ``half_g_flight`` = ``0.5 g (t_prop + swing_time)``
+    with ``flight`` = ``t_prop + swing_time``."""
+
+    reception: BoolArray
+    propulsion: BoolArray
+    t_rec: FloatArray
+    t_prop: FloatArray
+    flight: FloatArray
+    half_g_flight: FloatArray
+
+
+def phase_times(
+    swing: BoolArray,
+    stance_progress: FloatArray,
+    stance_time: FloatArray,
+    swing_time: FloatArray,
+    gravity: float,
+    min_time: float,
+) -> PhaseTimes:
+    """The phase-only part of :func:`foot_acceleration`, for phases of any shape ``(..., N)``
+    (all the sub-steps of a frame at once)."""
     reception = ~swing & (stance_progress < 0.5)
     propulsion = ~swing & ~reception
     t_rec = np.maximum((0.5 - stance_progress) * stance_time, min_time)
-    a_rec = gravity + (0.0 - velocity) / t_rec
     t_prop = np.maximum((1.0 - stance_progress) * stance_time, min_time)
     t_flight = t_prop + swing_time
-    v0 = (preferred - height) / t_flight + 0.5 * gravity * t_flight
+    return PhaseTimes(reception, propulsion, t_rec, t_prop, t_flight, 0.5 * gravity * t_flight)
+
+
+def _acceleration(
+    reception: BoolArray, propulsion: BoolArray, t_rec: FloatArray, t_prop: FloatArray,
+    flight: FloatArray, half_g_flight: FloatArray,
+    height: FloatArray, velocity: FloatArray, preferred: FloatArray, gravity: float,
+) -> FloatArray:
+    """``a_foot (N,)`` from one sub-step's :class:`PhaseTimes` fields and the particles' state."""
+    a_rec = gravity + (0.0 - velocity) / t_rec
+    v0 = (preferred - height) / flight + half_g_flight
     a_prop = gravity + (v0 - velocity) / t_prop
     return np.where(reception, a_rec, np.where(propulsion, a_prop, 0.0))
 
@@ -215,12 +254,12 @@ class PelvisPhysics:
         stance_time = (1.0 - disk_duration) * period
         swing_time = disk_duration * period
         gravity = self.params.gravity
-        min_time = float(np.max(h))
-        for k in range(phases.shape[0]):
-            a_foot = foot_acceleration(
-                swing[k], progress[k], stance_time, swing_time, self.height, self.velocity, preferred,
-                gravity, min_time,
-            )
+        t = phase_times(swing, progress, stance_time, swing_time, gravity, float(np.max(h)))
+        for rec, prop, t_rec, t_prop, flight, half_g in zip(
+            t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight, strict=True
+        ):
+            a_foot = _acceleration(rec, prop, t_rec, t_prop, flight, half_g, self.height, self.velocity,
+                                   preferred, gravity)
             self.velocity = self.velocity + (a_foot - gravity) * h
             self.height = self.height + self.velocity * h
 
