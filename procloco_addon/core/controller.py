@@ -66,6 +66,7 @@ import numpy.typing as npt
 
 from .footprints import FootRequest, PlannerParams, plan_footsteps
 from .gait import Gait, GaitManager
+from .geometry import vector_norm
 from .hull import hull_height_and_pitch
 from .ik import IKResult, solve_legs
 from .morphology import LegBatch
@@ -1013,15 +1014,15 @@ class Controller:
         if g.reach_shift is None or g.reach_shift.shape != need.shape or dt <= 0.0:
             return pulled, need
         decayed = g.reach_shift * float(np.exp(-dt / max(self.params.reach_release_time, 1e-9)))
-        keep = np.linalg.norm(decayed, axis=-1) > np.linalg.norm(need, axis=-1)
+        keep = vector_norm(decayed) > vector_norm(need)
         if not np.any(keep):
             return pulled, need
         trial = np.where(keep[..., None], decayed, need)
         m = g.model
         slow = refit(m, free, free.guide_xyz + trial)
         # kept only where it leaves no leg further from its foot than the pull did
-        over = np.linalg.norm(feet - hip_positions(m, slow), axis=-1) > np.maximum(
-            np.linalg.norm(feet - hip_positions(m, pulled), axis=-1), reach
+        over = vector_norm(feet - hip_positions(m, slow)) > np.maximum(
+            vector_norm(feet - hip_positions(m, pulled)), reach
         ) + 1e-9
         ok = ~over.any(axis=1)
         rows = np.flatnonzero(ok)
@@ -1075,7 +1076,7 @@ class Controller:
             xy = plan.key_xy[r]  # (m, K, 2)
             heading = plan.key_heading[r]
             arc = np.concatenate([np.zeros((rows.size, 1)),
-                                  np.cumsum(np.linalg.norm(np.diff(xy, axis=1), axis=2), axis=1)], axis=1)
+                                  np.cumsum(vector_norm(xy[:, 1:] - xy[:, :-1]), axis=1)], axis=1)
             speed = ctl.speed[chars]
             dist = speed * remaining[legs[rows]]
             at = np.arange(rows.size)
@@ -1158,7 +1159,7 @@ class Controller:
         heading = np.abs(wrap_angle(ctl.heading[lc] - self.plan_heading)) > p.replan_heading
         v, v0 = ctl.speed[lc], self.plan_speed
         speed = np.abs(v - v0) > np.maximum(p.replan_speed * np.maximum(v, v0), 0.05 * leg_len)
-        spacing = np.linalg.norm(ctl.spacing - self.plan_spacing, axis=1) > p.replan_spacing * leg_len
+        spacing = vector_norm(ctl.spacing - self.plan_spacing) > p.replan_spacing * leg_len
         need = swing & early & (heading | speed | spacing)
         self.blocked[:] = False
         if self.env_dynamic:
@@ -1243,7 +1244,7 @@ class Controller:
         hips = self.hips_world()[legs]
         top = np.maximum(ring_h, z[:, None])
         spots = np.concatenate([here[:, None, :] + offsets, top[..., None]], axis=2)
-        free &= np.linalg.norm(spots - hips[:, None, :], axis=2) <= self.guard_reach[legs, None]
+        free &= vector_norm(spots - hips[:, None, :]) <= self.guard_reach[legs, None]
         # the nearest ring with room, and on it the point facing away from the obstacle
         # (the mean direction of the points it covers), so the foot is not pushed ahead of it
         radius = np.linalg.norm(offsets, axis=2)
@@ -1272,7 +1273,7 @@ class Controller:
         stride_speed = ctl.speed[self.leg_char] / share
         rot = self.leg_rotations()
         rest = self.hips_world() + np.einsum("nij,nj->ni", rot, self.legs.rest_foot - self.legs.hip_offset)
-        gap = np.linalg.norm(rest[:, :2] - self.foot[:, :2], axis=1)
+        gap = vector_norm(rest[:, :2] - self.foot[:, :2])
         return np.asarray(np.minimum(gap / np.maximum(2.0 * stride_speed, 1e-9), cycle))
 
     def _overstretched(self) -> tuple[BoolArray, FloatArray]:
@@ -1289,7 +1290,7 @@ class Controller:
         if self.spine_groups:
             hips[self.spine_legs] = self._spine_hips_free[self.spine_legs]
         reach = self.comfort_reach
-        d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
+        d_h = vector_norm(hips[:, :2] - self.foot[:, :2])
         top = self.foot[:, 2] + self.foot_lift + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         need = np.where(d_h < reach, hips[:, 2] - top, np.inf)
         over = planted & (need > self.params.max_drop * self.body_thickness[self.leg_char])
@@ -1681,11 +1682,11 @@ class Controller:
         """Thesis figure 3.9: move the pelvis by the mean footprint error when it matters."""
         p = self.params
         c = self.n_chars
-        mean = np.stack(
+        mean: FloatArray = np.stack(
             [np.bincount(self.leg_char, weights=self.feedback[:, k], minlength=c) for k in (0, 1)], axis=1
         )
         mean = mean / np.bincount(self.leg_char, minlength=c)[:, None]
-        significant = np.linalg.norm(mean, axis=1) > p.feedback_threshold * self.char_leg_length
+        significant = vector_norm(mean) > p.feedback_threshold * self.char_leg_length
         if not np.any(significant):
             return
         share = np.clip(p.feedback_gain * dt / self.gait.cycle_time, 0.0, 1.0)
@@ -1805,7 +1806,7 @@ class Controller:
         rot = self.rotations()
         hips = self.hips_world(rot)
         reach = self.guard_reach
-        d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
+        d_h = vector_norm(hips[:, :2] - self.foot[:, :2])
         allowed = self.foot[:, 2] + self.foot_lift + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         excess = np.maximum(hips[:, 2] - allowed, 0.0)
         if self.spine_groups:

@@ -171,10 +171,12 @@ def solve_bend(
         done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
         if np.all(done):
             break
-        k_lo = np.where(f > 0.0, kappa, k_lo)
-        k_hi = np.where(f > 0.0, k_hi, kappa)
-        newton = kappa - f / np.where(dr < -1e-12, dr, -1.0)
-        ok = (dr < -1e-12) & (newton >= k_lo) & (newton <= k_hi)
+        longer = f > 0.0
+        k_lo = np.where(longer, kappa, k_lo)
+        k_hi = np.where(longer, k_hi, kappa)
+        falling = dr < -1e-12
+        newton = kappa - f / np.where(falling, dr, -1.0)
+        ok = falling & (newton >= k_lo) & (newton <= k_hi)
         kappa = np.where(done, kappa, np.where(ok, newton, 0.5 * (k_lo + k_hi)))
     th, _, _ = reach(kappa)
     end = forward_planar(th, lengths)[rows, n_segments]
@@ -390,7 +392,7 @@ def solve_legs(
         axis = np.divide(target_body, t_len, out=np.zeros_like(target_body), where=t_len > 1e-12)
         prev = np.asarray(prev_normal, dtype=np.float64)
         normal_body = follow_normals(normal_body, prev, axis, max_plane_turn)
-    a, b = plane_axes(normal_body, np.broadcast_to(_UP, (n, 3)))
+    a, b = plane_axes(normal_body, _UP)
     target_2d = np.stack(
         [np.einsum("ij,ij->i", target_body, a), np.einsum("ij,ij->i", target_body, b)], axis=1
     )

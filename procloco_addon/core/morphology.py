@@ -389,7 +389,7 @@ def _default_limits(rest: FloatArray, n_seg: IntArray, hinge_margin: float) -> t
 
 def plane_axes(normal: FloatArray, up: FloatArray) -> tuple[FloatArray, FloatArray]:
     """In-plane axes ``(a, b)`` of leg planes: ``b`` is ``up`` projected into the plane,
-    ``a = b x normal`` (so ``a x b = normal``). Shapes ``(..., 3)``.
+    ``a = b x normal`` (so ``a x b = normal``). Shapes ``(..., 3)`` (``up`` may be one ``(3,)``).
 
     A plane whose normal is ``up`` itself (a horizontal leg plane) takes the x axis as ``a``.
     """

@@ -167,6 +167,12 @@ def _direction(yaw: FloatArray, pitch: FloatArray) -> FloatArray:
     return out
 
 
+def _as_shape(a: npt.ArrayLike, shape: tuple[int, ...]) -> FloatArray:
+    """``a`` as float64 broadcast to ``shape`` (itself when it already is: no broadcast_to)."""
+    arr = np.asarray(a, dtype=np.float64)
+    return arr if arr.shape == shape else np.broadcast_to(arr, shape)
+
+
 def _yaw_pitch(v: FloatArray) -> tuple[FloatArray, FloatArray]:
     return np.arctan2(v[..., 1], v[..., 0]), np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
 
@@ -594,9 +600,9 @@ def _advance_on_support(model: SpineModel, xy: FloatArray, dist: FloatArray) -> 
     front."""
     c, k = xy.shape[0], xy.shape[1]
     head_dir = xy[:, 0] - xy[:, 1]
-    head_dir /= np.linalg.norm(head_dir, axis=1, keepdims=True)
+    head_dir /= vector_norm(head_dir, keepdims=True)
     tail_dir = xy[:, -1] - xy[:, -2]
-    tail_dir /= np.linalg.norm(tail_dir, axis=1, keepdims=True)
+    tail_dir /= vector_norm(tail_dir, keepdims=True)
     reach = dist + float(model.key_chord.sum()) + 1.0
     new_head = xy[:, 0] + dist[:, None] * head_dir
     beyond_back = xy[:, -1] + reach[:, None] * tail_dir
@@ -692,7 +698,7 @@ def terrain_guides(
     """
     xy = plan.key_xy
     c, k = xy.shape[0], xy.shape[1]
-    chord = np.linalg.norm(np.diff(xy, axis=1), axis=2)  # (C, K - 1)
+    chord = vector_norm(xy[:, 1:] - xy[:, :-1])  # (C, K - 1)
     arc = np.concatenate([np.zeros((c, 1)), np.cumsum(chord, axis=1)], axis=1)  # (C, K)
     margin = model.slice_margin
     lo = np.concatenate([arc[:, :1] - margin, 0.5 * (arc[:, :-1] + arc[:, 1:])], axis=1)
@@ -868,8 +874,8 @@ def build_spine(
     """
     guide = np.asarray(key_xyz, dtype=np.float64)
     c = guide.shape[0]
-    yaw = np.broadcast_to(np.asarray(key_yaw, dtype=np.float64), guide.shape[:2])
-    pitch = np.broadcast_to(np.asarray(key_pitch, dtype=np.float64), guide.shape[:2])
+    yaw = _as_shape(key_yaw, guide.shape[:2])
+    pitch = _as_shape(key_pitch, guide.shape[:2])
     samples = _sample_curve(model, guide, yaw, model.rest_key_pitch[None, :] + pitch)
     chord_yaw, chord_pitch = _yaw_pitch(samples[:, 1:] - samples[:, :-1])  # (C, J - 1)
     yaw_dev = wrap_angle(chord_yaw - model.rest_chord_yaw[None, :])
@@ -1020,7 +1026,7 @@ def repeat_for_reach(
     for _ in range(max(0, int(iterations))):
         sub = pose_rows(pose, rows)
         to_foot = feet[rows] - hip_positions(model, sub)
-        dist = np.linalg.norm(to_foot, axis=-1)
+        dist = vector_norm(to_foot)
         reach = reach_all[rows]
         stretched = np.any(dist > reach + 1e-12, axis=1)
         if not np.any(stretched):
@@ -1032,7 +1038,7 @@ def repeat_for_reach(
         shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
         sub = pose_rows(pose, rows)
         moved = sub.guide_xyz + shift - start[rows]
-        size = np.linalg.norm(moved, axis=-1, keepdims=True)
+        size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, max_shift / np.maximum(size, _EPS))
         pose = pose_with_rows(pose, rows, refit(model, sub, start[rows] + moved))
     return pose
