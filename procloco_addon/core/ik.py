@@ -262,12 +262,15 @@ def solve_dls(
         end = pts[np.arange(todo.size), n_segments[todo]]
         err = target[todo] - end
         converged = np.einsum("ij,ij->i", err, err) <= tolerance * tolerance
-        if np.all(converged):
+        if converged.all():
             break
-        keep = ~converged
-        todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
+        if converged.any():  # go on with the others only
+            keep = ~converged
+            todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
         r = end[:, None, :] - pts[:, :s, :]
-        jac = np.stack([-r[..., 1], r[..., 0]], axis=1)  # (m, 2, s)
+        jac = np.empty((todo.size, 2, s))  # (m, 2, s)
+        jac[:, 0] = -r[..., 1]
+        jac[:, 1] = r[..., 0]
         grad = np.einsum("mks,mk->ms", jac, err)
         at_lo = (th <= lo[todo] + 1e-9) & (grad < 0.0)
         at_hi = (th >= hi[todo] - 1e-9) & (grad > 0.0)
@@ -282,7 +285,7 @@ def solve_dls(
         step = jac[:, 0] * x0[:, None] + jac[:, 1] * x1[:, None]
         biggest = np.abs(step).max(axis=1, keepdims=True)
         step *= np.minimum(1.0, max_turn / np.maximum(biggest, 1e-12))
-        theta[todo] = np.clip(th + step, lo[todo], hi[todo])
+        theta[todo] = np.minimum(np.maximum(th + step, lo[todo]), hi[todo])
     return theta
 
 

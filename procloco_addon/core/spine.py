@@ -839,7 +839,7 @@ def _sample_curve(
     ctrl[:, :, 2] = back[:, :-1] * chord
     ctrl[:, :, 3] = back[:, 1:] * chord
     s = _CURVE_S
-    dense = np.einsum("mf,ckfd->ckmd", _CURVE_BASIS, ctrl)  # (C, K - 1, m, 3)
+    dense = _CURVE_BASIS @ ctrl  # (C, K - 1, m, 3): (m, 4) weights times (4, 3) controls
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
     np.cumsum(vector_norm(dense[:, :, 1:] - dense[:, :, :-1]), axis=2, out=table[:, :, 1:])
     seg = model.joint_segment
