@@ -245,8 +245,11 @@ def compare_baseline(rev: str, n_frames: int, repeat: int, rounds: int) -> str:
     """The wolf's simulation with this code and with revision ``rev``'s, in alternating fresh
     processes; prints both and the ratio, returns the RESULT fields."""
     git = ["git", "-C", str(ROOT)]
-    sha = subprocess.run([*git, "rev-parse", "--short", rev], capture_output=True, text=True,
-                         check=True).stdout.strip()
+    found = subprocess.run([*git, "rev-parse", "--short", "--verify", f"{rev}^{{commit}}"],
+                           capture_output=True, text=True, check=False)
+    if found.returncode != 0:
+        raise SystemExit(f"--baseline {rev}: not a revision of the repository at {ROOT}")
+    sha = found.stdout.strip()
     with tempfile.TemporaryDirectory(prefix="procloco-baseline-") as tmp:
         archive = subprocess.run([*git, "archive", "--format=tar", rev], capture_output=True,
                                  check=True).stdout
