@@ -20,15 +20,26 @@ Scene: the Rigify wolf metarig (skinned with capsules) on a 12 m × 12 m wavy he
   and simulating, and the peak memory numpy allocates meanwhile (``tracemalloc``), once each.
 
 Every row of the first table is the best of ``--repeat`` runs. ``--heavy-only`` runs only the
-heavy-terrain table. Ends with
+heavy-terrain table.
+
+``--baseline REV`` compares the simulation of one wolf (the ``simulate`` row: ms per frame)
+with the code of git revision ``REV`` (``git archive`` into a temporary folder), in the same
+invocation: ``--rounds`` alternating fresh processes of each code (the same script, the same
+scene), best of ``--repeat`` simulations in each, so both figures see the same load; prints
+both figures and their ratio. ``--sim-only`` prints only that comparison (or, without
+``--baseline``, only this code's simulate figure), skipping the other tables.
+
+Ends with
 ``RESULT blender total_s=<s> write_s=<s> keyframe_insert_s=<s> heavy_static_s=<s> heavy_animated_s=<s>``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import platform
+import subprocess
 import sys
 import tempfile
 import time
@@ -37,7 +48,18 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+
+
+def _code_root() -> Path:
+    """The source tree to import the add-on from: this checkout, or ``--code-root DIR`` (the
+    baseline's tree when ``--baseline`` runs this script on another revision's code)."""
+    if "--code-root" in sys.argv:
+        return Path(sys.argv[sys.argv.index("--code-root") + 1]).resolve()
+    return ROOT
+
+
+CODE = _code_root()
+sys.path.insert(0, str(CODE))
 _HOME = Path(tempfile.mkdtemp(prefix="procloco-bench-"))
 os.environ.setdefault("BLENDER_USER_RESOURCES", str(_HOME / "resources"))
 os.environ.setdefault("XDG_CONFIG_HOME", str(_HOME / "config"))
@@ -194,11 +216,76 @@ def long_range(n_frames: int) -> dict[str, tuple[float, float]]:
     return rows
 
 
+def simulate_times(n_frames: int, repeat: int) -> list[tuple[float, float]]:
+    """(wall, CPU) seconds of ``generate.simulate`` on the benchmark scene, ``repeat`` times
+    (a fresh ``generate.prepare`` each time, not timed)."""
+    wolf = build_scene(n_frames)
+    out = []
+    for _ in range(repeat):
+        job = generate.prepare(bpy.context, wolf)
+        t0, c0 = time.perf_counter(), time.process_time()
+        for _fraction in generate.simulate(job):
+            pass
+        out.append((time.perf_counter() - t0, time.process_time() - c0))
+    return out
+
+
+def _simulate_in_process(code_root: Path, n_frames: int, repeat: int) -> list[tuple[float, float]]:
+    """:func:`simulate_times` in a fresh process importing the add-on from ``code_root``."""
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--code-root", str(code_root), "--simulate-times",
+           "--frames", str(n_frames), "--repeat", str(repeat)]
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    lines = [ln for ln in done.stdout.splitlines() if ln.startswith("SIMULATE ")]
+    if done.returncode != 0 or not lines:
+        raise RuntimeError(f"simulation of {code_root} failed:\n{done.stdout[-2000:]}\n{done.stderr[-4000:]}")
+    return [(float(w), float(c)) for w, c in json.loads(lines[-1][len("SIMULATE "):])]
+
+
+def compare_baseline(rev: str, n_frames: int, repeat: int, rounds: int) -> str:
+    """The wolf's simulation with this code and with revision ``rev``'s, in alternating fresh
+    processes; prints both and the ratio, returns the RESULT fields."""
+    git = ["git", "-C", str(ROOT)]
+    found = subprocess.run([*git, "rev-parse", "--short", "--verify", f"{rev}^{{commit}}"],
+                           capture_output=True, text=True, check=False)
+    if found.returncode != 0:
+        raise SystemExit(f"--baseline {rev}: not a revision of the repository at {ROOT}")
+    sha = found.stdout.strip()
+    with tempfile.TemporaryDirectory(prefix="procloco-baseline-") as tmp:
+        archive = subprocess.run([*git, "archive", "--format=tar", rev], capture_output=True,
+                                 check=True).stdout
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        times: dict[str, list[tuple[float, float]]] = {"this": [], "base": []}
+        for _ in range(rounds):
+            times["base"] += _simulate_in_process(Path(tmp), n_frames, repeat)
+            times["this"] += _simulate_in_process(ROOT, n_frames, repeat)
+    print(f"Simulation of one Rigify wolf, {n_frames} frames: {rounds} rounds of alternating processes, "
+          f"best of {rounds * repeat} each (CPU: the process's CPU time, steadier on a loaded machine)")
+    print(f"{'code':24s} {'wall s':>8s} {'ms/frame':>9s} {'CPU s':>8s} {'CPU ms/frame':>13s}")
+    best = {}
+    for key, name in (("base", f"baseline {sha}"), ("this", "this checkout")):
+        wall = min(w for w, _ in times[key])
+        cpu = min(c for _, c in times[key])
+        best[key] = (wall, cpu)
+        print(f"{name:24s} {wall:8.3f} {1000 * wall / n_frames:9.2f} "
+              f"{cpu:8.3f} {1000 * cpu / n_frames:13.2f}")
+    wall_ratio = best["base"][0] / best["this"][0]
+    cpu_ratio = best["base"][1] / best["this"][1]
+    print(f"speed-up (baseline / this, best of each): wall {wall_ratio:.2f}x, CPU {cpu_ratio:.2f}x")
+    return (f"sim_ms_per_frame={1000 * best['this'][0] / n_frames:.3f} "
+            f"baseline_sim_ms_per_frame={1000 * best['base'][0] / n_frames:.3f} sim_speedup={wall_ratio:.2f} "
+            f"sim_cpu_speedup={cpu_ratio:.2f}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--frames", type=int, default=250)
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--baseline", metavar="REV", help="compare the simulation with revision REV's code")
+    parser.add_argument("--rounds", type=int, default=3, help="alternating processes per code (--baseline)")
+    parser.add_argument("--sim-only", action="store_true", help="only the one-wolf simulation figure(s)")
+    parser.add_argument("--code-root", help=argparse.SUPPRESS)
+    parser.add_argument("--simulate-times", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--heavy-frames", type=int, default=48)
     parser.add_argument("--heavy-only", action="store_true")
     parser.add_argument("--long-frames", type=int, default=10_000)
@@ -206,6 +293,19 @@ def main() -> int:
     args = parser.parse_args()
 
     procloco_addon.register()
+    if args.simulate_times:
+        print("SIMULATE " + json.dumps(simulate_times(args.frames, args.repeat)))
+        return 0
+    if args.sim_only:
+        if args.baseline:
+            result = compare_baseline(args.baseline, args.frames, args.repeat, args.rounds)
+        else:
+            best_s = min(w for w, _ in simulate_times(args.frames, args.repeat))
+            print(f"simulate, one Rigify wolf, {args.frames} frames: {best_s:.3f} s, "
+                  f"{1000 * best_s / args.frames:.2f} ms/frame (best of {args.repeat})")
+            result = f"sim_ms_per_frame={1000 * best_s / args.frames:.3f}"
+        print(f"RESULT blender {result}")
+        return 0
     long = long_range(args.long_frames)
     print(f"Long range: Rigify wolf, Generate then Bake Secondary Motion (tail), {args.long_frames} frames, "
           "once each")
@@ -288,8 +388,11 @@ def main() -> int:
         print(f"{name:40s} {sec:9.3f} {1000 * sec / f:9.2f}")
     print(f"write step {best['keyframe_insert'] / best['write']:.1f}x faster than with keyframe_insert; "
           f"keys alone {best['insert_keys'] / best['bulk_keys']:.0f}x")
+    base_result = ""
+    if args.baseline:
+        base_result = " " + compare_baseline(args.baseline, args.frames, args.repeat, args.rounds)
     print(f"RESULT blender total_s={best['operator']:.3f} write_s={best['write']:.3f} "
-          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result} {long_result}")
+          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result} {long_result}{base_result}")
     return 0
 
 

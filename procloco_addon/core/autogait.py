@@ -362,6 +362,9 @@ class AutoGait:
              for c, p in enumerate(self.params)], dtype=np.int64)
         self.n_changes = np.zeros(len(self.params), dtype=np.int64)
         self._speed = v.copy()
+        # each character's last (band, speed, gait): at a steady speed the same gait is asked
+        # for frame after frame, and building it cost more than the rest of the update
+        self._last: list[tuple[int, float, Gait] | None] = [None] * len(self.params)
 
     def gaits(self, fallback: Sequence[Gait]) -> list[Gait]:
         """Starting gaits: the auto gait at the starting speed, else ``fallback[c]``."""
@@ -376,7 +379,12 @@ class AutoGait:
             if p is None:
                 continue
             band = next_band(p.family, int(self.band[c]), float(p.froude(v[c])), p.speed_scale, p.hysteresis)
-            gait = p.gait(band, float(v[c]))
+            last = self._last[c]
+            if last is not None and last[0] == band and last[1] == float(v[c]):
+                gait = last[2]
+            else:
+                gait = p.gait(band, float(v[c]))
+                self._last[c] = (band, float(v[c]), gait)
             if band != self.band[c]:
                 time = p.transition_cycles * float(manager.cycle_time[c])
                 manager.start_transition([c], [gait], time)

@@ -66,6 +66,7 @@ import numpy.typing as npt
 
 from .footprints import FootRequest, PlannerParams, plan_footsteps
 from .gait import Gait, GaitManager
+from .geometry import vector_norm
 from .hull import hull_height_and_pitch
 from .ik import IKResult, solve_legs
 from .morphology import LegBatch
@@ -111,15 +112,19 @@ def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> F
     cy, sy = np.cos(yaw), np.sin(yaw)
     cp, sp = np.cos(pitch), np.sin(pitch)
     cr, sr = np.cos(roll), np.sin(roll)
-    n = yaw.shape[0]
-    rz = np.zeros((n, 3, 3))
-    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = cy, -sy, sy, cy, 1.0
-    # nose up = rotation about -y
-    ry = np.zeros((n, 3, 3))
-    ry[:, 0, 0], ry[:, 0, 2], ry[:, 2, 0], ry[:, 2, 2], ry[:, 1, 1] = cp, -sp, sp, cp, 1.0
-    rx = np.zeros((n, 3, 3))
-    rx[:, 1, 1], rx[:, 1, 2], rx[:, 2, 1], rx[:, 2, 2], rx[:, 0, 0] = cr, -sr, sr, cr, 1.0
-    return np.asarray(rz @ ry @ rx)
+    # Rz(yaw) @ Ry'(pitch, nose up = about -y) @ Rx(roll) multiplied out (the step asks for
+    # these a few times; two stacked 3x3 products cost more than the nine entries)
+    out = np.empty((yaw.shape[0], 3, 3))
+    out[:, 0, 0] = cy * cp
+    out[:, 0, 1] = -sy * cr - cy * sp * sr
+    out[:, 0, 2] = sy * sr - cy * sp * cr
+    out[:, 1, 0] = sy * cp
+    out[:, 1, 1] = cy * cr - sy * sp * sr
+    out[:, 1, 2] = -cy * sr - sy * sp * cr
+    out[:, 2, 0] = sp
+    out[:, 2, 1] = cp * sr
+    out[:, 2, 2] = cp * cr
+    return out
 
 
 def stroke_limits(
@@ -577,7 +582,10 @@ class Controller:
     @staticmethod
     def _rotate_xy(v: FloatArray, yaw: FloatArray) -> FloatArray:
         c, s = np.cos(yaw), np.sin(yaw)
-        return np.stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]], axis=1)
+        out = np.empty((v.shape[0], 2))
+        out[:, 0] = c * v[:, 0] - s * v[:, 1]
+        out[:, 1] = s * v[:, 0] + c * v[:, 1]
+        return out
 
     def _surface(self, xy: FloatArray) -> FloatArray:
         h = self.env.height_at(xy)
@@ -589,6 +597,8 @@ class Controller:
 
     def hips_world(self, rot: FloatArray | None = None) -> FloatArray:
         """``(N, 3)`` world hips: the rigid body's, or where the spine put them."""
+        if self.spine_legs.size == self.legs.n_legs:  # every leg on a spine: nothing rigid
+            return np.array(self._spine_hips, copy=True)
         r = self.rotations() if rot is None else rot
         hips = self.pos[self.leg_char] + np.einsum("nij,nj->ni", r[self.leg_char], self.legs.hip_offset)
         if self.spine_groups:
@@ -598,6 +608,8 @@ class Controller:
     def leg_rotations(self) -> FloatArray:
         """``(N, 3, 3)`` body-to-world rotation of the body part each leg hangs from: the
         pelvis, or the leg's spine node (or carrier bone)."""
+        if self.spine_legs.size == self.legs.n_legs:
+            return np.array(self._spine_leg_rot, copy=True)
         rot = self.rotations()[self.leg_char]
         if self.spine_groups:
             rot[self.spine_legs] = self._spine_leg_rot[self.spine_legs]
@@ -1016,15 +1028,15 @@ class Controller:
         if g.reach_shift is None or g.reach_shift.shape != need.shape or dt <= 0.0:
             return pulled, need
         decayed = g.reach_shift * float(np.exp(-dt / max(self.params.reach_release_time, 1e-9)))
-        keep = np.linalg.norm(decayed, axis=-1) > np.linalg.norm(need, axis=-1)
+        keep = vector_norm(decayed) > vector_norm(need)
         if not np.any(keep):
             return pulled, need
         trial = np.where(keep[..., None], decayed, need)
         m = g.model
         slow = refit(m, free, free.guide_xyz + trial)
         # kept only where it leaves no leg further from its foot than the pull did
-        over = np.linalg.norm(feet - hip_positions(m, slow), axis=-1) > np.maximum(
-            np.linalg.norm(feet - hip_positions(m, pulled), axis=-1), reach
+        over = vector_norm(feet - hip_positions(m, slow)) > np.maximum(
+            vector_norm(feet - hip_positions(m, pulled)), reach
         ) + 1e-9
         ok = ~over.any(axis=1)
         rows = np.flatnonzero(ok)
@@ -1078,7 +1090,7 @@ class Controller:
             xy = plan.key_xy[r]  # (m, K, 2)
             heading = plan.key_heading[r]
             arc = np.concatenate([np.zeros((rows.size, 1)),
-                                  np.cumsum(np.linalg.norm(np.diff(xy, axis=1), axis=2), axis=1)], axis=1)
+                                  np.cumsum(vector_norm(xy[:, 1:] - xy[:, :-1]), axis=1)], axis=1)
             speed = ctl.speed[chars]
             dist = speed * remaining[legs[rows]]
             at = np.arange(rows.size)
@@ -1161,7 +1173,7 @@ class Controller:
         heading = np.abs(wrap_angle(ctl.heading[lc] - self.plan_heading)) > p.replan_heading
         v, v0 = ctl.speed[lc], self.plan_speed
         speed = np.abs(v - v0) > np.maximum(p.replan_speed * np.maximum(v, v0), 0.05 * leg_len)
-        spacing = np.linalg.norm(ctl.spacing - self.plan_spacing, axis=1) > p.replan_spacing * leg_len
+        spacing = vector_norm(ctl.spacing - self.plan_spacing) > p.replan_spacing * leg_len
         need = swing & early & (heading | speed | spacing)
         self.blocked[:] = False
         if self.env_dynamic:
@@ -1246,7 +1258,7 @@ class Controller:
         hips = self.hips_world()[legs]
         top = np.maximum(ring_h, z[:, None])
         spots = np.concatenate([here[:, None, :] + offsets, top[..., None]], axis=2)
-        free &= np.linalg.norm(spots - hips[:, None, :], axis=2) <= self.guard_reach[legs, None]
+        free &= vector_norm(spots - hips[:, None, :]) <= self.guard_reach[legs, None]
         # the nearest ring with room, and on it the point facing away from the obstacle
         # (the mean direction of the points it covers), so the foot is not pushed ahead of it
         radius = np.linalg.norm(offsets, axis=2)
@@ -1275,7 +1287,7 @@ class Controller:
         stride_speed = ctl.speed[self.leg_char] / share
         rot = self.leg_rotations()
         rest = self.hips_world() + np.einsum("nij,nj->ni", rot, self.legs.rest_foot - self.legs.hip_offset)
-        gap = np.linalg.norm(rest[:, :2] - self.foot[:, :2], axis=1)
+        gap = vector_norm(rest[:, :2] - self.foot[:, :2])
         return np.asarray(np.minimum(gap / np.maximum(2.0 * stride_speed, 1e-9), cycle))
 
     def _overstretched(self) -> tuple[BoolArray, FloatArray]:
@@ -1292,7 +1304,7 @@ class Controller:
         if self.spine_groups:
             hips[self.spine_legs] = self._spine_hips_free[self.spine_legs]
         reach = self.comfort_reach
-        d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
+        d_h = vector_norm(hips[:, :2] - self.foot[:, :2])
         top = self.foot[:, 2] + self.foot_lift + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         need = np.where(d_h < reach, hips[:, 2] - top, np.inf)
         over = planted & (need > self.params.max_drop * self.body_thickness[self.leg_char])
@@ -1684,11 +1696,11 @@ class Controller:
         """Thesis figure 3.9: move the pelvis by the mean footprint error when it matters."""
         p = self.params
         c = self.n_chars
-        mean = np.stack(
+        mean: FloatArray = np.stack(
             [np.bincount(self.leg_char, weights=self.feedback[:, k], minlength=c) for k in (0, 1)], axis=1
         )
         mean = mean / np.bincount(self.leg_char, minlength=c)[:, None]
-        significant = np.linalg.norm(mean, axis=1) > p.feedback_threshold * self.char_leg_length
+        significant = vector_norm(mean) > p.feedback_threshold * self.char_leg_length
         if not np.any(significant):
             return
         share = np.clip(p.feedback_gain * dt / self.gait.cycle_time, 0.0, 1.0)
@@ -1808,7 +1820,7 @@ class Controller:
         rot = self.rotations()
         hips = self.hips_world(rot)
         reach = self.guard_reach
-        d_h = np.linalg.norm(hips[:, :2] - self.foot[:, :2], axis=1)
+        d_h = vector_norm(hips[:, :2] - self.foot[:, :2])
         allowed = self.foot[:, 2] + self.foot_lift + np.sqrt(np.maximum(reach * reach - d_h * d_h, 0.0))
         excess = np.maximum(hips[:, 2] - allowed, 0.0)
         if self.spine_groups:

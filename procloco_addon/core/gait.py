@@ -462,7 +462,8 @@ class GaitManager:
                 np.asarray(rate_scale, dtype=np.float64), (self.n_chars,)
             ).copy()
         self.time += dt
-        _, _, cycle = self.target_disks()
+        # (the disks at the new time serve the cycle time and, below, the disk swap)
+        new_start, new_duration, cycle = self.target_disks()
         self.cycle_time = cycle
         step = dt * self.rate()
         self.needle = np.mod(self.needle + step, 1.0)
@@ -470,7 +471,6 @@ class GaitManager:
         step_leg = step[self.leg_char]
 
         # disk swap, only for legs in stance, never dropping the needle deep inside a sector
-        new_start, new_duration, _ = self.target_disks()
         changed = (new_start != self.disk_start) | (new_duration != self.disk_duration)
         tol = step_leg + 1e-9
         fresh_new = ~in_swing(needle, new_start, new_duration) | (swing_elapsed(needle, new_start) <= tol)

@@ -60,7 +60,11 @@ _HERMITE_DERIV_MATRIX: FloatArray = np.array(
 def hermite_basis(s: npt.ArrayLike) -> FloatArray:
     """Weights of ``(P1, P2, T1, T2)`` at parameters ``s``: shape ``s.shape + (4,)``."""
     s_arr = np.asarray(s, dtype=np.float64)
-    powers = np.stack([s_arr**3, s_arr**2, s_arr, np.ones_like(s_arr)], axis=-1)
+    powers = np.empty((*s_arr.shape, 4))
+    powers[..., 0] = s_arr**3
+    powers[..., 1] = s_arr**2
+    powers[..., 2] = s_arr
+    powers[..., 3] = 1.0
     return powers @ HERMITE_MATRIX
 
 

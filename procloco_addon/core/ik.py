@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import cross, vector_norm
 from .morphology import LegBatch, plane_axes
 
 FloatArray = npt.NDArray[np.float64]
@@ -65,14 +66,16 @@ def wrap_to_limits(angle: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatAr
     """Clamp angles to ``[lo, hi]`` after choosing the 2π-turn closest to the range."""
     mid = 0.5 * (lo + hi)
     wrapped = (angle - mid + np.pi) % _TWO_PI - np.pi + mid
-    return np.clip(wrapped, lo, hi)
+    return np.minimum(np.maximum(wrapped, lo), hi)  # np.clip without its dispatch cost
 
 
 def forward_planar(angles: FloatArray, lengths: FloatArray) -> FloatArray:
     """Planar joint positions ``(N, s + 1, 2)`` (hip at the origin) of chains with joint
     ``angles (N, s)`` and segment ``lengths (N, s)``."""
     phi = np.cumsum(angles, axis=1)
-    seg = lengths[..., None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    seg = np.empty((*phi.shape, 2))
+    seg[..., 0] = lengths * np.cos(phi)
+    seg[..., 1] = lengths * np.sin(phi)
     out = np.zeros((angles.shape[0], angles.shape[1] + 1, 2))
     np.cumsum(seg, axis=1, out=out[:, 1:])
     return out
@@ -134,18 +137,20 @@ def solve_bend(
 
     def reach(kappa: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Joint angles, reach and d(reach)/dκ of the chain bent by ``kappa``."""
+        # (called some ten times per leg and frame: written with few, plain array operations)
         raw = kappa[:, None] * hinge
-        th = np.clip(raw, lo, hi)
+        th = np.minimum(np.maximum(raw, lo), hi)
         th[:, 0] = 0.0
         free = (raw > lo) & (raw < hi)
         dth = np.where(free, hinge, 0.0)
         phi = np.cumsum(th, axis=1)
         dphi = np.cumsum(dth, axis=1)
         c, sn = np.cos(phi), np.sin(phi)
-        end = np.stack([(lengths * c).sum(axis=1), (lengths * sn).sum(axis=1)], axis=1)
-        dend = np.stack([-(lengths * dphi * sn).sum(axis=1), (lengths * dphi * c).sum(axis=1)], axis=1)
-        r = np.sqrt(np.einsum("ij,ij->i", end, end))
-        dr = np.einsum("ij,ij->i", end, dend) / np.maximum(r, 1e-12)
+        ex, ey = np.add.reduce(lengths * c, axis=1), np.add.reduce(lengths * sn, axis=1)
+        ld = lengths * dphi
+        dex, dey = -np.add.reduce(ld * sn, axis=1), np.add.reduce(ld * c, axis=1)
+        r = np.sqrt(ex * ex + ey * ey)
+        dr = (ex * dex + ey * dey) / np.maximum(r, 1e-12)
         return th, r, dr
 
     # safeguarded Newton on κ: the reach shrinks as the leg folds, so [k_lo, k_hi] brackets
@@ -166,10 +171,12 @@ def solve_bend(
         done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
         if np.all(done):
             break
-        k_lo = np.where(f > 0.0, kappa, k_lo)
-        k_hi = np.where(f > 0.0, k_hi, kappa)
-        newton = kappa - f / np.where(dr < -1e-12, dr, -1.0)
-        ok = (dr < -1e-12) & (newton >= k_lo) & (newton <= k_hi)
+        longer = f > 0.0
+        k_lo = np.where(longer, kappa, k_lo)
+        k_hi = np.where(longer, k_hi, kappa)
+        falling = dr < -1e-12
+        newton = kappa - f / np.where(falling, dr, -1.0)
+        ok = falling & (newton >= k_lo) & (newton <= k_hi)
         kappa = np.where(done, kappa, np.where(ok, newton, 0.5 * (k_lo + k_hi)))
     th, _, _ = reach(kappa)
     end = forward_planar(th, lengths)[rows, n_segments]
@@ -255,12 +262,15 @@ def solve_dls(
         end = pts[np.arange(todo.size), n_segments[todo]]
         err = target[todo] - end
         converged = np.einsum("ij,ij->i", err, err) <= tolerance * tolerance
-        if np.all(converged):
+        if converged.all():
             break
-        keep = ~converged
-        todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
+        if converged.any():  # go on with the others only
+            keep = ~converged
+            todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
         r = end[:, None, :] - pts[:, :s, :]
-        jac = np.stack([-r[..., 1], r[..., 0]], axis=1)  # (m, 2, s)
+        jac = np.empty((todo.size, 2, s))  # (m, 2, s)
+        jac[:, 0] = -r[..., 1]
+        jac[:, 1] = r[..., 0]
         grad = np.einsum("mks,mk->ms", jac, err)
         at_lo = (th <= lo[todo] + 1e-9) & (grad < 0.0)
         at_hi = (th >= hi[todo] - 1e-9) & (grad > 0.0)
@@ -275,7 +285,7 @@ def solve_dls(
         step = jac[:, 0] * x0[:, None] + jac[:, 1] * x1[:, None]
         biggest = np.abs(step).max(axis=1, keepdims=True)
         step *= np.minimum(1.0, max_turn / np.maximum(biggest, 1e-12))
-        theta[todo] = np.clip(th + step, lo[todo], hi[todo])
+        theta[todo] = np.minimum(np.maximum(th + step, lo[todo]), hi[todo])
     return theta
 
 
@@ -297,22 +307,18 @@ def leg_plane_normals(
     d_h = d[:, :2]
     r_h = (rest_foot_body - hip_body)[:, :2]
     yaw = np.arctan2(r_h[:, 0] * d_h[:, 1] - r_h[:, 1] * d_h[:, 0], np.einsum("ij,ij->i", r_h, d_h))
-    fade = np.clip(np.linalg.norm(d_h, axis=1) / (0.25 * leg_length), 0.0, 1.0)
+    fade = np.minimum(np.maximum(vector_norm(d_h) / (0.25 * leg_length), 0.0), 1.0)
     psi = yaw_weight * fade * yaw
     c = np.cos(psi)
     sn = np.sin(psi)
-    pref = np.stack(
-        [
-            c * rest_normal_body[:, 0] - sn * rest_normal_body[:, 1],
-            sn * rest_normal_body[:, 0] + c * rest_normal_body[:, 1],
-            rest_normal_body[:, 2],
-        ],
-        axis=1,
-    )
-    d_len = np.linalg.norm(d, axis=1, keepdims=True)
+    pref = np.empty_like(rest_normal_body)
+    pref[:, 0] = c * rest_normal_body[:, 0] - sn * rest_normal_body[:, 1]
+    pref[:, 1] = sn * rest_normal_body[:, 0] + c * rest_normal_body[:, 1]
+    pref[:, 2] = rest_normal_body[:, 2]
+    d_len = vector_norm(d, keepdims=True)
     d_hat = np.divide(d, d_len, out=np.zeros_like(d), where=d_len > 1e-12)
     normal = pref - np.einsum("ij,ij->i", pref, d_hat)[:, None] * d_hat
-    norm = np.linalg.norm(normal, axis=1, keepdims=True)
+    norm = vector_norm(normal, keepdims=True)
     # target along the preferred normal itself: keep the unprojected rest normal
     return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), rest_normal_body)
 
@@ -333,13 +339,13 @@ def follow_normals(
     along the axis the wanted normal is taken as it is.
     """
     p = prev - np.einsum("ij,ij->i", prev, axis)[:, None] * axis
-    p_len = np.linalg.norm(p, axis=1, keepdims=True)
+    p_len = vector_norm(p, keepdims=True)
     p = p / np.maximum(p_len, 1e-12)
-    sin = np.einsum("ij,ij->i", np.cross(p, normal), axis)
+    sin = np.einsum("ij,ij->i", cross(p, normal), axis)
     cos = np.einsum("ij,ij->i", p, normal)
-    turn = np.clip(np.arctan2(sin, cos), -max_turn, max_turn)
+    turn = np.minimum(np.maximum(np.arctan2(sin, cos), -max_turn), max_turn)
     # Rodrigues about the axis; p is perpendicular to it
-    out = np.cos(turn)[:, None] * p + np.sin(turn)[:, None] * np.cross(axis, p)
+    out = np.cos(turn)[:, None] * p + np.sin(turn)[:, None] * cross(axis, p)
     return np.where(p_len > 1e-6, out, normal)
 
 
@@ -385,11 +391,11 @@ def solve_legs(
         target_body, zero, rest_foot_rel, legs.plane_normal, legs.yaw_weight, legs.leg_length
     )
     if prev_normal is not None:
-        t_len = np.linalg.norm(target_body, axis=1, keepdims=True)
+        t_len = vector_norm(target_body, keepdims=True)
         axis = np.divide(target_body, t_len, out=np.zeros_like(target_body), where=t_len > 1e-12)
         prev = np.asarray(prev_normal, dtype=np.float64)
         normal_body = follow_normals(normal_body, prev, axis, max_plane_turn)
-    a, b = plane_axes(normal_body, np.broadcast_to(_UP, (n, 3)))
+    a, b = plane_axes(normal_body, _UP)
     target_2d = np.stack(
         [np.einsum("ij,ij->i", target_body, a), np.einsum("ij,ij->i", target_body, b)], axis=1
     )

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import cross, vector_norm
 from .spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT, SpineModel
 
 FloatArray = npt.NDArray[np.float64]
@@ -388,19 +389,19 @@ def _default_limits(rest: FloatArray, n_seg: IntArray, hinge_margin: float) -> t
 
 def plane_axes(normal: FloatArray, up: FloatArray) -> tuple[FloatArray, FloatArray]:
     """In-plane axes ``(a, b)`` of leg planes: ``b`` is ``up`` projected into the plane,
-    ``a = b x normal`` (so ``a x b = normal``). Shapes ``(..., 3)``.
+    ``a = b x normal`` (so ``a x b = normal``). Shapes ``(..., 3)`` (``up`` may be one ``(3,)``).
 
     A plane whose normal is ``up`` itself (a horizontal leg plane) takes the x axis as ``a``.
     """
     b = up - np.einsum("...j,...j->...", up, normal)[..., None] * normal
-    b_norm = np.linalg.norm(b, axis=-1, keepdims=True)
+    b_norm = vector_norm(b, keepdims=True)
     horizontal_plane = b_norm[..., 0] < 1e-9
     if np.any(horizontal_plane):
-        alt = np.cross(normal, np.array([1.0, 0.0, 0.0]))
+        alt = cross(normal, np.array([1.0, 0.0, 0.0]))
         b = np.where(horizontal_plane[..., None], alt, b)
-        b_norm = np.linalg.norm(b, axis=-1, keepdims=True)
+        b_norm = vector_norm(b, keepdims=True)
     b = b / b_norm
-    a = np.cross(b, normal)
+    a = cross(b, normal)
     return a, b
 
 

@@ -76,13 +76,52 @@ def foot_acceleration(
     particle state, ``preferred`` the height ``y_T``. Remaining times are floored at
     ``min_time`` (one integration step) so the last step of a phase is not singular.
     """
+    t = phase_times(swing, stance_progress, stance_time, swing_time, gravity, min_time)
+    return _acceleration(t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight,
+                         height, velocity, preferred, gravity)
+
+
+@dataclass(frozen=True)
+class PhaseTimes:
+    """What :func:`foot_acceleration` needs from the feet's phases alone, shape ``(..., N)``
+    each: in ``reception`` / ``propulsion``, the time left of the reception ``t_rec`` and
+    of the propulsion ``t_prop``, and ``half_g_flight`` = ``0.5 g (t_prop + swing_time)``
+    with ``flight`` = ``t_prop + swing_time``."""
+
+    reception: BoolArray
+    propulsion: BoolArray
+    t_rec: FloatArray
+    t_prop: FloatArray
+    flight: FloatArray
+    half_g_flight: FloatArray
+
+
+def phase_times(
+    swing: BoolArray,
+    stance_progress: FloatArray,
+    stance_time: FloatArray,
+    swing_time: FloatArray,
+    gravity: float,
+    min_time: float,
+) -> PhaseTimes:
+    """The phase-only part of :func:`foot_acceleration`, for phases of any shape ``(..., N)``
+    (all the sub-steps of a frame at once)."""
     reception = ~swing & (stance_progress < 0.5)
     propulsion = ~swing & ~reception
     t_rec = np.maximum((0.5 - stance_progress) * stance_time, min_time)
-    a_rec = gravity + (0.0 - velocity) / t_rec
     t_prop = np.maximum((1.0 - stance_progress) * stance_time, min_time)
     t_flight = t_prop + swing_time
-    v0 = (preferred - height) / t_flight + 0.5 * gravity * t_flight
+    return PhaseTimes(reception, propulsion, t_rec, t_prop, t_flight, 0.5 * gravity * t_flight)
+
+
+def _acceleration(
+    reception: BoolArray, propulsion: BoolArray, t_rec: FloatArray, t_prop: FloatArray,
+    flight: FloatArray, half_g_flight: FloatArray,
+    height: FloatArray, velocity: FloatArray, preferred: FloatArray, gravity: float,
+) -> FloatArray:
+    """``a_foot (N,)`` from one sub-step's :class:`PhaseTimes` fields and the particles' state."""
+    a_rec = gravity + (0.0 - velocity) / t_rec
+    v0 = (preferred - height) / flight + half_g_flight
     a_prop = gravity + (v0 - velocity) / t_prop
     return np.where(reception, a_rec, np.where(propulsion, a_prop, 0.0))
 
@@ -183,9 +222,8 @@ class PelvisPhysics:
         n_sub = max(1, math.ceil(float(total.max()) / self.params.max_substep))
         h = total / n_sub
         preferred = self.height.copy()
-        for k in range(n_sub):
-            phase = mid_stance + (k + 0.5) * h * rate_leg
-            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        phases = mid_stance + (np.arange(n_sub)[:, None] + 0.5) * h * rate_leg
+        self._substeps(phases, rate_leg, disk_start, disk_duration, preferred, h)
         # one more cycle, every leg of a node in step, to measure the orbit's mean offset
         n_sub = max(1, math.ceil(float(period.max()) / self.params.max_substep))
         h = period / n_sub
@@ -193,35 +231,37 @@ class PelvisPhysics:
         acc = np.zeros(self.n_nodes)
         for k in range(n_sub):
             phase = needle_leg + (k + 0.5) * h * rate_leg
-            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+            self._substeps(phase[None], rate_leg, disk_start, disk_duration, preferred, h)
             acc += self.node_height() - pref_node
         self.offset = acc / n_sub
 
-    def _substep(
+    def _substeps(
         self,
-        phase: FloatArray,
+        phases: FloatArray,
         rate_leg: FloatArray,
         disk_start: FloatArray,
         disk_duration: FloatArray,
         preferred: FloatArray,
         h: FloatArray | float,
     ) -> None:
+        """Integrate one sub-step of length ``h`` per row of needle ``phases`` ``(K, N)`` (each
+        leg's phase at the middle of the sub-step), in order. What depends on the phases
+        alone (swing or stance, stance progress) is found for all rows at once; only the
+        particles' update runs per sub-step."""
         period = 1.0 / np.maximum(rate_leg, 1e-9)
-        swing = in_swing(phase, disk_start, disk_duration)
-        progress = stance_elapsed(phase, disk_start, disk_duration) / (1.0 - disk_duration)
-        a_foot = foot_acceleration(
-            swing,
-            progress,
-            (1.0 - disk_duration) * period,
-            disk_duration * period,
-            self.height,
-            self.velocity,
-            preferred,
-            self.params.gravity,
-            float(np.max(h)),
-        )
-        self.velocity = self.velocity + (a_foot - self.params.gravity) * h
-        self.height = self.height + self.velocity * h
+        swing = in_swing(phases, disk_start, disk_duration)
+        progress = stance_elapsed(phases, disk_start, disk_duration) / (1.0 - disk_duration)
+        stance_time = (1.0 - disk_duration) * period
+        swing_time = disk_duration * period
+        gravity = self.params.gravity
+        t = phase_times(swing, progress, stance_time, swing_time, gravity, float(np.max(h)))
+        for rec, prop, t_rec, t_prop, flight, half_g in zip(
+            t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight, strict=True
+        ):
+            a_foot = _acceleration(rec, prop, t_rec, t_prop, flight, half_g, self.height, self.velocity,
+                                   preferred, gravity)
+            self.velocity = self.velocity + (a_foot - gravity) * h
+            self.height = self.height + self.velocity * h
 
     def step(
         self,
@@ -242,9 +282,8 @@ class PelvisPhysics:
         h = dt / n_sub
         pref_node = np.asarray(preferred_node_height, dtype=np.float64)
         preferred = pref_node[self.leg_node]
-        for k in range(n_sub):
-            phase = needle_leg + (k + 0.5) * h * rate_leg
-            self._substep(phase, rate_leg, disk_start, disk_duration, preferred, h)
+        phases = needle_leg + (np.arange(n_sub)[:, None] + 0.5) * h * rate_leg
+        self._substeps(phases, rate_leg, disk_start, disk_duration, preferred, h)
         # running mean of the offset over about two cycles of each node's legs
         period = np.zeros(self.n_nodes)
         np.maximum.at(period, self.leg_node, 1.0 / np.maximum(rate_leg, 1e-9))

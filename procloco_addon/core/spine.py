@@ -42,6 +42,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import vector_norm
 from .hermite import hermite_basis
 from .hull import upper_hull_eval
 from .terrain import NO_SURFACE
@@ -54,6 +55,8 @@ IntArray = npt.NDArray[np.int64]
 HeightFn = Callable[[FloatArray], FloatArray]
 
 _CURVE_SAMPLES = 25  # dense samples per key segment for arc-length lookups
+_CURVE_S = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
+_CURVE_BASIS = hermite_basis(_CURVE_S)  # (m, 4), the same for every curve
 _EPS = 1e-12
 DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
 DEFAULT_JOINT_PITCH_LIMIT = float(np.radians(20.0))
@@ -61,13 +64,18 @@ DEFAULT_JOINT_PITCH_LIMIT = float(np.radians(20.0))
 
 def wrap_angle(a: npt.ArrayLike) -> FloatArray:
     """Angles wrapped into ``[-pi, pi)``."""
-    return np.asarray((np.asarray(a, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi)
+    return (np.asarray(a, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _rot2(angle: FloatArray) -> FloatArray:
     """2D rotation matrices ``(..., 2, 2)`` for angles ``(...)``."""
     c, s = np.cos(angle), np.sin(angle)
-    return np.stack([np.stack([c, -s], axis=-1), np.stack([s, c], axis=-1)], axis=-2)
+    out = np.empty((*np.shape(angle), 2, 2))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    return out
 
 
 def _rotate_about(points: FloatArray, centre: FloatArray, angle: FloatArray) -> FloatArray:
@@ -104,28 +112,65 @@ def _node_headings(seg_angle: FloatArray) -> FloatArray:
     return wrap_angle(np.concatenate([head, inner, back], axis=1))
 
 
+# The rotations are written element by element into one array (not stacked from rows): a
+# character's step builds a few thousand of them and the stacking was a tenth of its time.
 def _rz(angle: FloatArray) -> FloatArray:
+    """Rotations ``(..., 3, 3)`` about Z by ``angle`` ``(...)``."""
     c, s = np.cos(angle), np.sin(angle)
-    z, o = np.zeros_like(angle), np.ones_like(angle)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
+    out = np.zeros((*np.shape(angle), 3, 3))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    out[..., 2, 2] = 1.0
+    return out
 
 
 def _ry(angle: FloatArray) -> FloatArray:
+    """Rotations ``(..., 3, 3)`` about Y by ``angle`` ``(...)``."""
     c, s = np.cos(angle), np.sin(angle)
-    z, o = np.zeros_like(angle), np.ones_like(angle)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
+    out = np.zeros((*np.shape(angle), 3, 3))
+    out[..., 0, 0] = c
+    out[..., 0, 2] = s
+    out[..., 1, 1] = 1.0
+    out[..., 2, 0] = -s
+    out[..., 2, 2] = c
+    return out
 
 
 def frame_from_yaw_pitch(yaw: npt.ArrayLike, pitch: npt.ArrayLike) -> FloatArray:
-    """Body-to-world rotations ``(..., 3, 3)``: heading ``yaw`` then nose-up ``pitch``."""
+    """Body-to-world rotations ``(..., 3, 3)``: heading ``yaw`` then nose-up ``pitch``
+    (``Rz(yaw) @ Ry(-pitch)`` written out: its products with the zeros vanish)."""
     y = np.asarray(yaw, dtype=np.float64)
     p = np.asarray(pitch, dtype=np.float64)
-    return np.asarray(_rz(y) @ _ry(-p))
+    cy, sy = np.cos(y), np.sin(y)
+    cp, sp = np.cos(p), np.sin(p)
+    out = np.empty((*np.broadcast_shapes(y.shape, p.shape), 3, 3))
+    out[..., 0, 0] = cy * cp
+    out[..., 0, 1] = -sy
+    out[..., 0, 2] = -cy * sp
+    out[..., 1, 0] = sy * cp
+    out[..., 1, 1] = cy
+    out[..., 1, 2] = -sy * sp
+    out[..., 2, 0] = sp
+    out[..., 2, 1] = 0.0
+    out[..., 2, 2] = cp
+    return out
 
 
 def _direction(yaw: FloatArray, pitch: FloatArray) -> FloatArray:
     cp = np.cos(pitch)
-    return np.stack([cp * np.cos(yaw), cp * np.sin(yaw), np.sin(pitch)], axis=-1)
+    out = np.empty((*np.broadcast_shapes(np.shape(yaw), np.shape(pitch)), 3))
+    out[..., 0] = cp * np.cos(yaw)
+    out[..., 1] = cp * np.sin(yaw)
+    out[..., 2] = np.sin(pitch)
+    return out
+
+
+def _as_shape(a: npt.ArrayLike, shape: tuple[int, ...]) -> FloatArray:
+    """``a`` as float64 broadcast to ``shape`` (itself when it already is: no broadcast_to)."""
+    arr = np.asarray(a, dtype=np.float64)
+    return arr if arr.shape == shape else np.broadcast_to(arr, shape)
 
 
 def _yaw_pitch(v: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -159,7 +204,12 @@ class SpineModel:
     Derived (filled in by the constructor): ``bone_length`` ``(J - 1,)``, ``bone_dir``
     ``(J - 1, 3)`` (unit, head to back), ``key_chord`` ``(K - 1,)`` horizontal distances
     between key nodes, ``key_rest_height`` ``(K,)`` rest height of each node above its
-    feet (above all feet for the head), ``rest_key_pitch`` ``(K,)``, the rest curve samples.
+    feet (above all feet for the head), ``rest_key_pitch`` ``(K,)``, the rest curve samples,
+    ``rest_unturn`` ``(J - 1, 3, 3)`` the rotation taking each bone's rest chord direction to
+    the x axis, ``joint_at_start``/``joint_at_end`` ``(J,)`` joints at fraction 0 / 1 of
+    their key segment, ``leg_key_joint`` ``(L,)`` the joint of each leg's key node,
+    ``any_leg_on_bone``, ``hip_pivot_offset`` ``(L, 3)`` each hip from the joint it turns
+    about (step 4's per-call constants, computed once).
     """
 
     joint_rest: FloatArray
@@ -186,6 +236,12 @@ class SpineModel:
     leg_pivot: IntArray = field(init=False)
     leg_on_bone: npt.NDArray[np.bool_] = field(init=False)
     leg_bone_row: IntArray = field(init=False)
+    rest_unturn: FloatArray = field(init=False)
+    leg_key_joint: IntArray = field(init=False)
+    any_leg_on_bone: bool = field(init=False)
+    hip_pivot_offset: FloatArray = field(init=False)
+    joint_at_start: npt.NDArray[np.bool_] = field(init=False)
+    joint_at_end: npt.NDArray[np.bool_] = field(init=False)
 
     @property
     def n_joints(self) -> int:
@@ -243,7 +299,10 @@ class SpineModel:
         set_(self, "leg_pivot", np.where(carrier >= 0, carrier + 1, key[leg_key]).astype(np.int64))
         set_(self, "leg_on_bone", carrier >= 0)
         set_(self, "leg_bone_row", np.maximum(carrier, 0))
+        set_(self, "leg_key_joint", key[leg_key])
+        set_(self, "any_leg_on_bone", bool(np.any(carrier >= 0)))
         set_(self, "hip_rest", np.asarray(self.hip_rest, dtype=np.float64).reshape(n_l, 3))
+        set_(self, "hip_pivot_offset", self.hip_rest - joints[self.leg_pivot])
         set_(self, "foot_rest", np.asarray(self.foot_rest, dtype=np.float64).reshape(n_l, 3))
         set_(self, "node_yaw_limit", per("node_yaw_limit", self.node_yaw_limit, n_k))
         set_(self, "joint_yaw_limit", per("joint_yaw_limit", self.joint_yaw_limit, n_j))
@@ -276,6 +335,8 @@ class SpineModel:
         start, end = cum[key[seg]], cum[key[seg + 1]]
         set_(self, "joint_segment", seg.astype(np.int64))
         set_(self, "joint_fraction", (cum - start) / (end - start))
+        set_(self, "joint_at_start", self.joint_fraction <= 0.0)
+        set_(self, "joint_at_end", self.joint_fraction >= 1.0)
 
         rest_samples = _sample_curve(
             self, key_pos[None], self.rest_key_heading[None], self.rest_key_pitch[None]
@@ -283,6 +344,9 @@ class SpineModel:
         rest_yaw, rest_pitch = _yaw_pitch(np.diff(rest_samples, axis=0))
         set_(self, "rest_chord_yaw", rest_yaw)
         set_(self, "rest_chord_pitch", rest_pitch)
+        # Each bone's rest direction turned back to the x axis, the constant right half of
+        # step 4's bone rotations: (J - 1, 3, 3).
+        set_(self, "rest_unturn", _ry(rest_pitch) @ _rz(-rest_yaw))
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -525,7 +589,7 @@ def _turn_from_head(model: SpineModel, xy: FloatArray, turn: FloatArray) -> Floa
         share = np.clip(remaining, lo, hi)
         xy[:, :i] = _rotate_about(xy[:, :i], xy[:, i], share)
         remaining = remaining - share
-    others = np.r_[0, 2:k] if k > 2 else np.array([0])
+    others = np.array([0, *range(2, k)], dtype=np.intp)  # (np.r_ costs more than the rotation)
     xy[:, others] = _rotate_about(xy[:, others], xy[:, 1], remaining)
     return xy
 
@@ -536,9 +600,9 @@ def _advance_on_support(model: SpineModel, xy: FloatArray, dist: FloatArray) -> 
     front."""
     c, k = xy.shape[0], xy.shape[1]
     head_dir = xy[:, 0] - xy[:, 1]
-    head_dir /= np.linalg.norm(head_dir, axis=1, keepdims=True)
+    head_dir /= vector_norm(head_dir, keepdims=True)
     tail_dir = xy[:, -1] - xy[:, -2]
-    tail_dir /= np.linalg.norm(tail_dir, axis=1, keepdims=True)
+    tail_dir /= vector_norm(tail_dir, keepdims=True)
     reach = dist + float(model.key_chord.sum()) + 1.0
     new_head = xy[:, 0] + dist[:, None] * head_dir
     beyond_back = xy[:, -1] + reach[:, None] * tail_dir
@@ -634,7 +698,7 @@ def terrain_guides(
     """
     xy = plan.key_xy
     c, k = xy.shape[0], xy.shape[1]
-    chord = np.linalg.norm(np.diff(xy, axis=1), axis=2)  # (C, K - 1)
+    chord = vector_norm(xy[:, 1:] - xy[:, :-1])  # (C, K - 1)
     arc = np.concatenate([np.zeros((c, 1)), np.cumsum(chord, axis=1)], axis=1)  # (C, K)
     margin = model.slice_margin
     lo = np.concatenate([arc[:, :1] - margin, 0.5 * (arc[:, :-1] + arc[:, 1:])], axis=1)
@@ -766,26 +830,31 @@ def _sample_curve(
     """Points ``(C, J, 3)`` on the Hermite curve through the key nodes at the joints' arc
     fractions. ``key_pitch`` here is the absolute tangent pitch (forward, nose up)."""
     c, k = key_xyz.shape[:2]
+    m = _CURVE_SAMPLES
     back = -_direction(key_yaw, key_pitch)  # the curve runs from the head to the back
-    chord = np.linalg.norm(np.diff(key_xyz, axis=1), axis=2)[..., None]  # (C, K - 1, 1)
-    p1, p2 = key_xyz[:, :-1], key_xyz[:, 1:]
-    t1, t2 = back[:, :-1] * chord, back[:, 1:] * chord
-    ctrl = np.stack([p1, p2, t1, t2], axis=-2)  # (C, K - 1, 4, 3)
-    s = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
-    dense = np.einsum("mf,ckfd->ckmd", hermite_basis(s), ctrl)  # (C, K - 1, m, 3)
-    step = np.linalg.norm(np.diff(dense, axis=2), axis=3)
-    table = np.concatenate([np.zeros((c, k - 1, 1)), np.cumsum(step, axis=2)], axis=2)  # (C, K - 1, m)
+    chord = vector_norm(key_xyz[:, 1:] - key_xyz[:, :-1], keepdims=True)  # (C, K - 1, 1)
+    ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
+    ctrl[:, :, 0] = key_xyz[:, :-1]
+    ctrl[:, :, 1] = key_xyz[:, 1:]
+    ctrl[:, :, 2] = back[:, :-1] * chord
+    ctrl[:, :, 3] = back[:, 1:] * chord
+    s = _CURVE_S
+    dense = _CURVE_BASIS @ ctrl  # (C, K - 1, m, 3): (m, 4) weights times (4, 3) controls
+    table = np.zeros((c, k - 1, m))  # arc length at each dense sample
+    np.cumsum(vector_norm(dense[:, :, 1:] - dense[:, :, :-1]), axis=2, out=table[:, :, 1:])
     seg = model.joint_segment
     tab = table[:, seg]  # (C, J, m)
     target = model.joint_fraction[None, :] * tab[..., -1]
-    idx = np.clip(np.sum(tab < target[..., None], axis=-1), 1, _CURVE_SAMPLES - 1)  # (C, J)
-    l0 = np.take_along_axis(tab, (idx - 1)[..., None], axis=-1)[..., 0]
-    l1 = np.take_along_axis(tab, idx[..., None], axis=-1)[..., 0]
+    idx = np.minimum(np.maximum((tab < target[..., None]).sum(axis=-1), 1), m - 1)  # (C, J)
+    flat = tab.reshape(-1, m)
+    rows = np.arange(flat.shape[0])
+    l0 = flat[rows, (idx - 1).ravel()].reshape(idx.shape)
+    l1 = flat[rows, idx.ravel()].reshape(idx.shape)
     frac = (target - l0) / np.maximum(l1 - l0, _EPS)
-    param = s[idx - 1] + np.clip(frac, 0.0, 1.0) * (s[1] - s[0])
+    param = s[idx - 1] + np.minimum(np.maximum(frac, 0.0), 1.0) * (s[1] - s[0])
     # Exact ends: key joints sit on their key node.
-    param = np.where(model.joint_fraction[None, :] <= 0.0, 0.0, param)
-    param = np.where(model.joint_fraction[None, :] >= 1.0, 1.0, param)
+    param[:, model.joint_at_start] = 0.0
+    param[:, model.joint_at_end] = 1.0
     return np.asarray(np.einsum("cjf,cjfd->cjd", hermite_basis(param), ctrl[:, seg]))
 
 
@@ -805,17 +874,18 @@ def build_spine(
     """
     guide = np.asarray(key_xyz, dtype=np.float64)
     c = guide.shape[0]
-    yaw = np.broadcast_to(np.asarray(key_yaw, dtype=np.float64), guide.shape[:2])
-    pitch = np.broadcast_to(np.asarray(key_pitch, dtype=np.float64), guide.shape[:2])
+    yaw = _as_shape(key_yaw, guide.shape[:2])
+    pitch = _as_shape(key_pitch, guide.shape[:2])
     samples = _sample_curve(model, guide, yaw, model.rest_key_pitch[None, :] + pitch)
-    chord_yaw, chord_pitch = _yaw_pitch(np.diff(samples, axis=1))  # (C, J - 1)
+    chord_yaw, chord_pitch = _yaw_pitch(samples[:, 1:] - samples[:, :-1])  # (C, J - 1)
     yaw_dev = wrap_angle(chord_yaw - model.rest_chord_yaw[None, :])
     pitch_dev = chord_pitch - model.rest_chord_pitch[None, :]
     yaw_dev, pitch_dev = _limit_joints(model, yaw_dev, pitch_dev)
 
     rest_yaw = model.rest_chord_yaw[None, :]
     rest_pitch = model.rest_chord_pitch[None, :]
-    rotation = _rz(rest_yaw + yaw_dev) @ _ry(-(rest_pitch + pitch_dev)) @ _ry(rest_pitch) @ _rz(-rest_yaw)
+    # Rz(yaw) Ry(-pitch) of the turned chord after the rest chord's inverse (rest_unturn)
+    rotation = frame_from_yaw_pitch(rest_yaw + yaw_dev, rest_pitch + pitch_dev) @ model.rest_unturn
     bone_world = np.einsum("cbij,bj->cbi", rotation, model.bone_dir) * model.bone_length[None, :, None]
 
     anchor_joint = int(model.key_joint[model.anchor_key])
@@ -851,20 +921,29 @@ def _limit_joints(
     model: SpineModel, yaw_dev: FloatArray, pitch_dev: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
     """Limit the change of turn at every joint, working outward from the anchor joint."""
+    n_b = yaw_dev.shape[1]
+    # Mostly no joint is at its limit: then every turn stays as it is (the walk below would
+    # only add rounding), found with a few array operations instead of a loop over bones.
+    if n_b < 2 or (
+        np.all(np.abs(yaw_dev[:, 1:] - yaw_dev[:, :-1]) < model.joint_yaw_limit[1:n_b])
+        and np.all(np.abs(pitch_dev[:, 1:] - pitch_dev[:, :-1]) < model.joint_pitch_limit[1:n_b])
+    ):
+        return yaw_dev.copy(), pitch_dev.copy()
     yaw = yaw_dev.copy()
     pitch = pitch_dev.copy()
-    n_b = yaw.shape[1]
     anchor_joint = int(model.key_joint[model.anchor_key])
     # Bones behind the anchor keep the first one's turn as reference; so do bones ahead.
     ref_back = min(anchor_joint, n_b - 1)
+    # np.minimum(np.maximum()) is np.clip without its dispatch cost (this loop runs per bone).
+    yls, pls = model.joint_yaw_limit.tolist(), model.joint_pitch_limit.tolist()
     for b in range(ref_back + 1, n_b):  # joint b joins bone b - 1 and bone b
-        yl, pl = model.joint_yaw_limit[b], model.joint_pitch_limit[b]
-        yaw[:, b] = yaw[:, b - 1] + np.clip(wrap_angle(yaw[:, b] - yaw[:, b - 1]), -yl, yl)
-        pitch[:, b] = pitch[:, b - 1] + np.clip(pitch[:, b] - pitch[:, b - 1], -pl, pl)
+        yl, pl = yls[b], pls[b]
+        yaw[:, b] = yaw[:, b - 1] + np.minimum(np.maximum(wrap_angle(yaw[:, b] - yaw[:, b - 1]), -yl), yl)
+        pitch[:, b] = pitch[:, b - 1] + np.minimum(np.maximum(pitch[:, b] - pitch[:, b - 1], -pl), pl)
     for b in range(ref_back - 1, -1, -1):  # joint b + 1 joins bone b and bone b + 1
-        yl, pl = model.joint_yaw_limit[b + 1], model.joint_pitch_limit[b + 1]
-        yaw[:, b] = yaw[:, b + 1] + np.clip(wrap_angle(yaw[:, b] - yaw[:, b + 1]), -yl, yl)
-        pitch[:, b] = pitch[:, b + 1] + np.clip(pitch[:, b] - pitch[:, b + 1], -pl, pl)
+        yl, pl = yls[b + 1], pls[b + 1]
+        yaw[:, b] = yaw[:, b + 1] + np.minimum(np.maximum(wrap_angle(yaw[:, b] - yaw[:, b + 1]), -yl), yl)
+        pitch[:, b] = pitch[:, b + 1] + np.minimum(np.maximum(pitch[:, b] - pitch[:, b + 1], -pl), pl)
     return yaw, pitch
 
 
@@ -898,8 +977,8 @@ def refit(model: SpineModel, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePo
 def leg_frames(model: SpineModel, pose: SpinePose) -> FloatArray:
     """Body-to-world rotation each leg hangs from ``(C, L, 3, 3)``: its carrier bone's
     rotation (``SpineModel.leg_bone``), else the frame of its key node."""
-    key_frames = pose.joint_frame[:, model.key_joint[model.leg_key]]
-    if not np.any(model.leg_on_bone):
+    key_frames = pose.joint_frame[:, model.leg_key_joint]
+    if not model.any_leg_on_bone:
         return np.asarray(key_frames)
     bone_frames = pose.bone_rotation[:, model.leg_bone_row]
     return np.asarray(np.where(model.leg_on_bone[None, :, None, None], bone_frames, key_frames))
@@ -908,9 +987,8 @@ def leg_frames(model: SpineModel, pose: SpinePose) -> FloatArray:
 def hip_positions(model: SpineModel, pose: SpinePose) -> FloatArray:
     """World hip positions ``(C, L, 3)``: each hip rides with its carrier bone (turning about
     the bone's back joint) or, without one, with the frame of its key node."""
-    pivot = model.leg_pivot
-    offset = model.hip_rest - model.joint_rest[pivot]  # (L, 3)
-    return pose.joints[:, pivot] + np.einsum("clij,lj->cli", leg_frames(model, pose), offset)
+    frames = leg_frames(model, pose)  # (C, L, 3, 3)
+    return pose.joints[:, model.leg_pivot] + np.matmul(frames, model.hip_pivot_offset[:, :, None])[..., 0]
 
 
 def repeat_for_reach(
@@ -948,7 +1026,7 @@ def repeat_for_reach(
     for _ in range(max(0, int(iterations))):
         sub = pose_rows(pose, rows)
         to_foot = feet[rows] - hip_positions(model, sub)
-        dist = np.linalg.norm(to_foot, axis=-1)
+        dist = vector_norm(to_foot)
         reach = reach_all[rows]
         stretched = np.any(dist > reach + 1e-12, axis=1)
         if not np.any(stretched):
@@ -960,14 +1038,17 @@ def repeat_for_reach(
         shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
         sub = pose_rows(pose, rows)
         moved = sub.guide_xyz + shift - start[rows]
-        size = np.linalg.norm(moved, axis=-1, keepdims=True)
+        size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, max_shift / np.maximum(size, _EPS))
         pose = pose_with_rows(pose, rows, refit(model, sub, start[rows] + moved))
     return pose
 
 
 def pose_rows(pose: SpinePose, rows: IntArray) -> SpinePose:
-    """The poses of characters ``rows`` only."""
+    """The poses of characters ``rows`` (increasing, without repeats) only: ``pose`` itself
+    when that is every character (poses are not changed in place)."""
+    if rows.size == pose.joints.shape[0]:
+        return pose
     return SpinePose(*(getattr(pose, f.name)[rows] for f in fields(SpinePose)))
 
 

@@ -434,16 +434,17 @@ def raster_triangles(
     col = j0[tri] + local % np.maximum(wcols[tri], 1)
     row = i0[tri] + local // np.maximum(wcols[tri], 1)
     hit = np.ones(tri.size, dtype=bool)
-    vx = fx[tri]  # (m, 3)
-    vy = fy[tri]
     for a in range(3):
+        # Each edge normal and the triangle's extent along it are the triangle's own: found
+        # per triangle, then looked up per (triangle, cell) pair.
         b = (a + 1) % 3
-        nxa = -(vy[:, b] - vy[:, a])
-        nya = vx[:, b] - vx[:, a]
-        proj = vx * nxa[:, None] + vy * nya[:, None]
-        centre = col * nxa + row * nya
-        reach = 0.5 * (np.abs(nxa) + np.abs(nya))
-        hit &= (proj.max(axis=1) >= centre - reach - 1e-12) & (proj.min(axis=1) <= centre + reach + 1e-12)
+        nxa = -(fy[:, b] - fy[:, a])  # (k,)
+        nya = fx[:, b] - fx[:, a]
+        proj = fx * nxa[:, None] + fy * nya[:, None]  # (k, 3)
+        centre = col * nxa[tri] + row * nya[tri]
+        reach = (0.5 * (np.abs(nxa) + np.abs(nya)))[tri]
+        hit &= ((proj.max(axis=1)[tri] >= centre - reach - 1e-12)
+                & (proj.min(axis=1)[tri] <= centre + reach + 1e-12))
     tri, row, col = tri[hit], row[hit], col[hit]
     normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     flat_ok = np.abs(normal[:, 2]) > 1e-12
@@ -456,6 +457,28 @@ def raster_triangles(
     plane = tris[tri, 0, 2] + gx[tri] * px + gy[tri] * py + 0.5 * cell * (np.abs(gx[tri]) + np.abs(gy[tri]))
     z = np.where(flat_ok[tri], np.minimum(plane, top[tri]), top[tri])
     return tri, row, col, z
+
+
+def triangle_hits(
+    tris: FloatArray, xy: FloatArray, point: IntArray, tri: IntArray
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """Which candidate (point, triangle) pairs hit: points ``xy`` ``(n, 2)`` inside the ground
+    projection of triangles ``tris`` ``(f, 3, 3)``, candidates ``point``/``tri`` ``(m,)``.
+    Returns the pairs that hit and the triangle's height at the point, ``(k,)`` each."""
+    t = tris[tri]
+    a = t[:, 0, :2]
+    e1 = t[:, 1, :2] - a
+    e2 = t[:, 2, :2] - a
+    p = xy[point] - a
+    den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    good = np.abs(den) > 1e-15
+    den = np.where(good, den, 1.0)
+    u = (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / den
+    v = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
+    tol = -1e-9
+    inside = good & (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
+    z = t[:, 0, 2] + u * (t[:, 1, 2] - t[:, 0, 2]) + v * (t[:, 2, 2] - t[:, 0, 2])
+    return point[inside], tri[inside], z[inside]
 
 
 # ---------------------------------------------------------------------------------------
@@ -658,6 +681,8 @@ class Environment:
         self._box_index_dynamic: _BucketIndex | None = None
         self._soup_index: dict[int, _BucketIndex] = {}
         self._soup_tris: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self._soup_role = np.array([soup.role for soup in self._soups], dtype=np.int_)
+        self._static_soup_index: tuple[_BucketIndex, FloatArray, IntArray, IntArray] | None = None
         # Translation of each dynamic soup from its stored vertices (move_soup): the triangles,
         # their index and their raster are kept and only the queries are shifted.
         self._soup_offset: dict[int, FloatArray] = {}
@@ -775,6 +800,9 @@ class Environment:
         """(point, box) pairs of points ``(n, 2)`` inside boxes' ground footprints. The last
         query's answer is kept: asking again for the same points (until something moves) costs
         a comparison."""
+        if self._box_center.shape[0] == 0:  # (a scene of meshes only: the shell's)
+            e = np.zeros(0, dtype=np.intp)
+            return e, e
         key = xy.tobytes()
         last = self._last_pairs
         if last is not None and last[0] == xy.shape and last[1] == key:
@@ -818,22 +846,32 @@ class Environment:
         if off is not None:
             xy = xy - off[:2]
         point, tri = self._soup_index[i].pairs(xy)
-        t = tris[tri]
-        a = t[:, 0, :2]
-        e1 = t[:, 1, :2] - a
-        e2 = t[:, 2, :2] - a
-        p = xy[point] - a
-        den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-        good = np.abs(den) > 1e-15
-        den = np.where(good, den, 1.0)
-        u = (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / den
-        v = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
-        tol = -1e-9
-        inside = good & (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
-        z = t[:, 0, 2] + u * (t[:, 1, 2] - t[:, 0, 2]) + v * (t[:, 2, 2] - t[:, 0, 2])
+        point, tri, z = triangle_hits(tris, xy, point, tri)
         if off is not None:
             z = z + off[2]
-        return point[inside], z[inside]
+        return point, z
+
+    def _static_soups(self) -> tuple[_BucketIndex, FloatArray, IntArray, IntArray]:
+        """Every static soup's triangles in one bucket index, built once (static soups never
+        change): the index, the triangles ``(f, 3, 3)``, the soup of each triangle ``(f,)``
+        and the static soups' ids. One query then answers for all of them (a scene of a ground
+        and ten crates asked eleven indices per point query before)."""
+        if self._static_soup_index is None:
+            ids = np.array([i for i, soup in enumerate(self._soups) if not soup.dynamic], dtype=np.intp)
+            parts = [self._soup_triangles(int(i)) for i in ids]
+            tris = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 3, 3))
+            tlo = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 2))
+            thi = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 2))
+            owner = np.repeat(ids, [p[0].shape[0] for p in parts]).astype(np.intp)
+            self._static_soup_index = (_BucketIndex(tlo, thi), tris, owner, ids)
+        return self._static_soup_index
+
+    def _static_soup_hits(self, xy: FloatArray) -> tuple[IntArray, FloatArray, IntArray]:
+        """(point, height, soup) of every static soup triangle under points ``(n, 2)``."""
+        index, tris, owner, _ = self._static_soups()
+        point, tri = index.pairs(xy)
+        point, tri, z = triangle_hits(tris, xy, point, tri)
+        return point, z, owner[tri]
 
     def height_at(self, xy: npt.ArrayLike) -> FloatArray:
         """Highest surface (terrain and every obstacle) under each point ``(n, 2)``: ``(n,)``.
@@ -845,10 +883,14 @@ class Environment:
         if self.heightmap is not None:
             out = np.maximum(out, self.heightmap.sample(p))
         point, box = self._box_pairs(p)
-        np.maximum.at(out, point, self._box_top[box])
-        for i in range(len(self._soups)):
-            pt, z = self._soup_hits(i, p)
-            np.maximum.at(out, pt, z)
+        if point.size:
+            np.maximum.at(out, point, self._box_top[box])
+        pt, z, _ = self._static_soup_hits(p)
+        np.maximum.at(out, pt, z)
+        for i, soup in enumerate(self._soups):
+            if soup.dynamic:
+                pt, z = self._soup_hits(i, p)
+                np.maximum.at(out, pt, z)
         return out
 
     def forbidden_at(self, xy: npt.ArrayLike) -> BoolArray:
@@ -857,8 +899,11 @@ class Environment:
         out = np.zeros(p.shape[0], dtype=bool)
         point, box = self._box_pairs(p)
         out[point[self._box_role[box] == ROLE_AVOID]] = True
+        if any(soup.role == ROLE_AVOID and not soup.dynamic for soup in self._soups):
+            pt, _, owner = self._static_soup_hits(p)
+            out[pt[self._soup_role[owner] == ROLE_AVOID]] = True
         for i, soup in enumerate(self._soups):
-            if soup.role == ROLE_AVOID:
+            if soup.role == ROLE_AVOID and soup.dynamic:
                 pt, _ = self._soup_hits(i, p)
                 out[pt] = True
         return out

@@ -156,6 +156,22 @@ def test_the_driver_walks_trots_gallops_swapping_disks_only_in_stance() -> None:
     assert np.allclose(manager.disk_duration, final.swing_duration)
 
 
+def test_a_steady_speed_retargets_to_the_same_gait_as_a_fresh_driver() -> None:
+    p = _params(QUAD, 1.0)
+    v = _speed_at(p, 0.3)
+    driver = ag.AutoGait([p], [v])
+    manager = GaitManager(np.zeros(4, dtype=np.int64), driver.gaits([]))
+    for _ in range(5):  # the same speed again and again (the gait is reused)
+        driver.update(manager, [v])
+        manager.advance(1.0 / 30.0)
+    want = p.gait(int(driver.band[0]), v)
+    np.testing.assert_array_equal(manager.dst_start, want.swing_start)
+    np.testing.assert_array_equal(manager.dst_duration, want.swing_duration)
+    assert manager.dst_cycle[0] == want.cycle_time
+    driver.update(manager, [1.2 * v])  # a new speed: a new gait
+    assert manager.dst_cycle[0] == p.gait(int(driver.band[0]), 1.2 * v).cycle_time
+
+
 def test_per_band_overrides_from_presets() -> None:
     pace = find_gait_preset("quadruped_pace")
     p = ag.auto_gait_params(QUAD, 1.0, 1.0, overrides={"trot": pace})

@@ -15,6 +15,7 @@ from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.morphology import LegBatch
 from procloco_addon.core.sim import Controls, Simulation, check_motion
 from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
+from tests.core.cross_path import assert_close
 
 
 def _plan_each_foot_with(monkeypatch: pytest.MonkeyPatch, plan: Callable[..., object]) -> None:
@@ -69,6 +70,23 @@ def test_rotation_convention_yaw_ccw_pitch_nose_up_roll_left_up() -> None:
     np.testing.assert_allclose(
         r @ np.transpose(r, (0, 2, 1)), np.broadcast_to(np.eye(3), (3, 3, 3)), atol=1e-12
     )
+
+
+def test_rotation_matrices_are_yaw_then_pitch_then_roll_multiplied() -> None:
+    rng = np.random.default_rng(2)
+    yaw, pitch, roll = rng.uniform(-np.pi, np.pi, (3, 40))
+
+    def about(axis: int, angle: np.ndarray) -> np.ndarray:
+        c, s = np.cos(angle), np.sin(angle)
+        i, j = (axis + 1) % 3, (axis + 2) % 3  # right-handed about the axis
+        out = np.zeros((angle.size, 3, 3))
+        out[:, axis, axis] = 1.0
+        out[:, i, i], out[:, i, j], out[:, j, i], out[:, j, j] = c, -s, s, c
+        return out
+
+    # nose up is a turn about -y
+    want = about(2, yaw) @ about(1, -pitch) @ about(0, roll)
+    assert_close(rotation_matrices(yaw, pitch, roll), want, "rotations")
 
 
 def _mid_stance_offsets(res: object, speed: float) -> dict[int, list[np.ndarray]]:

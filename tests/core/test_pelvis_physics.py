@@ -6,12 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from procloco_addon.core.gait import Gait, GaitManager
+from procloco_addon.core.gait import Gait, GaitManager, in_swing, stance_elapsed
 from procloco_addon.core.pelvis_physics import (
     PelvisPhysics,
     PelvisPhysicsParams,
     foot_acceleration,
     node_acceleration,
+    phase_times,
 )
 
 G = 9.81
@@ -126,3 +127,38 @@ def test_node_height_is_the_weighted_mean_of_its_particles() -> None:
     phys = PelvisPhysics(np.array([0, 0, 1]), 2, weights=np.array([1.0, 3.0, 1.0]))
     phys.height = np.array([1.0, 2.0, 5.0])
     np.testing.assert_allclose(phys.node_height(), [1.75, 5.0])
+
+
+def test_a_step_equals_its_sub_steps_integrated_one_by_one() -> None:
+    gait = Gait(np.array([0.0, 0.5, 0.25, 0.75]), np.full(4, 0.3), 0.8)
+    legs = np.array([0, 0, 1, 1], dtype=np.int64)
+    mgr = GaitManager(np.zeros(4, dtype=np.int64), [gait])
+    rate = mgr.rate()[np.zeros(4, dtype=np.int64)]
+    phys = PelvisPhysics(legs, 2)
+    pref = np.array([0.5, 0.6])
+    phys.reset(pref, mgr.needle[:4].copy(), rate, mgr.disk_start, mgr.disk_duration)
+    height, velocity = phys.height.copy(), phys.velocity.copy()
+    dt, needle = 1.0 / 24.0, mgr.needle[:4].copy() + 0.1
+    phys.step(dt, needle, rate, mgr.disk_start, mgr.disk_duration, pref)
+    # the same sub-steps, one foot_acceleration call each
+    n_sub = int(np.ceil(dt / phys.params.max_substep - 1e-9))
+    h = dt / n_sub
+    period = 1.0 / rate
+    d = mgr.disk_duration
+    for k in range(n_sub):
+        phase = needle + (k + 0.5) * h * rate
+        progress = stance_elapsed(phase, mgr.disk_start, d) / (1.0 - d)
+        a = foot_acceleration(in_swing(phase, mgr.disk_start, d), progress, (1.0 - d) * period, d * period,
+                              height, velocity, pref[legs], G, h)
+        velocity = velocity + (a - G) * h
+        height = height + velocity * h
+    np.testing.assert_allclose(phys.height, height, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(phys.velocity, velocity, rtol=1e-12, atol=1e-12)
+    # phase times of many sub-steps at once are those of each alone
+    phases = needle + (np.arange(n_sub)[:, None] + 0.5) * h * rate
+    swing = in_swing(phases, mgr.disk_start, d)
+    progress = stance_elapsed(phases, mgr.disk_start, d) / (1.0 - d)
+    many = phase_times(swing, progress, (1.0 - d) * period, d * period, G, h)
+    one = phase_times(swing[3], progress[3], (1.0 - d) * period, d * period, G, h)
+    assert many.reception[3].tolist() == one.reception.tolist()
+    np.testing.assert_array_equal(many.t_prop[3], one.t_prop)

@@ -13,8 +13,10 @@ from procloco_addon.core.spine import (
     SpineParams,
     SpinePlan,
     SpineState,
+    _limit_joints,
     build_spine,
     finish_spine,
+    frame_from_yaw_pitch,
     ground_guides,
     hip_positions,
     leg_frames,
@@ -27,6 +29,7 @@ from procloco_addon.core.spine import (
     wrap_angle,
 )
 from procloco_addon.core.terrain import NO_SURFACE, ROLE_GROUND, Boxes, Environment, Heightmap
+from tests.core.cross_path import assert_close
 
 DT = 1 / 30
 
@@ -586,3 +589,56 @@ def test_reach_repeat_moves_a_node_by_its_one_stretched_leg_and_is_bounded() -> 
     moved = np.linalg.norm(held.guide_xyz - pose.guide_xyz, axis=-1)
     assert moved.max() <= 0.005 + 1e-12
     assert np.linalg.norm(feet[0, 2] - hip_positions(m, held)[0, 2]) > 0.52
+
+
+def _limit_joints_walk(
+    model: SpineModel, yaw_dev: np.ndarray, pitch_dev: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The joint limits walked bone by bone outward from the anchor joint, every time: the
+    reference for ``_limit_joints``, which skips the walk when no joint is at its limit."""
+    yaw, pitch = yaw_dev.copy(), pitch_dev.copy()
+    n_b = yaw.shape[1]
+    ref = min(int(model.key_joint[model.anchor_key]), n_b - 1)
+    for b in [*range(ref + 1, n_b), *range(ref - 1, -1, -1)]:
+        o = b - 1 if b > ref else b + 1
+        j = max(b, o)
+        yl, pl = model.joint_yaw_limit[j], model.joint_pitch_limit[j]
+        yaw[:, b] = yaw[:, o] + np.clip(wrap_angle(yaw[:, b] - yaw[:, o]), -yl, yl)
+        pitch[:, b] = pitch[:, o] + np.clip(pitch[:, b] - pitch[:, o], -pl, pl)
+    return yaw, pitch
+
+
+@pytest.mark.parametrize("scale", [0.2, 0.9, 3.0])
+def test_joint_limits_equal_the_bone_by_bone_walk(scale: float) -> None:
+    model = hexapod_like()
+    rng = np.random.default_rng(int(scale * 10))
+    n_b = model.n_joints - 1
+    limit = float(model.joint_yaw_limit[1])
+    yaw = np.cumsum(rng.uniform(-scale, scale, (20, n_b)) * limit, axis=1)
+    pitch = np.cumsum(rng.uniform(-scale, scale, (20, n_b)) * float(model.joint_pitch_limit[1]), axis=1)
+    got_y, got_p = _limit_joints(model, yaw, pitch)
+    want_y, want_p = _limit_joints_walk(model, yaw, pitch)
+    assert_close(got_y, want_y, "yaw")
+    assert_close(got_p, want_p, "pitch")
+    if scale < 0.5:  # within the limits nothing changes
+        assert_close(got_y, yaw, "yaw unchanged")
+
+
+def test_frames_and_bone_rotations_are_the_turns_they_name() -> None:
+    rng = np.random.default_rng(4)
+    yaw, pitch = rng.uniform(-3.0, 3.0, (2, 10))
+    f = frame_from_yaw_pitch(yaw, pitch)
+    c, s = np.cos(yaw), np.sin(yaw)
+    rz = np.zeros((10, 3, 3))
+    rz[:, 0, 0], rz[:, 0, 1], rz[:, 1, 0], rz[:, 1, 1], rz[:, 2, 2] = c, -s, s, c, 1.0
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    ry = np.zeros((10, 3, 3))  # nose up: about -y
+    ry[:, 0, 0], ry[:, 0, 2], ry[:, 2, 0], ry[:, 2, 2], ry[:, 1, 1] = cp, -sp, sp, cp, 1.0
+    assert_close(f, rz @ ry, "frame")
+    # each bone's rest chord turned back onto +x by the model's rest_unturn
+    model = quadruped(arched=True)
+    chord = np.stack([np.cos(model.rest_chord_pitch) * np.cos(model.rest_chord_yaw),
+                      np.cos(model.rest_chord_pitch) * np.sin(model.rest_chord_yaw),
+                      np.sin(model.rest_chord_pitch)], axis=-1)
+    assert_close(np.einsum("bij,bj->bi", model.rest_unturn, chord),
+                 np.broadcast_to([1.0, 0.0, 0.0], chord.shape), "unturn")

@@ -23,6 +23,7 @@ from procloco_addon.core.terrain import (
     foot_kernel,
     foot_kernels,
     raster_boxes,
+    raster_triangles,
 )
 from tests.core.cross_path import assert_close
 
@@ -364,3 +365,100 @@ def test_move_soup_is_the_same_as_setting_the_shifted_vertices(
             assert np.allclose(a.elevation, b.elevation, atol=1e-12)
             assert np.array_equal(a.forbidden, b.forbidden)
         assert np.allclose(moved.soups[0].vertices, verts + np.array(off))
+
+
+def _raster_triangles_per_pair(
+    origin: np.ndarray, cell: float, shape: tuple[int, int], tris: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The separating-axis cell test written per (triangle, cell) pair, one pair at a time:
+    the reference for ``raster_triangles``' batched edges. Returns the (tri, row, col) hits."""
+    hits = []
+    for t, tri in enumerate(tris):
+        fx = (tri[:, 0] - origin[0]) / cell
+        fy = (tri[:, 1] - origin[1]) / cell
+        rows = range(max(0, int(np.ceil(fy.min() - 0.5))),
+                     min(shape[0] - 1, int(np.floor(fy.max() + 0.5))) + 1)
+        cols = range(max(0, int(np.ceil(fx.min() - 0.5))),
+                     min(shape[1] - 1, int(np.floor(fx.max() + 0.5))) + 1)
+        for row in rows:
+            for col in cols:
+                ok = True
+                for a in range(3):
+                    b = (a + 1) % 3
+                    nxa, nya = -(fy[b] - fy[a]), fx[b] - fx[a]
+                    proj = fx * nxa + fy * nya
+                    centre = col * nxa + row * nya
+                    reach = 0.5 * (abs(nxa) + abs(nya))
+                    ok &= bool(proj.max() >= centre - reach - 1e-12)
+                    ok &= bool(proj.min() <= centre + reach + 1e-12)
+                if ok:
+                    hits.append((t, row, col))
+    arr = np.array(sorted(hits), dtype=np.intp).reshape(-1, 3)
+    return arr[:, 0], arr[:, 1], arr[:, 2]
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_raster_triangles_finds_the_cells_of_the_per_pair_test(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    tris = rng.uniform([-0.3, -0.3, 0.0], [0.6, 0.6, 0.4], (6, 3, 3))
+    tris[0, :, :2] = tris[0, 0, :2] + rng.uniform(-0.02, 0.02, (3, 2))  # smaller than a cell
+    origin, cell, shape = np.array([0.0, 0.0]), 0.07, (9, 8)
+    tri, row, col, z = raster_triangles(origin, cell, shape, tris)
+    want = _raster_triangles_per_pair(origin, cell, shape, tris)
+    order = np.lexsort((col, row, tri))
+    for got, ref, name in zip((tri, row, col), want, ("tri", "row", "col"), strict=True):
+        assert got[order].tolist() == ref.tolist(), name
+    # never below the triangle's plane inside the cell, never above its top vertex
+    assert np.all(z <= tris[tri, :, 2].max(axis=1) + 1e-12)
+
+
+def _height_brute_force(soups: list[TriangleSoup], xy: np.ndarray) -> np.ndarray:
+    """Highest triangle over each point, triangle by triangle (barycentric test)."""
+    out = np.full(xy.shape[0], NO_SURFACE)
+    for soup in soups:
+        for f in soup.faces:
+            a, b, c = soup.vertices[f]
+            e1, e2 = b[:2] - a[:2], c[:2] - a[:2]
+            den = e1[0] * e2[1] - e1[1] * e2[0]
+            if abs(den) <= 1e-15:
+                continue
+            p = xy - a[:2]
+            u = (p[:, 0] * e2[1] - p[:, 1] * e2[0]) / den
+            v = (e1[0] * p[:, 1] - e1[1] * p[:, 0]) / den
+            inside = (u >= -1e-9) & (v >= -1e-9) & (u + v <= 1.0 + 1e-9)
+            z = a[2] + u * (b[2] - a[2]) + v * (c[2] - a[2])
+            out = np.where(inside, np.maximum(out, z), out)
+    return out
+
+
+def test_point_queries_over_many_static_soups_and_a_moving_one_equal_triangle_by_triangle() -> None:
+    rng = np.random.default_rng(3)
+    # a ground of 2 x 2 m in small triangles, five crates (one avoided) and a moving lid
+    n = 9
+    xs = np.linspace(-1.0, 1.0, n)
+    gx, gy = np.meshgrid(xs, xs)
+    verts = np.column_stack([gx.ravel(), gy.ravel(), 0.05 * np.sin(3.0 * gx.ravel())])
+    faces = [(i * n + j, i * n + j + 1, (i + 1) * n + j + 1) for i in range(n - 1) for j in range(n - 1)]
+    faces += [(i * n + j, (i + 1) * n + j + 1, (i + 1) * n + j) for i in range(n - 1) for j in range(n - 1)]
+    soups = [TriangleSoup(verts, np.array(faces), ROLE_GROUND)]
+    for k in range(5):
+        c = rng.uniform(-0.7, 0.7, 2)
+        top = rng.uniform(0.1, 0.3)
+        quad = np.array([[c[0] - 0.1, c[1] - 0.1, top], [c[0] + 0.1, c[1] - 0.1, top],
+                         [c[0] + 0.1, c[1] + 0.1, top], [c[0] - 0.1, c[1] + 0.1, top]])
+        role = ROLE_AVOID if k == 0 else ROLE_STEP_OVER
+        soups.append(TriangleSoup(quad, np.array([[0, 1, 2], [0, 2, 3]]), role))
+    lid = np.array([[0.2, 0.2, 0.5], [0.5, 0.2, 0.5], [0.35, 0.5, 0.5]])
+    soups.append(TriangleSoup(lid, np.array([[0, 1, 2]]), ROLE_AVOID, dynamic=True))
+    env = Environment(None, None, soups)
+    pts = rng.uniform(-1.2, 1.2, (3000, 2))
+    assert_close(env.height_at(pts), _height_brute_force(soups, pts), "height")
+    forbidden = env.forbidden_at(pts)
+    want = ((_height_brute_force([soups[1]], pts) > NO_SURFACE)
+            | (_height_brute_force([soups[-1]], pts) > NO_SURFACE))
+    assert forbidden.tolist() == want.tolist()
+    # the moving lid: its new place counts, its old one no longer
+    env.move_soup(len(soups) - 1, np.array([-0.6, -0.6, 0.0]))
+    lid_now = TriangleSoup(lid + np.array([-0.6, -0.6, 0.0]), np.array([[0, 1, 2]]), ROLE_AVOID, True)
+    moved = [*soups[:-1], lid_now]
+    assert_close(env.height_at(pts), _height_brute_force(moved, pts), "height after the move")
