@@ -23,6 +23,8 @@ from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
 from .gait import ui_list as gait_ui_list
+from .keys import panel as keys_panel
+from .keys import property_group as keys_props
 from .locomotion import handler as legs_handler
 from .locomotion import ops as locomotion_ops
 from .locomotion import panel as locomotion_panel
@@ -38,6 +40,7 @@ CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
     locomotion_props.PROCLOCO_PG_gait_change,
     locomotion_props.PROCLOCO_PG_rig_settings,
+    keys_props.PROCLOCO_PG_key_reduction,
     locomotion_ops.PROCLOCO_OT_detect_legs,
     locomotion_ops.PROCLOCO_OT_generate_locomotion,
     locomotion_ops.PROCLOCO_OT_clear_generated_action,
@@ -81,6 +84,7 @@ CLASSES: tuple[type, ...] = (
     ui_main.PROCLOCO_PT_effects,
     locomotion_panel.PROCLOCO_PT_spine,
     ui_main.PROCLOCO_PT_generate,
+    keys_panel.PROCLOCO_PT_key_reduction,
 )
 
 # (owner ID type, attribute name, property) for plain properties (not groups)
@@ -93,6 +97,7 @@ POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco", locomotion_props.PROCLOCO_PG_rig_settings),
     (bpy.types.Object, "procloco_biped", biped_props.PROCLOCO_PG_biped_settings),
     (bpy.types.Object, "procloco_secondary", secondary_props.PROCLOCO_PG_secondary_settings),
+    (bpy.types.Object, "procloco_keys", keys_props.PROCLOCO_PG_key_reduction),
     (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 
