@@ -44,7 +44,7 @@ __all__ = [
 
 #: Pulls a segment's two slopes towards its chord when the samples inside it cannot decide
 #: them (one sample for two slopes), relative to the basis' own scale.
-_RIDGE = 1e-9
+_RIDGE = 1e-12
 
 
 @dataclass(frozen=True)
@@ -232,15 +232,17 @@ def bezier_points(frames: np.ndarray, values: np.ndarray, fit: KeyFit, channel: 
 
 def _correct_handles(p0: np.ndarray, p1: np.ndarray, p2: np.ndarray,
                      p3: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Blender's ``BKE_fcurve_correct_bezpart``: handles ``p1``, ``p2`` ``(n, 2)`` whose time
-    spans add up to more than the segment's are shortened (in proportion) to fit it."""
+    """Blender's ``BKE_fcurve_correct_bezpart``: a handle ``p1`` or ``p2`` ``(n, 2)`` reaching
+    further in time than the segment is long is shortened (keeping its direction) to the
+    segment's length, so it does not pass the other key."""
+    span = (p3[:, 0] - p0[:, 0])[:, None]
     h1 = p0 - p1
     h2 = p3 - p2
-    span = p3[:, 0] - p0[:, 0]
-    lengths = np.abs(h1[:, 0]) + np.abs(h2[:, 0])
-    over = lengths > span
-    fac = np.where(over, span / np.where(over, lengths, 1.0), 1.0)[:, None]
-    return p0 - fac * h1, p3 - fac * h2
+    len1 = np.abs(h1[:, :1])
+    len2 = np.abs(h2[:, :1])
+    fac1 = np.where(len1 > span, span / np.where(len1 > span, len1, 1.0), 1.0)
+    fac2 = np.where(len2 > span, span / np.where(len2 > span, len2, 1.0), 1.0)
+    return p0 - fac1 * h1, p3 - fac2 * h2
 
 
 def _bezier(c0: np.ndarray, c1: np.ndarray, c2: np.ndarray, c3: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -251,8 +253,10 @@ def _bezier(c0: np.ndarray, c1: np.ndarray, c2: np.ndarray, c3: np.ndarray, t: n
 def evaluate_bezier(curve: BezierCurve, x: np.ndarray) -> np.ndarray:
     """Values ``(n,)`` of the F-curve ``curve`` (all keys Bézier) at frames ``x`` ``(n,)``,
     as Blender evaluates it: constant before the first and after the last key; within a
-    segment, the handles corrected so they do not overlap in time, the parameter found where
-    the segment's time cubic equals the frame, and the value cubic taken there."""
+    segment, the handles corrected so neither passes the other key, the parameter found where
+    the segment's time cubic equals the frame, and the value cubic taken there. The time
+    cubic must rise through the segment (it does for every curve :func:`bezier_points`
+    makes; Blender too takes one root where it does not)."""
     xq = np.asarray(x, dtype=np.float64).reshape(-1)
     co = np.asarray(curve.co, dtype=np.float64)
     hl = np.asarray(curve.handle_left, dtype=np.float64)
@@ -269,7 +273,7 @@ def evaluate_bezier(curve: BezierCurve, x: np.ndarray) -> np.ndarray:
     seg = np.clip(np.searchsorted(co[:, 0], xi, side="right") - 1, 0, len(co) - 2)
     p0, p3 = co[seg], co[seg + 1]
     p1, p2 = _correct_handles(p0, hr[seg], hl[seg + 1], p3)
-    # The time cubic rises monotonically once corrected: bisection brackets the root and
+    # The time cubic rises through the segment: bisection brackets the root and
     # Newton steps polish it (Blender solves the cubic in closed form; both find the one root
     # in [0, 1] to well below a millionth of a frame).
     lo = np.zeros(xi.shape)

@@ -48,3 +48,4 @@ class PROCLOCO_PG_key_reduction(bpy.types.PropertyGroup):
     keys_after: IntProperty(name="Keys After", default=0, min=0)
     foot_error: FloatProperty(name="Worst Foot Error", default=0.0, subtype="DISTANCE", unit="LENGTH")
     angle_error: FloatProperty(name="Worst Bone Error", default=0.0, subtype="ANGLE")
+    within: BoolProperty(name="Within the Tolerances", default=True)

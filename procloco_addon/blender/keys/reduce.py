@@ -19,7 +19,8 @@ keys:
    again; the last pass keys such frames outright. Control rigs (IK targets, poles) are
    covered by this check: their chains are Blender's own.
 
-Shapes: ``frames`` ``(F,)`` scene frames; ``required`` maps a bone name to ``(F,)`` bools.
+Shapes: ``frames`` ``(F,)`` scene frames; ``required`` maps a bone name, or a channel's
+``(data_path, index)``, to ``(F,)`` bools.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import bpy
 import numpy as np
@@ -40,6 +42,7 @@ __all__ = [
     "Reduction",
     "channel_tolerances",
     "contact_frames",
+    "last_reduction",
     "leg_keyed_bones",
     "posed_errors",
     "reduce_action",
@@ -230,13 +233,14 @@ def _dense(action: bpy.types.Action, obj: bpy.types.Object,
 
 def reduce_action(
     obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
-    required: Mapping[str, np.ndarray] | None = None, *, foot_tolerance: float = 0.001,
+    required: Mapping[Any, np.ndarray] | None = None, *, foot_tolerance: float = 0.001,
     angle_tolerance: float = math.radians(0.5), max_passes: int = _MAX_PASSES,
 ) -> Reduction:
     """Thin the keys ``action`` (assigned to ``obj``, generated) holds on every one of
     ``frames``, keeping the posed rig within ``foot_tolerance`` (world distance of the head
     and tail of each of ``feet``) and ``angle_tolerance`` (radians, world rotation of every
-    deform and keyed bone) of the full keys. ``required``: per bone, frames that stay keys.
+    deform and keyed bone) of the full keys. ``required``: frames that stay keys, per bone
+    name (all its channels) or per ``(data_path, index)`` of one channel.
     Channels with fewer keys (switches, held bones) are left as they are. When the passes
     cannot get within the tolerances, the full keys are written back (``within`` False)."""
     t0 = time.perf_counter()
@@ -249,9 +253,10 @@ def reduce_action(
     groups = np.arange(len(chans))
     bone_of = [_bone_of(ch.data_path) for ch in chans]
     req = np.zeros((frames.size, len(chans)), dtype=bool)
-    for c, bone in enumerate(bone_of):
-        if required is not None and bone is not None and bone in required:
-            req[:, c] = np.asarray(required[bone]).astype(bool).reshape(-1)
+    for c, (bone, ch) in enumerate(zip(bone_of, chans, strict=True)):
+        for key in (bone, (ch.data_path, ch.index)):
+            if required is not None and key is not None and key in required:
+                req[:, c] |= np.asarray(required[key]).astype(bool).reshape(-1)
     pbones = obj.pose.bones
     feet = [f for f in dict.fromkeys(feet) if f in pbones]
     keyed = [n for n in dict.fromkeys(bone_of) if n is not None and n in pbones]
@@ -313,7 +318,7 @@ def _write(action: bpy.types.Action, obj: bpy.types.Object, chans: Sequence[acti
 
 def reduce_if_enabled(
     obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
-    required: Mapping[str, np.ndarray] | None = None,
+    required: Mapping[Any, np.ndarray] | None = None,
 ) -> Reduction | None:
     """:func:`reduce_action` with the rig's Key Reduction settings (``obj.procloco_keys``)
     when they are on, the result stored there for the panel; None when off."""
@@ -327,4 +332,15 @@ def reduce_if_enabled(
     settings.keys_after = min(result.keys_after, 2**31 - 1)
     settings.foot_error = result.foot_error
     settings.angle_error = result.angle_error
+    settings.within = result.within
     return result
+
+
+def last_reduction(obj: bpy.types.Object) -> Reduction | None:
+    """What the rig's last Key Reduction did (as stored on ``obj.procloco_keys``), or None
+    when Key Reduction is off or never ran."""
+    settings = getattr(obj, "procloco_keys", None)
+    if settings is None or not settings.use_key_reduction or not settings.keys_before:
+        return None
+    return Reduction(int(settings.keys_before), int(settings.keys_after), float(settings.foot_error),
+                     float(settings.angle_error), 0, 0.0, bool(settings.within))

@@ -693,7 +693,8 @@ def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
 
     contacts = reduce.contact_frames(~np.asarray(job.result.swing, dtype=bool))
     required: dict[str, np.ndarray] = {}
-    for k, names in enumerate(reduce.leg_keyed_bones(plan, [leg.bones for leg in job.info.legs])):
+    chains = [(*leg.bones, *leg.foot) for leg in job.info.legs]
+    for k, names in enumerate(reduce.leg_keyed_bones(plan, chains)):
         for name in names:
             required[name] = required.get(name, np.zeros(len(job.frames), dtype=bool)) | contacts[:, k]
     feet = [b for leg in job.info.legs for b in (leg.bones[-1], *leg.foot)]
