@@ -120,7 +120,8 @@ def _errors(w: Walks, full: np.ndarray, reduced: np.ndarray) -> tuple[float, flo
     def tails(m: np.ndarray) -> np.ndarray:
         return m[..., :3, 3] + m[..., :3, 1] * lengths[None, :, None]
 
-    dist = max(float(np.linalg.norm(full[:, feet, :3, 3] - reduced[:, feet, :3, 3], axis=-1).max()),
+    heads = full[:, feet][..., :3, 3] - reduced[:, feet][..., :3, 3]
+    dist = max(float(np.linalg.norm(heads, axis=-1).max()),
                float(np.linalg.norm(tails(full)[:, feet] - tails(reduced)[:, feet], axis=-1).max()))
     r0 = full[..., :3, :3] / np.linalg.norm(full[..., :3, :3], axis=-2, keepdims=True)
     r1 = reduced[..., :3, :3] / np.linalg.norm(reduced[..., :3, :3], axis=-2, keepdims=True)
@@ -220,3 +221,46 @@ def test_the_batch_command_reduces_and_prints_the_key_counts(
     assert _key_count(wolf) == after
     assert wolf.procloco_keys.foot_tolerance == pytest.approx(0.002)
     assert wolf.procloco_keys.angle_tolerance == pytest.approx(math.radians(1.0))
+
+
+def test_the_reduced_biped_walk_stays_within_the_tolerances(empty_scene: Any) -> None:
+    import addon_utils
+
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.0, -6.0, 0.0))
+    floor = bpy.context.active_object
+    floor.scale = (6.0, 16.0, 1.0)
+    bpy.ops.object.transform_apply(scale=True)
+    addon_utils.enable("rigify", default_set=True)
+    bpy.ops.object.armature_human_metarig_add()
+    rig = bpy.context.active_object
+    _select_only(rig)
+    assert bpy.ops.procloco.make_biped_clips() == {"FINISHED"}
+    goal = bpy.data.objects.new("Goal", None)
+    bpy.context.scene.collection.objects.link(goal)
+    goal.location = (1.2, -4.0, 0.0)
+    rig.procloco_biped.goal = goal
+    _select_only(rig)
+    assert bpy.ops.procloco.plan_biped_footsteps() == {"FINISHED"}
+    action = rig.animation_data.action
+    first, last = (round(f) for f in action.frame_range)
+    frames = list(range(first, last + 1))
+    names = [b.name for b in rig.data.bones if b.use_deform]
+    full = pose_eval.pose_matrices(rig, frames, names)
+    keys_full = _key_count(rig)
+    feet = ["foot.L", "foot.R"]
+    _heads, foot_tails = pose_eval.bone_heads_tails(rig, frames, feet)
+    rig.procloco_keys.use_key_reduction = True
+    assert bpy.ops.procloco.plan_biped_footsteps() == {"FINISHED"}
+    reduced = pose_eval.pose_matrices(rig, frames, names)
+    keys_reduced = _key_count(rig)
+    assert keys_full >= 2.0 * keys_reduced
+    foot = [names.index(f) for f in feet]
+    lengths = np.array([rig.data.bones[f].length for f in feet])
+    feet_full, feet_reduced = full[:, foot], reduced[:, foot]
+    tails_reduced = feet_reduced[..., :3, 3] + feet_reduced[..., :3, 1] * lengths[None, :, None]
+    assert np.linalg.norm(feet_full[..., :3, 3] - feet_reduced[..., :3, 3], axis=-1).max() <= FOOT_TOL
+    assert np.linalg.norm(foot_tails - tails_reduced, axis=-1).max() <= FOOT_TOL
+    r0 = full[..., :3, :3] / np.linalg.norm(full[..., :3, :3], axis=-2, keepdims=True)
+    r1 = reduced[..., :3, :3] / np.linalg.norm(reduced[..., :3, :3], axis=-2, keepdims=True)
+    cos = (np.einsum("...ij,...ij->...", r0, r1) - 1.0) / 2.0
+    assert np.arccos(np.clip(cos, -1.0, 1.0)).max() <= ANGLE_TOL
