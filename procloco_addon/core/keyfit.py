@@ -79,12 +79,6 @@ class BezierCurve:
     handle_right: np.ndarray
 
 
-def _hermite_basis(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    u2 = u * u
-    u3 = u2 * u
-    return 2 * u3 - 3 * u2 + 1, u3 - 2 * u2 + u, -2 * u3 + 3 * u2, u3 - u2
-
-
 def _fit_segment(x: np.ndarray, y: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Best end slopes of one segment and how badly it still fits.
 
@@ -98,18 +92,38 @@ def _fit_segment(x: np.ndarray, y: np.ndarray, tol: np.ndarray) -> tuple[np.ndar
     if x.size <= 2:
         return chord, chord, 0, 0.0
     u = (x[1:-1] - x[0]) / h
-    h00, h10, h01, h11 = _hermite_basis(u)
-    # y(u) = h00 y0 + h01 y1 + h (h10 m0 + h11 m1): with m = chord + d the unknowns d enter
-    # linearly, the rest is known.
-    base = h00[:, None] * y[0] + h01[:, None] * y[-1] + (h * (h10 + h11))[:, None] * chord
-    a = np.stack([h * h10, h * h11], axis=1)  # (n - 2, 2)
-    ata = a.T @ a
-    ata += _RIDGE * max(float(np.trace(ata)), 1e-300) * np.eye(2)
-    d = np.linalg.solve(ata, a.T @ (y[1:-1] - base))  # (2, c)
-    fitted = base + a @ d
-    ratio = np.max(np.abs(fitted - y[1:-1]) / tol[1:-1], axis=1)
+    u2 = u * u
+    u3 = u2 * u
+    a0 = h * (u3 - 2.0 * u2 + u)  # h * h10
+    a1 = h * (u3 - u2)  # h * h11
+    h01 = 3.0 * u2 - 2.0 * u3
+    # y(u) = h00 y0 + h01 y1 + h (h10 m0 + h11 m1) with h00 = 1 - h01: with m = chord + d the
+    # unknowns d enter linearly, the rest is known. The 2 x 2 normal equations are solved in
+    # closed form (the subdivision calls this thousands of times: few numpy calls, no LAPACK).
+    s00 = float(a0 @ a0)
+    s01 = float(a0 @ a1)
+    s11 = float(a1 @ a1)
+    ridge = _RIDGE * max(s00 + s11, 1e-300)
+    s00 += ridge
+    s11 += ridge
+    det = s00 * s11 - s01 * s01
+    if y.shape[1] == 1:  # one channel: 1-D arithmetic
+        y0, y1, c = float(y[0, 0]), float(y[-1, 0]), float(chord[0])
+        r1 = y[1:-1, 0] - (y0 + h01 * (y1 - y0) + (a0 + a1) * c)
+        b0, b1 = float(a0 @ r1), float(a1 @ r1)
+        e0 = (s11 * b0 - s01 * b1) / det
+        e1 = (s00 * b1 - s01 * b0) / det
+        ratio = np.abs(a0 * e0 + a1 * e1 - r1) / tol[1:-1, 0]
+        worst = int(np.argmax(ratio))
+        return np.array([c + e0]), np.array([c + e1]), worst + 1, float(ratio[worst])
+    r = y[1:-1] - (y[0] + h01[:, None] * (y[-1] - y[0]) + (a0 + a1)[:, None] * chord)
+    b0 = a0 @ r
+    b1 = a1 @ r
+    d0 = (s11 * b0 - s01 * b1) / det
+    d1 = (s00 * b1 - s01 * b0) / det
+    ratio = np.max(np.abs(a0[:, None] * d0 + a1[:, None] * d1 - r) / tol[1:-1], axis=1)
     worst = int(np.argmax(ratio))
-    return chord + d[0], chord + d[1], worst + 1, float(ratio[worst])
+    return chord + d0, chord + d1, worst + 1, float(ratio[worst])
 
 
 def fit_keys(

@@ -129,12 +129,6 @@ def leg_keyed_bones(plan: ControlPlan | None, legs: Sequence[Sequence[str]]) -> 
     return out
 
 
-def _world_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str]) -> np.ndarray:
-    """Evaluated world matrices ``(F, n, 4, 4)`` of ``names``."""
-    worlds = pose_writer.object_worlds(obj, frames)
-    return worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, names)
-
-
 def posed_errors(ref: np.ndarray, got: np.ndarray, lengths: np.ndarray,
                  is_foot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per frame and bone, how far ``got`` is from ``ref`` (both ``(F, n, 4, 4)`` world):
@@ -263,19 +257,29 @@ def reduce_action(
     check = list(dict.fromkeys([*feet, *(pb.name for pb in pbones if pb.bone.use_deform), *keyed]))
     is_foot = np.array([n in feet for n in check])
     lengths = np.array([obj.data.bones[n].length for n in check])
-    ref = _world_pose(obj, frames, check)
+    worlds = pose_writer.object_worlds(obj, frames)  # the reduction keys bones, not the object
+    ref = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
     base_tol = channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance)
     tol = np.tile(base_tol, (frames.size, 1))
     after = before
     dist_max = angle_max = 0.0
     passes = 0
     within = False
+    # Per channel: keys (F, C), slopes (F, C); refitted only where a pass changed something.
+    keys = np.zeros(values.shape, dtype=bool)
+    left = np.full(values.shape, np.nan)
+    right = np.full(values.shape, np.nan)
+    changed = np.ones(len(chans), dtype=bool)
     for p in range(max_passes):
         passes = p + 1
-        fit = keyfit.fit_keys(frames, values, tol, groups, req)
-        _write(action, obj, chans, frames, values, fit)
+        cols = np.flatnonzero(changed)
+        part = keyfit.fit_keys(frames, values[:, cols], tol[:, cols], None, req[:, cols])
+        keys[:, cols], left[:, cols], right[:, cols] = part.keys, part.left, part.right
+        fit = keyfit.KeyFit(keys, left, right, groups)
+        _write(action, obj, [chans[c] for c in cols], frames, values[:, cols], part)
         after = before - values.size + fit.key_count
-        dist, angle = posed_errors(ref, _world_pose(obj, frames, check), lengths, is_foot)
+        got = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
+        dist, angle = posed_errors(ref, got, lengths, is_foot)
         dist_max, angle_max = float(dist.max(initial=0.0)), float(angle.max(initial=0.0))
         ratio = np.maximum(dist.max(axis=1, initial=0.0) / foot_tolerance,
                            angle.max(axis=1, initial=0.0) / angle_tolerance)  # (F,)
@@ -287,16 +291,18 @@ def reduce_action(
         # the segment around the frame (or, on the next to last pass, keyed there).
         resid = np.abs(keyfit.evaluate_fit(frames, values, fit, float32=True) - values) / tol
         last = p == max_passes - 2
+        changed[:] = False
         for f in off:
             guilty = np.flatnonzero(resid[f] > _CONTRIBUTES)
             if guilty.size == 0:
-                guilty = np.flatnonzero(~fit.keys[f])
+                guilty = np.flatnonzero(~keys[f])
+            changed[guilty] = True
             if last:
                 req[f, guilty] = True
                 continue
             shrink = min(0.5, 0.9 / float(ratio[f]))
             for c in guilty:
-                keys_c = np.flatnonzero(fit.keys[:, c])
+                keys_c = np.flatnonzero(keys[:, c])
                 lo = keys_c[keys_c <= f].max(initial=0)
                 hi = keys_c[keys_c >= f].min(initial=frames.size - 1)
                 tol[lo:hi + 1, c] *= shrink
