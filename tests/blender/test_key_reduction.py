@@ -138,8 +138,8 @@ def test_the_reduced_walk_stays_within_the_tolerances_on_the_posed_rig(walks: Wa
 
 
 def test_the_reduced_walk_has_far_fewer_keys(walks: Walks) -> None:
-    # Measured on this walk: about 3x (the issue asked for 4x; see the README's limits).
-    assert walks.keys_full >= 2.5 * walks.keys_reduced
+    # measured: 4.4x on this walk (4.1x on the example wolf of examples.blend, bench_blender)
+    assert walks.keys_full >= 4.0 * walks.keys_reduced
     assert walks.report == f"{walks.keys_full} {walks.keys_reduced}"
 
 
@@ -166,7 +166,7 @@ def test_the_reduced_bake_stays_within_the_tolerances(walks: Walks) -> None:
     assert dist <= FOOT_TOL
     assert angle <= math.degrees(ANGLE_TOL)
     full, reduced = walks.bake_keys
-    assert full >= 2.5 * reduced
+    assert full >= 4.0 * reduced  # measured 4.6x
 
 
 def test_blender_plays_the_written_curves_as_the_core_evaluates_them(empty_scene: Any) -> None:
@@ -253,7 +253,7 @@ def test_the_reduced_biped_walk_stays_within_the_tolerances(empty_scene: Any) ->
     assert bpy.ops.procloco.plan_biped_footsteps() == {"FINISHED"}
     reduced = pose_eval.pose_matrices(rig, frames, names)
     keys_reduced = _key_count(rig)
-    assert keys_full >= 2.0 * keys_reduced
+    assert keys_full >= 2.5 * keys_reduced  # measured 3.1x
     foot = [names.index(f) for f in feet]
     lengths = np.array([rig.data.bones[f].length for f in feet])
     feet_full, feet_reduced = full[:, foot], reduced[:, foot]

@@ -52,8 +52,12 @@ __all__ = [
 _PREFIX = 'pose.bones["'
 #: The errors of ``n`` keyed bones down a chain add up as about ``n ** _DEPTH_POWER`` times
 #: one bone's (they are rarely all at their worst on the same frame; measured on the example
-#: wolf: a quarter power needs the fewest keys, the check pass catching the rest).
+#: wolf: a quarter power needs the fewest keys, the check pass catches the rest).
 _DEPTH_POWER = 0.25
+#: Share of each posed tolerance the channels start with (measured on the example wolf: 0.7
+#: to 0.8 needs the fewest keys; looser starts need more tightening passes, and each pass
+#: tightens whole segments).
+_SHARE = 0.8
 #: A turn is about twice the change of its quaternion; the change is shared by its components.
 _QUAT_SHARE = 2.0
 #: Passes of fit, write and check (the last one keys what is still off).
@@ -257,9 +261,18 @@ def reduce_action(
     check = list(dict.fromkeys([*feet, *(pb.name for pb in pbones if pb.bone.use_deform), *keyed]))
     is_foot = np.array([n in feet for n in check])
     lengths = np.array([obj.data.bones[n].length for n in check])
+    # ancestry[b, c]: channel c belongs to checked bone b or one of its parents
+    ancestry = np.zeros((len(check), len(chans)), dtype=bool)
+    for b, name in enumerate(check):
+        bone = obj.data.bones[name]
+        line = set()
+        while bone is not None:
+            line.add(bone.name)
+            bone = bone.parent
+        ancestry[b] = [o in line for o in bone_of]
     worlds = pose_writer.object_worlds(obj, frames)  # the reduction keys bones, not the object
     ref = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
-    base_tol = channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance)
+    base_tol = _SHARE * channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance)
     tol = np.tile(base_tol, (frames.size, 1))
     after = before
     dist_max = angle_max = 0.0
@@ -281,8 +294,8 @@ def reduce_action(
         got = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
         dist, angle = posed_errors(ref, got, lengths, is_foot)
         dist_max, angle_max = float(dist.max(initial=0.0)), float(angle.max(initial=0.0))
-        ratio = np.maximum(dist.max(axis=1, initial=0.0) / foot_tolerance,
-                           angle.max(axis=1, initial=0.0) / angle_tolerance)  # (F,)
+        per_bone = np.maximum(dist / foot_tolerance, angle / angle_tolerance)  # (F, n)
+        ratio = per_bone.max(axis=1, initial=0.0)  # (F,)
         off = np.flatnonzero(ratio > 1.0)
         if off.size == 0:
             within = True
@@ -293,7 +306,13 @@ def reduce_action(
         last = p == max_passes - 2
         changed[:] = False
         for f in off:
-            guilty = np.flatnonzero(resid[f] > _CONTRIBUTES)
+            # the channels of the bones above the ones that are off (their parent chains)
+            above = np.zeros(len(chans), dtype=bool)
+            for b in np.flatnonzero(per_bone[f] > 1.0):
+                above |= ancestry[b]
+            guilty = np.flatnonzero((resid[f] > _CONTRIBUTES) & above)
+            if guilty.size == 0:  # driven through constraints: any channel not exact there
+                guilty = np.flatnonzero(resid[f] > _CONTRIBUTES)
             if guilty.size == 0:
                 guilty = np.flatnonzero(~keys[f])
             changed[guilty] = True
