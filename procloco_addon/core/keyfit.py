@@ -79,13 +79,15 @@ class BezierCurve:
     handle_right: np.ndarray
 
 
-def _fit_segment(x: np.ndarray, y: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float]:
+def _fit_segment(x: np.ndarray, y: np.ndarray, tol: np.ndarray,
+                 step: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, int, float]:
     """Best end slopes of one segment and how badly it still fits.
 
-    x: ``(n,)`` frames from one key to the next (both included); y, tol: ``(n, c)``.
-    Returns ``(m0, m1, worst_index, worst_ratio)``: slopes ``(c,)`` leaving the first and
-    arriving at the last key, the interior sample that fits worst (index into ``x``) and its
-    error over its tolerance (0 when there is no interior sample).
+    x: ``(n,)`` frames from one key to the next (both included); y, tol: ``(n, c)``; step:
+    ``(n, c)`` or None, ``step[i]`` bounds how much the error may change from sample ``i``
+    to ``i + 1``. Returns ``(m0, m1, worst_index, worst_ratio)``: slopes ``(c,)`` leaving the
+    first and arriving at the last key, the interior sample that fits worst (index into
+    ``x``) and its error over its tolerance (0 when there is no interior sample).
     """
     h = x[-1] - x[0]
     chord = (y[-1] - y[0]) / h
@@ -113,7 +115,10 @@ def _fit_segment(x: np.ndarray, y: np.ndarray, tol: np.ndarray) -> tuple[np.ndar
         b0, b1 = float(a0 @ r1), float(a1 @ r1)
         e0 = (s11 * b0 - s01 * b1) / det
         e1 = (s00 * b1 - s01 * b0) / det
-        ratio = np.abs(a0 * e0 + a1 * e1 - r1) / tol[1:-1, 0]
+        err = a0 * e0 + a1 * e1 - r1
+        ratio = np.abs(err) / tol[1:-1, 0]
+        if step is not None:
+            ratio = np.maximum(ratio, _step_ratio(err[:, None], step)[:, 0])
         worst = int(np.argmax(ratio))
         return np.array([c + e0]), np.array([c + e1]), worst + 1, float(ratio[worst])
     r = y[1:-1] - (y[0] + h01[:, None] * (y[-1] - y[0]) + (a0 + a1)[:, None] * chord)
@@ -121,9 +126,22 @@ def _fit_segment(x: np.ndarray, y: np.ndarray, tol: np.ndarray) -> tuple[np.ndar
     b1 = a1 @ r
     d0 = (s11 * b0 - s01 * b1) / det
     d1 = (s00 * b1 - s01 * b0) / det
-    ratio = np.max(np.abs(a0[:, None] * d0 + a1[:, None] * d1 - r) / tol[1:-1], axis=1)
+    err2 = a0[:, None] * d0 + a1[:, None] * d1 - r
+    ratio2 = np.abs(err2) / tol[1:-1]
+    if step is not None:
+        ratio2 = np.maximum(ratio2, _step_ratio(err2, step))
+    ratio = np.max(ratio2, axis=1)
     worst = int(np.argmax(ratio))
     return chord + d0, chord + d1, worst + 1, float(ratio[worst])
+
+
+def _step_ratio(err: np.ndarray, step: np.ndarray) -> np.ndarray:
+    """Per interior sample ``(n - 2, c)``, the larger change of the error ``err`` ``(n - 2, c)``
+    (zero at both keys) to or from it, over the step tolerance ``step`` ``(n, c)`` of that pair."""
+    full = np.zeros((err.shape[0] + 2, err.shape[1]))
+    full[1:-1] = err
+    change = np.abs(np.diff(full, axis=0)) / step[:-1]  # (n - 1, c): pair i -> i + 1
+    return np.maximum(change[:-1], change[1:])
 
 
 def fit_keys(
@@ -132,14 +150,17 @@ def fit_keys(
     tolerance: np.ndarray | float,
     groups: np.ndarray | None = None,
     required: np.ndarray | None = None,
+    step_tolerance: np.ndarray | float | None = None,
 ) -> KeyFit:
     """Keys and slopes that keep every sample within its tolerance (see the module doc).
 
     frames: ``(F,)`` strictly increasing; values: ``(F, C)``; tolerance: broadcastable to
     ``(F, C)``, > 0 (per frame and channel: a caller can tighten it where a check on the
     posed rig asks for it); groups: ``(C,)`` ints ``0 .. G - 1`` (default: one group per
-    channel); required: ``(F, G)`` bool, frames that must be keys. The first and last frame
-    are always keys. Returns a :class:`KeyFit`.
+    channel); required: ``(F, G)`` bool, frames that must be keys; step_tolerance:
+    broadcastable to ``(F, C)``, > 0 (``inf`` where free), how much a channel's error may
+    change from frame ``f`` to ``f + 1`` (a planted foot that must not jitter). The first and
+    last frame are always keys. Returns a :class:`KeyFit`.
     """
     x = np.asarray(frames, dtype=np.float64).reshape(-1)
     y = np.asarray(values, dtype=np.float64)
@@ -155,6 +176,11 @@ def fit_keys(
     tol = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (n_frames, n_channels))
     if not np.all(tol > 0):
         raise ValueError("tolerances must be positive")
+    step = None
+    if step_tolerance is not None:
+        step = np.broadcast_to(np.asarray(step_tolerance, dtype=np.float64), (n_frames, n_channels))
+        if not np.all(step > 0):
+            raise ValueError("step tolerances must be positive")
     g = np.arange(n_channels) if groups is None else np.asarray(groups, dtype=np.int64).reshape(-1)
     if g.shape[0] != n_channels:
         raise ValueError(f"{g.shape[0]} group numbers for {n_channels} channels")
@@ -173,10 +199,12 @@ def fit_keys(
         if cols.size == 0:
             continue
         yg, tg = y[:, cols], tol[:, cols]
+        sg = None if step is None else step[:, cols]
         todo = list(zip(np.flatnonzero(keys[:, grp])[:-1], np.flatnonzero(keys[:, grp])[1:], strict=True))
         while todo:
             a, b = todo.pop()
-            m0, m1, worst, ratio = _fit_segment(x[a:b + 1], yg[a:b + 1], tg[a:b + 1])
+            m0, m1, worst, ratio = _fit_segment(x[a:b + 1], yg[a:b + 1], tg[a:b + 1],
+                                                None if sg is None else sg[a:b + 1])
             if ratio > 1.0:
                 mid = a + worst
                 keys[mid, grp] = True
@@ -184,7 +212,7 @@ def fit_keys(
                 continue
             right[a, cols] = m0
             left[b, cols] = m1
-        _merge(x, yg, tg, keys[:, grp], required_mask[:, grp], left, right, cols)
+        _merge(x, yg, tg, sg, keys[:, grp], required_mask[:, grp], left, right, cols)
         if n_frames == 1:
             left[0, cols] = right[0, cols] = 0.0
         else:
@@ -194,8 +222,8 @@ def fit_keys(
     return KeyFit(keys, left, right, g)
 
 
-def _merge(x: np.ndarray, y: np.ndarray, tol: np.ndarray, keys: np.ndarray, required: np.ndarray,
-           left: np.ndarray, right: np.ndarray, cols: np.ndarray) -> None:
+def _merge(x: np.ndarray, y: np.ndarray, tol: np.ndarray, step: np.ndarray | None, keys: np.ndarray,
+           required: np.ndarray, left: np.ndarray, right: np.ndarray, cols: np.ndarray) -> None:
     """Drop the keys the subdivision made that its neighbours can do without: each key in
     turn (not a required one, not the ends) is removed when the segment joining its two
     neighbours still fits; ``keys`` ``(F,)`` and the slopes are updated in place."""
@@ -206,7 +234,8 @@ def _merge(x: np.ndarray, y: np.ndarray, tol: np.ndarray, keys: np.ndarray, requ
         if required[k]:
             i += 1
             continue
-        m0, m1, _worst, ratio = _fit_segment(x[a:b + 1], y[a:b + 1], tol[a:b + 1])
+        m0, m1, _worst, ratio = _fit_segment(x[a:b + 1], y[a:b + 1], tol[a:b + 1],
+                                             None if step is None else step[a:b + 1])
         if ratio > 1.0:
             i += 1
             continue

@@ -656,7 +656,8 @@ def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, brig: BipedRig
         for name in names:
             required[name] = required.get(name, np.zeros(len(frames), dtype=bool)) | contacts[:, k]
     feet = [brig.bones[lj.ankle] for lj in sides]
-    reduce.reduce_if_enabled(obj, action, frames, feet, required)
+    planted = {brig.bones[lj.ankle]: np.asarray(motion.contact)[:, k] >= 0 for k, lj in enumerate(sides)}
+    reduce.reduce_if_enabled(obj, action, frames, feet, required, planted)
 
 
 def heel_toe_world(brig: BipedRig, motion: BipedMotion) -> np.ndarray:

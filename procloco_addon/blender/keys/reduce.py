@@ -65,6 +65,10 @@ _MAX_PASSES = 5
 #: A channel counts as contributing to a frame's error when its own error there is above this
 #: share of its tolerance.
 _CONTRIBUTES = 0.02
+#: A planted foot may move from one frame to the next by this share of the foot tolerance
+#: more than in the full result (so the gait still reads from when feet stop and start:
+#: measured on the example wolf, 1.0 breaks the gait-phase check, 0.7 keeps it).
+_STEP_SHARE = 0.7
 
 
 @dataclass(frozen=True)
@@ -133,16 +137,18 @@ def leg_keyed_bones(plan: ControlPlan | None, legs: Sequence[Sequence[str]]) -> 
     return out
 
 
+def _tails(m: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """World tails ``(F, n, 3)`` of bones posed ``m`` ``(F, n, 4, 4)``, ``lengths`` ``(n,)`` long."""
+    return m[..., :3, 3] + m[..., :3, 1] * lengths[None, :, None]
+
+
 def posed_errors(ref: np.ndarray, got: np.ndarray, lengths: np.ndarray,
                  is_foot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per frame and bone, how far ``got`` is from ``ref`` (both ``(F, n, 4, 4)`` world):
     ``(distance, angle)``, each ``(F, n)``; the distance (of head and tail, bones ``lengths``
     ``(n,)`` long) only for feet (``is_foot`` ``(n,)``), else 0."""
-    def tails(m: np.ndarray) -> np.ndarray:
-        return m[..., :3, 3] + m[..., :3, 1] * lengths[None, :, None]
-
     dist = np.maximum(np.linalg.norm(got[..., :3, 3] - ref[..., :3, 3], axis=-1),
-                      np.linalg.norm(tails(got) - tails(ref), axis=-1))
+                      np.linalg.norm(_tails(got, lengths) - _tails(ref, lengths), axis=-1))
     dist = np.where(is_foot[None], dist, 0.0)
     r0 = ref[..., :3, :3] / np.maximum(np.linalg.norm(ref[..., :3, :3], axis=-2, keepdims=True), 1e-12)
     r1 = got[..., :3, :3] / np.maximum(np.linalg.norm(got[..., :3, :3], axis=-2, keepdims=True), 1e-12)
@@ -214,6 +220,32 @@ def channel_tolerances(obj: bpy.types.Object, channels: Sequence[actions.Channel
     return out
 
 
+#: A quaternion component's tolerance grows at most this much where it hardly turns the bone.
+_MAX_QUATERNION_GAIN = 5.0
+
+
+def _quaternion_shares(chans: Sequence[actions.Channel], values: np.ndarray, tol: np.ndarray) -> None:
+    """Loosen, frame by frame, the quaternion components that hardly turn the bone.
+
+    Blender normalises a bone's interpolated quaternion, so an error along the quaternion
+    itself turns nothing: an error ``e`` in component ``i`` turns the bone by about
+    ``2 e sqrt(1 - q_i**2)``. Each component's tolerance ``tol`` ``(F, C)`` is divided by that
+    factor (at most :data:`_MAX_QUATERNION_GAIN` times looser), so ``w`` of a bone near its
+    rest pose is allowed far more than ``x``, ``y`` and ``z``. Changed in place."""
+    by_path: dict[str, dict[int, int]] = {}
+    for c, ch in enumerate(chans):
+        if ch.data_path.endswith(".rotation_quaternion"):
+            by_path.setdefault(ch.data_path, {})[ch.index] = c
+    for cols in by_path.values():
+        if sorted(cols) != [0, 1, 2, 3]:
+            continue
+        idx = [cols[i] for i in range(4)]
+        q = values[:, idx]
+        q = q / np.maximum(np.linalg.norm(q, axis=1, keepdims=True), 1e-12)
+        turns = np.sqrt(np.maximum(1.0 - q * q, 0.0))
+        tol[:, idx] /= np.maximum(turns, 1.0 / _MAX_QUATERNION_GAIN)
+
+
 def _dense(action: bpy.types.Action, obj: bpy.types.Object,
            frames: np.ndarray) -> tuple[list[actions.Channel], np.ndarray, int]:
     """The channels keyed on every one of ``frames`` (what the writers keyed densely), their
@@ -232,13 +264,17 @@ def _dense(action: bpy.types.Action, obj: bpy.types.Object,
 def reduce_action(
     obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
     required: Mapping[Any, np.ndarray] | None = None, *, foot_tolerance: float = 0.001,
-    angle_tolerance: float = math.radians(0.5), max_passes: int = _MAX_PASSES,
+    angle_tolerance: float = math.radians(0.5), planted: Mapping[str, np.ndarray] | None = None,
+    step_tolerance: float | None = None, max_passes: int = _MAX_PASSES,
 ) -> Reduction:
     """Thin the keys ``action`` (assigned to ``obj``, generated) holds on every one of
     ``frames``, keeping the posed rig within ``foot_tolerance`` (world distance of the head
     and tail of each of ``feet``) and ``angle_tolerance`` (radians, world rotation of every
     deform and keyed bone) of the full keys. ``required``: frames that stay keys, per bone
-    name (all its channels) or per ``(data_path, index)`` of one channel.
+    name (all its channels) or per ``(data_path, index)`` of one channel. ``planted``: per
+    foot, ``(F,)`` frames it stands on; between two such frames it may move by at most
+    ``step_tolerance`` (default 0.7 of ``foot_tolerance``) more than in the full result
+    (other bones listed there, such as IK controls, are held as steady on those frames).
     Channels with fewer keys (switches, held bones) are left as they are. When the passes
     cannot get within the tolerances, the full keys are written back (``within`` False)."""
     t0 = time.perf_counter()
@@ -260,6 +296,12 @@ def reduce_action(
     keyed = [n for n in dict.fromkeys(bone_of) if n is not None and n in pbones]
     check = list(dict.fromkeys([*feet, *(pb.name for pb in pbones if pb.bone.use_deform), *keyed]))
     is_foot = np.array([n in feet for n in check])
+    planted_mask = np.zeros((frames.size, len(check)), dtype=bool)
+    for b, name in enumerate(check):
+        if planted is not None and name in planted and name in feet:
+            planted_mask[:, b] = np.asarray(planted[name]).astype(bool).reshape(-1)
+    if step_tolerance is None:
+        step_tolerance = _STEP_SHARE * foot_tolerance
     lengths = np.array([obj.data.bones[n].length for n in check])
     # ancestry[b, c]: channel c belongs to checked bone b or one of its parents
     ancestry = np.zeros((len(check), len(chans)), dtype=bool)
@@ -270,10 +312,23 @@ def reduce_action(
             line.add(bone.name)
             bone = bone.parent
         ancestry[b] = [o in line for o in bone_of]
+    # steady[f, c]: channel c moves a foot planted from frame f to f + 1 (it is in the foot's
+    # parent chain, or listed with it): there its error may change only by a share of its
+    # tolerance from one frame to the next.
+    steady = np.zeros((frames.size, len(chans)), dtype=bool)
+    for b in range(len(check)):
+        both = np.zeros(frames.size, dtype=bool)
+        both[:-1] = planted_mask[1:, b] & planted_mask[:-1, b]
+        steady |= both[:, None] & ancestry[b][None, :]
+    for c, bone in enumerate(bone_of):
+        if planted is not None and bone is not None and bone in planted and bone not in feet:
+            mask = np.asarray(planted[bone]).astype(bool).reshape(-1)
+            steady[:-1, c] |= mask[1:] & mask[:-1]
     worlds = pose_writer.object_worlds(obj, frames)  # the reduction keys bones, not the object
     ref = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
     base_tol = _SHARE * channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance)
     tol = np.tile(base_tol, (frames.size, 1))
+    _quaternion_shares(chans, values, tol)
     after = before
     dist_max = angle_max = 0.0
     passes = 0
@@ -286,7 +341,8 @@ def reduce_action(
     for p in range(max_passes):
         passes = p + 1
         cols = np.flatnonzero(changed)
-        part = keyfit.fit_keys(frames, values[:, cols], tol[:, cols], None, req[:, cols])
+        step_tol = np.where(steady[:, cols], _STEP_SHARE * tol[:, cols], np.inf)
+        part = keyfit.fit_keys(frames, values[:, cols], tol[:, cols], None, req[:, cols], step_tol)
         keys[:, cols], left[:, cols], right[:, cols] = part.keys, part.left, part.right
         fit = keyfit.KeyFit(keys, left, right, groups)
         _write(action, obj, [chans[c] for c in cols], frames, values[:, cols], part)
@@ -295,13 +351,25 @@ def reduce_action(
         dist, angle = posed_errors(ref, got, lengths, is_foot)
         dist_max, angle_max = float(dist.max(initial=0.0)), float(angle.max(initial=0.0))
         per_bone = np.maximum(dist / foot_tolerance, angle / angle_tolerance)  # (F, n)
+        if planted_mask.any():
+            # A planted foot stays put from frame to frame, not only near the full result
+            # (the gait is read from when feet stop and start moving).
+            step = np.zeros_like(per_bone)
+            moved = np.maximum(np.linalg.norm(np.diff(got[..., :3, 3] - ref[..., :3, 3], axis=0), axis=-1),
+                               np.linalg.norm(np.diff(_tails(got, lengths) - _tails(ref, lengths), axis=0),
+                                              axis=-1))  # (F - 1, n)
+            both = planted_mask[1:] & planted_mask[:-1]
+            jump = np.where(both, moved / step_tolerance, 0.0)
+            step[1:] = np.maximum(step[1:], jump)
+            step[:-1] = np.maximum(step[:-1], jump)
+            per_bone = np.maximum(per_bone, step)
         ratio = per_bone.max(axis=1, initial=0.0)  # (F,)
         off = np.flatnonzero(ratio > 1.0)
         if off.size == 0:
             within = True
             break
-        # Which channels are not exact on the frames that are off: those are tightened over
-        # the segment around the frame (or, on the next to last pass, keyed there).
+        # Which channels are not exact on the frames that are off: those that contribute most
+        # (all of them on the next to last pass) get a key there.
         resid = np.abs(keyfit.evaluate_fit(frames, values, fit, float32=True) - values) / tol
         last = p == max_passes - 2
         changed[:] = False
@@ -315,16 +383,10 @@ def reduce_action(
                 guilty = np.flatnonzero(resid[f] > _CONTRIBUTES)
             if guilty.size == 0:
                 guilty = np.flatnonzero(~keys[f])
+            if not last:  # the channels that contribute most get a key there
+                guilty = guilty[resid[f, guilty] >= 0.5 * resid[f, guilty].max()]
+            req[f, guilty] = True
             changed[guilty] = True
-            if last:
-                req[f, guilty] = True
-                continue
-            shrink = min(0.5, 0.9 / float(ratio[f]))
-            for c in guilty:
-                keys_c = np.flatnonzero(keys[:, c])
-                lo = keys_c[keys_c <= f].max(initial=0)
-                hi = keys_c[keys_c >= f].min(initial=frames.size - 1)
-                tol[lo:hi + 1, c] *= shrink
     if not within:
         # Never leave a result off by more than asked: the full keys go back.
         actions.write_channels(action, obj, chans, frames, values)
@@ -343,7 +405,7 @@ def _write(action: bpy.types.Action, obj: bpy.types.Object, chans: Sequence[acti
 
 def reduce_if_enabled(
     obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
-    required: Mapping[Any, np.ndarray] | None = None,
+    required: Mapping[Any, np.ndarray] | None = None, planted: Mapping[str, np.ndarray] | None = None,
 ) -> Reduction | None:
     """:func:`reduce_action` with the rig's Key Reduction settings (``obj.procloco_keys``)
     when they are on, the result stored there for the panel; None when off."""
@@ -352,7 +414,7 @@ def reduce_if_enabled(
         return None
     result = reduce_action(obj, action, frames, feet, required,
                            foot_tolerance=float(settings.foot_tolerance),
-                           angle_tolerance=float(settings.angle_tolerance))
+                           angle_tolerance=float(settings.angle_tolerance), planted=planted)
     settings.keys_before = min(result.keys_before, 2**31 - 1)
     settings.keys_after = min(result.keys_after, 2**31 - 1)
     settings.foot_error = result.foot_error

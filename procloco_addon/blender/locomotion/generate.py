@@ -691,14 +691,17 @@ def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
     each leg's touch-downs and lift-offs stay keys of its bones and controls."""
     from ..keys import reduce
 
-    contacts = reduce.contact_frames(~np.asarray(job.result.swing, dtype=bool))
+    stance = ~np.asarray(job.result.swing, dtype=bool)  # (F, legs)
+    contacts = reduce.contact_frames(stance)
     required: dict[str, np.ndarray] = {}
+    planted: dict[str, np.ndarray] = {}  # each leg's bones and controls stand with its foot
     chains = [(*leg.bones, *leg.foot) for leg in job.info.legs]
     for k, names in enumerate(reduce.leg_keyed_bones(plan, chains)):
         for name in names:
             required[name] = required.get(name, np.zeros(len(job.frames), dtype=bool)) | contacts[:, k]
+            planted[name] = planted.get(name, np.zeros(len(job.frames), dtype=bool)) | stance[:, k]
     feet = [b for leg in job.info.legs for b in (leg.bones[-1], *leg.foot)]
-    return reduce.reduce_if_enabled(obj, action, job.frames, feet, required)
+    return reduce.reduce_if_enabled(obj, action, job.frames, feet, required, planted)
 
 
 def generate(
