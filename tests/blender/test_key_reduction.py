@@ -298,3 +298,23 @@ def test_the_reduced_biped_walk_stays_within_the_tolerances(empty_scene: Any) ->
     r1 = reduced[..., :3, :3] / np.linalg.norm(reduced[..., :3, :3], axis=-2, keepdims=True)
     cos = (np.einsum("...ij,...ij->...", r0, r1) - 1.0) / 2.0
     assert np.arccos(np.clip(cos, -1.0, 1.0)).max() <= ANGLE_TOL
+
+
+def test_the_panel_shows_the_switch_the_tolerances_and_the_last_counts(empty_scene: Any) -> None:
+    from procloco_addon.blender.keys.panel import PROCLOCO_PT_key_reduction
+    from tests.blender.ui_recorder import draw_panel, draw_panel_header
+
+    wolf = creatures.build_wolf(empty_scene)
+    _select_only(wolf)
+    header = draw_panel_header(PROCLOCO_PT_key_reduction, bpy.context)
+    assert [c.params.get("property") for c in header.walk() if c.method == "prop"] == ["use_key_reduction"]
+    ui = draw_panel(PROCLOCO_PT_key_reduction, bpy.context)
+    props = [c.params.get("property") for c in ui.walk() if c.method == "prop"]
+    assert props == ["foot_tolerance", "angle_tolerance"]
+    assert "Keys" not in ui.texts()  # nothing reduced yet
+    keys = wolf.procloco_keys
+    keys.keys_before, keys.keys_after = 7128, 1605
+    keys.foot_error, keys.angle_error = 0.00084, math.radians(0.48)
+    ui = draw_panel(PROCLOCO_PT_key_reduction, bpy.context)
+    assert "Keys: 7,128 → 1,605 (4.4× fewer)" in ui.labels()
+    assert "Feet within 0.84 mm, bones within 0.48°" in ui.labels()

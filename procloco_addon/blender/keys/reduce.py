@@ -341,7 +341,7 @@ def reduce_action(
     for p in range(max_passes):
         passes = p + 1
         cols = np.flatnonzero(changed)
-        step_tol = np.where(steady[:, cols], _STEP_SHARE * tol[:, cols], np.inf)
+        step_tol = np.where(steady[:, cols], step_tolerance / foot_tolerance * tol[:, cols], np.inf)
         part = keyfit.fit_keys(frames, values[:, cols], tol[:, cols], None, req[:, cols], step_tol)
         keys[:, cols], left[:, cols], right[:, cols] = part.keys, part.left, part.right
         fit = keyfit.KeyFit(keys, left, right, groups)
