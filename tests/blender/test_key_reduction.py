@@ -318,3 +318,31 @@ def test_the_panel_shows_the_switch_the_tolerances_and_the_last_counts(empty_sce
     ui = draw_panel(PROCLOCO_PT_key_reduction, bpy.context)
     assert "Keys: 7,128 → 1,605 (4.4× fewer)" in ui.labels()
     assert "Feet within 0.84 mm, bones within 0.48°" in ui.labels()
+
+
+def test_a_reduction_that_cannot_get_within_keeps_every_key(empty_scene: Any) -> None:
+    from procloco_addon.blender.keys import reduce
+
+    wolf = creatures.build_wolf(empty_scene)
+    action = actions.new_action(wolf)
+    actions.assign_generated_action(wolf, action)
+    frames = np.arange(1.0, 31.0)
+    t = frames / 24.0
+    turn = 0.3 * np.sin(2 * np.pi * t) + 0.05 * np.sin(17.0 * t)
+    quats = np.stack([np.cos(turn / 2), np.sin(turn / 2), 0 * t, 0 * t], axis=1)[:, None]
+    actions.write_pose_bone_transforms(action, wolf, frames, ["thigh.L"], rotations=quats)
+    names = ["thigh.L", "shin.L", "foot.L"]
+    full = pose_eval.pose_matrices(wolf, frames.astype(int).tolist(), names)
+    # one pass and no room at all: it cannot get there, so nothing is lost
+    result = reduce.reduce_action(wolf, action, frames, ["foot.L"], foot_tolerance=1e-9,
+                                  angle_tolerance=1e-9, max_passes=1)
+    assert not result.within
+    assert result.keys_after == result.keys_before == _key_count(wolf) == 4 * 30
+    assert "kept all 120 keys" in result.describe()
+    assert np.abs(pose_eval.pose_matrices(wolf, frames.astype(int).tolist(), names) - full).max() < 1e-6
+    # with the default tolerances it reduces, within them
+    result = reduce.reduce_action(wolf, action, frames, ["foot.L"])
+    assert result.within
+    assert result.keys_after < result.keys_before
+    moved = pose_eval.pose_matrices(wolf, frames.astype(int).tolist(), names)
+    assert np.linalg.norm(moved[:, 2, :3, 3] - full[:, 2, :3, 3], axis=-1).max() <= FOOT_TOL

@@ -383,10 +383,14 @@ def reduce_action(
                 guilty = np.flatnonzero(resid[f] > _CONTRIBUTES)
             if guilty.size == 0:
                 guilty = np.flatnonzero(~keys[f])
+            if guilty.size == 0:  # every channel is keyed there: keys cannot do better
+                continue
             if not last:  # the channels that contribute most get a key there
                 guilty = guilty[resid[f, guilty] >= 0.5 * resid[f, guilty].max()]
             req[f, guilty] = True
             changed[guilty] = True
+        if not changed.any():  # nothing left to key: more passes would change nothing
+            break
     if not within:
         # Never leave a result off by more than asked: the full keys go back.
         actions.write_channels(action, obj, chans, frames, values)
