@@ -379,13 +379,14 @@ def reduce_action(
             for b in np.flatnonzero(per_bone[f] > 1.0):
                 above |= ancestry[b]
             guilty = np.flatnonzero((resid[f] > _CONTRIBUTES) & above)
-            if guilty.size == 0:  # driven through constraints: any channel not exact there
+            chained = guilty.size > 0
+            if not chained:  # driven through constraints: any channel not exact there
                 guilty = np.flatnonzero(resid[f] > _CONTRIBUTES)
             if guilty.size == 0:
                 guilty = np.flatnonzero(~keys[f])
             if guilty.size == 0:  # every channel is keyed there: keys cannot do better
                 continue
-            if not last:  # the channels that contribute most get a key there
+            if chained and not last:  # in the parent chains, those that contribute most
                 guilty = guilty[resid[f, guilty] >= 0.5 * resid[f, guilty].max()]
             req[f, guilty] = True
             changed[guilty] = True
