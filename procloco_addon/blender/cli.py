@@ -220,11 +220,17 @@ def _set_group_values(group: Any, values: dict[str, Any]) -> None:
             setattr(group, name, value)
 
 
-def _saved_settings(objs: Sequence[Any]) -> list[tuple[Any, dict[str, Any]]]:
+def _saved_settings(objs: Sequence[Any], args: argparse.Namespace) -> list[tuple[Any, dict[str, Any]]]:
     """Each rig's settings as they are now, all of them (an override such as --gait also
-    fills the legs list): see :func:`_put_back`."""
-    return [(obj, {attr: _group_values(getattr(obj, attr)) for attr in ("procloco", "procloco_keys")})
-            for obj in objs]
+    fills the legs list), and its Key Reduction settings when an option changes them (Blender
+    4.2 stores a property group in the object once it is read): see :func:`_put_back`."""
+    attrs = ("procloco", "procloco_keys") if _changes_key_reduction(args) else ("procloco",)
+    return [(obj, {attr: _group_values(getattr(obj, attr)) for attr in attrs}) for obj in objs]
+
+
+def _changes_key_reduction(args: argparse.Namespace) -> bool:
+    return any(getattr(args, name, None) is not None
+               for name in ("key_reduction", "foot_tolerance", "angle_tolerance"))
 
 
 def _put_back(saved: list[tuple[Any, dict[str, Any]]]) -> None:
@@ -236,6 +242,8 @@ def _put_back(saved: list[tuple[Any, dict[str, Any]]]) -> None:
 def _apply_key_reduction(obj: Any, args: argparse.Namespace) -> None:
     """``--key-reduction``, ``--foot-tolerance`` and ``--angle-tolerance`` on the rig's Key
     Reduction settings (saved with ``--save``)."""
+    if not _changes_key_reduction(args):
+        return
     s = obj.procloco_keys
     if args.key_reduction is not None:
         s.use_key_reduction = bool(args.key_reduction)
@@ -392,7 +400,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "animate")
     if (args.contact_sheet or args.gif) and not args.render:
         raise CliError("--contact-sheet and --gif need --render DIR")
-    saved = _saved_settings(objs)
+    saved = _saved_settings(objs, args)
     unset = [o for o in objs if not len(o.procloco_secondary.chains)]
     try:
         for obj in objs:
@@ -423,7 +431,7 @@ def _cmd_bake_secondary(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "bake")
     if (args.contact_sheet or args.gif) and not args.render:
         raise CliError("--contact-sheet and --gif need --render DIR")
-    saved = _saved_settings(objs)
+    saved = _saved_settings(objs, args)
     try:
         for obj in objs:
             _set_frames(obj, args)
