@@ -53,6 +53,7 @@ from .gait import rig_gait
 from .keys.reduce import last_reduction
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
+from .quality import measure as quality
 from .secondary import bake
 
 __all__ = ["contact_sheet", "image_pixels", "main", "register", "render_frames", "unregister"]
@@ -408,7 +409,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
         if args.bake_secondary:
             _bake_jobs(objs, required=False)  # refuse bad chains before anything is written
         _say(f"generating {', '.join(o.name for o in objs)}")
-        made = generate.generate(bpy.context, objs, progress=_progress_printer())
+        made = generate.generate(bpy.context, objs, progress=_progress_printer(), measure=True)
     except BaseException as err:
         # Nothing was written: the overrides and the chains suggested above are taken back.
         for obj in unset:
@@ -421,6 +422,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     for obj, action in zip(objs, made, strict=True):
         _say(f"{obj.name}: wrote Action '{action.name}'")
         _say_key_reduction(obj)
+        _say(quality.summary_line(obj))
     if args.bake_secondary:
         _run_bakes(_bake_jobs(objs, required=False, quiet=True))
     _outputs(objs, args)
