@@ -61,8 +61,10 @@ _BASE_SLOT = "_procloco_preview_base_slot"
 _BASE_FAKE = "_procloco_preview_base_fake"
 _BASE_KEYS = (_HAS_BASE, _BASE, _BASE_SLOT, _BASE_FAKE)
 
-# Settings that are not inputs of the walk: the toggle itself and list cursors.
-_NOT_INPUTS = frozenset({"rna_type", "live_preview", "active_leg_index", "active_gait_change_index"})
+# Settings that are not inputs of the walk: the toggle itself, list cursors and the Quality
+# panel's figures measured on the result.
+_NOT_INPUTS = frozenset({"rna_type", "live_preview", "active_leg_index", "active_gait_change_index",
+                         "quality"})
 
 
 # ---------------------------------------------------------------------------------------
