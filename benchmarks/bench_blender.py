@@ -18,6 +18,10 @@ Scene: the Rigify wolf metarig (skinned with capsules) on a 12 m × 12 m wavy he
 * heavy terrain: the wolf on a 1M-triangle grid, static and then moved by 1 mm over the
   range (keyed location), ``--heavy-frames`` frames: time of reading (``generate.prepare``)
   and simulating, and the peak memory numpy allocates meanwhile (``tracemalloc``), once each.
+* Key Reduction: the keys of the wolf's walk before and after, the time the reduction takes
+  and the worst posed-rig errors it measured, at the default tolerances (1 mm, 0.5°) and
+  looser ones, and on the example wolf of ``examples.blend`` (``--keys-only`` runs only this
+  table), once each.
 
 Every row of the first table is the best of ``--repeat`` runs. ``--heavy-only`` runs only the
 heavy-terrain table.
@@ -30,7 +34,8 @@ both figures and their ratio. ``--sim-only`` prints only that comparison (or, wi
 ``--baseline``, only this code's simulate figure), skipping the other tables.
 
 Ends with
-``RESULT blender total_s=<s> write_s=<s> keyframe_insert_s=<s> heavy_static_s=<s> heavy_animated_s=<s>``.
+``RESULT blender total_s=<s> write_s=<s> keyframe_insert_s=<s> heavy_static_s=<s> heavy_animated_s=<s>
+keys_before=<n> keys_after=<n> reduction_s=<s>`` (the default tolerances on the benchmark wolf).
 """
 
 from __future__ import annotations
@@ -276,6 +281,36 @@ def compare_baseline(rev: str, n_frames: int, repeat: int, rounds: int) -> str:
             f"sim_cpu_speedup={cpu_ratio:.2f}")
 
 
+#: Key Reduction rows: (foot tolerance m, bone tolerance degrees).
+KEY_TOLERANCES = ((0.001, 0.5), (0.002, 1.0), (0.005, 2.0))
+
+
+def key_reduction(n_frames: int) -> list[tuple[str, Any]]:
+    """Generate with Key Reduction on: the benchmark wolf at each of :data:`KEY_TOLERANCES`,
+    then the example wolf of ``examples.blend`` at the defaults. Per row a label and the
+    :class:`procloco_addon.blender.keys.reduce.Reduction`."""
+    rows: list[tuple[str, Any]] = []
+
+    def run(wolf: bpy.types.Object, foot: float, angle: float) -> Any:
+        wolf.procloco_keys.use_key_reduction = True
+        wolf.procloco_keys.foot_tolerance = foot
+        wolf.procloco_keys.angle_tolerance = np.radians(angle)
+        job = generate.prepare(bpy.context, wolf)
+        for _fraction in generate.simulate(job):
+            pass
+        generate.write(bpy.context, job)
+        return job.key_reduction
+
+    for foot, angle in KEY_TOLERANCES:
+        rows.append((f"bench wolf, {n_frames} fr, {1000 * foot:g} mm {angle:g} deg",
+                     run(build_scene(n_frames), foot, angle)))
+    bpy.ops.wm.open_mainfile(filepath=str(ROOT / "examples.blend"))
+    wolf = bpy.data.objects["Wolf"]
+    start, end = generate.property_group.frame_range(wolf.procloco, bpy.context.scene)
+    rows.append((f"example wolf, {end - start + 1} fr, 1 mm 0.5 deg", run(wolf, 0.001, 0.5)))
+    return rows
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -290,6 +325,7 @@ def main() -> int:
     parser.add_argument("--heavy-only", action="store_true")
     parser.add_argument("--long-frames", type=int, default=10_000)
     parser.add_argument("--long-only", action="store_true")
+    parser.add_argument("--keys-only", action="store_true")
     args = parser.parse_args()
 
     procloco_addon.register()
@@ -306,6 +342,19 @@ def main() -> int:
             result = f"sim_ms_per_frame={1000 * best_s / args.frames:.3f}"
         print(f"RESULT blender {result}")
         return 0
+    keys = key_reduction(args.frames)
+    print("Key Reduction: keys before and after, posed-rig errors measured, once each")
+    print(f"{'walk, tolerances':42s} {'before':>8s} {'after':>8s} {'ratio':>6s} {'reduce s':>9s} "
+          f"{'feet mm':>8s} {'bones deg':>9s}")
+    for label, r in keys:
+        print(f"{label:42s} {r.keys_before:8d} {r.keys_after:8d} {r.ratio:6.2f} {r.seconds:9.2f} "
+              f"{1000 * r.foot_error:8.3f} {np.degrees(r.angle_error):9.3f}")
+    default = keys[0][1]
+    keys_result = (f"keys_before={default.keys_before} keys_after={default.keys_after} "
+                   f"reduction_s={default.seconds:.3f}")
+    if args.keys_only:
+        print(f"RESULT blender {keys_result}")
+        return 0
     long = long_range(args.long_frames)
     print(f"Long range: Rigify wolf, Generate then Bake Secondary Motion (tail), {args.long_frames} frames, "
           "once each")
@@ -316,7 +365,7 @@ def main() -> int:
     bake_s = sum(sec for name, (sec, _) in long.items() if name.startswith("bake"))
     long_result = f"long_generate_s={gen_s:.3f} long_bake_s={bake_s:.3f}"
     if args.long_only:
-        print(f"RESULT blender {long_result}")
+        print(f"RESULT blender {long_result} {keys_result}")
         return 0
     heavy = {kind: heavy_terrain(args.heavy_frames, kind == "animated") for kind in ("static", "animated")}
     print(f"Heavy terrain: Rigify wolf on a 1M-triangle grid, {args.heavy_frames} frames, once each")
@@ -327,7 +376,7 @@ def main() -> int:
     print(f"animated / static: time {(ra + sa) / (rs + ss):.2f}x, peak memory {pa / ps:.2f}x")
     heavy_result = f"heavy_static_s={rs + ss:.3f} heavy_animated_s={ra + sa:.3f}"
     if args.heavy_only:
-        print(f"RESULT blender {heavy_result} {long_result}")
+        print(f"RESULT blender {heavy_result} {long_result} {keys_result}")
         return 0
     best: dict[str, float] = {}
 
@@ -392,7 +441,8 @@ def main() -> int:
     if args.baseline:
         base_result = " " + compare_baseline(args.baseline, args.frames, args.repeat, args.rounds)
     print(f"RESULT blender total_s={best['operator']:.3f} write_s={best['write']:.3f} "
-          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result} {long_result}{base_result}")
+          f"keyframe_insert_s={best['keyframe_insert']:.3f} {heavy_result} {long_result} {keys_result}"
+          f"{base_result}")
     return 0
 
 

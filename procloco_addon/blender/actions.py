@@ -69,11 +69,13 @@ __all__ = [
     "push_to_nla",
     "quaternion_to_euler",
     "read_channel",
+    "read_channels",
     "remember_assignment",
     "remember_pose",
     "restore_previous_action",
     "rotation_channels",
     "undo_assignment",
+    "write_bezier_channels",
     "write_channels",
     "write_object_transforms",
     "write_pose_bone_transforms",
@@ -541,6 +543,80 @@ def write_channels(
         points.foreach_set("co", co.ravel())
         points.foreach_set("interpolation", ipo)
         fcurve.update()
+
+
+def write_bezier_channels(
+    action: bpy.types.Action,
+    obj: bpy.types.Object,
+    channels: Sequence[Channel],
+    curves: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    handle_type: str = "FREE",
+) -> int:
+    """Write one Bézier F-curve per channel in bulk, handles as given.
+
+    curves: per channel ``(co, handle_left, handle_right)``, each ``(n_keys, 2)`` as
+    ``(frame, value)``, frames strictly increasing. Every key gets Bézier interpolation and
+    ``handle_type`` on both sides (``"FREE"`` or ``"ALIGNED"`` keep the positions given;
+    automatic types would recompute them). An existing F-curve with the same path and index
+    is replaced wholesale. Refuses (:class:`ActionError`) to write into an Action ProcLoco did
+    not create. Returns the number of keys written.
+    """
+    if not is_generated(action):
+        raise ActionError(f"Action '{action.name}' was not made by ProcLoco; it is never written to")
+    if len(curves) != len(channels):
+        raise ValueError(f"{len(curves)} curves for {len(channels)} channels")
+    for co, hl, hr in curves:
+        arrays = [np.asarray(a, dtype=np.float64) for a in (co, hl, hr)]
+        if any(a.ndim != 2 or a.shape != arrays[0].shape or a.shape[1] != 2 for a in arrays):
+            raise ValueError("each curve needs (n, 2) points and handles of one shape")
+        if not all(np.all(np.isfinite(a)) for a in arrays):
+            raise ActionError("refusing to key non-finite values")
+        if arrays[0].shape[0] > 1 and not np.all(np.diff(arrays[0][:, 0]) > 0):
+            raise ValueError("frames must be strictly increasing")
+    fcurves = _fcurve_collection(action, obj, create=True)
+    bezier = _interpolation_code("BEZIER")
+    side = bpy.types.Keyframe.bl_rna.properties["handle_left_type"].enum_items[handle_type].value
+    existing = {(fc.data_path, fc.array_index): fc for fc in fcurves}
+    total = 0
+    for channel, (co, hl, hr) in zip(channels, curves, strict=True):
+        n = int(np.asarray(co).shape[0])
+        if n == 0:
+            continue
+        old = existing.pop((channel.data_path, channel.index), None)
+        if old is not None:
+            fcurves.remove(old)
+        fcurve = _new_fcurve(fcurves, channel)
+        points = fcurve.keyframe_points
+        points.add(n)
+        # Types first: with automatic types, setting positions would be undone by update().
+        points.foreach_set("interpolation", np.full(n, bezier, dtype=np.int32))
+        points.foreach_set("handle_left_type", np.full(n, side, dtype=np.int32))
+        points.foreach_set("handle_right_type", np.full(n, side, dtype=np.int32))
+        points.foreach_set("co", np.asarray(co, dtype=np.float32).ravel())
+        points.foreach_set("handle_left", np.asarray(hl, dtype=np.float32).ravel())
+        points.foreach_set("handle_right", np.asarray(hr, dtype=np.float32).ravel())
+        fcurve.update()
+        total += n
+    return total
+
+
+def read_channels(
+    action: bpy.types.Action, obj: bpy.types.Object
+) -> list[tuple[Channel, np.ndarray, np.ndarray]]:
+    """Every F-curve of ``action`` for ``obj`` with its keys: ``(channel, frames, values)``,
+    both ``(n_keys,)``, read in bulk (any Action; nothing is changed)."""
+    fcurves = _fcurve_collection(action, obj, create=False)
+    if fcurves is None:
+        return []
+    out = []
+    for fc in fcurves:
+        points = fc.keyframe_points
+        co = np.empty(2 * len(points), dtype=np.float32)
+        points.foreach_get("co", co)
+        co2 = co.reshape(-1, 2).astype(np.float64)
+        out.append((Channel(fc.data_path, fc.array_index, fc.group.name if fc.group else ""),
+                    co2[:, 0], co2[:, 1]))
+    return out
 
 
 def channels_of(action: bpy.types.Action, obj: bpy.types.Object) -> list[Channel]:

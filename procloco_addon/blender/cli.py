@@ -50,6 +50,7 @@ import numpy as np
 from ..core import gait as core_gait
 from . import actions, gif, render_chunk, rig
 from .gait import rig_gait
+from .keys.reduce import last_reduction
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
 from .quality import measure as quality
@@ -128,9 +129,16 @@ def _parser() -> argparse.ArgumentParser:
     output.add_argument("--contact-sheet", metavar="PNG", help="tile rendered frames into one image")
     output.add_argument("--gif", metavar="GIF", help="make the rendered frames a looping animated GIF")
     output.add_argument("--save", metavar="BLEND", help="save the .blend file there")
+    keys = _Parser(add_help=False)
+    keys.add_argument("--key-reduction", action=argparse.BooleanOptionalAction, default=None,
+                      help="keep keys only where needed, Bezier handles fitted (Generate > Key Reduction)")
+    keys.add_argument("--foot-tolerance", type=_number("float", 1e-6), metavar="METRES",
+                      help="Key Reduction: how far a foot may move from the key-per-frame result")
+    keys.add_argument("--angle-tolerance", type=_number("float", 1e-4, 180.0), metavar="DEGREES",
+                      help="Key Reduction: how far any other bone may turn from it")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     sub.add_parser("info", help="list armatures, their detected legs and their swinging chains")
-    gen = sub.add_parser("generate", parents=[rigs, output],
+    gen = sub.add_parser("generate", parents=[rigs, output, keys],
                          help="generate locomotion (and bake secondary motion, render a preview)")
     gen.add_argument("--speed", type=_number("float", 0.0), help="speed in metres per second")
     gen.add_argument("--heading", type=_number("float", -1e6, 1e6),
@@ -145,7 +153,7 @@ def _parser() -> argparse.ArgumentParser:
                      help="the body sways with the feet, lizard-like (Effects > Visual Yaw)")
     gen.add_argument("--bake-secondary", action=argparse.BooleanOptionalAction, default=False,
                      help="then bake secondary motion on the rigs that have (or are suggested) chains")
-    sub.add_parser("bake-secondary", parents=[rigs, output],
+    sub.add_parser("bake-secondary", parents=[rigs, output, keys],
                    help="bake secondary motion (tails, antennae, ears) on the rigs' current animation")
     render_chunk.add_parser(sub)
     return parser
@@ -213,20 +221,49 @@ def _set_group_values(group: Any, values: dict[str, Any]) -> None:
             setattr(group, name, value)
 
 
-def _saved_settings(objs: Sequence[Any]) -> list[tuple[Any, dict[str, Any]]]:
+def _saved_settings(objs: Sequence[Any], args: argparse.Namespace) -> list[tuple[Any, dict[str, Any]]]:
     """Each rig's settings as they are now, all of them (an override such as --gait also
-    fills the legs list): see :func:`_put_back`."""
-    return [(obj, _group_values(obj.procloco)) for obj in objs]
+    fills the legs list), and its Key Reduction settings when an option changes them (Blender
+    4.2 stores a property group in the object once it is read): see :func:`_put_back`."""
+    attrs = ("procloco", "procloco_keys") if _changes_key_reduction(args) else ("procloco",)
+    return [(obj, {attr: _group_values(getattr(obj, attr)) for attr in attrs}) for obj in objs]
+
+
+def _changes_key_reduction(args: argparse.Namespace) -> bool:
+    return any(getattr(args, name, None) is not None
+               for name in ("key_reduction", "foot_tolerance", "angle_tolerance"))
 
 
 def _put_back(saved: list[tuple[Any, dict[str, Any]]]) -> None:
-    for obj, values in saved:
-        _set_group_values(obj.procloco, values)
+    for obj, groups in saved:
+        for attr, values in groups.items():
+            _set_group_values(getattr(obj, attr), values)
+
+
+def _apply_key_reduction(obj: Any, args: argparse.Namespace) -> None:
+    """``--key-reduction``, ``--foot-tolerance`` and ``--angle-tolerance`` on the rig's Key
+    Reduction settings (saved with ``--save``)."""
+    if not _changes_key_reduction(args):
+        return
+    s = obj.procloco_keys
+    if args.key_reduction is not None:
+        s.use_key_reduction = bool(args.key_reduction)
+    if args.foot_tolerance is not None:
+        s.foot_tolerance = float(args.foot_tolerance)
+    if args.angle_tolerance is not None:
+        s.angle_tolerance = math.radians(float(args.angle_tolerance))
+
+
+def _say_key_reduction(obj: Any) -> None:
+    reduced = last_reduction(obj)
+    if reduced is not None:
+        _say(f"{obj.name}: {reduced.describe()}")
 
 
 def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
     s = obj.procloco
     _set_frames(obj, args)
+    _apply_key_reduction(obj, args)
     if args.speed is not None:
         s.speed = float(args.speed)
     if args.heading is not None:
@@ -334,6 +371,7 @@ def _run_bakes(jobs: Sequence[bake.Job]) -> None:
         for warning in job.warnings:
             _say(f"{job.obj_name}: warning: {warning}")
         _say(f"{job.obj_name}: baked {len(job.bones)} swinging bones into Action '{action.name}'")
+        _say_key_reduction(bpy.data.objects[job.obj_name])
 
 
 def _outputs(objs: Sequence[Any], args: argparse.Namespace) -> None:
@@ -363,7 +401,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "animate")
     if (args.contact_sheet or args.gif) and not args.render:
         raise CliError("--contact-sheet and --gif need --render DIR")
-    saved = _saved_settings(objs)
+    saved = _saved_settings(objs, args)
     unset = [o for o in objs if not len(o.procloco_secondary.chains)]
     try:
         for obj in objs:
@@ -383,6 +421,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     assert made is not None
     for obj, action in zip(objs, made, strict=True):
         _say(f"{obj.name}: wrote Action '{action.name}'")
+        _say_key_reduction(obj)
         _say(quality.summary_line(obj))
     if args.bake_secondary:
         _run_bakes(_bake_jobs(objs, required=False, quiet=True))
@@ -394,10 +433,11 @@ def _cmd_bake_secondary(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "bake")
     if (args.contact_sheet or args.gif) and not args.render:
         raise CliError("--contact-sheet and --gif need --render DIR")
-    saved = _saved_settings(objs)
+    saved = _saved_settings(objs, args)
     try:
         for obj in objs:
             _set_frames(obj, args)
+            _apply_key_reduction(obj, args)
         jobs = _bake_jobs(objs, required=not args.all)
     except BaseException:
         _put_back(saved)

@@ -101,6 +101,8 @@ class WriteReport:
     # per leg, the largest distance (m) between the evaluated and the planned end-effector
     leg_error: list[float] = field(default_factory=list)
     body_error: float = 0.0
+    # what was keyed for which leg (Key Reduction keeps each leg's contacts on its controls)
+    plan: ControlPlan | None = None
 
 
 def object_moves(obj: bpy.types.Object) -> bool:
@@ -370,7 +372,7 @@ def write_pose_steps(
     report how far each leg's end-effector landed from its target (drivers and limits can
     pull it off).
     """
-    report = WriteReport()
+    report = WriteReport(plan=plan)
     frames = np.asarray(req.frames, dtype=np.float64)
     armature = np.asarray(req.armature, dtype=np.float64)
     if not req.per_frame and object_moves(obj):

@@ -23,6 +23,8 @@ from .gait import ops as gait_ops
 from .gait import panel as gait_panel
 from .gait import property_group as gait_props
 from .gait import ui_list as gait_ui_list
+from .keys import panel as keys_panel
+from .keys import property_group as keys_props
 from .live_preview import handler as live_preview_handler
 from .live_preview import ops as live_preview_ops
 from .locomotion import handler as legs_handler
@@ -45,6 +47,7 @@ CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_gait_change,
     quality_props.PROCLOCO_PG_quality,
     locomotion_props.PROCLOCO_PG_rig_settings,
+    keys_props.PROCLOCO_PG_key_reduction,
     locomotion_ops.PROCLOCO_OT_detect_legs,
     locomotion_ops.PROCLOCO_OT_generate_locomotion,
     locomotion_ops.PROCLOCO_OT_clear_generated_action,
@@ -90,6 +93,7 @@ CLASSES: tuple[type, ...] = (
     ui_main.PROCLOCO_PT_effects,
     locomotion_panel.PROCLOCO_PT_spine,
     ui_main.PROCLOCO_PT_generate,
+    keys_panel.PROCLOCO_PT_key_reduction,
     quality_panel.PROCLOCO_PT_quality,
     quality_ops.PROCLOCO_MT_worst_frames,
     ui_menu.PROCLOCO_MT_lists,
@@ -106,6 +110,7 @@ POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco", locomotion_props.PROCLOCO_PG_rig_settings),
     (bpy.types.Object, "procloco_biped", biped_props.PROCLOCO_PG_biped_settings),
     (bpy.types.Object, "procloco_secondary", secondary_props.PROCLOCO_PG_secondary_settings),
+    (bpy.types.Object, "procloco_keys", keys_props.PROCLOCO_PG_key_reduction),
     (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 

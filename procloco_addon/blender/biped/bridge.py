@@ -628,7 +628,8 @@ def write_motion(
     before = adt.action if adt is not None else None
     remembered, _previous = actions.previous_action(obj)
     try:
-        _write_pose(action, obj, brig, frames, rotations, location)
+        report = _write_pose(action, obj, brig, frames, rotations, location)
+        _reduce_keys(obj, action, brig, motion, frames, report)
     except Exception:
         if obj.animation_data is not None and obj.animation_data.action == action:
             actions.assign_action(obj, before)
@@ -637,6 +638,26 @@ def write_motion(
         bpy.data.actions.remove(action)
         raise
     return action
+
+
+def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, brig: BipedRig, motion: BipedMotion,
+                 frames: np.ndarray, report: pose_writer.WriteReport) -> None:
+    """Key Reduction of the planned walk when the rig has it on (see :mod:`..keys.reduce`):
+    each foot's touch-downs and lift-offs stay keys of its leg's bones and controls."""
+    from ..keys import reduce
+
+    skel = brig.skeleton
+    sides = (skel.left, skel.right)  # the columns LEFT, RIGHT of motion.contact
+    chains = [[brig.bones[j] for j in (lj.hip, lj.knee, lj.ankle, lj.toe) if j < len(brig.bones)]
+              for lj in sides]
+    contacts = reduce.contact_frames(np.asarray(motion.contact) >= 0)
+    required: dict[str, np.ndarray] = {}
+    for k, names in enumerate(reduce.leg_keyed_bones(report.plan, chains)):
+        for name in names:
+            required[name] = required.get(name, np.zeros(len(frames), dtype=bool)) | contacts[:, k]
+    feet = [brig.bones[lj.ankle] for lj in sides]
+    planted = {brig.bones[lj.ankle]: np.asarray(motion.contact)[:, k] >= 0 for k, lj in enumerate(sides)}
+    reduce.reduce_if_enabled(obj, action, frames, feet, required, planted)
 
 
 def heel_toe_world(brig: BipedRig, motion: BipedMotion) -> np.ndarray:

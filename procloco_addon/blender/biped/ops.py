@@ -35,6 +35,7 @@ from ...core.biped.planner import BipedMotion, PlannerSettings, plan_biped
 from ...core.biped.skeleton import LEFT, forward_kinematics
 from ...core.biped.surface import WalkableSurface
 from .. import actions, validate
+from ..keys.reduce import last_reduction
 from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature
 from . import bridge
 
@@ -301,6 +302,9 @@ class PROCLOCO_OT_plan_biped_footsteps(ProgressOperator, bpy.types.Operator):
             {"INFO"},
             f"Planned {len(motion.footprints)} footprints, frames {job.start_frame}-{last}: '{action.name}'",
         )
+        reduced = last_reduction(bpy.data.objects[job.obj_name])
+        if reduced is not None:
+            self.report({"INFO"}, f"{job.obj_name}: {reduced.describe()}")
         return {"FINISHED"}
 
     def _run(self, context: Any, modal: bool) -> Steps:

@@ -359,6 +359,8 @@ class Job:
     # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
     terrain_objects: tuple[str, ...] = ()
     lift: float = 0.0
+    # What Key Reduction did when it is on (keys.reduce.Reduction), else None.
+    key_reduction: Any = None
 
 
 def stale_bones(obj: bpy.types.Object) -> set[str]:
@@ -694,6 +696,7 @@ def _keyed_action_steps(
             0.5, 1.0)
         if job.auto_gait is not None:
             rig_gait.store_auto_track(action, simulation.auto_track(job))
+        job.key_reduction = _reduce_keys(obj, action, job, plan)
     except BaseException:  # an error, or closed early (Esc)
         actions.restore_pose(obj, action)
         bpy.data.actions.remove(action)
@@ -706,6 +709,25 @@ def _keyed_action_steps(
     job.keyed_bones = tuple(report.keyed)
     job.timings["write_s"] = time.perf_counter() - t0
     return action
+
+
+def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
+                 plan: controls.ControlPlan) -> Any:
+    """Key Reduction of the written walk when the rig has it on (see :mod:`..keys.reduce`):
+    each leg's touch-downs and lift-offs stay keys of its bones and controls."""
+    from ..keys import reduce
+
+    stance = ~np.asarray(job.result.swing, dtype=bool)  # (F, legs)
+    contacts = reduce.contact_frames(stance)
+    required: dict[str, np.ndarray] = {}
+    planted: dict[str, np.ndarray] = {}  # each leg's bones and controls stand with its foot
+    chains = [(*leg.bones, *leg.foot) for leg in job.info.legs]
+    for k, names in enumerate(reduce.leg_keyed_bones(plan, chains)):
+        for name in names:
+            required[name] = required.get(name, np.zeros(len(job.frames), dtype=bool)) | contacts[:, k]
+            planted[name] = planted.get(name, np.zeros(len(job.frames), dtype=bool)) | stance[:, k]
+    feet = [b for leg in job.info.legs for b in (leg.bones[-1], *leg.foot)]
+    return reduce.reduce_if_enabled(obj, action, job.frames, feet, required, planted)
 
 
 def generate(

@@ -126,6 +126,8 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
         for job in self._jobs:
             for warning in job.warnings:
                 self.report({"WARNING"}, f"{job.obj_name}: {warning}")
+            if job.key_reduction is not None:
+                self.report({"INFO"}, f"{job.obj_name}: {job.key_reduction.describe()}")
         self.report({"INFO"}, "Generated " + ", ".join(f"'{a.name}'" for a in made))
         return {"FINISHED"}
 

@@ -664,6 +664,7 @@ def write_steps(context: Any, job: Job) -> Generator[float, None, bpy.types.Acti
         try:
             yield from pose_writer.write_pose_steps(action, obj, request, plan, replace=rebake,
                                                     superseded=superseded)
+            _reduce_keys(obj, action, job)
         except BaseException:
             actions.restore_pose(obj, action)
             actions.undo_assignment(obj, memo)
@@ -675,6 +676,25 @@ def write_steps(context: Any, job: Job) -> Generator[float, None, bpy.types.Acti
     actions.delete_superseded(superseded)  # the earlier bake, once this one is written
     job.timings["write_s"] = time.perf_counter() - t0
     return action
+
+
+def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job) -> None:
+    """Key Reduction of the bake when the rig has it on (see :mod:`..keys.reduce`): the
+    feet are the rig's legs' end-effectors, and the frames the source Action keyed (a reduced
+    walk's contacts) stay keys of the channels copied from it."""
+    from ..keys import reduce
+
+    settings = getattr(obj, "procloco_keys", None)
+    if settings is None or not settings.use_key_reduction:
+        return
+    feet = [item.end for item in obj.procloco.legs if item.enabled and item.end]
+    required: dict[Any, np.ndarray] = {}
+    if job.source is not None:
+        for channel, keyed, _values in actions.read_channels(job.source, obj):
+            if keyed.size < job.frames.size:
+                required[(channel.data_path, channel.index)] = np.isin(job.frames.astype(np.float64),
+                                                                       np.round(keyed))
+    reduce.reduce_if_enabled(obj, action, job.frames, feet, required)
 
 
 def _pose_request(obj: bpy.types.Object, job: Job,

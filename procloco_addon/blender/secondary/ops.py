@@ -14,6 +14,7 @@ from typing import Any, ClassVar
 
 import bpy
 
+from ..keys.reduce import last_reduction
 from ..modal import ProgressOperator, RemoveActiveItem, Steps, poll_armature, steps_with_result
 from . import bake
 
@@ -153,6 +154,9 @@ class PROCLOCO_OT_bake_secondary_motion(ProgressOperator, bpy.types.Operator):
         source = f"'{job.source.name}'" if job.source is not None else "the rig's pose (no Action)"
         self.report({"INFO"}, f"Baked {len(job.bones)} bones over frames {job.frames[0]}-{job.frames[-1]} "
                     f"into '{action.name}' (on {source}, which is kept)")
+        reduced = last_reduction(bpy.data.objects[job.obj_name])
+        if reduced is not None:
+            self.report({"INFO"}, f"{job.obj_name}: {reduced.describe()}")
         return {"FINISHED"}
 
     def _run(self, context: Any, modal: bool) -> Steps:
