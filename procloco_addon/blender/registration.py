@@ -18,6 +18,9 @@ from .biped import ops as biped_ops
 from .biped import panel as biped_panel
 from .biped import property_group as biped_props
 from .biped import ui_list as biped_ui_list
+from .cycle import ops as cycle_ops
+from .cycle import panel as cycle_panel
+from .cycle import property_group as cycle_props
 from .gait import handler as gait_handler
 from .gait import ops as gait_ops
 from .gait import panel as gait_panel
@@ -81,6 +84,9 @@ CLASSES: tuple[type, ...] = (
     ui_main.PROCLOCO_PT_effects,
     locomotion_panel.PROCLOCO_PT_spine,
     ui_main.PROCLOCO_PT_generate,
+    cycle_props.PROCLOCO_PG_cycle_settings,
+    cycle_ops.PROCLOCO_OT_make_cycle,
+    cycle_panel.PROCLOCO_PT_make_cycle,
 )
 
 # (owner ID type, attribute name, property) for plain properties (not groups)
@@ -93,6 +99,7 @@ POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco", locomotion_props.PROCLOCO_PG_rig_settings),
     (bpy.types.Object, "procloco_biped", biped_props.PROCLOCO_PG_biped_settings),
     (bpy.types.Object, "procloco_secondary", secondary_props.PROCLOCO_PG_secondary_settings),
+    (bpy.types.Object, "procloco_cycle", cycle_props.PROCLOCO_PG_cycle_settings),
     (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 

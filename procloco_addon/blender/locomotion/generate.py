@@ -337,6 +337,9 @@ class Job:
     # Gait: Auto (core.autogait): the gait, stride and cycle follow the speed; None: the
     # gait circles and the Gait Changes' gaits
     auto_gait: autogait.AutoGaitParams | None = None
+    # Auto's choice held at one speed (Make Cycle): the walk keeps ``gait`` but Auto's
+    # physics (real gravity) and planning window, as Generate would at that speed
+    held_auto: autogait.AutoGaitParams | None = None
     # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
     use_visual_yaw: bool = False
     spine_turn_rate: float = float(np.radians(120.0))  # rad/s
