@@ -300,11 +300,11 @@ def simulate_steps(context: bpy.types.Context, cj: CycleJob) -> Generator[tuple[
     # the same stride, and a cycle of exactly P frames.
     job.gait = job.gait.with_cycle_time(job.gait.cycle_time * stretch)
     job.speed = cj.asked_speed / stretch
-    _check_level(cj, (WARMUP_ROUNDS[-1] + cj.cycles + 1) * period + 1)
     leg = float(np.mean(job.info.leg_length))
     share = 0.7 / len(WARMUP_ROUNDS)
     for k, warmup in enumerate(WARMUP_ROUNDS):
         total = (warmup + cj.cycles + 1) * period + 1
+        _check_level(cj, total)
         job.frames = cj.first_frame + np.arange(total, dtype=np.int64)
         for fraction in simulation.run(job):
             yield (f"{name}: simulating {warmup} cycles of warm-up and {cj.cycles} of loop",
