@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import bpy
@@ -328,3 +329,15 @@ def test_the_panel_offers_the_settings_and_the_button(wolf: Any) -> None:
     assert ui.operators() == ["procloco.make_cycle"]
     wolf.procloco_cycle.root_motion = "ROOT_BONE"
     assert draw_panel(PROCLOCO_PT_make_cycle, bpy.context).find("prop_search")
+
+
+def test_escape_midway_leaves_the_scene_unchanged(wolf: Any) -> None:
+    from procloco_addon.blender.cycle.ops import PROCLOCO_OT_make_cycle as Op
+    from tests.blender.test_modal import _context_for, _drive_modal
+
+    assert bpy.ops.procloco.make_cycle() == {"FINISHED"}  # Esc during a re-make
+    before = snapshot()
+    context = _context_for(bpy.context.scene)
+    me = _drive_modal(Op, context, 40, _jobs=[], _made=[])
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert snapshot() == before
