@@ -331,6 +331,26 @@ def test_the_panel_offers_the_settings_and_the_button(wolf: Any) -> None:
     assert draw_panel(PROCLOCO_PT_make_cycle, bpy.context).find("prop_search")
 
 
+def test_a_loop_keeps_the_walk_it_was_made_from_and_replaces_an_earlier_loop(wolf: Any) -> None:
+    wolf.procloco.use_scene_range = False
+    wolf.procloco.frame_start, wolf.procloco.frame_end = 1, 12
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    walk = wolf.animation_data.action
+    assert bpy.ops.procloco.make_cycle() == {"FINISHED"}
+    loop = wolf.animation_data.action
+    assert loop.name == "Wolf ProcLoco Cycle"
+    first, last = _loop_frames(wolf)
+    assert walk.name in bpy.data.actions
+    assert walk.use_fake_user  # the walk stays, as when any generation replaces another
+    names = sorted(a.name for a in bpy.data.actions)
+    wolf.procloco_cycle.cycles = 2
+    assert bpy.ops.procloco.make_cycle() == {"FINISHED"}
+    assert sorted(a.name for a in bpy.data.actions) == names  # the earlier loop superseded
+    assert wolf.animation_data.action.name == "Wolf ProcLoco Cycle"
+    again = _loop_frames(wolf)
+    assert again[1] - again[0] == 2 * (last - first)
+
+
 def test_escape_midway_leaves_the_scene_unchanged(wolf: Any) -> None:
     from procloco_addon.blender.cycle.ops import PROCLOCO_OT_make_cycle as Op
     from tests.blender.test_modal import _context_for, _drive_modal

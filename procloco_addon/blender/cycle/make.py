@@ -164,6 +164,7 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> CycleJob:
         problem = root_bone_problem(obj, str(settings.root_bone), keyed)
         if problem is not None:
             raise CycleError(problem)
+    job.action_kind = "Cycle"  # a loop made from a walk leaves the walk (kept with a fake user)
     if job.auto_gait is not None:
         # Auto picks one gait at one speed: held, so the cycle can be rounded to whole frames.
         job.gait = AutoGait([job.auto_gait], [job.speed]).gaits([job.gait])[0]
