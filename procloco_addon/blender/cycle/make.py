@@ -43,9 +43,10 @@ from ..locomotion import generate, simulation
 __all__ = ["CycleError", "CycleJob", "make_cycles", "read", "root_bone_problem", "simulate_steps",
            "write_steps"]
 
-#: Warm-ups tried in turn, in cycles: most walks settle within a few cycles; a small creature's
-#: pelvis bounce (real gravity, Gait: Auto) can take twenty or more to die down.
-WARMUP_ROUNDS = (6, 32)
+#: Warm-ups tried in turn, in cycles: most walks settle within a few cycles (the wolf in 4,
+#: the robot in 5); a small creature's pelvis bounce (real gravity, Gait: Auto) takes far
+#: longer to die down, and its footsteps to repeat (the example tarantula: 36 cycles).
+WARMUP_ROUNDS = (6, 48)
 #: A walk repeats when every joint comes back to within this fraction of the leg length
 #: (moved on by the stride) one cycle later...
 STEADY_TOLERANCE = 1e-3
