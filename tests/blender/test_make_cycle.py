@@ -144,6 +144,9 @@ def loops(procloco_registered: Any, tmp_path_factory: Any) -> dict[str, Any]:
                         "motion": measure(wolf, _walking_job(cj), ground), "closing": cj.closing}
     wolf_blend = tmp / "wolf.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(wolf_blend), copy=True)
+    bpy.ops.wm.open_mainfile(filepath=str(wolf_blend))
+    saved = bpy.data.objects["Wolf"].procloco_cycle  # (the file reopened: by name)
+    out["saved"] = (saved.cycles, saved.root_motion, saved.root_bone)
 
     # The spider, in place (its pelvis bounce off: see the README's known limitations).
     bpy.ops.wm.read_homefile(use_empty=True)
@@ -208,6 +211,10 @@ def test_root_motion_on_the_root_bone_is_one_stride_per_cycle(loops: dict[str, A
     for key in ("one_cycle", "close", "beyond"):
         _closes(m[key], key)
     assert m["closing"] < 5e-3  # the keys changed to close exactly (quaternion parts, metres)
+
+
+def test_the_settings_are_saved_in_the_blend(loops: dict[str, Any]) -> None:
+    assert loops["saved"] == (2, "ROOT_BONE", "root")
 
 
 def test_the_loop_passes_the_motion_checks_on_the_posed_rig(loops: dict[str, Any]) -> None:
@@ -308,8 +315,12 @@ def test_make_cycle_refuses_what_cannot_loop(wolf: Any, case: str) -> None:
 
 def test_the_batch_command_makes_a_loop(wolf: Any) -> None:
     from procloco_addon.blender import cli
+    from procloco_addon.blender.gait import rig_gait
 
-    assert cli.main(["generate", "--rig", wolf.name, "--cycle", "1"]) == 0
+    # with the gait circles (a preset), not Auto: the preset's cycle time is stretched
+    rig_gait.choose_gait(wolf, "quadruped_walk")
+    assert cli.main(["generate", "--rig", wolf.name, "--speed", "0.4", "--cycle", "1"]) == 0
+    assert wolf.procloco.gait_mode == "CIRCLES"
     first, last = _loop_frames(wolf)
     bones = [pb.name for pb in wolf.pose.bones]
     mats = pose_matrices(wolf, [first, last], bones)

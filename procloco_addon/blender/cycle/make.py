@@ -326,7 +326,8 @@ def simulate_steps(context: bpy.types.Context, cj: CycleJob) -> Generator[tuple[
     if start < 0:
         raise CycleError(f"The walk of '{name}' did not settle into a steady cycle within "
                          f"{WARMUP_ROUNDS[-1]} cycles (it still differs by {1000.0 * error:.2f} mm from one "
-                         "cycle to the next): nothing was changed")
+                         "cycle to the next): nothing was changed. A slower walk, or Pelvis Physics off, "
+                         "often settles")
     cj.warmup = start
     cj.loop_error = error
     cj.stride = core_cycle.stride_of(points, period, start, cj.cycles)
