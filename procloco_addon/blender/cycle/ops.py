@@ -21,8 +21,7 @@ __all__ = ["PROCLOCO_OT_make_cycle"]
 
 
 class PROCLOCO_OT_make_cycle(ProgressOperator, bpy.types.Operator):
-    """Generate a seamless loop of whole gait cycles on flat ground, in place or with root motion on a
-    root bone, with cyclic F-curves: ready for the NLA and for export"""
+    """Make a seamless loop of whole gait cycles on flat ground, in place or on a root bone, for export"""
 
     bl_idname = "procloco.make_cycle"
     bl_label = "Make Cycle"
