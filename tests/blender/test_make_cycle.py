@@ -181,6 +181,7 @@ def loops(procloco_registered: Any, tmp_path_factory: Any) -> dict[str, Any]:
     return out
 
 
+@pytest.mark.slow  # the loops fixture: three loops made and two glTF round trips, once
 def test_an_in_place_loop_closes_on_every_bone_and_plays_on(loops: dict[str, Any]) -> None:
     m = loops["in_place"]
     first, last = m["frames"]
@@ -197,6 +198,7 @@ def test_an_in_place_loop_closes_on_every_bone_and_plays_on(loops: dict[str, Any
     assert stride / (period / m["fps"]) == pytest.approx(m["speed"], rel=0.5 / period + 1e-3)
 
 
+@pytest.mark.slow  # the loops fixture: three loops made and two glTF round trips, once
 def test_root_motion_on_the_root_bone_is_one_stride_per_cycle(loops: dict[str, Any]) -> None:
     m = loops["root_bone"]
     first, last = m["frames"]
@@ -213,14 +215,17 @@ def test_root_motion_on_the_root_bone_is_one_stride_per_cycle(loops: dict[str, A
     assert m["closing"] < 5e-3  # the keys changed to close exactly (quaternion parts, metres)
 
 
+@pytest.mark.slow  # the loops fixture: three loops made and two glTF round trips, once
 def test_the_settings_are_saved_in_the_blend(loops: dict[str, Any]) -> None:
     assert loops["saved"] == (2, "ROOT_BONE", "root")
 
 
+@pytest.mark.slow  # the loops fixture: three loops made and two glTF round trips, once
 def test_the_loop_passes_the_motion_checks_on_the_posed_rig(loops: dict[str, Any]) -> None:
     check_motion(loops["root_bone"]["motion"])
 
 
+@pytest.mark.slow  # the loops fixture: three loops made and two glTF round trips, once
 def test_a_spider_loops_too(loops: dict[str, Any]) -> None:
     m = loops["spider"]
     assert m["legs"] == 8
@@ -228,6 +233,7 @@ def test_a_spider_loops_too(loops: dict[str, Any]) -> None:
     _closes(m["beyond"], "beyond")
 
 
+@pytest.mark.slow  # the loops fixture: three loops made and two glTF round trips, once
 @pytest.mark.parametrize("name", ["wolf", "spider"])
 def test_the_loop_closes_after_the_gltf_round_trip(loops: dict[str, Any], name: str) -> None:
     m = loops[f"{name}_gltf"]
