@@ -8,6 +8,7 @@ repositories and enabled add-ons are process-wide state in the ``bpy`` module.
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import textwrap
@@ -106,6 +107,20 @@ def test_built_zip_validates_and_excludes_dev_files(built_zip: Path) -> None:
     assert leaked == []
     # Shipped gait presets travel with the extension.
     assert any(n.startswith("presets/gait/") and n.endswith(".json") for n in names)
+    # The README travels with it, and so does every picture it shows.
+    assert "README.md" in names
+    pictures = re.findall(r"!\[[^\]]*\]\(([^)\s]+)\)", (ROOT / "README.md").read_text())
+    assert pictures, "the README shows no pictures?"
+    assert [p for p in pictures if p not in names] == []
+    assert "docs/DEVELOPING.md" not in names
+
+
+def test_manifest_names_its_maintainer_with_an_email() -> None:
+    import tomllib
+
+    manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    maintainer = manifest["maintainer"]
+    assert re.fullmatch(r"[^<>]+ <[^@\s<>]+@[^@\s<>]+\.[a-z]+>", maintainer), maintainer
 
 
 _CHECK_REGISTERED = """
@@ -118,6 +133,12 @@ _CHECK_REGISTERED = """
         assert all(hasattr(bpy.types, n) for n in shown), shown
         pointers = {owner.__name__ + "." + attr: hasattr(owner, attr) for owner, attr, _ in reg.POINTERS}
         return classes, pointers, reg
+
+    def menu_entries(pkg):
+        import bpy
+        host = bpy.types.VIEW3D_MT_object_animation
+        funcs = getattr(host.draw, "_draw_funcs", [])
+        return [f for f in funcs if getattr(f, "__module__", "").startswith(pkg)]
 """
 
 
@@ -158,9 +179,11 @@ def test_enable_from_source_tree_twice_leaves_nothing(tmp_path: Path) -> None:
         classes, pointers, reg = registered_state(pkg)
         assert classes and all(classes.values()), (attempt, classes)
         assert all(pointers.values()), (attempt, pointers)
+        assert len(menu_entries(pkg)) == 1, (attempt, "the ProcLoco submenu is not in the Animation menu")
         addon_utils.disable(pkg, default_set=True, handle_error=None)
         left = [c.__name__ for c in reg.CLASSES if c.is_registered or hasattr(bpy.types, c.__name__)]
         left += [f"{{o.__name__}}.{{a}}" for o, a, _ in reg.POINTERS if hasattr(o, a)]
+        left += [f"menu entry {{f.__name__}}" for f in menu_entries(pkg)]
         assert left == [], (attempt, left)
     print("OK", len(classes))
     """

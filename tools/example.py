@@ -19,12 +19,15 @@ first by ``tools/build_examples.py`` when it is missing) and, printing its progr
 
    * ``frames/frame_####.png`` — the scene camera's view, every ``--frame-step``-th frame,
    * ``contact_sheet.png`` — twelve of those frames tiled,
+   * ``walk.gif`` — those frames as a looping animated GIF in real time (written with
+     numpy: Blender writes no GIF),
    * ``creatures.png`` — a close-up of each creature (columns) at ``--close-up-frames`` (rows),
    * ``examples_generated.blend`` — the scene with the new Actions.
 
-``--update-docs`` also writes the README's pictures: ``docs/images/example_contact_sheet.png``
-(six of the frames, three to a row) and ``docs/images/example_creatures.png`` (the
-close-ups). ``--info`` only lists the rigs, their legs and their chains.
+``--update-docs`` also writes the README's pictures: ``docs/images/example_walk.gif`` (the
+loop), ``docs/images/example_contact_sheet.png`` (six of the frames, three to a row) and
+``docs/images/example_creatures.png`` (the close-ups). ``--info`` only lists the rigs, their
+legs and their chains.
 """
 
 from __future__ import annotations
@@ -142,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     files = cli.render_frames(scene, out / "frames", frames, tuple(args.resolution), focus=rigs)
     sheet = cli.contact_sheet(files, out / "contact_sheet.png")
     _say(f"    {sheet} ({time.perf_counter() - t1:.1f} s)")
+    fps = scene.render.fps / scene.render.fps_base
+    walk_gif = cli.animated_gif(files, out / "walk.gif", max(1, args.frame_step) / fps)
+    _say(f"    {walk_gif}: {len(files)} frames, {walk_gif.stat().st_size / 1e6:.2f} MB")
     t1 = time.perf_counter()
     # Close-ups in lane order (the scene's creatures), then any other rig.
     order = {name: i for i, name in enumerate(examples.CREATURE_NAMES.values())}
@@ -159,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         # The README's overview: six of the frames, three to a row.
         cli.contact_sheet(files, docs / "example_contact_sheet.png", columns=3, max_tiles=6)
         shutil.copyfile(close_ups, docs / "example_creatures.png")
-        _say("updated docs/images/example_contact_sheet.png and docs/images/example_creatures.png")
+        shutil.copyfile(walk_gif, docs / "example_walk.gif")
+        _say("updated docs/images/example_walk.gif, example_contact_sheet.png and example_creatures.png")
     _say(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
     return 0
 

@@ -24,9 +24,10 @@ exit status. Commands::
         a chain; with --all, rigs without one are skipped
 
     OUTPUT OPTIONS: [--render DIR] [--frame-step N] [--resolution W H] [--contact-sheet PNG]
-                    [--save BLEND]
+                    [--gif GIF] [--save BLEND]
         render Workbench PNG frames of the rigs' frame range into DIR, tile them into a
-        contact sheet and save the .blend (a new file: the opened one is left as it was)
+        contact sheet, make them a looping animated GIF, and save the .blend (a new file:
+        the opened one is left as it was)
     procloco render --frames A-B [--output PATH] [--format FORMAT]
         render a chunk of frames (1-10, 1..10, 7) of the open file with the scene's engine
         and output settings, as render farms do (see render_chunk.py)
@@ -50,7 +51,7 @@ import bpy
 import numpy as np
 
 from ..core import gait as core_gait
-from . import actions, render_chunk, rig
+from . import actions, gif, render_chunk, rig
 from .gait import rig_gait
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
@@ -127,6 +128,7 @@ def _parser() -> argparse.ArgumentParser:
     output.add_argument("--resolution", nargs=2, type=_number("int", 4, 16384), default=(640, 360),
                         metavar=("W", "H"))
     output.add_argument("--contact-sheet", metavar="PNG", help="tile rendered frames into one image")
+    output.add_argument("--gif", metavar="GIF", help="make the rendered frames a looping animated GIF")
     output.add_argument("--save", metavar="BLEND", help="save the .blend file there")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
     sub.add_parser("info", help="list armatures, their detected legs and their swinging chains")
@@ -351,8 +353,12 @@ def _outputs(objs: Sequence[Any], args: argparse.Namespace) -> None:
         if args.contact_sheet:
             contact_sheet(files, Path(args.contact_sheet))
             _say(f"contact sheet {args.contact_sheet}")
-    elif args.contact_sheet:
-        raise CliError("--contact-sheet needs --render DIR")
+        if args.gif:
+            fps = scene.render.fps / scene.render.fps_base
+            animated_gif(files, Path(args.gif), max(1, args.frame_step) / fps)
+            _say(f"animated GIF {args.gif}")
+    elif args.contact_sheet or args.gif:
+        raise CliError("--contact-sheet and --gif need --render DIR")
     if args.save:
         path = str(Path(args.save).resolve())
         Path(path).parent.mkdir(parents=True, exist_ok=True)  # a farm's output folder may be new
@@ -362,8 +368,8 @@ def _outputs(objs: Sequence[Any], args: argparse.Namespace) -> None:
 
 def _cmd_generate(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "animate")
-    if args.contact_sheet and not args.render:
-        raise CliError("--contact-sheet needs --render DIR")
+    if (args.contact_sheet or args.gif) and not args.render:
+        raise CliError("--contact-sheet and --gif need --render DIR")
     if args.cycle is not None and args.bake_secondary:
         raise CliError("--cycle and --bake-secondary do not go together: a bake on a loop would not loop")
     if args.cycle is None and (args.root_motion is not None or args.root_bone is not None):
@@ -421,8 +427,8 @@ def _make_cycles(objs: Sequence[Any], args: argparse.Namespace) -> list[Any]:
 
 def _cmd_bake_secondary(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "bake")
-    if args.contact_sheet and not args.render:
-        raise CliError("--contact-sheet needs --render DIR")
+    if (args.contact_sheet or args.gif) and not args.render:
+        raise CliError("--contact-sheet and --gif need --render DIR")
     saved = _saved_settings(objs)
     try:
         for obj in objs:
@@ -554,6 +560,17 @@ def image_pixels(path: Path) -> np.ndarray:
     finally:
         bpy.data.images.remove(img)
     return px.reshape(h, w, 4)
+
+
+def animated_gif(files: Sequence[Path], out: Path, delay_s: float) -> Path:
+    """The rendered frames ``files`` as a looping animated GIF at ``out``, each shown for
+    ``delay_s`` seconds (see :mod:`.gif`)."""
+    if not files:
+        raise CliError("no frames to make an animated GIF of")
+    frames = [image_pixels(f)[::-1] for f in files]  # rows top-down, as a viewer shows them
+    if len({f.shape for f in frames}) != 1:
+        raise CliError("frames of an animated GIF must have one size")
+    return gif.write_gif(np.stack(frames), out, delay_s)
 
 
 def contact_sheet(files: Sequence[Path], out: Path, columns: int = 4, max_tiles: int = 12) -> Path:

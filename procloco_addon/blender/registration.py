@@ -36,6 +36,7 @@ from .secondary import panel as secondary_panel
 from .secondary import property_group as secondary_props
 from .secondary import ui_list as secondary_ui_list
 from .ui import main as ui_main
+from .ui import menu as ui_menu
 
 CLASSES: tuple[type, ...] = (
     locomotion_props.PROCLOCO_PG_leg,
@@ -87,6 +88,8 @@ CLASSES: tuple[type, ...] = (
     cycle_props.PROCLOCO_PG_cycle_settings,
     cycle_ops.PROCLOCO_OT_make_cycle,
     cycle_panel.PROCLOCO_PT_make_cycle,
+    ui_menu.PROCLOCO_MT_lists,
+    ui_menu.PROCLOCO_MT_animation,
 )
 
 # (owner ID type, attribute name, property) for plain properties (not groups)
@@ -114,9 +117,11 @@ def register() -> None:
     cli.register()
     gait_handler.register()
     legs_handler.register()
+    ui_menu.register()
 
 
 def unregister() -> None:
+    ui_menu.unregister()
     cli.unregister()
     for owner, attr, _prop in reversed(PROPERTIES):
         if hasattr(owner, attr):

@@ -67,6 +67,32 @@ def object_world_matrices(obj: bpy.types.Object, frames: Sequence[int]) -> np.nd
     return out
 
 
+def skin_vertices(mesh_obj: bpy.types.Object, frames: Sequence[int], groups: Sequence[str],
+                  min_weight: float = 0.5) -> np.ndarray:
+    """World positions ``(F, p, 3)`` of ``mesh_obj``'s vertices weighted at least ``min_weight``
+    to any of the vertex ``groups``, deformed (the evaluated mesh) at each frame."""
+    wanted = {g.index for g in mesh_obj.vertex_groups if g.name in groups}
+    index = np.array([v.index for v in mesh_obj.data.vertices
+                      if any(g.group in wanted and g.weight >= min_weight for g in v.groups)], dtype=np.int64)
+    scene = bpy.context.scene
+    out = np.empty((len(frames), index.size, 3))
+    old = scene.frame_current
+    try:
+        for f, frame in enumerate(frames):
+            scene.frame_set(int(frame))
+            ev = mesh_obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
+            mesh = ev.to_mesh()
+            co = np.empty(len(mesh.vertices) * 3, dtype=np.float64)
+            mesh.vertices.foreach_get("co", co)
+            world = np.array(ev.matrix_world, dtype=np.float64)
+            ev.to_mesh_clear()
+            pts = co.reshape(-1, 3)[index]
+            out[f] = pts @ world[:3, :3].T + world[:3, 3]
+    finally:
+        scene.frame_set(old)
+    return out
+
+
 def ray_heights(xy: np.ndarray, objects: Sequence[bpy.types.Object], z_top: float = 100.0) -> np.ndarray:
     """Highest surface of ``objects`` straight under each point, by ray casts into the evaluated
     meshes at the current frame. xy: ``(n, 2)``; returns ``(n,)`` (``-inf`` where nothing is hit)."""

@@ -14,6 +14,7 @@ import pytest
 from procloco_addon.blender import actions, cli
 from procloco_addon.blender.cli import image_pixels
 from tests.blender.scene_state import snapshot
+from tests.blender_free.test_gif import decode as decode_gif
 from tools.examples import creatures
 
 pytestmark = pytest.mark.blender
@@ -32,8 +33,10 @@ def test_generate_renders_frames_and_a_contact_sheet(robot_scene: Any, tmp_path:
     out = tmp_path / "frames"
     sheet = tmp_path / "sheet.png"
     saved = tmp_path / "walk.blend"
+    gif = tmp_path / "walk.gif"
     status = cli.main(["generate", "--rig", "Robot", "--frame-step", "3", "--resolution", "96", "54",
-                       "--render", str(out), "--contact-sheet", str(sheet), "--save", str(saved)])
+                       "--render", str(out), "--contact-sheet", str(sheet), "--gif", str(gif),
+                       "--save", str(saved)])
     assert status == 0
     printed = capsys.readouterr().out
     assert "ProcLoco:   Robot: 100%" in printed
@@ -44,6 +47,14 @@ def test_generate_renders_frames_and_a_contact_sheet(robot_scene: Any, tmp_path:
     assert first.shape == (54, 96, 4)
     assert np.abs(first - last).max() > 0.05, "the robot moved between the first and the last frame"
     assert image_pixels(sheet).shape == (54, 4 * 96, 4)  # four tiles in one row
+    # The GIF loops the four frames in real time (3 frames at 24 fps each) and shows them.
+    shown = decode_gif(gif.read_bytes())
+    assert shown["size"] == (96, 54)
+    assert shown["loop"]
+    assert shown["delays"] == [12] * 4
+    for png, frame in zip(files, shown["frames"], strict=True):
+        want = np.clip(image_pixels(png)[::-1, :, :3], 0.0, 1.0) * 255.0
+        assert np.abs(frame - want).mean() < 6.0
     assert saved.exists()
     assert robot_scene.animation_data.action.name == "Robot ProcLoco"
     # The scene's render settings and camera are left as they were.
@@ -174,7 +185,7 @@ def test_bake_secondary_command(empty_scene: Any, capsys: pytest.CaptureFixture[
     assert keys[0].tolist() == [2.0, 3.0, 4.0, 5.0]
     # The bake's options are the generate command's.
     assert cli.main(["bake-secondary", "--rig", "Ant", "--contact-sheet", "x.png"]) == 1
-    assert "--contact-sheet needs --render DIR" in capsys.readouterr().err
+    assert "--contact-sheet and --gif need --render DIR" in capsys.readouterr().err
 
 
 def test_spine_and_visual_yaw_switches(lizard_scene: Any) -> None:

@@ -19,6 +19,7 @@ from tests.blender.test_gait_presets import SHIPPED, make_rig
 from tests.blender.ui_recorder import (
     RecordingLayout,
     UIRecorderError,
+    draw_menu,
     draw_panel,
     draw_panel_header,
 )
@@ -289,3 +290,38 @@ def test_generate_panel_without_operators_says_so(empty_scene: Any, monkeypatch:
     ui = draw_panel(main.PROCLOCO_PT_generate)
     assert ui.operators() == []
     assert any("not available" in text for text in ui.labels())
+
+
+def test_every_operator_is_in_the_procloco_menu_for_f3_search(empty_scene: Any) -> None:
+    """Blender's F3 search finds operators through menus: each of ProcLoco's operators is
+    drawn by the ProcLoco menu (Object/Pose > Animation > ProcLoco), by its Lists submenu or
+    by a menu that one of them opens, and that menu hangs in Blender's Animation menu."""
+    from procloco_addon.blender import registration
+    from procloco_addon.blender.ui import menu
+
+    make_rig(empty_scene)
+    operators = {cls.bl_idname for cls in registration.CLASSES if issubclass(cls, bpy.types.Operator)}
+    drawn: set[str] = set()
+    opened = {menu.PROCLOCO_MT_animation.bl_idname}
+    todo = [menu.PROCLOCO_MT_animation]
+    while todo:
+        ui = draw_menu(todo.pop(), bpy.context)
+        drawn |= set(ui.operators())
+        for name in ui.menus():
+            if name not in opened:
+                opened.add(name)
+                todo.append(getattr(bpy.types, name))
+    via = menu.PROCLOCO_MT_animation.VIA_SUBMENUS
+    missing = {op for op in operators - drawn if via.get(op) not in opened}
+    assert missing == set(), missing
+    assert menu.PROCLOCO_MT_lists.bl_idname in opened
+    host = getattr(bpy.types, menu.HOST_MENU)
+    assert menu._draw_entry in getattr(host.draw, "_draw_funcs", [])
+
+
+def test_ui_only_toggles_push_no_undo_step() -> None:
+    """Showing the gait circles in the viewport is a display setting: it is not undone."""
+    from procloco_addon.blender.gait import ops
+
+    assert "UNDO" not in ops.PROCLOCO_OT_toggle_gait_overlay.bl_options
+    assert "UNDO" in ops.PROCLOCO_OT_edit_gait_overlay.bl_options  # editing changes the gait

@@ -263,3 +263,36 @@ def test_detection_imports_without_bpy(repo_root: Any) -> None:
         "procloco_addon.blender.rig.morphology"
     )
     subprocess.run([sys.executable, "-c", code], check=True, cwd=repo_root)
+
+
+@given(
+    st.integers(0, 2**31 - 1),
+    st.integers(4, 400),
+    st.floats(-3.0, 3.0),
+)
+def test_a_foot_skins_sole_is_its_lowest_points_and_its_extremes(seed: int, n: int, turn: float) -> None:
+    """sole_points on a random foot skin (a cloud of ``n`` vertices, turned about Z): at most
+    SOLE_PROBES points, all of them skin vertices in the sole band; the lowest vertex is one;
+    when the band has more points than that, those reaching furthest forward, back, left and
+    right are among them; when it has fewer, it is all of them."""
+    from procloco_addon.blender.rig.rest import SOLE_BAND, SOLE_PROBES, sole_points
+
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform([-0.05, -0.15, 0.0], [0.05, 0.08, 0.1], size=(n, 3))
+    c, s = np.cos(turn), np.sin(turn)
+    rot = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    pts = pts @ rot.T
+    forward = rot @ np.array([0.0, -1.0, 0.0])
+    left = rot @ np.array([1.0, 0.0, 0.0])
+    end = np.array([0.0, 0.0, 0.09])
+    sole = sole_points(pts, end, forward, left)
+    z = pts[:, 2]
+    band = pts[z <= z.min() + SOLE_BAND * np.ptp(z)]
+    assert 1 <= sole.shape[0] <= SOLE_PROBES
+    assert np.all(np.isin(sole.view([("", sole.dtype)] * 3), band.view([("", band.dtype)] * 3)))
+    assert np.any(np.all(sole == pts[np.argmin(z)], axis=1))
+    if band.shape[0] <= SOLE_PROBES:
+        assert sole.shape[0] == np.unique(band, axis=0).shape[0]
+    rel_b, rel_s = band[:, :2] - end[:2], sole[:, :2] - end[:2]
+    for axis in (forward[:2], -forward[:2], left[:2], -left[:2]):
+        assert (rel_s @ axis).max() == pytest.approx((rel_b @ axis).max(), abs=1e-15)

@@ -558,7 +558,8 @@ def _descends_from(bone: Any, ancestor: str) -> bool:
     return False
 
 
-def _build_metarig(kind: str, operator: Callable[[], Any], radius_of: Callable[[Any], tuple[float, float]],
+def _build_metarig(kind: str, operator: Callable[[], Any],
+                   radius_of: Callable[[Any, float], tuple[float, float]],
                    scene: bpy.types.Scene, name: str, location: Sequence[float], scale: float,
                    collection: bpy.types.Collection | None,
                    before_skin: Callable[[bpy.types.Scene, bpy.types.Object], None] | None = None,
@@ -599,14 +600,14 @@ def _build_metarig(kind: str, operator: Callable[[], Any], radius_of: Callable[[
     for bone in arm.data.bones:
         if _descends_from(bone, "face"):
             continue  # the head's capsule stands for the face rig
-        r0, r1 = radius_of(bone)
+        r0, r1 = radius_of(bone, bone.length / scale)  # (the radii of the unit-size rig)
         radii[bone.name] = (r0 * scale, r1 * scale)
     _build_skin(arm, radii, SKIN_COLORS[kind], collection)
     _finish(arm, kind, scale)
     return arm
 
 
-def _wolf_radius(bone: Any) -> tuple[float, float]:
+def _wolf_radius(bone: Any, length: float) -> tuple[float, float]:
     fixed = {
         "spine.004": (0.11, 0.11), "spine.005": (0.11, 0.11), "spine.006": (0.115, 0.12),
         "spine.007": (0.12, 0.13), "spine.008": (0.13, 0.1), "spine.009": (0.075, 0.07),
@@ -623,11 +624,11 @@ def _wolf_radius(bone: Any) -> tuple[float, float]:
         return 0.022, 0.02
     if words & {"index", "middle", "ring", "pinky"}:
         return 0.016, 0.014
-    r = min(max(0.18 * bone.length, 0.008), 0.04)
+    r = min(max(0.18 * length, 0.008), 0.04)
     return r, 0.85 * r
 
 
-def _human_radius(bone: Any) -> tuple[float, float]:
+def _human_radius(bone: Any, length: float) -> tuple[float, float]:
     fixed = {
         "spine": (0.13, 0.13), "spine.001": (0.12, 0.12), "spine.002": (0.12, 0.13), "spine.003": (0.13, 0.1),
         "spine.004": (0.05, 0.05), "spine.005": (0.05, 0.06), "spine.006": (0.1, 0.08),
@@ -641,7 +642,7 @@ def _human_radius(bone: Any) -> tuple[float, float]:
     }
     if bone.name in fixed:
         return fixed[bone.name]
-    r = min(max(0.25 * bone.length, 0.006), 0.012)
+    r = min(max(0.25 * length, 0.006), 0.012)
     return r, 0.85 * r
 
 

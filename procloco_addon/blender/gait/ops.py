@@ -341,7 +341,8 @@ class PROCLOCO_OT_toggle_gait_overlay(bpy.types.Operator):
 
     bl_idname = "procloco.toggle_gait_overlay"
     bl_label = "Toggle Gait Circles in Viewport"
-    bl_options: ClassVar[set[str]] = {"REGISTER", "UNDO"}
+    # A display setting of the window, not of the scene: no undo step.
+    bl_options: ClassVar[set[str]] = {"REGISTER"}
 
     @classmethod
     def poll(cls, context: Any) -> bool:

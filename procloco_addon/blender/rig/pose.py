@@ -139,6 +139,10 @@ def _held_foot_yaw(leg_yaw: np.ndarray, planted: np.ndarray) -> np.ndarray:
 GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
+#: Sole points ahead of the ankle by less than this share of the foot's forward reach do not limit its pitch.
+NEAR_SHARE = 0.3
+
+
 def _foot_pitch(
     rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
     lift: np.ndarray | None = None,
@@ -160,7 +164,9 @@ def _foot_pitch(
     b = rel[..., 2]
     c = heights - end[:, None, 2]
     radius = np.hypot(a, b)
-    ok = (a > 1e-6 * np.maximum(radius, 1e-12)) & np.isfinite(heights)
+    # Points just ahead of the ankle are left out: a sole pitched about the ankle swings them
+    # back and barely down (the skin under an ankle would forbid any downward pitch).
+    ok = (a > NEAR_SHARE * np.maximum(a.max(axis=1, keepdims=True), 1e-12)) & np.isfinite(heights)
     need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
     theta = np.where(ok, need, -np.inf).max(axis=1)
     theta = np.where(np.isfinite(theta), theta, 0.0)

@@ -21,6 +21,7 @@ from .rest import (
     _length,
     _Rest,
     skeleton_view,
+    sole_points,
     uniform_scale,
     with_leaf_ends,
 )
@@ -84,6 +85,14 @@ def _skin_points(obj: bpy.types.Object, bone_names: Sequence[str]) -> dict[str, 
                 if g.group in groups and g.weight >= 0.5:
                     out.setdefault(groups[g.group], []).append(world[v.index])
     return {k: np.array(v) for k, v in out.items() if len(v) >= 3}
+
+
+def _posed_points(rest: _Rest, posed_local: np.ndarray, bone: int, points: np.ndarray) -> np.ndarray:
+    """World ``points`` ``(p, 3)`` given at rest, moved with ``bone`` to its armature-space pose
+    ``posed_local[bone]`` (the skin follows its bone)."""
+    inv_world = np.linalg.inv(rest.world)
+    move = rest.world @ posed_local[bone] @ np.linalg.inv(rest.local[bone]) @ inv_world
+    return _apply(move, points)
 
 
 _OVERRIDING_CONSTRAINTS = frozenset({
@@ -184,32 +193,45 @@ def read_rig(
     ends = _apply(rest.world,
                   np.einsum("bij,bj->bi", posed_local[:, :3, :3], end_bone) + posed_local[:, :3, 3])
 
+    foot_bones = [[rest.index[f] for f in leg.foot] for leg in legs]
+    foot_bones = [sorted({*fb, *(c for k in fb for c in _descendants(rest, k))}) for fb in foot_bones]
+    skin = _skin_points(obj, [rest.names[k] for fb in foot_bones for k in fb])
+    posed_skin = {rest.index[name]: _posed_points(rest, posed_local, rest.index[name], pts)
+                  for name, pts in skin.items()}
+
     joints = []
     contact = []
     foot_h = []
     foot_ext = []
     foot_pts = []
-    for leg in legs:
+    for leg, fb in zip(legs, foot_bones, strict=True):
         idx = [rest.index[b] for b in leg.bones]
         pts = np.vstack([heads[idx], ends[idx[-1]][None]])
         joints.append(pts)
         below = [pts[-1]]
-        for f in leg.foot:
-            k = rest.index[f]
+        for k in fb:
             below += [heads[k], ends[k]]
-            below += [heads[c] for c in _descendants(rest, k)] + [ends[c] for c in _descendants(rest, k)]
-        below_a = np.array(below)
-        low = below_a[np.argmin(below_a[:, 2])]
-        contact.append(np.array([pts[-1, 0], pts[-1, 1], low[2]]))
-        foot_h.append(float(pts[-1, 2] - low[2]))
-        # How far the foot bones reach from the end-effector, along and across the body.
-        rel = below_a[:, :2] - pts[-1, :2]
-        foot_ext.append(np.array([np.abs(rel @ forward[:2]).max(), np.abs(rel @ left[:2]).max()]))
+        bone_pts = np.array(below)
         # Sole probes: the foot points reaching furthest from the end-effector (toe tips, heel).
-        probes = below_a[1:]
+        probes = bone_pts[1:]
         if probes.shape[0] > 6:
             far = np.argsort(-np.linalg.norm(probes[:, :2] - pts[-1, :2], axis=1), kind="stable")[:6]
             probes = probes[np.sort(far)]
+        # The skin's sole, where the mesh is lower or reaches further than the bones (a heel,
+        # a shoe's sole, a hoof's rim): its lowest point and its extremes along and across the body.
+        mesh = [posed_skin[k] for k in fb if k in posed_skin]
+        if mesh:
+            sole = sole_points(np.concatenate(mesh), pts[-1], forward, left)
+            below_a = np.vstack([bone_pts, sole])
+            probes = np.vstack([probes, sole])
+        else:
+            below_a = bone_pts
+        low = below_a[np.argmin(below_a[:, 2])]
+        contact.append(np.array([pts[-1, 0], pts[-1, 1], low[2]]))
+        foot_h.append(float(pts[-1, 2] - low[2]))
+        # How far the foot reaches from the end-effector, along and across the body.
+        rel = below_a[:, :2] - pts[-1, :2]
+        foot_ext.append(np.array([np.abs(rel @ forward[:2]).max(), np.abs(rel @ left[:2]).max()]))
         foot_pts.append(probes)
     origin = np.array([j[0] for j in joints]).mean(axis=0)
     body = BodyInfo(origin, forward, left)

@@ -137,6 +137,41 @@ def with_leaf_ends(rest: _Rest, skin: dict[int, np.ndarray]) -> _Rest:
                  rest.scale, end, rest.tails_meaningful, rest.phantom)
 
 
+#: The band above a foot skin's lowest vertex that is its sole, as a share of the skin's height.
+SOLE_BAND = 0.25
+#: At most this many sole probes per foot from its skin.
+SOLE_PROBES = 32
+
+
+def sole_points(points: np.ndarray, end: np.ndarray, forward: np.ndarray, left: np.ndarray) -> np.ndarray:
+    """The sole of a foot's skin: ``(s, 3)`` points, ``s <= SOLE_PROBES``, among ``points``
+    ``(p, 3)`` (world positions of the vertices weighted to the foot).
+
+    The sole is the vertices within :data:`SOLE_BAND` of the skin's height above its lowest
+    vertex. All of them when there are few; else the lowest, the ones reaching furthest
+    forward, back, left and right of the end-effector ``end`` ``(3,)`` (toe tip, heel, sides)
+    and more spread evenly among the rest (farthest-point sampling), so a foot pitched onto a
+    slope finds the vertex that touches it. ``forward`` and ``left`` ``(3,)``: the body's
+    horizontal axes.
+    """
+    z = points[:, 2]
+    low = float(z.min())
+    band = np.unique(points[z <= low + SOLE_BAND * max(float(z.max()) - low, 0.0)], axis=0)
+    if band.shape[0] <= SOLE_PROBES:
+        return band
+    rel = band[:, :2] - end[:2]
+    along = rel @ forward[:2]
+    across = rel @ left[:2]
+    pick = list(dict.fromkeys([int(np.argmin(band[:, 2])), int(np.argmax(along)), int(np.argmin(along)),
+                               int(np.argmax(across)), int(np.argmin(across))]))
+    dist = np.min(np.linalg.norm(band[:, None, :] - band[None, pick, :], axis=2), axis=1)
+    while len(pick) < SOLE_PROBES:
+        k = int(np.argmax(dist))
+        pick.append(k)
+        dist = np.minimum(dist, np.linalg.norm(band - band[k], axis=1))
+    return band[np.sort(pick)]
+
+
 _COPY_PREFIX = re.compile(r"^ORG[-_.]")
 
 
