@@ -9,9 +9,9 @@ A game-ready loop of ``N`` whole gait cycles, as a new generated Action:
 2. :func:`run_steps` (progress steps) reads the terrain and refuses ground that is not flat
    and level under the whole walk, or that moves; finds the gait's real cycle (the
    controller may shorten it so the legs keep up, see ``core.controller``) and rounds it to
-   whole frames: the cycle time is stretched by the factor ``k`` that fills them and the
-   speed divided by ``k``, so the stride stays what it was (Gait: Auto is held at the gait
-   it picks at the rig's speed); simulates a warm-up and the loop; finds the first whole
+   whole frames and the stride to a whole number of the footstep planner's cells (its
+   grids are fixed in the world: see :func:`_fit_stride`), the speed following (Gait: Auto
+   is held at the gait it picks at the rig's speed); simulates a warm-up and the loop; finds the first whole
    cycle from which the walk repeats (``core.cycle.steady_start``) and refuses a walk that
    does not settle; cuts ``N`` cycles, closes them exactly and takes the root motion off
    (``core.cycle``);
@@ -79,6 +79,7 @@ class CycleJob:
     loop_error: float = 0.0  # how far the walk was from repeating (m), spread over the loop
     stride: np.ndarray = field(default_factory=lambda: np.zeros(3))  # (3,) world, one cycle
     closing: float = 0.0  # largest key change made to close every F-curve exactly
+    stride_cells: int = 0  # the stride in planning cells (0: not a whole number, kept as it was)
     action: Any = None
 
     @property
@@ -92,9 +93,12 @@ class CycleJob:
         text = (f"{self.cycles} cycle{'s' if self.cycles > 1 else ''} of {self.period} frames "
                 f"({self.period / self.fps:.3f} s, frames {self.first_frame}-"
                 f"{self.first_frame + self.cycles * self.period}), stride {stride:.4g} m, {where}")
-        if abs(self.stretch - 1.0) > 1e-9:
-            text += (f"; the cycle of {self.asked_cycle * self.fps:.2f} frames rounded to {self.period}: "
-                     f"speed {self.job.speed:.4g} m/s instead of {self.asked_speed:.4g}, stride kept")
+        asked = self.asked_speed * self.asked_cycle
+        if abs(self.stretch - 1.0) > 1e-9 or abs(stride - asked) > 1e-9 * max(asked, 1.0):
+            text += (f"; the cycle of {self.asked_cycle * self.fps:.2f} frames rounded to {self.period}"
+                     + (f", the stride of {asked:.4g} m to {self.stride_cells} planning cells"
+                        if self.stride_cells else ", the stride kept")
+                     + f": speed {self.job.speed:.4g} m/s instead of {self.asked_speed:.4g}")
         return text
 
 
@@ -221,6 +225,45 @@ def _probe_period(cj: CycleJob) -> float:
     return 1.0 / rate
 
 
+def _fit_stride(cj: CycleJob, true_cycle: float) -> None:
+    """Set the gait's cycle time and the speed so that a cycle lasts exactly ``P`` frames and
+    the stride is a whole number of planning cells, as near the walk's own as the legs allow.
+
+    Why whole cells: the footstep planner chooses footprints on grids fixed in the world, so
+    a stride that is not a whole number of cells meets the grid differently at every cycle,
+    and a footprint near a cell's edge lands in one cell or the next (the wolf's hind feet
+    5 cm apart every third cycle). The cycle time is the gait's real one (the controller's
+    shortening when the stride would outrun the legs taken into the cycle, so it does not
+    apply any more); the number of cells is rounded to the nearest when the legs had room,
+    down when they did not. When no whole number of cells gives exactly ``P`` frames, the
+    cycle time is stretched by ``k`` and the speed divided by it (the same stride)."""
+    job = cj.job
+    period_s = cj.period / cj.fps
+    stride = cj.asked_speed * true_cycle
+    limited = true_cycle < job.gait.cycle_time * (1.0 - 1e-9)
+    leg = float(np.mean(job.info.leg_length))
+    base_gait, base_speed = job.gait, job.speed
+    cells = stride / simulation.planning_cell(job, leg)
+    first = round(cells) if not limited else math.floor(cells + 1e-6)
+    for n in (first, first - 1):
+        if n < 1:
+            break
+        job.gait = base_gait.with_cycle_time(period_s)
+        for _ in range(50):  # Auto's planning window, and so its cell, grows with the speed
+            speed = n * simulation.planning_cell(job, leg) / period_s
+            if abs(speed - job.speed) <= 1e-12 * speed:
+                break
+            job.speed = speed
+        if abs(_probe_period(cj) - period_s) <= 1e-9 * period_s:
+            cj.stretch = period_s / true_cycle
+            cj.stride_cells = n
+            return
+    # Cycle time x k and speed / k: the same stroke (the same speed-up by the controller),
+    # the same stride, and a cycle of exactly P frames.
+    job.gait = base_gait.with_cycle_time(base_gait.cycle_time * cj.stretch)
+    job.speed = base_speed / cj.stretch
+
+
 def _points(res: simulation.SimResult) -> np.ndarray:
     """Every tracked world point of a result as ``(F, M, 3)``."""
     parts = [res.body[:, None, :3, 3], res.joints.reshape(res.joints.shape[0], -1, 3), res.feet]
@@ -298,10 +341,7 @@ def simulate_steps(context: bpy.types.Context, cj: CycleJob) -> Generator[tuple[
     except ValueError as err:
         raise CycleError(f"Make Cycle of '{name}': {err}") from err
     cj.period, cj.stretch = period, stretch
-    # Cycle time x k and speed / k: the same stroke (the same speed-up by the controller),
-    # the same stride, and a cycle of exactly P frames.
-    job.gait = job.gait.with_cycle_time(job.gait.cycle_time * stretch)
-    job.speed = cj.asked_speed / stretch
+    _fit_stride(cj, true_cycle)
     leg = float(np.mean(job.info.leg_length))
     share = 0.7 / len(WARMUP_ROUNDS)
     for k, warmup in enumerate(WARMUP_ROUNDS):
@@ -330,7 +370,9 @@ def simulate_steps(context: bpy.types.Context, cj: CycleJob) -> Generator[tuple[
                          "often settles")
     cj.warmup = start
     cj.loop_error = error
-    cj.stride = core_cycle.stride_of(points, period, start, cj.cycles)
+    # The body's own motion: the controller moves it by exactly speed x dt a frame on a
+    # straight line (what is left of the other points' cycle-to-cycle error is spread).
+    cj.stride = core_cycle.stride_of(res.body[:, None, :3, 3], period, start, cj.cycles)
     cj.stride[2] = 0.0  # level ground: the stride is horizontal
     job.result = _loop_result(cj, start)
     job.frames = cj.first_frame + np.arange(cj.cycles * period + 1, dtype=np.int64)

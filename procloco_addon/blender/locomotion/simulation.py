@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from .generate import GaitChange, Job
 
 __all__ = [
-    "SimResult", "auto_track", "ground_function", "path_heading", "run", "speed_schedule", "spine_params",
+    "SimResult", "auto_track", "ground_function", "path_heading", "planning_cell", "run", "speed_schedule",
+    "spine_params",
     "spine_tracks", "world_tracks",
 ]
 
@@ -140,6 +141,11 @@ def speed_schedule(job: Job) -> Callable[[float], float]:
 
 #: Leg length (m) at which the simulation's physical constants are the real ones.
 REFERENCE_LEG = 0.7325  # the Rigify wolf's
+
+
+def planning_cell(job: Job, leg_len: float) -> float:
+    """The footstep planner's cell size (m) for ``job`` (grids fixed in the world)."""
+    return _window(job, leg_len)[1]
 
 
 def _window(job: Job, leg_len: float) -> tuple[int, float]:
