@@ -55,6 +55,7 @@ from . import actions, gif, render_chunk, rig
 from .gait import rig_gait
 from .locomotion import generate
 from .locomotion import property_group as locomotion_props
+from .quality import measure as quality
 from .secondary import bake
 
 __all__ = ["contact_sheet", "image_pixels", "main", "register", "render_frames", "unregister"]
@@ -386,7 +387,7 @@ def _cmd_generate(args: argparse.Namespace) -> int:
             made: list[Any] | None = _make_cycles(objs, args)
         else:
             _say(f"generating {', '.join(o.name for o in objs)}")
-            made = generate.generate(bpy.context, objs, progress=_progress_printer())
+            made = generate.generate(bpy.context, objs, progress=_progress_printer(), measure=True)
     except BaseException as err:
         # Nothing was written: the overrides and the chains suggested above are taken back.
         for obj in unset:
@@ -400,6 +401,8 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     assert made is not None
     for obj, action in zip(objs, made, strict=True):
         _say(f"{obj.name}: wrote Action '{action.name}'")
+        if args.cycle is None:  # (a loop is not measured: an in-place loop's feet slide by design)
+            _say(quality.summary_line(obj))
     if args.bake_secondary:
         _run_bakes(_bake_jobs(objs, required=False, quiet=True))
     _outputs(objs, args)

@@ -16,12 +16,12 @@ job (``_discard``). The mixin then gives it:
 from __future__ import annotations
 
 import time
-from collections.abc import Generator
+from collections.abc import Callable, Generator
 from typing import Any, ClassVar
 
 import bpy
 
-__all__ = ["ProgressOperator", "RemoveActiveItem", "Steps", "poll_armature", "steps_with_result"]
+__all__ = ["ProgressOperator", "RemoveActiveItem", "Steps", "advance", "poll_armature", "steps_with_result"]
 
 #: What ``_run`` returns: progress steps ``(text, fraction 0..1)``.
 Steps = Generator[tuple[str, float], None, None]
@@ -45,6 +45,21 @@ def steps_with_result(steps: Generator[float, None, Any], text: str, start: floa
         raise
     except Exception as err:
         raise error(f"Could not write {what} (nothing was changed): {err}") from err
+
+
+def advance(steps: Steps, budget_s: float,
+            on_step: Callable[[str, float], None] | None = None) -> bool:
+    """Run ``steps`` for at most ``budget_s`` seconds (at least one step), calling
+    ``on_step(text, fraction)`` after each; True once they are exhausted. The one slicing
+    loop of the modal operators' timer ticks and of Live Preview's timer; errors raised by
+    the steps propagate."""
+    deadline = time.perf_counter() + budget_s
+    for text, fraction in steps:
+        if on_step is not None:
+            on_step(text, fraction)
+        if time.perf_counter() >= deadline:
+            return False
+    return True
 
 
 def poll_armature(cls: Any, context: Any, message: str) -> bool:
@@ -201,15 +216,15 @@ class ProgressOperator:
             return {"CANCELLED"}
         if event.type != "TIMER" or self._steps is None:
             return {"PASS_THROUGH"}
-        deadline = time.perf_counter() + self._tick_budget_s
+        def show(text: str, fraction: float) -> None:
+            percent = int(100 * fraction)
+            context.window_manager.progress_update(percent)
+            if context.area is not None:
+                context.area.header_text_set(f"ProcLoco: {text} {percent}% (Esc to cancel)")
+
         try:
-            for text, fraction in self._steps:
-                percent = int(100 * fraction)
-                context.window_manager.progress_update(percent)
-                if context.area is not None:
-                    context.area.header_text_set(f"ProcLoco: {text} {percent}% (Esc to cancel)")
-                if time.perf_counter() >= deadline:
-                    return {"RUNNING_MODAL"}
+            if not advance(self._steps, self._tick_budget_s, show):
+                return {"RUNNING_MODAL"}
         except self._run_errors as err:
             self._abort(context)
             self.report({"ERROR"}, str(err))  # type: ignore[attr-defined]

@@ -49,6 +49,7 @@ __all__ = [
     "armature_from_basis",
     "basis_from_armature",
     "evaluate_pose",
+    "evaluate_pose_steps",
     "object_moves",
     "object_worlds",
     "write_pose",
@@ -168,8 +169,8 @@ def object_worlds(obj: bpy.types.Object, frames: np.ndarray) -> np.ndarray:
     return run_steps(_object_worlds_steps(obj, frames))
 
 
-def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray,
-                         names: Sequence[str]) -> Generator[float, None, np.ndarray]:
+def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
+                         world: bool = False) -> Generator[float, None, np.ndarray]:
     all_names = [pb.name for pb in obj.pose.bones]
     index = np.array([all_names.index(n) for n in names], dtype=np.int64)
     buf = np.empty(len(all_names) * 16, dtype=np.float32)
@@ -178,6 +179,8 @@ def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray,
         ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
         ev.pose.bones.foreach_get("matrix", buf)
         out[f] = buf.reshape(-1, 4, 4).transpose(0, 2, 1)[index]
+        if world:
+            out[f] = np.array(ev.matrix_world, dtype=np.float64) @ out[f]
         if f % _FRAMES_PER_STEP == _FRAMES_PER_STEP - 1:
             yield (f + 1) / len(frames)
     return out
@@ -186,6 +189,13 @@ def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray,
 def evaluate_pose(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """Evaluated armature-space pose matrices ``(F, n, 4, 4)`` of ``names`` at each frame."""
     return run_steps(_evaluate_pose_steps(obj, frames, names))
+
+
+def evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
+                        world: bool = False) -> Generator[float, None, np.ndarray]:
+    """:func:`evaluate_pose` as progress steps; ``world``: world matrices (the evaluated
+    object's world matrix at each frame applied) instead of armature-space ones."""
+    return _evaluate_pose_steps(obj, frames, names, world)
 
 
 def _depth(parents: dict[str, str | None], name: str) -> int:

@@ -62,14 +62,15 @@ def stance_runs(contact: BoolArray) -> tuple[IntArray, IntArray, IntArray]:
     return start_l[so].astype(np.int64), start_f[so].astype(np.int64), (end_f[eo] - 1).astype(np.int64)
 
 
-def stance_sliding(foot: FloatArray, contact: BoolArray) -> FloatArray:
-    """Largest world displacement of each planted foot from where it touched down: ``(L,)``.
+def stance_displacement(foot: FloatArray, contact: BoolArray) -> FloatArray:
+    """World displacement of each planted foot from where its stance began: ``(F, L)``
+    (0 while the foot swings).
 
     ``foot (F, L, 3)`` end-effector positions, ``contact (F, L)`` True while planted.
     """
     f = np.asarray(foot, dtype=np.float64)
     c = np.asarray(contact, dtype=bool)
-    out = np.zeros(f.shape[1])
+    out = np.zeros(f.shape[:2])
     if not c.any():
         return out
     leg, first, _ = stance_runs(c)
@@ -79,9 +80,17 @@ def stance_sliding(foot: FloatArray, contact: BoolArray) -> FloatArray:
     frames, legs = frames[order], legs[order]
     run_of = np.searchsorted(leg * c.shape[0] + first, legs * c.shape[0] + frames, side="right") - 1
     anchor = f[first[run_of], legs]
-    disp = np.linalg.norm(f[frames, legs] - anchor, axis=1)
-    np.maximum.at(out, legs, disp)
+    out[frames, legs] = np.linalg.norm(f[frames, legs] - anchor, axis=1)
     return out
+
+
+def stance_sliding(foot: FloatArray, contact: BoolArray) -> FloatArray:
+    """Largest world displacement of each planted foot from where it touched down: ``(L,)``.
+
+    ``foot (F, L, 3)`` end-effector positions, ``contact (F, L)`` True while planted
+    (:func:`stance_displacement` at its worst frame).
+    """
+    return np.asarray(stance_displacement(foot, contact).max(axis=0, initial=0.0))
 
 
 def penetration_depth(points: FloatArray, height_at: Callable[[FloatArray], FloatArray]) -> FloatArray:
@@ -153,22 +162,36 @@ def joint_limit_excess(angles: FloatArray, joint_min: FloatArray, joint_max: Flo
     return np.asarray(np.maximum(excess, 0.0).max(axis=(0, 2)))
 
 
+def reach_distance(
+    end_effector: FloatArray, target: FloatArray, reachable: BoolArray | None = None
+) -> FloatArray:
+    """End-effector to target distance at each frame, 0 where the target was out of reach:
+    ``(F, L)``. ``end_effector``, ``target``: ``(F, L, 3)``; ``reachable (F, L)``."""
+    d = np.linalg.norm(np.asarray(end_effector) - np.asarray(target), axis=2)
+    if reachable is not None:
+        d = np.where(reachable, d, 0.0)
+    return np.asarray(d)
+
+
 def reach_error(
     end_effector: FloatArray, target: FloatArray, reachable: BoolArray | None = None
 ) -> FloatArray:
     """Largest end-effector to target distance per leg over the frames where the target was
     reachable: ``(L,)``. ``end_effector``, ``target``: ``(F, L, 3)``; ``reachable (F, L)``."""
-    d = np.linalg.norm(np.asarray(end_effector) - np.asarray(target), axis=2)
-    if reachable is not None:
-        d = np.where(reachable, d, 0.0)
-    return np.asarray(d.max(axis=0))
+    return np.asarray(reach_distance(end_effector, target, reachable).max(axis=0))
+
+
+def extension_ratio(hip: FloatArray, end_effector: FloatArray, leg_length: FloatArray) -> FloatArray:
+    """Hip-to-end-effector distance over leg length at each frame: ``(F, L)``.
+    ``hip``, ``end_effector``: ``(F, L, 3)``; ``leg_length (L,)``."""
+    d = np.linalg.norm(np.asarray(end_effector) - np.asarray(hip), axis=2)
+    return np.asarray(d / np.asarray(leg_length)[None, :])
 
 
 def extension(hip: FloatArray, end_effector: FloatArray, leg_length: FloatArray) -> FloatArray:
     """Largest hip-to-end-effector distance over leg length, per leg: ``(L,)``
     (1 is a fully straight leg; more means the leg would have to stretch)."""
-    d = np.linalg.norm(np.asarray(end_effector) - np.asarray(hip), axis=2)
-    return np.asarray((d / leg_length[None, :]).max(axis=0))
+    return np.asarray(extension_ratio(hip, end_effector, leg_length).max(axis=0))
 
 
 def target_extension(hip: FloatArray, target: FloatArray, leg_length: FloatArray) -> FloatArray:
@@ -374,3 +397,112 @@ class MotionReport:
             )
         lines.extend(self.notes)
         return "\n".join(lines)
+
+
+#: Frames allowed with fewer feet on the ground than the gait plants, and with a leg
+#: stretched beyond its length: none (``MAX_PENETRATION`` says when a foot is down).
+MAX_FEW_FEET_FRAMES = 0
+MAX_STRETCHED_FRAMES = 0
+#: A posed leg is over-stretched beyond this fraction of its length: the bone-length
+#: tolerance, since a posed rig is read in single precision (``MAX_EXTENSION``'s 1e-6 is for
+#: the core's own double-precision joints, and a rig 10 m from the origin is already
+#: 1e-6 m off in single precision).
+MAX_POSED_EXTENSION = 1.0 + MAX_BONE_LENGTH_ERROR
+
+
+@dataclass(frozen=True)
+class Worst:
+    """One figure of a posed result: its ``value`` (metres, or a number of frames), the
+    index of its worst frame ``frame`` and the leg ``leg`` there (both -1 when there is
+    none), and the ``limit`` above which it fails."""
+
+    value: float
+    frame: int
+    leg: int
+    limit: float
+
+    @property
+    def failed(self) -> bool:
+        return self.value > self.limit
+
+
+def worst_of(values: FloatArray, limit: float) -> Worst:
+    """The largest of ``values (F, L)`` with its frame and leg (first one on ties)."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.size == 0:
+        return Worst(0.0, -1, -1, limit)
+    f, leg = np.unravel_index(int(np.argmax(v)), v.shape)
+    return Worst(float(v[f, leg]), int(f), int(leg), limit)
+
+
+@dataclass(frozen=True)
+class PosedQuality:
+    """What the quality panel shows for a written result, measured on the posed rig.
+
+    ``slide``, ``penetration``, ``reach``: metres at their worst frame; ``few_feet_down``:
+    frames where a foot the gait plants is not on the ground (its lowest point hangs more
+    than ``MAX_PENETRATION`` above it), its worst frame the one whose planted foot hangs highest
+    (``hover`` metres, ``inf`` over no ground); ``over_stretched``: frames where a leg is, or
+    is asked to be, longer than it is, its worst frame the one with the largest ``stretch``
+    (hip-to-foot distance over leg length; over-stretched above ``MAX_POSED_EXTENSION``)."""
+
+    slide: Worst
+    penetration: Worst
+    reach: Worst
+    few_feet_down: Worst
+    over_stretched: Worst
+    stretch: float
+    hover: float
+
+    def figures(self) -> tuple[tuple[str, Worst], ...]:
+        """``(key, figure)`` in the panel's order."""
+        return (("slide", self.slide), ("penetration", self.penetration), ("reach", self.reach),
+                ("few_feet_down", self.few_feet_down), ("over_stretched", self.over_stretched))
+
+
+def posed_quality(
+    end_effector: FloatArray,
+    hip: FloatArray,
+    target: FloatArray,
+    contact: BoolArray,
+    leg_length: FloatArray,
+    probes: FloatArray,
+    surface: FloatArray,
+    lift: FloatArray,
+) -> PosedQuality:
+    """The quality panel's figures of a posed result (see :class:`PosedQuality`).
+
+    ``end_effector``, ``hip``, ``target``: ``(F, L, 3)`` world positions of the posed legs'
+    ends and hips and of the targets the walk planned; ``contact (F, L)`` the feet the gait
+    plants; ``leg_length (L,)``; ``probes (F, L, P, 3)`` points of each foot checked against
+    the ground, the end-effector first, ``surface (F, L, P)`` the ground's height under each
+    (``-inf`` over nothing) and ``lift (L, P)`` how high each probe stands over the ground
+    when the foot is down (an ankle above the sole).
+    """
+    end = np.asarray(end_effector, dtype=np.float64)
+    hips = np.asarray(hip, dtype=np.float64)
+    tgt = np.asarray(target, dtype=np.float64)
+    c = np.asarray(contact, dtype=bool)
+    length = np.asarray(leg_length, dtype=np.float64)
+    depth = np.asarray(surface, dtype=np.float64) + np.asarray(lift)[None] - np.asarray(probes)[..., 2]
+    deepest = depth.max(axis=2, initial=-np.inf)  # (F, L): the foot's lowest point
+    below = np.maximum(deepest, 0.0)
+    hover = -deepest  # a foot is down when any of its points is (a sole tilted on a slope)
+    lifted = c & ~(hover <= MAX_PENETRATION)  # planted feet off the ground (or over nothing)
+    few = lifted.any(axis=1)
+    hang = worst_of(np.where(lifted, hover, -np.inf), 0.0)
+    reachable = np.linalg.norm(tgt - hips, axis=2) <= length[None, :] * (1.0 - 1e-6)
+    ratio = np.maximum(extension_ratio(hips, end, length), extension_ratio(hips, tgt, length))
+    longest = worst_of(ratio, MAX_POSED_EXTENSION)
+    stretched = (ratio > MAX_POSED_EXTENSION).any(axis=1)
+    return PosedQuality(
+        slide=worst_of(stance_displacement(end, c), MAX_STANCE_SLIDE),
+        penetration=worst_of(below, MAX_PENETRATION),
+        reach=worst_of(reach_distance(end, tgt, reachable), MAX_REACH_ERROR),
+        few_feet_down=Worst(float(few.sum()), hang.frame if few.any() else -1,
+                            hang.leg if few.any() else -1, MAX_FEW_FEET_FRAMES),
+        over_stretched=Worst(float(stretched.sum()), longest.frame if stretched.any() else -1,
+                             longest.leg if stretched.any() else -1, MAX_STRETCHED_FRAMES),
+        stretch=longest.value if longest.frame >= 0 else 0.0,
+        hover=max(hang.value, 0.0) if few.any() else 0.0,
+    )

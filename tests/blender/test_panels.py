@@ -279,7 +279,9 @@ def stand_in_operators() -> Any:
 def test_generate_panel_offers_the_operators(empty_scene: Any, stand_in_operators: Any) -> None:
     _state_two_rigs(empty_scene)
     ui = draw_panel(main.PROCLOCO_PT_generate)
-    assert ui.operators() == [op for op, _label, _icon in main.GENERATE_OPERATORS]
+    # ... then Live Preview's Discard beside its toggle
+    assert ui.operators() == [*(op for op, _label, _icon in main.GENERATE_OPERATORS),
+                              "procloco.discard_live_preview"]
     first = ui.operator_calls("procloco.generate_locomotion")[0]
     assert first.text == "Generate Locomotion (2 rigs)"
     assert first.layout.scale_y > 1.0  # the main button stands out

@@ -151,3 +151,82 @@ def test_report_lists_each_failed_check() -> None:
     ):
         assert word in text
     assert len(bad.failures()) == 8
+
+
+def test_stance_displacement_is_per_frame_and_sliding_its_worst() -> None:
+    contact = np.array([[1, 0], [1, 1], [0, 1], [1, 1], [1, 0]], dtype=bool)
+    foot = np.zeros((5, 2, 3))
+    foot[4, 0, 0] = 0.003
+    foot[3, 1, 2] = 0.001
+    disp = mx.stance_displacement(foot, contact)
+    assert disp.shape == (5, 2)
+    np.testing.assert_allclose(disp[:, 0], [0.0, 0.0, 0.0, 0.0, 0.003])
+    np.testing.assert_allclose(disp[:, 1], [0.0, 0.0, 0.0, 0.001, 0.0])
+    np.testing.assert_allclose(mx.stance_sliding(foot, contact), disp.max(axis=0))
+    assert mx.stance_sliding(foot, np.zeros((5, 2), dtype=bool)).tolist() == [0.0, 0.0]
+
+
+def _still_legs(n_frames: int = 6) -> dict[str, np.ndarray]:
+    """Two legs of length 1 standing on z = 0 under hips at z = 0.8, ends 0.05 up (their
+    foot height), one probe per foot besides the end-effector, touching the ground."""
+    hip = np.zeros((n_frames, 2, 3))
+    hip[:, 1, 1] = 0.5
+    hip[..., 2] = 0.8
+    end = hip.copy()
+    end[..., 2] = 0.05
+    probes = np.stack([end, end - np.array([0.0, 0.0, 0.05])], axis=2)  # (F, L, 2, 3)
+    return {"end_effector": end, "hip": hip, "target": end.copy(),
+            "contact": np.ones((n_frames, 2), dtype=bool), "leg_length": np.ones(2), "probes": probes,
+            "surface": np.zeros((n_frames, 2, 2)),
+            "lift": np.array([[0.05, 0.0], [0.05, 0.0]])}
+
+
+def test_posed_quality_of_a_still_stance_is_clean() -> None:
+    q = mx.posed_quality(**_still_legs())
+    for _key, figure in q.figures():
+        assert figure.value == pytest.approx(0.0, abs=1e-12)
+        assert not figure.failed
+    assert q.few_feet_down.frame == -1
+    assert q.over_stretched.frame == -1
+
+
+def test_posed_quality_finds_each_fault_at_its_worst_frame() -> None:
+    a = _still_legs()
+    a["end_effector"][3:, 1, 0] += [0.001, 0.004, 0.003]  # leg 1 slides, worst at frame 4
+    a["probes"][3:, 1, :, 0] += np.array([0.001, 0.004, 0.003])[:, None]
+    a["probes"][2, 0, 1, 2] = -0.02  # leg 0's sole 2 cm into the ground at frame 2
+    q = mx.posed_quality(**a)
+    assert (q.slide.value, q.slide.frame, q.slide.leg) == (pytest.approx(0.004), 4, 1)
+    assert q.slide.failed
+    assert (q.penetration.value, q.penetration.frame, q.penetration.leg) == (pytest.approx(0.02), 2, 0)
+    assert q.reach.value == pytest.approx(0.004)  # the slid foot left its target
+    # Leg 0 held 3 cm up at frames 1 and 2, and 4 mm up at frame 4 (still down)
+    b = _still_legs()
+    b["end_effector"][1:3, 0, 2] += 0.03
+    b["probes"][1:3, 0, :, 2] += 0.03
+    b["probes"][4, 0, :, 2] += 0.004  # 4 mm up: still down (within MAX_PENETRATION)
+    q = mx.posed_quality(**b)
+    assert q.few_feet_down.value == 2
+    assert q.few_feet_down.failed
+    assert q.few_feet_down.frame == 1
+    assert q.hover == pytest.approx(0.03)
+    # A foot over no ground is not down; a swinging one is never counted.
+    b["surface"][5, 1] = -np.inf
+    b["contact"][1:3, 0] = False
+    q = mx.posed_quality(**b)
+    assert (q.few_feet_down.value, q.few_feet_down.frame, q.hover) == (1, 5, np.inf)
+
+
+def test_posed_quality_counts_over_stretched_frames_asked_or_posed() -> None:
+    a = _still_legs()
+    a["target"][2, 0, 2] = -0.3  # asked to reach 1.1 leg lengths below the hip
+    a["end_effector"][4, 1, 2] = -0.25  # posed 1.05 (a stretchy bone)
+    q = mx.posed_quality(**a)
+    assert q.over_stretched.value == 2
+    assert (q.over_stretched.frame, q.over_stretched.leg) == (2, 0)
+    assert q.stretch == pytest.approx(1.1)
+    assert q.reach.value == pytest.approx(0.3)  # frame 4's target was reachable, the foot was not there
+    # Within the bone-length tolerance a straight leg is not over-stretched.
+    b = _still_legs()
+    b["target"][2, 0, 2] = 0.8 - (1.0 + 0.5 * mx.MAX_BONE_LENGTH_ERROR)
+    assert mx.posed_quality(**b).over_stretched.value == 0

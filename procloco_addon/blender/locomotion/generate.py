@@ -360,6 +360,8 @@ class Job:
     warnings: list[str] = field(default_factory=list)
     keyed_bones: tuple[str, ...] = ()
     result: Any = None
+    # While the simulation runs: the results of its first n frames (``simulation.SimResult``).
+    partial: Callable[[int], Any] | None = None
     timings: dict[str, float] = field(default_factory=dict)
     # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
     terrain_objects: tuple[str, ...] = ()
@@ -428,9 +430,11 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError(problem)
     stale = stale_bones(obj)
     try:
-        legs = settings_legs(obj)
-        from_settings = legs is not None
-        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine), at_rest=stale)
+        with rig.reading_once():  # one reading of the rest arrays for every leg and the rig
+            legs = settings_legs(obj)
+            from_settings = legs is not None
+            info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine),
+                                at_rest=stale)
         morph = rig.morphology_of(info, float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
     except rig.RigError as err:
         raise GenerateError(str(err)) from err
@@ -569,8 +573,8 @@ def write_all(context: bpy.types.Context, jobs: Sequence[Job]) -> list[bpy.types
     return run_steps(write_all_steps(context, jobs))
 
 
-def write_all_steps(context: bpy.types.Context,
-                    jobs: Sequence[Job]) -> Generator[float, None, list[bpy.types.Action]]:
+def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
+                    measure: bool = False) -> Generator[float, None, list[bpy.types.Action]]:
     """Write every job's result as a new Action on its rig and assign it: all or nothing.
     Yields the fraction done; returns the new Actions.
 
@@ -580,8 +584,15 @@ def write_all_steps(context: bpy.types.Context,
     deleted, every rig gets back what it had (its Action, slot and pose), and an error is
     raised again. A rig's earlier generated Action is superseded (deleted, its name taken
     over) once all are written, unless the animator kept it (fake user, NLA, another object).
+
+    ``measure``: then measure each written result on the posed rig and store the figures on
+    the rig's settings (:mod:`..quality.measure`); a measurement that fails is a warning.
     """
+    from ..quality import measure as quality
+
     made: list[bpy.types.Action] = []
+    measured: list[Any] = []
+    share = 0.85 if measure else 1.0  # measuring evaluates the rig once per frame
     done: list[tuple[bpy.types.Object, actions.Assignment]] = []
     superseded: list[tuple[bpy.types.Action, bpy.types.Action]] = []
     frame = (context.scene.frame_current, context.scene.frame_subframe)
@@ -602,10 +613,19 @@ def write_all_steps(context: bpy.types.Context,
                     made.append(finished.value)
                     break
                 try:
-                    yield (k + fraction) / len(jobs)
+                    yield share * (k + fraction) / len(jobs)
                 except BaseException:
                     steps.close()  # this rig's Action deleted, its pose put back
                     raise
+        for k, job in enumerate(jobs if measure else ()):
+            low = share + (1.0 - share) * k / len(jobs)
+            yield low  # written and assigned; Esc from here on still takes everything back
+            try:
+                measured.append((yield from scaled_steps(quality.measure_steps(context, job), low,
+                                                         low + (1.0 - share) / len(jobs))))
+            except Exception as err:  # the walk stands; only its figures are missing
+                measured.append(None)
+                job.warnings.append(f"could not measure the result: {err}")
     except BaseException:  # an error, or closed early (GeneratorExit): nothing is left
         for action, (obj, _memo) in zip(made, done, strict=False):
             actions.restore_pose(obj, action)
@@ -617,6 +637,12 @@ def write_all_steps(context: bpy.types.Context,
         context.scene.frame_set(frame[0], subframe=frame[1])
         raise
     actions.delete_superseded(superseded)
+    for job, action, figures in zip(jobs, made, measured, strict=False):
+        obj = bpy.data.objects[job.obj_name]
+        if figures is None:
+            quality.clear(obj)
+        else:
+            quality.store(obj, action, job, figures)
     return made
 
 
@@ -700,8 +726,10 @@ def generate(
     objects: Sequence[bpy.types.Object],
     progress: Callable[[str, float], None] | None = None,
     should_cancel: Callable[[], bool] | None = None,
+    measure: bool = False,
 ) -> list[bpy.types.Action] | None:
     """Generate every rig in ``objects``; all are checked before anything is written.
+    ``measure``: store the quality figures of each result (see :func:`write_all_steps`).
 
     Returns the new Actions, or None when ``should_cancel`` asked to stop (nothing written).
     Raises :class:`GenerateError` (nothing written) on bad input.
@@ -713,4 +741,4 @@ def generate(
                 progress(job.obj_name, fraction)
             if should_cancel is not None and should_cancel():
                 return None
-    return write_all(context, jobs)
+    return run_steps(write_all_steps(context, jobs, measure))

@@ -15,6 +15,7 @@ import bpy
 
 from .. import actions, rig
 from ..modal import ProgressOperator, Steps, poll_armature, steps_with_result
+from ..quality import measure as quality
 from . import generate
 
 __all__ = [
@@ -83,6 +84,7 @@ class PROCLOCO_OT_clear_generated_action(bpy.types.Operator):
         for obj in rigs_to_generate(context):
             try:
                 if actions.clear_generated_action(obj):
+                    quality.clear(obj)
                     cleared.append(obj.name)
             except actions.ActionError as err:
                 self.report({"ERROR"}, str(err))
@@ -139,6 +141,6 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
                 yield job.obj_name, 0.1 + 0.8 * (k + fraction) / n
         # Writing is the last tenth; Esc there deletes what was written and gives every rig
         # back its Action and pose (generate.write_all_steps).
-        self._made = yield from steps_with_result(generate.write_all_steps(context, self._jobs),
+        self._made = yield from steps_with_result(generate.write_all_steps(context, self._jobs, measure=True),
                                                   "writing the Actions", 0.9, 0.1, generate.GenerateError,
                                                   "the Actions")

@@ -21,6 +21,7 @@ from bpy.props import (
     StringProperty,
 )
 
+from ..quality.property_group import PROCLOCO_PG_quality
 from ..scene_terrain import ROLE_ITEMS
 
 
@@ -247,6 +248,13 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
     )
     frame_start: IntProperty(name="Start", description="First generated frame", default=1)
     frame_end: IntProperty(name="End", description="Last generated frame", default=250)
+    live_preview: BoolProperty(
+        name="Live Preview",
+        description="Re-generate the walk whenever a setting, the gait circles, the path curve or a terrain "
+        "object changes, without blocking the interface (switching it off keeps the previewed walk "
+        "as the generated Action)",
+        default=False,
+    )
     seed: IntProperty(
         name="Seed",
         description="Seed of every random choice; the same seed gives the same Action",
@@ -333,6 +341,9 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         soft_max=2.0,
         subtype="FACTOR",
     )
+
+    # --- what was measured on the generated walk (quality panel) --------------------
+    quality: PointerProperty(type=PROCLOCO_PG_quality, name="Quality")
 
 
 def frame_range(settings: PROCLOCO_PG_rig_settings, scene: bpy.types.Scene) -> tuple[int, int]:

@@ -257,6 +257,17 @@ def run(job: Job) -> Iterator[float]:
     spine_joints = np.empty((n_frames, n_spine, 3)) if n_spine else None
     spine_rotation = np.empty((n_frames, n_spine - 1, 3, 3)) if n_spine else None
 
+    def result_of(n: int) -> SimResult:
+        """The first ``n`` frames' results (views of the arrays being filled)."""
+        return SimResult(body[:n], joints[:n], swing[:n], feet[:n], ik_error[:n], needle[:n], phase_rate[:n],
+                         forced[:n], failed[:n], disk_start[:n], leg_frame[:n],
+                         None if spine_joints is None else spine_joints[:n],
+                         None if spine_rotation is None else spine_rotation[:n], disk_duration[:n],
+                         speed_track[:n], auto_band[:n])
+
+    # Live Preview writes the current frame's pose before the rest of the range is simulated.
+    job.partial = result_of
+
     def record(f: int) -> None:
         body[f] = np.eye(4)
         body[f, :3, :3] = sim.rotations()[0]
@@ -306,9 +317,7 @@ def run(job: Job) -> Iterator[float]:
         sim.step(job.dt, _controls(job, legs, speed, heading))
         record(f)
         yield (f + 1) / n_frames
-    job.result = SimResult(body, joints, swing, feet, ik_error, needle, phase_rate, forced, failed,
-                           disk_start, leg_frame, spine_joints, spine_rotation, disk_duration, speed_track,
-                           auto_band)
+    job.result = result_of(n_frames)
 
 
 def auto_track(job: Job) -> Any:

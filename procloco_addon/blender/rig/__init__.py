@@ -72,7 +72,7 @@ from .pose import (
 from .rest import RigError, _unit, uniform_scale
 
 if TYPE_CHECKING:
-    from .read import detect_legs, facing_source, leg_from_bones, read_rig
+    from .read import detect_legs, facing_source, leg_from_bones, read_rig, reading_once
 
 __all__ = [
     "FOOT_EXTENT_SHARE",
@@ -94,13 +94,14 @@ __all__ = [
     "matrix_to_quaternion",
     "morphology_of",
     "read_rig",
+    "reading_once",
     "solve_pose",
     "solve_pose_steps",
     "split_name",
     "uniform_scale",
 ]
 
-_READ = frozenset({"detect_legs", "facing_source", "leg_from_bones", "read_rig"})
+_READ = frozenset({"detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once"})
 
 
 def __getattr__(name: str) -> Any:

@@ -344,6 +344,8 @@ def _all_upstream(obj: bpy.types.Object, names: Iterable[str]) -> set[str]:
     pbones = obj.pose.bones
     seen: set[str] = set()
     stack = [n for n in names if n in pbones]
+    # Every IK constraint of the rig, once (``children_recursive`` per bone walks the whole rig).
+    iks = [(pb, c) for pb in pbones for c in pb.constraints if c.type == "IK" and c.subtarget in pbones]
     while stack:
         n = stack.pop()
         if n in seen:
@@ -358,18 +360,18 @@ def _all_upstream(obj: bpy.types.Object, names: Iterable[str]) -> set[str]:
                     stack.append(sub)
             if c.type == "ARMATURE":
                 stack.extend(t.subtarget for t in c.targets if t.subtarget in pbones)
-        # IK chains reaching n from below
-        for child in pb.children_recursive:
-            for c in child.constraints:
-                if c.type == "IK" and c.subtarget in pbones:
-                    chain = int(c.chain_count)
-                    up, k = child, 0
-                    while up is not None and (chain == 0 or k < chain):
-                        if up.name == n:
-                            stack.append(c.subtarget)
-                            if c.pole_subtarget in pbones:
-                                stack.append(c.pole_subtarget)
-                        up, k = up.parent, k + 1
+        # IK chains reaching n from below (from a bone under n, up the chain's length)
+        for child, c in iks:
+            if child.name == n:
+                continue
+            chain = int(c.chain_count)
+            up, k = child, 0
+            while up is not None and (chain == 0 or k < chain):
+                if up.name == n:
+                    stack.append(c.subtarget)
+                    if c.pole_subtarget in pbones:
+                        stack.append(c.pole_subtarget)
+                up, k = up.parent, k + 1
     return seen
 
 

@@ -4,7 +4,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
+from contextlib import contextmanager
 
 import bpy
 import numpy as np
@@ -32,7 +33,36 @@ def _object_world(obj: bpy.types.Object) -> np.ndarray:
     return np.array(obj.matrix_world, dtype=np.float64)
 
 
+# Rest arrays already read inside a reading_once() block, by object name.
+_read_once: dict[str, _Rest] | None = None
+
+
+@contextmanager
+def reading_once() -> Iterator[None]:
+    """Inside the block each rig's rest arrays (bones and skin) are read once, however many
+    legs and readers ask for them: for a reader that changes nothing in between (Generate's
+    settings check reads them once per leg, then for the rig)."""
+    global _read_once
+    outer = _read_once
+    if outer is None:
+        _read_once = {}
+    try:
+        yield
+    finally:
+        if outer is None:
+            _read_once = None
+
+
 def _rest_of(obj: bpy.types.Object) -> _Rest:
+    if _read_once is not None and obj is not None and obj.name in _read_once:
+        return _read_once[obj.name]
+    rest = _read_rest(obj)
+    if _read_once is not None:
+        _read_once[obj.name] = rest
+    return rest
+
+
+def _read_rest(obj: bpy.types.Object) -> _Rest:
     if obj is None or obj.type != "ARMATURE":
         raise RigError("The active object is not an armature: select a rig")
     world = _object_world(obj)

@@ -171,6 +171,11 @@ class PROCLOCO_PT_generate(SidebarPanel, bpy.types.Panel):
         big.operator(first[0], text=text, icon=first[2])
         for idname, label, icon in rest:
             col.operator(idname, text=label, icon=icon)
+        rig = active_rig(context)
+        if rig is not None:
+            from ..live_preview.panel import draw_live_preview
+
+            draw_live_preview(layout.box(), rig)
 
 
 CLASSES: tuple[type, ...] = (PROCLOCO_PT_main, PROCLOCO_PT_effects, PROCLOCO_PT_generate)

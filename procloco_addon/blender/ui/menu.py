@@ -16,7 +16,9 @@ import bpy
 from ..biped import ops as biped_ops
 from ..cycle import ops as cycle_ops
 from ..gait import ops as gait_ops
+from ..live_preview import ops as live_preview_ops
 from ..locomotion import ops as locomotion_ops
+from ..quality import ops as quality_ops
 from ..secondary import ops as secondary_ops
 
 __all__ = ["HOST_MENU", "PROCLOCO_MT_animation", "PROCLOCO_MT_lists", "register", "unregister"]
@@ -65,6 +67,8 @@ class PROCLOCO_MT_animation(bpy.types.Menu):
         layout.operator(locomotion_ops.PROCLOCO_OT_generate_locomotion.bl_idname, icon="ANIM")
         layout.operator(cycle_ops.PROCLOCO_OT_make_cycle.bl_idname, icon="FILE_REFRESH")
         layout.operator(locomotion_ops.PROCLOCO_OT_clear_generated_action.bl_idname, icon="X")
+        layout.operator(live_preview_ops.PROCLOCO_OT_discard_live_preview.bl_idname, icon="TRASH")
+        layout.menu(quality_ops.PROCLOCO_MT_worst_frames.bl_idname, text="Jump to Worst Frame")
         layout.separator()
         layout.menu(gait_ops.PROCLOCO_MT_gait_presets.bl_idname, text="Gait Presets")
         layout.menu(gait_ops.PROCLOCO_MT_auto_gait_presets.bl_idname, text="Auto Gait Presets")
