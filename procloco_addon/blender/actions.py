@@ -64,6 +64,7 @@ __all__ = [
     "is_generated",
     "is_slotted",
     "keyed_pose_bones",
+    "make_cyclic",
     "new_action",
     "previous_action",
     "push_to_nla",
@@ -642,6 +643,49 @@ def read_channel(
     points.foreach_get("co", co)
     co2 = co.reshape(-1, 2).astype(np.float64)
     return co2[:, 0], co2[:, 1]
+
+
+def make_cyclic(action: bpy.types.Action, obj: bpy.types.Object,
+                offset_channels: set[tuple[str, int]] | frozenset[tuple[str, int]] = frozenset()) -> float:
+    """Make ``action`` a loop for ``obj`` (Make Cycle): on each of its F-curves the last key
+    takes the first key's value, except the ``(data_path, index)`` channels of
+    ``offset_channels``, which repeat moved on by their change over the loop (root motion);
+    a Cycles modifier repeats every curve before and after its keys (with offset for those),
+    so the loop plays on in Blender and in the NLA; the Action's manual frame range is the
+    loop's and it is flagged cyclic, which exporters and the NLA read.
+
+    Returns the largest change made to a key value (how far the loop was from closing).
+    Refuses (:class:`ActionError`) an Action ProcLoco did not create.
+    """
+    if not is_generated(action):
+        raise ActionError(f"Action '{action.name}' was not made by ProcLoco; it is never written to")
+    fcurves = _fcurve_collection(action, obj, create=False)
+    worst = 0.0
+    first, last = np.inf, -np.inf
+    for fcurve in fcurves if fcurves is not None else ():
+        points = fcurve.keyframe_points
+        n = len(points)
+        if n < 2:
+            continue
+        co = np.empty(2 * n, dtype=np.float32)
+        points.foreach_get("co", co)
+        co2 = co.reshape(n, 2)
+        first, last = min(first, float(co2[0, 0])), max(last, float(co2[-1, 0]))
+        offset = (fcurve.data_path, fcurve.array_index) in offset_channels
+        if not offset:
+            worst = max(worst, abs(float(co2[-1, 1]) - float(co2[0, 1])))
+            co2[-1, 1] = co2[0, 1]
+            points.foreach_set("co", co)
+        for old in [m for m in fcurve.modifiers if m.type == "CYCLES"]:
+            fcurve.modifiers.remove(old)
+        cycles = fcurve.modifiers.new("CYCLES")
+        cycles.mode_before = cycles.mode_after = "REPEAT_OFFSET" if offset else "REPEAT"
+        fcurve.update()
+    if first < last:
+        action.use_frame_range = True
+        action.frame_start, action.frame_end = first, last
+        action.use_cyclic = True
+    return worst
 
 
 def push_to_nla(obj: bpy.types.Object, action: bpy.types.Action, track_name: str = "ProcLoco") -> Any:

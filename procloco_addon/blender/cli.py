@@ -10,10 +10,13 @@ exit status. Commands::
     procloco generate --rig NAME [--rig NAME ...] | --rigs A,B,... | --all
                       [--frames START END] [--speed M_PER_S] [--heading DEG] [--step-height M]
                       [--seed N] [--spine | --no-spine] [--visual-yaw | --no-visual-yaw]
-                      [--bake-secondary | --no-bake-secondary] [OUTPUT OPTIONS]
+                      [--bake-secondary | --no-bake-secondary]
+                      [--cycle N [--root-motion in-place|root-bone] [--root-bone NAME]]
+                      [OUTPUT OPTIONS]
         generate locomotion for the rigs (settings saved on each rig, overridden by the
         options given); with --bake-secondary, then bake secondary motion on every rig
-        that has (or is suggested) pendulum chains
+        that has (or is suggested) pendulum chains; with --cycle, Make Cycle instead: a
+        loop of N whole gait cycles on flat ground (cycle/make.py)
     procloco bake-secondary --rig NAME [--rig NAME ...] | --all [--frames START END]
                       [OUTPUT OPTIONS]
         bake secondary motion (Bake Secondary Motion) on the rigs' current animation; a rig
@@ -153,6 +156,11 @@ def _parser() -> argparse.ArgumentParser:
                      help="the body sways with the feet, lizard-like (Effects > Visual Yaw)")
     gen.add_argument("--bake-secondary", action=argparse.BooleanOptionalAction, default=False,
                      help="then bake secondary motion on the rigs that have (or are suggested) chains")
+    gen.add_argument("--cycle", type=_number("int", 1, 64), metavar="N",
+                     help="Make Cycle: a loop of N whole gait cycles on flat ground instead of the walk")
+    gen.add_argument("--root-motion", choices=("in-place", "root-bone"),
+                     help="with --cycle: walk in place, or carry the root motion on the root bone")
+    gen.add_argument("--root-bone", metavar="NAME", help="with --cycle --root-motion root-bone: the bone")
     sub.add_parser("bake-secondary", parents=[rigs, output, keys],
                    help="bake secondary motion (tails, antennae, ears) on the rigs' current animation")
     render_chunk.add_parser(sub)
@@ -401,20 +409,30 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     objs = _rigs_of(args, "animate")
     if (args.contact_sheet or args.gif) and not args.render:
         raise CliError("--contact-sheet and --gif need --render DIR")
+    if args.cycle is not None and args.bake_secondary:
+        raise CliError("--cycle and --bake-secondary do not go together: a bake on a loop would not loop")
+    if args.cycle is None and (args.root_motion is not None or args.root_bone is not None):
+        raise CliError("--root-motion and --root-bone go with --cycle N")
     saved = _saved_settings(objs, args)
     unset = [o for o in objs if not len(o.procloco_secondary.chains)]
+    cycle_saved = [(o, _group_values(o.procloco_cycle)) for o in objs]
     try:
         for obj in objs:
             _apply_overrides(obj, args)
         if args.bake_secondary:
             _bake_jobs(objs, required=False)  # refuse bad chains before anything is written
-        _say(f"generating {', '.join(o.name for o in objs)}")
-        made = generate.generate(bpy.context, objs, progress=_progress_printer(), measure=True)
+        if args.cycle is not None:
+            made: list[Any] | None = _make_cycles(objs, args)
+        else:
+            _say(f"generating {', '.join(o.name for o in objs)}")
+            made = generate.generate(bpy.context, objs, progress=_progress_printer(), measure=True)
     except BaseException as err:
         # Nothing was written: the overrides and the chains suggested above are taken back.
         for obj in unset:
             obj.procloco_secondary.chains.clear()
         _put_back(saved)
+        for obj, values in cycle_saved:
+            _set_group_values(obj.procloco_cycle, values)
         if isinstance(err, generate.GenerateError | rig.RigError):
             raise CliError(str(err)) from err
         raise
@@ -422,11 +440,31 @@ def _cmd_generate(args: argparse.Namespace) -> int:
     for obj, action in zip(objs, made, strict=True):
         _say(f"{obj.name}: wrote Action '{action.name}'")
         _say_key_reduction(obj)
-        _say(quality.summary_line(obj))
+        if args.cycle is None:  # (a loop is not measured: an in-place loop's feet slide by design)
+            _say(quality.summary_line(obj))
     if args.bake_secondary:
         _run_bakes(_bake_jobs(objs, required=False, quiet=True))
     _outputs(objs, args)
     return 0
+
+
+def _make_cycles(objs: Sequence[Any], args: argparse.Namespace) -> list[Any]:
+    """``generate --cycle N``: Make Cycle on every rig; prints each loop's summary."""
+    from .cycle import make
+
+    for obj in objs:
+        settings = obj.procloco_cycle
+        settings.cycles = int(args.cycle)
+        if args.root_motion is not None:
+            settings.root_motion = "ROOT_BONE" if args.root_motion == "root-bone" else "IN_PLACE"
+        if args.root_bone is not None:
+            settings.root_bone = args.root_bone
+    _say(f"making {args.cycle}-cycle loops of {', '.join(o.name for o in objs)}")
+    printer = _progress_printer()
+    jobs = make.make_cycles(bpy.context, objs, progress=lambda text, fraction: printer(text, fraction))
+    for cj in jobs:
+        _say(f"{cj.obj_name}: {cj.summary()}")
+    return [cj.action for cj in jobs]
 
 
 def _cmd_bake_secondary(args: argparse.Namespace) -> int:

@@ -18,6 +18,9 @@ from .biped import ops as biped_ops
 from .biped import panel as biped_panel
 from .biped import property_group as biped_props
 from .biped import ui_list as biped_ui_list
+from .cycle import ops as cycle_ops
+from .cycle import panel as cycle_panel
+from .cycle import property_group as cycle_props
 from .gait import handler as gait_handler
 from .gait import ops as gait_ops
 from .gait import panel as gait_panel
@@ -96,6 +99,9 @@ CLASSES: tuple[type, ...] = (
     keys_panel.PROCLOCO_PT_key_reduction,
     quality_panel.PROCLOCO_PT_quality,
     quality_ops.PROCLOCO_MT_worst_frames,
+    cycle_props.PROCLOCO_PG_cycle_settings,
+    cycle_ops.PROCLOCO_OT_make_cycle,
+    cycle_panel.PROCLOCO_PT_make_cycle,
     ui_menu.PROCLOCO_MT_lists,
     ui_menu.PROCLOCO_MT_animation,
 )
@@ -111,6 +117,7 @@ POINTERS: tuple[tuple[type, str, type], ...] = (
     (bpy.types.Object, "procloco_biped", biped_props.PROCLOCO_PG_biped_settings),
     (bpy.types.Object, "procloco_secondary", secondary_props.PROCLOCO_PG_secondary_settings),
     (bpy.types.Object, "procloco_keys", keys_props.PROCLOCO_PG_key_reduction),
+    (bpy.types.Object, "procloco_cycle", cycle_props.PROCLOCO_PG_cycle_settings),
     (bpy.types.WindowManager, "procloco_gait_view", gait_props.PROCLOCO_PG_gait_view),
 )
 

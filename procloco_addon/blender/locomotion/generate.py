@@ -38,6 +38,7 @@ from ..rig import controls
 from . import property_group
 
 __all__ = [
+    "ACTION_KIND",
     "GaitChange",
     "GenerateError",
     "Job",
@@ -337,6 +338,12 @@ class Job:
     # Gait: Auto (core.autogait): the gait, stride and cycle follow the speed; None: the
     # gait circles and the Gait Changes' gaits
     auto_gait: autogait.AutoGaitParams | None = None
+    # Auto's choice held at one speed (Make Cycle): the walk keeps ``gait`` but Auto's
+    # physics (real gravity) and planning window, as Generate would at that speed
+    held_auto: autogait.AutoGaitParams | None = None
+    # What the Action is ("": a walk; "Cycle": Make Cycle's loop), in its name after
+    # "ProcLoco" and on it (ACTION_KIND): a new one supersedes only an earlier one of its kind
+    action_kind: str = ""
     # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
     use_visual_yaw: bool = False
     spine_turn_rate: float = float(np.radians(120.0))  # rad/s
@@ -596,8 +603,10 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
             obj = bpy.data.objects[job.obj_name]
             done.append((obj, actions.remember_assignment(obj)))
             current = actions.generated_action(obj)
-            # A re-generation supersedes the earlier walk, never a bake layered on one.
-            own = current is not None and _SECONDARY_SOURCE not in current
+            # A re-generation supersedes the earlier walk (or loop), never a bake layered on
+            # one, nor a walk of another kind (a loop made from a walk keeps the walk).
+            own = (current is not None and _SECONDARY_SOURCE not in current
+                   and current.get(ACTION_KIND, "") == job.action_kind)
             steps = _keyed_action_steps(context, job, own, superseded)
             while True:
                 try:
@@ -641,6 +650,8 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
 
 # The key a bake's Action carries (see secondary.bake.SECONDARY_SOURCE).
 _SECONDARY_SOURCE = "_procloco_secondary_source"
+#: The key a generated Action of another kind than a walk carries (Job.action_kind).
+ACTION_KIND = "_procloco_kind"
 
 
 def _keyed_action_steps(
@@ -681,7 +692,9 @@ def _keyed_action_steps(
         basis=info.basis,
         legs=tuple(leg.bones for leg in info.legs),
     )
-    action = actions.new_action(obj)
+    action = actions.new_action(obj, f"ProcLoco {job.action_kind}".strip())
+    if job.action_kind:
+        action[ACTION_KIND] = job.action_kind
     frames = job.frames.astype(np.float64)
     try:
         if job.held_bones:

@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from .generate import GaitChange, Job
 
 __all__ = [
-    "SimResult", "auto_track", "ground_function", "path_heading", "run", "speed_schedule", "spine_params",
+    "SimResult", "auto_track", "ground_function", "path_heading", "planning_cell", "run", "speed_schedule",
+    "spine_params",
     "spine_tracks", "world_tracks",
 ]
 
@@ -142,6 +143,11 @@ def speed_schedule(job: Job) -> Callable[[float], float]:
 REFERENCE_LEG = 0.7325  # the Rigify wolf's
 
 
+def planning_cell(job: Job, leg_len: float) -> float:
+    """The footstep planner's cell size (m) for ``job`` (grids fixed in the world)."""
+    return _window(job, leg_len)[1]
+
+
 def _window(job: Job, leg_len: float) -> tuple[int, float]:
     """Cells and cell size of the planning window: 70 cells of 0.065 leg (4.5 legs across);
     with Gait: Auto grown when the fastest stride would put a landing foot beyond its edge (the
@@ -149,10 +155,11 @@ def _window(job: Job, leg_len: float) -> tuple[int, float]:
     stride ahead of where the pelvis was at lift-off). Cells and size grow alike, by the
     square root of the needed growth, so planning stays affordable at a gallop."""
     cells, cell = 70, 0.065 * leg_len
-    if job.auto_gait is None:  # (the circles' walks keep the window they were tuned with)
+    auto = job.auto_gait or job.held_auto
+    if auto is None:  # (the circles' walks keep the window they were tuned with)
         return cells, cell
     v_max = max([job.speed] + [c.speed for c in job.gait_changes if c.speed is not None])
-    half = 1.5 * leg_len + v_max * float(job.auto_gait.schedule([v_max])[2][0])
+    half = 1.5 * leg_len + v_max * float(auto.schedule([v_max])[2][0])
     growth = half / (0.5 * cells * cell)
     if growth <= 1.0:
         return cells, cell
@@ -218,7 +225,7 @@ def run(job: Job) -> Iterator[float]:
     # keeps the bounce to scale. The planted feet's support tolerance (2 mm at
     # REFERENCE_LEG) and the leg IK's (10 µm there) scale with the creature either way.
     size = leg_len / REFERENCE_LEG
-    gravity = 9.81 * (size if job.auto_gait is None else 1.0)
+    gravity = 9.81 * (size if job.auto_gait is None and job.held_auto is None else 1.0)
     cells, cell = _window(job, leg_len)
     params = ControllerParams(window_cells=cells, window_cell=cell, slice_size=0.14 * leg_len,
                               support_tolerance=0.002 * size, ik_tolerance=1e-5 * size,

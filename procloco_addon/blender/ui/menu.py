@@ -14,6 +14,7 @@ from typing import Any, ClassVar
 import bpy
 
 from ..biped import ops as biped_ops
+from ..cycle import ops as cycle_ops
 from ..gait import ops as gait_ops
 from ..live_preview import ops as live_preview_ops
 from ..locomotion import ops as locomotion_ops
@@ -64,6 +65,7 @@ class PROCLOCO_MT_animation(bpy.types.Menu):
         layout = self.layout
         layout.operator(locomotion_ops.PROCLOCO_OT_detect_legs.bl_idname, icon="BONE_DATA")
         layout.operator(locomotion_ops.PROCLOCO_OT_generate_locomotion.bl_idname, icon="ANIM")
+        layout.operator(cycle_ops.PROCLOCO_OT_make_cycle.bl_idname, icon="FILE_REFRESH")
         layout.operator(locomotion_ops.PROCLOCO_OT_clear_generated_action.bl_idname, icon="X")
         layout.operator(live_preview_ops.PROCLOCO_OT_discard_live_preview.bl_idname, icon="TRASH")
         layout.menu(quality_ops.PROCLOCO_MT_worst_frames.bl_idname, text="Jump to Worst Frame")
