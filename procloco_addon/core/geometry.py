@@ -48,3 +48,16 @@ def cross(a: FloatArray, b: FloatArray) -> FloatArray:
     out[..., 1] = a2 * b0 - a0 * b2
     out[..., 2] = a0 * b1 - a1 * b0
     return out
+
+
+def z_rotations(angle: FloatArray) -> FloatArray:
+    """Rotations ``(..., 3, 3)`` about Z by ``angle`` ``(...)`` radians, written element by
+    element into one array (stacking rows was a tenth of a spine character's step)."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros((*np.shape(angle), 3, 3))
+    out[..., 0, 0] = c
+    out[..., 0, 1] = -s
+    out[..., 1, 0] = s
+    out[..., 1, 1] = c
+    out[..., 2, 2] = 1.0
+    return out

@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import vector_norm
+from .geometry import vector_norm, z_rotations
 from .hermite import hermite_basis
 from .hull import upper_hull_eval
 from .terrain import NO_SURFACE
@@ -114,16 +114,7 @@ def _node_headings(seg_angle: FloatArray) -> FloatArray:
 
 # The rotations are written element by element into one array (not stacked from rows): a
 # character's step builds a few thousand of them and the stacking was a tenth of its time.
-def _rz(angle: FloatArray) -> FloatArray:
-    """Rotations ``(..., 3, 3)`` about Z by ``angle`` ``(...)``."""
-    c, s = np.cos(angle), np.sin(angle)
-    out = np.zeros((*np.shape(angle), 3, 3))
-    out[..., 0, 0] = c
-    out[..., 0, 1] = -s
-    out[..., 1, 0] = s
-    out[..., 1, 1] = c
-    out[..., 2, 2] = 1.0
-    return out
+_rz = z_rotations
 
 
 def _ry(angle: FloatArray) -> FloatArray:

@@ -24,6 +24,7 @@ from procloco_addon.blender.quality import measure
 from procloco_addon.blender.quality.ops import PROCLOCO_OT_jump_to_worst_frame
 from procloco_addon.blender.quality.panel import PROCLOCO_PT_quality
 from tests.blender.pose_eval import bone_heads_tails, leg_joints, ray_heights_over_time
+from tests.blender.test_generate import _select_only
 from tests.blender.ui_recorder import draw_panel
 from tools.examples import creatures
 
@@ -44,13 +45,6 @@ def _scene_with_wolf(ground_size: float = 8.0) -> Any:
     wolf.procloco.frame_start, wolf.procloco.frame_end = FRAMES
     _select_only(wolf)
     return wolf
-
-
-def _select_only(obj: Any) -> None:
-    for o in bpy.context.view_layer.objects:
-        o.select_set(False)
-    obj.select_set(True)
-    bpy.context.view_layer.objects.active = obj
 
 
 def _plan(obj: Any) -> generate.Job:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...core.geometry import z_rotations
 from ...core.steps import run_steps
 from .info import RigInfo
 from .rest import _UP, _apply, _unit
@@ -87,15 +88,7 @@ def _side_of(normal: np.ndarray, turned: np.ndarray) -> np.ndarray:
 def _yaw_only(rot: np.ndarray) -> np.ndarray:
     """The rotation about world Z that turns the x axis like ``rot`` does ``(..., 3, 3)``."""
     x = rot[..., :, 0]
-    ang = np.arctan2(x[..., 1], x[..., 0])
-    c, s = np.cos(ang), np.sin(ang)
-    out = np.zeros(rot.shape)
-    out[..., 0, 0] = c
-    out[..., 0, 1] = -s
-    out[..., 1, 0] = s
-    out[..., 1, 1] = c
-    out[..., 2, 2] = 1.0
-    return out
+    return z_rotations(np.arctan2(x[..., 1], x[..., 0]))
 
 
 def _held_foot_yaw(leg_yaw: np.ndarray, planted: np.ndarray) -> np.ndarray:
