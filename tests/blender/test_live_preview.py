@@ -161,11 +161,14 @@ def test_a_settings_change_regenerates_and_supersedes_the_last_preview(wolf: Any
     assert mine.users >= 1  # remembered by the rig for Clear Generated Action
 
 
-def test_a_second_change_supersedes_the_first_in_flight(wolf: Any, clock: Clock) -> None:
+def test_a_second_change_supersedes_the_first_in_flight(wolf: Any, clock: Clock,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
     wolf.procloco.live_preview = True
     settle(clock)
     clock.now += 1.0
     wolf.procloco.speed = 1.2
+    # Timer calls of a few milliseconds: three of them never finish the walk, however fast.
+    monkeypatch.setattr(handler, "BUDGET_S", 0.002)
     for _ in range(3):  # the first change's regeneration starts at once and is under way
         handler.tick()
         clock.now += 0.01
@@ -411,12 +414,14 @@ def test_the_toggle_is_saved_and_a_reloaded_preview_is_not_made_again(wolf: Any,
     assert len(procloco_actions()) == 1
 
 
-def test_unregister_removes_the_timer_and_handlers(wolf: Any, clock: Clock) -> None:
+def test_unregister_removes_the_timer_and_handlers(wolf: Any, clock: Clock,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
     import procloco_addon
 
     wolf.procloco.live_preview = True
     handler.wake()
     assert bpy.app.timers.is_registered(handler.tick)
+    monkeypatch.setattr(handler, "BUDGET_S", 0.002)  # (three calls never finish the walk)
     for _ in range(3):
         handler.tick()
     assert handler._state.run is not None
