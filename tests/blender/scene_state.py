@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 
 #: The property groups ProcLoco attaches to objects.
-_GROUPS = ("procloco", "procloco_secondary", "procloco_biped", "procloco_cycle")
+_GROUPS = ("procloco", "procloco_secondary", "procloco_biped", "procloco_cycle", "procloco_keys")
 
 
 def _plain(value: Any) -> Any:
