@@ -33,8 +33,8 @@ def _object_world(obj: bpy.types.Object) -> np.ndarray:
     return np.array(obj.matrix_world, dtype=np.float64)
 
 
-# Rest arrays already read inside a reading_once() block, by object name.
-_read_once: dict[str, _Rest] | None = None
+# Rest arrays and skin points already read inside a reading_once() block, by object name.
+_read_once: dict[str, tuple[_Rest, dict[str, np.ndarray]]] | None = None
 
 
 @contextmanager
@@ -54,15 +54,21 @@ def reading_once() -> Iterator[None]:
 
 
 def _rest_of(obj: bpy.types.Object) -> _Rest:
+    return _read(obj)[0]
+
+
+def _read(obj: bpy.types.Object) -> tuple[_Rest, dict[str, np.ndarray]]:
+    """``obj``'s rest arrays and its skin points by bone name (see :func:`_skin_points`),
+    read once per :func:`reading_once` block."""
     if _read_once is not None and obj is not None and obj.name in _read_once:
         return _read_once[obj.name]
-    rest = _read_rest(obj)
+    read = _read_rest(obj)
     if _read_once is not None:
-        _read_once[obj.name] = rest
-    return rest
+        _read_once[obj.name] = read
+    return read
 
 
-def _read_rest(obj: bpy.types.Object) -> _Rest:
+def _read_rest(obj: bpy.types.Object) -> tuple[_Rest, dict[str, np.ndarray]]:
     if obj is None or obj.type != "ARMATURE":
         raise RigError("The active object is not an armature: select a rig")
     world = _object_world(obj)
@@ -86,11 +92,12 @@ def _read_rest(obj: bpy.types.Object) -> _Rest:
     head = _apply(world, head_l.reshape(n, 3).astype(np.float64))
     tail = _apply(world, tail_l.reshape(n, 3).astype(np.float64))
     rest = _Rest(names, index, parent, head, tail, local_m, world, scale)
-    leaves = [i for i in range(n) if not rest.children(i) and not rest.phantom[i]]
-    skin = _skin_points(obj, [names[i] for i in leaves])
-    if not skin:
-        return rest
-    return with_leaf_ends(rest, {index[k]: v for k, v in skin.items()})
+    # One pass over the skin for every bone: the leaves' far ends here, the feet's soles in
+    # read_rig.
+    skin = _skin_points(obj, names)
+    leaves = {i for i in range(n) if not rest.children(i) and not rest.phantom[i]}
+    leaf_skin = {index[k]: v for k, v in skin.items() if index[k] in leaves}
+    return (with_leaf_ends(rest, leaf_skin) if leaf_skin else rest), skin
 
 
 def _skin_points(obj: bpy.types.Object, bone_names: Sequence[str]) -> dict[str, np.ndarray]:
@@ -171,7 +178,7 @@ def read_rig(
     Raises :class:`RigError` for anything that cannot be animated (not an armature, bad
     legs, legs with no common body bone, non-uniform scale).
     """
-    rest = _rest_of(obj)
+    rest, skin = _read(obj)
     if legs is None:
         legs = detect_legs(obj)
     legs = list(legs)
@@ -225,9 +232,8 @@ def read_rig(
 
     foot_bones = [[rest.index[f] for f in leg.foot] for leg in legs]
     foot_bones = [sorted({*fb, *(c for k in fb for c in _descendants(rest, k))}) for fb in foot_bones]
-    skin = _skin_points(obj, [rest.names[k] for fb in foot_bones for k in fb])
-    posed_skin = {rest.index[name]: _posed_points(rest, posed_local, rest.index[name], pts)
-                  for name, pts in skin.items()}
+    posed_skin = {k: _posed_points(rest, posed_local, k, skin[rest.names[k]])
+                  for fb in foot_bones for k in fb if rest.names[k] in skin}
 
     joints = []
     contact = []
