@@ -15,6 +15,7 @@ import pytest
 from bpy_extras.object_utils import world_to_camera_view
 from mathutils import Euler
 
+from procloco_addon.blender.cli import image_pixels
 from tests.blender.pose_eval import object_world_matrices
 from tools.examples import creatures, procloco_props, scene, terrain
 
@@ -231,14 +232,7 @@ def test_terrain_roles(empty_scene: Any) -> None:
 def _render_pixels(sc: bpy.types.Scene, path: Path) -> np.ndarray:
     sc.render.filepath = str(path)
     bpy.ops.render.render(write_still=True)
-    image = bpy.data.images.load(str(path))
-    try:
-        w, h = image.size
-        px = np.empty(w * h * 4, dtype=np.float32)
-        image.pixels.foreach_get(px)
-    finally:
-        bpy.data.images.remove(image)
-    return px.reshape(h, w, 4)[..., :3]  # row 0 is the bottom of the picture
+    return image_pixels(path)[..., :3]  # row 0 is the bottom of the picture
 
 
 def test_example_scene_render_shows_every_creature(empty_scene: Any, tmp_path: Path) -> None:
