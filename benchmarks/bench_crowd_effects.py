@@ -45,8 +45,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.bench_crowd import camera_setup
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
 from procloco_addon.core import morphology
-from procloco_addon.core.controller import ControllerParams
 from procloco_addon.core.gait import Gait, find_gait_preset
+from procloco_addon.core.locomotion.types import ControllerParams
 from procloco_addon.core.morphology import Morphology
 from procloco_addon.core.sim import Controls, Simulation
 from procloco_addon.core.spine import SpineParams

@@ -149,7 +149,7 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
     wrapped for ``steps`` steps after ``warmup`` ones, and the inputs of every call copied
     (the windows are kept as they are: nothing writes into them)."""
     from benchmarks import bench_crowd
-    from procloco_addon.core import controller
+    from procloco_addon.core.locomotion import planning as controller  # where the planner is called
 
     args = argparse.Namespace(chars=100, steps=steps, warmup=warmup, seed=seed, scale=2.0, profile=False)
     scene, sim = bench_crowd.build(args, mode)

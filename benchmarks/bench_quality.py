@@ -59,9 +59,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from procloco_addon.core import metrics as mx
 from procloco_addon.core import morphology
-from procloco_addon.core.controller import ControllerParams
 from procloco_addon.core.footprints import PlannerParams
 from procloco_addon.core.gait import find_gait_preset
+from procloco_addon.core.locomotion.types import ControllerParams
 from procloco_addon.core.morphology import Morphology
 from procloco_addon.core.sim import Controls, SimResult, Simulation, check_motion
 from procloco_addon.core.spine import SpineParams

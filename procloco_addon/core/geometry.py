@@ -61,3 +61,38 @@ def z_rotations(angle: FloatArray) -> FloatArray:
     out[..., 1, 1] = c
     out[..., 2, 2] = 1.0
     return out
+
+
+def wrap_angle(a: npt.ArrayLike) -> FloatArray:
+    """Angles wrapped to ``[-π, π)``."""
+    return np.asarray(np.mod(np.asarray(a, dtype=np.float64) + np.pi, 2.0 * np.pi) - np.pi)
+
+
+def rotate_xy(v: FloatArray, yaw: FloatArray) -> FloatArray:
+    """2-vectors ``v (n, 2)`` turned by ``yaw (n,)`` radians about Z: ``(n, 2)``."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    out = np.empty((v.shape[0], 2))
+    out[:, 0] = c * v[:, 0] - s * v[:, 1]
+    out[:, 1] = s * v[:, 0] + c * v[:, 1]
+    return out
+
+
+def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> FloatArray:
+    """Body-to-world rotations ``(n, 3, 3)``: yaw about world z, then pitch (nose up
+    positive), then roll (left side up positive) about the body's own axes."""
+    cy, sy = np.cos(yaw), np.sin(yaw)
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    cr, sr = np.cos(roll), np.sin(roll)
+    # Rz(yaw) @ Ry'(pitch, nose up = about -y) @ Rx(roll) multiplied out (the step asks for
+    # these a few times; two stacked 3x3 products cost more than the nine entries)
+    out = np.empty((yaw.shape[0], 3, 3))
+    out[:, 0, 0] = cy * cp
+    out[:, 0, 1] = -sy * cr - cy * sp * sr
+    out[:, 0, 2] = sy * sr - cy * sp * cr
+    out[:, 1, 0] = sy * cp
+    out[:, 1, 1] = cy * cr - sy * sp * sr
+    out[:, 1, 2] = -cy * sr - sy * sp * cr
+    out[:, 2, 0] = sp
+    out[:, 2, 1] = cp * sr
+    out[:, 2, 2] = cp * cr
+    return out

@@ -32,9 +32,11 @@ import numpy.typing as npt
 
 from . import metrics as mx
 from .autogait import AutoGait, AutoGaitParams
-from .controller import Controller, ControllerParams, PlannerLOD, StepControls, StepStats, wrap_angle
 from .footprints import PlannerParams
 from .gait import Gait
+from .geometry import wrap_angle
+from .locomotion.controller import Controller
+from .locomotion.types import ControllerParams, PlannerLOD, StepControls, StepStats
 from .morphology import LegBatch, Morphology
 from .spine import SpineParams
 from .terrain import NO_SURFACE, ROLE_AVOID, Environment

@@ -9,9 +9,14 @@ import numpy as np
 import pytest
 
 from procloco_addon.core import morphology as morph
-from procloco_addon.core.controller import Controller, ControllerParams, StepControls, rotation_matrices
 from procloco_addon.core.footprints import Couple, FootRequest, plan_footstep
 from procloco_addon.core.gait import find_gait_preset
+from procloco_addon.core.geometry import rotation_matrices
+from procloco_addon.core.locomotion import fallback, obstacles, pelvis, reach, spine_link
+from procloco_addon.core.locomotion.controller import Controller
+from procloco_addon.core.locomotion.rig import rate_scale, stroke_limits
+from procloco_addon.core.locomotion.state import Phase
+from procloco_addon.core.locomotion.types import ControllerParams, StepControls
 from procloco_addon.core.morphology import LegBatch
 from procloco_addon.core.sim import Controls, Simulation, check_motion
 from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
@@ -21,13 +26,13 @@ from tests.core.cross_path import assert_close
 def _plan_each_foot_with(monkeypatch: pytest.MonkeyPatch, plan: Callable[..., object]) -> None:
     """Make the controller's batched planner answer each foot with ``plan`` (a stand-in with
     ``plan_footstep``'s signature), so a test can fail or bend chosen plans."""
-    import procloco_addon.core.controller as controller_module
+    from procloco_addon.core.locomotion import planning as planning_module
 
     def batched(requests: Sequence[FootRequest]) -> list[object]:
         return [plan(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
                      r.params, r.foot_yaw) for r in requests]
 
-    monkeypatch.setattr(controller_module, "plan_footsteps", batched)
+    monkeypatch.setattr(planning_module, "plan_footsteps", batched)
 
 def _flat(half: float = 4.0, boxes: Boxes | None = None) -> Environment:
     n = int(2 * half / 0.05)
@@ -214,13 +219,21 @@ def test_feet_feedback_moves_the_pelvis_only_when_significant() -> None:
     ctrl, legs = _spider_controller(_flat())
     leg = float(legs.leg_length.mean())
     start = ctrl.pos.copy()
+    lengths = ctrl.rig.char_leg_length
+
+    def move(dt: float) -> np.ndarray | None:
+        cycle = ctrl.gait.cycle_time
+        return pelvis.feedback_move(ctrl.leg_char, ctrl.params, ctrl.feedback, lengths, cycle, dt)
+
     ctrl.feedback[:] = [0.02 * leg, 0.0]  # below the threshold: ignored
-    ctrl._apply_feedback(0.1)
-    np.testing.assert_allclose(ctrl.pos, start)
+    assert move(0.1) is None
+    np.testing.assert_allclose(ctrl.feedback[:, 0], 0.02 * leg)
     ctrl.feedback[:] = [0.0, 0.3 * leg]
-    ctrl._apply_feedback(0.07)
+    moved = move(0.07)
     share = 0.07 / ctrl.gait.cycle_time[0]
-    np.testing.assert_allclose(ctrl.pos[0, :2] - start[0, :2], [0.0, 0.3 * leg * share])
+    assert moved is not None
+    np.testing.assert_allclose(moved[0], [0.0, 0.3 * leg * share])
+    np.testing.assert_allclose(ctrl.pos, start)  # the move is the caller's to apply
     # the part worked off is consumed, so the pelvis does not drift forever
     np.testing.assert_allclose(ctrl.feedback[:, 1], 0.3 * leg * (1.0 - share))
 
@@ -228,7 +241,9 @@ def test_feet_feedback_moves_the_pelvis_only_when_significant() -> None:
 def test_reach_guard_lowers_the_pelvis_to_keep_legs_within_reach() -> None:
     ctrl, _ = _spider_controller(_flat())
     ctrl.foot[0, 2] -= 0.3  # a foot in a hole
-    ctrl._reach_guard()
+    drop = reach.guard_drop(ctrl.rig, ctrl.params, ctrl.hips_world(), ctrl.foot, ctrl.link.spine_legs)
+    assert drop[0] > 0.0
+    ctrl.pos[:, 2] -= drop
     hips = ctrl.hips_world()
     dist = np.linalg.norm(hips - ctrl.foot, axis=1)
     assert np.all(dist <= ctrl.guard_reach + 1e-9)
@@ -336,8 +351,6 @@ def _row_of_legs(gap: float, reach_y: float = 0.4) -> LegBatch:
 
 
 def test_stroke_limits_keep_neighbouring_feet_a_clearance_apart() -> None:
-    from procloco_addon.core.controller import stroke_limits
-
     legs = _row_of_legs(gap=0.3)
     far = np.full(4, 10.0)
     clearance = np.array([0.08])
@@ -351,8 +364,6 @@ def test_stroke_limits_keep_neighbouring_feet_a_clearance_apart() -> None:
 
 
 def test_stroke_limits_keep_feet_within_reach_at_both_ends_of_the_sweep() -> None:
-    from procloco_addon.core.controller import stroke_limits
-
     legs = _row_of_legs(gap=0.3)
     rest = legs.rest_foot - legs.hip_offset
     reach = np.full(4, 0.45)
@@ -381,8 +392,8 @@ def test_the_needle_starts_at_the_speed_the_stroke_limit_asks_for() -> None:
 def test_a_rigid_body_turning_fast_shortens_its_steps() -> None:
     ctrl, _ = _spider_controller(_flat())
     speed = np.array([0.2])
-    straight = ctrl._rate_scale(speed, np.zeros(1))
-    turning = ctrl._rate_scale(speed, np.array([2.0]))
+    straight = rate_scale(ctrl.rig, ctrl.gait, ctrl.link.has_spine, speed, np.zeros(1))
+    turning = rate_scale(ctrl.rig, ctrl.gait, ctrl.link.has_spine, speed, np.array([2.0]))
     # planted feet far from the pelvis sweep sideways in a turn: the cycle runs faster
     assert turning[0] > straight[0] >= 1.0
 
@@ -557,6 +568,17 @@ def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytes
     assert failed > 0  # the detours were refused (the feet stepped when forced instead)
 
 
+def _pose_spine(
+    ctrl: Controller, z: np.ndarray, physics_on: np.ndarray, dt: float, swinging: np.ndarray,
+    swing_u: np.ndarray,
+) -> None:
+    """Step 4 of the spines with the feet ``swinging`` at swing progress ``swing_u``."""
+    rig = ctrl.rig
+    at = spine_link.PoseInputs(ctrl.foot, swinging, ctrl.target, swing_u, rig.guard_reach, rig.foot_lift,
+                               rig.body_thickness)
+    spine_link.pose(ctrl.link, ctrl.body, ctrl.params, at, z, physics_on, dt)
+
+
 @pytest.mark.parametrize("release", [0.2, 1e-6])
 def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(release: float) -> None:
     from procloco_addon.core.spine import SpineParams
@@ -566,7 +588,7 @@ def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(re
     gait = find_gait_preset("quadruped_walk").gait(dog.labels)
     ctrl = Controller(_flat(), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0),
                       params=ControllerParams(reach_release_time=release), spine=[SpineParams()])
-    ctrl.swinging[:] = False  # every foot planted
+    ctrl.feet.phase[:] = Phase.PLANTED  # every foot planted
     group = ctrl.spine_groups[0]
     z = np.zeros(ctrl.n_nodes)
     z[group.nodes[0]] = group.height[0]
@@ -575,7 +597,7 @@ def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(re
     reach = ctrl.guard_reach
 
     def pose_and_check() -> float:
-        ctrl._spine_pose(z, off, dt)
+        _pose_spine(ctrl, z, off, dt, ctrl.swinging, ctrl.feet.swing_u)
         assert np.all(np.linalg.norm(ctrl.foot - ctrl.hips_world(), axis=1) <= reach + 1e-6)
         assert group.reach_shift is not None
         return float(np.linalg.norm(group.reach_shift, axis=-1).max())
@@ -591,6 +613,11 @@ def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(re
     assert kept == pytest.approx(pulled * np.exp(-dt / release), rel=1e-6, abs=1e-9)
 
 
+def _wait(ctrl: Controller, candidates: np.ndarray, stretch: np.ndarray, airborne: np.ndarray) -> np.ndarray:
+    error = None if ctrl.ik_result is None else ctrl.ik_result.error
+    return reach.wait_for_support(ctrl.rig, ctrl.params, candidates, stretch, airborne, error)
+
+
 def test_a_foot_left_behind_waits_while_too_few_feet_would_stay_down() -> None:
     dog = morph.quadruped()
     legs = LegBatch.stack([dog])
@@ -601,30 +628,30 @@ def test_a_foot_left_behind_waits_while_too_few_feet_would_stay_down() -> None:
     none_lifted = np.zeros(4, dtype=bool)
     hind = np.array([False, False, True, True])
     # both front feet in the air: a hind foot stepping now would leave one foot down
-    ctrl.swinging[:] = [True, True, False, False]
-    assert ctrl._wait_for_support(hind, mild, none_lifted).tolist() == [False, False, True, True]
+    swinging = np.array([True, True, False, False])
+    assert _wait(ctrl, hind, mild, swinging | none_lifted).tolist() == [False, False, True, True]
     # unless keeping it would need the pelvis to drop too far: it steps, the other waits
     urgent = mild.copy()
     urgent[3] = 0.5 * thick
-    assert ctrl._wait_for_support(hind, urgent, none_lifted).tolist() == [False, False, True, False]
+    assert _wait(ctrl, hind, urgent, swinging | none_lifted).tolist() == [False, False, True, False]
     # one front foot in the air: the more stretched hind foot steps, the other waits
-    ctrl.swinging[:] = [True, False, False, False]
+    swinging = np.array([True, False, False, False])
     more = mild.copy()
     more[2] = 0.25 * thick
-    assert ctrl._wait_for_support(hind, more, none_lifted).tolist() == [False, False, False, True]
+    assert _wait(ctrl, hind, more, swinging | none_lifted).tolist() == [False, False, False, True]
     # a foot the gait lifts this frame counts as in the air
     lifting = np.array([False, True, False, False])
-    assert ctrl._wait_for_support(hind, more, lifting).tolist() == [False, False, True, True]
+    assert _wait(ctrl, hind, more, swinging | lifting).tolist() == [False, False, True, True]
     # a biped keeps one foot down (its other one), not two
     human = morph.biped()
     two = LegBatch.stack([human])
     walk = find_gait_preset("biped_walk").gait(human.labels)
     ctrl2 = Controller(_flat(), two, [walk], np.zeros((1, 2)), np.zeros(1), _controls(two, speed=0.0))
-    ctrl2.swinging[:] = False
+    swinging = np.zeros(2, dtype=bool)
     behind, small, still = np.array([True, False]), np.full(2, 0.01), np.zeros(2, dtype=bool)
-    assert ctrl2._wait_for_support(behind, small, still).tolist() == [False, False]
-    ctrl2.swinging[:] = [False, True]
-    assert ctrl2._wait_for_support(behind, small, still).tolist() == [True, False]
+    assert _wait(ctrl2, behind, small, swinging | still).tolist() == [False, False]
+    swinging = np.array([False, True])
+    assert _wait(ctrl2, behind, small, swinging | still).tolist() == [True, False]
 
 
 def test_a_straight_fallback_step_down_stairs_never_cuts_a_stair_edge() -> None:
@@ -644,7 +671,8 @@ def test_a_straight_fallback_step_down_stairs_never_cuts_a_stair_edge() -> None:
         hip = ctrl.hips_world()[leg].copy()
         hip[:2] = start[:2] + aside
         hip[2] = start[2] + 0.8 * legs.leg_length[leg]
-        got = ctrl._straight_step(leg, start, start[:2] + ahead, u, 0.03, 0.1, hip, hip[:2] + ahead)
+        got = fallback.straight_step(ctrl.env, ctrl.rig, ctrl.params, leg, start, start[:2] + ahead, u, 0.03,
+                                     0.1, hip, hip[:2] + ahead)
         if got is None:
             continue
         samples, _ = got
@@ -667,7 +695,7 @@ def test_a_swinging_foot_pulls_its_node_down_to_its_landing_height_as_it_comes_d
     gait = find_gait_preset("quadruped_walk").gait(dog.labels)
     ctrl = Controller(_flat(), legs, [gait], np.zeros((1, 2)), np.zeros(1), _controls(legs, speed=0.0),
                       params=ControllerParams(reach_release_time=1e-6), spine=[SpineParams()])
-    ctrl.swinging[:] = False
+    ctrl.feet.phase[:] = Phase.PLANTED
     group = ctrl.spine_groups[0]
     z = np.zeros(ctrl.n_nodes)
     z[group.nodes[0]] = group.height[0]
@@ -677,15 +705,17 @@ def test_a_swinging_foot_pulls_its_node_down_to_its_landing_height_as_it_comes_d
     slack = ctrl.params.swing_reach_slack
     # leg 0 swings down a step: its landing is so low that, straight under where the foot is
     # now, it lies just beyond the leg's reach (within the slack)
-    ctrl.swinging[0] = True
+    swinging = ctrl.swinging
+    swinging[0] = True
+    swing_u = np.ones(ctrl.n_legs)
     ctrl.foot[0, :2] = hip[:2] + np.array([0.2 * reach, 0.0])
     ctrl.foot[0, 2] = hip[2] - 0.5 * reach
     low = hip[2] - np.sqrt((reach * (1.0 + 0.5 * slack)) ** 2 - (0.2 * reach) ** 2)
     ctrl.target[0] = [ctrl.foot[0, 0] + 0.05, ctrl.foot[0, 1], low]
 
     def pull_at(progress: float) -> float:
-        ctrl._swing_u[0] = progress
-        ctrl._spine_pose(z, off, 1.0 / 30.0)
+        swing_u[0] = progress
+        _pose_spine(ctrl, z, off, 1.0 / 30.0, swinging, swing_u)
         assert group.reach_shift is not None
         return float(np.linalg.norm(group.reach_shift, axis=-1).max())
 
@@ -710,12 +740,13 @@ def test_a_footprint_hanging_over_a_hole_moves_onto_the_ground_its_foot_reaches(
     env = _gap_env(0.0, 0.3)
     ctrl, _ = _spider_controller(env)
     half = float(np.max(ctrl.foot_half[0]))
-    shift = ctrl._onto_support(np.array([0.01, 0.0]), 0)
+    shift = obstacles.onto_support(env, ctrl.rig, np.array([0.01, 0.0]), 0)
     assert shift is not None
     assert shift[0] < 0.0
     assert np.linalg.norm(shift) <= 2.5 * half + 1e-9
     assert env.height_at(np.array([[0.01 + shift[0], shift[1]]]))[0] > NO_SURFACE / 2
-    assert ctrl._onto_support(np.array([0.15, 0.0]), 0) is None  # mid-gap: nothing in reach
+    # mid-gap: nothing in reach
+    assert obstacles.onto_support(env, ctrl.rig, np.array([0.15, 0.0]), 0) is None
 
 
 def test_walking_over_a_gap_never_plants_a_foot_over_the_hole() -> None:

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from procloco_addon.core import morphology as morph
-from procloco_addon.core.controller import ControllerParams
 from procloco_addon.core.footprints import PlannerParams
 from procloco_addon.core.gait import find_gait_preset
+from procloco_addon.core.locomotion.types import ControllerParams
 from procloco_addon.core.sim import Controls, GaitChange, SimResult, Simulation, check_motion
 from procloco_addon.core.spine import SpineParams, wrap_angle
 from procloco_addon.core.terrain import ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Boxes, Environment, Heightmap

@@ -18,8 +18,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ...core.autogait import AutoGait
-from ...core.controller import Controller, ControllerParams, StepControls
 from ...core.footprints import PlannerParams
+from ...core.locomotion.controller import Controller
+from ...core.locomotion.types import ControllerParams, StepControls
 from ...core.morphology import LegBatch
 from ...core.pelvis_physics import PelvisPhysicsParams
 from ...core.progression import ProgressionParams, ProgressionState, effects_step, initial_gaits

@@ -1,0 +1,652 @@
+"""The character controller: feet and pelvis of many characters, one step at a time
+(thesis §3.2, §3.6; pelvis pseudo-physics §4.1). ``Controller`` is the thin orchestrator: it
+holds the state and calls the functions of the other ``locomotion`` modules in the order
+below; each step's phases are timed by ``profile.Profiler`` around those calls.
+
+Per step, for all characters at once:
+
+1. **Heading and needle.** The heading turns toward the commanded one at a bounded rate.
+   The gait's needle advances; when the commanded speed (and, for a rigid body, its turn:
+   planted feet far from the pelvis sweep sideways) would make a stance sweep longer than
+   the legs allow, the needle runs faster (a shorter cycle) so feet keep up with the body
+   instead of over-stretching. What the legs allow (``stroke_limit``, from the rest pose):
+   every foot within reach at both ends of its sweep, a landing foot never crossing nor
+   crowding a neighbour's planted foot, and never more than ``max_stroke`` leg lengths.
+2. **Pelvis in the ground plane** (§3.2.2): speed along the heading, plus the feet-error
+   feedback (figure 3.9): the mean offset between preferred and chosen footprints, when it
+   exceeds ``feedback_threshold`` leg lengths, is worked off over a cycle.
+3. **Feet** (§3.2.1, figure 3.5). A foot entering swing gets a *preferred footprint*: where
+   the pelvis will be when it lands (speed and heading extrapolated), plus the leg's rest
+   position and the user's spacing offset, plus half the stance sweep forward so the foot
+   passes under its rest position at mid-stance (figures 3.6, 3.7). The footprint planner
+   (``footprints.plan_footsteps``, through ``planning``) returns the best couple; the foot
+   follows the trajectory at
+   constant speed over the rest of its swing. A swinging foot is re-planned from where it is
+   (sequences 1-3, §3.6) when the commanded heading or speed changed noticeably since its
+   plan, when its spacing changed, or when a moving obstacle now cuts its remaining
+   trajectory or its target. Stance feet are locked; when the support under one moves or
+   becomes forbidden (sequence 4), that foot takes a short forced step to a new footprint.
+   Moving obstacles are watched on two rings around each planted foot (and each landing
+   spot): one closing in makes the foot step away (or re-plan its landing) before it
+   arrives; one that reaches a foot anyway pushes it out the shorter way, aside rather than
+   onto the top of an avoided obstacle. A foot left behind (it would need the pelvis to sink
+   more than ``max_drop``) steps early, also when its gait swing could not be planned.
+4. **Pelvis height, pitch and roll** (§3.2.2, figure 3.8): the upper convex hull of the
+   terrain under the body box and of the planted feet (and the targets of swinging feet),
+   along the body's forward axis for height and pitch and along its left axis for roll;
+   the pelvis sits ``body_thickness`` above it, low-pass filtered over a fraction of a cycle.
+   With pseudo-physics on, that height is the preferred height ``y_T`` of the pogo particles
+   (``pelvis_physics``). Finally, if a leg would have to stretch beyond ``reach_margin`` of
+   its length, the pelvis is lowered just enough ("the pelvis stays above its feet").
+5. **Legs**: IK (``ik.solve_legs``) from the hips to the feet.
+
+**Flexible spine** (thesis §4.2, §4.4; ``core.spine``), per character: a character whose
+morphology has a spine and which is given ``SpineParams`` walks on its *virtual pelvis
+nodes* instead of one rigid pelvis. Steps 1-2 of the spine replace the heading and the
+ground-plane motion (the head turns, the other nodes follow it on the previous spine); each
+foot is planned in the frame of its own node, predicted along the spine to where the node
+will be when the foot lands; every node gets its own hull height (``spine.terrain_guides``)
+and, with pseudo-physics on, its own pogo particles (the legs hanging from it; the head
+node, without legs, keeps its guide), its own pitch (environment averaged with the pitch
+its feet induce) and, with visual yaw, the sway of §4.4; step 4 draws the spine as a
+Hermite curve sampled at the bones' lengths and repeats it on guides moved toward the feet
+while a leg cannot reach (``spine.repeat_for_reach``, in place of the pelvis reach guard).
+The hips ride with their node (or the spine bone that carries them) and the IK poses each
+leg in that frame. Characters without ``SpineParams`` move exactly as described above.
+
+Characters may differ in morphology and gait; legs live on one flat axis (``LegBatch``).
+
+Where each concern lives: ``state`` (per-foot phase and swing plan), ``rig`` (fixed geometry,
+stride rule), ``planning`` (plan orchestration), ``obstacles`` (moving obstacles, supports,
+push-out), ``fallback`` (straight steps), ``pelvis`` (hull pose, feedback, pogo particles),
+``spine_link`` (spine groups), ``reach`` (reach guard, stretched legs, IK), ``types``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ..footprints import PlannerParams
+from ..gait import Gait, GaitManager, GaitStep
+from ..geometry import rotate_xy, rotation_matrices, wrap_angle
+from ..ik import IKResult
+from ..morphology import LegBatch
+from ..pelvis_physics import PelvisPhysics
+from ..spine import SpineParams
+from ..terrain import Environment
+from . import obstacles, pelvis, planning, reach, spine_link
+from .obstacles import Watch
+from .pelvis import Body, Pogo
+from .profile import Profiler
+from .rig import Rig, build_rig, rate_scale
+from .spine_link import SpineGroup, SpineLink
+from .state import FootState, sample_polyline, start_feet, support_points, swing_parameter
+from .types import (
+    VOID,
+    BoolArray,
+    ControllerParams,
+    FloatArray,
+    IntArray,
+    PlannerLOD,
+    StepControls,
+    StepStats,
+)
+
+Flags = tuple[BoolArray, BoolArray, BoolArray]
+
+
+@dataclass
+class _Schedule:
+    """One step's swing timing of every foot ``(N,)``: swing ``progress``, the progress
+    ``start_u`` where a new trajectory starts (where the foot is now), seconds ``remaining``
+    of the swing and of the following stance (``stance_time``), and the feet to plan."""
+
+    progress: FloatArray
+    start_u: FloatArray
+    remaining: FloatArray
+    stance_time: FloatArray
+    to_plan: BoolArray
+
+
+class Controller:
+    """State and step of many characters (see the module docstring).
+
+    ``env``: the environment; ``legs``: every character's legs (``LegBatch``); ``gaits``: one
+    ``Gait`` per character; ``start_xy (C, 2)``, ``start_yaw (C,)``: initial pelvis ground
+    position and heading; ``phase (C,)``: initial needle phases; ``planner``: optional
+    per-character ``PlannerParams`` (replacing the derived ones except step height, reach,
+    foot size and height change); ``lod``: optional per-character ``PlannerLOD``;
+    ``controls``: the first step's commands (for the initial planning of feet that start in
+    swing); ``spine``: optional per-character ``SpineParams`` (None: a rigid body) for
+    characters whose morphology has a spine (``Morphology.with_spine``).
+
+    State: ``rig`` (fixed geometry), ``body`` (pelvis poses), ``feet`` (per-foot phase and
+    plan), ``link`` (spine nodes and groups), ``watch`` (obstacle rings), ``pogo`` (pelvis
+    particles), ``gait``, and the legs' ``angles`` and last ``ik_result``.
+    """
+
+    def __init__(
+        self,
+        env: Environment,
+        legs: LegBatch,
+        gaits: Sequence[Gait],
+        start_xy: npt.ArrayLike,
+        start_yaw: npt.ArrayLike,
+        controls: StepControls,
+        *,
+        phase: npt.ArrayLike | None = None,
+        params: ControllerParams | None = None,
+        planner: Sequence[PlannerParams | None] | None = None,
+        lod: Sequence[PlannerLOD | None] | None = None,
+        spine: Sequence[SpineParams | None] | None = None,
+    ) -> None:
+        self.env = env
+        self.legs = legs
+        self.params = p = params or ControllerParams()
+        c, n = legs.n_chars, legs.n_legs
+        self.n_chars, self.n_legs = c, n
+        self.leg_char = legs.leg_char
+        self.link: SpineLink = spine_link.build_link(legs, spine)
+        self.gait = GaitManager(legs.leg_char, gaits, phase)
+        self.time = 0.0
+        self.rig: Rig = build_rig(legs, p)
+        self._planner_override = list(planner) if planner is not None else [None] * c
+        self.lod: list[PlannerLOD | None] = list(lod) if lod is not None else [None] * c
+        self.body: Body = pelvis.start_body(start_xy, start_yaw, c, n)
+        # the needle already runs at the speed the commanded stroke asks for
+        self.gait.rate_scale = rate_scale(self.rig, self.gait, self.link.has_spine,
+                                          np.asarray(controls.speed, dtype=np.float64))
+        foot = self._walking_start(controls)
+        self.watch: Watch = obstacles.make_watch(env, self.rig, p, foot)
+        self.feet: FootState = start_feet(foot, p.trajectory_samples)
+        self.angles = legs.rest_angles.copy()
+        # last step's leg-plane normals (body frame): the plane turns on from them
+        self.leg_normals: FloatArray | None = None
+        self.ik_result: IKResult | None = None
+        self._start_pelvis(controls)
+        self._start_swings(controls)
+        self._reach_guard()
+        self._solve_ik(controls)
+
+    def _walking_start(self, controls: StepControls) -> FloatArray:
+        """``(N, 3)`` feet as if already walking: a planted foot where the stance sweep has
+        brought it, a foot in its swing sector at its lift-off spot (no stumble at the first
+        frame)."""
+        g, legs, n = self.gait, self.legs, self.n_legs
+        period = 1.0 / g.rate()[legs.leg_char]
+        stance_time = (1.0 - g.disk_duration) * period
+        stance_done: FloatArray = np.where(
+            g.swing,
+            1.0,
+            np.mod(g.needle[legs.leg_char] - g.disk_start - g.disk_duration, 1.0) / (1.0 - g.disk_duration),
+        ).astype(np.float64)
+        speed0 = np.asarray(controls.speed, dtype=np.float64)[legs.leg_char]
+        sweep = np.asarray((0.5 - stance_done) * speed0 * stance_time, dtype=np.float64)
+        spacing0 = np.asarray(controls.spacing, dtype=np.float64).reshape(n, 2)
+        rest_xy = np.asarray(
+            legs.rest_foot[:, :2] + spacing0 + np.column_stack([sweep, np.zeros(n)]), dtype=np.float64
+        )
+        foot_xy = self.body.pos[legs.leg_char, :2] + rotate_xy(rest_xy, self.body.yaw[legs.leg_char])
+        h = self.env.height_at(foot_xy)
+        return np.column_stack([foot_xy, np.where(h > VOID, h, 0.0)])
+
+    def _start_pelvis(self, controls: StepControls) -> None:
+        """The initial pelvis pose from the hull, the pogo particles and the spines."""
+        body, link = self.body, self.link
+        support = support_points(self.feet, self.feet.swinging)
+        height, pitch, roll = pelvis.hull_pose(self.env, self.rig, self.params.body_samples, body, support)
+        body.pitch, body.roll = pitch, roll
+        body.height_target = height
+        body.pos[:, 2] = height
+        on = np.asarray(controls.pelvis_physics, dtype=bool).copy()
+        # the needle rate the pelvis particles' orbit was made for (re-made when it jumps)
+        self.pogo = Pogo(PelvisPhysics(link.leg_node, link.n_nodes, params=self.params.physics), on,
+                         self.gait.rate()[self.leg_char].copy())
+        pref_nodes = spine_link.start(link, self.env.height_at, body, support, height)
+        if np.any(on):
+            self.pogo.physics.reset(
+                pref_nodes,
+                self.gait.needle[self.leg_char],
+                self.gait.rate()[self.leg_char],
+                self.gait.disk_start,
+                self.gait.disk_duration,
+            )
+            centered = self.pogo.physics.centered_height()
+            body.pos[:, 2] = np.where(on, centered[link.node_start[:-1]], height)
+            pref_nodes = np.where(on[link.node_char], centered, pref_nodes)
+        if link.groups:
+            self._spine_pose(pref_nodes, on, 0.0, self.feet.swinging)
+
+    def _start_swings(self, controls: StepControls) -> None:
+        """Feet that start inside their swing sector are planned right away (a failed plan
+        is tried again at the first step)."""
+        g, n = self.gait, self.n_legs
+        start_swing = g.swing.copy()
+        if not np.any(start_swing):
+            return
+        needle = g.needle[self.leg_char]
+        period = 1.0 / g.rate()[self.leg_char]
+        progress = np.where(start_swing, np.mod(needle - g.disk_start, 1.0) / g.disk_duration, 0.0)
+        swing_time = g.disk_duration * period
+        stance_time = (1.0 - g.disk_duration) * period
+        flags = self.feet.flags()
+        self._plan(np.flatnonzero(start_swing), controls, flags, progress, (1.0 - progress) * swing_time,
+                   stance_time, np.zeros(n), StepStats(), Profiler({}))
+        failed = flags[2]
+        self.feet.set_flags(start_swing & ~failed, flags[1], failed)
+        self.feet.retry = start_swing & failed
+
+    # ---------------------------------------------------------------- read-outs
+    @property
+    def pos(self) -> FloatArray:
+        """``(C, 3)`` pelvis positions."""
+        return self.body.pos
+
+    @property
+    def yaw(self) -> FloatArray:
+        """``(C,)`` pelvis headings (radians from world +X)."""
+        return self.body.yaw
+
+    @property
+    def pitch(self) -> FloatArray:
+        """``(C,)`` pelvis pitch (nose up positive)."""
+        return self.body.pitch
+
+    @property
+    def roll(self) -> FloatArray:
+        """``(C,)`` pelvis roll (left side up positive)."""
+        return self.body.roll
+
+    @property
+    def feedback(self) -> FloatArray:
+        """``(N, 2)`` footprint errors still to work off (thesis figure 3.9)."""
+        return self.body.feedback
+
+    @property
+    def foot(self) -> FloatArray:
+        """``(N, 3)`` feet (on the ground they are planned on)."""
+        return self.feet.foot
+
+    @property
+    def target(self) -> FloatArray:
+        """``(N, 3)`` each foot's footprint (where a swinging one lands)."""
+        return self.feet.plan.target
+
+    @property
+    def preferred(self) -> FloatArray:
+        """``(N, 3)`` each foot's last preferred footprint."""
+        return self.feet.preferred
+
+    @property
+    def traj(self) -> FloatArray:
+        """``(N, k + 1, 3)`` each foot's swing trajectory samples."""
+        return self.feet.plan.traj
+
+    @property
+    def swinging(self) -> BoolArray:
+        """``(N,)`` feet in the air."""
+        return self.feet.swinging
+
+    @property
+    def forced(self) -> BoolArray:
+        """``(N,)`` feet on a forced step."""
+        return self.feet.forced
+
+    @property
+    def plan_failed(self) -> BoolArray:
+        """``(N,)`` feet down in their swing sector because their plan failed."""
+        return self.feet.plan_failed
+
+    @property
+    def spine_params(self) -> list[SpineParams | None]:
+        """Each character's ``SpineParams`` (None: a rigid body)."""
+        return self.link.params
+
+    @property
+    def spine_groups(self) -> list[SpineGroup]:
+        """The groups of spine characters (``spine_link``)."""
+        return self.link.groups
+
+    @property
+    def n_nodes(self) -> int:
+        """Pelvis nodes of every character (one per rigid one, ``K`` per spine)."""
+        return self.link.n_nodes
+
+    @property
+    def leg_node(self) -> IntArray:
+        """``(N,)`` the pelvis node each leg hangs from."""
+        return self.link.leg_node
+
+    @property
+    def stroke_limit(self) -> FloatArray:
+        """``(C,)`` the longest stance sweep the legs allow (metres)."""
+        return self.rig.stroke_limit
+
+    @property
+    def comfort_reach(self) -> FloatArray:
+        """``(N,)`` reach beyond which a planted foot steps early."""
+        return self.rig.comfort_reach
+
+    @property
+    def guard_reach(self) -> FloatArray:
+        """``(N,)`` reach the pelvis sinks to keep its feet within."""
+        return self.rig.guard_reach
+
+    @property
+    def body_thickness(self) -> FloatArray:
+        """``(C,)`` body thickness of every character."""
+        return self.rig.body_thickness
+
+    @property
+    def foot_half(self) -> FloatArray:
+        """``(C, 2)`` foot box half extents of every character."""
+        return self.rig.foot_half
+
+    def rotations(self) -> FloatArray:
+        """``(C, 3, 3)`` current body-to-world rotations."""
+        return rotation_matrices(self.body.yaw, self.body.pitch, self.body.roll)
+
+    def hips_world(self, rot: FloatArray | None = None) -> FloatArray:
+        """``(N, 3)`` world hips: the rigid body's, or where the spine put them."""
+        link = self.link
+        if link.all_legs:  # every leg on a spine: nothing rigid
+            return np.array(link.hips, copy=True)
+        r = self.rotations() if rot is None else rot
+        lc = self.leg_char
+        hips = self.body.pos[lc] + np.einsum("nij,nj->ni", r[lc], self.legs.hip_offset)
+        if link.groups:
+            hips[link.spine_legs] = link.hips[link.spine_legs]
+        return np.asarray(hips)
+
+    def leg_rotations(self) -> FloatArray:
+        """``(N, 3, 3)`` body-to-world rotation of the body part each leg hangs from: the
+        pelvis, or the leg's spine node (or carrier bone)."""
+        link = self.link
+        if link.all_legs:
+            return np.array(link.leg_rot, copy=True)
+        rot = self.rotations()[self.leg_char]
+        if link.groups:
+            rot[link.spine_legs] = link.leg_rot[link.spine_legs]
+        return np.asarray(rot)
+
+    def spine_joints(self) -> FloatArray:
+        """``(C, J, 3)`` world spine joints (head first), see ``spine_link.joints``."""
+        return spine_link.joints(self.link, self.body.pos)
+
+    def spine_rotations(self) -> FloatArray:
+        """``(C, J - 1, 3, 3)`` spine bone rotations, see ``spine_link.bone_rotations``."""
+        return spine_link.bone_rotations(self.link, self.n_chars)
+
+    def ik_targets(self) -> FloatArray:
+        """``(N, 3)`` where each leg's end-effector goes: its foot, raised by its
+        ``Morphology.foot_lift``."""
+        return reach.ik_targets(self.rig, self.feet.foot)
+
+    def planner_params(
+        self, char: int, step_height: float, leg_reach: float | None = None, leg: int | None = None,
+        sweep: float = 0.0, sink: bool = True,
+    ) -> PlannerParams:
+        """The planner settings of a character for this step (``planning.planner_params``)."""
+        return planning.planner_params(self.rig, self.params, self.lod[char], self._planner_override[char],
+                                       char, step_height, leg_reach, leg, sweep, sink)
+
+    # ---------------------------------------------------------------- the step
+    def step(self, dt: float, ctl: StepControls) -> StepStats:
+        """Advance every character by ``dt`` seconds under the commands ``ctl``."""
+        stats = StepStats()
+        prof = Profiler(stats.seconds, self.params.clock)
+        self.time += dt
+        gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
+        flags = self.feet.flags()
+        sched = self._schedule(dt, ctl, gstep, rate_leg, flags, stats)
+        if np.any(sched.to_plan):
+            forced = flags[1]
+            land_stance = np.where(
+                forced,
+                np.clip(
+                    gstep.stance_progress + sched.remaining / np.maximum(sched.stance_time, 1e-9), 0.0, 1.0
+                ),
+                0.0,
+            )
+            land_stance = np.where(self.feet.forced_behind, np.minimum(land_stance, 0.5), land_stance)
+            self._plan(np.flatnonzero(sched.to_plan), ctl, flags, sched.start_u, sched.remaining,
+                       sched.stance_time, land_stance, stats, prof)
+        swinging = self._move_feet(gstep, sched.progress, flags)
+        self._pelvis_height(dt, ctl, needle_before, rate_leg, swinging, prof)
+        with prof.phase("ik"):
+            stats.n_bent = self._solve_ik(ctl)
+        prof.finish()
+        return stats
+
+    def _advance(
+        self, dt: float, ctl: StepControls, prof: Profiler
+    ) -> tuple[GaitStep, FloatArray, FloatArray]:
+        """Steps 1-2: heading and needle, the pelvis in the ground plane (spines: steps 1-2
+        of thesis §4.2), the feet-error feedback. Returns the gait's step, the needle before
+        it and the needle rate ``(N,)``."""
+        p, body, lc = self.params, self.body, self.leg_char
+        turn = np.clip(wrap_angle(ctl.heading - body.yaw), -p.max_turn_rate * dt, p.max_turn_rate * dt)
+        body.yaw = wrap_angle(body.yaw + turn)
+        scale = rate_scale(self.rig, self.gait, self.link.has_spine, ctl.speed, turn / dt)
+        needle_before = self.gait.needle[lc].copy()
+        gstep = self.gait.advance(dt, scale)
+        rate_leg = self.gait.rate()[lc]
+        fwd = np.stack([np.cos(body.yaw), np.sin(body.yaw)], axis=1)
+        body.pos[:, :2] += (ctl.speed * dt)[:, None] * fwd
+        if self.link.groups:
+            with prof.phase("spine"):
+                spine_link.advance(self.link, body, ctl, dt)
+        move = pelvis.feedback_move(self.leg_char, p, body.feedback, self.rig.char_leg_length,
+                                    self.gait.cycle_time, dt)
+        if move is not None:
+            body.pos[:, :2] += move
+            spine_link.shift(self.link, move)
+        return gstep, needle_before, rate_leg
+
+    def _land(self, landing: BoolArray, flags: Flags) -> None:
+        """Feet ``landing (N,)`` touch down on their targets."""
+        legs = np.flatnonzero(landing)
+        if legs.size == 0:
+            return
+        feet = self.feet
+        feet.foot[legs] = feet.plan.target[legs]
+        h = self.env.height_at(feet.plan.target[legs, :2])
+        feet.support_z[legs] = np.where(h > VOID, h, 0.0)
+        flags[1][legs] = False
+        flags[0][legs] = False
+        feet.dodged[legs] = False
+        obstacles.watch_reset(self.env, self.watch, legs, feet.foot[legs])
+
+    def _push_out(self, legs: IntArray, surface: FloatArray) -> None:
+        obstacles.push_out(self.env, self.watch, self.feet.foot, legs, surface, self.hips_world()[legs],
+                           self.rig.guard_reach[legs], self.params.support_tolerance)
+
+    def _schedule(
+        self, dt: float, ctl: StepControls, gstep: GaitStep, rate_leg: FloatArray, flags: Flags,
+        stats: StepStats,
+    ) -> _Schedule:
+        """Step 3, first half: landings, forced steps, the swing timing of every foot and
+        which feet to plan (``flags`` updated in place)."""
+        p, feet, env, tol = self.params, self.feet, self.env, self.params.support_tolerance
+        swinging, forced, failed = flags
+        # a forced step lands when its own time is up (not at the gait's touch-down)
+        landing = (
+            (gstep.landed & ~forced) | (forced & (feet.forced_elapsed + dt >= feet.forced_duration))
+        ) & swinging
+        # a moving obstacle may have taken the landing spot since the last check: step again
+        bad_landing = obstacles.spot_taken(env, self.watch, feet, feet.plan.target, landing, tol) & (
+            feet.restarts < 2
+        )
+        feet.restarts = np.where(bad_landing, feet.restarts + 1, np.where(landing, 0, feet.restarts))
+        self._land(landing & ~bad_landing, flags)
+        feet.forced_elapsed = np.where(forced, feet.forced_elapsed + dt, 0.0)
+        lifted = gstep.lifted | (feet.retry & gstep.swing)
+        feet.retry[:] = False
+        # a normal lift ends a forced step
+        forced &= ~gstep.lifted
+        progress = np.where(
+            forced, np.clip(feet.forced_elapsed / feet.forced_duration, 0.0, 1.0), gstep.swing_progress
+        )
+        # where the foot is now: the progress of the previous frame (a new trajectory starts there)
+        step_progress = np.where(forced, dt / feet.forced_duration, rate_leg * dt / self.gait.disk_duration)
+        start_u = np.clip(progress - step_progress, 0.0, 1.0)
+        remaining = (1.0 - progress) * np.where(forced, feet.forced_duration, gstep.swing_time)
+        replan = planning.replan_needed(env, self.watch, self.rig, p, feet, ctl, progress,
+                                        swinging & (gstep.swing | forced))
+        # a foot still down in its swing sector (its plan failed) is planted like any other:
+        # it must step when its support goes or when it is left behind
+        planted = ~gstep.swing | failed
+        support_gone = obstacles.check_supports(env, self.watch, feet, ~swinging, tol, self._push_out)
+        behind, stretch = reach.overstretched(self.rig, p, self._free_hips(), feet.foot, ~swinging)
+        behind &= ~support_gone
+        behind &= ~reach.wait_for_support(self.rig, p, behind & planted & ~forced, stretch, swinging | lifted,
+                                          None if self.ik_result is None else self.ik_result.error)
+        forced_new = ((support_gone | behind) & planted & ~forced) | bad_landing
+        # a foot left behind lands under its rest place at the latest (as at mid-stance):
+        # landed where its late stance would have it, it would be left behind again at once
+        feet.forced_behind = np.where(
+            forced_new, behind & planted & ~bad_landing, feet.forced_behind & forced
+        )
+        forced_time = self._forced_time(dt, ctl, gstep, forced_new)
+        rushed = replan & feet.blocked & ~forced_new & (remaining < 0.5 * forced_time)
+        forced_new |= rushed
+        if np.any(forced_new):
+            forced |= forced_new
+            feet.forced_duration[forced_new] = forced_time[forced_new]
+            # a forced step leaves in the frame it starts (its first frame's share of the
+            # swing is done): the leg is already stretched, a frame later it would be more
+            feet.forced_elapsed[forced_new] = dt
+            progress = np.where(forced_new, dt / feet.forced_duration, progress)
+            start_u = np.where(forced_new, 0.0, start_u)
+            remaining = np.where(forced_new, feet.forced_duration - dt, remaining)
+            stats.n_forced = int((forced_new & ~rushed).sum())
+        feet.swing_u = np.clip(progress, 0.0, 1.0)
+        # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
+        stats.n_replans = int((replan & ~lifted).sum())
+        return _Schedule(progress, start_u, remaining, gstep.stance_time, lifted | forced_new | replan)
+
+    def _forced_time(
+        self, dt: float, ctl: StepControls, gstep: GaitStep, forced_new: BoolArray
+    ) -> FloatArray:
+        """``(N,)`` the duration of a forced step: a share of the gait swing (a swing cut by
+        a moving obstacle near its end gets it for its new way: in the frames left it would
+        jump there); a foot left behind for cycles (its plans failed) has more than a stride
+        to cover."""
+        forced_time = np.maximum(self.params.forced_swing * gstep.swing_time, 2.0 * dt)
+        if np.any(forced_new & self.feet.forced_behind):
+            catch_up = np.maximum(forced_time, reach.catch_up_time(
+                self.rig, self.gait.disk_duration, ctl.speed, gstep.swing_time, self.hips_world(),
+                self.leg_rotations(), self.feet.foot))
+            forced_time = np.where(self.feet.forced_behind, catch_up, forced_time)
+        return np.asarray(forced_time)
+
+    def _free_hips(self) -> FloatArray:
+        """``(N, 3)`` the hips at the height the pelvis wants, before the reach guard lowered
+        it (spines: before step 4 pulled them toward the feet)."""
+        hips = self.hips_world()
+        hips[:, 2] += self.body.guard_drop[self.leg_char]
+        if self.link.groups:
+            hips[self.link.spine_legs] = self.link.hips_free[self.link.spine_legs]
+        return hips
+
+    def _plan(
+        self, legs: IntArray, ctl: StepControls, flags: Flags, start_u: FloatArray, remaining: FloatArray,
+        stance_time: FloatArray, land_stance: FloatArray, stats: StepStats, prof: Profiler,
+    ) -> None:
+        """Plan the best couple of every leg in ``legs`` (``planning``); see
+        ``planning.landing`` and ``planning.choose`` for the arguments."""
+        env, rig, p = self.env, self.rig, self.params
+        land = planning.landing(env, rig, p, self.body, self.link, self.feet, legs, ctl, remaining,
+                                stance_time, land_stance, self.hips_world())
+        u_grid = np.linspace(0.0, 1.0, p.trajectory_samples + 1)
+        with prof.phase("maps"):
+            grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
+        with prof.phase("planning"):
+            reqs, rows_of = planning.requests(rig, land, self.feet, flags[0], flags[1], ctl, grids,
+                                              self.planner_params)
+            couples = planning.search(reqs, [bool(flags[1][r[0]]) for r in rows_of], stats)
+            done = planning.choose(env, rig, p, land, self.feet, flags, rows_of, couples, ctl, u_grid, stats)
+        planning.commit(env, rig, p, self.watch, self.feet, self.body, land, done, ctl, start_u, u_grid)
+
+    def _move_feet(self, gstep: GaitStep, progress: FloatArray, flags: Flags) -> BoolArray:
+        """Step 3, second half: swinging feet along their trajectories (pushed out of
+        obstacles that moved into them), then the feet's phases. Returns the swinging feet."""
+        feet = self.feet
+        _, forced, failed = flags
+        active = (gstep.swing | forced) & ~failed
+        u = swing_parameter(feet, progress)
+        moving = np.flatnonzero(active)
+        if moving.size:
+            feet.foot[moving] = sample_polyline(feet.plan.traj[moving], u[moving])
+            if self.watch.dynamic:
+                # an obstacle that moved into a swinging foot pushes it out, up or aside (the
+                # trajectory is re-planned at the next step)
+                surface = self.env.height_at(feet.foot[moving, :2])
+                hit = surface > feet.foot[moving, 2]
+                if np.any(hit):
+                    self._push_out(moving[hit], surface[hit])
+        # a gait swing whose plan failed leaves the foot planted
+        feet.set_flags(active, forced, failed & (gstep.swing | forced))
+        return np.asarray(active)
+
+    def _pelvis_height(
+        self, dt: float, ctl: StepControls, needle_before: FloatArray, rate_leg: FloatArray,
+        swinging: BoolArray, prof: Profiler,
+    ) -> None:
+        """Step 4: pelvis height, pitch, roll (spines: per node, steps 3-4 of thesis §4.2),
+        the pogo particles, the reach guard."""
+        p, body, link = self.params, self.body, self.link
+        alpha = 1.0 - np.exp(-dt / np.maximum(p.height_time * self.gait.cycle_time, 1e-6))
+        rigid = None if not link.groups else np.flatnonzero(~link.has_spine)
+        support = support_points(self.feet, swinging)
+        if rigid is None or rigid.size:
+            hull = pelvis.hull_pose(self.env, self.rig, p.body_samples, body, support, rigid)
+            pelvis.settle(body, hull, alpha, rigid)
+        pref = body.height_target
+        if link.groups:
+            with prof.phase("spine"):
+                pref = spine_link.guides(link, self.env.height_at, body.height_target, support, alpha)
+        physics_on = np.asarray(ctl.pelvis_physics, dtype=bool)
+        with prof.phase("physics"):
+            z = pelvis.pogo_heights(self.pogo, self.gait, self.leg_char, link.node_char, physics_on,
+                                    needle_before, rate_leg, pref, dt)
+        if link.groups:
+            if rigid is not None and rigid.size:
+                body.pos[rigid, 2] = z[link.node_start[rigid]]
+            with prof.phase("spine"):
+                self._spine_pose(z, physics_on, dt, swinging)
+        else:
+            body.pos[:, 2] = z
+        self._reach_guard()
+
+    def _spine_pose(self, node_z: FloatArray, physics_on: BoolArray, dt: float, swinging: BoolArray) -> None:
+        """Step 4 of the spines (``spine_link.pose``) at node heights ``node_z (n_nodes,)``."""
+        rig, feet = self.rig, self.feet
+        at = spine_link.PoseInputs(feet.foot, swinging, feet.plan.target, feet.swing_u, rig.guard_reach,
+                                   rig.foot_lift, rig.body_thickness)
+        spine_link.pose(self.link, self.body, self.params, at, node_z, physics_on, dt)
+
+    def _reach_guard(self) -> None:
+        """Lower a pelvis whose legs would have to stretch past ``reach_margin``."""
+        hips = self.hips_world(self.rotations())
+        drop = reach.guard_drop(self.rig, self.params, hips, self.feet.foot, self.link.spine_legs)
+        self.body.guard_drop = drop
+        self.body.pos[:, 2] -= drop
+
+    def _solve_ik(self, ctl: StepControls) -> int:
+        """Step 5: pose every leg; returns how many swinging feet were moved to what their
+        legs reach."""
+        rot = self.rotations()
+        hips = self.hips_world(rot)
+        leg_rot = self.leg_rotations() if self.link.groups else rot[self.leg_char]
+        mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
+        res, bent = reach.solve_ik(self.env, self.rig, self.params, hips, leg_rot, self.feet.foot,
+                                   self.feet.swinging, self.angles, self.leg_normals, mask)
+        self.angles = res.angles
+        self.leg_normals = res.normal_body
+        self.ik_result = res
+        return bent

@@ -1,0 +1,232 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Moving obstacles and the ground under the feet (thesis §3.6, sequence 4).
+
+Owns the watch rings around each planted foot and landing spot (``Watch``: what was there at
+the last look), and the checks built on them: a swing whose remaining trajectory or landing
+spot an obstacle now cuts (``trajectory_blocked``), a planted foot whose support moved or is
+closing in (``check_supports``), a landing spot taken since it was planned (``spot_taken``),
+a foot an obstacle ran into pushed out of it (``push_out``), and a footprint over a hole
+moved onto the ground its foot box reaches (``onto_support``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import vector_norm
+from ..terrain import Environment
+from .rig import Rig
+from .state import FootState, swing_parameter
+from .types import VOID, BoolArray, ControllerParams, FloatArray, IntArray
+
+
+@dataclass
+class Watch:
+    """Two rings of points around every foot's watched spot: ``offsets (N, 16, 2)`` (at the
+    foot box's corner distance plus ``watch_distance`` and half of it, the inner ring turned
+    half a step), and what was there at the last look, ``ground (N, 16)`` and ``forbidden
+    (N, 16)``. ``dynamic``: the environment has moving parts (else nothing is watched)."""
+
+    offsets: FloatArray
+    ground: FloatArray
+    forbidden: BoolArray
+    dynamic: bool
+
+
+def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray) -> Watch:
+    """The watch rings of every foot, remembering what is around ``foot (N, 3)`` now."""
+    legs = rig.legs
+    n = rig.n_legs
+    ring = np.linspace(0.0, 2.0 * np.pi, 8, endpoint=False)
+    dirs = np.stack([np.cos(ring), np.sin(ring)], axis=1)
+    corner = np.linalg.norm(rig.foot_half, axis=1)[legs.leg_char]
+    outer = corner + p.watch_distance * legs.leg_length
+    inner = corner + 0.5 * p.watch_distance * legs.leg_length
+    offsets = np.concatenate(
+        [outer[:, None, None] * dirs[None], inner[:, None, None] * np.roll(dirs, 1, axis=0)[None]], axis=1
+    )  # (N, 16, 2), the inner ring turned half a step
+    dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
+    watch = Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), dynamic)
+    watch_reset(env, watch, np.arange(n), foot)
+    return watch
+
+
+def watch_reset(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray) -> None:
+    """Remember what is around the watched spots ``spot (m, 3)`` of ``legs (m,)`` now (a
+    foot landed, or a swing was planned)."""
+    if not watch.dynamic or legs.size == 0:
+        return
+    pts = (spot[:, None, :2] + watch.offsets[legs]).reshape(-1, 2)
+    watch.ground[legs] = env.height_at(pts).reshape(legs.size, -1)
+    watch.forbidden[legs] = env.forbidden_at(pts).reshape(legs.size, -1)
+
+
+def look(
+    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, tol: float
+) -> tuple[FloatArray, BoolArray, BoolArray]:
+    """Query the watched spots ``spot (m, 3)`` of ``legs`` and the rings around them (one
+    query).
+
+    Returns the surface ``(m,)`` and forbidden flags ``(m,)`` at the spots, and whether a
+    moving obstacle closes in on each spot ``(m,)`` (since the last look, a ring point rose
+    more than ``tol`` above the spot or became forbidden). The rings' memory moves on to now."""
+    m = legs.size
+    k = watch.offsets.shape[1]
+    ring = spot[:, None, :2] + watch.offsets[legs]
+    xy = np.concatenate([spot[:, :2], ring.reshape(-1, 2)])
+    heights = env.height_at(xy)
+    forbidden = env.forbidden_at(xy)
+    ring_h = heights[m:].reshape(m, k)
+    ring_f = forbidden[m:].reshape(m, k)
+    rose = (ring_h > watch.ground[legs] + tol) & (ring_h > spot[:, 2, None] + tol)
+    coming = (rose | (ring_f & ~watch.forbidden[legs])).any(axis=1)
+    watch.ground[legs] = ring_h
+    watch.forbidden[legs] = ring_f
+    return heights[:m], forbidden[:m], coming
+
+
+def trajectory_blocked(
+    env: Environment, watch: Watch, feet: FootState, swing: BoolArray, progress: FloatArray, tol: float
+) -> BoolArray:
+    """``(N,)`` swinging feet (``swing (N,)``) whose remaining trajectory (past ``progress
+    (N,)``) or target a moving obstacle now cuts, or that an obstacle closes in on (once per
+    swing: ``feet.dodged`` is updated)."""
+    legs = np.flatnonzero(swing)
+    out = np.zeros(swing.shape[0], dtype=bool)
+    if legs.size == 0:
+        return out
+    plan = feet.plan
+    k_all = plan.traj.shape[1]
+    # every other sample (and the landing one): a few centimetres apart on a stride
+    cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
+    k = cols.size
+    u = swing_parameter(feet, progress)[legs]
+    ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
+    pts = plan.traj[legs][:, cols]
+    flat = pts.reshape(-1, 3)
+    surface = env.height_at(flat[:, :2]).reshape(legs.size, k)
+    forbidden = env.forbidden_at(flat[:, :2]).reshape(legs.size, k)
+    # only what changed since the plan counts: something rose into the path, or became forbidden
+    risen = (surface > plan.ground[legs][:, cols] + tol) & (surface > pts[..., 2] + tol)
+    cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
+    # the landing spot itself must still be there
+    land_surface = surface[:, -1]
+    moved = np.abs(land_surface - plan.support[legs]) > tol
+    # and nothing moving may be closing in on it (once per swing: a foot that already
+    # moved its landing spot away lands; spot_taken still stops it landing on the obstacle)
+    coming = look(env, watch, legs, plan.target[legs], tol)[2] & ~feet.dodged[legs]
+    feet.dodged[legs] |= coming
+    out[legs] = cut.any(axis=1) | moved | coming
+    return out
+
+
+def check_supports(
+    env: Environment, watch: Watch, feet: FootState, planted: BoolArray, tol: float,
+    push: Callable[[IntArray, FloatArray], None],
+) -> BoolArray:
+    """``(N,)`` planted feet (``planted (N,)``) whose support moved, rose into them or became
+    forbidden (thesis sequence 4), or that a moving obstacle closes in on. A foot an
+    obstacle slid under anyway is pushed out by ``push(legs, surface)`` first."""
+    out = np.zeros(planted.shape[0], dtype=bool)
+    if not watch.dynamic or not np.any(planted):
+        return out
+    legs = np.flatnonzero(planted)
+    # the foot's own spot, and something moving closing in around it (it steps away
+    # before the obstacle reaches it)
+    surface, forbidden, coming = look(env, watch, legs, feet.foot[legs], tol)
+    buried = surface > feet.foot[legs, 2] + tol
+    bad = (np.abs(surface - feet.support_z[legs]) > tol) | buried
+    out[legs] = bad | forbidden | coming
+    if np.any(buried):
+        # an obstacle slid under a planted foot anyway: it pushes the foot out (the foot
+        # steps off from there)
+        at = legs[buried]
+        push(at, surface[buried])
+        h = env.height_at(feet.foot[at, :2])
+        feet.support_z[at] = np.where(h > VOID, h, 0.0)
+    return out
+
+
+def push_out(
+    env: Environment, watch: Watch, foot: FloatArray, legs: IntArray, surface: FloatArray,
+    hips: FloatArray, reach: FloatArray, tol: float,
+) -> None:
+    """Feet ``foot[legs]`` (``foot (N, 3)``, moved in place) that a moving obstacle ran into
+    (its top ``surface (m,)`` is above them) are pushed out of it the shorter way: up onto
+    its top (never onto an avoided obstacle while there is room beside it), or aside to the
+    nearest point around them (the watch rings, one to three times as far) that is free at
+    their height and within ``reach (m,)`` of their hips ``hips (m, 3)``."""
+    m = legs.size
+    offsets = np.concatenate([f * watch.offsets[legs] for f in (1.0, 2.0, 3.0)], axis=1)
+    k = offsets.shape[1]
+    here = foot[legs, :2]
+    pts = np.concatenate([here, (here[:, None, :] + offsets).reshape(-1, 2)])
+    heights = env.height_at(pts)
+    forbidden = env.forbidden_at(pts)
+    ring_h = heights[m:].reshape(m, k)
+    ring_f = forbidden[m:].reshape(m, k)
+    z = foot[legs, 2]
+    free = (ring_h <= z[:, None] + tol) & ~ring_f & (ring_h > VOID)
+    # within the leg's reach
+    top = np.maximum(ring_h, z[:, None])
+    spots = np.concatenate([here[:, None, :] + offsets, top[..., None]], axis=2)
+    free &= vector_norm(spots - hips[:, None, :]) <= reach[:, None]
+    # the nearest ring with room, and on it the point facing away from the obstacle
+    # (the mean direction of the points it covers), so the foot is not pushed ahead of it
+    radius = np.linalg.norm(offsets, axis=2)
+    unit = offsets / np.maximum(radius, 1e-12)[..., None]
+    covered = np.where(~free[..., None], unit, 0.0).sum(axis=1)
+    norm = np.maximum(np.linalg.norm(covered, axis=1), 1e-12)
+    away = -np.einsum("mkd,md->mk", unit, covered) / norm[:, None]
+    ring_no = np.repeat(np.arange(3), k // 3)[None, :]
+    first = np.min(np.where(free, ring_no, 3), axis=1)
+    rank = np.where(free & (ring_no == first[:, None]), away, -np.inf)
+    pick = np.argmax(rank, axis=1)
+    best = np.where(free.any(axis=1), radius[np.arange(m), pick], np.inf)
+    aside = (best < surface - z) | (forbidden[:m] & np.isfinite(best))
+    side, up = legs[aside], legs[~aside]
+    foot[side, :2] += offsets[aside, pick[aside]]
+    foot[side, 2] = np.maximum(foot[side, 2], ring_h[aside, pick[aside]])
+    foot[up, 2] = surface[~aside]
+
+
+def spot_taken(
+    env: Environment, watch: Watch, feet: FootState, points: FloatArray, which: BoolArray, tol: float
+) -> BoolArray:
+    """``(N,)`` whether a moving obstacle now covers the footprints ``points (N, 3)`` of legs
+    ``which (N,)`` (rose above them or made them forbidden since they were planned)."""
+    out = np.zeros(which.shape[0], dtype=bool)
+    legs = np.flatnonzero(which)
+    if not watch.dynamic or legs.size == 0:
+        return out
+    xy = points[legs, :2]
+    surface = env.height_at(xy)
+    newly_forbidden = env.forbidden_at(xy) & ~feet.plan.forbidden[legs, -1]
+    out[legs] = (surface > points[legs, 2] + tol) | newly_forbidden
+    return out
+
+
+def onto_support(env: Environment, rig: Rig, xy: FloatArray, char: int) -> FloatArray | None:
+    """The shortest shift ``(2,)``, within the foot box's size or a planning cell,
+    whichever is more (the planner sees the ground per cell), that puts a footprint's
+    point ``xy (2,)`` of character ``char`` over ground (not over a hole, not into an
+    avoided obstacle), with a quarter of the box's half size to spare; None if there is
+    none."""
+    half = float(np.max(rig.foot_half[char]))
+    if half <= 0.0:
+        return None
+    radius = max(2.0 * half, float(rig.window_cell[char]))
+    grid = np.linspace(-radius, radius, 17)
+    off = np.stack(np.meshgrid(grid, grid, indexing="ij"), axis=-1).reshape(-1, 2)
+    off = off[np.argsort(np.hypot(off[:, 0], off[:, 1]), kind="stable")][1:]
+    norm = np.hypot(off[:, 0], off[:, 1])[:, None]
+    spare = off + 0.25 * half * off / np.maximum(norm, 1e-12)
+    pts = np.concatenate([xy[None, :] + off, xy[None, :] + spare])
+    ok = (env.height_at(pts) > VOID) & ~env.forbidden_at(pts)
+    good = ok[: off.shape[0]] & ok[off.shape[0]:]
+    if not np.any(good):
+        return None
+    return np.asarray(spare[int(np.flatnonzero(good)[0])], dtype=np.float64)

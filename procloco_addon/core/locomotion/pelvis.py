@@ -1,0 +1,224 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""The pelvis of rigid bodies (thesis §3.2.2, §4.1): its pose (``Body``), the hull under it
+that gives its height, pitch and roll (``hull_pose``, figure 3.8) and their low-pass filter
+(``settle``), the feet-error feedback that moves it in the ground plane (``feedback_move``,
+figure 3.9), and the pogo particles of pelvis pseudo-physics (``Pogo``, ``pogo_heights``).
+Spine characters' nodes get their heights from the same particles; their poses come from
+``spine_link``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from ..gait import GaitManager
+from ..geometry import vector_norm
+from ..hull import hull_height_and_pitch
+from ..pelvis_physics import PelvisPhysics
+from ..terrain import Environment
+from .rig import Rig
+from .types import RATE_JUMP, VOID, BoolArray, ControllerParams, FloatArray, IntArray
+
+
+@dataclass
+class Body:
+    """Every character's pelvis ``(C, ...)``: ``pos (C, 3)``, ``yaw``, ``pitch``, ``roll``
+    (radians), ``height_target`` (the filtered hull height, or the preferred height of the
+    pogo particles), ``guard_drop`` (how far the reach guard lowered it last), and each
+    leg's footprint error ``feedback (N, 2)`` (chosen minus preferred footprint) still to
+    work off."""
+
+    pos: FloatArray
+    yaw: FloatArray
+    pitch: FloatArray
+    roll: FloatArray
+    height_target: FloatArray
+    guard_drop: FloatArray
+    feedback: FloatArray
+
+
+def start_body(start_xy: npt.ArrayLike, start_yaw: npt.ArrayLike, n_chars: int, n_legs: int) -> Body:
+    """Pelvises on the ground plane at ``start_xy (C, 2)`` heading ``start_yaw (C,)``."""
+    pos = np.zeros((n_chars, 3))
+    pos[:, :2] = np.asarray(start_xy, dtype=np.float64).reshape(n_chars, 2)
+    yaw = np.broadcast_to(np.asarray(start_yaw, dtype=np.float64), (n_chars,)).copy()
+    return Body(pos, yaw, np.zeros(n_chars), np.zeros(n_chars), np.zeros(n_chars), np.zeros(n_chars),
+                np.zeros((n_legs, 2)))
+
+
+def hull_pose(
+    env: Environment, rig: Rig, body_samples: tuple[int, int], body: Body, support: FloatArray,
+    chars: IntArray | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Hull height (+ body thickness), pitch and roll ``(C,)`` under each character (or
+    only under ``chars``; the results are then ``(len(chars),)``), with the feet where the
+    body rests on them, ``support (N, 3)``.
+
+    Thesis figure 3.8 works on a vertical slice along the body: the terrain under the body
+    box is sampled on a grid and reduced to its highest point across the body at each
+    position along it (and along the body at each position across it, for roll), then the
+    planted feet (and the targets of swinging ones) are added.
+    """
+    if chars is None:
+        pos, yaw, box_center, box_half = body.pos, body.yaw, rig.box_center, rig.box_half
+        thickness = rig.body_thickness
+        leg_rows = np.arange(rig.n_legs)
+        row_of = np.arange(rig.n_chars)
+    else:
+        pos, yaw = body.pos[chars], body.yaw[chars]
+        box_center, box_half = rig.box_center[chars], rig.box_half[chars]
+        thickness = rig.body_thickness[chars]
+        leg_rows = np.flatnonzero(np.isin(rig.leg_char, chars))
+        row_of = np.full(rig.n_chars, -1)
+        row_of[chars] = np.arange(len(chars))
+    c = pos.shape[0]
+    na, nc = body_samples
+    sa = np.linspace(-1.0, 1.0, na)
+    sc = np.linspace(-1.0, 1.0, nc)
+    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
+    local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
+    cy, sy = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+
+    def to_world(loc: FloatArray) -> FloatArray:
+        return np.asarray(
+            pos[:, None, :2]
+            + np.stack(
+                [cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1
+            )
+        )
+
+    ground = env.height_at(to_world(local).reshape(-1, 2)).reshape(c, na, nc)
+    ground = np.where(ground > VOID, ground, -np.inf)
+    along_z = ground.max(axis=2)  # (c, na)
+    across_z = ground.max(axis=1)  # (c, nc)
+    along_local = np.stack(
+        [
+            box_center[:, None, 0] + sa[None, :] * box_half[:, None, 0],
+            np.broadcast_to(box_center[:, None, 1], (c, na)),
+        ],
+        axis=-1,
+    )
+    across_local = np.stack(
+        [
+            np.broadcast_to(box_center[:, None, 0], (c, nc)),
+            box_center[:, None, 1] + sc[None, :] * box_half[:, None, 1],
+        ],
+        axis=-1,
+    )
+    width = max(na, nc)
+
+    def padded(loc: FloatArray, z: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+        pts = np.zeros((c, width, 3))
+        ok = np.zeros((c, width), dtype=bool)
+        k = loc.shape[1]
+        pts[:, :k, :2] = to_world(loc)
+        pts[:, :k, 2] = np.where(np.isfinite(z), z, 0.0)
+        ok[:, :k] = np.isfinite(z)
+        return pts, ok
+
+    along_pts, along_ok = padded(along_local, along_z)
+    across_pts, across_ok = padded(across_local, across_z)
+    # feet: planted feet where they are, swinging feet where they will land
+    owner = rig.leg_char[leg_rows]
+    feet = support[leg_rows]
+    n_feet = int(np.bincount(row_of[owner], minlength=c).max())
+    slot = leg_rows - rig.legs.leg_start[owner]
+    feet_pts = np.zeros((c, n_feet, 3))
+    feet_ok = np.zeros((c, n_feet), dtype=bool)
+    feet_pts[row_of[owner], slot] = feet
+    feet_ok[row_of[owner], slot] = True
+    fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
+    left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=1)
+    # both slices (forward for height and pitch, left for roll) in one batched call
+    both_h, both_a = hull_height_and_pitch(
+        np.concatenate(
+            [
+                np.concatenate([along_pts, feet_pts], axis=1),
+                np.concatenate([across_pts, feet_pts], axis=1),
+            ]
+        ),
+        np.concatenate([pos[:, :2], pos[:, :2]]),
+        np.concatenate([fwd, left]),
+        np.concatenate(
+            [np.concatenate([along_ok, feet_ok], axis=1), np.concatenate([across_ok, feet_ok], axis=1)]
+        ),
+    )
+    height, pitch, roll = both_h[:c], both_a[:c], both_a[c:]
+    return height + thickness, pitch, roll
+
+
+def settle(body: Body, pose: tuple[FloatArray, FloatArray, FloatArray], alpha: FloatArray,
+           chars: IntArray | None) -> None:
+    """Low-pass filter the pelvis height target, pitch and roll of ``chars`` (None: every
+    character) toward the hull ``pose`` (each ``(len(chars),)``) by ``alpha (C,)``."""
+    height, pitch, roll = pose
+    sel = slice(None) if chars is None else chars
+    a = alpha[sel]
+    body.height_target[sel] += a * (height - body.height_target[sel])
+    body.pitch[sel] += a * (pitch - body.pitch[sel])
+    body.roll[sel] += a * (roll - body.roll[sel])
+
+
+def feedback_move(
+    leg_char: IntArray, p: ControllerParams, feedback: FloatArray, leg_length: FloatArray,
+    cycle_time: FloatArray, dt: float,
+) -> FloatArray | None:
+    """Thesis figure 3.9: the ground-plane move ``(C, 2)`` of each pelvis by its feet's
+    mean footprint error ``feedback (N, 2)`` when that exceeds ``feedback_threshold`` of its
+    leg length ``leg_length (C,)``, worked off over a cycle ``cycle_time (C,)``; the part
+    worked off is taken out of ``feedback`` (in place). None when no error matters."""
+    c = leg_length.shape[0]
+    mean: FloatArray = np.stack(
+        [np.bincount(leg_char, weights=feedback[:, k], minlength=c) for k in (0, 1)], axis=1
+    )
+    mean = mean / np.bincount(leg_char, minlength=c)[:, None]
+    significant = vector_norm(mean) > p.feedback_threshold * leg_length
+    if not np.any(significant):
+        return None
+    share = np.clip(p.feedback_gain * dt / cycle_time, 0.0, 1.0)
+    move = np.where(significant[:, None], mean * share[:, None], 0.0)
+    # the part worked off is consumed
+    feedback -= np.where(significant[leg_char, None], feedback * share[leg_char, None], 0.0)
+    return np.asarray(move)
+
+
+@dataclass
+class Pogo:
+    """The pogo particles of pelvis pseudo-physics (``pelvis_physics``) and their switch:
+    ``physics``, which characters had it on at the last step ``on (C,)``, and the needle
+    rate their orbit was made for ``rate (N,)`` (re-made when it jumps)."""
+
+    physics: PelvisPhysics
+    on: BoolArray
+    rate: FloatArray
+
+
+def pogo_heights(
+    pogo: Pogo, gait: GaitManager, leg_char: IntArray, node_char: IntArray, physics_on: BoolArray,
+    needle_before: FloatArray, rate_leg: FloatArray, pref: FloatArray, dt: float,
+) -> FloatArray:
+    """Every pelvis node's height ``(n_nodes,)``: the pogo particles' for characters with
+    ``physics_on (C,)``, the preferred height ``pref (n_nodes,)`` for the others. Particles
+    switched on start on the current orbit (``needle_before``, ``rate_leg (N,)``)."""
+    switched_on = physics_on & ~pogo.on
+    # The particles' orbit belongs to a needle rate: one much faster or slower at once (a
+    # turn on the spot speeding the gait up from the first frame) leaves them on an orbit
+    # whose flights are sized for the old cycle, metres high on a slow gait's long stance.
+    # Such a jump (over RATE_JUMP in one step) puts them on the new rate's orbit.
+    ratio = rate_leg / np.maximum(pogo.rate, 1e-12)
+    jumped = np.zeros(physics_on.shape[0], dtype=bool)
+    np.logical_or.at(jumped, leg_char, (ratio > RATE_JUMP) | (ratio < 1.0 / RATE_JUMP))
+    switched_on |= physics_on & jumped
+    pogo.rate = rate_leg.copy()
+    if np.any(switched_on):
+        pogo.physics.reset(
+            pref, needle_before, rate_leg, gait.disk_start, gait.disk_duration, nodes=switched_on[node_char]
+        )
+    pogo.on = physics_on.copy()
+    z = pref.copy()
+    if np.any(physics_on):
+        pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
+        z = np.where(physics_on[node_char], pogo.physics.centered_height(), z)
+    return np.asarray(z)

@@ -1,0 +1,422 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Plan orchestration (thesis §3.2.1, §3.6): which swinging feet need a new plan
+(``replan_needed``), where each planned foot should land (``landing``: the body part it hangs
+from extrapolated to its touch-down, the preferred footprint half a stance sweep ahead of its
+rest position, figures 3.5-3.7), the planning windows (``windows``), the footprint planner's
+requests and its retries (``requests``, ``search``: wider, then without the other feet and
+slices for a foot that must move), the choice between its couple, the straight fallback step
+and staying down (``choose``), and the new trajectories written into the feet's plans
+(``commit``: snapped onto the exact surface, moved off holes). ``planner_params`` builds each
+foot's ``PlannerParams``; the planner itself is ``core.footprints``."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..footprints import Couple, FootRequest, PlannerParams, plan_footsteps
+from ..geometry import rotate_xy, vector_norm, wrap_angle
+from ..morphology import LegBatch
+from ..terrain import Environment, WindowGrids, WindowParams
+from . import spine_link
+from .fallback import straight_step
+from .obstacles import Watch, onto_support, trajectory_blocked, watch_reset
+from .pelvis import Body
+from .reach import within_reach
+from .rig import Rig
+from .spine_link import SpineLink
+from .state import FootState
+from .types import (
+    VOID,
+    BoolArray,
+    ControllerParams,
+    FloatArray,
+    IntArray,
+    PlannerLOD,
+    StepControls,
+    StepStats,
+)
+
+#: ``planner_params`` bound to a controller: ``(char, step_height, leg_reach, leg, sweep,
+#: sink=...) -> PlannerParams``.
+ParamsOf = Callable[..., PlannerParams]
+
+
+def replan_needed(
+    env: Environment, watch: Watch, rig: Rig, p: ControllerParams, feet: FootState, ctl: StepControls,
+    progress: FloatArray, swing: BoolArray,
+) -> BoolArray:
+    """``(N,)`` swinging feet (``swing (N,)``) to re-plan from where they are (sequences 1-3,
+    §3.6): before ``replan_until`` of their swing (``progress (N,)``), when the commanded
+    heading, speed or spacing changed noticeably since their plan; at any time when a
+    moving obstacle now cuts their way (also kept in ``feet.blocked``)."""
+    plan = feet.plan
+    leg_len = rig.legs.leg_length
+    lc = rig.leg_char
+    early = progress < p.replan_until
+    heading = np.abs(wrap_angle(ctl.heading[lc] - plan.heading)) > p.replan_heading
+    v, v0 = ctl.speed[lc], plan.speed
+    speed = np.abs(v - v0) > np.maximum(p.replan_speed * np.maximum(v, v0), 0.05 * leg_len)
+    spacing = vector_norm(ctl.spacing - plan.spacing) > p.replan_spacing * leg_len
+    need = swing & early & (heading | speed | spacing)
+    feet.blocked[:] = False
+    if watch.dynamic:
+        feet.blocked = swing & trajectory_blocked(env, watch, feet, swing, progress, p.support_tolerance)
+        need |= feet.blocked
+    return np.asarray(need)
+
+
+def landing_refs(
+    body: Body, link: SpineLink, legs_data: LegBatch, p: ControllerParams, legs: IntArray, ctl: StepControls,
+    remaining: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Where the body part each leg in ``legs (m,)`` hangs from will be when the foot lands
+    ``remaining (N,)`` seconds from now: ground position ``(m, 2)``, heading ``(m,)``, and
+    that part's rest position ``(m, 3)`` and rest heading ``(m,)`` in the body frame.
+
+    A rigid pelvis is extrapolated with its speed and bounded turn; a spine node along its
+    spine (``spine_link.landing_refs``)."""
+    c_of = legs_data.leg_char[legs]
+    turn = np.clip(
+        wrap_angle(ctl.heading[c_of] - body.yaw[c_of]),
+        -p.max_turn_rate * remaining[legs],
+        p.max_turn_rate * remaining[legs],
+    )
+    yaw_land = body.yaw[c_of] + turn
+    yaw_mid = body.yaw[c_of] + 0.5 * turn
+    travel = (ctl.speed[c_of] * remaining[legs])[:, None] * np.stack(
+        [np.cos(yaw_mid), np.sin(yaw_mid)], axis=1
+    )
+    ref_xy = body.pos[c_of, :2] + travel
+    ref_rest = np.zeros((legs.size, 3))
+    rest_yaw = np.zeros(legs.size)
+    spine_link.landing_refs(
+        link, legs_data, legs, c_of, ctl, remaining, (ref_xy, yaw_land, ref_rest, rest_yaw)
+    )
+    return ref_xy, yaw_land, ref_rest, rest_yaw
+
+
+@dataclass(frozen=True)
+class Landing:
+    """The touch-down of every foot to plan, row ``j`` for leg ``legs[j]`` (``(m, ...)``):
+    the predicted pose of the body part it hangs from (``pelvis_land (m, 2)``, ``yaw_land``,
+    its rest position ``ref_rest (m, 3)`` and rest heading ``rest_yaw``); the preferred
+    footprint ``preferred_xy (m, 2)``; the hip reference halfway through the coming stance
+    ``pelvis_ref (m, 2)``, the horizontal ``reach`` allowed from it and half the coming
+    stance sweep ``sweep_half``; and the hip now ``hip_now (m, 3)``."""
+
+    legs: IntArray
+    chars: IntArray
+    pelvis_land: FloatArray
+    yaw_land: FloatArray
+    ref_rest: FloatArray
+    rest_yaw: FloatArray
+    preferred_xy: FloatArray
+    pelvis_ref: FloatArray
+    reach: FloatArray
+    sweep_half: FloatArray
+    hip_now: FloatArray
+
+
+def landing(
+    env: Environment, rig: Rig, p: ControllerParams, body: Body, link: SpineLink, feet: FootState,
+    legs: IntArray, ctl: StepControls, remaining: FloatArray, stance_time: FloatArray,
+    land_stance: FloatArray, hips: FloatArray,
+) -> Landing:
+    """The ``Landing`` of every leg in ``legs``; also writes their ``feet.preferred``.
+
+    ``remaining (N,)``: seconds left of each swing; ``stance_time (N,)``: the following
+    stance's duration; ``land_stance (N,)``: the stance fraction already gone when the foot
+    lands (0 for a gait swing, more for a forced step in the middle of a stance); ``hips
+    (N, 3)``: the hips now."""
+    legs_data = rig.legs
+    c_of = rig.leg_char[legs]
+    # predicted pelvis (or spine node) pose at each foot's touch-down
+    pelvis_land, yaw_land, ref_rest, rest_yaw = landing_refs(body, link, legs_data, p, legs, ctl, remaining)
+    # land so the foot passes under its rest position at mid-stance (figure 3.6, 3.7)
+    sweep = (0.5 - land_stance[legs]) * ctl.speed[c_of] * stance_time[legs]
+    offset = (
+        legs_data.rest_foot[legs, :2]
+        - ref_rest[:, :2]
+        + ctl.spacing[legs]
+        + np.column_stack([sweep, np.zeros(legs.size)])
+    )
+    preferred_xy = pelvis_land + rotate_xy(offset, yaw_land - rest_yaw)
+    feet.preferred[legs, :2] = preferred_xy
+    h = env.height_at(preferred_xy)
+    feet.preferred[legs, 2] = np.where(h > VOID, h, 0.0)
+    # reach is judged from the hips halfway through the coming stance: a footprint within
+    # the reach minus half the sweep stays within reach from touch-down to lift-off
+    rest_stance = (1.0 - land_stance[legs]) * stance_time[legs]
+    pelvis_ref = pelvis_land + (0.5 * ctl.speed[c_of] * rest_stance)[:, None] * np.stack(
+        [np.cos(yaw_land), np.sin(yaw_land)], axis=1
+    )
+    low = rig.rest_height[legs] * (1.0 - p.max_drop)
+    horizontal = np.sqrt(np.maximum(rig.comfort_reach[legs] ** 2 - low * low, 0.0))
+    sweep_half = 0.5 * ctl.speed[c_of] * rest_stance
+    reach = np.maximum(
+        horizontal - sweep_half,
+        rig.rest_horizontal[legs] + 0.5 * p.candidate_radius * legs_data.leg_length[legs],
+    )
+    return Landing(legs, c_of, pelvis_land, yaw_land, ref_rest, rest_yaw, preferred_xy, pelvis_ref, reach,
+                   sweep_half, hips[legs])
+
+
+def windows(
+    env: Environment, rig: Rig, p: ControllerParams, body: Body, chars: list[int], stats: StepStats
+) -> dict[int, WindowGrids]:
+    """The planning window of every character in ``chars`` around its pelvis, in one call
+    (the moving crates near any of them are rasterised together)."""
+    params = [
+        WindowParams(
+            n_cells=p.window_cells,
+            cell=float(rig.window_cell[c]),
+            foot_half_extents=(float(rig.foot_half[c, 0]), float(rig.foot_half[c, 1])),
+            foot_yaw=float(body.yaw[c]),
+        )
+        for c in chars
+    ]
+    stats.n_windows += len(chars)
+    return dict(zip(chars, env.windows(body.pos[chars, :2], params), strict=True))
+
+
+def requests(
+    rig: Rig, land: Landing, feet: FootState, swinging: BoolArray, forced: BoolArray, ctl: StepControls,
+    grids: dict[int, WindowGrids], params_of: ParamsOf,
+) -> tuple[list[FootRequest], list[tuple[int, int, int, FloatArray]]]:
+    """One ``FootRequest`` per foot of ``land``, grouped by character, and for each its
+    ``(leg, row in land, character, hip at the stance reference (2,))``."""
+    legs_data = rig.legs
+    legs, c_of = land.legs, land.chars
+    row_of = {int(leg): j for j, leg in enumerate(legs.tolist())}
+    hip_offset_xy = legs_data.hip_offset[:, :2]
+    out: list[FootRequest] = []
+    rows_of: list[tuple[int, int, int, FloatArray]] = []
+    for c in np.unique(c_of).tolist():
+        sl = legs_data.leg_slice(c)
+        for leg in legs[c_of == c].tolist():
+            j = row_of[leg]
+            params = params_of(c, float(ctl.step_height[c]), float(land.reach[j]), leg,
+                               float(land.sweep_half[j]), sink=not forced[leg])
+            hips = land.pelvis_ref[j] + rotate_xy(
+                hip_offset_xy[sl] - land.ref_rest[j, :2],
+                np.full(sl.stop - sl.start, land.yaw_land[j] - land.rest_yaw[j]),
+            )
+            own = leg - sl.start
+            others = np.ones(sl.stop - sl.start, dtype=bool)
+            others[own] = False
+            other_idx = np.arange(sl.start, sl.stop)[others]
+            # other feet: where they stand, or where swinging ones will land
+            other_feet = np.where(
+                swinging[other_idx, None], feet.plan.target[other_idx, :2], feet.foot[other_idx, :2]
+            )
+            out.append(FootRequest(grids[c], feet.foot[leg], land.preferred_xy[j], hips[own],
+                                   hips[others], other_feet, params, float(land.yaw_land[j]),
+                                   float(land.hip_now[j, 2])))
+            rows_of.append((leg, j, c, hips[own]))
+    return out, rows_of
+
+
+def search(reqs: list[FootRequest], must_move: list[bool], stats: StepStats) -> list[Couple]:
+    """Every request's couple from the batched planner. Where every footprint near the
+    preferred one is taken (an obstacle, another foot), it looks twice as far before giving
+    up; a foot that must move (``must_move``), crowded by the other feet or boxed in by
+    slices, tries again without them."""
+    couples = plan_footsteps(reqs)
+    wide = [i for i, cp in enumerate(couples) if not cp.ok and cp.n_targets == 0]
+    if wide:
+        again = plan_footsteps([
+            replace(reqs[i], params=replace(
+                reqs[i].params,
+                candidate_radius=2.0 * reqs[i].params.candidate_radius,
+                fixed_distance=2.0 * reqs[i].params.fixed_distance,
+            ))
+            for i in wide
+        ])
+        for i, cp in zip(wide, again, strict=True):
+            couples[i] = cp
+    relax = [i for i, cp in enumerate(couples) if not cp.ok and must_move[i]]
+    if relax:
+        none = np.zeros((0, 2))
+        again = plan_footsteps([
+            replace(reqs[i], other_hips_xy=none, other_feet_xy=none, params=replace(
+                reqs[i].params,
+                candidate_radius=2.0 * reqs[i].params.candidate_radius,
+                fixed_distance=2.0 * reqs[i].params.fixed_distance,
+                slice_size=None,
+            ))
+            for i in relax
+        ])
+        for i, cp in zip(relax, again, strict=True):
+            couples[i] = cp
+        stats.n_relaxed += len(relax)
+    return list(couples)
+
+
+#: A chosen swing: (leg, row in the ``Landing``, character, samples ``(k + 1, 3)``, target ``(3,)``).
+Chosen = tuple[int, int, int, FloatArray, FloatArray]
+
+
+def choose(
+    env: Environment, rig: Rig, p: ControllerParams, land: Landing, feet: FootState,
+    flags: tuple[BoolArray, BoolArray, BoolArray],
+    rows_of: list[tuple[int, int, int, FloatArray]], couples: list[Couple], ctl: StepControls,
+    u_grid: FloatArray, stats: StepStats,
+) -> list[Chosen]:
+    """Each planned foot's swing: the planner's couple if it stays within reach (or the foot
+    must move: its way out may be a detour); else, for a foot that must move (left behind,
+    or its support gone) or whose swing a moving obstacle cut, the straight fallback step;
+    else nothing. A failed re-plan of a foot already in the air keeps its trajectory; a
+    failed plan of a foot on the ground leaves it there (``failed``; a forced one tries
+    again at the next step: ``forced`` is cleared). ``flags`` = (swinging, forced, failed)
+    ``(N,)``, the last two updated in place."""
+    swinging, forced, failed = flags
+    done: list[Chosen] = []
+    for (leg, j, c, hip_own), couple in zip(rows_of, couples, strict=True):
+        stats.n_plans += 1
+        stats.n_couples += couple.n_couples
+        stats.n_paths += couple.n_paths
+        samples = couple.trajectory.point_at(u_grid) if couple.trajectory is not None else None
+        hip_land = land.pelvis_land[j] + hip_own - land.pelvis_ref[j]
+        hip_now = land.hip_now[j]
+        # a swing that would leave the leg's reach is not taken, unless the foot must
+        # move (its way out may be a detour)
+        if (
+            couple.ok
+            and samples is not None
+            and (forced[leg] or within_reach(rig, p, leg, samples, hip_now, hip_land))
+        ):
+            target = np.asarray(couple.footprint, dtype=np.float64).copy()
+        elif ((forced[leg] and not swinging[leg]) or feet.blocked[leg]) and (
+            straight := straight_step(
+                env, rig, p, leg, feet.foot[leg], land.preferred_xy[j], u_grid, float(ctl.step_height[c]),
+                p.candidate_radius * float(rig.legs.leg_length[leg]), hip_now, hip_land,
+            )
+        ) is not None:
+            # a foot that must move (left behind, or its support gone), or whose swing a
+            # moving obstacle cut, and that the planner cannot serve steps straight to its
+            # preferred spot (or the nearest one it can)
+            samples, target = straight
+            stats.n_failed += 1
+            stats.n_fallback += 1
+        else:
+            stats.n_failed += 1
+            if not swinging[leg]:
+                failed[leg] = True
+                # a foot that must move tries again at the next step (the body moved)
+                forced[leg] = False
+            continue
+        failed[leg] = False
+        done.append((leg, j, c, samples, target))
+    return done
+
+
+def commit(
+    env: Environment, rig: Rig, p: ControllerParams, watch: Watch, feet: FootState, body: Body,
+    land: Landing, done: list[Chosen], ctl: StepControls, start_u: FloatArray, u_grid: FloatArray,
+) -> None:
+    """Write every chosen swing into the feet's plans at once, starting at swing progress
+    ``start_u (N,)`` (where the foot is now): land on the exact surface under the foot's
+    point (the planner's grid height is the highest point under the whole foot box), easing
+    the change in over the second half of the swing; a footprint whose point hangs over a
+    hole (its foot box only partly on the edge) moves onto the ground its box reaches, over
+    the second half of the swing. Also the footprint error ``body.feedback``."""
+    if not done:
+        return
+    leg_ids = np.array([d[0] for d in done])
+    rows = np.array([d[1] for d in done])
+    chars = np.array([d[2] for d in done])
+    samples_all = np.stack([d[3] for d in done])
+    targets = np.stack([d[4] for d in done])
+    ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
+    ease = ease * ease * (3.0 - 2.0 * ease)
+    hole = env.height_at(targets[:, :2]) <= VOID
+    for i in np.flatnonzero(hole).tolist():
+        shift = onto_support(env, rig, targets[i, :2], int(chars[i]))
+        if shift is not None:
+            samples_all[i, :, :2] += shift[None, :] * ease[:, None]
+            targets[i, :2] += shift
+    h = env.height_at(targets[:, :2])
+    exact = np.where(h > VOID, h, 0.0)
+    drop = targets[:, 2] - exact
+    snap = ((drop >= -1e-9) & (drop <= p.snap_tolerance * ctl.step_height[chars])) | (
+        exact > targets[:, 2]
+    )
+    samples_all[..., 2] -= np.where(snap, drop, 0.0)[:, None] * ease[None, :]
+    targets[:, 2] = np.where(snap, exact, targets[:, 2])
+    samples_all[:, -1] = targets
+    plan = feet.plan
+    plan.traj[leg_ids] = samples_all
+    if watch.dynamic:
+        flat = samples_all[..., :2].reshape(-1, 2)
+        plan.ground[leg_ids] = env.height_at(flat).reshape(leg_ids.size, -1)
+        plan.forbidden[leg_ids] = env.forbidden_at(flat).reshape(leg_ids.size, -1)
+    plan.u0[leg_ids] = start_u[leg_ids]
+    plan.target[leg_ids] = targets
+    plan.support[leg_ids] = exact
+    watch_reset(env, watch, leg_ids, targets)
+    plan.heading[leg_ids] = ctl.heading[chars]
+    plan.speed[leg_ids] = ctl.speed[chars]
+    plan.spacing[leg_ids] = ctl.spacing[leg_ids]
+    body.feedback[leg_ids] = targets[:, :2] - land.preferred_xy[rows]
+
+
+def planner_params(
+    rig: Rig, p: ControllerParams, level: PlannerLOD | None, override: PlannerParams | None,
+    char: int, step_height: float, leg_reach: float | None = None, leg: int | None = None,
+    sweep: float = 0.0, sink: bool = True,
+) -> PlannerParams:
+    """The planner settings of a character for this step (``leg_reach``: horizontal
+    distance allowed from the hip reference, default the mean leg length). With ``leg``,
+    also that leg's checks against its hip's height: its 3D reach (the comfortable
+    reach, ``sweep`` metres of coming stance sweep, the pelvis sinking by at most as much
+    as the reach guard lowers it, ``guard_max_drop`` of its thickness, or without
+    ``sink`` half of ``max_drop``: a foot stepping because it was left behind lands where
+    it will not be left behind again at once), its line to the hip clear of
+    the ground (bowed by half the arch its knees take at rest), and no footprint hanging
+    over a height step of more than ``snap_tolerance`` of the step height (or a 1:4 slope
+    under the foot). ``level``: the character's LOD; ``override``: its own planner settings
+    (replacing the derived ones except step height, reach, foot size and height change)."""
+    length = float(rig.char_leg_length[char])
+    reach = length if leg_reach is None else float(leg_reach)
+    half = (float(rig.foot_half[char, 0]), float(rig.foot_half[char, 1]))
+    sole = (float(rig.sole_half[char, 0]), float(rig.sole_half[char, 1]))
+    per_leg: dict[str, float] = {}
+    if leg is not None:
+        per_leg = {
+            "reach_3d": float(rig.comfort_reach[leg]),
+            "reach_sweep": float(sweep),
+            "reach_sink": float(
+                (p.guard_max_drop if sink else 0.5 * p.max_drop) * rig.body_thickness[char]
+            ),
+            "leg_length": float(rig.legs.leg_length[leg]),
+            "leg_arch": float(0.5 * rig.leg_arch[leg]),
+            "max_straddle": max(p.snap_tolerance * float(step_height), 0.25 * max(half)),
+        }
+    if override is None:
+        return PlannerParams(
+            step_height=float(step_height),
+            slice_size=p.slice_size if level is None else level.slice_size,
+            leg_reach=reach,
+            candidate_radius=p.candidate_radius * length,
+            fixed_distance=p.fixed_distance * length,
+            foot_half_extents=half,
+            sole_half_extents=sole,
+            max_couples_after_first=p.max_couples_after_first
+            if level is None
+            else level.max_couples_after_first,
+            max_height_change=p.max_height_change * length,
+            **per_leg,  # type: ignore[arg-type]
+        )
+    return replace(
+        override,
+        step_height=float(step_height),
+        leg_reach=reach,
+        foot_half_extents=half,
+        sole_half_extents=sole,
+        max_height_change=p.max_height_change * length,
+        **per_leg,  # type: ignore[arg-type]
+    )
+
