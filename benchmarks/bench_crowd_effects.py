@@ -188,7 +188,7 @@ def main() -> None:
     if profiler is not None:
         print("\n--- profile: quadrupeds, spine + physics ---")
         pstats.Stats(profiler).sort_stats("tottime").print_stats(20)
-        pstats.Stats(profiler).sort_stats("cumtime").print_stats("spine.py|controller.py|hull.py")
+        pstats.Stats(profiler).sort_stats("cumtime").print_stats("spine.py|locomotion|hull.py")
     q_base = mean[("quadrupeds", "base")]
     q_phys = mean[("quadrupeds", "physics")]
     q_spine = mean[("quadrupeds", "spine + physics")]

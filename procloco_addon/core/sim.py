@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The system loop (thesis §3.1, §3.6): many characters stepped together, per-frame arrays out.
 
-``Simulation`` wires the controller (``controller.Controller``: gait manager, feet,
+``Simulation`` wires the controller (``locomotion.controller.Controller``: gait manager, feet,
 planner, pelvis, pseudo-physics, IK) to user-level commands:
 
 - ``Controls``: speed, heading *or* a polyline path to follow, step height, per-leg spacing

@@ -8,7 +8,7 @@ A game-ready loop of ``N`` whole gait cycles, as a new generated Action:
    progression, the gait randomizer, no speed, a root bone that is not one;
 2. :func:`run_steps` (progress steps) reads the terrain and refuses ground that is not flat
    and level under the whole walk, or that moves; finds the gait's real cycle (the
-   controller may shorten it so the legs keep up, see ``core.controller``) and rounds it to
+   controller may shorten it so the legs keep up, see ``core.locomotion.rig``) and rounds it to
    whole frames and the stride to a whole number of the footstep planner's cells (its
    grids are fixed in the world: see :func:`_fit_stride`), the speed following (Gait: Auto
    is held at the gait it picks at the rig's speed); simulates a warm-up and the loop; finds the first whole

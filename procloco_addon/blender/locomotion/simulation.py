@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Running the core character controller for one :class:`~.generate.Job`, frame by frame.
 
-Only glue: the controller (``core.controller``) does the locomotion. This module turns
+Only glue: the controller (``core.locomotion``) does the locomotion. This module turns
 the rig settings into per-step commands (speed, heading — constant, turning, or steered
 along a path curve — step height, foot spacing, pelvis physics) and the flexible spine's
 settings (``core.spine.SpineParams``), moves the scene's animated obstacles to each frame
