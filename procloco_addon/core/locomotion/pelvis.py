@@ -74,6 +74,49 @@ def hull_pose(
         row_of = np.full(rig.n_chars, -1)
         row_of[chars] = np.arange(len(chars))
     c = pos.shape[0]
+    along_pts, along_ok, across_pts, across_ok = terrain_slices(
+        env, body_samples, pos, yaw, box_center, box_half
+    )
+    # feet: planted feet where they are, swinging feet where they will land
+    owner = rig.leg_char[leg_rows]
+    feet = support[leg_rows]
+    n_feet = int(np.bincount(row_of[owner], minlength=c).max())
+    slot = leg_rows - rig.legs.leg_start[owner]
+    feet_pts = np.zeros((c, n_feet, 3))
+    feet_ok = np.zeros((c, n_feet), dtype=bool)
+    feet_pts[row_of[owner], slot] = feet
+    feet_ok[row_of[owner], slot] = True
+    fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
+    left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=1)
+    # both slices (forward for height and pitch, left for roll) in one batched call
+    both_h, both_a = hull_height_and_pitch(
+        np.concatenate(
+            [
+                np.concatenate([along_pts, feet_pts], axis=1),
+                np.concatenate([across_pts, feet_pts], axis=1),
+            ]
+        ),
+        np.concatenate([pos[:, :2], pos[:, :2]]),
+        np.concatenate([fwd, left]),
+        np.concatenate(
+            [np.concatenate([along_ok, feet_ok], axis=1), np.concatenate([across_ok, feet_ok], axis=1)]
+        ),
+    )
+    height, pitch, roll = both_h[:c], both_a[:c], both_a[c:]
+    return height + thickness, pitch, roll
+
+
+def terrain_slices(
+    env: Environment, body_samples: tuple[int, int], pos: FloatArray, yaw: FloatArray, box_center: FloatArray,
+    box_half: FloatArray,
+) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
+    """The terrain under body boxes ``box_center``, ``box_half (c, 2)`` of pelvises at ``pos
+    (c, 3)`` heading ``yaw (c,)``, sampled on a ``body_samples`` (along, across) grid and
+    reduced to its highest point across the body at each position along it and along the
+    body at each position across it: points ``(c, w, 3)`` and whether each is on a surface
+    ``(c, w)`` of the slice along, then of the slice across (``w`` the larger sample count;
+    padded rows are not valid)."""
+    c = pos.shape[0]
     na, nc = body_samples
     sa = np.linspace(-1.0, 1.0, na)
     sc = np.linspace(-1.0, 1.0, nc)
@@ -109,7 +152,7 @@ def hull_pose(
     )
     width = max(na, nc)
 
-    def padded(loc: FloatArray, z: FloatArray) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
+    def padded(loc: FloatArray, z: FloatArray) -> tuple[FloatArray, BoolArray]:
         pts = np.zeros((c, width, 3))
         ok = np.zeros((c, width), dtype=bool)
         k = loc.shape[1]
@@ -120,33 +163,7 @@ def hull_pose(
 
     along_pts, along_ok = padded(along_local, along_z)
     across_pts, across_ok = padded(across_local, across_z)
-    # feet: planted feet where they are, swinging feet where they will land
-    owner = rig.leg_char[leg_rows]
-    feet = support[leg_rows]
-    n_feet = int(np.bincount(row_of[owner], minlength=c).max())
-    slot = leg_rows - rig.legs.leg_start[owner]
-    feet_pts = np.zeros((c, n_feet, 3))
-    feet_ok = np.zeros((c, n_feet), dtype=bool)
-    feet_pts[row_of[owner], slot] = feet
-    feet_ok[row_of[owner], slot] = True
-    fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
-    left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=1)
-    # both slices (forward for height and pitch, left for roll) in one batched call
-    both_h, both_a = hull_height_and_pitch(
-        np.concatenate(
-            [
-                np.concatenate([along_pts, feet_pts], axis=1),
-                np.concatenate([across_pts, feet_pts], axis=1),
-            ]
-        ),
-        np.concatenate([pos[:, :2], pos[:, :2]]),
-        np.concatenate([fwd, left]),
-        np.concatenate(
-            [np.concatenate([along_ok, feet_ok], axis=1), np.concatenate([across_ok, feet_ok], axis=1)]
-        ),
-    )
-    height, pitch, roll = both_h[:c], both_a[:c], both_a[c:]
-    return height + thickness, pitch, roll
+    return along_pts, along_ok, across_pts, across_ok
 
 
 def settle(body: Body, pose: tuple[FloatArray, FloatArray, FloatArray], alpha: FloatArray,
