@@ -12,5 +12,6 @@ and is plain functions on arrays:
 - ``pelvis``: hull pose, feet-error feedback, pogo particles;
 - ``spine_link``: the spine groups (``core.spine``) inside the step;
 - ``reach``: reach guard, stretched legs, IK;
+- ``stepping``: the foot-state rules of a step (landings, forced steps, swing timing);
 - ``profile``: the per-phase timer of a step.
 """

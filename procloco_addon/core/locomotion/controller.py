@@ -59,13 +59,13 @@ Characters may differ in morphology and gait; legs live on one flat axis (``LegB
 Where each concern lives: ``state`` (per-foot phase and swing plan), ``rig`` (fixed geometry,
 stride rule), ``planning`` (plan orchestration), ``obstacles`` (moving obstacles, supports,
 push-out), ``fallback`` (straight steps), ``pelvis`` (hull pose, feedback, pogo particles),
-``spine_link`` (spine groups), ``reach`` (reach guard, stretched legs, IK), ``types``.
+``spine_link`` (spine groups), ``reach`` (reach guard, stretched legs, IK), ``stepping``
+(landings, forced steps, swing timing), ``types``.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -78,13 +78,14 @@ from ..morphology import LegBatch
 from ..pelvis_physics import PelvisPhysics
 from ..spine import SpineParams
 from ..terrain import Environment
-from . import obstacles, pelvis, planning, reach, spine_link
+from . import obstacles, pelvis, planning, reach, spine_link, stepping
 from .obstacles import Watch
 from .pelvis import Body, Pogo
 from .profile import Profiler
 from .rig import Rig, build_rig, rate_scale
 from .spine_link import SpineGroup, SpineLink
 from .state import FootState, sample_polyline, start_feet, support_points, swing_parameter
+from .stepping import Flags, World
 from .types import (
     VOID,
     BoolArray,
@@ -95,21 +96,6 @@ from .types import (
     StepControls,
     StepStats,
 )
-
-Flags = tuple[BoolArray, BoolArray, BoolArray]
-
-
-@dataclass
-class _Schedule:
-    """One step's swing timing of every foot ``(N,)``: swing ``progress``, the progress
-    ``start_u`` where a new trajectory starts (where the foot is now), seconds ``remaining``
-    of the swing and of the following stance (``stance_time``), and the feet to plan."""
-
-    progress: FloatArray
-    start_u: FloatArray
-    remaining: FloatArray
-    stance_time: FloatArray
-    to_plan: BoolArray
 
 
 class Controller:
@@ -402,7 +388,7 @@ class Controller:
         self.time += dt
         gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
         flags = self.feet.flags()
-        sched = self._schedule(dt, ctl, gstep, rate_leg, flags, stats)
+        sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
         if np.any(sched.to_plan):
             forced = flags[1]
             land_stance = np.where(
@@ -447,102 +433,15 @@ class Controller:
             spine_link.shift(self.link, move)
         return gstep, needle_before, rate_leg
 
-    def _land(self, landing: BoolArray, flags: Flags) -> None:
-        """Feet ``landing (N,)`` touch down on their targets."""
-        legs = np.flatnonzero(landing)
-        if legs.size == 0:
-            return
-        feet = self.feet
-        feet.foot[legs] = feet.plan.target[legs]
-        h = self.env.height_at(feet.plan.target[legs, :2])
-        feet.support_z[legs] = np.where(h > VOID, h, 0.0)
-        flags[1][legs] = False
-        flags[0][legs] = False
-        feet.dodged[legs] = False
-        obstacles.watch_reset(self.env, self.watch, legs, feet.foot[legs])
-
     def _push_out(self, legs: IntArray, surface: FloatArray) -> None:
         obstacles.push_out(self.env, self.watch, self.feet.foot, legs, surface, self.hips_world()[legs],
                            self.rig.guard_reach[legs], self.params.support_tolerance)
 
-    def _schedule(
-        self, dt: float, ctl: StepControls, gstep: GaitStep, rate_leg: FloatArray, flags: Flags,
-        stats: StepStats,
-    ) -> _Schedule:
-        """Step 3, first half: landings, forced steps, the swing timing of every foot and
-        which feet to plan (``flags`` updated in place)."""
-        p, feet, env, tol = self.params, self.feet, self.env, self.params.support_tolerance
-        swinging, forced, failed = flags
-        # a forced step lands when its own time is up (not at the gait's touch-down)
-        landing = (
-            (gstep.landed & ~forced) | (forced & (feet.forced_elapsed + dt >= feet.forced_duration))
-        ) & swinging
-        # a moving obstacle may have taken the landing spot since the last check: step again
-        bad_landing = obstacles.spot_taken(env, self.watch, feet, feet.plan.target, landing, tol) & (
-            feet.restarts < 2
-        )
-        feet.restarts = np.where(bad_landing, feet.restarts + 1, np.where(landing, 0, feet.restarts))
-        self._land(landing & ~bad_landing, flags)
-        feet.forced_elapsed = np.where(forced, feet.forced_elapsed + dt, 0.0)
-        lifted = gstep.lifted | (feet.retry & gstep.swing)
-        feet.retry[:] = False
-        # a normal lift ends a forced step
-        forced &= ~gstep.lifted
-        progress = np.where(
-            forced, np.clip(feet.forced_elapsed / feet.forced_duration, 0.0, 1.0), gstep.swing_progress
-        )
-        # where the foot is now: the progress of the previous frame (a new trajectory starts there)
-        step_progress = np.where(forced, dt / feet.forced_duration, rate_leg * dt / self.gait.disk_duration)
-        start_u = np.clip(progress - step_progress, 0.0, 1.0)
-        remaining = (1.0 - progress) * np.where(forced, feet.forced_duration, gstep.swing_time)
-        replan = planning.replan_needed(env, self.watch, self.rig, p, feet, ctl, progress,
-                                        swinging & (gstep.swing | forced))
-        # a foot still down in its swing sector (its plan failed) is planted like any other:
-        # it must step when its support goes or when it is left behind
-        planted = ~gstep.swing | failed
-        support_gone = obstacles.check_supports(env, self.watch, feet, ~swinging, tol, self._push_out)
-        behind, stretch = reach.overstretched(self.rig, p, self._free_hips(), feet.foot, ~swinging)
-        behind &= ~support_gone
-        behind &= ~reach.wait_for_support(self.rig, p, behind & planted & ~forced, stretch, swinging | lifted,
-                                          None if self.ik_result is None else self.ik_result.error)
-        forced_new = ((support_gone | behind) & planted & ~forced) | bad_landing
-        # a foot left behind lands under its rest place at the latest (as at mid-stance):
-        # landed where its late stance would have it, it would be left behind again at once
-        feet.forced_behind = np.where(
-            forced_new, behind & planted & ~bad_landing, feet.forced_behind & forced
-        )
-        forced_time = self._forced_time(dt, ctl, gstep, forced_new)
-        rushed = replan & feet.blocked & ~forced_new & (remaining < 0.5 * forced_time)
-        forced_new |= rushed
-        if np.any(forced_new):
-            forced |= forced_new
-            feet.forced_duration[forced_new] = forced_time[forced_new]
-            # a forced step leaves in the frame it starts (its first frame's share of the
-            # swing is done): the leg is already stretched, a frame later it would be more
-            feet.forced_elapsed[forced_new] = dt
-            progress = np.where(forced_new, dt / feet.forced_duration, progress)
-            start_u = np.where(forced_new, 0.0, start_u)
-            remaining = np.where(forced_new, feet.forced_duration - dt, remaining)
-            stats.n_forced = int((forced_new & ~rushed).sum())
-        feet.swing_u = np.clip(progress, 0.0, 1.0)
-        # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
-        stats.n_replans = int((replan & ~lifted).sum())
-        return _Schedule(progress, start_u, remaining, gstep.stance_time, lifted | forced_new | replan)
-
-    def _forced_time(
-        self, dt: float, ctl: StepControls, gstep: GaitStep, forced_new: BoolArray
-    ) -> FloatArray:
-        """``(N,)`` the duration of a forced step: a share of the gait swing (a swing cut by
-        a moving obstacle near its end gets it for its new way: in the frames left it would
-        jump there); a foot left behind for cycles (its plans failed) has more than a stride
-        to cover."""
-        forced_time = np.maximum(self.params.forced_swing * gstep.swing_time, 2.0 * dt)
-        if np.any(forced_new & self.feet.forced_behind):
-            catch_up = np.maximum(forced_time, reach.catch_up_time(
-                self.rig, self.gait.disk_duration, ctl.speed, gstep.swing_time, self.hips_world(),
-                self.leg_rotations(), self.feet.foot))
-            forced_time = np.where(self.feet.forced_behind, catch_up, forced_time)
-        return np.asarray(forced_time)
+    def _world(self) -> World:
+        """What the foot-state rules (``stepping``) read besides the feet."""
+        return World(self.env, self.watch, self.rig, self.params, self.gait,
+                     None if self.ik_result is None else self.ik_result.error, self.hips_world,
+                     self.leg_rotations, self._free_hips, self._push_out)
 
     def _free_hips(self) -> FloatArray:
         """``(N, 3)`` the hips at the height the pelvis wants, before the reach guard lowered
