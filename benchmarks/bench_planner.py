@@ -22,9 +22,10 @@ the exhaustive search.
 Last, **batched, as the crowd does it**: the crowd benchmark's simulation (benchmarks/
 bench_crowd.py, LOD and no-LOD camera set-ups) runs ``--crowd-steps`` steps while every plan
 its controller asks for is recorded (the planner it calls is wrapped); those plans are then
-replayed step by step, one foot at a time (``plan_footstep``, what the controller calls
-today) and all of a step's feet in one ``plan_footsteps`` call, and the answers compared bit
-for bit.
+replayed step by step, one foot at a time (the one-foot reference planner of the tests,
+``tests/core/reference_planner.py``) and all of a step's feet in one ``plan_footsteps`` call
+(the product, what the controller calls), and the answers compared (decisions exactly,
+floats to 1e-12). The rows above plan one foot per ``plan_footsteps`` call.
 
 ``--baseline REV`` also times the planner of git revision ``REV`` (its ``procloco_addon``
 extracted to a temporary folder and imported under another name) in the same rounds, on the
@@ -61,8 +62,9 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core.footprints import Couple, FootRequest, PlannerParams, plan_footstep, plan_footsteps
+from procloco_addon.core.footprints import Couple, FootRequest, PlannerParams, plan_footsteps
 from procloco_addon.core.terrain import WindowGrids, WindowParams
+from tests.core.reference_planner import plan_footstep as reference_plan
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -126,9 +128,14 @@ def make_situations(scene: CrowdScene, centres: FloatArray, headings: FloatArray
     return out
 
 
+def plan_one(*args: Any) -> Couple:
+    """The product planner asked for one foot (``FootRequest``'s arguments)."""
+    return plan_footsteps([FootRequest(*args)])[0]
+
+
 def run_plans(
     grids: list[WindowGrids], sits: list[Situation], params: PlannerParams,
-    planner: Callable[..., Couple] = plan_footstep,
+    planner: Callable[..., Couple] = plan_one,
 ) -> tuple[float, list[Couple]]:
     """CPU time of this process for one run over all situations, and its results."""
     t0 = time.process_time()
@@ -164,7 +171,7 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
     def keep(rq: FootRequest) -> None:
         recorded[-1].append(FootRequest(rq.grids, own(rq.foot_start), own(rq.preferred_xy), own(rq.hip_xy),
                                         own(rq.other_hips_xy), own(rq.other_feet_xy), rq.params,
-                                        float(rq.foot_yaw)))
+                                        float(rq.foot_yaw), rq.hip_z))
 
     # The controller calls plan_footstep (one foot) or plan_footsteps (a step's feet): wrap both.
     wrapped: dict[str, Any] = {}
@@ -210,7 +217,10 @@ def load_baseline(rev: str) -> Callable[..., Any]:
     shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
     sys.path.insert(0, str(tmp))
     module: ModuleType = importlib.import_module("procloco_baseline.core.footprints")
-    return module.plan_footstep
+    if hasattr(module, "plan_footstep"):  # revisions with a one-foot planner in the product
+        return module.plan_footstep
+    request, batched = module.FootRequest, module.plan_footsteps
+    return lambda *a: batched([request(*a)])[0]
 
 
 def same_couple(a: Couple, b: Couple) -> bool:
@@ -241,8 +251,8 @@ def same_couple(a: Couple, b: Couple) -> bool:
 
 
 def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float, list[Couple]]:
-    """CPU time to plan every recorded step: one foot at a time with ``one``, or all of a
-    step's feet in one :func:`plan_footsteps` call (``one`` None)."""
+    """CPU time to plan every recorded step: one foot at a time with ``one`` (``FootRequest``'s
+    arguments), or all of a step's feet in one :func:`plan_footsteps` call (``one`` None)."""
     t0 = time.process_time()
     out: list[Couple] = []
     for reqs in steps:
@@ -250,7 +260,7 @@ def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float,
             out += plan_footsteps(reqs)
         else:
             out += [one(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
-                        r.params, r.foot_yaw) for r in reqs]
+                        r.params, r.foot_yaw, r.hip_z) for r in reqs]
     return time.process_time() - t0, out
 
 
@@ -265,7 +275,7 @@ def crowd_section(args: argparse.Namespace, baseline: Callable[..., Couple] | No
         steps = record_crowd_plans(mode, args.crowd_steps, 15, args.seed)
         n_steps = len(steps)
         n_plans = sum(len(r) for r in steps)
-        runners: list[tuple[str, Callable[..., Couple] | None]] = [("per foot", plan_footstep),
+        runners: list[tuple[str, Callable[..., Couple] | None]] = [("per foot", reference_plan),
                                                                     ("batched", None)]
         if baseline is not None:
             runners.append(("baseline", baseline))
@@ -286,7 +296,8 @@ def crowd_section(args: argparse.Namespace, baseline: Callable[..., Couple] | No
             line += (f" {ms['baseline']:9.2f} ms {ms['baseline'] / ms['per foot']:10.2f}x "
                      f"{ms['baseline'] / ms['batched']:9.2f}x {same_b:7.1%}")
         print(line)
-    print("(times per crowd step; 'same': answers equal to the per-foot ones (to 1e-12)"
+    print("(times per crowd step; per foot: the one-foot reference planner of the tests "
+          "(tests/core/reference_planner.py); 'same': answers equal to its ones (to 1e-12)"
           + (f"; baseline: revision {args.baseline}, one foot at a time" if baseline else "") + ")")
 
 

@@ -18,7 +18,7 @@ Per step, for all characters at once:
    the pelvis will be when it lands (speed and heading extrapolated), plus the leg's rest
    position and the user's spacing offset, plus half the stance sweep forward so the foot
    passes under its rest position at mid-stance (figures 3.6, 3.7). The footprint planner
-   (``footprints.plan_footstep``) returns the best couple; the foot follows the trajectory at
+   (``footprints.plan_footsteps``) returns the best couple; the foot follows the trajectory at
    constant speed over the rest of its swing. A swinging foot is re-planned from where it is
    (sequences 1-3, §3.6) when the commanded heading or speed changed noticeably since its
    plan, when its spacing changed, or when a moving obstacle now cuts its remaining
