@@ -51,7 +51,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -62,8 +62,9 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core.footprints import Couple, FootRequest, PlannerParams, plan_footsteps
+from procloco_addon.core.footprints import Couple, FootRequest, plan_footsteps
 from procloco_addon.core.terrain import WindowGrids, WindowParams
+from tests.core.reference_planner import FlatSettings
 from tests.core.reference_planner import plan_footstep as reference_plan
 
 FloatArray = npt.NDArray[np.float64]
@@ -128,19 +129,20 @@ def make_situations(scene: CrowdScene, centres: FloatArray, headings: FloatArray
     return out
 
 
-def plan_one(*args: Any) -> Couple:
-    """The product planner asked for one foot (``FootRequest``'s arguments)."""
-    return plan_footsteps([FootRequest(*args)])[0]
+def plan_one(rq: FootRequest) -> Couple:
+    """The product planner asked for one foot."""
+    return plan_footsteps([rq])[0]
 
 
 def run_plans(
-    grids: list[WindowGrids], sits: list[Situation], params: PlannerParams,
-    planner: Callable[..., Couple] = plan_one,
+    grids: list[WindowGrids], sits: list[Situation], params: FlatSettings,
+    planner: Callable[[FootRequest], Couple] = plan_one,
 ) -> tuple[float, list[Couple]]:
     """CPU time of this process for one run over all situations, and its results."""
+    requests = [params.request(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, s.yaw)
+                for s in sits]
     t0 = time.process_time()
-    res = [planner(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, params, s.yaw)
-           for s in sits]
+    res = [planner(rq) for rq in requests]
     return time.process_time() - t0, res
 
 
@@ -169,9 +171,9 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
         return np.array(v, dtype=np.float64)  # a copy: the controller's arrays change
 
     def keep(rq: FootRequest) -> None:
-        recorded[-1].append(FootRequest(rq.grids, own(rq.foot_start), own(rq.preferred_xy), own(rq.hip_xy),
-                                        own(rq.other_hips_xy), own(rq.other_feet_xy), rq.params,
-                                        float(rq.foot_yaw), rq.hip_z))
+        recorded[-1].append(replace(rq, foot_start=own(rq.foot_start), preferred_xy=own(rq.preferred_xy),
+                                    hip_xy=own(rq.hip_xy), other_hips_xy=own(rq.other_hips_xy),
+                                    other_feet_xy=own(rq.other_feet_xy)))
 
     # The controller calls plan_footstep (one foot) or plan_footsteps (a step's feet): wrap both.
     wrapped: dict[str, Any] = {}
@@ -202,8 +204,10 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
 
 
 def load_baseline(rev: str) -> Callable[..., Any]:
-    """``plan_footstep`` of git revision ``rev``, imported from a temporary copy of its
-    ``procloco_addon`` (renamed so that both versions live in this process)."""
+    """The planner of git revision ``rev`` asked for one foot of a request, imported from a
+    temporary copy of its ``procloco_addon`` (renamed so that both versions live in this
+    process): its ``plan_footstep`` where it has one, else its ``plan_footsteps``; the request
+    is given in that revision's types (one flat ``PlannerParams`` in older revisions)."""
     import io
     import tarfile
 
@@ -217,10 +221,34 @@ def load_baseline(rev: str) -> Callable[..., Any]:
     shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
     sys.path.insert(0, str(tmp))
     module: ModuleType = importlib.import_module("procloco_baseline.core.footprints")
+    def values(*parts: Any) -> dict[str, Any]:
+        return {f.name: getattr(part, f.name) for part in parts for f in fields(part)}
+
+    split = hasattr(module, "LegGeometry")
+
+    def convert(rq: FootRequest) -> Any:
+        if split:
+            return module.FootRequest(
+                rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy, rq.other_feet_xy,
+                module.PlannerParams(**values(rq.params)), rq.foot_yaw, rq.hip_z,
+                module.LegGeometry(**values(rq.leg)), module.SearchSwitches(**values(rq.search)),
+                leg_reach=rq.leg_reach, reach_sweep=rq.reach_sweep, reach_sink=rq.reach_sink)
+        flat = values(rq.params, rq.leg, rq.search)
+        flat.update(reach_sweep=rq.reach_sweep, reach_sink=rq.reach_sink)
+        if rq.leg_reach is not None:
+            flat["leg_reach"] = rq.leg_reach
+        names = {f.name for f in fields(module.PlannerParams)}
+        params = module.PlannerParams(**{k: v for k, v in flat.items() if k in names})
+        return module.FootRequest(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
+                                  rq.other_feet_xy, params, rq.foot_yaw, rq.hip_z)
+
     if hasattr(module, "plan_footstep"):  # revisions with a one-foot planner in the product
-        return module.plan_footstep
-    request, batched = module.FootRequest, module.plan_footsteps
-    return lambda *a: batched([request(*a)])[0]
+        def one(rq: FootRequest) -> Any:
+            r = convert(rq)
+            return module.plan_footstep(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy,
+                                        r.other_feet_xy, r.params, r.foot_yaw, r.hip_z)
+        return one
+    return lambda rq: module.plan_footsteps([convert(rq)])[0]
 
 
 def same_couple(a: Couple, b: Couple) -> bool:
@@ -250,17 +278,16 @@ def same_couple(a: Couple, b: Couple) -> bool:
                for f in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d"))
 
 
-def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float, list[Couple]]:
-    """CPU time to plan every recorded step: one foot at a time with ``one`` (``FootRequest``'s
-    arguments), or all of a step's feet in one :func:`plan_footsteps` call (``one`` None)."""
+def replay(steps: list[Step], one: Callable[[FootRequest], Couple] | None) -> tuple[float, list[Couple]]:
+    """CPU time to plan every recorded step: one foot at a time with ``one``, or all of a
+    step's feet in one :func:`plan_footsteps` call (``one`` None)."""
     t0 = time.process_time()
     out: list[Couple] = []
     for reqs in steps:
         if one is None:
             out += plan_footsteps(reqs)
         else:
-            out += [one(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
-                        r.params, r.foot_yaw, r.hip_z) for r in reqs]
+            out += [one(r) for r in reqs]
     return time.process_time() - t0, out
 
 
@@ -332,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
 
     rng = np.random.default_rng(args.seed + 2)
     sits = make_situations(scene, centres, headings, args.plans, rng)
-    full = PlannerParams(step_height=0.1, leg_reach=0.6, candidate_radius=0.21, fixed_distance=0.3,
+    full = FlatSettings(step_height=0.1, leg_reach=0.6, candidate_radius=0.21, fixed_distance=0.3,
                          foot_half_extents=FOOT_HALF, max_couples_after_first=None, slice_size=0.1)
     raw = replace(full, los_shortcut=False)
     settings = [

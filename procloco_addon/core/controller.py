@@ -64,7 +64,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import numpy.typing as npt
 
-from .footprints import FootRequest, PlannerParams, plan_footsteps
+from .footprints import FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from .gait import Gait, GaitManager
 from .geometry import vector_norm
 from .hull import hull_height_and_pitch
@@ -412,6 +412,10 @@ class Controller:
             else np.full(c, float(p.window_cell))
         )
         self._planner_override = list(planner) if planner is not None else [None] * c
+        # the planner's settings per character and geometry per leg, made once (planner_params,
+        # leg_geometry)
+        self._planner_cache: dict[tuple[object, ...], PlannerParams] = {}
+        self._leg_cache: dict[tuple[int, float], LegGeometry] = {}
         self.lod: list[PlannerLOD | None] = list(lod) if lod is not None else [None] * c
         rest_vec = legs.rest_foot - legs.hip_offset
         self.rest_height = -rest_vec[:, 2]
@@ -694,63 +698,60 @@ class Controller:
             pref[g.nodes] = h
         return pref
 
-    def planner_params(
-        self, char: int, step_height: float, leg_reach: float | None = None, leg: int | None = None,
-        sweep: float = 0.0, sink: bool = True,
-    ) -> PlannerParams:
-        """The planner settings of a character for this step (``leg_reach``: horizontal
-        distance allowed from the hip reference, default the mean leg length). With ``leg``,
-        also that leg's checks against its hip's height: its 3D reach (the comfortable
-        reach, ``sweep`` metres of coming stance sweep, the pelvis sinking by at most as much
-        as the reach guard lowers it, ``guard_max_drop`` of its thickness, or without
-        ``sink`` half of ``max_drop``: a foot stepping because it was left behind lands where
-        it will not be left behind again at once), its line to the hip clear of
-        the ground (bowed by half the arch its knees take at rest), and no footprint hanging
-        over a height step of more than ``snap_tolerance`` of the step height (or a 1:4 slope
-        under the foot)."""
+    def planner_params(self, char: int, step_height: float) -> PlannerParams:
+        """The planner settings of a character at a step height (made once per character,
+        LOD and step height, and shared by its feet): the derived ones, or the character's
+        own ``planner`` settings, with the step height, the mean leg length as reach and the
+        height change from ``ControllerParams``."""
         p = self.params
-        length = float(self.char_leg_length[char])
-        reach = length if leg_reach is None else float(leg_reach)
         level = self.lod[char]
-        half = (float(self.foot_half[char, 0]), float(self.foot_half[char, 1]))
-        sole = (float(self.sole_half[char, 0]), float(self.sole_half[char, 1]))
-        per_leg: dict[str, float] = {}
-        if leg is not None:
-            per_leg = {
-                "reach_3d": float(self.comfort_reach[leg]),
-                "reach_sweep": float(sweep),
-                "reach_sink": float(
-                    (p.guard_max_drop if sink else 0.5 * p.max_drop) * self.body_thickness[char]
-                ),
-                "leg_length": float(self.legs.leg_length[leg]),
-                "leg_arch": float(0.5 * self.leg_arch[leg]),
-                "max_straddle": max(p.snap_tolerance * float(step_height), 0.25 * max(half)),
-            }
+        lod_key = None if level is None else (level.max_couples_after_first, level.slice_size)
+        key = (char, float(step_height), lod_key)
+        cached = self._planner_cache.get(key)
+        if cached is not None:
+            return cached
+        length = float(self.char_leg_length[char])
         override = self._planner_override[char]
         if override is None:
-            return PlannerParams(
+            made = PlannerParams(
                 step_height=float(step_height),
                 slice_size=p.slice_size if level is None else level.slice_size,
-                leg_reach=reach,
+                leg_reach=length,
                 candidate_radius=p.candidate_radius * length,
                 fixed_distance=p.fixed_distance * length,
-                foot_half_extents=half,
-                sole_half_extents=sole,
                 max_couples_after_first=p.max_couples_after_first
                 if level is None
                 else level.max_couples_after_first,
                 max_height_change=p.max_height_change * length,
-                **per_leg,  # type: ignore[arg-type]
             )
-        return replace(
-            override,
-            step_height=float(step_height),
-            leg_reach=reach,
+        else:
+            made = replace(override, step_height=float(step_height), leg_reach=length,
+                           max_height_change=p.max_height_change * length)
+        self._planner_cache[key] = made
+        return made
+
+    def leg_geometry(self, leg: int, step_height: float) -> LegGeometry:
+        """What the planner checks of leg ``leg`` (made once per leg and step height): its
+        foot box and sole, its 3D reach (the comfortable reach), its line to the hip clear of
+        the ground (bowed by half the arch its knees take at rest), and no footprint hanging
+        over a height step of more than ``snap_tolerance`` of the step height (or a 1:4 slope
+        under the foot)."""
+        key = (leg, float(step_height))
+        cached = self._leg_cache.get(key)
+        if cached is not None:
+            return cached
+        char = int(self.leg_char[leg])
+        half = (float(self.foot_half[char, 0]), float(self.foot_half[char, 1]))
+        made = LegGeometry(
             foot_half_extents=half,
-            sole_half_extents=sole,
-            max_height_change=p.max_height_change * length,
-            **per_leg,  # type: ignore[arg-type]
+            sole_half_extents=(float(self.sole_half[char, 0]), float(self.sole_half[char, 1])),
+            reach_3d=float(self.comfort_reach[leg]),
+            leg_length=float(self.legs.leg_length[leg]),
+            leg_arch=float(0.5 * self.leg_arch[leg]),
+            max_straddle=max(self.params.snap_tolerance * float(step_height), 0.25 * max(half)),
         )
+        self._leg_cache[key] = made
+        return made
 
     # ---------------------------------------------------------------- the step
     def step(self, dt: float, ctl: StepControls) -> StepStats:
@@ -1428,8 +1429,12 @@ class Controller:
             sl = legs_data.leg_slice(c)
             for leg in legs[c_of == c].tolist():
                 j = row_of[leg]
-                params = self.planner_params(c, float(ctl.step_height[c]), float(reach[j]), leg,
-                                             float(sweep_half[j]), sink=not self.forced[leg])
+                step_height = float(ctl.step_height[c])
+                # the hip may sink toward a footprint by as much as the reach guard lowers it;
+                # a foot stepping because it was left behind, by half of max_drop: it lands
+                # where it will not be left behind again at once
+                sink_share = p.guard_max_drop if not self.forced[leg] else 0.5 * p.max_drop
+                sink = sink_share * float(self.body_thickness[c])
                 hips = pelvis_ref[j] + self._rotate_xy(
                     hip_offset_xy[sl] - ref_rest[j, :2],
                     np.full(sl.stop - sl.start, yaw_land[j] - rest_yaw[j]),
@@ -1442,9 +1447,12 @@ class Controller:
                 other_feet = np.where(
                     self.swinging[other_idx, None], self.target[other_idx, :2], self.foot[other_idx, :2]
                 )
-                requests.append(FootRequest(grids_of[c], self.foot[leg], preferred_xy[j], hips[own],
-                                            hips[others], other_feet, params, float(yaw_land[j]),
-                                            float(hip_now[j, 2])))
+                requests.append(FootRequest(
+                    grids_of[c], self.foot[leg], preferred_xy[j], hips[own], hips[others], other_feet,
+                    self.planner_params(c, step_height), float(yaw_land[j]), float(hip_now[j, 2]),
+                    self.leg_geometry(leg, step_height), leg_reach=float(reach[j]),
+                    reach_sweep=float(sweep_half[j]), reach_sink=float(sink),
+                ))
                 rows_of.append((leg, j, c, hips[own]))
         couples = plan_footsteps(requests)
         # every footprint near the preferred one is taken (an obstacle, another foot): look

@@ -111,46 +111,25 @@ _NEIGHBOURS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1
 
 @dataclass(frozen=True)
 class PlannerParams:
-    """Knobs of the footprint planner. Lengths in metres.
+    """The planner settings of a character (what the user's settings and the character's LOD
+    choose; one object per character, shared by all its feet). Lengths in metres.
 
     ``step_height``: clearance of the swing above what it passes over.
     ``slice_size``: height slices for "around or over" (None: no slices, go over everything).
-    ``leg_reach``: how far a footprint may be from the hip (horizontal) and the search
-    rectangle's width (``search_half_width`` defaults to ``max(candidate_radius, reach / 2)``).
+    ``leg_reach``: how far a footprint may be from the hip (horizontal; a request's own
+    ``leg_reach`` replaces it), the default ``max_height_change`` and the search rectangle's
+    width (half ``max(candidate_radius, reach / 2)`` unless the search switches say).
     ``candidate_radius``: candidates within this distance of the preferred footprint.
     ``fixed_distance``: distance at which the distance criterion reaches 0.
-    ``foot_half_extents``: the foot's ground box (forward, left half sizes): what it keeps
-    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of another foot
-    this foot may not land on, a box about that foot's point (None: a foot box). A foot whose
-    toes reach far from its end-effector has a large foot box but stands on a small sole: two
-    such feet may stand closer than two foot boxes, as long as neither's box covers the
-    other's sole.
     ``max_couples_after_first``: LOD budget (None: full search; 0: first valid couple).
     ``edge_height``: a height step larger than this between neighbour cells is an edge.
     ``edge_score``: the criterion's value on an obstacle rim (thesis: 0.8).
     ``max_height_change``: footprints further than this above/below the foot are never
-    candidates (None: ``leg_reach``).
-    ``tension``: of the 2D cardinal curve. ``shared_wavefront``: one wavefront per slice from
-    the foot (True) or one per target and slice (False, the thesis's way).
-    ``exhaustive``: evaluate every couple fully (reference for tests; ignores the LOD budget).
-    ``max_targets``: cap on the number of candidates considered (best first), None for all.
-    ``los_shortcut``: build no wavefront for a target in plain sight of the foot (the straight
-    line is what the wavefront and line-of-sight steps would give anyway).
-
-    Checks that need the hip's height (the request's ``hip_z``; skipped without it):
-
-    ``reach_3d``: largest distance from the hip to a footprint in 3D (None: only the
-    horizontal ``leg_reach``), with ``reach_sweep`` added to the horizontal distance (half
-    the coming stance sweep) and the hip allowed to sink ``reach_sink`` toward a footprint
-    below it. ``leg_length``: the straight line from a footprint up to the hip should pass
-    over the elevation map (a lower leg beside a crate would otherwise run through it),
-    raised by ``leg_arch`` times the half-height a two-segment leg of that length bends over
-    that distance (legs whose knees rise above the hip-foot line; 0 for the others); a
-    footprint whose line does not is scored ``leg_clearance_score`` times lower (a fifth
-    criterion of §3.5.1: taken only when nothing better is left, e.g. with an obstacle under
-    the body); None: no such check. ``max_straddle``: a footprint whose foot box reaches
-    ground more than this above the ground at its own point hangs over a height step, it is
-    never a candidate (None: no check).
+    candidates (None: the reach).
+    ``tension``: of the 2D cardinal curve.
+    ``leg_clearance_score``: the factor of a footprint whose leg line does not clear the
+    ground (:class:`LegGeometry` ``leg_length``; a fifth criterion of §3.5.1: taken only when
+    nothing better is left, e.g. with an obstacle under the body).
     """
 
     step_height: float = 0.1
@@ -158,25 +137,12 @@ class PlannerParams:
     leg_reach: float = 0.6
     candidate_radius: float = 0.2
     fixed_distance: float = 0.3
-    foot_half_extents: tuple[float, float] = (0.03, 0.03)
-    sole_half_extents: tuple[float, float] | None = None
     max_couples_after_first: int | None = None
     edge_height: float = 0.04
     edge_score: float = 0.8
     max_height_change: float | None = None
-    search_half_width: float | None = None
     tension: float = 0.5
-    shared_wavefront: bool = True
-    exhaustive: bool = False
-    max_targets: int | None = None
-    los_shortcut: bool = True
-    reach_3d: float | None = None
-    reach_sweep: float = 0.0
-    reach_sink: float = 0.0
-    leg_length: float | None = None
-    leg_arch: float = 0.0
     leg_clearance_score: float = 0.2
-    max_straddle: float | None = None
 
     def __post_init__(self) -> None:
         if self.slice_size is not None and not self.slice_size > 0.0:
@@ -185,6 +151,67 @@ class PlannerParams:
             raise ValueError("leg_reach and fixed_distance must be positive, candidate_radius >= 0")
         if self.max_couples_after_first is not None and self.max_couples_after_first < 0:
             raise ValueError("max_couples_after_first must be >= 0 or None")
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """What the planner needs of one leg and its foot, computed once per rig (one object per
+    leg, shared by all its plans). Lengths in metres.
+
+    ``foot_half_extents``: the foot's ground box (forward, left half sizes): what it keeps
+    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of another foot
+    this foot may not land on, a box about that foot's point (None: a foot box). A foot whose
+    toes reach far from its end-effector has a large foot box but stands on a small sole: two
+    such feet may stand closer than two foot boxes, as long as neither's box covers the
+    other's sole.
+
+    Checks that need the hip's height (the request's ``hip_z``; skipped without it):
+    ``reach_3d``: largest distance from the hip to a footprint in 3D (None: only the
+    horizontal reach), with the request's ``reach_sweep`` added to the horizontal distance
+    and the hip allowed to sink its ``reach_sink`` toward a footprint below it.
+    ``leg_length``: the straight line from a footprint up to the hip should pass over the
+    elevation map (a lower leg beside a crate would otherwise run through it), raised by
+    ``leg_arch`` times the half-height a two-segment leg of that length bends over that
+    distance (legs whose knees rise above the hip-foot line; 0 for the others); a footprint
+    whose line does not is scored :attr:`PlannerParams.leg_clearance_score` times lower;
+    None: no such check. ``max_straddle``: a footprint whose foot box reaches ground more
+    than this above the ground at its own point hangs over a height step, it is never a
+    candidate (None: no check).
+    """
+
+    foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    sole_half_extents: tuple[float, float] | None = None
+    reach_3d: float | None = None
+    leg_length: float | None = None
+    leg_arch: float = 0.0
+    max_straddle: float | None = None
+
+
+@dataclass(frozen=True)
+class SearchSwitches:
+    """Switches of the search itself, for tests and benchmarks (the product runs the
+    defaults, whose answers the others check or time).
+
+    ``shared_wavefront``: one wavefront per slice from the foot (True) or one per target and
+    slice (False, the thesis's way). ``exhaustive``: evaluate every couple fully (the
+    reference the pruned search must equal; ignores the LOD budget). ``max_targets``: cap on
+    the number of candidates considered (best first), None for all. ``los_shortcut``: build
+    no wavefront for a target in plain sight of the foot (the straight line is what the
+    wavefront and line-of-sight steps would give anyway). ``search_half_width``: half width
+    of the search rectangle in metres (None: ``max(candidate_radius, reach / 2)``).
+    """
+
+    shared_wavefront: bool = True
+    exhaustive: bool = False
+    max_targets: int | None = None
+    los_shortcut: bool = True
+    search_half_width: float | None = None
+
+
+#: The search the product runs.
+DEFAULT_SEARCH = SearchSwitches()
+#: A leg with the default foot box and none of the checks that need the hip's height.
+DEFAULT_LEG = LegGeometry()
 
 
 @dataclass(frozen=True)
@@ -289,21 +316,22 @@ def _hip_checks(
     return ok, clear
 
 
-def _hip_settings(params: PlannerParams) -> list[float]:
-    """A plan's row of :func:`_hip_checks` settings."""
+def _hip_settings(leg: LegGeometry, sweep: float, sink: float) -> list[float]:
+    """A plan's row of :func:`_hip_checks` settings: its leg's, the plan's ``sweep`` and
+    ``sink``."""
     inf = math.inf
-    half = params.foot_half_extents
-    return [inf if params.max_straddle is None else params.max_straddle,
-            inf if params.reach_3d is None else params.reach_3d, params.reach_sweep, params.reach_sink,
-            inf if params.leg_length is None else params.leg_length, params.leg_arch,
+    half = leg.foot_half_extents
+    return [inf if leg.max_straddle is None else leg.max_straddle,
+            inf if leg.reach_3d is None else leg.reach_3d, sweep, sink,
+            inf if leg.leg_length is None else leg.leg_length, leg.leg_arch,
             math.hypot(float(half[0]), float(half[1]))]
 
 
-def _sole(params: PlannerParams, half: tuple[float, float]) -> tuple[float, float]:
+def _sole(leg: LegGeometry, half: tuple[float, float]) -> tuple[float, float]:
     """The half sizes of the box each other foot is forbidden as: its sole, else a foot box."""
-    if params.sole_half_extents is None:
+    if leg.sole_half_extents is None:
         return half
-    sole = np.asarray(params.sole_half_extents, dtype=np.float64).reshape(2)
+    sole = np.asarray(leg.sole_half_extents, dtype=np.float64).reshape(2)
     return float(sole[0]), float(sole[1])
 
 
@@ -344,7 +372,13 @@ class FootRequest:
     ``other_hips_xy``, ``other_feet_xy``: ``(k, 2)`` the other legs' hips and feet (their
     feet are forbidden, their legs must not be crossed); ``foot_yaw``: the foot box's yaw;
     ``hip_z``: the hip's height (at touch-down), for the checks that need it (see
-    :class:`PlannerParams`; skipped when None)."""
+    :class:`LegGeometry`; skipped when None).
+
+    ``params``: the character's settings; ``leg``: this leg's geometry; ``search``: the
+    search switches. What changes from plan to plan: ``leg_reach``, the horizontal reach
+    from the hip for this plan (None: ``params.leg_reach``); ``reach_sweep``, metres added to
+    the horizontal distance in the 3D reach check (half the coming stance sweep);
+    ``reach_sink``, how far the hip may sink toward a footprint below it in that check."""
 
     grids: WindowGrids
     foot_start: npt.ArrayLike
@@ -355,6 +389,11 @@ class FootRequest:
     params: PlannerParams
     foot_yaw: float = 0.0
     hip_z: float | None = None
+    leg: LegGeometry = DEFAULT_LEG
+    search: SearchSwitches = DEFAULT_SEARCH
+    leg_reach: float | None = None
+    reach_sweep: float = 0.0
+    reach_sink: float = 0.0
 
 
 _NO_CANDIDATE = ("no candidate footprint: every cell near the preferred footprint is forbidden, "
@@ -373,13 +412,18 @@ class _Plan:
         "hip",
         "hip_z",
         "index",
+        "leg",
         "o_feet",
         "o_hips",
         "params",
         "pref",
+        "reach",
+        "search",
+        "sink",
         "sole",
         "start",
         "start_rc",
+        "sweep",
         "yaw",
     )
 
@@ -387,9 +431,14 @@ class _Plan:
                  o_hips: FloatArray, o_feet: FloatArray, start_rc: tuple[float, float], frame: RegionFrame,
                  half: tuple[float, float]) -> None:
         self.index = index
-        self.sole = _sole(rq.params, half)
+        self.sole = _sole(rq.leg, half)
         self.grids = rq.grids
         self.params = rq.params
+        self.leg = rq.leg
+        self.search = rq.search
+        self.reach = _reach(rq)
+        self.sweep = float(rq.reach_sweep)
+        self.sink = float(rq.reach_sink)
         self.start = start
         self.pref = pref
         self.hip = hip
@@ -401,6 +450,11 @@ class _Plan:
         self.start_rc = start_rc
         self.frame = frame
         self.half = half
+
+
+def _reach(rq: FootRequest) -> float:
+    """The horizontal reach of a request's plan."""
+    return float(rq.params.leg_reach if rq.leg_reach is None else rq.leg_reach)
 
 
 def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
@@ -427,15 +481,15 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     params = rq.params
     cell = float(grids.cell)
     ox, oy = (float(v) for v in grids.origin)
-    half = tuple(float(v) for v in np.asarray(params.foot_half_extents, dtype=np.float64).reshape(2))
+    half = tuple(float(v) for v in np.asarray(rq.leg.foot_half_extents, dtype=np.float64).reshape(2))
     start_rc = ((sy - oy) / cell, (sx - ox) / cell)
     pref_rc = ((py - oy) / cell, (px - ox) / cell)
     ny, nx = grids.shape
     if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
         return _fail(start, "the foot is outside the window grids")
-    half_width = params.search_half_width
+    half_width = rq.search.search_half_width
     if half_width is None:
-        half_width = max(params.candidate_radius, 0.5 * params.leg_reach)
+        half_width = max(params.candidate_radius, 0.5 * _reach(rq))
     foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
     frame = region_frame((ny, nx), start_rc[0], start_rc[1], pref_rc[0], pref_rc[1],
                          half_width / cell + foot_cells,
@@ -574,11 +628,11 @@ class _Foot:
         self.levels = levels
         self.start_cell = start_cell
         self.start_inside = start_inside
-        prm = plan.params
-        self.exhaustive = prm.exhaustive
-        self.budget = None if prm.exhaustive else prm.max_couples_after_first
-        self.per_target = not prm.shared_wavefront
-        self.shortcut = prm.los_shortcut
+        search = plan.search
+        self.exhaustive = search.exhaustive
+        self.budget = None if search.exhaustive else plan.params.max_couples_after_first
+        self.per_target = not search.shared_wavefront
+        self.shortcut = search.los_shortcut
         self.st = _Search()
         self.maps: dict[float, _Maps] = {}
         self.fields: dict[tuple[float, int, int], DistanceField] = {}
@@ -718,7 +772,7 @@ class _Batch:
             p = f.plan
             h, w = int(self.hh[k]), int(self.ww[k])
             path_params = PathParams(step_height=p.params.step_height, tension=p.params.tension,
-                                     los_shortcut=p.params.los_shortcut)
+                                     los_shortcut=p.search.los_shortcut)
             region = Region(int(self.r0[k]), int(self.c0[k]), self.mask[k, :h, :w])
             f.ctx = PathContext.from_parts(p.grids, p.start, region, path_params, f.per_target,
                                            self.sweep_off[self.sweep_in[k]], (p.half, p.yaw),
@@ -743,8 +797,8 @@ class _Batch:
             p = self.plans[k]
             n_targets = cands.n_valid[k]
             order = list(range(n_targets))
-            if p.params.max_targets is not None:
-                order = order[: p.params.max_targets]
+            if p.search.max_targets is not None:
+                order = order[: p.search.max_targets]
             f = _Foot(p, k, cands.bounds[k], order, n_targets, levels[k], (sc[i][0], sc[i][1]), inside[i])
             h, w = int(self.hh[k]), int(self.ww[k])
             f.maps[math.inf] = (core[i, :h, :w], dil[i, :h, :w], blocked[i, :h, :w])
@@ -1165,20 +1219,20 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     hip = np.array([p.hip for p in plans])
     dx = x - hip[b, 0]
     dy = y - hip[b, 1]
-    reach = np.array([p.params.leg_reach + 1e-9 for p in plans])
+    reach = np.array([p.reach + 1e-9 for p in plans])
     ok &= planar_length(dx, dy) <= reach[b]
     # Landing height: the highest surface under the foot box at its exact offset.
     land_off, land_in = _offset_kernels(plans, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
     z0 = np.array([float(p.start[2]) for p in plans])
-    max_dz = np.array([p.params.leg_reach if p.params.max_height_change is None
+    max_dz = np.array([p.reach if p.params.max_height_change is None
                        else p.params.max_height_change for p in plans])
     ok &= np.abs(z - z0[b]) <= max_dz[b]
     hip_z = np.array([math.nan if p.hip_z is None else p.hip_z for p in plans])
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
         owner = b[sel]
-        settings = np.array([_hip_settings(p.params) for p in plans])
+        settings = np.array([_hip_settings(p.leg, p.sweep, p.sink) for p in plans])
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
             np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
@@ -1315,7 +1369,7 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
     for i, k in enumerate(sliced):
         p = plans[k]
         z0 = float(p.start[2])
-        reach_up = p.params.leg_reach if p.params.max_height_change is None else p.params.max_height_change
+        reach_up = p.reach if p.params.max_height_change is None else p.params.max_height_change
         top = min(tops[i] if tops[i] != -math.inf else z0, z0 + reach_up)
         size = p.params.slice_size
         assert size is not None

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -23,13 +24,17 @@ import numpy.typing as npt
 from procloco_addon.core.footprints import (
     _NEIGHBOURS,
     Couple,
+    FootRequest,
+    LegGeometry,
     PlannerParams,
+    SearchSwitches,
     _disc_offsets,
     _distinct_levels,
     _fail,
     _hip_checks,
     _hip_settings,
     _level_list,
+    _reach,
     _sole,
     _WindowLookup,
 )
@@ -96,12 +101,13 @@ def score_candidates(
     hip_xy: FloatArray,
     other_hips_xy: FloatArray,
     other_feet_xy: FloatArray,
-    params: PlannerParams,
-    foot_yaw: float = 0.0,
-    hip_z: float | None = None,
+    rq: FootRequest,
 ) -> Candidates:
-    """Candidate footprints around ``preferred_xy`` with their scores (thesis §3.5.1);
-    ``hip_z``: the hip's height, for the checks that need it (:class:`PlannerParams`)."""
+    """Candidate footprints around ``preferred_xy`` with their scores (thesis §3.5.1), for
+    the settings, leg and reach of request ``rq`` (the hip's height ``rq.hip_z`` for the
+    checks that need it, :class:`LegGeometry`)."""
+    params, leg, reach = rq.params, rq.leg, _reach(rq)
+    foot_yaw, hip_z = rq.foot_yaw, rq.hip_z
     grids = ctx.grids
     cell = grids.cell
     reg = ctx.region
@@ -125,13 +131,13 @@ def score_candidates(
     ok = reg.mask[r, c] & ~forbidden[r, c] & (elev[r, c] > _VOID_BELOW)
     xy = grids.xy_of(cells[:, 0] + reg.r0 + sub[0], cells[:, 1] + reg.c0 + sub[1])
     to_hip = xy - hip_xy
-    ok &= planar_length(to_hip[:, 0], to_hip[:, 1]) <= params.leg_reach + 1e-9
+    ok &= planar_length(to_hip[:, 0], to_hip[:, 1]) <= reach + 1e-9
     # Landing height: the highest surface under the foot box at its exact offset.
-    half = np.asarray(params.foot_half_extents, dtype=np.float64)
+    half = np.asarray(leg.foot_half_extents, dtype=np.float64)
     land_kernel = _offset_kernel(cell, float(half[0]), float(half[1]), float(foot_yaw),
                                  round(float(sub[0]), 9), round(float(sub[1]), 9))
     z = ctx.land_height(cells, land_kernel)
-    max_dz = params.leg_reach if params.max_height_change is None else params.max_height_change
+    max_dz = reach if params.max_height_change is None else params.max_height_change
     ok &= np.abs(z - ctx.start[2]) <= max_dz
     if hip_z is not None:
         sel = np.flatnonzero(ok)
@@ -139,7 +145,7 @@ def score_candidates(
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
             xy[sel], z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
-            np.full(m, float(hip_z)), np.tile(_hip_settings(params), (m, 1)),
+            np.full(m, float(hip_z)), np.tile(_hip_settings(leg, rq.reach_sweep, rq.reach_sink), (m, 1)),
             _WindowLookup([ctx.grids]), np.zeros(m, dtype=np.intp),
         )
         clearance = np.where(clear[ok], 1.0, params.leg_clearance_score)
@@ -217,27 +223,14 @@ def slice_levels(ctx: PathContext, slice_size: float | None, ceiling: float = ma
     return _distinct_levels(levels, above)
 
 
-def plan_footstep(
-    grids: WindowGrids,
-    foot_start: npt.ArrayLike,
-    preferred_xy: npt.ArrayLike,
-    hip_xy: npt.ArrayLike,
-    other_hips_xy: npt.ArrayLike,
-    other_feet_xy: npt.ArrayLike,
-    params: PlannerParams,
-    foot_yaw: float = 0.0,
-    hip_z: float | None = None,
-) -> Couple:
-    """The best couple (footprint, 3D trajectory) for one swinging foot.
-
-    ``grids``: the character's window (:meth:`~.terrain.Environment.window`); ``foot_start``:
-    ``(3,)`` where the foot is now; ``preferred_xy``: ``(2,)`` the controller's preferred
-    footprint; ``hip_xy``: ``(2,)`` this leg's hip (at touch-down); ``other_hips_xy``,
-    ``other_feet_xy``: ``(k, 2)`` the other legs' hips and feet (their feet are forbidden,
-    their legs must not be crossed); ``foot_yaw``: the foot box's yaw; ``hip_z``: the hip's
-    height (at touch-down), for the checks that need it (see :class:`PlannerParams`). Never raises for an
-    unreachable target; never returns NaN.
+def plan_footstep(rq: FootRequest) -> Couple:
+    """The best couple (footprint, 3D trajectory) for the one swinging foot of request ``rq``
+    (:class:`~procloco_addon.core.footprints.FootRequest`). Never raises for an unreachable
+    target; never returns NaN.
     """
+    grids, foot_start, preferred_xy, hip_xy = rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy
+    other_hips_xy, other_feet_xy, foot_yaw, hip_z = rq.other_hips_xy, rq.other_feet_xy, rq.foot_yaw, rq.hip_z
+    params, leg, search, reach = rq.params, rq.leg, rq.search, _reach(rq)
     start = np.asarray(foot_start, dtype=np.float64).reshape(3)
     pref = np.asarray(preferred_xy, dtype=np.float64).reshape(2)
     hip = np.asarray(hip_xy, dtype=np.float64).reshape(2)
@@ -251,25 +244,25 @@ def plan_footstep(
     if o_hips.shape != o_feet.shape:
         return _fail(start, "other_hips_xy and other_feet_xy differ in shape")
     cell = grids.cell
-    half = np.asarray(params.foot_half_extents, dtype=np.float64).reshape(2)
+    half = np.asarray(leg.foot_half_extents, dtype=np.float64).reshape(2)
     start_rc = grids.rowcol(start[:2])
     pref_rc = grids.rowcol(pref)
     ny, nx = grids.shape
     if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
         return _fail(start, "the foot is outside the window grids")
-    half_width = params.search_half_width
+    half_width = search.search_half_width
     if half_width is None:
-        half_width = max(params.candidate_radius, 0.5 * params.leg_reach)
+        half_width = max(params.candidate_radius, 0.5 * reach)
     foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
     region = search_region(grids.shape, start_rc, pref_rc, half_width / cell + foot_cells,
                            params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
-    extra = _other_feet_mask(grids, o_feet, np.asarray(_sole(params, (float(half[0]), float(half[1])))),
+    extra = _other_feet_mask(grids, o_feet, np.asarray(_sole(leg, (float(half[0]), float(half[1])))),
                              foot_yaw)
     path_params = PathParams(step_height=params.step_height, tension=params.tension,
-                             los_shortcut=params.los_shortcut)
+                             los_shortcut=search.los_shortcut)
     ctx = PathContext(grids, start, region, extra, half, foot_yaw, path_params,
-                      per_target=not params.shared_wavefront)
-    cand = score_candidates(ctx, pref, hip, o_hips, o_feet, params, foot_yaw, hip_z)
+                      per_target=not search.shared_wavefront)
+    cand = score_candidates(ctx, pref, hip, o_hips, o_feet, rq)
     valid = cand.score > 0.0
     n_targets = int(np.count_nonzero(valid))
     if n_targets == 0:
@@ -277,11 +270,11 @@ def plan_footstep(
                "out of reach, without ground or crosses another leg")
         return _fail(start, why)
     order = np.nonzero(valid)[0]
-    if params.max_targets is not None:
-        order = order[: params.max_targets]
-    reach_up = params.leg_reach if params.max_height_change is None else params.max_height_change
+    if search.max_targets is not None:
+        order = order[: search.max_targets]
+    reach_up = reach if params.max_height_change is None else params.max_height_change
     levels = slice_levels(ctx, params.slice_size, float(start[2]) + reach_up)
-    exhaustive = params.exhaustive
+    exhaustive = search.exhaustive
     budget = None if exhaustive else params.max_couples_after_first
 
     best_score = 0.0
@@ -347,3 +340,54 @@ def plan_footstep(
         target_index=int(t),
     )
 
+
+
+@dataclass(frozen=True)
+class FlatSettings:
+    """A test's or benchmark's planner set-up in one flat object, so that a scenario reads as
+    one ``replace(...)``: every field of :class:`~procloco_addon.core.footprints.PlannerParams`,
+    :class:`~procloco_addon.core.footprints.LegGeometry` and
+    :class:`~procloco_addon.core.footprints.SearchSwitches`, and a request's per-plan
+    ``reach_sweep`` and ``reach_sink``; :meth:`request` splits it into a ``FootRequest``."""
+
+    step_height: float = 0.1
+    slice_size: float | None = 0.1
+    leg_reach: float = 0.6
+    candidate_radius: float = 0.2
+    fixed_distance: float = 0.3
+    foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    sole_half_extents: tuple[float, float] | None = None
+    max_couples_after_first: int | None = None
+    edge_height: float = 0.04
+    edge_score: float = 0.8
+    max_height_change: float | None = None
+    search_half_width: float | None = None
+    tension: float = 0.5
+    shared_wavefront: bool = True
+    exhaustive: bool = False
+    max_targets: int | None = None
+    los_shortcut: bool = True
+    reach_3d: float | None = None
+    reach_sweep: float = 0.0
+    reach_sink: float = 0.0
+    leg_length: float | None = None
+    leg_arch: float = 0.0
+    leg_clearance_score: float = 0.2
+    max_straddle: float | None = None
+
+    def parts(self) -> tuple[PlannerParams, LegGeometry, SearchSwitches]:
+        """The settings, the leg and the search switches."""
+        def pick(cls: type) -> dict[str, Any]:
+            return {f.name: getattr(self, f.name) for f in fields(cls)}
+
+        return (PlannerParams(**pick(PlannerParams)), LegGeometry(**pick(LegGeometry)),
+                SearchSwitches(**pick(SearchSwitches)))
+
+    def request(self, grids: WindowGrids, foot_start: npt.ArrayLike, preferred_xy: npt.ArrayLike,
+                hip_xy: npt.ArrayLike, other_hips_xy: npt.ArrayLike, other_feet_xy: npt.ArrayLike,
+                foot_yaw: float = 0.0, hip_z: float | None = None) -> FootRequest:
+        """The request of one foot with these settings."""
+        params, leg, search = self.parts()
+        return FootRequest(grids, foot_start, preferred_xy, hip_xy, other_hips_xy, other_feet_xy, params,
+                           foot_yaw, hip_z, leg, search, reach_sweep=self.reach_sweep,
+                           reach_sink=self.reach_sink)

@@ -16,8 +16,6 @@ from hypothesis import strategies as st
 
 from procloco_addon.core.footprints import (
     Couple,
-    FootRequest,
-    PlannerParams,
     plan_footsteps,
 )
 from procloco_addon.core.pathing import clearance_profile, wavefront
@@ -33,11 +31,11 @@ from procloco_addon.core.terrain import (
     foot_kernel,
 )
 from tests.core.cross_path import assert_close
-from tests.core.reference_planner import legs_cross, plan_footstep
+from tests.core.reference_planner import FlatSettings, legs_cross, plan_footstep
 
 WP = WindowParams(n_cells=40, cell=0.07, foot_half_extents=(0.03, 0.03))
-P = PlannerParams(step_height=0.1, slice_size=0.1, leg_reach=0.6, candidate_radius=0.2, fixed_distance=0.3,
-                  foot_half_extents=(0.03, 0.03))
+P = FlatSettings(step_height=0.1, slice_size=0.1, leg_reach=0.6, candidate_radius=0.2, fixed_distance=0.3,
+                 foot_half_extents=(0.03, 0.03))
 NO_LEGS = np.zeros((0, 2))
 START = np.array([0.0, 0.0, 0.0])
 HIP = np.array([0.2, 0.25])
@@ -60,20 +58,21 @@ def window(rows: list[tuple[float, float, float, float, float, int]] | None = No
 
 
 def plan_one(grids: WindowGrids, foot_start: np.ndarray, preferred_xy: np.ndarray, hip_xy: np.ndarray,
-             other_hips_xy: np.ndarray, other_feet_xy: np.ndarray, params: PlannerParams,
+             other_hips_xy: np.ndarray, other_feet_xy: np.ndarray, params: FlatSettings,
              foot_yaw: float = 0.0, hip_z: float | None = None) -> Couple:
     """The product planner (:func:`plan_footsteps`) asked for one foot."""
-    return plan_footsteps([FootRequest(grids, foot_start, preferred_xy, hip_xy, other_hips_xy, other_feet_xy,
-                                       params, foot_yaw, hip_z)])[0]
+    rq = params.request(grids, foot_start, preferred_xy, hip_xy, other_hips_xy, other_feet_xy, foot_yaw,
+                        hip_z)
+    return plan_footsteps([rq])[0]
 
 
-def plan(w: WindowGrids, preferred: tuple[float, float], params: PlannerParams = P,
+def plan(w: WindowGrids, preferred: tuple[float, float], params: FlatSettings = P,
          start: np.ndarray = START, hip: np.ndarray = HIP, other_hips: np.ndarray = NO_LEGS,
          other_feet: np.ndarray = NO_LEGS, yaw: float = 0.0) -> Couple:
     return plan_one(w, start, np.array(preferred), hip, other_hips, other_feet, params, yaw)
 
 
-def check_couple(w: WindowGrids, c: Couple, params: PlannerParams, start: np.ndarray,
+def check_couple(w: WindowGrids, c: Couple, params: FlatSettings, start: np.ndarray,
                  preferred: np.ndarray, hip: np.ndarray, other_feet: np.ndarray = NO_LEGS,
                  yaw: float = 0.0) -> None:
     """Invariants of every valid couple (foot box ``params.foot_half_extents`` at ``yaw``)."""
@@ -361,7 +360,7 @@ def test_a_foot_box_keeps_off_the_other_feet_soles_not_their_whole_boxes() -> No
     np.testing.assert_allclose(soles.footprint[:2], pref, atol=1e-9)
     assert np.max(np.abs(soles.footprint[:2] - other_foot[0])) >= 0.1 + 0.02
     # the same with the batch planner
-    rq = FootRequest(w, START, pref, HIP, other_hip, other_foot, on_soles)
+    rq = on_soles.request(w, START, pref, HIP, other_hip, other_foot)
     _same_couple(plan_footsteps([rq])[0], soles)
 
 
@@ -435,8 +434,7 @@ def test_planning_a_batch_of_feet_equals_the_one_foot_reference(seed: int) -> No
         start, pref, hip, oh, of = foot
         params = BATCH_SETTINGS[int(rng.integers(len(BATCH_SETTINGS)))]
         hip_z = float(rng.uniform(0.05, 0.4)) if rng.random() < 0.7 else None
-        requests.append(FootRequest(w, start, pref, hip, oh, of, params, float(rng.uniform(-np.pi, np.pi)),
-                                    hip_z))
+        requests.append(params.request(w, start, pref, hip, oh, of, float(rng.uniform(-np.pi, np.pi)), hip_z))
     env, w, _ = scenes[0]
     # Feet that cannot be planned, and a foot on an avoided crate (it may step off it).
     # A window of another size and cell size in the same batch.
@@ -444,14 +442,13 @@ def test_planning_a_batch_of_feet_equals_the_one_foot_reference(seed: int) -> No
     for grids, start, pref in ((w, [np.nan, 0.0, 0.0], [0.3, 0.0]), (w, [50.0, 0.0, 0.0], [50.3, 0.0]),
                                (_crate_window(), [0.0, 0.0, 0.15], [0.4, 0.0]),
                                (other, [0.0, 0.0, 0.0], [0.3, 0.1])):
-        requests.append(FootRequest(grids, np.array(start), np.array(pref), HIP, NO_LEGS, NO_LEGS, P))
+        requests.append(P.request(grids, np.array(start), np.array(pref), HIP, NO_LEGS, NO_LEGS))
     order = rng.permutation(len(requests))
     requests = [requests[i] for i in order]
     batched = plan_footsteps(requests)
     assert len(batched) == len(requests)
     for rq, got in zip(requests, batched, strict=True):
-        alone = plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
-                              rq.other_feet_xy, rq.params, rq.foot_yaw, rq.hip_z)
+        alone = plan_footstep(rq)
         _same_couple(got, alone)
         _same_couple(plan_footsteps([rq])[0], alone)  # a batch of one: the same search
     assert any(c.ok for c in batched)
