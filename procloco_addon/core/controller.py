@@ -1485,19 +1485,25 @@ class Controller:
             for i, cp in zip(relax, again, strict=True):
                 couples[i] = cp
             stats.n_relaxed += len(relax)
-        for (leg, j, c, hip_own), couple in zip(rows_of, couples, strict=True):
+        # a swing that would leave the leg's reach is not taken, unless the foot must move (its
+        # way out may be a detour): every swing found is checked at once
+        sampled = {i: cp.trajectory.point_at(u_grid) for i, cp in enumerate(couples)
+                   if cp.ok and cp.trajectory is not None}
+        judged = [i for i in sampled if not self.forced[rows_of[i][0]]]
+        within = dict.fromkeys(sampled, True)
+        if judged:
+            at = [rows_of[i][1] for i in judged]
+            hip_land_of = pelvis_land[at] + np.array([rows_of[i][3] for i in judged]) - pelvis_ref[at]
+            within.update(zip(judged, self._within_reach_all(
+                np.array([rows_of[i][0] for i in judged]), np.stack([sampled[i] for i in judged]),
+                hip_now[at], hip_land_of).tolist(), strict=True))
+        for i, ((leg, j, c, hip_own), couple) in enumerate(zip(rows_of, couples, strict=True)):
             stats.n_plans += 1
             stats.n_couples += couple.n_couples
             stats.n_paths += couple.n_paths
-            samples = couple.trajectory.point_at(u_grid) if couple.trajectory is not None else None
+            samples = sampled.get(i)
             hip_land = pelvis_land[j] + hip_own - pelvis_ref[j]
-            # a swing that would leave the leg's reach is not taken, unless the foot must
-            # move (its way out may be a detour)
-            if (
-                couple.ok
-                and samples is not None
-                and (self.forced[leg] or self._within_reach(leg, samples, hip_now[j], hip_land))
-            ):
+            if couple.ok and samples is not None and within[i]:
                 target = np.asarray(couple.footprint, dtype=np.float64).copy()
             elif ((self.forced[leg] and not self.swinging[leg]) or self.blocked[leg]) and (
                 straight := self._straight_step(
@@ -1585,17 +1591,28 @@ class Controller:
             return None
         return np.asarray(spare[int(np.flatnonzero(good)[0])], dtype=np.float64)
 
-    def _within_reach(
-        self, leg: int, samples: FloatArray, hip_start: FloatArray, hip_end_xy: FloatArray
-    ) -> bool:
-        """Whether a swing ``samples (k + 1, 3)`` stays within leg ``leg``'s length of its hip
-        moving from ``hip_start (3,)`` to ``hip_end_xy (2,)`` at touch-down (rising or sinking
-        with the feet), the pelvis lowered as far as the reach guard ever lowers it. The
-        planner's paths may detour around obstacles farther than a leg reaches; such a couple
-        is not taken."""
-        dist = self._hip_distance(leg, samples, hip_start, hip_end_xy)
-        u = np.linspace(0.0, 1.0, samples.shape[0])
-        return bool(np.all(dist <= self._reach_bound(leg, float(dist[0]), u)))
+    def _within_reach_all(
+        self, legs: IntArray, samples: FloatArray, hip_start: FloatArray, hip_end_xy: FloatArray
+    ) -> BoolArray:
+        """Whether each swing ``samples (m, k + 1, 3)`` of legs ``legs (m,)`` stays within its
+        leg's length of its hip moving from ``hip_start (m, 3)`` to ``hip_end_xy (m, 2)`` at
+        touch-down (rising or sinking with the feet), the pelvis lowered as far as the reach
+        guard ever lowers it: ``(m,)``. The planner's paths may detour around obstacles
+        farther than a leg reaches; such a couple is not taken. The arithmetic of
+        ``_hip_distance`` and ``_reach_bound``, for all the swings at once."""
+        u = np.linspace(0.0, 1.0, samples.shape[-2])
+        start = hip_start[:, None, :]
+        end = np.concatenate([hip_end_xy, (hip_start[:, 2] + samples[:, -1, 2] - samples[:, 0, 2])[:, None]],
+                             axis=-1)
+        hip = start + u[:, None] * (end[:, None, :] - start)
+        horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
+        drop = (self.params.guard_max_drop * self.body_thickness[self.leg_char[legs]])[:, None]
+        below = hip[..., 2] - (samples[..., 2] + self.foot_lift[legs][:, None])
+        vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
+        dist = np.hypot(horizontal, vertical)
+        length = self.legs.leg_length[legs][:, None]
+        bound = length + np.maximum(dist[:, :1] - length, 0.0) * (1.0 - u)
+        return np.asarray(np.all(dist <= bound, axis=1))
 
     def _hip_distance(
         self, leg: int, samples: FloatArray, hip_start: FloatArray, hip_end_xy: FloatArray

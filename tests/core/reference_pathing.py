@@ -13,9 +13,6 @@ polyline, and the tests compare the two (decisions exactly, floats to
 
 from __future__ import annotations
 
-import math
-from typing import Any
-
 import numpy as np
 import numpy.typing as npt
 
@@ -23,7 +20,6 @@ from procloco_addon.core.geometry import planar_length
 from procloco_addon.core.hull import upper_hull
 from procloco_addon.core.pathing import (
     _COLLINEAR,
-    _CORNER_EPS,
     MOVES,
     DistanceField,
     _chord_tolerance,
@@ -68,41 +64,6 @@ def wavefront(free: BoolArray, source: tuple[int, int], max_iterations: int | No
     parent[~np.isfinite(inner)] = -1
     parent[source] = -1
     return DistanceField(inner.copy(), parent, (int(source[0]), int(source[1])), iterations)
-
-
-def segment_clear(rows: Any, h: int, w: int, a0: float, a1: float, b0: float, b1: float) -> bool:
-    """Line of sight of one segment ``(a0, a1) -> (b0, b1)``: the samples of
-    :func:`~procloco_addon.core.pathing._crossing_samples` for it, nudged by -1e-7 and +1e-7 in
-    both axes, looked up in ``rows`` (a boolean map indexable as ``rows[r][c]``; outside
-    ``h`` × ``w`` is blocked)."""
-    d0 = b0 - a0
-    d1 = b1 - a1
-    ts = [0.0, 1.0]
-    if abs(d0) > 1e-12:
-        lo, hi = (a0, b0) if a0 <= b0 else (b0, a0)
-        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
-            t = (float(k) + 0.5 - a0) / d0
-            ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
-    if abs(d1) > 1e-12:
-        lo, hi = (a1, b1) if a1 <= b1 else (b1, a1)
-        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
-            t = (float(k) + 0.5 - a1) / d1
-            ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
-    eps = _CORNER_EPS
-    for t in ts:
-        p0 = a0 + t * d0
-        p1 = a1 + t * d1
-        r_lo = round(p0 - eps)
-        r_hi = round(p0 + eps)  # rounding is monotone: r_lo <= r_hi, c_lo <= c_hi
-        c_lo = round(p1 - eps)
-        c_hi = round(p1 + eps)
-        if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
-            return False
-        lo_row = rows[r_lo]
-        hi_row = rows[r_hi]
-        if lo_row[c_lo] or lo_row[c_hi] or hi_row[c_lo] or hi_row[c_hi]:
-            return False
-    return True
 
 
 def hull_waypoints(s: FloatArray, required: FloatArray, min_gap: float) -> IntArray:

@@ -20,6 +20,7 @@ from procloco_addon.core.pathing import (
     PathContext,
     PathParams,
     _hull_knots_increasing,
+    _segment_clear,
     build_path,
     clearance_profile,
     descend,
@@ -391,8 +392,8 @@ def test_line_of_sight_on_many_grids_equals_one_grid_at_a_time(seed: int) -> Non
         h, w = shape[which[i]]
         grid = blocked[which[i], :h, :w]
         assert got[i] == segments_clear(grid, a[i], b[i][None, :])[0]
-        # the plain-Python walk over the same samples
-        assert got[i] == reference_pathing.segment_clear(grid, h, w, *a[i].tolist(), *b[i].tolist())
+        # the plain-Python walk of line_of_sight_reduce over the same samples
+        assert got[i] == _segment_clear(grid, h, w, *a[i].tolist(), *b[i].tolist())
 
 
 @given(st.integers(0, 100_000))
@@ -487,16 +488,11 @@ def test_line_of_sight_reduction_keeps_the_farthest_point_in_sight_of_the_batche
         return
     naive = descend(field, (17, 17))[::-1].astype(float)
     pts = np.vstack([rng.uniform(-0.4, 0.4, 2), naive[1:], naive[-1:] + rng.uniform(-0.4, 0.4, 2)])
-    # Reference greedy: from each kept point, the later points tried one by one from the
-    # farthest down with the plain-Python supercover walk.
-    rows = (~free).tolist()
-    pts = pts.tolist()
+    # Reference greedy: every later point tested at once with the vectorised supercover test.
     expected = [0]
     i = 0
     while i < len(pts) - 1:
-        j = len(pts) - 1
-        while j > i + 1 and not reference_pathing.segment_clear(rows, 18, 18, *pts[i], *pts[j]):
-            j -= 1
-        expected.append(j)
-        i = j
+        seen = np.nonzero(segments_clear(~free, pts[i], pts[i + 1 :]))[0]
+        i = i + 1 + int(seen[-1]) if seen.size else i + 1
+        expected.append(i)
     assert line_of_sight_reduce(~free, pts).tolist() == expected
