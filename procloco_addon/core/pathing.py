@@ -309,6 +309,12 @@ def wavefront_each(
             np.add(view, cost, out=cand)
             np.minimum(inner, cand, out=inner)
         sweeps += 1
+        if m == 1:  # one grid: the same test, without the per-grid bookkeeping
+            if np.array_equal(before, inner):
+                iterations[0] = sweeps
+                settled[0] = True
+                break
+            continue
         same = (before == inner).reshape(m, -1).all(axis=1)
         iterations[same & ~settled] = sweeps
         settled |= same
