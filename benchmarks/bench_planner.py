@@ -175,31 +175,22 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
                                     hip_xy=own(rq.hip_xy), other_hips_xy=own(rq.other_hips_xy),
                                     other_feet_xy=own(rq.other_feet_xy)))
 
-    # The controller calls plan_footstep (one foot) or plan_footsteps (a step's feet): wrap both.
-    wrapped: dict[str, Any] = {}
-    one = getattr(controller, "plan_footstep", None)
-    many = getattr(controller, "plan_footsteps", None)
-    if one is not None:
-        def record_one(*a: Any, **k: Any) -> Couple:
-            keep(FootRequest(*a, **k))
-            return one(*a, **k)
-        wrapped["plan_footstep"] = (one, record_one)
-    if many is not None:
-        def record_many(requests: list[FootRequest]) -> list[Couple]:
-            for rq in requests:
-                keep(rq)
-            return many(requests)
-        wrapped["plan_footsteps"] = (many, record_many)
-    for name, (_, wrapper) in wrapped.items():
-        setattr(controller, name, wrapper)
+    # The controller calls plan_footsteps (every foot of a step, then its retries): wrap it.
+    many = controller.plan_footsteps
+
+    def record_many(requests: list[FootRequest]) -> list[Couple]:
+        for rq in requests:
+            keep(rq)
+        return many(requests)
+
+    controller.plan_footsteps = record_many  # type: ignore[assignment]
     try:
         for _ in range(steps):
             recorded.append([])
             scene.advance(sim.dt)
             sim.step()
     finally:
-        for name, (original, _) in wrapped.items():
-            setattr(controller, name, original)
+        controller.plan_footsteps = many
     return recorded
 
 
