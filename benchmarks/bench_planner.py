@@ -22,9 +22,10 @@ the exhaustive search.
 Last, **batched, as the crowd does it**: the crowd benchmark's simulation (benchmarks/
 bench_crowd.py, LOD and no-LOD camera set-ups) runs ``--crowd-steps`` steps while every plan
 its controller asks for is recorded (the planner it calls is wrapped); those plans are then
-replayed step by step, one foot at a time (``plan_footstep``, what the controller calls
-today) and all of a step's feet in one ``plan_footsteps`` call, and the answers compared bit
-for bit.
+replayed step by step, one foot at a time (the one-foot reference planner of the tests,
+``tests/core/reference_planner.py``) and all of a step's feet in one ``plan_footsteps`` call
+(the product, what the controller calls), and the answers compared (decisions exactly,
+floats to 1e-12). The rows above plan one foot per ``plan_footsteps`` call.
 
 ``--baseline REV`` also times the planner of git revision ``REV`` (its ``procloco_addon``
 extracted to a temporary folder and imported under another name) in the same rounds, on the
@@ -50,7 +51,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -61,8 +62,10 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core.footprints import Couple, FootRequest, PlannerParams, plan_footstep, plan_footsteps
+from procloco_addon.core.footprints import Couple, FootRequest, plan_footsteps
 from procloco_addon.core.terrain import WindowGrids, WindowParams
+from tests.core.reference_planner import FlatSettings
+from tests.core.reference_planner import plan_footstep as reference_plan
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -126,14 +129,20 @@ def make_situations(scene: CrowdScene, centres: FloatArray, headings: FloatArray
     return out
 
 
+def plan_one(rq: FootRequest) -> Couple:
+    """The product planner asked for one foot."""
+    return plan_footsteps([rq])[0]
+
+
 def run_plans(
-    grids: list[WindowGrids], sits: list[Situation], params: PlannerParams,
-    planner: Callable[..., Couple] = plan_footstep,
+    grids: list[WindowGrids], sits: list[Situation], params: FlatSettings,
+    planner: Callable[[FootRequest], Couple] = plan_one,
 ) -> tuple[float, list[Couple]]:
     """CPU time of this process for one run over all situations, and its results."""
+    requests = [params.request(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, s.yaw)
+                for s in sits]
     t0 = time.process_time()
-    res = [planner(grids[s.char], s.start, s.preferred, s.hip, s.other_hips, s.other_feet, params, s.yaw)
-           for s in sits]
+    res = [planner(rq) for rq in requests]
     return time.process_time() - t0, res
 
 
@@ -162,41 +171,34 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
         return np.array(v, dtype=np.float64)  # a copy: the controller's arrays change
 
     def keep(rq: FootRequest) -> None:
-        recorded[-1].append(FootRequest(rq.grids, own(rq.foot_start), own(rq.preferred_xy), own(rq.hip_xy),
-                                        own(rq.other_hips_xy), own(rq.other_feet_xy), rq.params,
-                                        float(rq.foot_yaw)))
+        recorded[-1].append(replace(rq, foot_start=own(rq.foot_start), preferred_xy=own(rq.preferred_xy),
+                                    hip_xy=own(rq.hip_xy), other_hips_xy=own(rq.other_hips_xy),
+                                    other_feet_xy=own(rq.other_feet_xy)))
 
-    # The controller calls plan_footstep (one foot) or plan_footsteps (a step's feet): wrap both.
-    wrapped: dict[str, Any] = {}
-    one = getattr(controller, "plan_footstep", None)
-    many = getattr(controller, "plan_footsteps", None)
-    if one is not None:
-        def record_one(*a: Any, **k: Any) -> Couple:
-            keep(FootRequest(*a, **k))
-            return one(*a, **k)
-        wrapped["plan_footstep"] = (one, record_one)
-    if many is not None:
-        def record_many(requests: list[FootRequest]) -> list[Couple]:
-            for rq in requests:
-                keep(rq)
-            return many(requests)
-        wrapped["plan_footsteps"] = (many, record_many)
-    for name, (_, wrapper) in wrapped.items():
-        setattr(controller, name, wrapper)
+    # The controller calls plan_footsteps (every foot of a step, then its retries): wrap it.
+    many = controller.plan_footsteps
+
+    def record_many(requests: list[FootRequest]) -> list[Couple]:
+        for rq in requests:
+            keep(rq)
+        return many(requests)
+
+    controller.plan_footsteps = record_many  # type: ignore[assignment]
     try:
         for _ in range(steps):
             recorded.append([])
             scene.advance(sim.dt)
             sim.step()
     finally:
-        for name, (original, _) in wrapped.items():
-            setattr(controller, name, original)
+        controller.plan_footsteps = many
     return recorded
 
 
 def load_baseline(rev: str) -> Callable[..., Any]:
-    """``plan_footstep`` of git revision ``rev``, imported from a temporary copy of its
-    ``procloco_addon`` (renamed so that both versions live in this process)."""
+    """The planner of git revision ``rev`` asked for one foot of a request, imported from a
+    temporary copy of its ``procloco_addon`` (renamed so that both versions live in this
+    process): its ``plan_footstep`` where it has one, else its ``plan_footsteps``; the request
+    is given in that revision's types (one flat ``PlannerParams`` in older revisions)."""
     import io
     import tarfile
 
@@ -210,7 +212,34 @@ def load_baseline(rev: str) -> Callable[..., Any]:
     shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
     sys.path.insert(0, str(tmp))
     module: ModuleType = importlib.import_module("procloco_baseline.core.footprints")
-    return module.plan_footstep
+    def values(*parts: Any) -> dict[str, Any]:
+        return {f.name: getattr(part, f.name) for part in parts for f in fields(part)}
+
+    split = hasattr(module, "LegGeometry")
+
+    def convert(rq: FootRequest) -> Any:
+        if split:
+            return module.FootRequest(
+                rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy, rq.other_feet_xy,
+                module.PlannerParams(**values(rq.params)), rq.foot_yaw, rq.hip_z,
+                module.LegGeometry(**values(rq.leg)), module.SearchSwitches(**values(rq.search)),
+                leg_reach=rq.leg_reach, reach_sweep=rq.reach_sweep, reach_sink=rq.reach_sink)
+        flat = values(rq.params, rq.leg, rq.search)
+        flat.update(reach_sweep=rq.reach_sweep, reach_sink=rq.reach_sink)
+        if rq.leg_reach is not None:
+            flat["leg_reach"] = rq.leg_reach
+        names = {f.name for f in fields(module.PlannerParams)}
+        params = module.PlannerParams(**{k: v for k, v in flat.items() if k in names})
+        return module.FootRequest(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
+                                  rq.other_feet_xy, params, rq.foot_yaw, rq.hip_z)
+
+    if hasattr(module, "plan_footstep"):  # revisions with a one-foot planner in the product
+        def one(rq: FootRequest) -> Any:
+            r = convert(rq)
+            return module.plan_footstep(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy,
+                                        r.other_feet_xy, r.params, r.foot_yaw, r.hip_z)
+        return one
+    return lambda rq: module.plan_footsteps([convert(rq)])[0]
 
 
 def same_couple(a: Couple, b: Couple) -> bool:
@@ -240,7 +269,7 @@ def same_couple(a: Couple, b: Couple) -> bool:
                for f in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d"))
 
 
-def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float, list[Couple]]:
+def replay(steps: list[Step], one: Callable[[FootRequest], Couple] | None) -> tuple[float, list[Couple]]:
     """CPU time to plan every recorded step: one foot at a time with ``one``, or all of a
     step's feet in one :func:`plan_footsteps` call (``one`` None)."""
     t0 = time.process_time()
@@ -249,8 +278,7 @@ def replay(steps: list[Step], one: Callable[..., Couple] | None) -> tuple[float,
         if one is None:
             out += plan_footsteps(reqs)
         else:
-            out += [one(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
-                        r.params, r.foot_yaw) for r in reqs]
+            out += [one(r) for r in reqs]
     return time.process_time() - t0, out
 
 
@@ -265,7 +293,7 @@ def crowd_section(args: argparse.Namespace, baseline: Callable[..., Couple] | No
         steps = record_crowd_plans(mode, args.crowd_steps, 15, args.seed)
         n_steps = len(steps)
         n_plans = sum(len(r) for r in steps)
-        runners: list[tuple[str, Callable[..., Couple] | None]] = [("per foot", plan_footstep),
+        runners: list[tuple[str, Callable[..., Couple] | None]] = [("per foot", reference_plan),
                                                                     ("batched", None)]
         if baseline is not None:
             runners.append(("baseline", baseline))
@@ -286,7 +314,8 @@ def crowd_section(args: argparse.Namespace, baseline: Callable[..., Couple] | No
             line += (f" {ms['baseline']:9.2f} ms {ms['baseline'] / ms['per foot']:10.2f}x "
                      f"{ms['baseline'] / ms['batched']:9.2f}x {same_b:7.1%}")
         print(line)
-    print("(times per crowd step; 'same': answers equal to the per-foot ones (to 1e-12)"
+    print("(times per crowd step; per foot: the one-foot reference planner of the tests "
+          "(tests/core/reference_planner.py); 'same': answers equal to its ones (to 1e-12)"
           + (f"; baseline: revision {args.baseline}, one foot at a time" if baseline else "") + ")")
 
 
@@ -321,7 +350,7 @@ def main(argv: list[str] | None = None) -> int:
 
     rng = np.random.default_rng(args.seed + 2)
     sits = make_situations(scene, centres, headings, args.plans, rng)
-    full = PlannerParams(step_height=0.1, leg_reach=0.6, candidate_radius=0.21, fixed_distance=0.3,
+    full = FlatSettings(step_height=0.1, leg_reach=0.6, candidate_radius=0.21, fixed_distance=0.3,
                          foot_half_extents=FOOT_HALF, max_couples_after_first=None, slice_size=0.1)
     raw = replace(full, los_shortcut=False)
     settings = [

@@ -1,9 +1,10 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Footprint planning: the best couple (footprint, trajectory) for a swinging foot
-(thesis §3.5, §3.7, Appendix E).
+"""Footprint planning: the best couple (footprint, trajectory) for every swinging foot of a
+step (thesis §3.5, §3.7, Appendix E).
 
-:func:`plan_footstep` is the planner the character controller calls for every foot that
-starts (or restarts) a swing:
+:func:`plan_footsteps` is the planner the character controller calls, once per step, for
+every foot that starts (or restarts) a swing; each :class:`FootRequest` is one foot and gets
+one :class:`Couple`. For each foot:
 
 1. **Candidates** (§3.5.1): positions around the preferred footprint on the preferred
    footprint's own sub-cell lattice (so the preferred footprint itself is a candidate, exactly),
@@ -34,30 +35,34 @@ starts (or restarts) a swing:
 
 One wavefront per slice, grown from the foot, serves every target (the distance to all
 candidates at once); ``shared_wavefront=False`` grows one per (target, slice) as the thesis
-does, for comparison. Neither ever raises for an unreachable target nor returns NaN: a failed
+does, for comparison. Nothing ever raises for an unreachable target nor returns NaN: a failed
 plan is a :class:`Couple` with ``ok=False`` and a ``message``.
 
-**Many feet at once.** :func:`plan_footsteps` takes a list of :class:`FootRequest` (the
-arguments of :func:`plan_footstep`; any characters, windows and settings) and returns, for
-each, the :class:`Couple` that :func:`plan_footstep` returns: the same decisions (success,
-footprint cell and target, slice, every count) and the same numbers, computed with the same
-element-wise arithmetic (no BLAS call whose kernel depends on the CPU, see :mod:`.geometry`);
-floats are guaranteed equal only to a few ulps, since numpy may group a reduction differently
-for arrays of another length or alignment. A crowd
-step's feet are planned together: the search boxes of all feet are stacked into ``(n, H, W)``
-arrays (each foot's box at the top-left of its slice, blocked past its own size), and every
-step of the search that does not depend on the others runs once for all of them: the other
-feet's cells, foot kernels, obstacle maps of each slice (one dilation per distinct kernel),
-candidate scores, slice levels; then the search goes in rounds, each evaluating the next
-couple of every foot still searching (its line of sight, its straight plan, the wavefronts
-its couple needs, the 3D trajectories) in a few vectorised calls. Numpy's cost per call,
-not its arithmetic, is what a plan costs, so a step's plans cost a few rounds of calls
-instead of a few hundred calls per foot. The last one or two feet of a search finish alone
-(a round for one foot costs more than its couples).
+**How the feet are searched together.** The search boxes of all feet are stacked into
+``(n, H, W)`` arrays (:class:`_Batch`: each foot's box at the top-left of its slice, blocked
+past its own size), and every step of the search that does not depend on the others runs
+once for all of them: the other feet's cells, foot kernels, obstacle maps of each slice (one
+dilation per distinct kernel), candidate scores (:func:`_score_all`), slice levels
+(:func:`_levels_all`). Then the search goes in rounds (:func:`_run`): each foot's search is a
+:class:`_Search` (its next target and slice, its :class:`_Best` couple so far, its counts)
+that :func:`_next_couple` advances over the couples needing no array work and stops at what
+it needs next (:class:`_Next`: the maps of a slice, a couple evaluated, or the end); a round
+evaluates the next couple of every foot still searching (its line of sight, its straight
+plan, the wavefronts its couple needs, the 3D trajectories) in a few vectorised calls, and
+:func:`_after_couple` books each. Numpy's cost per call, not its arithmetic, is what a plan
+costs, so a step's plans cost a few rounds of calls instead of a few hundred calls per foot.
+The last one or two feet of a search finish alone (:func:`_search_alone`: a round for one
+foot costs more than its couples), and a batch of one foot is searched the same way.
+
+The tests keep a one-foot planner written out plainly (``tests/core/reference_planner.py``)
+and compare the two: the same decisions (success, footprint cell and target, slice, every
+count) exactly, the floats to a few ulps (numpy may group a reduction differently for arrays
+of another length or alignment).
 """
 
 from __future__ import annotations
 
+import enum
 import functools
 import itertools
 import math
@@ -80,7 +85,6 @@ from .pathing import (
     path_score_2d,
     region_frame,
     region_masks,
-    search_region,
     segments_clear_each,
     straightness_score,
     turning_each,
@@ -107,46 +111,25 @@ _NEIGHBOURS = np.array([(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1
 
 @dataclass(frozen=True)
 class PlannerParams:
-    """Knobs of the footprint planner. Lengths in metres.
+    """The planner settings of a character (what the user's settings and the character's LOD
+    choose; one object per character, shared by all its feet). Lengths in metres.
 
     ``step_height``: clearance of the swing above what it passes over.
     ``slice_size``: height slices for "around or over" (None: no slices, go over everything).
-    ``leg_reach``: how far a footprint may be from the hip (horizontal) and the search
-    rectangle's width (``search_half_width`` defaults to ``max(candidate_radius, reach / 2)``).
+    ``leg_reach``: how far a footprint may be from the hip (horizontal; a request's own
+    ``leg_reach`` replaces it), the default ``max_height_change`` and the search rectangle's
+    width (half ``max(candidate_radius, reach / 2)`` unless the search switches say).
     ``candidate_radius``: candidates within this distance of the preferred footprint.
     ``fixed_distance``: distance at which the distance criterion reaches 0.
-    ``foot_half_extents``: the foot's ground box (forward, left half sizes): what it keeps
-    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of another foot
-    this foot may not land on, a box about that foot's point (None: a foot box). A foot whose
-    toes reach far from its end-effector has a large foot box but stands on a small sole: two
-    such feet may stand closer than two foot boxes, as long as neither's box covers the
-    other's sole.
     ``max_couples_after_first``: LOD budget (None: full search; 0: first valid couple).
     ``edge_height``: a height step larger than this between neighbour cells is an edge.
     ``edge_score``: the criterion's value on an obstacle rim (thesis: 0.8).
     ``max_height_change``: footprints further than this above/below the foot are never
-    candidates (None: ``leg_reach``).
-    ``tension``: of the 2D cardinal curve. ``shared_wavefront``: one wavefront per slice from
-    the foot (True) or one per target and slice (False, the thesis's way).
-    ``exhaustive``: evaluate every couple fully (reference for tests; ignores the LOD budget).
-    ``max_targets``: cap on the number of candidates considered (best first), None for all.
-    ``los_shortcut``: build no wavefront for a target in plain sight of the foot (the straight
-    line is what the wavefront and line-of-sight steps would give anyway).
-
-    Checks that need the hip's height (the request's ``hip_z``; skipped without it):
-
-    ``reach_3d``: largest distance from the hip to a footprint in 3D (None: only the
-    horizontal ``leg_reach``), with ``reach_sweep`` added to the horizontal distance (half
-    the coming stance sweep) and the hip allowed to sink ``reach_sink`` toward a footprint
-    below it. ``leg_length``: the straight line from a footprint up to the hip should pass
-    over the elevation map (a lower leg beside a crate would otherwise run through it),
-    raised by ``leg_arch`` times the half-height a two-segment leg of that length bends over
-    that distance (legs whose knees rise above the hip-foot line; 0 for the others); a
-    footprint whose line does not is scored ``leg_clearance_score`` times lower (a fifth
-    criterion of §3.5.1: taken only when nothing better is left, e.g. with an obstacle under
-    the body); None: no such check. ``max_straddle``: a footprint whose foot box reaches
-    ground more than this above the ground at its own point hangs over a height step, it is
-    never a candidate (None: no check).
+    candidates (None: the reach).
+    ``tension``: of the 2D cardinal curve.
+    ``leg_clearance_score``: the factor of a footprint whose leg line does not clear the
+    ground (:class:`LegGeometry` ``leg_length``; a fifth criterion of §3.5.1: taken only when
+    nothing better is left, e.g. with an obstacle under the body).
     """
 
     step_height: float = 0.1
@@ -154,25 +137,12 @@ class PlannerParams:
     leg_reach: float = 0.6
     candidate_radius: float = 0.2
     fixed_distance: float = 0.3
-    foot_half_extents: tuple[float, float] = (0.03, 0.03)
-    sole_half_extents: tuple[float, float] | None = None
     max_couples_after_first: int | None = None
     edge_height: float = 0.04
     edge_score: float = 0.8
     max_height_change: float | None = None
-    search_half_width: float | None = None
     tension: float = 0.5
-    shared_wavefront: bool = True
-    exhaustive: bool = False
-    max_targets: int | None = None
-    los_shortcut: bool = True
-    reach_3d: float | None = None
-    reach_sweep: float = 0.0
-    reach_sink: float = 0.0
-    leg_length: float | None = None
-    leg_arch: float = 0.0
     leg_clearance_score: float = 0.2
-    max_straddle: float | None = None
 
     def __post_init__(self) -> None:
         if self.slice_size is not None and not self.slice_size > 0.0:
@@ -181,6 +151,67 @@ class PlannerParams:
             raise ValueError("leg_reach and fixed_distance must be positive, candidate_radius >= 0")
         if self.max_couples_after_first is not None and self.max_couples_after_first < 0:
             raise ValueError("max_couples_after_first must be >= 0 or None")
+
+
+@dataclass(frozen=True)
+class LegGeometry:
+    """What the planner needs of one leg and its foot, computed once per rig (one object per
+    leg, shared by all its plans). Lengths in metres.
+
+    ``foot_half_extents``: the foot's ground box (forward, left half sizes): what it keeps
+    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of another foot
+    this foot may not land on, a box about that foot's point (None: a foot box). A foot whose
+    toes reach far from its end-effector has a large foot box but stands on a small sole: two
+    such feet may stand closer than two foot boxes, as long as neither's box covers the
+    other's sole.
+
+    Checks that need the hip's height (the request's ``hip_z``; skipped without it):
+    ``reach_3d``: largest distance from the hip to a footprint in 3D (None: only the
+    horizontal reach), with the request's ``reach_sweep`` added to the horizontal distance
+    and the hip allowed to sink its ``reach_sink`` toward a footprint below it.
+    ``leg_length``: the straight line from a footprint up to the hip should pass over the
+    elevation map (a lower leg beside a crate would otherwise run through it), raised by
+    ``leg_arch`` times the half-height a two-segment leg of that length bends over that
+    distance (legs whose knees rise above the hip-foot line; 0 for the others); a footprint
+    whose line does not is scored :attr:`PlannerParams.leg_clearance_score` times lower;
+    None: no such check. ``max_straddle``: a footprint whose foot box reaches ground more
+    than this above the ground at its own point hangs over a height step, it is never a
+    candidate (None: no check).
+    """
+
+    foot_half_extents: tuple[float, float] = (0.03, 0.03)
+    sole_half_extents: tuple[float, float] | None = None
+    reach_3d: float | None = None
+    leg_length: float | None = None
+    leg_arch: float = 0.0
+    max_straddle: float | None = None
+
+
+@dataclass(frozen=True)
+class SearchSwitches:
+    """Switches of the search itself, for tests and benchmarks (the product runs the
+    defaults, whose answers the others check or time).
+
+    ``shared_wavefront``: one wavefront per slice from the foot (True) or one per target and
+    slice (False, the thesis's way). ``exhaustive``: evaluate every couple fully (the
+    reference the pruned search must equal; ignores the LOD budget). ``max_targets``: cap on
+    the number of candidates considered (best first), None for all. ``los_shortcut``: build
+    no wavefront for a target in plain sight of the foot (the straight line is what the
+    wavefront and line-of-sight steps would give anyway). ``search_half_width``: half width
+    of the search rectangle in metres (None: ``max(candidate_radius, reach / 2)``).
+    """
+
+    shared_wavefront: bool = True
+    exhaustive: bool = False
+    max_targets: int | None = None
+    los_shortcut: bool = True
+    search_half_width: float | None = None
+
+
+#: The search the product runs.
+DEFAULT_SEARCH = SearchSwitches()
+#: A leg with the default foot box and none of the checks that need the hip's height.
+DEFAULT_LEG = LegGeometry()
 
 
 @dataclass(frozen=True)
@@ -214,51 +245,10 @@ class Couple:
     target_index: int = -1
 
 
-@dataclass(frozen=True)
-class Candidates:
-    """Scored candidate footprints: ``xy`` ``(k, 2)``, ``cells`` ``(k, 2)`` region cells,
-    ``z`` ``(k,)`` landing heights, ``score`` ``(k,)`` and its criteria ``distance``, ``free``,
-    ``edge``, ``crossing`` (each ``(k,)``), sorted best first."""
-
-    xy: FloatArray
-    cells: IntArray
-    z: FloatArray
-    score: FloatArray
-    distance: FloatArray
-    free: FloatArray
-    edge: FloatArray
-    crossing: FloatArray
-
-
 def _fail(start: FloatArray, message: str, **counts: int) -> Couple:
     get = counts.get
     return Couple(False, start.copy(), None, 0.0, 0.0, 0.0, get("n_couples", 0), get("n_paths", 0), message,
                   get("n_targets", 0), get("n_wavefronts", 0), get("wavefront_iterations", 0))
-
-
-def legs_cross(
-    hip_xy: FloatArray, foot_xy: FloatArray, other_hips: FloatArray, other_feet: FloatArray
-) -> BoolArray:
-    """Whether segment hip→foot ``(k, 2)`` properly crosses any other leg's hip→foot
-    ``(j, 2)``; returns ``(k,)``. Touching at an end (shared hips) is not a crossing."""
-    if other_hips.shape[0] == 0:
-        return np.zeros(foot_xy.shape[0], dtype=bool)
-    p = np.broadcast_to(hip_xy, foot_xy.shape)[:, None, :]
-    r = (foot_xy - np.broadcast_to(hip_xy, foot_xy.shape))[:, None, :]
-    q = other_hips[None, :, :]
-    s = (other_feet - other_hips)[None, :, :]
-
-    def cross(a: FloatArray, b: FloatArray) -> FloatArray:
-        return np.asarray(a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
-
-    d1 = cross(r, q - p)
-    d2 = cross(r, q + s - p)
-    d3 = cross(s, p - q)
-    d4 = cross(s, p + r - q)
-    eps = 1e-12
-    hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
-        ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
-    return np.asarray(np.any(hit, axis=1))
 
 
 def _legs_cross_each(
@@ -279,86 +269,6 @@ def _legs_cross_each(
     hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
         ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
     return np.asarray(np.any(hit & valid, axis=1))
-
-
-def score_candidates(
-    ctx: PathContext,
-    preferred_xy: FloatArray,
-    hip_xy: FloatArray,
-    other_hips_xy: FloatArray,
-    other_feet_xy: FloatArray,
-    params: PlannerParams,
-    foot_yaw: float = 0.0,
-    hip_z: float | None = None,
-) -> Candidates:
-    """Candidate footprints around ``preferred_xy`` with their scores (thesis §3.5.1);
-    ``hip_z``: the hip's height, for the checks that need it (:class:`PlannerParams`)."""
-    grids = ctx.grids
-    cell = grids.cell
-    reg = ctx.region
-    pref_rc = grids.rowcol(preferred_xy) - np.array([reg.r0, reg.c0])
-    base = np.rint(pref_rc).astype(np.intp)
-    sub = pref_rc - base  # the preferred footprint's offset inside its cell (cells)
-    off = _disc_offsets(round(params.candidate_radius / cell, 9))
-    cells = base[None, :] + off
-    h, w = reg.shape
-    inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
-    cells = cells[inside]
-    off = off[inside]
-    empty = np.zeros(0)
-    if cells.shape[0] == 0:
-        none = np.zeros((0, 2), dtype=np.intp)
-        return Candidates(np.zeros((0, 2)), none, empty, empty, empty, empty, empty, empty)
-    core, dilated, _ = ctx.maps(math.inf)
-    forbidden = core | dilated
-    r, c = cells[:, 0], cells[:, 1]
-    elev = ctx.elevation
-    ok = reg.mask[r, c] & ~forbidden[r, c] & (elev[r, c] > _VOID_BELOW)
-    xy = grids.xy_of(cells[:, 0] + reg.r0 + sub[0], cells[:, 1] + reg.c0 + sub[1])
-    to_hip = xy - hip_xy
-    ok &= planar_length(to_hip[:, 0], to_hip[:, 1]) <= params.leg_reach + 1e-9
-    # Landing height: the highest surface under the foot box at its exact offset.
-    half = np.asarray(params.foot_half_extents, dtype=np.float64)
-    land_kernel = _offset_kernel(cell, float(half[0]), float(half[1]), float(foot_yaw),
-                                 round(float(sub[0]), 9), round(float(sub[1]), 9))
-    z = ctx.land_height(cells, land_kernel)
-    max_dz = params.leg_reach if params.max_height_change is None else params.max_height_change
-    ok &= np.abs(z - ctx.start[2]) <= max_dz
-    if hip_z is not None:
-        sel = np.flatnonzero(ok)
-        m = sel.size
-        clear = np.ones(ok.size, dtype=bool)
-        ok[sel], clear[sel] = _hip_checks(
-            xy[sel], z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
-            np.full(m, float(hip_z)), np.tile(_hip_settings(params), (m, 1)),
-            _WindowLookup([ctx.grids]), np.zeros(m, dtype=np.intp),
-        )
-        clearance = np.where(clear[ok], 1.0, params.leg_clearance_score)
-    else:
-        clearance = np.ones(int(np.count_nonzero(ok)))
-    cells, off, xy, z = cells[ok], off[ok], xy[ok], z[ok]
-    r, c = cells[:, 0], cells[:, 1]
-    # Neighbour criteria on the region, padded as "not free".
-    pad_forb = np.ones((h + 2, w + 2), dtype=bool)
-    pad_forb[1:-1, 1:-1] = forbidden | (elev < _VOID_BELOW)
-    pad_elev = np.full((h + 2, w + 2), -np.inf)
-    pad_elev[1:-1, 1:-1] = elev
-    here = elev[r, c][:, None]
-    nr = r[:, None] + 1 + _NEIGHBOURS[None, :, 0]
-    nc = c[:, None] + 1 + _NEIGHBOURS[None, :, 1]
-    ne = pad_elev[nr, nc]  # (k, 8)
-    free = np.count_nonzero(~pad_forb[nr, nc] & (np.abs(ne - here) <= params.edge_height), axis=1)
-    rim = np.any(here - ne > params.edge_height, axis=1)
-    to_pref = xy - preferred_xy
-    distance = np.clip(1.0 - planar_length(to_pref[:, 0], to_pref[:, 1]) / params.fixed_distance, 0.0, 1.0)
-    free_score = free / 8.0
-    edge = np.where(rim, params.edge_score, 1.0)
-    crossing = np.where(legs_cross(hip_xy, xy, other_hips_xy, other_feet_xy), 0.0, 1.0)
-    score = distance * free_score * edge * clearance * crossing
-    # Best first; ties: nearer the preferred footprint, then row, then column.
-    order = np.lexsort((c, r, np.hypot(off[:, 0], off[:, 1]), -score))
-    return Candidates(xy[order], cells[order], z[order], score[order], distance[order], free_score[order],
-                      edge[order], crossing[order])
 
 
 #: Samples along the hip-footprint line of the leg clearance check (a leg's length is some
@@ -406,51 +316,23 @@ def _hip_checks(
     return ok, clear
 
 
-def _hip_settings(params: PlannerParams) -> list[float]:
-    """A plan's row of :func:`_hip_checks` settings."""
+def _hip_settings(leg: LegGeometry, sweep: float, sink: float) -> list[float]:
+    """A plan's row of :func:`_hip_checks` settings: its leg's, the plan's ``sweep`` and
+    ``sink``."""
     inf = math.inf
-    half = params.foot_half_extents
-    return [inf if params.max_straddle is None else params.max_straddle,
-            inf if params.reach_3d is None else params.reach_3d, params.reach_sweep, params.reach_sink,
-            inf if params.leg_length is None else params.leg_length, params.leg_arch,
+    half = leg.foot_half_extents
+    return [inf if leg.max_straddle is None else leg.max_straddle,
+            inf if leg.reach_3d is None else leg.reach_3d, sweep, sink,
+            inf if leg.leg_length is None else leg.leg_length, leg.leg_arch,
             math.hypot(float(half[0]), float(half[1]))]
 
 
-@functools.lru_cache(maxsize=1024)
-def _offset_kernel(cell: float, hx: float, hy: float, yaw: float, sub_r: float, sub_c: float) -> IntArray:
-    """Cells covered by a foot box whose centre sits ``(sub_r, sub_c)`` cells off its cell's
-    centre."""
-    reach = math.ceil((abs(hx) + abs(hy)) / cell + 1.0)
-    ii, jj = np.meshgrid(np.arange(-reach, reach + 1), np.arange(-reach, reach + 1), indexing="ij")
-    centres = np.stack([jj.ravel() * cell, ii.ravel() * cell], axis=1)
-    centre = np.array([sub_c * cell, sub_r * cell])
-    hit = _box_overlaps_cells(centres, cell, centre, hx, hy, yaw)
-    off = np.stack([ii.ravel()[hit], jj.ravel()[hit]], axis=1).astype(np.intp)
-    if off.shape[0] == 0:
-        off = np.zeros((1, 2), dtype=np.intp)
-    off.setflags(write=False)
-    return off
-
-
-def _sole(params: PlannerParams, half: tuple[float, float]) -> tuple[float, float]:
+def _sole(leg: LegGeometry, half: tuple[float, float]) -> tuple[float, float]:
     """The half sizes of the box each other foot is forbidden as: its sole, else a foot box."""
-    if params.sole_half_extents is None:
+    if leg.sole_half_extents is None:
         return half
-    sole = np.asarray(params.sole_half_extents, dtype=np.float64).reshape(2)
+    sole = np.asarray(leg.sole_half_extents, dtype=np.float64).reshape(2)
     return float(sole[0]), float(sole[1])
-
-
-def _other_feet_mask(
-    grids: WindowGrids, feet_xy: FloatArray, half: FloatArray, yaw: float
-) -> BoolArray | None:
-    if feet_xy.shape[0] == 0:
-        return None
-    mask = np.zeros(grids.shape, dtype=bool)
-    n = feet_xy.shape[0]
-    _, r, c = raster_boxes(grids.origin, grids.cell, grids.shape, feet_xy, np.full(n, half[0]),
-                           np.full(n, half[1]), np.full(n, yaw))
-    mask[r, c] = True
-    return mask
 
 
 @functools.lru_cache(maxsize=64)
@@ -462,24 +344,6 @@ def _disc_offsets(radius_cells: float) -> IntArray:
     off = off[np.hypot(off[:, 0], off[:, 1]) <= radius_cells + 1e-9]
     off.setflags(write=False)
     return off
-
-
-def slice_levels(ctx: PathContext, slice_size: float | None, ceiling: float = math.inf) -> list[float]:
-    """Slice levels for one plan, lowest first, ending with ``inf`` (no slice).
-
-    Levels are ``z_foot + k * slice_size`` (k >= 1) below the highest surface in the search
-    rectangle and below ``ceiling`` (higher slices only add ways over taller things, which the
-    last pass already tries); levels that forbid exactly the same cells as the next one are
-    dropped.
-    """
-    if slice_size is None:
-        return [math.inf]
-    elev = ctx.elevation[ctx.region.mask]
-    elev = elev[elev > _VOID_BELOW]
-    top = min(float(elev.max()) if elev.size else float(ctx.start[2]), ceiling)
-    levels = _level_list(float(ctx.start[2]), slice_size, top)
-    above = [int(np.count_nonzero(elev > lv)) for lv in levels]
-    return _distinct_levels(levels, above)
 
 
 def _level_list(z0: float, slice_size: float, top: float) -> list[float]:
@@ -502,7 +366,19 @@ def _distinct_levels(levels: list[float], above: list[int]) -> list[float]:
 # ---------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class FootRequest:
-    """One foot to plan: the arguments of :func:`plan_footstep` (see there)."""
+    """One foot to plan. ``grids``: the character's window (:meth:`~.terrain.Environment.window`);
+    ``foot_start``: ``(3,)`` where the foot is now; ``preferred_xy``: ``(2,)`` the
+    controller's preferred footprint; ``hip_xy``: ``(2,)`` this leg's hip (at touch-down);
+    ``other_hips_xy``, ``other_feet_xy``: ``(k, 2)`` the other legs' hips and feet (their
+    feet are forbidden, their legs must not be crossed); ``foot_yaw``: the foot box's yaw;
+    ``hip_z``: the hip's height (at touch-down), for the checks that need it (see
+    :class:`LegGeometry`; skipped when None).
+
+    ``params``: the character's settings; ``leg``: this leg's geometry; ``search``: the
+    search switches. What changes from plan to plan: ``leg_reach``, the horizontal reach
+    from the hip for this plan (None: ``params.leg_reach``); ``reach_sweep``, metres added to
+    the horizontal distance in the 3D reach check (half the coming stance sweep);
+    ``reach_sink``, how far the hip may sink toward a footprint below it in that check."""
 
     grids: WindowGrids
     foot_start: npt.ArrayLike
@@ -513,6 +389,11 @@ class FootRequest:
     params: PlannerParams
     foot_yaw: float = 0.0
     hip_z: float | None = None
+    leg: LegGeometry = DEFAULT_LEG
+    search: SearchSwitches = DEFAULT_SEARCH
+    leg_reach: float | None = None
+    reach_sweep: float = 0.0
+    reach_sink: float = 0.0
 
 
 _NO_CANDIDATE = ("no candidate footprint: every cell near the preferred footprint is forbidden, "
@@ -531,13 +412,18 @@ class _Plan:
         "hip",
         "hip_z",
         "index",
+        "leg",
         "o_feet",
         "o_hips",
         "params",
         "pref",
+        "reach",
+        "search",
+        "sink",
         "sole",
         "start",
         "start_rc",
+        "sweep",
         "yaw",
     )
 
@@ -545,9 +431,14 @@ class _Plan:
                  o_hips: FloatArray, o_feet: FloatArray, start_rc: tuple[float, float], frame: RegionFrame,
                  half: tuple[float, float]) -> None:
         self.index = index
-        self.sole = _sole(rq.params, half)
+        self.sole = _sole(rq.leg, half)
         self.grids = rq.grids
         self.params = rq.params
+        self.leg = rq.leg
+        self.search = rq.search
+        self.reach = _reach(rq)
+        self.sweep = float(rq.reach_sweep)
+        self.sink = float(rq.reach_sink)
         self.start = start
         self.pref = pref
         self.hip = hip
@@ -559,6 +450,11 @@ class _Plan:
         self.start_rc = start_rc
         self.frame = frame
         self.half = half
+
+
+def _reach(rq: FootRequest) -> float:
+    """The horizontal reach of a request's plan."""
+    return float(rq.params.leg_reach if rq.leg_reach is None else rq.leg_reach)
 
 
 def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
@@ -585,15 +481,15 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     params = rq.params
     cell = float(grids.cell)
     ox, oy = (float(v) for v in grids.origin)
-    half = tuple(float(v) for v in np.asarray(params.foot_half_extents, dtype=np.float64).reshape(2))
+    half = tuple(float(v) for v in np.asarray(rq.leg.foot_half_extents, dtype=np.float64).reshape(2))
     start_rc = ((sy - oy) / cell, (sx - ox) / cell)
     pref_rc = ((py - oy) / cell, (px - ox) / cell)
     ny, nx = grids.shape
     if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
         return _fail(start, "the foot is outside the window grids")
-    half_width = params.search_half_width
+    half_width = rq.search.search_half_width
     if half_width is None:
-        half_width = max(params.candidate_radius, 0.5 * params.leg_reach)
+        half_width = max(params.candidate_radius, 0.5 * _reach(rq))
     foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
     frame = region_frame((ny, nx), start_rc[0], start_rc[1], pref_rc[0], pref_rc[1],
                          half_width / cell + foot_cells,
@@ -603,6 +499,18 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     return _Plan(index, rq, start, pref, hip, o_hips, o_feet, start_rc, frame, (half[0], half[1]))
 
 
+@dataclass(frozen=True)
+class _Best:
+    """The best couple of a search so far: its target (position in the foot's order), 3D
+    path score, slice level, trajectory and score (target score × path score)."""
+
+    target: int
+    path_score: float
+    level: float
+    trajectory: FootTrajectory
+    score: float
+
+
 @dataclass
 class _Search:
     """Where one foot's best-couple search stands (Appendix E): the next target (position in
@@ -610,7 +518,7 @@ class _Search:
 
     pos: int = 0
     level_pos: int = 0
-    best: tuple[int, float, float, FootTrajectory, float] | None = None
+    best: _Best | None = None
     best_score: float = 0.0
     n_couples: int = 0
     n_paths: int = 0
@@ -619,9 +527,54 @@ class _Search:
     done: bool = False
 
 
-#: Samples, arc lengths, length, world waypoints and box cells (rows, cols; None: not
-#: computed yet) of a 2D plan to lift.
-_LiftSource = tuple[FloatArray, FloatArray, float, FloatArray, IntArray | None, IntArray | None]
+class _Next(enum.Enum):
+    """What a foot's search needs next (:func:`_next_couple`)."""
+
+    MAPS = enum.auto()  # the obstacle maps of its next slice
+    EVAL = enum.auto()  # its next couple evaluated (line of sight, 2D plan, maybe 3D)
+    END = enum.auto()  # nothing: the search is over
+
+
+@dataclass(frozen=True)
+class _LiftSource:
+    """A 2D plan to lift: its ``samples`` ``(m, 2)`` at arc lengths ``arc`` ``(m,)``, its
+    ``length``, world ``waypoints`` ``(k, 2)`` and the box cells ``rows``, ``cols`` ``(m,)``
+    of the samples (None: not computed yet)."""
+
+    samples: FloatArray
+    arc: FloatArray
+    length: float
+    waypoints: FloatArray
+    rows: IntArray | None = None
+    cols: IntArray | None = None
+
+
+@dataclass(frozen=True)
+class _StraightPlans:
+    """Straight 2D plans of ``m`` couples (:func:`_straight_plans`): ``status`` per plan 1
+    (a clean plan), 0 (its samples touch a blocked cell: no plan) or -1 (zero length: plan it
+    alone); ``s2`` its 2D score; the samples of the clean and blocked plans one after the
+    other, ``samples`` ``(M, 2)`` at arc lengths ``arc`` ``(M,)``, plan ``j`` owning rows
+    ``bounds[j]:bounds[j + 1]``, with their box cells ``rows``, ``cols`` ``(M,)``; ``length``
+    ``(m,)`` and the world ``waypoints`` ``(m, 2, 2)``."""
+
+    status: list[int]
+    s2: list[float]
+    samples: FloatArray
+    arc: FloatArray
+    length: FloatArray
+    bounds: list[int]
+    rows: IntArray
+    cols: IntArray
+    waypoints: FloatArray
+
+    def source(self, j: int) -> _LiftSource:
+        """Plan ``j`` (a clean one) as a :class:`_LiftSource`."""
+        a, b = self.bounds[j], self.bounds[j + 1]
+        return _LiftSource(self.samples[a:b], self.arc[a:b], float(self.length[j]), self.waypoints[j],
+                           self.rows[a:b], self.cols[a:b])
+
+
 _Maps = tuple[BoolArray, BoolArray, BoolArray]
 
 
@@ -675,11 +628,11 @@ class _Foot:
         self.levels = levels
         self.start_cell = start_cell
         self.start_inside = start_inside
-        prm = plan.params
-        self.exhaustive = prm.exhaustive
-        self.budget = None if prm.exhaustive else prm.max_couples_after_first
-        self.per_target = not prm.shared_wavefront
-        self.shortcut = prm.los_shortcut
+        search = plan.search
+        self.exhaustive = search.exhaustive
+        self.budget = None if search.exhaustive else plan.params.max_couples_after_first
+        self.per_target = not search.shared_wavefront
+        self.shortcut = search.los_shortcut
         self.st = _Search()
         self.maps: dict[float, _Maps] = {}
         self.fields: dict[tuple[float, int, int], DistanceField] = {}
@@ -819,7 +772,7 @@ class _Batch:
             p = f.plan
             h, w = int(self.hh[k]), int(self.ww[k])
             path_params = PathParams(step_height=p.params.step_height, tension=p.params.tension,
-                                     los_shortcut=p.params.los_shortcut)
+                                     los_shortcut=p.search.los_shortcut)
             region = Region(int(self.r0[k]), int(self.c0[k]), self.mask[k, :h, :w])
             f.ctx = PathContext.from_parts(p.grids, p.start, region, path_params, f.per_target,
                                            self.sweep_off[self.sweep_in[k]], (p.half, p.yaw),
@@ -844,8 +797,8 @@ class _Batch:
             p = self.plans[k]
             n_targets = cands.n_valid[k]
             order = list(range(n_targets))
-            if p.params.max_targets is not None:
-                order = order[: p.params.max_targets]
+            if p.search.max_targets is not None:
+                order = order[: p.search.max_targets]
             f = _Foot(p, k, cands.bounds[k], order, n_targets, levels[k], (sc[i][0], sc[i][1]), inside[i])
             h, w = int(self.hh[k]), int(self.ww[k])
             f.maps[math.inf] = (core[i, :h, :w], dil[i, :h, :w], blocked[i, :h, :w])
@@ -877,20 +830,20 @@ class _Batch:
         return row
 
 
-def _next_couple(f: _Foot, cands: _Cands) -> tuple[str, float]:
+def _next_couple(f: _Foot, cands: _Cands) -> tuple[_Next, float]:
     """Advance ``f``'s search over couples that need no batch work (no plan from outside the
     search box, target cell blocked or known unreachable at that slice); returns what the
-    next couple needs: ``("maps", level)``, ``("eval", level)`` or ``("end", 0)``."""
+    next couple needs and at which slice level (0 with :attr:`_Next.END`)."""
     st = f.st
     order = f.order
     levels = f.levels
     scores = cands.score_list
     while True:
         if st.done or st.pos >= len(order):
-            return "end", 0.0
+            return _Next.END, 0.0
         t = f.base + order[st.pos]
         if st.level_pos == 0 and not f.exhaustive and st.best is not None and scores[t] <= st.best_score:
-            return "end", 0.0  # Appendix E: no couple with this target can beat the best one
+            return _Next.END, 0.0  # Appendix E: no couple with this target can beat the best one
         if st.level_pos >= len(levels) or not f.start_inside:
             st.pos += 1
             st.level_pos = 0
@@ -898,7 +851,7 @@ def _next_couple(f: _Foot, cands: _Cands) -> tuple[str, float]:
         level = levels[st.level_pos]
         maps = f.maps.get(level)
         if maps is None:
-            return "maps", level
+            return _Next.MAPS, level
         r, c = cands.cell_list[t]
         if maps[2][r, c]:
             st.level_pos += 1
@@ -908,7 +861,7 @@ def _next_couple(f: _Foot, cands: _Cands) -> tuple[str, float]:
             if fld is not None and not math.isfinite(fld.dist[r, c]):
                 st.level_pos += 1  # known unreachable at this slice
                 continue
-        return "eval", level
+        return _Next.EVAL, level
 
 
 def _after_couple(f: _Foot, cands: _Cands, level: float, path_ok: bool, in_sight: bool, s2: float,
@@ -934,7 +887,7 @@ def _after_couple(f: _Foot, cands: _Cands, level: float, path_ok: bool, in_sight
         if st.best is None or score > st.best_score:
             if st.best is None:
                 st.first_valid = st.n_couples
-            st.best = (t, s3, level, traj, score)
+            st.best = _Best(t, s3, level, traj, score)
             st.best_score = score
     if f.budget is not None and st.best is not None and st.after_first >= f.budget:
         st.done = True
@@ -948,15 +901,10 @@ def _after_couple(f: _Foot, cands: _Cands, level: float, path_ok: bool, in_sight
 
 def _straight_plans(
     batch: _Batch, ks: IntArray, start_rc: FloatArray, end_rc: FloatArray, blocked: BoolArray
-) -> tuple[list[int], list[float], FloatArray, FloatArray, FloatArray, list[int], IntArray, IntArray,
-           FloatArray]:
+) -> _StraightPlans:
     """Straight 2D plans from ``start_rc`` to ``end_rc`` ``(m, 2)`` (box cells) of plans
     ``ks``, checked against ``blocked`` ``(m, H, W)`` (what :meth:`PathContext.plan_2d` does
-    for a target in sight). Returns ``(status, s2, ...)``: status per plan is 1 (a clean
-    plan), 0 (its samples touch a blocked cell: no plan) or -1 (zero length: plan it alone),
-    its 2D score, then the samples of the clean and blocked plans one after the other
-    (``xy`` ``(M, 2)``, ``arc`` ``(M,)``, ``length`` ``(m,)``), their ``bounds``, their cells
-    ``rows``, ``cols`` (window) and the world waypoints ``(m, 2, 2)``."""
+    for a target in sight)."""
     cl = batch.cell[ks]
     org = batch.origin[ks]
     r0 = batch.r0[ks]
@@ -1004,7 +952,7 @@ def _straight_plans(
         ddy = float(sy[b - 1] - sy[a])
         s2.append(straightness_score(planar_length(ddx, ddy), lens[j], turning[j]))
     way = np.stack([np.column_stack([w0x, w0y]), np.column_stack([w1x, w1y])], axis=1)
-    return status, s2, samples, arc, length, bl, rows, cols, way
+    return _StraightPlans(status, s2, samples, arc, length, bl, rows, cols, way)
 
 
 def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
@@ -1025,9 +973,9 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
             need: list[tuple[_Foot, float]] = []
             for f in pending:
                 kind, level = _next_couple(f, cands)
-                if kind == "maps":
+                if kind is _Next.MAPS:
                     need.append((f, level))
-                elif kind == "eval":
+                elif kind is _Next.EVAL:
                     evals.append((f, level))
             if need:
                 batch.add_maps([f for f, _ in need], [lv for _, lv in need])
@@ -1054,14 +1002,12 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
         lift_src: dict[int, _LiftSource] = {}
         if straight_i:
             si = np.asarray(straight_i)
-            status, s2s, xy, arc, lens, bl, rows, cols, way = _straight_plans(
-                batch, ks[si], start_rc[si], end_rc[si], blocked[si])
+            straight = _straight_plans(batch, ks[si], start_rc[si], end_rc[si], blocked[si])
             for j, i in enumerate(straight_i):
-                if status[j] == 1:
-                    a, b = bl[j], bl[j + 1]
-                    s2[i] = s2s[j]
-                    lift_src[i] = (xy[a:b], arc[a:b], float(lens[j]), way[j], rows[a:b], cols[a:b])
-                elif status[j] == -1:
+                if straight.status[j] == 1:
+                    s2[i] = straight.s2[j]
+                    lift_src[i] = straight.source(j)
+                elif straight.status[j] == -1:
                     f, level = evals[i]
                     paths[i] = batch.path_context(f).plan_2d(level, t_cell[i], end_rc[i], True)
         others = [i for i in range(m) if not (sight[i] and evals[i][0].shortcut)]
@@ -1075,7 +1021,7 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
             if path is not None:
                 s2[i] = path_score_2d(path)
                 if path.length > 1e-9:
-                    lift_src[i] = (path.samples, path.arc, float(path.length), path.waypoints, None, None)
+                    lift_src[i] = _LiftSource(path.samples, path.arc, float(path.length), path.waypoints)
         # Book every couple; build the 3D trajectories the search asks for, all at once.
         made = [i in lift_src or paths[i] is not None for i in range(m)]
         lifts = [i for i, (f, level) in enumerate(evals)
@@ -1098,9 +1044,9 @@ def _search_alone(batch: _Batch, f: _Foot, cands: _Cands) -> None:
     ctx = batch.path_context(f)
     while True:
         kind, level = _next_couple(f, cands)
-        if kind == "end":
+        if kind is _Next.END:
             return
-        if kind == "maps":
+        if kind is _Next.MAPS:
             ctx.maps(level)
             continue
         t = f.base + f.order[f.st.pos]
@@ -1150,15 +1096,17 @@ def _lift_all(
             assert path is not None
             out[i] = batch.path_context(evals[i][0]).lift(path, target_z[i])
     if many:
-        xy = np.concatenate([lift_src[i][0] for i in many])
-        arc = np.concatenate([lift_src[i][1] for i in many])
-        counts = [lift_src[i][0].shape[0] for i in many]
+        src = [lift_src[i] for i in many]
+        xy = np.concatenate([s.samples for s in src])
+        arc = np.concatenate([s.arc for s in src])
+        counts = [s.samples.shape[0] for s in src]
         bounds = [0, *itertools.accumulate(counts)]
         ks = np.array([evals[i][0].k for i in many])
         kp = np.repeat(ks, counts)
-        if all(lift_src[i][4] is not None for i in many):
-            rows = np.concatenate([lift_src[i][4] for i in many])
-            cols = np.concatenate([lift_src[i][5] for i in many])
+        known = [(s.rows, s.cols) for s in src if s.rows is not None and s.cols is not None]
+        if len(known) == len(src):
+            rows = np.concatenate([r for r, _ in known])
+            cols = np.concatenate([c for _, c in known])
         else:
             cl = batch.cell[kp]
             org = batch.origin[kp]
@@ -1166,9 +1114,9 @@ def _lift_all(
             cols = np.rint((xy[:, 0] - org[:, 0]) / cl - batch.c0[kp]).astype(np.intp)
         ground = batch.max_under(kp, rows, cols, batch.sweep_off, batch.sweep_in, clearance=True)
         lens, z0, tz, step, ramp, gap, way = [], [], [], [], [], [], []
-        for i in many:
+        for i, s in zip(many, src, strict=True):
             p = evals[i][0].plan
-            length = lift_src[i][2]
+            length = s.length
             lens.append(length)
             z0.append(float(p.start[2]))
             tz.append(target_z[i])
@@ -1176,7 +1124,7 @@ def _lift_all(
             # PathContext.ramp (the default PathParams) and its minimum waypoint gap.
             ramp.append(min(max(p.params.step_height, 2.0 * p.cell), 0.5 * length))
             gap.append(_PATH_DEFAULTS.min_waypoint_gap * p.cell)
-            way.append(lift_src[i][3])
+            way.append(s.waypoints)
         trajs = lift_each(xy, arc, bounds, ground, lens, z0, tz, step, ramp, gap, way)
         out.update(zip(many, trajs, strict=True))
     return [out[i] for i in lifts]
@@ -1186,20 +1134,19 @@ _PATH_DEFAULTS = PathParams()
 
 
 def plan_footsteps(requests: Sequence[FootRequest]) -> list[Couple]:
-    """The best couple of every request, exactly as :func:`plan_footstep` gives it for each
-    alone, for many feet (of one or many characters, on one or many windows) at once.
+    """The best couple (:class:`Couple`) of every request, one per request in their order, for
+    any number of feet (of one or many characters, on one or many windows) at once. Never
+    raises for a foot that cannot be planned (non-finite input, a foot outside its window, no
+    candidate, no valid couple): its couple has ``ok=False`` and a ``message``.
 
-    The search of each foot is the same sequence of couples (Appendix E); what does not
+    The search of each foot is its own sequence of couples (Appendix E), whatever else is in
+    the batch; what does not
     depend on the other feet is computed for all of them together: the search rectangles,
     the other feet's cells, the foot kernels, the obstacle maps of every slice, every
     candidate's score, the slice levels, then round after round the next couple of every foot
     still searching (line of sight, straight plans, wavefronts, 3D trajectories). A crowd
     step's plans cost a few hundred numpy calls instead of a few hundred per foot.
     """
-    if len(requests) == 1:  # nothing to share: the one-foot planner costs less
-        rq = requests[0]
-        return [plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
-                              rq.other_feet_xy, rq.params, rq.foot_yaw, rq.hip_z)]
     results: list[Couple | None] = [None] * len(requests)
     plans: list[_Plan] = []
     for i, rq in enumerate(requests):
@@ -1234,13 +1181,13 @@ def _plan_batch(plans: list[_Plan]) -> list[Couple]:
             out.append(_fail(p.start, _NO_COUPLE, n_couples=st.n_couples, n_paths=st.n_paths,
                              n_targets=f.n_targets, n_wavefronts=n_wf, wavefront_iterations=n_it))
             continue
-        t, s3, level, traj, score = st.best
-        row = f.base + t
+        best = st.best
+        row = f.base + best.target
         footprint = np.array([cands.xy[row, 0], cands.xy[row, 1], cands.z[row]])
-        out.append(Couple(True, footprint, traj, float(score), cands.score_list[row], float(s3), st.n_couples,
-                          st.n_paths, "", f.n_targets, n_wf, n_it, st.first_valid,
-                          max(0, st.n_couples - st.first_valid), None if math.isinf(level) else float(level),
-                          int(t)))
+        out.append(Couple(True, footprint, best.trajectory, float(best.score), cands.score_list[row],
+                          float(best.path_score), st.n_couples, st.n_paths, "", f.n_targets, n_wf, n_it,
+                          st.first_valid, max(0, st.n_couples - st.first_valid),
+                          None if math.isinf(best.level) else float(best.level), int(best.target)))
     return out
 
 
@@ -1272,20 +1219,20 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     hip = np.array([p.hip for p in plans])
     dx = x - hip[b, 0]
     dy = y - hip[b, 1]
-    reach = np.array([p.params.leg_reach + 1e-9 for p in plans])
+    reach = np.array([p.reach + 1e-9 for p in plans])
     ok &= planar_length(dx, dy) <= reach[b]
     # Landing height: the highest surface under the foot box at its exact offset.
     land_off, land_in = _offset_kernels(plans, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
     z0 = np.array([float(p.start[2]) for p in plans])
-    max_dz = np.array([p.params.leg_reach if p.params.max_height_change is None
+    max_dz = np.array([p.reach if p.params.max_height_change is None
                        else p.params.max_height_change for p in plans])
     ok &= np.abs(z - z0[b]) <= max_dz[b]
     hip_z = np.array([math.nan if p.hip_z is None else p.hip_z for p in plans])
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
         owner = b[sel]
-        settings = np.array([_hip_settings(p.params) for p in plans])
+        settings = np.array([_hip_settings(p.leg, p.sweep, p.sink) for p in plans])
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
             np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
@@ -1422,7 +1369,7 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
     for i, k in enumerate(sliced):
         p = plans[k]
         z0 = float(p.start[2])
-        reach_up = p.params.leg_reach if p.params.max_height_change is None else p.params.max_height_change
+        reach_up = p.reach if p.params.max_height_change is None else p.params.max_height_change
         top = min(tops[i] if tops[i] != -math.inf else z0, z0 + reach_up)
         size = p.params.slice_size
         assert size is not None
@@ -1442,135 +1389,3 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
     for i, k in enumerate(sliced):
         out[k] = _distinct_levels(lists[i], above[i][: len(lists[i])])
     return out
-
-
-
-def plan_footstep(
-    grids: WindowGrids,
-    foot_start: npt.ArrayLike,
-    preferred_xy: npt.ArrayLike,
-    hip_xy: npt.ArrayLike,
-    other_hips_xy: npt.ArrayLike,
-    other_feet_xy: npt.ArrayLike,
-    params: PlannerParams,
-    foot_yaw: float = 0.0,
-    hip_z: float | None = None,
-) -> Couple:
-    """The best couple (footprint, 3D trajectory) for one swinging foot.
-
-    ``grids``: the character's window (:meth:`~.terrain.Environment.window`); ``foot_start``:
-    ``(3,)`` where the foot is now; ``preferred_xy``: ``(2,)`` the controller's preferred
-    footprint; ``hip_xy``: ``(2,)`` this leg's hip (at touch-down); ``other_hips_xy``,
-    ``other_feet_xy``: ``(k, 2)`` the other legs' hips and feet (their feet are forbidden,
-    their legs must not be crossed); ``foot_yaw``: the foot box's yaw; ``hip_z``: the hip's
-    height (at touch-down), for the checks that need it (see :class:`PlannerParams`). Never raises for an
-    unreachable target; never returns NaN.
-    """
-    start = np.asarray(foot_start, dtype=np.float64).reshape(3)
-    pref = np.asarray(preferred_xy, dtype=np.float64).reshape(2)
-    hip = np.asarray(hip_xy, dtype=np.float64).reshape(2)
-    o_hips = np.asarray(other_hips_xy, dtype=np.float64).reshape(-1, 2)
-    o_feet = np.asarray(other_feet_xy, dtype=np.float64).reshape(-1, 2)
-    safe_start = np.where(np.isfinite(start), start, 0.0)
-    if not (np.all(np.isfinite(start)) and np.all(np.isfinite(pref)) and np.all(np.isfinite(hip))
-            and np.all(np.isfinite(o_hips)) and np.all(np.isfinite(o_feet))
-            and (hip_z is None or math.isfinite(float(hip_z)))):
-        return _fail(safe_start, "non-finite input")
-    if o_hips.shape != o_feet.shape:
-        return _fail(start, "other_hips_xy and other_feet_xy differ in shape")
-    cell = grids.cell
-    half = np.asarray(params.foot_half_extents, dtype=np.float64).reshape(2)
-    start_rc = grids.rowcol(start[:2])
-    pref_rc = grids.rowcol(pref)
-    ny, nx = grids.shape
-    if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
-        return _fail(start, "the foot is outside the window grids")
-    half_width = params.search_half_width
-    if half_width is None:
-        half_width = max(params.candidate_radius, 0.5 * params.leg_reach)
-    foot_cells = (abs(half[0]) + abs(half[1])) / cell + 1.0
-    region = search_region(grids.shape, start_rc, pref_rc, half_width / cell + foot_cells,
-                           params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
-    extra = _other_feet_mask(grids, o_feet, np.asarray(_sole(params, (float(half[0]), float(half[1])))),
-                             foot_yaw)
-    path_params = PathParams(step_height=params.step_height, tension=params.tension,
-                             los_shortcut=params.los_shortcut)
-    ctx = PathContext(grids, start, region, extra, half, foot_yaw, path_params,
-                      per_target=not params.shared_wavefront)
-    cand = score_candidates(ctx, pref, hip, o_hips, o_feet, params, foot_yaw, hip_z)
-    valid = cand.score > 0.0
-    n_targets = int(np.count_nonzero(valid))
-    if n_targets == 0:
-        why = ("no candidate footprint: every cell near the preferred footprint is forbidden, "
-               "out of reach, without ground or crosses another leg")
-        return _fail(start, why)
-    order = np.nonzero(valid)[0]
-    if params.max_targets is not None:
-        order = order[: params.max_targets]
-    reach_up = params.leg_reach if params.max_height_change is None else params.max_height_change
-    levels = slice_levels(ctx, params.slice_size, float(start[2]) + reach_up)
-    exhaustive = params.exhaustive
-    budget = None if exhaustive else params.max_couples_after_first
-
-    best_score = 0.0
-    best: tuple[int, float, float, FootTrajectory, float] | None = None
-    n_couples = n_paths = after_first = first_valid = 0
-    stop = False
-    for t in order.tolist():
-        t_score = float(cand.score[t])
-        if not exhaustive and best is not None and t_score <= best_score:
-            break  # Appendix E: no couple with this target can beat the best one
-        cell_t = (int(cand.cells[t, 0]), int(cand.cells[t, 1]))
-        for level in levels:
-            path = ctx.path_2d(level, cell_t, cand.xy[t])
-            if path is None:
-                continue
-            n_couples += 1
-            if best is not None:
-                after_first += 1
-            s2 = path_score_2d(path)
-            # Appendix E: build the 3D trajectory only when the 2D bound beats the best couple.
-            if exhaustive or best is None or t_score * s2 > best_score:
-                traj = ctx.lift(path, float(cand.z[t]))
-                n_paths += 1
-                s3 = s2 * vertical_factor(traj, params.step_height)
-                score = t_score * s3
-                if best is None or score > best_score:
-                    if best is None:
-                        first_valid = n_couples
-                    best = (t, s3, level, traj, score)
-                    best_score = score
-            if budget is not None and best is not None and after_first >= budget:
-                stop = True
-                break
-            if path.in_sight:
-                # A straight line clear at this slice is clear at every higher one: the same
-                # couple again, which cannot beat itself.
-                break
-        if stop:
-            break
-
-    counts = {"n_couples": n_couples, "n_paths": n_paths, "n_targets": n_targets,
-              "n_wavefronts": ctx.n_wavefronts, "wavefront_iterations": ctx.wavefront_iterations}
-    if best is None:
-        return _fail(start, "no valid couple: no candidate footprint can be reached from the foot", **counts)
-    t, s3, level, traj, score = best
-    footprint = np.array([cand.xy[t, 0], cand.xy[t, 1], cand.z[t]])
-    return Couple(
-        ok=True,
-        footprint=footprint,
-        trajectory=traj,
-        score=float(score),
-        target_score=float(cand.score[t]),
-        path_score=float(s3),
-        n_couples=n_couples,
-        n_paths=n_paths,
-        message="",
-        n_targets=n_targets,
-        n_wavefronts=ctx.n_wavefronts,
-        wavefront_iterations=ctx.wavefront_iterations,
-        first_valid_couple=first_valid,
-        n_couples_after_first=max(0, n_couples - first_valid),
-        slice_level=None if math.isinf(level) else float(level),
-        target_index=int(t),
-    )

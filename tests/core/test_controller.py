@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.core import morphology as morph
-from procloco_addon.core.footprints import Couple, FootRequest, plan_footstep
+from procloco_addon.core.footprints import Couple, FootRequest, plan_footsteps
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.geometry import rotation_matrices
 from procloco_addon.core.locomotion import fallback, obstacles, pelvis, reach, spine_link
@@ -23,14 +23,13 @@ from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_STEP_OVER, 
 from tests.core.cross_path import assert_close
 
 
-def _plan_each_foot_with(monkeypatch: pytest.MonkeyPatch, plan: Callable[..., object]) -> None:
-    """Make the controller's batched planner answer each foot with ``plan`` (a stand-in with
-    ``plan_footstep``'s signature), so a test can fail or bend chosen plans."""
+def _plan_each_foot_with(monkeypatch: pytest.MonkeyPatch, plan: Callable[[FootRequest], object]) -> None:
+    """Make the controller's batched planner answer each foot's request with ``plan``, so a
+    test can fail or bend chosen plans."""
     from procloco_addon.core.locomotion import planning as planning_module
 
     def batched(requests: Sequence[FootRequest]) -> list[object]:
-        return [plan(r.grids, r.foot_start, r.preferred_xy, r.hip_xy, r.other_hips_xy, r.other_feet_xy,
-                     r.params, r.foot_yaw) for r in requests]
+        return [plan(r) for r in requests]
 
     monkeypatch.setattr(planning_module, "plan_footsteps", batched)
 
@@ -402,18 +401,16 @@ def test_a_foot_whose_swing_could_not_be_planned_still_steps_when_left_behind(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
 
-    real = plan_footstep
     clock = {"t": 0.0}
 
-    def flaky(*args: object, **kw: object) -> object:
-        params = args[6]
+    def flaky(rq: FootRequest) -> object:
         # every normal plan fails for a while; a foot forced to step (planned without
         # slices) is served
-        if 0.5 <= clock["t"] < 1.2 and params.slice_size is not None:  # type: ignore[attr-defined]
-            start = np.asarray(args[1], dtype=np.float64)
+        if 0.5 <= clock["t"] < 1.2 and rq.params.slice_size is not None:
+            start = np.asarray(rq.foot_start, dtype=np.float64)
             return Couple(ok=False, footprint=start, trajectory=None, score=0.0, target_score=0.0,
                           path_score=0.0, n_couples=0, n_paths=0, message="test", n_targets=1)
-        return real(*args, **kw)  # type: ignore[arg-type]
+        return plan_footsteps([rq])[0]
 
     _plan_each_foot_with(monkeypatch, flaky)
     m = morph.spider()
@@ -503,7 +500,7 @@ def test_a_foot_that_must_step_goes_around_a_tall_avoided_crate_not_over_it(
 
     # the planner finds nothing; a hind foot left behind must step, and a crate taller than
     # the spider stands between it and its preferred spot: the straight fallback goes around
-    _plan_each_foot_with(monkeypatch, lambda *a, **k: _failed(a[1]))
+    _plan_each_foot_with(monkeypatch, lambda rq: _failed(rq.foot_start))
     m = morph.spider()
     leg = 6  # L4, planted at the start
     rest = m.rest_foot[leg]
@@ -528,7 +525,6 @@ def test_a_foot_that_must_step_goes_around_a_tall_avoided_crate_not_over_it(
 
 def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytest.MonkeyPatch) -> None:
 
-    real = plan_footstep
     holder: dict[str, Controller] = {}
 
     class Detour:
@@ -541,13 +537,13 @@ def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytes
             line = self.start[None, :] + u[:, None] * (self.end - self.start)[None, :]
             return line + np.outer(np.sin(np.pi * u), [0.0, self.width, 0.03])
 
-    def detouring(*args: object, **kw: object) -> Couple:
-        couple = real(*args, **kw)  # type: ignore[arg-type]
+    def detouring(rq: FootRequest) -> Couple:
+        couple = plan_footsteps([rq])[0]
         ctrl = holder["ctrl"]
-        leg = int(np.argmin(np.linalg.norm(ctrl.foot - np.asarray(args[1]), axis=1)))
+        leg = int(np.argmin(np.linalg.norm(ctrl.foot - np.asarray(rq.foot_start), axis=1)))
         if not couple.ok or ctrl.forced[leg]:
             return couple  # a foot that must move takes what it gets
-        start = np.asarray(args[1], dtype=np.float64)
+        start = np.asarray(rq.foot_start, dtype=np.float64)
         wide = Detour(start, couple.footprint, 0.8)
         return Couple(ok=True, footprint=couple.footprint, trajectory=wide,  # type: ignore[arg-type]
                       score=couple.score, target_score=couple.target_score, path_score=couple.path_score,

@@ -16,10 +16,6 @@ from hypothesis import strategies as st
 
 from procloco_addon.core.footprints import (
     Couple,
-    FootRequest,
-    PlannerParams,
-    legs_cross,
-    plan_footstep,
     plan_footsteps,
 )
 from procloco_addon.core.pathing import clearance_profile, wavefront
@@ -35,10 +31,11 @@ from procloco_addon.core.terrain import (
     foot_kernel,
 )
 from tests.core.cross_path import assert_close
+from tests.core.reference_planner import FlatSettings, legs_cross, plan_footstep
 
 WP = WindowParams(n_cells=40, cell=0.07, foot_half_extents=(0.03, 0.03))
-P = PlannerParams(step_height=0.1, slice_size=0.1, leg_reach=0.6, candidate_radius=0.2, fixed_distance=0.3,
-                  foot_half_extents=(0.03, 0.03))
+P = FlatSettings(step_height=0.1, slice_size=0.1, leg_reach=0.6, candidate_radius=0.2, fixed_distance=0.3,
+                 foot_half_extents=(0.03, 0.03))
 NO_LEGS = np.zeros((0, 2))
 START = np.array([0.0, 0.0, 0.0])
 HIP = np.array([0.2, 0.25])
@@ -60,13 +57,22 @@ def window(rows: list[tuple[float, float, float, float, float, int]] | None = No
     return Environment(flat(), crates(rows) if rows else None).window(np.array([0.2, 0.0]), WP)
 
 
-def plan(w: WindowGrids, preferred: tuple[float, float], params: PlannerParams = P,
+def plan_one(grids: WindowGrids, foot_start: np.ndarray, preferred_xy: np.ndarray, hip_xy: np.ndarray,
+             other_hips_xy: np.ndarray, other_feet_xy: np.ndarray, params: FlatSettings,
+             foot_yaw: float = 0.0, hip_z: float | None = None) -> Couple:
+    """The product planner (:func:`plan_footsteps`) asked for one foot."""
+    rq = params.request(grids, foot_start, preferred_xy, hip_xy, other_hips_xy, other_feet_xy, foot_yaw,
+                        hip_z)
+    return plan_footsteps([rq])[0]
+
+
+def plan(w: WindowGrids, preferred: tuple[float, float], params: FlatSettings = P,
          start: np.ndarray = START, hip: np.ndarray = HIP, other_hips: np.ndarray = NO_LEGS,
          other_feet: np.ndarray = NO_LEGS, yaw: float = 0.0) -> Couple:
-    return plan_footstep(w, start, np.array(preferred), hip, other_hips, other_feet, params, yaw)
+    return plan_one(w, start, np.array(preferred), hip, other_hips, other_feet, params, yaw)
 
 
-def check_couple(w: WindowGrids, c: Couple, params: PlannerParams, start: np.ndarray,
+def check_couple(w: WindowGrids, c: Couple, params: FlatSettings, start: np.ndarray,
                  preferred: np.ndarray, hip: np.ndarray, other_feet: np.ndarray = NO_LEGS,
                  yaw: float = 0.0) -> None:
     """Invariants of every valid couple (foot box ``params.foot_half_extents`` at ``yaw``)."""
@@ -309,11 +315,11 @@ def test_a_foot_on_an_avoided_crate_that_moved_under_it_can_step_off() -> None:
 
 def test_bad_numbers_give_a_failed_couple_not_an_exception() -> None:
     w = window()
-    c = plan_footstep(w, np.array([np.nan, 0.0, 0.0]), np.array([0.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
+    c = plan_one(w, np.array([np.nan, 0.0, 0.0]), np.array([0.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
     assert not c.ok
     assert np.all(np.isfinite(c.footprint))
     assert "non-finite" in c.message
-    far = plan_footstep(w, np.array([50.0, 0.0, 0.0]), np.array([50.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
+    far = plan_one(w, np.array([50.0, 0.0, 0.0]), np.array([50.3, 0.0]), HIP, NO_LEGS, NO_LEGS, P)
     assert not far.ok
     assert "outside the window" in far.message
 
@@ -354,7 +360,7 @@ def test_a_foot_box_keeps_off_the_other_feet_soles_not_their_whole_boxes() -> No
     np.testing.assert_allclose(soles.footprint[:2], pref, atol=1e-9)
     assert np.max(np.abs(soles.footprint[:2] - other_foot[0])) >= 0.1 + 0.02
     # the same with the batch planner
-    rq = FootRequest(w, START, pref, HIP, other_hip, other_foot, on_soles)
+    rq = on_soles.request(w, START, pref, HIP, other_hip, other_foot)
     _same_couple(plan_footsteps([rq])[0], soles)
 
 
@@ -416,7 +422,7 @@ BATCH_SETTINGS = [
 
 
 @given(st.integers(0, 100_000))
-def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
+def test_planning_a_batch_of_feet_equals_the_one_foot_reference(seed: int) -> None:
     rng = np.random.default_rng(seed)
     scenes = [random_scene(seed), random_scene(seed + 1)]
     requests = []
@@ -428,8 +434,7 @@ def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
         start, pref, hip, oh, of = foot
         params = BATCH_SETTINGS[int(rng.integers(len(BATCH_SETTINGS)))]
         hip_z = float(rng.uniform(0.05, 0.4)) if rng.random() < 0.7 else None
-        requests.append(FootRequest(w, start, pref, hip, oh, of, params, float(rng.uniform(-np.pi, np.pi)),
-                                    hip_z))
+        requests.append(params.request(w, start, pref, hip, oh, of, float(rng.uniform(-np.pi, np.pi)), hip_z))
     env, w, _ = scenes[0]
     # Feet that cannot be planned, and a foot on an avoided crate (it may step off it).
     # A window of another size and cell size in the same batch.
@@ -437,15 +442,15 @@ def test_planning_a_batch_of_feet_equals_planning_each_alone(seed: int) -> None:
     for grids, start, pref in ((w, [np.nan, 0.0, 0.0], [0.3, 0.0]), (w, [50.0, 0.0, 0.0], [50.3, 0.0]),
                                (_crate_window(), [0.0, 0.0, 0.15], [0.4, 0.0]),
                                (other, [0.0, 0.0, 0.0], [0.3, 0.1])):
-        requests.append(FootRequest(grids, np.array(start), np.array(pref), HIP, NO_LEGS, NO_LEGS, P))
+        requests.append(P.request(grids, np.array(start), np.array(pref), HIP, NO_LEGS, NO_LEGS))
     order = rng.permutation(len(requests))
     requests = [requests[i] for i in order]
     batched = plan_footsteps(requests)
     assert len(batched) == len(requests)
     for rq, got in zip(requests, batched, strict=True):
-        alone = plan_footstep(rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy, rq.other_hips_xy,
-                              rq.other_feet_xy, rq.params, rq.foot_yaw, rq.hip_z)
+        alone = plan_footstep(rq)
         _same_couple(got, alone)
+        _same_couple(plan_footsteps([rq])[0], alone)  # a batch of one: the same search
     assert any(c.ok for c in batched)
     assert plan_footsteps([]) == []
 
@@ -466,7 +471,7 @@ def _scaled_plan(scale: float, noise: np.random.Generator | None) -> Couple:
         a = np.asarray(v) * scale
         return a if noise is None else a * (1.0 + 1e-8 * noise.standard_normal(a.shape))
 
-    return plan_footstep(w, jitter([0.02, 0.01, 0.03]), jitter([0.4, 0.02]), jitter([0.2, 0.25]), NO_LEGS,
+    return plan_one(w, jitter([0.02, 0.01, 0.03]), jitter([0.4, 0.02]), jitter([0.2, 0.25]), NO_LEGS,
                          NO_LEGS, params)
 
 
@@ -538,8 +543,8 @@ def test_a_footprint_whose_leg_would_run_through_a_crate_gives_way_to_a_clear_on
     hip = np.array([0.2, 0.35])
     w = window([(0.2, 0.2, 0.07, 0.07, 0.25, ROLE_AVOID)])
     params = replace(P, candidate_radius=0.4)
-    blind = plan_footstep(w, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS, params, 0.0, 0.3)
-    checked = plan_footstep(w, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS,
+    blind = plan_one(w, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS, params, 0.0, 0.3)
+    checked = plan_one(w, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS,
                             replace(params, leg_length=0.6), 0.0, 0.3)
     assert blind.ok
     assert checked.ok
@@ -547,8 +552,8 @@ def test_a_footprint_whose_leg_would_run_through_a_crate_gives_way_to_a_clear_on
     assert not _leg_hits_box(checked.footprint, hip, 0.3, (0.2, 0.2), 0.035, 0.25)
     # with nothing clear left, a blocked footprint is still taken, scored lower
     walled = window([(0.2, 0.15, 0.8, 0.06, 0.25, ROLE_AVOID)])
-    free = plan_footstep(walled, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS, params, 0.0, 0.3)
-    low = plan_footstep(walled, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS,
+    free = plan_one(walled, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS, params, 0.0, 0.3)
+    low = plan_one(walled, START, np.array([0.2, 0.0]), hip, NO_LEGS, NO_LEGS,
                         replace(params, leg_length=0.6), 0.0, 0.3)
     assert low.ok
     assert low.target_score == pytest.approx(params.leg_clearance_score * free.target_score)
@@ -558,13 +563,13 @@ def test_a_footprint_whose_leg_would_run_through_a_crate_gives_way_to_a_clear_on
 def test_footprints_stay_within_the_legs_3d_reach_of_the_hip(hip_z: float) -> None:
     w = window()
     params = replace(P, reach_3d=0.4, candidate_radius=0.3)
-    far = plan_footstep(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params)  # no hip height
+    far = plan_one(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params)  # no hip height
     assert np.linalg.norm(np.r_[far.footprint[:2] - HIP, far.footprint[2] - hip_z]) > 0.4
-    c = plan_footstep(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params, 0.0, hip_z)
+    c = plan_one(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params, 0.0, hip_z)
     assert c.ok
     assert np.linalg.norm(np.r_[c.footprint[:2] - HIP, c.footprint[2] - hip_z]) <= 0.4 + 1e-9
     # a hip too high for any footprint: a clean failure, not a footprint out of reach
-    assert not plan_footstep(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params, 0.0, 0.45).ok
+    assert not plan_one(w, START, np.array([0.45, 0.0]), HIP, NO_LEGS, NO_LEGS, params, 0.0, 0.45).ok
 
 
 def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:

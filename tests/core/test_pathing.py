@@ -20,8 +20,7 @@ from procloco_addon.core.pathing import (
     PathContext,
     PathParams,
     _hull_knots_increasing,
-    _hull_waypoints,
-    _turning,
+    _segment_clear,
     build_path,
     clearance_profile,
     descend,
@@ -50,6 +49,7 @@ from procloco_addon.core.terrain import (
     WindowParams,
     foot_kernel,
 )
+from tests.core import reference_pathing
 from tests.core.cross_path import assert_close
 
 PARAMS = WindowParams(n_cells=40, cell=0.07, foot_half_extents=(0.03, 0.03))
@@ -367,7 +367,7 @@ def test_many_wavefronts_at_once_equal_one_at_a_time(seed: int) -> None:
         sources.append((int(rng.integers(h)), int(rng.integers(w))))
     for i, got in enumerate(wavefront_each(free, sources, shapes)):
         h, w = shapes[i]
-        alone = wavefront(free[i, :h, :w], sources[i])
+        alone = reference_pathing.wavefront(free[i, :h, :w], sources[i])
         # The same relaxation sweep for sweep: the same parents and reached cells; distances
         # (sums of 1 and √2) to a few ulps.
         assert np.array_equal(np.isinf(got.dist), np.isinf(alone.dist))
@@ -390,7 +390,10 @@ def test_line_of_sight_on_many_grids_equals_one_grid_at_a_time(seed: int) -> Non
     got = segments_clear_each(blocked, which, shape[which], a, b)
     for i in range(10):
         h, w = shape[which[i]]
-        assert got[i] == segments_clear(blocked[which[i], :h, :w], a[i], b[i][None, :])[0]
+        grid = blocked[which[i], :h, :w]
+        assert got[i] == segments_clear(grid, a[i], b[i][None, :])[0]
+        # the plain-Python walk of line_of_sight_reduce over the same samples
+        assert got[i] == _segment_clear(grid, h, w, *a[i].tolist(), *b[i].tolist())
 
 
 @given(st.integers(0, 100_000))
@@ -457,7 +460,8 @@ def test_lifting_many_plans_at_once_equals_lifting_each(seed: int) -> None:
         for name in ("points", "waypoints", "waypoints_2d", "arc", "arc_2d", "length"):
             assert_close(getattr(traj, name), getattr(alone, name), name)
     # The turning of every plan too.
-    assert_close(turning_each(samples, bounds), [_turning(p.samples) for p in paths], "turning")
+    want = [reference_pathing.turning(p.samples) for p in paths]
+    assert_close(turning_each(samples, bounds), want, "turning")
 
 
 @given(st.integers(0, 100_000))
@@ -470,7 +474,8 @@ def test_plain_python_hull_waypoints_equal_the_numpy_ones(seed: int) -> None:
     steps = np.repeat(rng.uniform(0, 0.2, s.size // 3 + 1), 3)[: s.size]
     z = np.minimum(np.minimum(s, s[-1] - s) * 2.0, 0.1) + steps
     gap = float(rng.choice([0.0, 0.02, 0.1]))
-    assert _hull_knots_increasing(s.tolist(), z.tolist(), gap) == _hull_waypoints(s, z, gap).tolist()
+    want = reference_pathing.hull_waypoints(s, z, gap).tolist()
+    assert _hull_knots_increasing(s.tolist(), z.tolist(), gap) == want
 
 
 @given(st.integers(0, 100_000))

@@ -70,7 +70,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from ..footprints import PlannerParams
+from ..footprints import LegGeometry, PlannerParams
 from ..gait import Gait, GaitManager, GaitStep
 from ..geometry import rotate_xy, rotation_matrices, wrap_angle
 from ..ik import IKResult
@@ -141,6 +141,10 @@ class Controller:
         self.time = 0.0
         self.rig: Rig = build_rig(legs, p)
         self._planner_override = list(planner) if planner is not None else [None] * c
+        # the planner's settings per character and geometry per leg, made once (planner_params,
+        # leg_geometry)
+        self._planner_cache: dict[tuple[object, ...], PlannerParams] = {}
+        self._leg_cache: dict[tuple[int, float], LegGeometry] = {}
         self.lod: list[PlannerLOD | None] = list(lod) if lod is not None else [None] * c
         self.body: Body = pelvis.start_body(start_xy, start_yaw, c, n)
         # the needle already runs at the speed the commanded stroke asks for
@@ -372,13 +376,28 @@ class Controller:
         ``Morphology.foot_lift``."""
         return reach.ik_targets(self.rig, self.feet.foot)
 
-    def planner_params(
-        self, char: int, step_height: float, leg_reach: float | None = None, leg: int | None = None,
-        sweep: float = 0.0, sink: bool = True,
-    ) -> PlannerParams:
-        """The planner settings of a character for this step (``planning.planner_params``)."""
-        return planning.planner_params(self.rig, self.params, self.lod[char], self._planner_override[char],
-                                       char, step_height, leg_reach, leg, sweep, sink)
+    def planner_params(self, char: int, step_height: float) -> PlannerParams:
+        """A character's planner settings at a step height (``planning.planner_params``),
+        made once per character, LOD and step height and shared by its feet."""
+        level = self.lod[char]
+        key = (char, float(step_height), None if level is None else (level.max_couples_after_first,
+                                                                     level.slice_size))
+        made = self._planner_cache.get(key)
+        if made is None:
+            made = planning.planner_params(self.rig, self.params, level, self._planner_override[char],
+                                           char, step_height)
+            self._planner_cache[key] = made
+        return made
+
+    def leg_geometry(self, leg: int, step_height: float) -> LegGeometry:
+        """What the planner checks of a leg (``planning.leg_geometry``), made once per leg
+        and step height."""
+        key = (leg, float(step_height))
+        made = self._leg_cache.get(key)
+        if made is None:
+            made = planning.leg_geometry(self.rig, self.params, leg, step_height)
+            self._leg_cache[key] = made
+        return made
 
     # ---------------------------------------------------------------- the step
     def step(self, dt: float, ctl: StepControls) -> StepStats:
@@ -465,8 +484,8 @@ class Controller:
         with prof.phase("maps"):
             grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
         with prof.phase("planning"):
-            reqs, rows_of = planning.requests(rig, land, self.feet, flags[0], flags[1], ctl, grids,
-                                              self.planner_params)
+            reqs, rows_of = planning.requests(rig, p, land, self.feet, flags[0], flags[1], ctl, grids,
+                                              self.planner_params, self.leg_geometry)
             couples = planning.search(reqs, [bool(flags[1][r[0]]) for r in rows_of], stats)
             done = planning.choose(env, rig, p, land, self.feet, flags, rows_of, couples, ctl, u_grid, stats)
         planning.commit(env, rig, p, self.watch, self.feet, self.body, land, done, ctl, start_u, u_grid)

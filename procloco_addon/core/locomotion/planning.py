@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..footprints import Couple, FootRequest, PlannerParams, plan_footsteps
+from ..footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from ..geometry import rotate_xy, vector_norm, wrap_angle
 from ..morphology import LegBatch
 from ..terrain import Environment, WindowGrids, WindowParams
@@ -24,7 +24,7 @@ from . import spine_link
 from .fallback import straight_step
 from .obstacles import Watch, onto_support, trajectory_blocked, watch_reset
 from .pelvis import Body
-from .reach import within_reach
+from .reach import within_reach_all
 from .rig import Rig
 from .spine_link import SpineLink
 from .state import FootState
@@ -39,9 +39,12 @@ from .types import (
     StepStats,
 )
 
-#: ``planner_params`` bound to a controller: ``(char, step_height, leg_reach, leg, sweep,
-#: sink=...) -> PlannerParams``.
-ParamsOf = Callable[..., PlannerParams]
+#: A character's planner settings at a step height: ``(char, step_height) -> PlannerParams``
+#: (``Controller.planner_params``, made once and kept).
+ParamsOf = Callable[[int, float], PlannerParams]
+#: A leg's planner geometry at a step height: ``(leg, step_height) -> LegGeometry``
+#: (``Controller.leg_geometry``, made once and kept).
+GeometryOf = Callable[[int, float], LegGeometry]
 
 
 def replan_needed(
@@ -183,8 +186,8 @@ def windows(
 
 
 def requests(
-    rig: Rig, land: Landing, feet: FootState, swinging: BoolArray, forced: BoolArray, ctl: StepControls,
-    grids: dict[int, WindowGrids], params_of: ParamsOf,
+    rig: Rig, p: ControllerParams, land: Landing, feet: FootState, swinging: BoolArray, forced: BoolArray,
+    ctl: StepControls, grids: dict[int, WindowGrids], params_of: ParamsOf, geometry_of: GeometryOf,
 ) -> tuple[list[FootRequest], list[tuple[int, int, int, FloatArray]]]:
     """One ``FootRequest`` per foot of ``land``, grouped by character, and for each its
     ``(leg, row in land, character, hip at the stance reference (2,))``."""
@@ -198,8 +201,11 @@ def requests(
         sl = legs_data.leg_slice(c)
         for leg in legs[c_of == c].tolist():
             j = row_of[leg]
-            params = params_of(c, float(ctl.step_height[c]), float(land.reach[j]), leg,
-                               float(land.sweep_half[j]), sink=not forced[leg])
+            step_height = float(ctl.step_height[c])
+            # the hip may sink toward a footprint by as much as the reach guard lowers it; a
+            # foot stepping because it was left behind, by half of max_drop: it lands where it
+            # will not be left behind again at once
+            sink_share = p.guard_max_drop if not forced[leg] else 0.5 * p.max_drop
             hips = land.pelvis_ref[j] + rotate_xy(
                 hip_offset_xy[sl] - land.ref_rest[j, :2],
                 np.full(sl.stop - sl.start, land.yaw_land[j] - land.rest_yaw[j]),
@@ -212,9 +218,12 @@ def requests(
             other_feet = np.where(
                 swinging[other_idx, None], feet.plan.target[other_idx, :2], feet.foot[other_idx, :2]
             )
-            out.append(FootRequest(grids[c], feet.foot[leg], land.preferred_xy[j], hips[own],
-                                   hips[others], other_feet, params, float(land.yaw_land[j]),
-                                   float(land.hip_now[j, 2])))
+            out.append(FootRequest(
+                grids[c], feet.foot[leg], land.preferred_xy[j], hips[own], hips[others], other_feet,
+                params_of(c, step_height), float(land.yaw_land[j]), float(land.hip_now[j, 2]),
+                geometry_of(leg, step_height), leg_reach=float(land.reach[j]),
+                reach_sweep=float(land.sweep_half[j]), reach_sink=sink_share * float(rig.body_thickness[c]),
+            ))
             rows_of.append((leg, j, c, hips[own]))
     return out, rows_of
 
@@ -259,6 +268,27 @@ def search(reqs: list[FootRequest], must_move: list[bool], stats: StepStats) -> 
 Chosen = tuple[int, int, int, FloatArray, FloatArray]
 
 
+def _within_reach(
+    rig: Rig, p: ControllerParams, land: Landing, rows_of: list[tuple[int, int, int, FloatArray]],
+    couples: list[Couple], forced: BoolArray, u_grid: FloatArray,
+) -> dict[int, tuple[bool, FloatArray]]:
+    """For each couple with a trajectory (by its index): whether its swing may be taken and
+    the swing sampled at ``u_grid``. A swing that would leave the leg's reach is not taken,
+    unless the foot must move (``forced``: its way out may be a detour); every swing is
+    checked at once (``reach.within_reach_all``)."""
+    sampled = {i: cp.trajectory.point_at(u_grid) for i, cp in enumerate(couples)
+               if cp.ok and cp.trajectory is not None}
+    judged = [i for i in sampled if not forced[rows_of[i][0]]]
+    ok = dict.fromkeys(sampled, True)
+    if judged:
+        at = [rows_of[i][1] for i in judged]
+        hip_land = land.pelvis_land[at] + np.array([rows_of[i][3] for i in judged]) - land.pelvis_ref[at]
+        ok.update(zip(judged, within_reach_all(
+            rig, p, np.array([rows_of[i][0] for i in judged]), np.stack([sampled[i] for i in judged]),
+            land.hip_now[at], hip_land).tolist(), strict=True))
+    return {i: (ok[i], samples) for i, samples in sampled.items()}
+
+
 def choose(
     env: Environment, rig: Rig, p: ControllerParams, land: Landing, feet: FootState,
     flags: tuple[BoolArray, BoolArray, BoolArray],
@@ -274,20 +304,15 @@ def choose(
     ``(N,)``, the last two updated in place."""
     swinging, forced, failed = flags
     done: list[Chosen] = []
-    for (leg, j, c, hip_own), couple in zip(rows_of, couples, strict=True):
+    within = _within_reach(rig, p, land, rows_of, couples, forced, u_grid)
+    for i, ((leg, j, c, hip_own), couple) in enumerate(zip(rows_of, couples, strict=True)):
         stats.n_plans += 1
         stats.n_couples += couple.n_couples
         stats.n_paths += couple.n_paths
-        samples = couple.trajectory.point_at(u_grid) if couple.trajectory is not None else None
+        samples = within[i][1] if i in within else None
         hip_land = land.pelvis_land[j] + hip_own - land.pelvis_ref[j]
         hip_now = land.hip_now[j]
-        # a swing that would leave the leg's reach is not taken, unless the foot must
-        # move (its way out may be a detour)
-        if (
-            couple.ok
-            and samples is not None
-            and (forced[leg] or within_reach(rig, p, leg, samples, hip_now, hip_land))
-        ):
+        if couple.ok and samples is not None and within[i][0]:
             target = np.asarray(couple.footprint, dtype=np.float64).copy()
         elif ((forced[leg] and not swinging[leg]) or feet.blocked[leg]) and (
             straight := straight_step(
@@ -365,58 +390,43 @@ def commit(
 
 def planner_params(
     rig: Rig, p: ControllerParams, level: PlannerLOD | None, override: PlannerParams | None,
-    char: int, step_height: float, leg_reach: float | None = None, leg: int | None = None,
-    sweep: float = 0.0, sink: bool = True,
+    char: int, step_height: float,
 ) -> PlannerParams:
-    """The planner settings of a character for this step (``leg_reach``: horizontal
-    distance allowed from the hip reference, default the mean leg length). With ``leg``,
-    also that leg's checks against its hip's height: its 3D reach (the comfortable
-    reach, ``sweep`` metres of coming stance sweep, the pelvis sinking by at most as much
-    as the reach guard lowers it, ``guard_max_drop`` of its thickness, or without
-    ``sink`` half of ``max_drop``: a foot stepping because it was left behind lands where
-    it will not be left behind again at once), its line to the hip clear of
-    the ground (bowed by half the arch its knees take at rest), and no footprint hanging
-    over a height step of more than ``snap_tolerance`` of the step height (or a 1:4 slope
-    under the foot). ``level``: the character's LOD; ``override``: its own planner settings
-    (replacing the derived ones except step height, reach, foot size and height change)."""
+    """The planner settings of a character at a step height, shared by its feet (the
+    controller makes them once per character, LOD and step height): the derived ones, or the
+    character's own ``override`` settings, with the step height, the mean leg length as
+    reach and the height change from ``ControllerParams``. ``level``: the character's LOD."""
     length = float(rig.char_leg_length[char])
-    reach = length if leg_reach is None else float(leg_reach)
-    half = (float(rig.foot_half[char, 0]), float(rig.foot_half[char, 1]))
-    sole = (float(rig.sole_half[char, 0]), float(rig.sole_half[char, 1]))
-    per_leg: dict[str, float] = {}
-    if leg is not None:
-        per_leg = {
-            "reach_3d": float(rig.comfort_reach[leg]),
-            "reach_sweep": float(sweep),
-            "reach_sink": float(
-                (p.guard_max_drop if sink else 0.5 * p.max_drop) * rig.body_thickness[char]
-            ),
-            "leg_length": float(rig.legs.leg_length[leg]),
-            "leg_arch": float(0.5 * rig.leg_arch[leg]),
-            "max_straddle": max(p.snap_tolerance * float(step_height), 0.25 * max(half)),
-        }
     if override is None:
         return PlannerParams(
             step_height=float(step_height),
             slice_size=p.slice_size if level is None else level.slice_size,
-            leg_reach=reach,
+            leg_reach=length,
             candidate_radius=p.candidate_radius * length,
             fixed_distance=p.fixed_distance * length,
-            foot_half_extents=half,
-            sole_half_extents=sole,
             max_couples_after_first=p.max_couples_after_first
             if level is None
             else level.max_couples_after_first,
             max_height_change=p.max_height_change * length,
-            **per_leg,  # type: ignore[arg-type]
         )
-    return replace(
-        override,
-        step_height=float(step_height),
-        leg_reach=reach,
+    return replace(override, step_height=float(step_height), leg_reach=length,
+                   max_height_change=p.max_height_change * length)
+
+
+def leg_geometry(rig: Rig, p: ControllerParams, leg: int, step_height: float) -> LegGeometry:
+    """What the planner checks of leg ``leg`` (the controller makes it once per leg and step
+    height): its foot box and sole, its 3D reach (the comfortable reach), its line to the hip
+    clear of the ground (bowed by half the arch its knees take at rest), and no footprint
+    hanging over a height step of more than ``snap_tolerance`` of the step height (or a 1:4
+    slope under the foot)."""
+    char = int(rig.leg_char[leg])
+    half = (float(rig.foot_half[char, 0]), float(rig.foot_half[char, 1]))
+    return LegGeometry(
         foot_half_extents=half,
-        sole_half_extents=sole,
-        max_height_change=p.max_height_change * length,
-        **per_leg,  # type: ignore[arg-type]
+        sole_half_extents=(float(rig.sole_half[char, 0]), float(rig.sole_half[char, 1])),
+        reach_3d=float(rig.comfort_reach[leg]),
+        leg_length=float(rig.legs.leg_length[leg]),
+        leg_arch=float(0.5 * rig.leg_arch[leg]),
+        max_straddle=max(p.snap_tolerance * float(step_height), 0.25 * max(half)),
     )
 

@@ -3,7 +3,7 @@
 ``Controller.step``), planted feet left behind that step early (``overstretched``) and the
 ones that wait for support first (``wait_for_support``), how long a foot left behind takes to
 catch up (``catch_up_time``), whether a swing stays within its leg's reach
-(``within_reach``, ``hip_distance``, ``reach_bound``), and the legs' IK with the swinging
+(``within_reach_all``, ``hip_distance``, ``reach_bound``), and the legs' IK with the swinging
 feet bent to what their legs reach (``solve_ik``, ``ik_targets``; step 5)."""
 
 from __future__ import annotations
@@ -129,17 +129,28 @@ def reach_bound(rig: Rig, leg: int, start: float, u: FloatArray) -> FloatArray:
     return np.asarray(length + max(start - length, 0.0) * (1.0 - u))
 
 
-def within_reach(
-    rig: Rig, p: ControllerParams, leg: int, samples: FloatArray, hip_start: FloatArray,
+def within_reach_all(
+    rig: Rig, p: ControllerParams, legs: IntArray, samples: FloatArray, hip_start: FloatArray,
     hip_end_xy: FloatArray,
-) -> bool:
-    """Whether a swing ``samples (k + 1, 3)`` stays within leg ``leg``'s length of its hip
-    moving from ``hip_start (3,)`` to ``hip_end_xy (2,)`` at touch-down (``hip_distance``).
-    The planner's paths may detour around obstacles farther than a leg reaches; such a
-    couple is not taken."""
-    dist = hip_distance(rig, p, leg, samples, hip_start, hip_end_xy)
-    u = np.linspace(0.0, 1.0, samples.shape[0])
-    return bool(np.all(dist <= reach_bound(rig, leg, float(dist[0]), u)))
+) -> BoolArray:
+    """Whether each swing ``samples (m, k + 1, 3)`` of legs ``legs (m,)`` stays within its
+    leg's length of its hip moving from ``hip_start (m, 3)`` to ``hip_end_xy (m, 2)`` at
+    touch-down: ``(m,)``. The arithmetic of ``hip_distance`` and ``reach_bound``, for all the
+    swings at once. The planner's paths may detour around obstacles farther than a leg
+    reaches; such a couple is not taken."""
+    u = np.linspace(0.0, 1.0, samples.shape[-2])
+    start = hip_start[:, None, :]
+    end = np.concatenate([hip_end_xy, (hip_start[:, 2] + samples[:, -1, 2] - samples[:, 0, 2])[:, None]],
+                         axis=-1)
+    hip = start + u[:, None] * (end[:, None, :] - start)
+    horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
+    drop = (p.guard_max_drop * rig.body_thickness[rig.leg_char[legs]])[:, None]
+    below = hip[..., 2] - (samples[..., 2] + rig.foot_lift[legs][:, None])
+    vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
+    dist = np.hypot(horizontal, vertical)
+    length = rig.legs.leg_length[legs][:, None]
+    bound = length + np.maximum(dist[:, :1] - length, 0.0) * (1.0 - u)
+    return np.asarray(np.all(dist <= bound, axis=1))
 
 
 def ik_targets(rig: Rig, foot: FloatArray) -> FloatArray:
