@@ -66,7 +66,7 @@ import numpy.typing as npt
 
 from .footprints import FootRequest, PlannerParams, plan_footsteps
 from .gait import Gait, GaitManager
-from .geometry import vector_norm
+from .geometry import vector_norm, wrap_angle
 from .hull import hull_height_and_pitch
 from .ik import IKResult, solve_legs
 from .morphology import LegBatch
@@ -99,11 +99,6 @@ _VOID = NO_SURFACE * 0.5
 #: A change of the needle rate in one step by more than this factor re-makes the pelvis
 #: particles' orbit (see ``Controller.step``).
 RATE_JUMP = 2.0
-
-
-def wrap_angle(a: npt.ArrayLike) -> FloatArray:
-    """Angles wrapped to ``[-π, π)``."""
-    return np.asarray(np.mod(np.asarray(a, dtype=np.float64) + np.pi, 2.0 * np.pi) - np.pi)
 
 
 def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> FloatArray:

@@ -61,3 +61,8 @@ def z_rotations(angle: FloatArray) -> FloatArray:
     out[..., 1, 1] = c
     out[..., 2, 2] = 1.0
     return out
+
+
+def wrap_angle(a: npt.ArrayLike) -> FloatArray:
+    """Angles wrapped into ``[-π, π)``."""
+    return np.asarray((np.asarray(a, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi)
