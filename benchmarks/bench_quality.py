@@ -214,7 +214,7 @@ def terrain(name: str, leg: float, fps: float, frames: int) -> Terrain:
         return Terrain(Environment(soups=[TriangleSoup(verts, tris, ROLE_GROUND)]))
     if name == "turn":
         return Terrain(Environment(_heightmap(L, hills=False, y_range=(-3.0, 10.0))),
-                       heading=lambda t: 0.0 if t < 1.5 else 0.5 * np.pi)
+                       heading=lambda t: 0.0 if t <= 1.5 else 0.5 * np.pi)
     raise ValueError(f"unknown terrain {name!r}")
 
 
@@ -361,8 +361,9 @@ def main() -> None:
     ap.add_argument("--crowd-steps", type=int, default=90)
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
+    settings = "core default" if args.core_defaults else "creature-scaled"
     print(f"bench_quality: {platform.python_version()} numpy {np.__version__}, {args.frames} frames at "
-          f"{args.fps:g} fps, {'core default' if args.core_defaults else 'creature-scaled'} controller and planner settings")
+          f"{args.fps:g} fps, {settings} controller and planner settings")
     rows: list[Row] = []
     for kind in args.kinds.split(","):
         for ter in args.terrains.split(","):

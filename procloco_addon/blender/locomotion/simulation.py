@@ -27,6 +27,7 @@ from ...core import scaling
 from ...core.gait import Gait
 from ...core.morphology import LegBatch
 from ...core.sim import (
+    PATH_LOOKAHEAD,
     PATH_STOP,
     Controls,
     Effects,
@@ -98,8 +99,8 @@ def simulation_of(job: Job) -> Simulation:
 
     if job.path is not None:
         # start along the path when the rig roughly faces it, else turn toward it walking
-        lookahead = max(leg_len, 0.5 * speed_of(0.0))
-        heading0 = PathFollower(job.path, lookahead, PATH_STOP * leg_len).heading_from(origin[:2])[0]
+        follower = PathFollower(job.path, PATH_LOOKAHEAD * leg_len, PATH_STOP * leg_len)
+        heading0 = follower.heading_from(origin[:2])[0]
         start_yaw = heading0 if abs(np.angle(np.exp(1j * (heading0 - start_yaw)))) < 0.5 else start_yaw
     # Gait changes at the first frame set the gait the walk starts with; later ones start a
     # transition before the step into their frame. With Auto the changes' speeds still
