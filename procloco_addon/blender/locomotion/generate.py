@@ -33,7 +33,7 @@ from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait
 from ..rig import controls
 from . import property_group, simulation
-from .job import GaitChange, Job
+from .job import GaitChange, Job, settings_values
 
 __all__ = [
     "ACTION_KIND",
@@ -405,21 +405,10 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         gait=gait,
         frames=frames,
         dt=1.0 / fps,
-        speed=float(settings.speed),
         heading=heading,
-        turn_rate=float(settings.turn_rate),
         path=path,
-        step_height=float(settings.step_height),
-        spacing=float(settings.spacing),
         foot_offset=_offsets_of(obj, info.legs, from_settings),
-        seed=int(settings.seed),
-        use_pelvis_physics=bool(settings.use_pelvis_physics),
-        use_progression=bool(settings.use_progression),
-        use_gait_randomizer=bool(settings.use_gait_randomizer),
-        use_visual_yaw=bool(settings.use_visual_yaw),
-        spine_turn_rate=float(settings.spine_turn_rate),
-        spine_relax_time=float(settings.spine_relax_time),
-        visual_yaw_gain=float(settings.visual_yaw_gain),
+        **settings_values(settings),
         gait_changes=changes,
         auto_gait=auto,
         warnings=warnings,

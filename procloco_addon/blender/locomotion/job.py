@@ -24,7 +24,7 @@ from ...core.sim import SimResult
 from .. import rig, scene_terrain
 from ..rig import controls
 
-__all__ = ["GaitChange", "Job", "RigTracks"]
+__all__ = ["SETTINGS", "GaitChange", "Job", "RigTracks", "settings_values"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +96,19 @@ class Job:
     lift: float = 0.0
     # What Key Reduction did when it is on (keys.reduce.Reduction), else None.
     key_reduction: Any = None
+
+
+#: The rig settings (``obj.procloco``) a :class:`Job` takes as they are, and their types.
+SETTINGS: dict[str, type] = {
+    "speed": float, "turn_rate": float, "step_height": float, "spacing": float, "seed": int,
+    "use_pelvis_physics": bool, "use_progression": bool, "use_gait_randomizer": bool,
+    "use_visual_yaw": bool, "spine_turn_rate": float, "spine_relax_time": float, "visual_yaw_gain": float,
+}
+
+
+def settings_values(settings: Any) -> dict[str, Any]:
+    """The :data:`SETTINGS` of a rig's settings group, as the :class:`Job`'s fields."""
+    return {name: kind(getattr(settings, name)) for name, kind in SETTINGS.items()}
 
 
 @dataclass
