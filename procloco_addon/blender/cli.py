@@ -272,14 +272,7 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
     s = obj.procloco
     _set_frames(obj, args)
     _apply_key_reduction(obj, args)
-    if args.speed is not None:
-        s.speed = float(args.speed)
-    if args.heading is not None:
-        s.heading = math.radians(float(args.heading))
-    if args.step_height is not None:
-        s.step_height = float(args.step_height)
-    if args.seed is not None:
-        s.seed = int(args.seed)
+    # The gait first: a preset sets its own speed, which an explicit --speed then overrides.
     if args.gait is not None:
         try:
             if args.gait.lower() not in ("auto", "circles") and not len(s.legs):
@@ -288,6 +281,14 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
             rig_gait.choose_gait(obj, args.gait)
         except (core_gait.GaitError, rig.RigError) as err:
             raise CliError(f"--gait {args.gait} for {obj.name}: {err}") from err
+    if args.speed is not None:
+        s.speed = float(args.speed)
+    if args.heading is not None:
+        s.heading = math.radians(float(args.heading))
+    if args.step_height is not None:
+        s.step_height = float(args.step_height)
+    if args.seed is not None:
+        s.seed = int(args.seed)
     if args.spine is not None:
         s.use_spine = bool(args.spine)
     if args.visual_yaw is not None:

@@ -271,6 +271,10 @@ def test_the_batch_command_sets_the_gait(empty_scene: Any, capsys: pytest.Captur
     assert cli.main(["generate", "--rig", "Robot", "--frames", "1", "8", "--gait", "pentapod_robot"]) == 0
     assert robot.procloco.gait_mode == "CIRCLES"
     assert robot.procloco.gait_preset == "Pentapod robot"
+    # an explicit speed wins over the preset's own (the preset is applied first)
+    assert cli.main(["generate", "--rig", "Robot", "--frames", "1", "8", "--gait", "pentapod_robot",
+                     "--speed", "0.123"]) == 0
+    assert robot.procloco.speed == pytest.approx(0.123)
     assert cli.main(["generate", "--rig", "Robot", "--frames", "1", "8", "--gait", "auto"]) == 0
     assert robot.procloco.gait_mode == "AUTO"
     action = actions.generated_action(robot)
