@@ -226,10 +226,12 @@ class PathFollower:
     """Heading toward a look-ahead point on a polyline ``(k, 2)``; speed to 0 at its end.
 
     The heading aims ``lookahead`` metres further along the path than the point of the path
-    nearest to the character among those not behind its progress so far and at most two
-    look-aheads beyond it (progress never goes back, so a path crossing itself is followed
-    in order); over the last ``stop_distance`` the speed eases to 0 as the square root of
-    the distance left (stopping in finite time; a linear ramp only approaches the end).
+    nearest to the character: at first the nearest of the whole path (a character starting
+    beside the middle of a path joins it there), then the nearest among those not behind its
+    progress so far and at most two look-aheads beyond it (progress never goes back, so a
+    path crossing itself is followed in order); over the last ``stop_distance`` the speed
+    eases to 0 as the square root of the distance left (stopping in finite time; a linear
+    ramp only approaches the end).
 
     Generate Locomotion's follower used to look ``max(leg, speed / 2)`` ahead of the nearest
     point of the whole path and stop dead ``0.05`` leg before the end; walking a U-turn and
@@ -253,7 +255,7 @@ class PathFollower:
         self.length = float(self.arc[-1])
         self.lookahead = lookahead
         self.stop_distance = stop_distance
-        self.s = 0.0
+        self.s: float | None = None  # progress along the path (m), None before the first command
 
     def start_heading(self) -> float:
         d = self.points[1] - self.points[0]
@@ -267,9 +269,12 @@ class PathFollower:
         near = p[:-1] + t[:, None] * seg
         dist = np.linalg.norm(near - xy[None], axis=1)
         s_proj = cum[:-1] + t * seg_len
-        window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * self.lookahead + 1e-9)
-        k = int(np.flatnonzero(window)[np.argmin(dist[window])]) if np.any(window) else -1
-        s_here = max(self.s, float(s_proj[k])) if k >= 0 else self.s
+        if self.s is None:
+            s_here = float(s_proj[int(np.argmin(dist))])
+        else:
+            window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * self.lookahead + 1e-9)
+            k = int(np.flatnonzero(window)[np.argmin(dist[window])]) if np.any(window) else -1
+            s_here = max(self.s, float(s_proj[k])) if k >= 0 else self.s
         s_goal = min(s_here + self.lookahead, cum[-1])
         j = int(np.clip(np.searchsorted(cum, s_goal) - 1, 0, len(seg) - 1))
         u = (s_goal - cum[j]) / max(seg_len[j], 1e-18)
