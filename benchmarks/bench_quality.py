@@ -26,8 +26,9 @@ walks along +X:
 - ``gap``: a hole with no surface, 0.5 L wide, across the path (the ground is a mesh);
 - ``turn``: flat ground, the heading commanded 90° to the left after 1.5 s.
 
-Planner settings are the ones the Blender shell passes (``blender/locomotion/simulation.py``:
-cells, slices and edge height in leg lengths), unless ``--core-defaults``.
+Controller and planner settings are the creature-size scaling Generate Locomotion uses
+(``core.scaling.scaled_params``: cells, slices and edge height in leg lengths, gravity and
+tolerances scaled with the creature as for the gait circles), unless ``--core-defaults``.
 
 Each row gives, against its threshold: the largest stance-foot slide (2 mm), penetration
 below a surface, a planted foot hanging above the ground (hover) and penetration into an
@@ -59,10 +60,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from procloco_addon.core import metrics as mx
 from procloco_addon.core import morphology
-from procloco_addon.core.footprints import PlannerParams
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.locomotion.types import ControllerParams
 from procloco_addon.core.morphology import Morphology
+from procloco_addon.core.scaling import scaled_params
 from procloco_addon.core.sim import Controls, SimResult, Simulation, check_motion
 from procloco_addon.core.spine import SpineParams
 from procloco_addon.core.terrain import (
@@ -213,21 +214,11 @@ def terrain(name: str, leg: float, fps: float, frames: int) -> Terrain:
         return Terrain(Environment(soups=[TriangleSoup(verts, tris, ROLE_GROUND)]))
     if name == "turn":
         return Terrain(Environment(_heightmap(L, hills=False, y_range=(-3.0, 10.0))),
-                       heading=lambda t: 0.0 if t < 1.5 else 0.5 * np.pi)
+                       heading=lambda t: 0.0 if t <= 1.5 else 0.5 * np.pi)
     raise ValueError(f"unknown terrain {name!r}")
 
 
 TERRAINS = ("flat", "hills", "crates", "crates+mover", "moving", "stairs", "gap", "turn")
-
-
-def shell_params(leg: float, step_height: float) -> tuple[ControllerParams, PlannerParams]:
-    """The controller and planner settings the Blender shell derives from the leg length
-    (``blender/locomotion/simulation.py``; kept in step with it by hand)."""
-    params = ControllerParams(window_cell=0.065 * leg, slice_size=0.14 * leg)
-    planner = PlannerParams(step_height=step_height, slice_size=0.14 * leg, leg_reach=leg,
-                            candidate_radius=params.candidate_radius * leg,
-                            fixed_distance=params.fixed_distance * leg, edge_height=0.055 * leg)
-    return params, planner
 
 
 @dataclass
@@ -266,7 +257,7 @@ def run_one(kind_name: str, terrain_name: str, speed_frac: float, frames: int, f
     if core_defaults:
         params, planner = None, None
     else:
-        params, planner_one = shell_params(leg, step_height)
+        params, planner_one = scaled_params(leg, step_height)
         planner = [planner_one]
 
     def controls(t: float) -> Controls:
@@ -370,8 +361,9 @@ def main() -> None:
     ap.add_argument("--crowd-steps", type=int, default=90)
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args()
+    settings = "core default" if args.core_defaults else "creature-scaled"
     print(f"bench_quality: {platform.python_version()} numpy {np.__version__}, {args.frames} frames at "
-          f"{args.fps:g} fps, {'core default' if args.core_defaults else 'Blender shell'} planner settings")
+          f"{args.fps:g} fps, {settings} controller and planner settings")
     rows: list[Row] = []
     for kind in args.kinds.split(","):
         for ter in args.terrains.split(","):

@@ -8,17 +8,25 @@ planner, pelvis, pseudo-physics, IK) to user-level commands:
   (relative foot positions), pelvis physics on/off, IK on/off; constant, or a function of
   time for scheduled changes;
 - ``GaitChange``: a new gait for some characters at a given time, reached over a
-  transition time (thesis §3.3).
+  transition time (thesis §3.3); a change of speed with it is a ``SpeedRamp`` of
+  ``speed_schedule``;
+- ``Effects``: per character, burst progression and the gait randomizer (thesis §4.3);
+- creature-size scaling of the controller's constants: ``scaling.scaled_params``.
+
+Frame 0 is settled by a vanishing step (``1e-9 dt``) before it is recorded: the controller's
+initial pose does not yet keep the hips within reach of the feet (its reach guard runs in a
+step), and the step moves nothing else.
 
 ``Simulation.run`` returns a ``SimResult``: pelvis transforms, every leg joint's world
 position, leg-plane normals, joint angles, contact flags, chosen and preferred footprints,
 the needles and disks, the spine joints and bone rotations of characters walking with a
 flexible spine (``spine=SpineParams(...)``, thesis §4.2), and per-step planner statistics
 and timings. Frame 0 is the state
-before the first step; frame ``f`` is after ``f`` steps of ``dt`` seconds.
+before the first step; frame ``f`` is after ``f`` steps of ``dt`` seconds, and the step into
+it follows the controls of its time ``f dt`` (with the gait changes due by then).
 
-The result is deterministic: the same inputs (and ``seed``, used only for ``phase="random"``)
-give identical arrays.
+The result is deterministic: the same inputs (and ``seed``, used for ``phase="random"`` and
+the ``Effects``) give identical arrays.
 """
 
 from __future__ import annotations
@@ -34,14 +42,19 @@ from . import metrics as mx
 from .autogait import AutoGait, AutoGaitParams
 from .footprints import PlannerParams
 from .gait import Gait
-from .geometry import wrap_angle
 from .locomotion.controller import Controller
 from .locomotion.types import ControllerParams, PlannerLOD, StepControls, StepStats
 from .morphology import LegBatch, Morphology
+from .progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
 from .spine import SpineParams
 from .terrain import NO_SURFACE, ROLE_AVOID, Environment
 
 FloatArray = npt.NDArray[np.float64]
+#: Burst progression's settings (its top speed is each character's commanded speed).
+_BURSTS = ProgressionParams(max_speed=0.0)
+#: A path follower's look-ahead and the distance over which it stops, in leg lengths.
+PATH_LOOKAHEAD = 1.0
+PATH_STOP = 0.5
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
 
@@ -81,6 +94,48 @@ class GaitChange:
     transition_time: float = 1.0
 
 
+@dataclass(frozen=True)
+class SpeedRamp:
+    """From ``time`` seconds, the commanded speed goes evenly to ``speed`` m/s over
+    ``duration`` seconds, from whatever it was when the ramp began (0: at once)."""
+
+    time: float
+    duration: float
+    speed: float
+
+
+def speed_schedule(speed: float, ramps: Sequence[SpeedRamp]) -> Callable[[float], float]:
+    """The commanded speed at each time ``t``: ``speed``, then each ramp (in time order) in
+    turn."""
+    steps: list[tuple[float, float, float, float]] = []  # start, duration, from, to
+
+    def speed_at(t: float) -> float:
+        v = speed
+        for t0, duration, v0, v1 in steps:
+            if t >= t0:
+                v = v1 if duration <= 0.0 else v0 + (v1 - v0) * min((t - t0) / duration, 1.0)
+        return v
+
+    for ramp in sorted(ramps, key=lambda r: r.time):
+        steps.append((ramp.time, ramp.duration, speed_at(ramp.time), ramp.speed))  # noqa: PERF401 (reads steps)
+    return speed_at
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Burst progression and the gait randomizer of one character (thesis §4.3).
+
+    ``progression``: the character walks in bursts up to its commanded speed (standing
+    still at first); ``randomize_gait``: with the progression, each stall draws a new
+    random gait, reached over half a cycle; without it, the character starts with one random
+    gait (left out with Gait: Auto, which chooses the gait itself); ``cycle_time``: the
+    random gaits' cycle (s)."""
+
+    progression: bool = False
+    randomize_gait: bool = False
+    cycle_time: float = 1.0
+
+
 @dataclass(frozen=True, eq=False)
 class SimResult:
     """Per-frame arrays of a run (``F`` frames, ``C`` characters, ``N`` legs, ``s`` segments).
@@ -98,7 +153,11 @@ class SimResult:
     - ``footprint (F, N, 3)``: the chosen footprint of each foot's current or last swing;
       ``preferred (F, N, 3)``: the controller's preferred footprint for it.
     - ``needle (F, C)``, ``phase_step (F, C)`` (needle advance of the step into the frame),
-      ``disk_start``, ``disk_duration`` ``(F, N)``.
+      ``phase_rate (F, C)`` (the needle's speed, cycles/s: the controller speeds it up when
+      the stride would be too long), ``disk_start``, ``disk_duration`` ``(F, N)``.
+    - ``speed (F, C)``: the speed asked of the controller (m/s, after a path's end and burst
+      progression); ``auto_band (F, C)``: Gait: Auto's gait index (-1 without Auto).
+    - ``ik_error (F, N)``: distance from each end effector to its target.
     - ``leg_frame (F, N, 3, 3)``: body-to-world rotation of what each leg hangs from (the
       pelvis, or its spine node or carrier bone).
     - ``spine_joints (F, C, J, 3)``: world spine joints, head first (``J`` the longest spine;
@@ -133,6 +192,10 @@ class SimResult:
     preferred: FloatArray
     needle: FloatArray
     phase_step: FloatArray
+    phase_rate: FloatArray
+    speed: FloatArray
+    auto_band: IntArray
+    ik_error: FloatArray
     disk_start: FloatArray
     disk_duration: FloatArray
     leg_frame: FloatArray
@@ -160,11 +223,25 @@ class SimResult:
         return self.joints[:, :, 0]
 
 
-class _PathFollower:
-    """Heading toward a look-ahead point on a polyline; speed eases to 0 at its end."""
+class PathFollower:
+    """Heading toward a look-ahead point on a polyline ``(k, 2)``; speed to 0 at its end.
 
-    def __init__(self, points: FloatArray, lookahead: float, stop_distance: float) -> None:
-        pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    The heading aims ``lookahead`` metres further along the path than the point of the path
+    nearest to the character: at first the nearest of the whole path (a character starting
+    beside the middle of a path joins it there), then the nearest among those not behind its
+    progress so far and at most two look-aheads beyond it (progress never goes back, so a
+    path crossing itself is followed in order); over the last ``stop_distance`` the speed
+    eases to 0 as the square root of the distance left (stopping in finite time; a linear
+    ramp only approaches the end).
+
+    Generate Locomotion's follower used to look ``max(leg, speed / 2)`` ahead of the nearest
+    point of the whole path and stop dead ``0.05`` leg before the end; walking a U-turn and
+    an S-curve (spider, wolf, ant) this one ends 0.001-0.003 leg from the path's end
+    instead of 0.005-0.04, as close to the path or closer, with the same motion figures."""
+
+    def __init__(self, points: npt.ArrayLike, lookahead: float, stop_distance: float) -> None:
+        self.source = np.array(points, dtype=np.float64)
+        pts = self.source[..., :2].reshape(-1, 2)
         if pts.shape[0] < 2:
             raise ValueError("a path needs at least two points")
         seg = np.linalg.norm(np.diff(pts, axis=0), axis=1)
@@ -173,45 +250,47 @@ class _PathFollower:
         if pts.shape[0] < 2:
             raise ValueError("the path has no length")
         self.points = pts
-        self.arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+        self.seg = np.diff(pts, axis=0)
+        self.seg_len = np.linalg.norm(self.seg, axis=1)
+        self.arc = np.concatenate([[0.0], np.cumsum(self.seg_len)])
         self.length = float(self.arc[-1])
         self.lookahead = lookahead
         self.stop_distance = stop_distance
-        self.s = 0.0
-
-    def point(self, s: float) -> FloatArray:
-        s = float(np.clip(s, 0.0, self.length))
-        return np.array(
-            [np.interp(s, self.arc, self.points[:, 0]), np.interp(s, self.arc, self.points[:, 1])]
-        )
+        self.s: float | None = None  # progress along the path (m), None before the first command
 
     def start_heading(self) -> float:
         d = self.points[1] - self.points[0]
         return float(np.arctan2(d[1], d[0]))
 
-    def command(self, xy: FloatArray, heading: float) -> tuple[float, float]:
-        """``(heading, speed factor)`` for a character at ``xy``."""
-        # project on the segments near the current progress (never backwards)
-        a = self.points[:-1]
-        b = self.points[1:]
-        ab = b - a
-        t = np.clip(np.einsum("ij,ij->i", xy - a, ab) / np.einsum("ij,ij->i", ab, ab), 0.0, 1.0)
-        proj = a + t[:, None] * ab
-        dist = np.linalg.norm(proj - xy, axis=1)
-        s_proj = self.arc[:-1] + t * np.linalg.norm(ab, axis=1)
-        window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * self.lookahead + 1e-9)
-        if np.any(window):
-            best = np.flatnonzero(window)[np.argmin(dist[window])]
-            self.s = max(self.s, float(s_proj[best]))
-        remaining = self.length - self.s
-        goal = self.point(self.s + self.lookahead)
+    def heading_from(self, xy: FloatArray) -> tuple[float, float]:
+        """``(heading, distance left along the path)`` for a character at ``xy`` ``(2,)``,
+        without moving on along the path."""
+        p, seg, seg_len, cum = self.points, self.seg, self.seg_len, self.arc
+        t = np.clip(np.einsum("ij,ij->i", xy[None] - p[:-1], seg) / np.maximum(seg_len ** 2, 1e-18), 0.0, 1.0)
+        near = p[:-1] + t[:, None] * seg
+        dist = np.linalg.norm(near - xy[None], axis=1)
+        s_proj = cum[:-1] + t * seg_len
+        if self.s is None:
+            s_here = float(s_proj[int(np.argmin(dist))])
+        else:
+            window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * self.lookahead + 1e-9)
+            k = int(np.flatnonzero(window)[np.argmin(dist[window])]) if np.any(window) else -1
+            s_here = max(self.s, float(s_proj[k])) if k >= 0 else self.s
+        s_goal = min(s_here + self.lookahead, cum[-1])
+        j = int(np.clip(np.searchsorted(cum, s_goal) - 1, 0, len(seg) - 1))
+        u = (s_goal - cum[j]) / max(seg_len[j], 1e-18)
+        goal = p[j] + u * seg[j]
         d = goal - xy
-        head = float(np.arctan2(d[1], d[0])) if np.linalg.norm(d) > 1e-6 else heading
-        # the square root stops in finite time (a linear ramp only approaches the end)
-        factor = float(np.sqrt(np.clip(remaining / max(self.stop_distance, 1e-9), 0.0, 1.0)))
-        if remaining < 1e-3 * self.stop_distance:
-            factor = 0.0
-        return head, factor
+        if np.linalg.norm(d) < 1e-9:
+            d = seg[-1]
+        return float(np.arctan2(d[1], d[0])), float(cum[-1] - s_here)
+
+    def command(self, xy: FloatArray) -> tuple[float, float]:
+        """``(heading, speed factor)`` for a character at ``xy`` ``(2,)``."""
+        heading, left = self.heading_from(xy)
+        self.s = self.length - left
+        factor = float(np.sqrt(np.clip(left / max(self.stop_distance, 1e-9), 0.0, 1.0)))
+        return heading, 0.0 if left < 1e-3 * self.stop_distance else factor
 
 
 class Simulation:
@@ -228,7 +307,10 @@ class Simulation:
     flexible spine of its morphology (``Morphology.with_spine``; thesis §4.2, §4.4);
     ``auto_gait``: ``AutoGaitParams`` per character (None: its gait as given) whose gait,
     stride and cycle follow its commanded speed (``autogait.AutoGait``; its starting gait
-    replaces ``gaits`` and scheduled ``GaitChange``s leave it alone).
+    replaces ``gaits`` and scheduled ``GaitChange``s leave it alone); ``effects``: per
+    character ``Effects`` (burst progression, gait randomizer; None: none), drawn from
+    ``seed``. A character following a path (``PathFollower``) looks one mean leg length
+    ahead and eases to a stop over the last half leg.
     """
 
     def __init__(
@@ -249,6 +331,7 @@ class Simulation:
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: SpineParams | Sequence[SpineParams | None] | None = None,
         auto_gait: Sequence[AutoGaitParams | None] | None = None,
+        effects: Sequence[Effects | None] | None = None,
     ) -> None:
         if not dt > 0.0:
             raise ValueError("dt must be positive")
@@ -261,7 +344,7 @@ class Simulation:
             raise ValueError(f"{len(gait_list)} gaits for {c} characters")
         self._controls = controls if controls is not None else Controls()
         first = self._controls(0.0) if callable(self._controls) else self._controls
-        self._followers: list[_PathFollower | None] = [None] * c
+        self._followers: list[PathFollower | None] = [None] * c
         leg_len = np.bincount(self.legs.leg_char, weights=self.legs.leg_length, minlength=c) / np.bincount(
             self.legs.leg_char, minlength=c
         )
@@ -298,8 +381,12 @@ class Simulation:
         self._held_heading: FloatArray | None = None
         self._changes = sorted(gait_changes, key=lambda g: g.time)
         self._next_change = 0
+        auto_list = list(auto_gait) if auto_gait is not None else [None] * c
+        self._init_effects(effects, auto_list, gait_list, seed)
         step0 = self._resolve(first, xy, yaw)
-        self.auto_gait = AutoGait(list(auto_gait) if auto_gait is not None else [None] * c, step0.speed)
+        if self._prog_chars.size:  # bursts start standing still
+            step0.speed[self._prog_chars] = 0.0
+        self.auto_gait = AutoGait(auto_list, step0.speed)
         gait_list = self.auto_gait.gaits(gait_list)
         self.controller = Controller(
             env,
@@ -315,9 +402,57 @@ class Simulation:
             spine=[spine] * c if isinstance(spine, SpineParams) else spine,
         )
         self.time = 0.0
+        self._n_steps = 0
         self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
         self._stats: list[StepStats] = []
-        self._record(StepStats())
+        # The controller's initial pose does not yet keep the hips within reach of the feet
+        # (its reach guard runs in a step): a vanishing step settles frame 0, moving nothing.
+        stats0 = self.controller.step(1e-9 * self.dt, step0)
+        self._speed = step0.speed.copy()
+        self._record(stats0)
+
+    def _init_effects(self, effects: Sequence[Effects | None] | None, auto: Sequence[AutoGaitParams | None],
+                      gaits: list[Gait], seed: int) -> None:
+        """Burst progression's state and the randomizer's first gaits (into ``gaits``)."""
+        c = self.legs.n_chars
+        eff = list(effects) if effects is not None else [None] * c
+        if len(eff) != c:
+            raise ValueError(f"{len(eff)} effects for {c} characters")
+        self._effects = eff
+        self._rng = np.random.default_rng(seed)
+        prog = [i for i, e in enumerate(eff) if e is not None and e.progression]
+        self._prog_chars = np.array(prog, dtype=np.int64)
+        # Gait: Auto chooses the gait itself: no randomizer for its characters.
+        self._randomize: BoolArray = np.array(
+            [e is not None and e.randomize_gait and a is None for e, a in zip(eff, auto, strict=True)],
+            dtype=np.bool_)
+        n_legs = np.bincount(self.legs.leg_char, minlength=c)
+        self._prog_legs = [int(n_legs[i]) for i in prog]
+        self._prog_state = (ProgressionState.start(len(prog), _BURSTS, self._rng) if prog else None)
+        # Thesis §4.3: without stalls the randomizer only draws the gait a character starts with.
+        alone = [i for i in range(c) if self._randomize[i] and i not in prog]
+        if alone:
+            drawn = initial_gaits([int(n_legs[i]) for i in alone], self._rng)
+            for k, i in enumerate(alone):
+                e = eff[i]
+                assert e is not None
+                gaits[i] = drawn[k].to_gait(e.cycle_time, "Random gait")
+
+    def _progress(self, speed: FloatArray) -> None:
+        """Burst progression of one step on the commanded ``speed`` ``(C,)`` (in place); a
+        stall of a character with the randomizer starts its transition to a new random gait."""
+        if self._prog_state is None:
+            return
+        idx = self._prog_chars
+        self._prog_state, fx = effects_step(self._prog_state, _BURSTS, self.dt, self._rng,
+                                            self._prog_legs, randomize_gait=self._randomize[idx],
+                                            max_speed=np.maximum(speed[idx], 0.0))
+        speed[idx] = fx.progression.speed
+        for k, new in sorted(fx.new_gaits.items()):
+            e = self._effects[int(idx[k])]
+            assert e is not None
+            self.controller.gait.start_transition([int(idx[k])], [new.to_gait(e.cycle_time, "Random gait")],
+                                                  0.5 * e.cycle_time)
 
     # ---------------------------------------------------------------- controls
     def _set_paths(self, paths: Sequence[npt.ArrayLike | None]) -> None:
@@ -330,10 +465,10 @@ class Simulation:
                 continue
             arr = np.asarray(pts, dtype=np.float64)
             f = self._followers[i]
-            if f is None or f.points.shape != arr.reshape(-1, 2).shape or not np.allclose(f.points, arr):
-                self._followers[i] = _PathFollower(
-                    arr, lookahead=1.0 * self._leg_len[i], stop_distance=0.5 * self._leg_len[i]
-                )
+            # the same path again keeps its follower (and the progress along it)
+            if f is None or f.source.shape != arr.shape or not np.array_equal(f.source, arr):
+                leg = float(self._leg_len[i])
+                self._followers[i] = PathFollower(arr, PATH_LOOKAHEAD * leg, PATH_STOP * leg)
 
     def _resolve(self, ctl: Controls, xy: FloatArray, yaw: FloatArray) -> StepControls:
         c = self.legs.n_chars
@@ -348,7 +483,7 @@ class Simulation:
             self._set_paths(ctl.path)
         for i, f in enumerate(self._followers):
             if f is not None:
-                h, factor = f.command(xy[i], float(yaw[i]))
+                h, factor = f.command(xy[i])
                 heading[i] = h
                 speed[i] *= factor
         self._held_heading = heading.copy()
@@ -359,7 +494,8 @@ class Simulation:
         )
         return StepControls(
             speed=speed,
-            heading=wrap_angle(heading),
+            # (not wrapped: the controller turns by wrapped differences)
+            heading=heading,
             step_height=np.broadcast_to(np.asarray(ctl.step_height, dtype=np.float64), (c,)).copy(),
             spacing=spacing,
             pelvis_physics=np.broadcast_to(np.asarray(ctl.pelvis_physics, dtype=bool), (c,)).copy(),
@@ -368,16 +504,25 @@ class Simulation:
 
     # ---------------------------------------------------------------- stepping
     def step(self, controls: Controls | None = None) -> StepStats:
-        """One step of ``dt``; ``controls`` overrides the simulation's own for this step."""
+        """One step of ``dt``; ``controls`` overrides the simulation's own for this step.
+
+        The step leads to the frame of time ``t = time + dt``: its controls are those of
+        ``t`` and the gait changes due by ``t`` begin before it (so a frame's pose follows
+        the commands of its own time)."""
+        t_end = (self._n_steps + 1) * self.dt
         ctl_user = (
             controls
             if controls is not None
-            else (self._controls(self.time) if callable(self._controls) else self._controls)
+            else (self._controls(t_end) if callable(self._controls) else self._controls)
         )
         ctrl = self.controller
+        # the order of the shell's loop that Generate Locomotion's results were made with:
+        # commands (a path's end), bursts and their new gaits, scheduled gait changes, Auto
+        step_ctl = self._resolve(ctl_user, ctrl.pos[:, :2], ctrl.yaw)
+        self._progress(step_ctl.speed)
         while (
             self._next_change < len(self._changes)
-            and self._changes[self._next_change].time <= self.time + 1e-12
+            and self._changes[self._next_change].time <= t_end + 1e-12
         ):
             change = self._changes[self._next_change]
             chars = list(range(self.legs.n_chars)) if change.chars is None else list(change.chars)
@@ -387,10 +532,11 @@ class Simulation:
                 ctrl.gait.start_transition([chars[k] for k in manual], [g[k] for k in manual],
                                            change.transition_time)
             self._next_change += 1
-        step_ctl = self._resolve(ctl_user, ctrl.pos[:, :2], ctrl.yaw)
         self.auto_gait.update(ctrl.gait, step_ctl.speed)
+        self._speed = step_ctl.speed.copy()
         stats = ctrl.step(self.dt, step_ctl)
-        self.time += self.dt
+        self._n_steps += 1
+        self.time = self._n_steps * self.dt  # (not a running sum: no drift over long runs)
         self._record(stats)
         return stats
 
@@ -431,6 +577,10 @@ class Simulation:
                 "preferred": ctrl.preferred.copy(),
                 "needle": ctrl.gait.needle.copy(),
                 "phase_step": np.mod(ctrl.gait.needle - prev_needle, 1.0),
+                "phase_rate": np.asarray(ctrl.gait.rate(), dtype=np.float64).copy(),
+                "speed": self._speed.copy(),
+                "auto_band": np.asarray(self.auto_gait.band, dtype=np.int64).copy(),
+                "ik_error": res.error.copy(),
                 "disk_start": ctrl.gait.disk_start.copy(),
                 "disk_duration": ctrl.gait.disk_duration.copy(),
                 "leg_frame": ctrl.leg_rotations(),
@@ -440,9 +590,15 @@ class Simulation:
         )
         self._stats.append(stats)
 
-    def result(self) -> SimResult:
-        """Everything recorded so far as a ``SimResult``."""
-        fr = self._frames
+    @property
+    def n_frames(self) -> int:
+        """Frames recorded so far."""
+        return len(self._frames)
+
+    def result(self, n_frames: int | None = None) -> SimResult:
+        """Everything recorded so far as a ``SimResult`` (or its first ``n_frames`` frames,
+        e.g. for a preview while the rest runs)."""
+        fr = self._frames if n_frames is None else self._frames[:n_frames]
 
         def stack(key: str) -> npt.NDArray[np.generic]:
             return np.stack([f[key] for f in fr])
@@ -459,9 +615,10 @@ class Simulation:
             "n_fallback",
             "n_bent",
         )
-        stats = {k: np.array([getattr(s, k) for s in self._stats], dtype=np.int64) for k in names}
+        step_stats = self._stats[: len(fr)]
+        stats = {k: np.array([getattr(s, k) for s in step_stats], dtype=np.int64) for k in names}
         phases = ("maps", "planning", "ik", "physics", "spine", "rest")
-        seconds = {k: np.array([s.seconds.get(k, 0.0) for s in self._stats]) for k in phases}
+        seconds = {k: np.array([s.seconds.get(k, 0.0) for s in step_stats]) for k in phases}
         return SimResult(
             dt=self.dt,
             legs=self.legs,
@@ -483,6 +640,10 @@ class Simulation:
             preferred=stack("preferred").astype(np.float64),
             needle=stack("needle").astype(np.float64),
             phase_step=stack("phase_step").astype(np.float64),
+            phase_rate=stack("phase_rate").astype(np.float64),
+            speed=stack("speed").astype(np.float64),
+            auto_band=stack("auto_band").astype(np.int64),
+            ik_error=stack("ik_error").astype(np.float64),
             disk_start=stack("disk_start").astype(np.float64),
             disk_duration=stack("disk_duration").astype(np.float64),
             leg_frame=stack("leg_frame").astype(np.float64),

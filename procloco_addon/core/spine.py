@@ -42,7 +42,7 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import vector_norm, z_rotations
+from .geometry import vector_norm, wrap_angle, z_rotations
 from .hermite import hermite_basis
 from .hull import upper_hull_eval
 from .terrain import NO_SURFACE
@@ -62,9 +62,6 @@ DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
 DEFAULT_JOINT_PITCH_LIMIT = float(np.radians(20.0))
 
 
-def wrap_angle(a: npt.ArrayLike) -> FloatArray:
-    """Angles wrapped into ``[-pi, pi)``."""
-    return (np.asarray(a, dtype=np.float64) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def _rot2(angle: FloatArray) -> FloatArray:

@@ -10,7 +10,18 @@ from procloco_addon.core import morphology as morph
 from procloco_addon.core.footprints import PlannerParams
 from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.locomotion.types import ControllerParams
-from procloco_addon.core.sim import Controls, GaitChange, SimResult, Simulation, check_motion
+from procloco_addon.core.scaling import scaled_params
+from procloco_addon.core.sim import (
+    Controls,
+    Effects,
+    GaitChange,
+    PathFollower,
+    SimResult,
+    Simulation,
+    SpeedRamp,
+    check_motion,
+    speed_schedule,
+)
 from procloco_addon.core.spine import SpineParams, wrap_angle
 from procloco_addon.core.terrain import ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Boxes, Environment, Heightmap
 
@@ -557,3 +568,86 @@ def test_rigid_quadruped_turning_90_degrees_at_walking_speed_keeps_its_feet_plan
                       fps=24.0)
     _assert_motion_ok(res, env)
     assert res.yaw[-1, 0] == pytest.approx(0.5 * np.pi, abs=1e-6)
+
+
+# ---------------------------------------------------------------- the shell's loop, in the core
+
+
+def test_speed_schedule_ramps_from_the_speed_it_began_at() -> None:
+    speed_at = speed_schedule(1.0, [SpeedRamp(2.0, 1.0, 3.0), SpeedRamp(0.5, 0.0, 0.5)])
+    assert speed_at(0.0) == 1.0
+    assert speed_at(0.5) == 0.5  # at once
+    assert speed_at(2.5) == pytest.approx(1.75)  # halfway from 0.5 to 3
+    assert speed_at(9.0) == 3.0
+
+
+def test_scaled_params_scale_with_the_creature() -> None:
+    small, small_plan = scaled_params(0.1, 0.02)
+    big, big_plan = scaled_params(10.0, 2.0)
+    assert big.window_cell == pytest.approx(100.0 * small.window_cell)
+    assert big_plan.slice_size == pytest.approx(100.0 * small_plan.slice_size)
+    assert big_plan.edge_height == pytest.approx(100.0 * small_plan.edge_height)
+    assert big.support_tolerance == pytest.approx(100.0 * small.support_tolerance)
+    # gait circles: gravity scales with the creature; Auto: real gravity
+    assert big.physics.gravity == pytest.approx(100.0 * small.physics.gravity)
+    assert scaled_params(0.1, 0.02, auto_physics=True)[0].physics.gravity == pytest.approx(9.81)
+
+
+def test_path_progress_never_goes_back_where_a_path_crosses_itself() -> None:
+    # a loop through the origin: at the crossing the follower keeps to the part it is on
+    loop = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, -1.0], [0.0, -1.0]])
+    f = PathFollower(loop, lookahead=0.3, stop_distance=0.2)
+    walk = [*([x, 0.0] for x in np.linspace(0.0, 2.0, 21)), *([2.0, y] for y in np.linspace(0.0, 1.0, 11)),
+            *([x, 1.0] for x in np.linspace(2.0, 1.0, 11)), *([1.0, y] for y in np.linspace(1.0, 0.1, 10))]
+    for xy in walk[:10]:
+        f.command(np.array(xy))
+    heading, factor = f.command(np.array(walk[10]))
+    assert heading == pytest.approx(0.0, abs=1e-9)  # the first time through the crossing: east
+    assert factor == 1.0
+    for xy in walk[11:]:
+        f.command(np.array(xy))
+    # back over the crossing point, now heading down the second leg of the loop
+    heading, _ = f.command(np.array([1.0, 0.0]))
+    assert heading == pytest.approx(-np.pi / 2, abs=1e-9)
+    # eases to a stop over the last 0.2 m
+    for xy in ([1.0, -0.4], [1.0, -0.8], [0.9, -1.0], [0.6, -1.0], [0.3, -1.0]):
+        f.command(np.array(xy))
+    _, near_end = f.command(np.array([0.1, -1.0]))
+    assert 0.0 < near_end < 1.0
+    assert f.command(np.array([0.0, -1.0]))[1] == 0.0
+
+
+def test_burst_progression_starts_still_walks_in_bursts_and_repeats_with_its_seed() -> None:
+    m = morph.hexapod()
+    gait = find_gait_preset("hexapod_tripod").gait(m.labels)
+
+    def run(seed: int) -> SimResult:
+        sim = Simulation(flat(), [m], gait, controls=Controls(speed=0.3, step_height=0.03), dt=1.0 / 24.0,
+                         seed=seed, effects=[Effects(progression=True, randomize_gait=True,
+                                                     cycle_time=gait.cycle_time)])
+        return sim.run(60)
+
+    res = run(3)
+    assert res.speed[0, 0] == 0.0  # standing still at first
+    assert res.speed.min() >= 0.0
+    assert res.speed.max() <= 0.3 + 1e-12
+    assert (res.speed[1:, 0] < 0.3 - 1e-9).any()
+    assert (res.speed[1:, 0] > 0.05).any()
+    np.testing.assert_array_equal(run(3).pelvis_position, res.pelvis_position)
+    assert not np.array_equal(run(4).speed, res.speed)
+
+
+def test_result_of_the_first_frames_is_the_start_of_the_whole() -> None:
+    m = morph.hexapod()
+    gait = find_gait_preset("hexapod_tripod").gait(m.labels)
+    sim = Simulation(flat(), [m], gait, controls=Controls(speed=0.3, step_height=0.03))
+    sim.run(12)
+    first = sim.result(5)
+    whole = sim.result()
+    assert first.n_frames == 5
+    assert whole.n_frames == 13
+    np.testing.assert_array_equal(first.joints, whole.joints[:5])
+    np.testing.assert_array_equal(first.stats["n_plans"], whole.stats["n_plans"][:5])
+    # the vanishing first step leaves the hips within reach of the planted feet
+    reach = np.linalg.norm(whole.foot[0] - whole.hips[0], axis=1)
+    assert (reach <= m.leg_length * (1.0 + 1e-9)).all()

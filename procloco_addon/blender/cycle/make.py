@@ -39,6 +39,7 @@ from ...core.autogait import AutoGait
 from ...core.terrain import NO_SURFACE
 from .. import actions
 from ..locomotion import generate, simulation
+from ..locomotion.job import RigTracks
 
 __all__ = ["CycleError", "CycleJob", "make_cycles", "read", "root_bone_problem", "simulate_steps",
            "write_steps"]
@@ -218,6 +219,7 @@ def _probe_period(cj: CycleJob) -> float:
     try:
         for _ in simulation.run(job):
             pass
+        assert job.result is not None
         rate = float(job.result.phase_rate[1])
     finally:
         job.frames = frames
@@ -264,7 +266,7 @@ def _fit_stride(cj: CycleJob, true_cycle: float) -> None:
     job.speed = base_speed / cj.stretch
 
 
-def _points(res: simulation.SimResult) -> np.ndarray:
+def _points(res: RigTracks) -> np.ndarray:
     """Every tracked world point of a result as ``(F, M, 3)``."""
     parts = [res.body[:, None, :3, 3], res.joints.reshape(res.joints.shape[0], -1, 3), res.feet]
     if res.spine_joints is not None:
@@ -272,7 +274,7 @@ def _points(res: simulation.SimResult) -> np.ndarray:
     return np.concatenate(parts, axis=1)
 
 
-def _rotations(res: simulation.SimResult) -> list[np.ndarray]:
+def _rotations(res: RigTracks) -> list[np.ndarray]:
     out = [res.body[:, None, :3, :3], res.leg_frame]
     if res.spine_rotation is not None:
         out.append(res.spine_rotation)
@@ -287,10 +289,11 @@ def _max_turn(rot: np.ndarray, period: int, start: int, cycles: int) -> float:
     return float(np.arccos(cos).max())
 
 
-def _loop_result(cj: CycleJob, start: int) -> simulation.SimResult:
+def _loop_result(cj: CycleJob, start: int) -> RigTracks:
     """The loop cut from the simulated walk at frame ``start``: ``N * P + 1`` frames, closed
     exactly, the root motion taken off (it goes on the root bone, or nowhere)."""
-    res: simulation.SimResult = cj.job.result
+    res = cj.job.result
+    assert res is not None
     n = cj.cycles * cj.period
     cut = slice(start, start + n + 1)
     drift = cj.cycles * cj.stride
@@ -316,7 +319,7 @@ def _loop_result(cj: CycleJob, start: int) -> simulation.SimResult:
     def same(a: np.ndarray | None) -> np.ndarray | None:
         return None if a is None else a[cut].copy()
 
-    return simulation.SimResult(
+    return RigTracks(
         body=body, joints=points(res.joints), swing=swing, feet=points(res.feet),
         ik_error=res.ik_error[cut].copy(), needle=res.needle[cut].copy(),
         phase_rate=res.phase_rate[cut].copy(),
@@ -351,7 +354,8 @@ def simulate_steps(context: bpy.types.Context, cj: CycleJob) -> Generator[tuple[
         for fraction in simulation.run(job):
             yield (f"{name}: simulating {warmup} cycles of warm-up and {cj.cycles} of loop",
                    0.1 + share * (k + fraction))
-        res: simulation.SimResult = job.result
+        res = job.result
+        assert res is not None
         if np.abs(res.phase_rate[1:] * period * job.dt - 1.0).max() > 1e-6:
             raise CycleError(f"The gait cycle of '{name}' changed during the walk: a loop needs a steady "
                              "gait")
@@ -372,6 +376,7 @@ def simulate_steps(context: bpy.types.Context, cj: CycleJob) -> Generator[tuple[
     cj.loop_error = error
     # The body's own motion: the controller moves it by exactly speed x dt a frame on a
     # straight line (what is left of the other points' cycle-to-cycle error is spread).
+    assert res is not None
     cj.stride = core_cycle.stride_of(res.body[:, None, :3, 3], period, start, cj.cycles)
     cj.stride[2] = 0.0  # level ground: the stride is horizontal
     job.result = _loop_result(cj, start)

@@ -356,7 +356,7 @@ def _predicted_track(obj: Any, scene: Any) -> AutoTrack | None:
                             speed=float(c[3]))
             for c in changes if c[2] and c[0] <= end])
         job.gait_changes.sort(key=lambda c: c.frame_index)
-        speed_at = simulation.speed_schedule(job)  # type: ignore[arg-type]
+        speed_at = simulation.speed_at(job)  # type: ignore[arg-type]
         speed = np.array([speed_at(k / fps) for k in range(frames.size)])
         band, duty, cycle = params.schedule(speed)
         needle = np.mod(np.concatenate([[0.0], np.cumsum(1.0 / (fps * cycle[:-1]))]), 1.0)

@@ -285,7 +285,7 @@ def _frame_job(job: generate.Job, k: int) -> generate.Job:
     assert job.partial is not None
     assert job.terrain is not None
     so_far = job.partial(k + 1)
-    one = dataclasses.replace(so_far, **{
+    one = dataclasses.replace(so_far, **{  # type: ignore[arg-type]
         f.name: None if getattr(so_far, f.name) is None else getattr(so_far, f.name)[k:k + 1]
         for f in dataclasses.fields(so_far)})
     terrain: Any = _FromFrame(job.terrain, k)

@@ -22,20 +22,18 @@ import dataclasses
 import json
 import time
 from collections.abc import Callable, Generator, Iterator, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import bpy
 import numpy as np
 
-from ...core import autogait
 from ...core import gait as core_gait
-from ...core.morphology import Morphology
 from ...core.steps import run_steps, scaled_steps
 from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait
 from ..rig import controls
-from . import property_group
+from . import property_group, simulation
+from .job import GaitChange, Job, settings_values
 
 __all__ = [
     "ACTION_KIND",
@@ -210,18 +208,6 @@ def _gait_of(obj: bpy.types.Object, legs: Sequence[rig.LegChain], from_settings:
         raise GenerateError(f"Gait of '{obj.name}': {err}") from err
 
 
-@dataclass(frozen=True)
-class GaitChange:
-    """A change of gait (and of speed, unless None) that begins at ``frame_index`` of the
-    job's frames and takes ``transition_time`` seconds."""
-
-    frame_index: int
-    gait: core_gait.Gait
-    transition_time: float
-    speed: float | None
-    name: str
-
-
 def _gait_changes(
     obj: bpy.types.Object, legs: Sequence[rig.LegChain], frames: np.ndarray, warnings: list[str]
 ) -> tuple[GaitChange, ...]:
@@ -309,65 +295,6 @@ def _polyline_order(n: int, edges: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------------------
 # Jobs
-
-
-@dataclass
-class Job:
-    """Everything one rig's generation needs, read from Blender by :func:`prepare`."""
-
-    obj_name: str
-    info: rig.RigInfo
-    morphology: Morphology
-    terrain: scene_terrain.SceneTerrain | None  # None until read_terrain
-    gait: core_gait.Gait
-    frames: np.ndarray  # (F,) scene frames
-    dt: float  # seconds per frame
-    speed: float  # m/s
-    heading: float  # world yaw of the walk direction (radians from +X)
-    turn_rate: float  # rad/s
-    path: np.ndarray | None  # (n, 3) world polyline or None
-    step_height: float
-    spacing: float
-    foot_offset: np.ndarray  # (n_legs, 2) body-frame offsets of the preferred footprints
-    seed: int
-    use_pelvis_physics: bool
-    use_progression: bool
-    use_gait_randomizer: bool
-    # changes of gait and speed over the frames (GaitChange), in frame order
-    gait_changes: tuple[GaitChange, ...] = ()
-    # Gait: Auto (core.autogait): the gait, stride and cycle follow the speed; None: the
-    # gait circles and the Gait Changes' gaits
-    auto_gait: autogait.AutoGaitParams | None = None
-    # Auto's choice held at one speed (Make Cycle): the walk keeps ``gait`` but Auto's
-    # physics (real gravity) and planning window, as Generate would at that speed
-    held_auto: autogait.AutoGaitParams | None = None
-    # What the Action is ("": a walk; "Cycle": Make Cycle's loop), in its name after
-    # "ProcLoco" and on it (ACTION_KIND): a new one supersedes only an earlier one of its kind
-    action_kind: str = ""
-    # flexible spine (thesis §4.2, §4.4); used when the rig has one (morphology.spine)
-    use_visual_yaw: bool = False
-    spine_turn_rate: float = float(np.radians(120.0))  # rad/s
-    spine_relax_time: float = 0.6  # s
-    visual_yaw_gain: float = 1.0
-    # Bones only an earlier generation (or bake) keyed, which this one does not drive: keyed
-    # at rest so the new Action alone decides the pose (see stale_bones).
-    held_bones: tuple[str, ...] = ()
-    # What gets keyed: the solved bones themselves, or the controls that drive them.
-    plan: controls.ControlPlan | None = None
-    # Whether something may pull the keyed bones off the plan (drivers, limits): then the
-    # evaluated feet are measured after writing.
-    check_after: bool = False
-    warnings: list[str] = field(default_factory=list)
-    keyed_bones: tuple[str, ...] = ()
-    result: Any = None
-    # While the simulation runs: the results of its first n frames (``simulation.SimResult``).
-    partial: Callable[[int], Any] | None = None
-    timings: dict[str, float] = field(default_factory=dict)
-    # What read_terrain reads: the terrain objects' names and the lift of the surfaces.
-    terrain_objects: tuple[str, ...] = ()
-    lift: float = 0.0
-    # What Key Reduction did when it is on (keys.reduce.Reduction), else None.
-    key_reduction: Any = None
 
 
 def stale_bones(obj: bpy.types.Object) -> set[str]:
@@ -478,21 +405,10 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         gait=gait,
         frames=frames,
         dt=1.0 / fps,
-        speed=float(settings.speed),
         heading=heading,
-        turn_rate=float(settings.turn_rate),
         path=path,
-        step_height=float(settings.step_height),
-        spacing=float(settings.spacing),
         foot_offset=_offsets_of(obj, info.legs, from_settings),
-        seed=int(settings.seed),
-        use_pelvis_physics=bool(settings.use_pelvis_physics),
-        use_progression=bool(settings.use_progression),
-        use_gait_randomizer=bool(settings.use_gait_randomizer),
-        use_visual_yaw=bool(settings.use_visual_yaw),
-        spine_turn_rate=float(settings.spine_turn_rate),
-        spine_relax_time=float(settings.spine_relax_time),
-        visual_yaw_gain=float(settings.visual_yaw_gain),
+        **settings_values(settings),
         gait_changes=changes,
         auto_gait=auto,
         warnings=warnings,
@@ -558,8 +474,6 @@ def simulate(job: Job) -> Iterator[float]:
 
     The result lands in ``job.result`` when the generator is exhausted.
     """
-    from . import simulation
-
     t0 = time.perf_counter()
     yield from simulation.run(job)
     job.timings["simulate_s"] = time.perf_counter() - t0
@@ -663,7 +577,6 @@ def _keyed_action_steps(
     :func:`.actions.assign_generated_action`); yields the fraction done. On failure (or closed
     early) the Action is deleted and the rig's pose put back; the caller puts back the rig's
     assignment."""
-    from . import simulation
 
     t0 = time.perf_counter()
     obj = bpy.data.objects[job.obj_name]
@@ -671,6 +584,7 @@ def _keyed_action_steps(
     leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
     # Solving the pose is the first half of the work (numpy over every frame), keying and
     # checking it on the evaluated rig the second.
+    assert job.result is not None
     tracks = yield from scaled_steps(rig.solve_pose_steps(
         job.info, body_world, joints_world, ground=simulation.ground_function(job),
         spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
@@ -730,6 +644,7 @@ def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
     each leg's touch-downs and lift-offs stay keys of its bones and controls."""
     from ..keys import reduce
 
+    assert job.result is not None
     stance = ~np.asarray(job.result.swing, dtype=bool)  # (F, legs)
     contacts = reduce.contact_frames(stance)
     required: dict[str, np.ndarray] = {}

@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from ..geometry import wrap_angle
+
 FloatArray = NDArray[np.float64]
 
 _EPS = 1e-12
@@ -248,9 +250,6 @@ def rotation_between(a: FloatArray, b: FloatArray) -> FloatArray:
 # Yaw-only (ground plane) helpers: headings are angles about +Z.
 
 
-def wrap_angle(a: FloatArray | float) -> FloatArray:
-    """Angles wrapped into ``[-π, π)``."""
-    return (np.asarray(a, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi
 
 
 def rot2(yaw: FloatArray | float, v: FloatArray) -> FloatArray:
