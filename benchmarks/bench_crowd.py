@@ -47,10 +47,10 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core import morphology
-from procloco_addon.core.gait import find_gait_preset
+from procloco_addon.core.locomotion import morphology
+from procloco_addon.core.locomotion.gait import find_gait_preset
+from procloco_addon.core.locomotion.sim import Controls, Simulation
 from procloco_addon.core.locomotion.types import ControllerParams, PlannerLOD
-from procloco_addon.core.sim import Controls, Simulation
 
 FloatArray = npt.NDArray[np.float64]
 

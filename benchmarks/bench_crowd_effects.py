@@ -44,12 +44,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.bench_crowd import camera_setup
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core import morphology
-from procloco_addon.core.gait import Gait, find_gait_preset
+from procloco_addon.core.locomotion import morphology
+from procloco_addon.core.locomotion.gait import Gait, find_gait_preset
+from procloco_addon.core.locomotion.morphology import Morphology
+from procloco_addon.core.locomotion.sim import Controls, Simulation
+from procloco_addon.core.locomotion.spine import SpineParams
 from procloco_addon.core.locomotion.types import ControllerParams
-from procloco_addon.core.morphology import Morphology
-from procloco_addon.core.sim import Controls, Simulation
-from procloco_addon.core.spine import SpineParams
 
 PHASES = ("maps", "planning", "ik", "physics", "spine", "rest")
 #: The thesis's cost of each effect relative to the base (figures 4.20, 4.21), as text.

@@ -15,7 +15,7 @@ rate, interpolation and output poses included), without and with the bodies' fra
 time of the process and wall time, best of three rounds (the machine is shared). The thesis
 reports ≈3 ms per step in C++.
 
-``--baseline REV`` also times ``core/pendulum.py`` of git revision ``REV`` (loaded from a
+``--baseline REV`` also times ``core/secondary/pendulum.py`` of git revision ``REV`` (loaded from a
 temporary copy) in the same rounds, on the same inputs, and reports the speed-up and the
 largest difference between the two ``simulate`` runs' errors (rad). ``--current REV`` times
 that revision's module in place of the working tree's (to compare two commits).
@@ -31,13 +31,16 @@ from __future__ import annotations
 
 import argparse
 import atexit
+import importlib
 import importlib.util
 import inspect
+import io
 import os
 import platform
 import shutil
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -49,7 +52,7 @@ import numpy.typing as npt
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from procloco_addon.core import pendulum as pend
+from procloco_addon.core.secondary import pendulum as pend
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -104,22 +107,22 @@ def crowd_pose(
 
 
 def load_revision(rev: str, name: str = "pendulum_baseline") -> ModuleType:
-    """``core/pendulum.py`` of git revision ``rev``, imported from a temporary copy as module
-    ``name`` (the module needs numpy only)."""
+    """The pendulum module of git revision ``rev`` (``core/secondary/pendulum.py``, or
+    ``core/pendulum.py`` before it moved), imported from a temporary copy of that revision's
+    ``procloco_addon`` renamed ``name`` (the module imports its neighbours, numpy only)."""
     root = Path(__file__).resolve().parent.parent
-    source = subprocess.run(["git", "-C", str(root), "show", f"{rev}:procloco_addon/core/pendulum.py"],
-                            check=True, capture_output=True).stdout
+    archive = subprocess.run(["git", "-C", str(root), "archive", rev, "procloco_addon"],
+                             capture_output=True)
+    if archive.returncode != 0:
+        raise SystemExit(f"--baseline/--current {rev}: not a revision of the repository at {root}")
     tmp = Path(tempfile.mkdtemp(prefix="procloco-baseline-"))
     atexit.register(shutil.rmtree, tmp, ignore_errors=True)
-    path = tmp / f"{name}.py"
-    path.write_bytes(source)
-    spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
-        raise RuntimeError(f"cannot load the pendulum module of revision {rev}")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
+        tar.extractall(tmp, filter="data")
+    shutil.move(str(tmp / "procloco_addon"), str(tmp / name))
+    sys.path.insert(0, str(tmp))
+    moved = (tmp / name / "core" / "secondary" / "pendulum.py").exists()
+    return importlib.import_module(f"{name}.core.secondary.pendulum" if moved else f"{name}.core.pendulum")
 
 
 def _takes_anchors(module: ModuleType) -> bool:
@@ -237,7 +240,8 @@ def core_section(
            "turning_step_ms": best[(2, "current")][0], "frame_ms": best[(3, "current")][0]}
     if baseline is not None:
         diff = float(np.abs(results["current"].theta - results["baseline"].theta).max())
-        print(f"Baseline: `core/pendulum.py` of revision {rev}, timed in the same rounds on the same inputs. "
+        print(f"Baseline: `core/secondary/pendulum.py` of revision {rev}, timed in the same rounds on the "
+              "same inputs. "
               f"Largest difference of the errors θ over the 4 s `simulate` run: {diff:.2e} rad "
               f"(θ reaches {np.radians(swing):.3f} rad).")
         print()
@@ -312,8 +316,8 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=300)
     parser.add_argument("--frames", type=int, default=250)
     parser.add_argument("--no-blender", action="store_true")
-    parser.add_argument("--baseline", default="", help="git revision whose core/pendulum.py is timed too")
-    parser.add_argument("--current", default="", help="time this git revision's core/pendulum.py instead "
+    parser.add_argument("--baseline", default="", help="git revision whose pendulum module is timed too")
+    parser.add_argument("--current", default="", help="time this git revision's pendulum module instead "
                         "of the working tree's (e.g. to compare two commits)")
     args = parser.parse_args()
     print(f"# bench_pendulums — {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
@@ -322,7 +326,7 @@ def main() -> None:
     baseline = load_revision(args.baseline) if args.baseline else None
     current = load_revision(args.current, "pendulum_current") if args.current else pend
     if args.current:
-        print(f"(core section: `core/pendulum.py` of revision {args.current})")
+        print(f"(core section: `core/secondary/pendulum.py` of revision {args.current})")
         print()
     core = core_section(args.chars, args.repeat, baseline, args.baseline, current)
     extra = ""

@@ -62,8 +62,8 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
-from procloco_addon.core.footprints import Couple, FootRequest, plan_footsteps
-from procloco_addon.core.terrain import WindowGrids, WindowParams
+from procloco_addon.core.locomotion.footprints import Couple, FootRequest, plan_footsteps
+from procloco_addon.core.world.terrain import WindowGrids, WindowParams
 from tests.core.reference_planner import FlatSettings
 from tests.core.reference_planner import plan_footstep as reference_plan
 
@@ -211,7 +211,11 @@ def load_baseline(rev: str) -> Callable[..., Any]:
         tar.extractall(tmp, filter="data")
     shutil.move(str(tmp / "procloco_addon"), str(tmp / "procloco_baseline"))
     sys.path.insert(0, str(tmp))
-    module: ModuleType = importlib.import_module("procloco_baseline.core.footprints")
+    # (the planner moved into core/locomotion/ when the core was grouped by product)
+    where = ("procloco_baseline.core.locomotion.footprints"
+             if (tmp / "procloco_baseline" / "core" / "locomotion" / "footprints.py").exists()
+             else "procloco_baseline.core.footprints")
+    module: ModuleType = importlib.import_module(where)
     def values(*parts: Any) -> dict[str, Any]:
         return {f.name: getattr(part, f.name) for part in parts for f in fields(part)}
 

@@ -6,7 +6,7 @@ terrain: the numbers of DESIGN.md's "What done means for the motion" per scenari
                                        [--speeds 0.5,1.0] [--frames 120] [--fps 24]
                                        [--core-defaults] [--crowd 20] [--verbose]
 
-Creatures (``core.morphology`` builders, scaled to the leg length of the example rig of the
+Creatures (``core.locomotion.morphology`` builders, scaled to the leg length of the example rig of the
 same kind, with the gait preset the example applies): spider (octopod alternating
 tetrapod), ant (hexapod tripod), robot (pentapod), wolf (quadruped walk, flexible spine),
 wolf-rigid (the same without the spine), lizard (quadruped trot, flexible spine), human
@@ -27,7 +27,7 @@ walks along +X:
 - ``turn``: flat ground, the heading commanded 90° to the left after 1.5 s.
 
 Controller and planner settings are the creature-size scaling Generate Locomotion uses
-(``core.scaling.scaled_params``: cells, slices and edge height in leg lengths, gravity and
+(``core.locomotion.scaling.scaled_params``: cells, slices and edge height in leg lengths, gravity and
 tolerances scaled with the creature as for the gait circles), unless ``--core-defaults``.
 
 Each row gives, against its threshold: the largest stance-foot slide (2 mm), penetration
@@ -59,14 +59,14 @@ import numpy.typing as npt
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from procloco_addon.core import metrics as mx
-from procloco_addon.core import morphology
-from procloco_addon.core.gait import find_gait_preset
+from procloco_addon.core.locomotion import morphology
+from procloco_addon.core.locomotion.gait import find_gait_preset
+from procloco_addon.core.locomotion.morphology import Morphology
+from procloco_addon.core.locomotion.scaling import scaled_params
+from procloco_addon.core.locomotion.sim import Controls, SimResult, Simulation, check_motion
+from procloco_addon.core.locomotion.spine import SpineParams
 from procloco_addon.core.locomotion.types import ControllerParams
-from procloco_addon.core.morphology import Morphology
-from procloco_addon.core.scaling import scaled_params
-from procloco_addon.core.sim import Controls, SimResult, Simulation, check_motion
-from procloco_addon.core.spine import SpineParams
-from procloco_addon.core.terrain import (
+from procloco_addon.core.world.terrain import (
     ROLE_AVOID,
     ROLE_GROUND,
     ROLE_STEP_OVER,

@@ -6,7 +6,7 @@ Table 3.1 (thesis §3.8) times 100 eight-legged characters in "a heightmap and o
 module builds that scene for the core (no Blender):
 
     scene = make_crowd_scene(seed=0)
-    env = scene.env                       # procloco_addon.core.terrain.Environment
+    env = scene.env                       # procloco_addon.core.world.terrain.Environment
     xy, heading = spawn_points(scene, 100, seed=1)
     scene.advance(1 / 30)                 # moves the dynamic crates (env.move_boxes)
 
@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from procloco_addon.core.terrain import ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
+from procloco_addon.core.world.terrain import ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]

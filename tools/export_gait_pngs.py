@@ -71,7 +71,7 @@ def export(names: list[str], out_dir: Path, *, cell: int = 140, phase: float = 0
     import bpy
 
     from procloco_addon.blender.gait import draw, geometry
-    from procloco_addon.core import gait as core_gait
+    from procloco_addon.core.locomotion import gait as core_gait
 
     bpy.ops.wm.read_homefile(use_empty=True)
     draw.ensure_gpu_context()
@@ -100,7 +100,7 @@ def export_auto_chart(out_dir: Path) -> Path:
     import numpy as np
 
     from procloco_addon.blender.gait import draw, handler, rig_gait
-    from procloco_addon.core import autogait
+    from procloco_addon.core.locomotion import autogait
 
     bpy.ops.wm.read_homefile(use_empty=True)
     draw.ensure_gpu_context()
@@ -132,7 +132,7 @@ def bench(names: list[str], repeats: int = 20) -> None:
     import bpy
 
     from procloco_addon.blender.gait import draw, geometry, handler
-    from procloco_addon.core import gait as core_gait
+    from procloco_addon.core.locomotion import gait as core_gait
 
     bpy.ops.wm.read_homefile(use_empty=True)
     start = time.perf_counter()
@@ -167,7 +167,7 @@ def main(argv: list[str] | None = None) -> int:
         export_auto_chart(args.out)
         return 0
 
-    from procloco_addon.core import gait as core_gait
+    from procloco_addon.core.locomotion import gait as core_gait
 
     if args.all:
         names = [p.stem for p in core_gait.list_gait_presets()]

@@ -65,7 +65,7 @@ def main() -> int:
     from procloco_addon.blender.gait import draw, rig_gait
     from procloco_addon.blender.live_preview import handler
     from procloco_addon.blender.locomotion import generate
-    from procloco_addon.core import gait as core_gait
+    from procloco_addon.core.locomotion import gait as core_gait
     from tools.examples import creatures
     from tools.export_gait_pngs import write_png
 

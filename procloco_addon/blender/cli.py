@@ -50,7 +50,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ..core import gait as core_gait
+from ..core.locomotion import gait as core_gait
 from . import actions, gif, render_chunk, rig
 from .gait import rig_gait
 from .keys.reduce import last_reduction

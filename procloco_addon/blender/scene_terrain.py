@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Scene meshes -> the core :class:`~procloco_addon.core.terrain.Environment`.
+"""Scene meshes -> the core :class:`~procloco_addon.core.world.terrain.Environment`.
 
 Which objects: the meshes of a chosen collection (and its children), or by default every
 visible mesh-like object of the view layer, minus
@@ -35,7 +35,14 @@ import bpy
 import numpy as np
 
 from ..core.steps import run_steps
-from ..core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Environment, TriangleSoup
+from ..core.world.terrain import (
+    NO_SURFACE,
+    ROLE_AVOID,
+    ROLE_GROUND,
+    ROLE_STEP_OVER,
+    Environment,
+    TriangleSoup,
+)
 
 __all__ = [
     "DEFORM_BUDGET_BYTES",

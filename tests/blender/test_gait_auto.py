@@ -20,7 +20,7 @@ from procloco_addon.blender import rig
 from procloco_addon.blender.gait import handler, rig_gait
 from procloco_addon.blender.gait import panel as gait_panel
 from procloco_addon.blender.locomotion import generate
-from procloco_addon.core import autogait
+from procloco_addon.core.locomotion import autogait
 from tests.blender.pose_eval import leg_joints
 from tests.blender.test_generate import _measure_on, _select_only, check_thresholds
 from tests.blender.ui_recorder import draw_panel

@@ -14,7 +14,7 @@ import pytest
 from procloco_addon.blender.gait import ops as gait_ops
 from procloco_addon.blender.gait import panel as gait_panel
 from procloco_addon.blender.locomotion import generate
-from procloco_addon.core import gait as core_gait
+from procloco_addon.core.locomotion import gait as core_gait
 from tests.blender.pose_eval import leg_joints
 from tests.blender.scene_state import snapshot
 from tests.blender.test_gait_presets import SHIPPED, make_rig

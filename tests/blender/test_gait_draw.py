@@ -398,7 +398,7 @@ def test_dragging_in_the_overlay_edits_the_rig(overlay_rig: Any) -> None:
 def test_exported_png_is_the_picture(gpu_ready: None, tmp_path: Any) -> None:
     import bpy
 
-    from procloco_addon.core import gait as core_gait
+    from procloco_addon.core.locomotion import gait as core_gait
     from tools import export_gait_pngs
 
     assert {"quadruped_rotary_gallop", "quadruped_transverse_gallop", "hexapod_tripod"} <= set(

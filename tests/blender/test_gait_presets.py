@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender.gait import ops, presets
-from procloco_addon.core import gait as core_gait
+from procloco_addon.core.locomotion import gait as core_gait
 from tests.blender.ui_recorder import draw_menu
 
 SHIPPED = core_gait.gait_preset_dir()

@@ -16,8 +16,8 @@ import pytest
 
 from procloco_addon.blender import actions
 from procloco_addon.blender.locomotion import generate
-from procloco_addon.core import gait as core_gait
 from procloco_addon.core import metrics
+from procloco_addon.core.locomotion import gait as core_gait
 from tests.blender.scene_state import snapshot
 from tools.examples import creatures
 

@@ -17,7 +17,7 @@ import pytest
 from procloco_addon.blender import rig
 from procloco_addon.blender.cycle import make
 from procloco_addon.blender.locomotion import generate, simulation
-from procloco_addon.core import cycle as core_cycle
+from procloco_addon.core.locomotion import cycle as core_cycle
 from tests.blender import export_cycle
 from tests.blender.pose_eval import pose_matrices
 from tests.blender.scene_state import snapshot

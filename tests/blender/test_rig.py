@@ -390,7 +390,7 @@ def test_spine_pose_is_written_where_the_core_puts_it(empty_scene: Any) -> None:
     """Spine bones keyed from the core's bone rotations put every spine joint and every hip
     (legs hang from spine.005 and spine.008) where the core's spine does: a moved, turned,
     scaled wolf, bent sideways and up."""
-    from procloco_addon.core import spine as core_spine
+    from procloco_addon.core.locomotion import spine as core_spine
 
     arm = creatures.build_wolf(empty_scene, location=(1.0, 2.0, 0.0))
     arm.scale = (2.0, 2.0, 2.0)

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender import scene_terrain
-from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER
+from procloco_addon.core.world.terrain import NO_SURFACE, ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER
 from tests.blender.pose_eval import ray_heights
 from tools.examples import creatures
 

@@ -1,11 +1,11 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """One-at-a-time versions of the batched path steps, kept as readable references for the tests.
 
-The product (:mod:`procloco_addon.core.pathing`) computes each step for many grids, segments
-or plans at once (:func:`~procloco_addon.core.pathing.wavefront_each`,
-:func:`~procloco_addon.core.pathing.segments_clear_each`,
-:func:`~procloco_addon.core.pathing.turning_each`,
-:func:`~procloco_addon.core.pathing._hull_knots_increasing`); its one-grid functions are
+The product (:mod:`procloco_addon.core.world.pathing`) computes each step for many grids, segments
+or plans at once (:func:`~procloco_addon.core.world.pathing.wavefront_each`,
+:func:`~procloco_addon.core.world.pathing.segments_clear_each`,
+:func:`~procloco_addon.core.world.pathing.turning_each`,
+:func:`~procloco_addon.core.world.pathing._hull_knots_increasing`); its one-grid functions are
 one-line calls of those. Here each step is written out for one grid, one segment or one
 polyline, and the tests compare the two (decisions exactly, floats to
 :mod:`tests.core.cross_path`'s tolerance).
@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from procloco_addon.core.geometry import planar_length
 from procloco_addon.core.hull import upper_hull
-from procloco_addon.core.pathing import (
+from procloco_addon.core.world.pathing import (
     _COLLINEAR,
     MOVES,
     DistanceField,

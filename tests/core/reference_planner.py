@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The one-foot footprint planner, kept as a readable reference for the tests.
 
-The product is :func:`procloco_addon.core.footprints.plan_footsteps` (the batched search the
+The product is :func:`procloco_addon.core.locomotion.footprints.plan_footsteps` (the batched search the
 controller calls for every foot of a step). This module plans one foot at a time with the
 same rules written out plainly, one candidate, one slice, one couple after the other (thesis
 §3.5, Appendix E): candidates and their scores (:func:`score_candidates`), slice levels
@@ -21,7 +21,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from procloco_addon.core.footprints import (
+from procloco_addon.core.geometry import planar_length
+from procloco_addon.core.locomotion.footprints import (
     _NEIGHBOURS,
     Couple,
     FootRequest,
@@ -38,8 +39,7 @@ from procloco_addon.core.footprints import (
     _sole,
     _WindowLookup,
 )
-from procloco_addon.core.geometry import planar_length
-from procloco_addon.core.pathing import (
+from procloco_addon.core.world.pathing import (
     FootTrajectory,
     PathContext,
     PathParams,
@@ -47,7 +47,7 @@ from procloco_addon.core.pathing import (
     search_region,
     vertical_factor,
 )
-from procloco_addon.core.terrain import _VOID_BELOW, WindowGrids, _box_overlaps_cells, raster_boxes
+from procloco_addon.core.world.terrain import _VOID_BELOW, WindowGrids, _box_overlaps_cells, raster_boxes
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -225,7 +225,7 @@ def slice_levels(ctx: PathContext, slice_size: float | None, ceiling: float = ma
 
 def plan_footstep(rq: FootRequest) -> Couple:
     """The best couple (footprint, 3D trajectory) for the one swinging foot of request ``rq``
-    (:class:`~procloco_addon.core.footprints.FootRequest`). Never raises for an unreachable
+    (:class:`~procloco_addon.core.locomotion.footprints.FootRequest`). Never raises for an unreachable
     target; never returns NaN.
     """
     grids, foot_start, preferred_xy, hip_xy = rq.grids, rq.foot_start, rq.preferred_xy, rq.hip_xy
@@ -345,9 +345,9 @@ def plan_footstep(rq: FootRequest) -> Couple:
 @dataclass(frozen=True)
 class FlatSettings:
     """A test's or benchmark's planner set-up in one flat object, so that a scenario reads as
-    one ``replace(...)``: every field of :class:`~procloco_addon.core.footprints.PlannerParams`,
-    :class:`~procloco_addon.core.footprints.LegGeometry` and
-    :class:`~procloco_addon.core.footprints.SearchSwitches`, and a request's per-plan
+    one ``replace(...)``: every field of :class:`~procloco_addon.core.locomotion.footprints.PlannerParams`,
+    :class:`~procloco_addon.core.locomotion.footprints.LegGeometry` and
+    :class:`~procloco_addon.core.locomotion.footprints.SearchSwitches`, and a request's per-plan
     ``reach_sweep`` and ``reach_sink``; :meth:`request` splits it into a ``FootRequest``."""
 
     step_height: float = 0.1

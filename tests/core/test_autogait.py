@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.core import autogait as ag
-from procloco_addon.core.gait import GaitError, GaitManager, find_gait_preset
+from procloco_addon.core.locomotion import autogait as ag
+from procloco_addon.core.locomotion.gait import GaitError, GaitManager, find_gait_preset
 
 QUAD = ("L1", "R1", "L2", "R2")
 HEX = ("L1", "R1", "L2", "R2", "L3", "R3")
@@ -248,8 +248,8 @@ def first_frame(phases: np.ndarray, value: int) -> int:
 
 
 def test_a_quadruped_ramping_up_walks_trots_then_gallops_near_the_stated_froude_numbers() -> None:
-    from procloco_addon.core import morphology as morph
-    from procloco_addon.core.sim import Controls, Simulation, check_motion
+    from procloco_addon.core.locomotion import morphology as morph
+    from procloco_addon.core.locomotion.sim import Controls, Simulation, check_motion
     from tests.core.test_sim import flat
 
     m = morph.quadruped(3.0)

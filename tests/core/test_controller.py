@@ -8,18 +8,25 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pytest
 
-from procloco_addon.core import morphology as morph
-from procloco_addon.core.footprints import Couple, FootRequest, plan_footsteps
-from procloco_addon.core.gait import find_gait_preset
 from procloco_addon.core.geometry import rotation_matrices
 from procloco_addon.core.locomotion import fallback, obstacles, pelvis, reach, spine_link
+from procloco_addon.core.locomotion import morphology as morph
 from procloco_addon.core.locomotion.controller import Controller
+from procloco_addon.core.locomotion.footprints import Couple, FootRequest, plan_footsteps
+from procloco_addon.core.locomotion.gait import find_gait_preset
+from procloco_addon.core.locomotion.morphology import LegBatch
 from procloco_addon.core.locomotion.rig import rate_scale, stroke_limits
+from procloco_addon.core.locomotion.sim import Controls, Simulation, check_motion
 from procloco_addon.core.locomotion.state import Phase
 from procloco_addon.core.locomotion.types import ControllerParams, StepControls
-from procloco_addon.core.morphology import LegBatch
-from procloco_addon.core.sim import Controls, Simulation, check_motion
-from procloco_addon.core.terrain import NO_SURFACE, ROLE_AVOID, ROLE_STEP_OVER, Boxes, Environment, Heightmap
+from procloco_addon.core.world.terrain import (
+    NO_SURFACE,
+    ROLE_AVOID,
+    ROLE_STEP_OVER,
+    Boxes,
+    Environment,
+    Heightmap,
+)
 from tests.core.cross_path import assert_close
 
 
@@ -308,7 +315,7 @@ def test_switching_pelvis_physics_on_does_not_jump() -> None:
 
 
 def test_spine_settings_need_a_spine_and_give_each_girdle_its_pelvis_node() -> None:
-    from procloco_addon.core.spine import SpineParams
+    from procloco_addon.core.locomotion.spine import SpineParams
 
     env = _flat()
     plain, dog = morph.quadruped(), morph.quadruped(spine=True)
@@ -577,7 +584,7 @@ def _pose_spine(
 
 @pytest.mark.parametrize("release", [0.2, 1e-6])
 def test_a_spine_node_pulled_to_a_stretched_leg_lets_go_over_the_release_time(release: float) -> None:
-    from procloco_addon.core.spine import SpineParams
+    from procloco_addon.core.locomotion.spine import SpineParams
 
     dog = morph.quadruped(spine=True)
     legs = LegBatch.stack([dog])
@@ -684,7 +691,7 @@ def test_a_straight_fallback_step_down_stairs_never_cuts_a_stair_edge() -> None:
 
 
 def test_a_swinging_foot_pulls_its_node_down_to_its_landing_height_as_it_comes_down() -> None:
-    from procloco_addon.core.spine import SpineParams
+    from procloco_addon.core.locomotion.spine import SpineParams
 
     dog = morph.quadruped(spine=True)
     legs = LegBatch.stack([dog])

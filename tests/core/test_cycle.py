@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.core import cycle
+from procloco_addon.core.locomotion import cycle
 
 finite = st.floats(-1.0, 1.0, allow_nan=False)
 

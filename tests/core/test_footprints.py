@@ -14,12 +14,12 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.core.footprints import (
+from procloco_addon.core.locomotion.footprints import (
     Couple,
     plan_footsteps,
 )
-from procloco_addon.core.pathing import clearance_profile, wavefront
-from procloco_addon.core.terrain import (
+from procloco_addon.core.world.pathing import clearance_profile, wavefront
+from procloco_addon.core.world.terrain import (
     ROLE_AVOID,
     ROLE_STEP_OVER,
     Boxes,
@@ -573,7 +573,7 @@ def test_footprints_stay_within_the_legs_3d_reach_of_the_hip(hip_z: float) -> No
 
 
 def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
-    from procloco_addon.core.footprints import _hip_checks, _WindowLookup
+    from procloco_addon.core.locomotion.footprints import _hip_checks, _WindowLookup
 
     # Two footprints on the ground (z at their own point 0), one whose foot box reaches 6 cm
     # higher ground (it lands at 0.06): with max_straddle 1 cm only the first is a candidate.

@@ -11,8 +11,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.core import gait as gaits
-from procloco_addon.core.gait import Gait, GaitError, GaitManager, GaitPresetError
+from procloco_addon.core.locomotion import gait as gaits
+from procloco_addon.core.locomotion.gait import Gait, GaitError, GaitManager, GaitPresetError
 
 REQUIRED_PRESETS = {
     "biped_walk",

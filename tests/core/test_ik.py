@@ -8,10 +8,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from procloco_addon.core import ik
-from procloco_addon.core import morphology as morph
+from procloco_addon.core.locomotion import ik
+from procloco_addon.core.locomotion import morphology as morph
+from procloco_addon.core.locomotion.morphology import LegBatch, plane_axes
 from procloco_addon.core.metrics import bone_length_error, joint_angles, joint_limit_excess
-from procloco_addon.core.morphology import LegBatch, plane_axes
 
 CREATURES = ["spider", "hexapod", "pentapod", "quadruped", "biped"]
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.core import metrics as mx
-from procloco_addon.core.gait import Gait
+from procloco_addon.core.locomotion.gait import Gait
 
 
 def test_stance_runs_and_sliding() -> None:

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from procloco_addon.core import morphology as morph
-from procloco_addon.core.morphology import LegBatch, Morphology, MorphologyError
+from procloco_addon.core.locomotion import morphology as morph
+from procloco_addon.core.locomotion.morphology import LegBatch, Morphology, MorphologyError
 
 CREATURES = ["spider", "hexapod", "pentapod", "quadruped", "biped"]
 

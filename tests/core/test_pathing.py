@@ -13,7 +13,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from procloco_addon.core.hull import upper_hull
-from procloco_addon.core.pathing import (
+from procloco_addon.core.world.pathing import (
     MOVE_LENGTH,
     MOVES,
     FootTrajectory,
@@ -39,7 +39,7 @@ from procloco_addon.core.pathing import (
     wavefront,
     wavefront_each,
 )
-from procloco_addon.core.terrain import (
+from procloco_addon.core.world.terrain import (
     ROLE_AVOID,
     ROLE_STEP_OVER,
     Boxes,

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from procloco_addon.core.gait import Gait, GaitManager, in_swing, stance_elapsed
-from procloco_addon.core.pelvis_physics import (
+from procloco_addon.core.locomotion.gait import Gait, GaitManager, in_swing, stance_elapsed
+from procloco_addon.core.locomotion.pelvis_physics import (
     PelvisPhysics,
     PelvisPhysicsParams,
     foot_acceleration,

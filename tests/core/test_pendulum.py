@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from procloco_addon.core import pendulum as P  # noqa: N812
+from procloco_addon.core.secondary import pendulum as P  # noqa: N812
 
 # A bar hanging straight down: columns x = X, y (the bar) = -Z, z = Y.
 DOWN = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])

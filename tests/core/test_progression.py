@@ -8,8 +8,8 @@ import pytest
 from hypothesis import example, given
 from hypothesis import strategies as st
 
-from procloco_addon.core.gait import Gait
-from procloco_addon.core.progression import (
+from procloco_addon.core.locomotion.gait import Gait
+from procloco_addon.core.locomotion.progression import (
     HOLD,
     GaitRandomizerParams,
     ProgressionParams,
@@ -241,7 +241,7 @@ def test_random_gait_runs_in_the_gait_manager() -> None:
     g = random_gait(6, np.random.default_rng(4)).to_gait(cycle_time=0.8)
     assert isinstance(g, Gait)
     assert g.cycle_time == 0.8
-    lifted = g.in_swing(PHASES)  # (n_phases, n_legs) from core.gait's own reading
+    lifted = g.in_swing(PHASES)  # (n_phases, n_legs) from core.locomotion.gait's own reading
     assert lifted.sum(axis=1).max() < 6
     assert lifted.sum(axis=1).min() >= 1
 

@@ -6,12 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from procloco_addon.core import morphology as morph
-from procloco_addon.core.footprints import PlannerParams
-from procloco_addon.core.gait import find_gait_preset
-from procloco_addon.core.locomotion.types import ControllerParams
-from procloco_addon.core.scaling import scaled_params
-from procloco_addon.core.sim import (
+from procloco_addon.core.locomotion import morphology as morph
+from procloco_addon.core.locomotion.footprints import PlannerParams
+from procloco_addon.core.locomotion.gait import find_gait_preset
+from procloco_addon.core.locomotion.scaling import scaled_params
+from procloco_addon.core.locomotion.sim import (
     Controls,
     Effects,
     GaitChange,
@@ -22,8 +21,16 @@ from procloco_addon.core.sim import (
     check_motion,
     speed_schedule,
 )
-from procloco_addon.core.spine import SpineParams, wrap_angle
-from procloco_addon.core.terrain import ROLE_AVOID, ROLE_GROUND, ROLE_STEP_OVER, Boxes, Environment, Heightmap
+from procloco_addon.core.locomotion.spine import SpineParams, wrap_angle
+from procloco_addon.core.locomotion.types import ControllerParams
+from procloco_addon.core.world.terrain import (
+    ROLE_AVOID,
+    ROLE_GROUND,
+    ROLE_STEP_OVER,
+    Boxes,
+    Environment,
+    Heightmap,
+)
 
 
 def flat(size: float = 8.0) -> Environment:

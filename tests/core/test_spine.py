@@ -8,7 +8,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from procloco_addon.core.spine import (
+from procloco_addon.core.locomotion.spine import (
     SpineModel,
     SpineParams,
     SpinePlan,
@@ -28,7 +28,7 @@ from procloco_addon.core.spine import (
     visual_yaw,
     wrap_angle,
 )
-from procloco_addon.core.terrain import NO_SURFACE, ROLE_GROUND, Boxes, Environment, Heightmap
+from procloco_addon.core.world.terrain import NO_SURFACE, ROLE_GROUND, Boxes, Environment, Heightmap
 from tests.core.cross_path import assert_close
 
 DT = 1 / 30

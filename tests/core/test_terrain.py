@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.core.terrain import (
+from procloco_addon.core.world.terrain import (
     NO_SURFACE,
     ROLE_AVOID,
     ROLE_GROUND,

@@ -12,9 +12,9 @@ A game-ready loop of ``N`` whole gait cycles, as a new generated Action:
    whole frames and the stride to a whole number of the footstep planner's cells (its
    grids are fixed in the world: see :func:`_fit_stride`), the speed following (Gait: Auto
    is held at the gait it picks at the rig's speed); simulates a warm-up and the loop; finds the first whole
-   cycle from which the walk repeats (``core.cycle.steady_start``) and refuses a walk that
+   cycle from which the walk repeats (``core.locomotion.cycle.steady_start``) and refuses a walk that
    does not settle; cuts ``N`` cycles, closes them exactly and takes the root motion off
-   (``core.cycle``);
+   (``core.locomotion.cycle``);
 3. the loop is written by Generate's writer (``generate.write_all_steps``: control rigs,
    undo of a failed write); then the root bone's keys (root motion kept), the exact
    closing of every F-curve and the Cycles modifiers (:func:`..actions.make_cyclic`).
@@ -34,9 +34,9 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ...core import cycle as core_cycle
-from ...core.autogait import AutoGait
-from ...core.terrain import NO_SURFACE
+from ...core.locomotion import cycle as core_cycle
+from ...core.locomotion.autogait import AutoGait
+from ...core.world.terrain import NO_SURFACE
 from .. import actions
 from ..locomotion import generate, simulation
 from ..locomotion.job import RigTracks

@@ -11,8 +11,8 @@ from typing import Any, ClassVar
 import bpy
 from bpy.props import StringProperty
 
-from ...core import autogait
-from ...core import gait as core_gait
+from ...core.locomotion import autogait
+from ...core.locomotion import gait as core_gait
 from ..modal import RemoveActiveItem
 from . import geometry, handler, presets, rig_gait
 

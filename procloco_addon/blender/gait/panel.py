@@ -166,6 +166,6 @@ def gait_swinging(gait: rig_gait.RigGait, phase: float) -> list[bool]:
 
 def gait_swinging_arrays(swing_start: Any, swing_duration: Any, phase: float) -> list[bool]:
     """Per leg of sectors ``(n_legs,)``, whether it swings at ``phase``."""
-    from ...core.gait import in_swing
+    from ...core.locomotion.gait import in_swing
 
     return [bool(v) for v in in_swing(phase, swing_start, swing_duration)]

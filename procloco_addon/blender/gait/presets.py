@@ -6,7 +6,7 @@ read-only. User presets follow Blender's preset convention: they live in the use
 scripts folder under ``presets/procloco/gait`` (``bpy.utils.user_resource``), so they
 survive updates of the extension, and can be added and removed from the panel. Both use
 the same file format (``docs/DEVELOPING.md``), read and validated by
-:func:`procloco_addon.core.gait.load_gait_preset`.
+:func:`procloco_addon.core.locomotion.gait.load_gait_preset`.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import bpy
 
-from ...core import gait as core_gait
+from ...core.locomotion import gait as core_gait
 
 __all__ = [
     "PRESET_SUBDIR",

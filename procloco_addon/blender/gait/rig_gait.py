@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ...core import autogait
-from ...core import gait as core_gait
+from ...core.locomotion import autogait
+from ...core.locomotion import gait as core_gait
 from ..locomotion import property_group as locomotion_props
 
 __all__ = [

@@ -27,7 +27,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ...core import gait as core_gait
+from ...core.locomotion import gait as core_gait
 from ...core.steps import run_steps, scaled_steps
 from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait

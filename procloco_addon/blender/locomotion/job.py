@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from ...core import autogait
-from ...core import gait as core_gait
-from ...core.morphology import Morphology
-from ...core.sim import SimResult
+from ...core.locomotion import autogait
+from ...core.locomotion import gait as core_gait
+from ...core.locomotion.morphology import Morphology
+from ...core.locomotion.sim import SimResult
 from .. import rig, scene_terrain
 from ..rig import controls
 
@@ -63,7 +63,7 @@ class Job:
     use_gait_randomizer: bool
     # changes of gait and speed over the frames (GaitChange), in frame order
     gait_changes: tuple[GaitChange, ...] = ()
-    # Gait: Auto (core.autogait): the gait, stride and cycle follow the speed; None: the
+    # Gait: Auto (core.locomotion.autogait): the gait, stride and cycle follow the speed; None: the
     # gait circles and the Gait Changes' gaits
     auto_gait: autogait.AutoGaitParams | None = None
     # Auto's choice held at one speed (Make Cycle): the walk keeps ``gait`` but Auto's
@@ -119,7 +119,7 @@ class RigTracks:
     ``ik_error`` ``(F, n_legs)`` distance from each end-effector to its target; ``needle``
     ``(F,)`` the gait needle's phase and ``phase_rate`` ``(F,)`` its speed in cycles per
     second; ``forced``, ``plan_failed``, ``disk_start``, ``disk_duration`` ``(F, n_legs)``
-    (see ``core.sim.SimResult``); ``leg_frame`` ``(F, n_legs, 3, 3)`` body-to-world rotation
+    (see ``core.locomotion.sim.SimResult``); ``leg_frame`` ``(F, n_legs, 3, 3)`` body-to-world rotation
     of what each leg hangs from; with the flexible spine, ``spine_joints`` ``(F, J, 3)``
     world spine joints (head first) and ``spine_rotation`` ``(F, J - 1, 3, 3)`` each spine
     bone's rotation from its rest direction (None without a spine); ``speed`` ``(F,)`` the

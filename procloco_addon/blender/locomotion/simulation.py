@@ -1,13 +1,13 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Running the core simulation (``core.sim.Simulation``) for one :class:`~.job.Job`, frame
+"""Running the core simulation (``core.locomotion.sim.Simulation``) for one :class:`~.job.Job`, frame
 by frame.
 
 Only glue: :func:`simulation_of` is the one conversion of the rig's settings into the core's
 inputs — the per-step commands (speed with the Gait Changes' ramps, heading: constant,
 turning, or steered along a path curve; step height, foot spacing, pelvis physics), the
 gait and its scheduled changes, Gait: Auto, burst progression and the gait randomizer
-(``core.sim.Effects``), the flexible spine's settings and the creature-size scaling
-(``core.scaling``). :func:`run` moves the scene's animated obstacles to each frame before
+(``core.locomotion.sim.Effects``), the flexible spine's settings and the creature-size scaling
+(``core.locomotion.scaling``). :func:`run` moves the scene's animated obstacles to each frame before
 the step into it and hands out the tracks the rig is written from
 (:class:`~.job.RigTracks`).
 
@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from ...core import scaling
-from ...core.gait import Gait
-from ...core.morphology import LegBatch
-from ...core.sim import (
+from ...core.locomotion import scaling
+from ...core.locomotion.gait import Gait
+from ...core.locomotion.morphology import LegBatch
+from ...core.locomotion.sim import (
     PATH_LOOKAHEAD,
     PATH_STOP,
     Controls,
@@ -37,8 +37,8 @@ from ...core.sim import (
     SpeedRamp,
     speed_schedule,
 )
-from ...core.spine import SpineParams
-from ...core.terrain import NO_SURFACE
+from ...core.locomotion.spine import SpineParams
+from ...core.world.terrain import NO_SURFACE
 from .job import Job, RigTracks
 
 __all__ = [

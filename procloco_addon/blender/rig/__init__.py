@@ -43,7 +43,7 @@ the child on the body's midline that carries the most legs, then, past the last 
 the child that continues it forward. Each leg hangs from the nearest spine bone above its
 hip. When the legs hang from two or more spine bones (quadrupeds, lizards) and
 ``read_rig(..., spine=True)``, :class:`SpineLayout` maps the chain to the core's flexible
-spine (``core.spine``): its joints, its virtual pelvis nodes (the head, one per girdle, the
+spine (``core.locomotion.spine``): its joints, its virtual pelvis nodes (the head, one per girdle, the
 back girdle at the hips' head) and which bone carries each leg.
 
 :func:`solve_pose` converts per-frame core results (body frame and joint positions in the

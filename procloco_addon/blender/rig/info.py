@@ -32,7 +32,7 @@ class BodyInfo:
 
 @dataclass(frozen=True)
 class SpineLayout:
-    """The rig's spine chain as the core's flexible spine (``core.spine.SpineModel``).
+    """The rig's spine chain as the core's flexible spine (``core.locomotion.spine.SpineModel``).
 
     - ``joints``: ``(J, 3)`` world rest joints, head first: the tip of the head bone, then
       the head of every chain bone from the head bone back to the body bone (``J - 1``

@@ -1,12 +1,12 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The rig as the core's :class:`~procloco_addon.core.morphology.Morphology`, in its body frame."""
+"""The rig as the core's :class:`~procloco_addon.core.locomotion.morphology.Morphology`, in its body frame."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ...core.morphology import Morphology
-from ...core.spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT
+from ...core.locomotion.morphology import Morphology
+from ...core.locomotion.spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT
 from .info import RigInfo
 from .rest import RigError, _apply
 

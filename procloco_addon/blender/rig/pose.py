@@ -228,7 +228,7 @@ def solve_pose_steps(
     (toes lift onto slopes and edges, up to ``max_foot_pitch``).
 
     With a driven spine (:attr:`RigInfo.spine_layout`), ``spine_rotation`` ``(F, J - 1, 3, 3)``
-    (``core.spine.SpinePose.bone_rotation``: each core bone's rotation from its rest direction
+    (``core.locomotion.spine.SpinePose.bone_rotation``: each core bone's rotation from its rest direction
     in the body frame to the world) turns the spine bones, the body bone's head goes to
     ``spine_joints[:, -1]`` (``(F, J, 3)``), and ``leg_frames`` ``(F, L, 3, 3)`` (body-to-world
     rotation each leg hangs from) turns each leg's rest knee plane and foot instead of the

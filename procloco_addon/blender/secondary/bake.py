@@ -20,7 +20,7 @@ Legs come from the rig's leg list (``Object.procloco.legs``), else from leg dete
    evaluated world pose of every chain bone, the poses their parents give them and every
    channel the source Action animates. It is a generator yielding the fraction done;
    :func:`cancel` puts the scene back as it was;
-3. :func:`write` runs the pendulums (``core.pendulum``) and writes a **new** Action: the
+3. :func:`write` runs the pendulums (``core.secondary.pendulum``) and writes a **new** Action: the
    source's channels sampled at every frame, with the chain bones' rotations replaced by
    the swinging ones, keyed through :mod:`..pose_writer` (bones that constraints also move,
    like a Rigify tail's controls, are solved through the evaluated rig). Each chain hangs
@@ -45,7 +45,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from ...core import pendulum as pend
+from ...core.secondary import pendulum as pend
 from ...core.steps import run_steps
 from .. import actions, pose_writer, rig, validate
 from ..locomotion import property_group as locomotion_props

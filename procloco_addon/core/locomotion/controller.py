@@ -40,7 +40,7 @@ Per step, for all characters at once:
    its length, the pelvis is lowered just enough ("the pelvis stays above its feet").
 5. **Legs**: IK (``ik.solve_legs``) from the hips to the feet.
 
-**Flexible spine** (thesis §4.2, §4.4; ``core.spine``), per character: a character whose
+**Flexible spine** (thesis §4.2, §4.4; ``core.locomotion.spine``), per character: a character whose
 morphology has a spine and which is given ``SpineParams`` walks on its *virtual pelvis
 nodes* instead of one rigid pelvis. Steps 1-2 of the spine replace the heading and the
 ground-plane motion (the head turns, the other nodes follow it on the previous spine); each
@@ -70,19 +70,19 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from ..footprints import LegGeometry, PlannerParams
-from ..gait import Gait, GaitManager, GaitStep
 from ..geometry import rotate_xy, rotation_matrices, wrap_angle
-from ..ik import IKResult
-from ..morphology import LegBatch
-from ..pelvis_physics import PelvisPhysics
-from ..spine import SpineParams
-from ..terrain import Environment
+from ..world.terrain import Environment
 from . import obstacles, pelvis, planning, reach, spine_link, stepping
+from .footprints import LegGeometry, PlannerParams
+from .gait import Gait, GaitManager, GaitStep
+from .ik import IKResult
+from .morphology import LegBatch
 from .obstacles import Watch
 from .pelvis import Body, Pogo
+from .pelvis_physics import PelvisPhysics
 from .profile import Profiler
 from .rig import Rig, build_rig, rate_scale
+from .spine import SpineParams
 from .spine_link import SpineGroup, SpineLink
 from .state import FootState, sample_polyline, start_feet, support_points, swing_parameter
 from .stepping import Flags, World

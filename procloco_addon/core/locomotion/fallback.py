@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..terrain import Environment
+from ..world.terrain import Environment
 from .reach import hip_distance, reach_bound
 from .rig import Rig
 from .types import VOID, ControllerParams, FloatArray

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry import vector_norm
-from ..terrain import Environment
+from ..world.terrain import Environment
 from .rig import Rig
 from .state import FootState, swing_parameter
 from .types import VOID, BoolArray, ControllerParams, FloatArray, IntArray

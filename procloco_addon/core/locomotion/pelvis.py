@@ -13,11 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..gait import GaitManager
 from ..geometry import vector_norm
 from ..hull import hull_height_and_pitch
-from ..pelvis_physics import PelvisPhysics
-from ..terrain import Environment
+from ..world.terrain import Environment
+from .gait import GaitManager
+from .pelvis_physics import PelvisPhysics
 from .rig import Rig
 from .types import RATE_JUMP, VOID, BoolArray, ControllerParams, FloatArray, IntArray
 

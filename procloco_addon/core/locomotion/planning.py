@@ -7,7 +7,7 @@ requests and its retries (``requests``, ``search``: wider, then without the othe
 slices for a foot that must move), the choice between its couple, the straight fallback step
 and staying down (``choose``), and the new trajectories written into the feet's plans
 (``commit``: snapped onto the exact surface, moved off holes). ``planner_params`` builds each
-foot's ``PlannerParams``; the planner itself is ``core.footprints``."""
+foot's ``PlannerParams``; the planner itself is ``core.locomotion.footprints``."""
 
 from __future__ import annotations
 
@@ -16,12 +16,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from ..geometry import rotate_xy, vector_norm, wrap_angle
-from ..morphology import LegBatch
-from ..terrain import Environment, WindowGrids, WindowParams
+from ..world.terrain import Environment, WindowGrids, WindowParams
 from . import spine_link
 from .fallback import straight_step
+from .footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
+from .morphology import LegBatch
 from .obstacles import Watch, onto_support, trajectory_blocked, watch_reset
 from .pelvis import Body
 from .reach import within_reach_all

@@ -13,8 +13,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..geometry import vector_norm
-from ..ik import IKResult, solve_legs
-from ..terrain import Environment
+from ..world.terrain import Environment
+from .ik import IKResult, solve_legs
 from .rig import Rig
 from .types import BoolArray, ControllerParams, FloatArray, IntArray
 

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..gait import GaitManager
-from ..morphology import LegBatch
+from .gait import GaitManager
+from .morphology import LegBatch
 from .types import BoolArray, ControllerParams, FloatArray, IntArray
 
 

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The link between the controller and ``core.spine`` (thesis §4.2, §4.4): every loop over
+"""The link between the controller and ``core.locomotion.spine`` (thesis §4.2, §4.4): every loop over
 the spine groups lives here.
 
 A character whose morphology has a spine and which is given ``SpineParams`` walks on its
@@ -21,8 +21,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..geometry import rotate_xy, vector_norm, wrap_angle
-from ..morphology import LegBatch
-from ..spine import (
+from .morphology import LegBatch
+from .pelvis import Body
+from .spine import (
     SpineModel,
     SpineParams,
     SpinePlan,
@@ -40,7 +41,6 @@ from ..spine import (
     terrain_guides,
     visual_yaw,
 )
-from .pelvis import Body
 from .types import BoolArray, ControllerParams, FloatArray, IntArray, StepControls
 
 

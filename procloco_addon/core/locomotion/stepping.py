@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..gait import GaitManager, GaitStep
-from ..terrain import Environment
+from ..world.terrain import Environment
+from .gait import GaitManager, GaitStep
 from .obstacles import Watch, check_supports, spot_taken, watch_reset
 from .planning import replan_needed
 from .reach import catch_up_time, overstretched, wait_for_support

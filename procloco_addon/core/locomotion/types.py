@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from ..pelvis_physics import PelvisPhysicsParams
-from ..terrain import NO_SURFACE
+from ..world.terrain import NO_SURFACE
+from .pelvis_physics import PelvisPhysicsParams
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]

@@ -38,16 +38,16 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from . import metrics as mx
+from .. import metrics as mx
+from ..world.terrain import NO_SURFACE, ROLE_AVOID, Environment
 from .autogait import AutoGait, AutoGaitParams
+from .controller import Controller
 from .footprints import PlannerParams
 from .gait import Gait
-from .locomotion.controller import Controller
-from .locomotion.types import ControllerParams, PlannerLOD, StepControls, StepStats
 from .morphology import LegBatch, Morphology
 from .progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
 from .spine import SpineParams
-from .terrain import NO_SURFACE, ROLE_AVOID, Environment
+from .types import ControllerParams, PlannerLOD, StepControls, StepStats
 
 FloatArray = npt.NDArray[np.float64]
 #: Burst progression's settings (its top speed is each character's commanded speed).

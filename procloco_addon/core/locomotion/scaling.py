@@ -23,8 +23,8 @@ import numpy as np
 
 from .autogait import AutoGaitParams
 from .footprints import PlannerParams
-from .locomotion.types import ControllerParams
 from .pelvis_physics import PelvisPhysicsParams
+from .types import ControllerParams
 
 __all__ = ["GRAVITY", "REFERENCE_LEG", "planning_window", "scaled_params"]
 

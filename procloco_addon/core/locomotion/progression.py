@@ -15,7 +15,7 @@ the wave over the step, whatever ``dt`` is.
 
 The gait randomizer (same section) draws random gait circles for a character: swing start
 and duration per leg as cycle fractions (:meth:`RandomGait.to_gait` gives a
-``core.gait.Gait``). A random gait
+``core.locomotion.gait.Gait``). A random gait
 never has all feet in swing at once, and each foot lifts before the foot that lifted just
 before it lands, so the swing sectors chain around and cover the whole circle. When both
 effects are on, a character gets a new random gait each time it comes to a stall
@@ -291,7 +291,7 @@ class RandomGait:
     order: IntArray = field(repr=False)
 
     def to_gait(self, cycle_time: float, name: str = "Random gait") -> Gait:
-        """The same circles as a :class:`core.gait.Gait` (what the gait manager runs)."""
+        """The same circles as a :class:`core.locomotion.gait.Gait` (what the gait manager runs)."""
         return Gait(self.swing_start.copy(), self.swing_duration.copy(), cycle_time, name)
 
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import cross, vector_norm
+from ..geometry import cross, vector_norm
 from .morphology import LegBatch, plane_axes
 
 FloatArray = npt.NDArray[np.float64]

@@ -58,8 +58,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import planar_length
-from .hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
+from ..geometry import planar_length
+from ..hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
 FloatArray = npt.NDArray[np.float64]

@@ -42,16 +42,16 @@ from dataclasses import dataclass, field, fields
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import vector_norm, wrap_angle, z_rotations
-from .hermite import hermite_basis
-from .hull import upper_hull_eval
-from .terrain import NO_SURFACE
+from ..geometry import vector_norm, wrap_angle, z_rotations
+from ..hermite import hermite_basis
+from ..hull import upper_hull_eval
+from ..world.terrain import NO_SURFACE
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 
 #: A terrain height query: world ``xy`` ``(n, 2)`` -> ground height ``(n,)``, such as
-#: ``core.terrain.Environment.height_at``; heights at or below ``NO_SURFACE / 2`` are holes.
+#: ``core.world.terrain.Environment.height_at``; heights at or below ``NO_SURFACE / 2`` are holes.
 HeightFn = Callable[[FloatArray], FloatArray]
 
 _CURVE_SAMPLES = 25  # dense samples per key segment for arc-length lookups

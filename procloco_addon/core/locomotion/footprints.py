@@ -72,8 +72,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import planar_length
-from .pathing import (
+from ..geometry import planar_length
+from ..world.pathing import (
     DistanceField,
     FootTrajectory,
     Path2D,
@@ -91,7 +91,7 @@ from .pathing import (
     vertical_factor,
     wavefront_each,
 )
-from .terrain import (
+from ..world.terrain import (
     _VOID_BELOW,
     NO_SURFACE,
     WindowGrids,

@@ -18,7 +18,7 @@ limited per joint by ``joint_min``/``joint_max``.
 flat leg axis (``leg_char`` says whose leg each row is) so that the IK, the gait and the
 pelvis physics run over every leg of every character with one set of numpy calls.
 
-A character may also have a flexible spine (thesis §4.2, ``core.spine``): its body is then
+A character may also have a flexible spine (thesis §4.2, ``core.locomotion.spine``): its body is then
 split into *virtual pelvis nodes* — the head node, which carries no legs, and one node per
 girdle — joined by the spine's joints. :meth:`Morphology.with_spine` adds one; each leg's
 ``pelvis_node`` is then the key node it hangs from.
@@ -32,7 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import cross, vector_norm
+from ..geometry import cross, vector_norm
 from .spine import DEFAULT_JOINT_PITCH_LIMIT, DEFAULT_JOINT_YAW_LIMIT, SpineModel
 
 FloatArray = npt.NDArray[np.float64]
@@ -101,11 +101,11 @@ class Morphology:
       the box the planner keeps clear of obstacles, holes and other feet.
     - ``sole_half_extents``: ``(2,)`` half size of the part of a foot another foot may not land
       on, about its point (None: the foot box). Smaller than the foot box for feet whose toes
-      reach far from the end-effector (``core.footprints.PlannerParams``).
+      reach far from the end-effector (``core.locomotion.footprints.PlannerParams``).
     - ``foot_lift``: ``(n,)`` how far each end-effector stands above the ground its foot is
       planned on (None: 0). A rig whose end-effectors stand at different heights above their
       soles walks on ground raised by their mean height, each end-effector this much above it.
-    - ``spine``: the flexible spine (``core.spine.SpineModel``, in this body frame), or None
+    - ``spine``: the flexible spine (``core.locomotion.spine.SpineModel``, in this body frame), or None
       for a rigid body; see :meth:`with_spine`.
     """
 

@@ -203,7 +203,7 @@ class GaitPreset:
 
 def gait_preset_dir() -> Path:
     """The folder of the shipped gait presets (``presets/gait`` at the extension root)."""
-    return Path(__file__).resolve().parents[2] / "presets" / "gait"
+    return Path(__file__).resolve().parents[3] / "presets" / "gait"
 
 
 def list_gait_presets(directory: Path | None = None) -> list[Path]:

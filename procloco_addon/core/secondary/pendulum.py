@@ -104,7 +104,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .steps import run_steps
+from ..steps import run_steps
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
