@@ -72,12 +72,13 @@ def wrap_to_limits(angle: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatAr
 def forward_planar(angles: FloatArray, lengths: FloatArray) -> FloatArray:
     """Planar joint positions ``(N, s + 1, 2)`` (hip at the origin) of chains with joint
     ``angles (N, s)`` and segment ``lengths (N, s)``."""
-    phi = np.cumsum(angles, axis=1)
+    # (ndarray methods, not np.cumsum: this runs a dozen times per frame and step)
+    phi = angles.cumsum(axis=1)
     seg = np.empty((*phi.shape, 2))
     seg[..., 0] = lengths * np.cos(phi)
     seg[..., 1] = lengths * np.sin(phi)
     out = np.zeros((angles.shape[0], angles.shape[1] + 1, 2))
-    np.cumsum(seg, axis=1, out=out[:, 1:])
+    seg.cumsum(axis=1, out=out[:, 1:])
     return out
 
 
@@ -96,6 +97,68 @@ def solve_two_segment(target: FloatArray, lengths: FloatArray, lo: FloatArray, h
     knee = np.clip(side * np.arccos(cos_k), lo[:, 1], hi[:, 1])
     hip = np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(l2 * np.sin(knee), l1 + l2 * np.cos(knee))
     return np.stack([wrap_to_limits(hip, lo[:, 0], hi[:, 0]), knee], axis=1)
+
+
+# What solve_bend finds from the legs alone (hinge pattern, the reach straight and folded):
+# the same legs every frame, so found once per leg set (a few entries: the calls per frame
+# pass the same legs).
+_BendSetup = tuple[FloatArray, npt.NDArray[np.bool_], FloatArray, FloatArray]
+_BEND_SETUP: dict[tuple[object, ...], _BendSetup] = {}
+
+
+def _bend_reach(
+    kappa: FloatArray, hinge: FloatArray, lengths: FloatArray, lo: FloatArray, hi: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Joint angles ``(N, s)``, reach and d(reach)/dκ ``(N,)`` of chains bent by ``kappa (N,)``
+    (:func:`solve_bend`)."""
+    # (called some ten times per leg and frame: written with few, plain array operations)
+    raw = kappa[:, None] * hinge
+    th = np.minimum(np.maximum(raw, lo), hi)
+    th[:, 0] = 0.0
+    free = (raw > lo) & (raw < hi)
+    dth = np.where(free, hinge, 0.0)
+    phi = th.cumsum(axis=1)
+    dphi = dth.cumsum(axis=1)
+    c, sn = np.cos(phi), np.sin(phi)
+    ex, ey = np.add.reduce(lengths * c, axis=1), np.add.reduce(lengths * sn, axis=1)
+    ld = lengths * dphi
+    dex, dey = -np.add.reduce(ld * sn, axis=1), np.add.reduce(ld * c, axis=1)
+    r = np.sqrt(ex * ex + ey * ey)
+    dr = (ex * dex + ey * dey) / np.maximum(r, 1e-12)
+    return th, r, dr
+
+
+def _bend_setup(
+    lengths: FloatArray, n_segments: IntArray, lo: FloatArray, hi: FloatArray, rest: FloatArray,
+    max_bend: float,
+) -> _BendSetup:
+    """``(hinge (N, s), valid (N, s), reach straight (N,), reach folded (N,))`` of
+    :func:`solve_bend`'s legs, cached by value (read only)."""
+    arrays = (lengths, n_segments, lo, hi, rest)
+    key = (float(max_bend), *((a.dtype.str, a.shape, a.tobytes()) for a in arrays))
+    made = _BEND_SETUP.get(key)
+    if made is not None:
+        return made
+    n, s = rest.shape
+    valid = np.arange(s)[None, :] < n_segments[:, None]
+    hinge = rest.copy()
+    hinge[:, 0] = 0.0
+    hinge = np.where(valid, hinge, 0.0)
+    straight = np.abs(hinge).sum(axis=1) < 1e-3
+    if straight.any():
+        side = np.where(lo + hi >= 0.0, 1.0, -1.0)
+        default = np.where(valid, 0.3 * side, 0.0)
+        default[:, 0] = 0.0
+        hinge[straight] = default[straight]
+    _, r_straight, _ = _bend_reach(np.zeros(n), hinge, lengths, lo, hi)
+    _, r_folded, _ = _bend_reach(np.full(n, max_bend), hinge, lengths, lo, hi)
+    for a in (hinge, valid, r_straight, r_folded):
+        a.flags.writeable = False
+    if len(_BEND_SETUP) >= 64:
+        _BEND_SETUP.clear()
+    made = (hinge, valid, r_straight, r_folded)
+    _BEND_SETUP[key] = made
+    return made
 
 
 def solve_bend(
@@ -121,37 +184,10 @@ def solve_bend(
     Targets closer than the most folded pose stay at ``κ = max_bend``; beyond reach the leg
     is straight. Callers refine with ``solve_ccd``/``solve_dls`` where limits interfere.
     """
-    n, s = rest.shape
+    n = rest.shape[0]
     rows = np.arange(n)
-    valid = np.arange(s)[None, :] < n_segments[:, None]
-    hinge = rest.copy()
-    hinge[:, 0] = 0.0
-    hinge = np.where(valid, hinge, 0.0)
-    straight = np.abs(hinge).sum(axis=1) < 1e-3
-    if np.any(straight):
-        side = np.where(lo + hi >= 0.0, 1.0, -1.0)
-        default = np.where(valid, 0.3 * side, 0.0)
-        default[:, 0] = 0.0
-        hinge[straight] = default[straight]
+    hinge, valid, r_straight, r_folded = _bend_setup(lengths, n_segments, lo, hi, rest, max_bend)
     dist = np.sqrt(np.einsum("ij,ij->i", target, target))
-
-    def reach(kappa: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Joint angles, reach and d(reach)/dκ of the chain bent by ``kappa``."""
-        # (called some ten times per leg and frame: written with few, plain array operations)
-        raw = kappa[:, None] * hinge
-        th = np.minimum(np.maximum(raw, lo), hi)
-        th[:, 0] = 0.0
-        free = (raw > lo) & (raw < hi)
-        dth = np.where(free, hinge, 0.0)
-        phi = np.cumsum(th, axis=1)
-        dphi = np.cumsum(dth, axis=1)
-        c, sn = np.cos(phi), np.sin(phi)
-        ex, ey = np.add.reduce(lengths * c, axis=1), np.add.reduce(lengths * sn, axis=1)
-        ld = lengths * dphi
-        dex, dey = -np.add.reduce(ld * sn, axis=1), np.add.reduce(ld * c, axis=1)
-        r = np.sqrt(ex * ex + ey * ey)
-        dr = (ex * dex + ey * dey) / np.maximum(r, 1e-12)
-        return th, r, dr
 
     # safeguarded Newton on κ: the reach shrinks as the leg folds, so [k_lo, k_hi] brackets
     # the answer and a Newton step that leaves it is replaced by bisection
@@ -159,17 +195,17 @@ def solve_bend(
     k_hi = np.full(n, max_bend)
     tol = tolerance * lengths.sum(axis=1)
     # out of reach either way: straight, or folded as far as allowed
-    _, r_straight, _ = reach(k_lo)
-    _, r_folded, _ = reach(k_hi)
     too_far = r_straight <= dist
     too_close = r_folded >= dist
     kappa = np.where(too_far, 0.0, np.where(too_close, max_bend, 1.0))
     settled = too_far | too_close
+    th = None  # the angles at the final kappa, when the loop ends on it
     for _ in range(iterations):
-        _, r, dr = reach(kappa)
+        th_k, r, dr = _bend_reach(kappa, hinge, lengths, lo, hi)
         f = r - dist
         done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
-        if np.all(done):
+        if done.all():
+            th = th_k
             break
         longer = f > 0.0
         k_lo = np.where(longer, kappa, k_lo)
@@ -178,7 +214,8 @@ def solve_bend(
         newton = kappa - f / np.where(falling, dr, -1.0)
         ok = falling & (newton >= k_lo) & (newton <= k_hi)
         kappa = np.where(done, kappa, np.where(ok, newton, 0.5 * (k_lo + k_hi)))
-    th, _, _ = reach(kappa)
+    if th is None:
+        th, _, _ = _bend_reach(kappa, hinge, lengths, lo, hi)
     end = forward_planar(th, lengths)[rows, n_segments]
     th[:, 0] = np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(end[:, 1], end[:, 0])
     th[:, 0] = wrap_to_limits(th[:, 0], lo[:, 0], hi[:, 0])
@@ -256,28 +293,32 @@ def solve_dls(
     valid = np.arange(s)[None, :] < n_segments[:, None]
     lam2 = (damping * lengths.sum(axis=1)) ** 2
     todo = rows
+    # the legs still iterating: their rows of the inputs, taken again only when legs finish
+    t_len, t_seg, t_target, t_lo, t_hi, t_valid, t_lam2 = lengths, n_segments, target, lo, hi, valid, lam2
     for _ in range(max_iterations):
         th = theta[todo]
-        pts = forward_planar(th, lengths[todo])
-        end = pts[np.arange(todo.size), n_segments[todo]]
-        err = target[todo] - end
+        pts = forward_planar(th, t_len)
+        end = pts[np.arange(todo.size), t_seg]
+        err = t_target - end
         converged = np.einsum("ij,ij->i", err, err) <= tolerance * tolerance
         if converged.all():
             break
         if converged.any():  # go on with the others only
             keep = ~converged
             todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
+            t_len, t_seg, t_target = lengths[todo], n_segments[todo], target[todo]
+            t_lo, t_hi, t_valid, t_lam2 = lo[todo], hi[todo], valid[todo], lam2[todo]
         r = end[:, None, :] - pts[:, :s, :]
         jac = np.empty((todo.size, 2, s))  # (m, 2, s)
         jac[:, 0] = -r[..., 1]
         jac[:, 1] = r[..., 0]
         grad = np.einsum("mks,mk->ms", jac, err)
-        at_lo = (th <= lo[todo] + 1e-9) & (grad < 0.0)
-        at_hi = (th >= hi[todo] - 1e-9) & (grad > 0.0)
-        free = valid[todo] & ~at_lo & ~at_hi
+        at_lo = (th <= t_lo + 1e-9) & (grad < 0.0)
+        at_hi = (th >= t_hi - 1e-9) & (grad > 0.0)
+        free = t_valid & ~at_lo & ~at_hi
         jac = jac * free[:, None, :]
-        a11 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 0]) + lam2[todo]
-        a22 = np.einsum("ms,ms->m", jac[:, 1], jac[:, 1]) + lam2[todo]
+        a11 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 0]) + t_lam2
+        a22 = np.einsum("ms,ms->m", jac[:, 1], jac[:, 1]) + t_lam2
         a12 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 1])
         det = a11 * a22 - a12 * a12
         x0 = (a22 * err[:, 0] - a12 * err[:, 1]) / det
@@ -285,7 +326,7 @@ def solve_dls(
         step = jac[:, 0] * x0[:, None] + jac[:, 1] * x1[:, None]
         biggest = np.abs(step).max(axis=1, keepdims=True)
         step *= np.minimum(1.0, max_turn / np.maximum(biggest, 1e-12))
-        theta[todo] = np.minimum(np.maximum(th + step, lo[todo]), hi[todo])
+        theta[todo] = np.minimum(np.maximum(th + step, t_lo), t_hi)
     return theta
 
 
@@ -403,19 +444,19 @@ def solve_legs(
     theta = theta0.copy()
     solve = np.ones(n, dtype=bool) if mask is None else mask.astype(bool)
     two = solve & (legs.n_segments == 2)
-    if np.any(two):
+    if two.any():
         idx = np.flatnonzero(two)
         theta[idx, :2] = solve_two_segment(
             target_2d[idx], legs.segment_lengths[idx, :2], legs.joint_min[idx, :2], legs.joint_max[idx, :2]
         )
     one = solve & (legs.n_segments == 1)
-    if np.any(one):
+    if one.any():
         idx = np.flatnonzero(one)
         theta[idx, 0] = wrap_to_limits(
             np.arctan2(target_2d[idx, 1], target_2d[idx, 0]), legs.joint_min[idx, 0], legs.joint_max[idx, 0]
         )
     many = solve & (legs.n_segments >= 3)
-    if np.any(many):
+    if many.any():
         idx = np.flatnonzero(many)
         args = (
             target_2d[idx],

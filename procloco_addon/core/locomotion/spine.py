@@ -618,7 +618,7 @@ def _advance_on_support(model: SpineModel, xy: FloatArray, dist: FloatArray) -> 
         ok &= (root >= t_min - 1e-12) & (root <= 1.0 + 1e-12)
         first = np.argmax(ok, axis=1)  # the long last segment always qualifies
         g = first
-        t = np.clip(root[rows, first], 0.0, 1.0)
+        t = np.minimum(np.maximum(root[rows, first], 0.0), 1.0)
         out[:, i] = a[rows, first] + t[:, None] * d[rows, first]
     return out
 
@@ -687,7 +687,7 @@ def terrain_guides(
     xy = plan.key_xy
     c, k = xy.shape[0], xy.shape[1]
     chord = vector_norm(xy[:, 1:] - xy[:, :-1])  # (C, K - 1)
-    arc = np.concatenate([np.zeros((c, 1)), np.cumsum(chord, axis=1)], axis=1)  # (C, K)
+    arc = np.concatenate([np.zeros((c, 1)), chord.cumsum(axis=1)], axis=1)  # (C, K)
     margin = model.slice_margin
     lo = np.concatenate([arc[:, :1] - margin, 0.5 * (arc[:, :-1] + arc[:, 1:])], axis=1)
     hi = np.concatenate([0.5 * (arc[:, :-1] + arc[:, 1:]), arc[:, -1:] + margin], axis=1)
@@ -829,7 +829,7 @@ def _sample_curve(
     s = _CURVE_S
     dense = _CURVE_BASIS @ ctrl  # (C, K - 1, m, 3): (m, 4) weights times (4, 3) controls
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
-    np.cumsum(vector_norm(dense[:, :, 1:] - dense[:, :, :-1]), axis=2, out=table[:, :, 1:])
+    vector_norm(dense[:, :, 1:] - dense[:, :, :-1]).cumsum(axis=2, out=table[:, :, 1:])
     seg = model.joint_segment
     tab = table[:, seg]  # (C, J, m)
     target = model.joint_fraction[None, :] * tab[..., -1]
@@ -880,10 +880,10 @@ def build_spine(
     joints = np.empty((c, model.n_joints, 3))
     joints[:, anchor_joint] = guide[:, model.anchor_key]
     if anchor_joint < model.n_joints - 1:
-        behind = np.cumsum(bone_world[:, anchor_joint:], axis=1)
+        behind = bone_world[:, anchor_joint:].cumsum(axis=1)
         joints[:, anchor_joint + 1:] = guide[:, model.anchor_key, None] + behind
     if anchor_joint > 0:
-        ahead = np.cumsum(bone_world[:, :anchor_joint][:, ::-1], axis=1)[:, ::-1]
+        ahead = bone_world[:, :anchor_joint][:, ::-1].cumsum(axis=1)[:, ::-1]
         joints[:, :anchor_joint] = guide[:, model.anchor_key, None] - ahead
 
     # Joint frames: the mean turn of the bones on either side (one bone at the ends). For a
@@ -913,8 +913,8 @@ def _limit_joints(
     # Mostly no joint is at its limit: then every turn stays as it is (the walk below would
     # only add rounding), found with a few array operations instead of a loop over bones.
     if n_b < 2 or (
-        np.all(np.abs(yaw_dev[:, 1:] - yaw_dev[:, :-1]) < model.joint_yaw_limit[1:n_b])
-        and np.all(np.abs(pitch_dev[:, 1:] - pitch_dev[:, :-1]) < model.joint_pitch_limit[1:n_b])
+        (np.abs(yaw_dev[:, 1:] - yaw_dev[:, :-1]) < model.joint_yaw_limit[1:n_b]).all()
+        and (np.abs(pitch_dev[:, 1:] - pitch_dev[:, :-1]) < model.joint_pitch_limit[1:n_b]).all()
     ):
         return yaw_dev.copy(), pitch_dev.copy()
     yaw = yaw_dev.copy()
@@ -972,10 +972,12 @@ def leg_frames(model: SpineModel, pose: SpinePose) -> FloatArray:
     return np.asarray(np.where(model.leg_on_bone[None, :, None, None], bone_frames, key_frames))
 
 
-def hip_positions(model: SpineModel, pose: SpinePose) -> FloatArray:
+def hip_positions(model: SpineModel, pose: SpinePose, frames: FloatArray | None = None) -> FloatArray:
     """World hip positions ``(C, L, 3)``: each hip rides with its carrier bone (turning about
-    the bone's back joint) or, without one, with the frame of its key node."""
-    frames = leg_frames(model, pose)  # (C, L, 3, 3)
+    the bone's back joint) or, without one, with the frame of its key node (``frames``: the
+    pose's :func:`leg_frames` ``(C, L, 3, 3)`` when the caller has them already)."""
+    if frames is None:
+        frames = leg_frames(model, pose)
     return pose.joints[:, model.leg_pivot] + np.matmul(frames, model.hip_pivot_offset[:, :, None])[..., 0]
 
 
@@ -987,6 +989,7 @@ def repeat_for_reach(
     iterations: int = 3,
     slack: float = 0.995,
     max_shift: float = np.inf,
+    hips: FloatArray | None = None,
 ) -> SpinePose:
     """Repeat step 4 until every hip is within ``leg_reach`` of its foot.
 
@@ -1000,6 +1003,7 @@ def repeat_for_reach(
     better (joint limits) can compute its own guides and call :func:`refit`.
     ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)`` or ``(C, L)``; no guide moves further than
     ``max_shift`` from where it was (a foot beyond help is the controller's to step).
+    ``hips`` ``(C, L, 3)``: ``hip_positions(model, pose)`` when the caller has them already.
     """
     if model.n_legs == 0:
         return pose
@@ -1011,13 +1015,13 @@ def repeat_for_reach(
     member = _membership(model)
     start = pose.guide_xyz
     rows = np.arange(pose.joints.shape[0])  # characters still stretched (only they are rebuilt)
-    for _ in range(max(0, int(iterations))):
+    for i in range(max(0, int(iterations))):
         sub = pose_rows(pose, rows)
-        to_foot = feet[rows] - hip_positions(model, sub)
+        to_foot = feet[rows] - (hips if i == 0 and hips is not None else hip_positions(model, sub))
         dist = vector_norm(to_foot)
         reach = reach_all[rows]
-        stretched = np.any(dist > reach + 1e-12, axis=1)
-        if not np.any(stretched):
+        stretched = (dist > reach + 1e-12).any(axis=1)
+        if not stretched.any():
             break
         excess = np.maximum(dist - slack * reach, 0.0)
         rows, to_foot, dist, excess = rows[stretched], to_foot[stretched], dist[stretched], excess[stretched]

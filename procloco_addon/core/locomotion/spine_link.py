@@ -242,7 +242,8 @@ def pose(
             yaw = yaw + visual_yaw(m, g.plan, at.foot[g.legs], g.params)
         guide = np.concatenate([g.plan.key_xy, z[..., None]], axis=-1)
         pose = build_spine(m, guide, yaw, g.pitch)
-        link.hips_free[g.legs] = hip_positions(m, pose)
+        hips_free = hip_positions(m, pose)
+        link.hips_free[g.legs] = hips_free
         # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
         max_shift = p.guard_max_drop * float(at.body_thickness[g.chars[0]])
         free = pose
@@ -253,11 +254,12 @@ def pose(
         swing = at.swinging[g.legs]
         feet[swing, 2] = np.minimum(feet[swing, 2], at.target[g.legs][swing, 2])
         feet[..., 2] += at.foot_lift[g.legs]
-        pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=max_shift)
+        pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=max_shift, hips=hips_free)
         pose, g.reach_shift = release_pull(g, free, pose, feet, reach, dt, p.reach_release_time)
         g.pose = pose
-        link.hips[g.legs] = hip_positions(m, pose)
-        link.leg_rot[g.legs] = leg_frames(m, pose)
+        frames = leg_frames(m, pose)
+        link.hips[g.legs] = hip_positions(m, pose, frames)
+        link.leg_rot[g.legs] = frames
         aj = int(m.key_joint[m.anchor_key])
         frame = pose.joint_frame[:, aj]
         body.pos[g.chars] = pose.joints[:, aj] - np.einsum("cij,j->ci", frame, m.joint_rest[aj])
@@ -281,7 +283,7 @@ def release_pull(
         return pulled, need
     decayed = g.reach_shift * float(np.exp(-dt / max(release_time, 1e-9)))
     keep = vector_norm(decayed) > vector_norm(need)
-    if not np.any(keep):
+    if not keep.any():
         return pulled, need
     trial = np.where(keep[..., None], decayed, need)
     m = g.model
