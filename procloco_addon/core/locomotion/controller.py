@@ -550,7 +550,7 @@ class Controller:
 
     def _reach_guard(self) -> None:
         """Lower a pelvis whose legs would have to stretch past ``reach_margin``."""
-        hips = self.hips_world(self.rotations())
+        hips = self.hips_world()  # (the rotations only where a leg is on the rigid pelvis)
         drop = reach.guard_drop(self.rig, self.params, hips, self.feet.foot, self.link.spine_legs)
         self.body.guard_drop = drop
         self.body.pos[:, 2] -= drop
@@ -558,9 +558,11 @@ class Controller:
     def _solve_ik(self, ctl: StepControls) -> int:
         """Step 5: pose every leg; returns how many swinging feet were moved to what their
         legs reach."""
-        rot = self.rotations()
-        hips = self.hips_world(rot)
-        leg_rot = self.leg_rotations() if self.link.groups else rot[self.leg_char]
+        if self.link.groups:
+            hips, leg_rot = self.hips_world(), self.leg_rotations()
+        else:
+            rot = self.rotations()
+            hips, leg_rot = self.hips_world(rot), rot[self.leg_char]
         mask = np.asarray(ctl.ik, dtype=bool)[self.leg_char]
         res, bent = reach.solve_ik(self.env, self.rig, self.params, hips, leg_rot, self.feet.foot,
                                    self.feet.swinging, self.angles, self.leg_normals, mask)

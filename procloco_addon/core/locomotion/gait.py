@@ -58,7 +58,7 @@ _PHASE_EPS = 1e-9  # a needle this close below a sector's start counts as on it 
 def swing_elapsed(phase: npt.ArrayLike, start: npt.ArrayLike) -> FloatArray:
     """Cycle fraction since the sector's start, in ``[0, 1)`` (the swing's age while in swing)."""
     rel = np.mod(np.asarray(phase, dtype=np.float64) - np.asarray(start, dtype=np.float64), 1.0)
-    return np.asarray(np.where(rel > 1.0 - _PHASE_EPS, 0.0, rel))
+    return np.where(rel > 1.0 - _PHASE_EPS, 0.0, rel)
 
 
 def in_swing(phase: npt.ArrayLike, start: npt.ArrayLike, duration: npt.ArrayLike) -> BoolArray:
