@@ -8,6 +8,7 @@ once with every key and once with Key Reduction on (built once for the module).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -364,7 +365,7 @@ def test_the_reduction_reports_progress_and_esc_during_it_changes_nothing(empty_
             fractions.append(next(steps))
     except StopIteration as done:
         made = done.value
-    assert all(a <= b for a, b in zip(fractions, fractions[1:], strict=False))
+    assert all(a <= b for a, b in itertools.pairwise(fractions))
     assert len([f for f in fractions if 0.8 < f < 1.0]) >= 2
     assert wolf.procloco_keys.keys_after < wolf.procloco_keys.keys_before
     assert wolf.animation_data.action == made[0]
