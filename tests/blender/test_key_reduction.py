@@ -8,6 +8,7 @@ once with every key and once with Key Reduction on (built once for the module).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -346,3 +347,37 @@ def test_a_reduction_that_cannot_get_within_keeps_every_key(empty_scene: Any) ->
     assert result.keys_after < result.keys_before
     moved = pose_eval.pose_matrices(wolf, frames.astype(int).tolist(), names)
     assert np.linalg.norm(moved[:, 2, :3, 3] - full[:, 2, :3, 3], axis=-1).max() <= FOOT_TOL
+
+
+def test_the_reduction_reports_progress_and_esc_during_it_changes_nothing(empty_scene: Any) -> None:
+    wolf = _scene()
+    wolf.procloco.frame_end = 36
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    wolf.procloco_keys.use_key_reduction = True
+    job = generate.prepare(bpy.context, wolf)
+    for _fraction in generate.simulate(job):
+        pass
+    # a full run: the reduction's passes move the progress on within the last fifth
+    steps = generate.write_all_steps(bpy.context, [job])
+    fractions = []
+    try:
+        while True:
+            fractions.append(next(steps))
+    except StopIteration as done:
+        made = done.value
+    assert all(a <= b for a, b in itertools.pairwise(fractions))
+    assert len([f for f in fractions if 0.8 < f < 1.0]) >= 2
+    assert wolf.procloco_keys.keys_after < wolf.procloco_keys.keys_before
+    assert wolf.animation_data.action == made[0]
+    names = [b.name for b in wolf.data.bones if b.use_deform]
+    frames = list(range(1, 37))
+    pose_before = pose_eval.pose_matrices(wolf, frames, names)
+    n_actions = len(bpy.data.actions)
+    # again, and Esc once the reduction has begun (its first step: the full pose evaluated)
+    steps = generate.write_all_steps(bpy.context, [job])
+    while next(steps) <= 0.8:
+        pass
+    steps.close()
+    assert wolf.animation_data.action == made[0]
+    assert len(bpy.data.actions) == n_actions
+    assert np.abs(pose_eval.pose_matrices(wolf, frames, names) - pose_before).max() < 1e-6

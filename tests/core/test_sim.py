@@ -600,6 +600,18 @@ def test_scaled_params_scale_with_the_creature() -> None:
     assert scaled_params(0.1, 0.02, auto_physics=True)[0].physics.gravity == pytest.approx(9.81)
 
 
+def test_a_fast_character_looks_farther_along_its_path() -> None:
+    # east for 3 m, then north: 1.5 m before the corner a 1 m look-ahead still aims east; at
+    # 4 m/s the character looks 2 m on (half a second), past the corner, and turns toward it
+    corner = np.array([[0.0, 0.0], [3.0, 0.0], [3.0, 3.0]])
+    slow = PathFollower(corner, lookahead=1.0, stop_distance=0.5, lookahead_time=0.5)
+    fast = PathFollower(corner, lookahead=1.0, stop_distance=0.5, lookahead_time=0.5)
+    at = np.array([1.5, 0.0])
+    assert slow.command(at, speed=1.0)[0] == pytest.approx(0.0, abs=1e-12)  # 0.5 m < 1 m: one leg
+    heading, _ = fast.command(at, speed=4.0)
+    assert heading == pytest.approx(np.arctan2(0.5, 1.5), abs=1e-12)
+
+
 def test_path_progress_never_goes_back_where_a_path_crosses_itself() -> None:
     # a loop through the origin: at the crossing the follower keeps to the part it is on
     loop = np.array([[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [1.0, 1.0], [1.0, -1.0], [0.0, -1.0]])

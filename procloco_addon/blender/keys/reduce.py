@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Generator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -35,6 +35,7 @@ import bpy
 import numpy as np
 
 from ...core import keyfit
+from ...core.steps import run_steps
 from .. import actions, pose_writer
 from ..rig.controls import ControlPlan
 
@@ -46,7 +47,9 @@ __all__ = [
     "leg_keyed_bones",
     "posed_errors",
     "reduce_action",
+    "reduce_action_steps",
     "reduce_if_enabled",
+    "reduce_if_enabled_steps",
 ]
 
 _PREFIX = 'pose.bones["'
@@ -267,6 +270,18 @@ def reduce_action(
     angle_tolerance: float = math.radians(0.5), planted: Mapping[str, np.ndarray] | None = None,
     step_tolerance: float | None = None, max_passes: int = _MAX_PASSES,
 ) -> Reduction:
+    """:func:`reduce_action_steps` run through."""
+    return run_steps(reduce_action_steps(obj, action, frames, feet, required, foot_tolerance=foot_tolerance,
+                                         angle_tolerance=angle_tolerance, planted=planted,
+                                         step_tolerance=step_tolerance, max_passes=max_passes))
+
+
+def reduce_action_steps(
+    obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
+    required: Mapping[Any, np.ndarray] | None = None, *, foot_tolerance: float = 0.001,
+    angle_tolerance: float = math.radians(0.5), planted: Mapping[str, np.ndarray] | None = None,
+    step_tolerance: float | None = None, max_passes: int = _MAX_PASSES,
+) -> Generator[float, None, Reduction]:
     """Thin the keys ``action`` (assigned to ``obj``, generated) holds on every one of
     ``frames``, keeping the posed rig within ``foot_tolerance`` (world distance of the head
     and tail of each of ``feet``) and ``angle_tolerance`` (radians, world rotation of every
@@ -276,7 +291,11 @@ def reduce_action(
     ``step_tolerance`` (default 0.7 of ``foot_tolerance``) more than in the full result
     (other bones listed there, such as IK controls, are held as steady on those frames).
     Channels with fewer keys (switches, held bones) are left as they are. When the passes
-    cannot get within the tolerances, the full keys are written back (``within`` False)."""
+    cannot get within the tolerances, the full keys are written back (``within`` False).
+
+    Yields the fraction done after each refit pass (and once the rig's full pose has been
+    evaluated); closed early (Esc), the Action keeps whatever keys it last had written: the
+    caller deletes it."""
     t0 = time.perf_counter()
     frames = np.asarray(frames, dtype=np.float64).reshape(-1)
     chans, values, before = _dense(action, obj, frames)
@@ -326,6 +345,8 @@ def reduce_action(
             steady[:-1, c] |= mask[1:] & mask[:-1]
     worlds = pose_writer.object_worlds(obj, frames)  # the reduction keys bones, not the object
     ref = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
+    # (evaluating the full pose costs about what one pass does)
+    yield 1.0 / (max_passes + 1)
     base_tol = _SHARE * channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance)
     tol = np.tile(base_tol, (frames.size, 1))
     _quaternion_shares(chans, values, tol)
@@ -363,6 +384,7 @@ def reduce_action(
             step[1:] = np.maximum(step[1:], jump)
             step[:-1] = np.maximum(step[:-1], jump)
             per_bone = np.maximum(per_bone, step)
+        yield (p + 2) / (max_passes + 1)
         ratio = per_bone.max(axis=1, initial=0.0)  # (F,)
         off = np.flatnonzero(ratio > 1.0)
         if off.size == 0:
@@ -412,14 +434,23 @@ def reduce_if_enabled(
     obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
     required: Mapping[Any, np.ndarray] | None = None, planted: Mapping[str, np.ndarray] | None = None,
 ) -> Reduction | None:
-    """:func:`reduce_action` with the rig's Key Reduction settings (``obj.procloco_keys``)
-    when they are on, the result stored there for the panel; None when off."""
+    """:func:`reduce_if_enabled_steps` run through."""
+    return run_steps(reduce_if_enabled_steps(obj, action, frames, feet, required, planted))
+
+
+def reduce_if_enabled_steps(
+    obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
+    required: Mapping[Any, np.ndarray] | None = None, planted: Mapping[str, np.ndarray] | None = None,
+) -> Generator[float, None, Reduction | None]:
+    """:func:`reduce_action_steps` with the rig's Key Reduction settings
+    (``obj.procloco_keys``) when they are on, the result stored there for the panel; None
+    (at once) when off. Yields the fraction done."""
     settings = getattr(obj, "procloco_keys", None)
     if settings is None or not settings.use_key_reduction:
         return None
-    result = reduce_action(obj, action, frames, feet, required,
-                           foot_tolerance=float(settings.foot_tolerance),
-                           angle_tolerance=float(settings.angle_tolerance), planted=planted)
+    result = yield from reduce_action_steps(obj, action, frames, feet, required,
+                                            foot_tolerance=float(settings.foot_tolerance),
+                                            angle_tolerance=float(settings.angle_tolerance), planted=planted)
     settings.keys_before = min(result.keys_before, 2**31 - 1)
     settings.keys_after = min(result.keys_after, 2**31 - 1)
     settings.foot_error = result.foot_error

@@ -618,12 +618,15 @@ def _keyed_action_steps(
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
         keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
         actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
+        # with Key Reduction on, the reduction's passes take the last fifth of the progress
+        reducing = bool(getattr(getattr(obj, "procloco_keys", None), "use_key_reduction", False))
+        written = 0.8 if reducing else 1.0
         report = yield from scaled_steps(pose_writer.write_pose_steps(
             action, obj, request, plan, check=job.check_after, replace=replace, superseded=superseded),
-            0.5, 1.0)
+            0.5, written)
         if job.auto_gait is not None:
             rig_gait.store_auto_track(action, simulation.auto_track(job))
-        job.key_reduction = _reduce_keys(obj, action, job, plan)
+        job.key_reduction = yield from scaled_steps(_reduce_keys_steps(obj, action, job, plan), written, 1.0)
     except BaseException:  # an error, or closed early (Esc)
         actions.restore_pose(obj, action)
         bpy.data.actions.remove(action)
@@ -638,8 +641,8 @@ def _keyed_action_steps(
     return action
 
 
-def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
-                 plan: controls.ControlPlan) -> Any:
+def _reduce_keys_steps(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
+                       plan: controls.ControlPlan) -> Generator[float, None, Any]:
     """Key Reduction of the written walk when the rig has it on (see :mod:`..keys.reduce`):
     each leg's touch-downs and lift-offs stay keys of its bones and controls."""
     from ..keys import reduce
@@ -655,7 +658,7 @@ def _reduce_keys(obj: bpy.types.Object, action: bpy.types.Action, job: Job,
             required[name] = required.get(name, np.zeros(len(job.frames), dtype=bool)) | contacts[:, k]
             planted[name] = planted.get(name, np.zeros(len(job.frames), dtype=bool)) | stance[:, k]
     feet = [b for leg in job.info.legs for b in (leg.bones[-1], *leg.foot)]
-    return reduce.reduce_if_enabled(obj, action, job.frames, feet, required, planted)
+    return (yield from reduce.reduce_if_enabled_steps(obj, action, job.frames, feet, required, planted))
 
 
 def generate(

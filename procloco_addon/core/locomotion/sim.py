@@ -54,6 +54,9 @@ FloatArray = npt.NDArray[np.float64]
 _BURSTS = ProgressionParams(max_speed=0.0)
 #: A path follower's look-ahead and the distance over which it stops, in leg lengths.
 PATH_LOOKAHEAD = 1.0
+#: ... or, when it is farther, where the character will be this many seconds on at its
+#: commanded speed (a galloping creature aims past the next bend, not at its own feet)
+PATH_LOOKAHEAD_TIME = 0.5
 PATH_STOP = 0.5
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
@@ -234,12 +237,16 @@ class PathFollower:
     eases to 0 as the square root of the distance left (stopping in finite time; a linear
     ramp only approaches the end).
 
+    ``lookahead_time``: at a speed where the character covers more than ``lookahead`` in that
+    many seconds, it looks that far ahead instead (``command``'s ``speed``).
+
     Generate Locomotion's follower used to look ``max(leg, speed / 2)`` ahead of the nearest
     point of the whole path and stop dead ``0.05`` leg before the end; walking a U-turn and
     an S-curve (spider, wolf, ant) this one ends 0.001-0.003 leg from the path's end
     instead of 0.005-0.04, as close to the path or closer, with the same motion figures."""
 
-    def __init__(self, points: npt.ArrayLike, lookahead: float, stop_distance: float) -> None:
+    def __init__(self, points: npt.ArrayLike, lookahead: float, stop_distance: float,
+                 lookahead_time: float = 0.0) -> None:
         self.source = np.array(points, dtype=np.float64)
         pts = self.source[..., :2].reshape(-1, 2)
         if pts.shape[0] < 2:
@@ -255,6 +262,7 @@ class PathFollower:
         self.arc = np.concatenate([[0.0], np.cumsum(self.seg_len)])
         self.length = float(self.arc[-1])
         self.lookahead = lookahead
+        self.lookahead_time = lookahead_time
         self.stop_distance = stop_distance
         self.s: float | None = None  # progress along the path (m), None before the first command
 
@@ -262,9 +270,10 @@ class PathFollower:
         d = self.points[1] - self.points[0]
         return float(np.arctan2(d[1], d[0]))
 
-    def heading_from(self, xy: FloatArray) -> tuple[float, float]:
-        """``(heading, distance left along the path)`` for a character at ``xy`` ``(2,)``,
-        without moving on along the path."""
+    def heading_from(self, xy: FloatArray, speed: float = 0.0) -> tuple[float, float]:
+        """``(heading, distance left along the path)`` for a character at ``xy`` ``(2,)``
+        walking at ``speed`` (m/s), without moving on along the path."""
+        ahead = max(self.lookahead, self.lookahead_time * speed)
         p, seg, seg_len, cum = self.points, self.seg, self.seg_len, self.arc
         t = np.clip(np.einsum("ij,ij->i", xy[None] - p[:-1], seg) / np.maximum(seg_len ** 2, 1e-18), 0.0, 1.0)
         near = p[:-1] + t[:, None] * seg
@@ -273,10 +282,10 @@ class PathFollower:
         if self.s is None:
             s_here = float(s_proj[int(np.argmin(dist))])
         else:
-            window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * self.lookahead + 1e-9)
+            window = (s_proj >= self.s - 1e-9) & (s_proj <= self.s + 2.0 * ahead + 1e-9)
             k = int(np.flatnonzero(window)[np.argmin(dist[window])]) if np.any(window) else -1
             s_here = max(self.s, float(s_proj[k])) if k >= 0 else self.s
-        s_goal = min(s_here + self.lookahead, cum[-1])
+        s_goal = min(s_here + ahead, cum[-1])
         j = int(np.clip(np.searchsorted(cum, s_goal) - 1, 0, len(seg) - 1))
         u = (s_goal - cum[j]) / max(seg_len[j], 1e-18)
         goal = p[j] + u * seg[j]
@@ -285,9 +294,10 @@ class PathFollower:
             d = seg[-1]
         return float(np.arctan2(d[1], d[0])), float(cum[-1] - s_here)
 
-    def command(self, xy: FloatArray) -> tuple[float, float]:
-        """``(heading, speed factor)`` for a character at ``xy`` ``(2,)``."""
-        heading, left = self.heading_from(xy)
+    def command(self, xy: FloatArray, speed: float = 0.0) -> tuple[float, float]:
+        """``(heading, speed factor)`` for a character at ``xy`` ``(2,)`` asked to walk at
+        ``speed`` (m/s)."""
+        heading, left = self.heading_from(xy, speed)
         self.s = self.length - left
         factor = float(np.sqrt(np.clip(left / max(self.stop_distance, 1e-9), 0.0, 1.0)))
         return heading, 0.0 if left < 1e-3 * self.stop_distance else factor
@@ -468,7 +478,8 @@ class Simulation:
             # the same path again keeps its follower (and the progress along it)
             if f is None or f.source.shape != arr.shape or not np.array_equal(f.source, arr):
                 leg = float(self._leg_len[i])
-                self._followers[i] = PathFollower(arr, PATH_LOOKAHEAD * leg, PATH_STOP * leg)
+                self._followers[i] = PathFollower(arr, PATH_LOOKAHEAD * leg, PATH_STOP * leg,
+                                                     PATH_LOOKAHEAD_TIME)
 
     def _resolve(self, ctl: Controls, xy: FloatArray, yaw: FloatArray) -> StepControls:
         c = self.legs.n_chars
@@ -483,7 +494,7 @@ class Simulation:
             self._set_paths(ctl.path)
         for i, f in enumerate(self._followers):
             if f is not None:
-                h, factor = f.command(xy[i])
+                h, factor = f.command(xy[i], float(speed[i]))
                 heading[i] = h
                 speed[i] *= factor
         self._held_heading = heading.copy()
