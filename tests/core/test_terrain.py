@@ -462,3 +462,35 @@ def test_point_queries_over_many_static_soups_and_a_moving_one_equal_triangle_by
     lid_now = TriangleSoup(lid + np.array([-0.6, -0.6, 0.0]), np.array([[0, 1, 2]]), ROLE_AVOID, True)
     moved = [*soups[:-1], lid_now]
     assert_close(env.height_at(pts), _height_brute_force(moved, pts), "height after the move")
+
+
+@given(st.integers(0, 10_000))
+def test_point_queries_over_rotated_boxes_equal_a_box_by_box_test(seed: int) -> None:
+    """height_at / forbidden_at over static and moving rotated crates (and the heightmap
+    between its samples and at its border) equal testing every box on its own."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 25))
+    rows = [(float(rng.uniform(-2.5, 2.5)), float(rng.uniform(-2.5, 2.5)), float(rng.uniform(0.1, 0.8)),
+             float(rng.uniform(0.1, 0.8)), float(rng.uniform(0.05, 0.5)), float(rng.uniform(-np.pi, np.pi)),
+             int(rng.choice([ROLE_AVOID, ROLE_STEP_OVER, ROLE_GROUND])), bool(rng.random() < 0.4))
+            for _ in range(n)]
+    hm = Heightmap(rng.uniform(-0.1, 0.1, (13, 13)), np.array([-3.0, -3.0]), 0.5)
+    env = Environment(hm, boxes(rows))
+    b = boxes(rows)
+    xy = rng.uniform(-3.5, 3.5, (int(rng.integers(1, 300)), 2))
+    rel = xy[:, None, :] - b.center[None, :, :2]
+    cos, sin = np.cos(b.yaw), np.sin(b.yaw)
+    u = rel[..., 0] * cos + rel[..., 1] * sin
+    v = -rel[..., 0] * sin + rel[..., 1] * cos
+    inside = (np.abs(u) <= 0.5 * b.size[:, 0]) & (np.abs(v) <= 0.5 * b.size[:, 1])
+    top = np.where(inside, (b.center[:, 2] + b.size[:, 2])[None, :], NO_SURFACE).max(axis=1)
+    assert_close(env.height_at(xy), np.maximum(hm.sample(xy), top), "height over the boxes")
+    avoided = (inside & (b.role == ROLE_AVOID)[None, :]).any(axis=1)
+    assert env.forbidden_at(xy).tolist() == avoided.tolist()
+    # the heightmap itself: bilinear inside, nothing outside, its corners its samples
+    lo, hi = hm.extent
+    corners = np.array([[lo[0], lo[1]], [hi[0], hi[1]], [hi[0] + 0.01, lo[1]]])
+    got = hm.sample(corners)
+    assert got[0] == hm.heights[0, 0]
+    assert got[1] == hm.heights[-1, -1]
+    assert got[2] == NO_SURFACE
