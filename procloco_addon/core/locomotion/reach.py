@@ -103,30 +103,36 @@ def catch_up_time(
 
 
 def hip_distance(
-    rig: Rig, p: ControllerParams, leg: int, samples: FloatArray, hip_start: FloatArray,
+    rig: Rig, p: ControllerParams, leg: int | IntArray, samples: FloatArray, hip_start: FloatArray,
     hip_end_xy: FloatArray,
 ) -> FloatArray:
     """``(..., k + 1)`` distances of swing samples ``(..., k + 1, 3)`` to the hip of ``leg``
-    moving from ``hip_start (3,)`` to ``hip_end_xy (..., 2)`` (rising or sinking with the
-    feet), the pelvis lowered as far as the reach guard ever lowers it."""
+    moving from ``hip_start`` to ``hip_end_xy (..., 2)`` (rising or sinking with the feet),
+    the pelvis lowered as far as the reach guard ever lowers it. One leg: ``leg`` an index,
+    ``hip_start (3,)``; many swings of their own legs: ``leg (m,)``, ``hip_start (m, 3)``,
+    ``samples (m, k + 1, 3)``."""
+    legs = np.asarray(leg)
+    start = np.asarray(hip_start)[..., None, :]
     u = np.linspace(0.0, 1.0, samples.shape[-2])
     end_xy = np.broadcast_to(hip_end_xy, (*samples.shape[:-2], 2))
     end = np.concatenate(
-        [end_xy, (hip_start[2] + samples[..., -1, 2] - samples[..., 0, 2])[..., None]], axis=-1
+        [end_xy, (start[..., 0, 2] + samples[..., -1, 2] - samples[..., 0, 2])[..., None]], axis=-1
     )
-    hip = hip_start + u[:, None] * (end[..., None, :] - hip_start)
+    hip = start + u[:, None] * (end[..., None, :] - start)
     horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
-    drop = p.guard_max_drop * float(rig.body_thickness[rig.leg_char[leg]])
-    below = hip[..., 2] - (samples[..., 2] + rig.foot_lift[leg])
+    drop = (p.guard_max_drop * rig.body_thickness[rig.leg_char[legs]])[..., None]
+    below = hip[..., 2] - (samples[..., 2] + rig.foot_lift[legs][..., None])
     vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
     return np.asarray(np.hypot(horizontal, vertical))
 
 
-def reach_bound(rig: Rig, leg: int, start: float, u: FloatArray) -> FloatArray:
+def reach_bound(rig: Rig, leg: int | IntArray, start: float | FloatArray, u: FloatArray) -> FloatArray:
     """How far a swing's samples at ``u`` may be from the hip: the leg's length, or for a
-    foot that starts beyond it (left behind), a bound shrinking from there to it."""
-    length = float(rig.legs.leg_length[leg])
-    return np.asarray(length + max(start - length, 0.0) * (1.0 - u))
+    foot that starts beyond it (``start``: its distance at ``u = 0``; left behind), a bound
+    shrinking from there to it. ``leg`` and ``start`` an index and a distance, or ``(m,)``
+    each for ``(m, len(u))`` bounds."""
+    length = rig.legs.leg_length[np.asarray(leg)]
+    return np.asarray(length[..., None] + np.maximum(np.asarray(start) - length, 0.0)[..., None] * (1.0 - u))
 
 
 def within_reach_all(
@@ -135,22 +141,11 @@ def within_reach_all(
 ) -> BoolArray:
     """Whether each swing ``samples (m, k + 1, 3)`` of legs ``legs (m,)`` stays within its
     leg's length of its hip moving from ``hip_start (m, 3)`` to ``hip_end_xy (m, 2)`` at
-    touch-down: ``(m,)``. The arithmetic of ``hip_distance`` and ``reach_bound``, for all the
-    swings at once. The planner's paths may detour around obstacles farther than a leg
-    reaches; such a couple is not taken."""
+    touch-down (``hip_distance``, ``reach_bound``): ``(m,)``. The planner's paths may detour
+    around obstacles farther than a leg reaches; such a couple is not taken."""
+    dist = hip_distance(rig, p, legs, samples, hip_start, hip_end_xy)
     u = np.linspace(0.0, 1.0, samples.shape[-2])
-    start = hip_start[:, None, :]
-    end = np.concatenate([hip_end_xy, (hip_start[:, 2] + samples[:, -1, 2] - samples[:, 0, 2])[:, None]],
-                         axis=-1)
-    hip = start + u[:, None] * (end[:, None, :] - start)
-    horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
-    drop = (p.guard_max_drop * rig.body_thickness[rig.leg_char[legs]])[:, None]
-    below = hip[..., 2] - (samples[..., 2] + rig.foot_lift[legs][:, None])
-    vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
-    dist = np.hypot(horizontal, vertical)
-    length = rig.legs.leg_length[legs][:, None]
-    bound = length + np.maximum(dist[:, :1] - length, 0.0) * (1.0 - u)
-    return np.asarray(np.all(dist <= bound, axis=1))
+    return np.asarray(np.all(dist <= reach_bound(rig, legs, dist[:, 0], u), axis=1))
 
 
 def ik_targets(rig: Rig, foot: FloatArray) -> FloatArray:
