@@ -43,6 +43,7 @@ __all__ = [
     "Reduction",
     "channel_tolerances",
     "contact_frames",
+    "is_enabled",
     "last_reduction",
     "leg_keyed_bones",
     "posed_errors",
@@ -430,6 +431,12 @@ def _write(action: bpy.types.Action, obj: bpy.types.Object, chans: Sequence[acti
     actions.write_bezier_channels(action, obj, chans, curves)
 
 
+def is_enabled(obj: bpy.types.Object) -> bool:
+    """Whether the rig has Key Reduction on (``obj.procloco_keys``)."""
+    settings = getattr(obj, "procloco_keys", None)
+    return settings is not None and bool(settings.use_key_reduction)
+
+
 def reduce_if_enabled(
     obj: bpy.types.Object, action: bpy.types.Action, frames: np.ndarray, feet: Sequence[str],
     required: Mapping[Any, np.ndarray] | None = None, planted: Mapping[str, np.ndarray] | None = None,
@@ -445,9 +452,9 @@ def reduce_if_enabled_steps(
     """:func:`reduce_action_steps` with the rig's Key Reduction settings
     (``obj.procloco_keys``) when they are on, the result stored there for the panel; None
     (at once) when off. Yields the fraction done."""
-    settings = getattr(obj, "procloco_keys", None)
-    if settings is None or not settings.use_key_reduction:
+    if not is_enabled(obj):
         return None
+    settings = obj.procloco_keys
     result = yield from reduce_action_steps(obj, action, frames, feet, required,
                                             foot_tolerance=float(settings.foot_tolerance),
                                             angle_tolerance=float(settings.angle_tolerance), planted=planted)
@@ -462,8 +469,8 @@ def reduce_if_enabled_steps(
 def last_reduction(obj: bpy.types.Object) -> Reduction | None:
     """What the rig's last Key Reduction did (as stored on ``obj.procloco_keys``), or None
     when Key Reduction is off or never ran."""
-    settings = getattr(obj, "procloco_keys", None)
-    if settings is None or not settings.use_key_reduction or not settings.keys_before:
+    if not is_enabled(obj) or not obj.procloco_keys.keys_before:
         return None
+    settings = obj.procloco_keys
     return Reduction(int(settings.keys_before), int(settings.keys_after), float(settings.foot_error),
                      float(settings.angle_error), 0, 0.0, bool(settings.within))

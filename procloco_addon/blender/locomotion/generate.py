@@ -619,8 +619,9 @@ def _keyed_action_steps(
         keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
         actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
         # with Key Reduction on, the reduction's passes take the last fifth of the progress
-        reducing = bool(getattr(getattr(obj, "procloco_keys", None), "use_key_reduction", False))
-        written = 0.8 if reducing else 1.0
+        from ..keys import reduce
+
+        written = 0.8 if reduce.is_enabled(obj) else 1.0
         report = yield from scaled_steps(pose_writer.write_pose_steps(
             action, obj, request, plan, check=job.check_after, replace=replace, superseded=superseded),
             0.5, written)

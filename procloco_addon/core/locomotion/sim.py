@@ -50,16 +50,17 @@ from .spine import SpineParams
 from .types import ControllerParams, PlannerLOD, StepControls, StepStats
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
+
 #: Burst progression's settings (its top speed is each character's commanded speed).
 _BURSTS = ProgressionParams(max_speed=0.0)
 #: A path follower's look-ahead and the distance over which it stops, in leg lengths.
 PATH_LOOKAHEAD = 1.0
-#: ... or, when it is farther, where the character will be this many seconds on at its
-#: commanded speed (a galloping creature aims past the next bend, not at its own feet)
-PATH_LOOKAHEAD_TIME = 0.5
 PATH_STOP = 0.5
-IntArray = npt.NDArray[np.int64]
-BoolArray = npt.NDArray[np.bool_]
+#: ... or its look-ahead, when that is farther: where the character will be this many
+#: seconds on at its commanded speed (a galloping creature aims past the next bend)
+PATH_LOOKAHEAD_TIME = 0.5
 
 
 @dataclass(frozen=True)
@@ -320,7 +321,8 @@ class Simulation:
     replaces ``gaits`` and scheduled ``GaitChange``s leave it alone); ``effects``: per
     character ``Effects`` (burst progression, gait randomizer; None: none), drawn from
     ``seed``. A character following a path (``PathFollower``) looks one mean leg length
-    ahead and eases to a stop over the last half leg.
+    ahead (or half a second of its commanded speed, when that is farther) and eases to a
+    stop over the last half leg.
     """
 
     def __init__(
