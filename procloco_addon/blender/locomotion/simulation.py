@@ -23,13 +23,11 @@ from typing import Any
 
 import numpy as np
 
+from ...core.geometry import wrap_angle
 from ...core.locomotion import scaling
 from ...core.locomotion.gait import Gait
 from ...core.locomotion.morphology import LegBatch
 from ...core.locomotion.sim import (
-    PATH_LOOKAHEAD,
-    PATH_LOOKAHEAD_TIME,
-    PATH_STOP,
     Controls,
     Effects,
     GaitChange,
@@ -100,9 +98,8 @@ def simulation_of(job: Job) -> Simulation:
 
     if job.path is not None:
         # start along the path when the rig roughly faces it, else turn toward it walking
-        follower = PathFollower(job.path, PATH_LOOKAHEAD * leg_len, PATH_STOP * leg_len, PATH_LOOKAHEAD_TIME)
-        heading0 = follower.heading_from(origin[:2], speed_of(0.0))[0]
-        start_yaw = heading0 if abs(np.angle(np.exp(1j * (heading0 - start_yaw)))) < 0.5 else start_yaw
+        heading0 = PathFollower.for_leg(job.path, leg_len).heading_from(origin[:2], speed_of(0.0))[0]
+        start_yaw = heading0 if abs(float(wrap_angle(heading0 - start_yaw))) < 0.5 else start_yaw
     # Gait changes at the first frame set the gait the walk starts with; later ones start a
     # transition before the step into their frame. With Auto the changes' speeds still
     # count (speed_at), their gaits do not.

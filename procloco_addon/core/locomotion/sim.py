@@ -267,6 +267,12 @@ class PathFollower:
         self.stop_distance = stop_distance
         self.s: float | None = None  # progress along the path (m), None before the first command
 
+    @classmethod
+    def for_leg(cls, points: npt.ArrayLike, leg: float) -> PathFollower:
+        """The follower of a character with legs ``leg`` metres long: ``PATH_LOOKAHEAD``,
+        ``PATH_STOP`` and ``PATH_LOOKAHEAD_TIME``."""
+        return cls(points, PATH_LOOKAHEAD * leg, PATH_STOP * leg, PATH_LOOKAHEAD_TIME)
+
     def start_heading(self) -> float:
         d = self.points[1] - self.points[0]
         return float(np.arctan2(d[1], d[0]))
@@ -479,9 +485,7 @@ class Simulation:
             f = self._followers[i]
             # the same path again keeps its follower (and the progress along it)
             if f is None or f.source.shape != arr.shape or not np.array_equal(f.source, arr):
-                leg = float(self._leg_len[i])
-                self._followers[i] = PathFollower(arr, PATH_LOOKAHEAD * leg, PATH_STOP * leg,
-                                                     PATH_LOOKAHEAD_TIME)
+                self._followers[i] = PathFollower.for_leg(arr, float(self._leg_len[i]))
 
     def _resolve(self, ctl: Controls, xy: FloatArray, yaw: FloatArray) -> StepControls:
         c = self.legs.n_chars
