@@ -3,6 +3,7 @@
 
     python benchmarks/bench_crowd.py [--chars 100] [--steps 60] [--warmup 15] [--seed 0]
                                      [--scale 2.0] [--profile] [--modes LOD,...]
+    python benchmarks/bench_crowd.py --wolves [--chars 100] [--steps 120] [--warmup 0]
 
 The scene (benchmarks/scenes.py): a 100 m heightmap with 3000 crates, 40 % of them moving;
 planning windows of 70 × 70 cells of 7 cm. The crowd: ``--chars`` eight-legged spiders
@@ -21,6 +22,12 @@ Three camera set-ups, as in thesis §3.7 and Table 3.1:
   off screen: first valid couple, no slices, no IK.
 - **No LOD**: everyone does the full best-couple search with 10 cm slices, and the IK.
 
+``--wolves``: instead, ``--chars`` wolves in ONE simulation on the same scene (the quality
+benchmark's wolf, ``morphology.quadruped(spine=True)`` scaled to the Rigify wolf's 0.73 m
+legs, the quadruped walk at the preset's speed and step height, the flexible spine, pelvis
+physics, the creature-size constants of ``scaling.scaled_params`` as Generate Locomotion
+uses them, no LOD), ``--steps`` frames of 1/24 s (default 120, no warm-up), mode "Wolves".
+
 The table gives the mean step time and its parts (maps = window grids, planning = the
 footprint planner, IK, rest = everything else in the controller) next to the thesis's
 figures (C++, four threads), then planner counts per step. Times are CPU seconds of this
@@ -33,12 +40,13 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import math
 import os
 import platform
 import pstats
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -49,12 +57,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from benchmarks.scenes import CrowdScene, make_crowd_scene, spawn_points
 from procloco_addon.core.locomotion import morphology
 from procloco_addon.core.locomotion.gait import find_gait_preset
+from procloco_addon.core.locomotion.scaling import scaled_params
 from procloco_addon.core.locomotion.sim import Controls, Simulation
+from procloco_addon.core.locomotion.spine import SpineParams
 from procloco_addon.core.locomotion.types import ControllerParams, PlannerLOD
 
 FloatArray = npt.NDArray[np.float64]
 
-THESIS = {"LOD": (0.029, 0.004, 0.013), "LOD zoomed": (0.032, 0.004, 0.006), "No LOD": (0.051, 0.004, 0.013)}
+THESIS = {"LOD": (0.029, 0.004, 0.013), "LOD zoomed": (0.032, 0.004, 0.006), "No LOD": (0.051, 0.004, 0.013),
+          "Wolves": (math.nan, math.nan, math.nan)}
+#: The Rigify wolf's mean leg length (m), as in the quality benchmark.
+WOLF_LEG = 0.73
 PHASES = ("maps", "planning", "ik", "rest")
 
 
@@ -132,8 +145,28 @@ def build(args: argparse.Namespace, mode: str) -> tuple[CrowdScene, Simulation]:
     return scene, sim
 
 
+def build_wolves(args: argparse.Namespace) -> tuple[CrowdScene, Simulation]:
+    """``args.chars`` wolves in one simulation on the crowd scene, with Generate's defaults
+    (spine, pelvis physics, creature-size constants), at 24 fps."""
+    scene = make_crowd_scene(seed=args.seed)
+    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1)
+    unit = morphology.quadruped(1.0, spine=True)
+    wolf = morphology.quadruped(WOLF_LEG / float(unit.leg_length.mean()), spine=True)
+    leg = float(wolf.leg_length.mean())
+    preset = find_gait_preset("quadruped_walk")
+    step_height = preset.step_height * leg
+    params, planner = scaled_params(leg, step_height)
+    params = replace(params, clock=time.process_time)
+    controls = Controls(speed=preset.speed * leg, heading=heading, step_height=step_height,
+                        pelvis_physics=True)
+    sim = Simulation(scene.env, [wolf] * args.chars, preset.gait(wolf.labels), start_xy=xy, start_yaw=heading,
+                     controls=controls, dt=1.0 / 24.0, phase="random", seed=args.seed, params=params,
+                     planner=[planner] * args.chars, spine=SpineParams())
+    return scene, sim
+
+
 def run_mode(args: argparse.Namespace, mode: str) -> ModeResult:
-    scene, sim = build(args, mode)
+    scene, sim = build_wolves(args) if mode == "Wolves" else build(args, mode)
     for _ in range(args.warmup):
         scene.advance(sim.dt)
         sim.step()
@@ -198,8 +231,9 @@ def main() -> None:
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("--chars", type=int, default=100)
-    parser.add_argument("--steps", type=int, default=60)
-    parser.add_argument("--warmup", type=int, default=15)
+    parser.add_argument("--steps", type=int, default=None, help="timed steps (default 60; --wolves: 120)")
+    parser.add_argument("--warmup", type=int, default=None,
+                        help="untimed steps first (default 15; --wolves: 0)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scale", type=float, default=2.0)
     parser.add_argument("--profile", action="store_true", help="print the hottest functions of each mode")
@@ -210,12 +244,22 @@ def main() -> None:
     parser.add_argument(
         "--modes", default="LOD,LOD zoomed,No LOD", help="comma-separated camera set-ups (default: all three)"
     )
+    parser.add_argument("--wolves", action="store_true",
+                        help="time a crowd of wolves in one simulation instead (mode 'Wolves')")
     args = parser.parse_args()
+    if args.steps is None:
+        args.steps = 120 if args.wolves else 60
+    if args.warmup is None:
+        args.warmup = 0 if args.wolves else 15
+    if args.wolves:
+        args.modes = "Wolves"
 
-    print(
-        f"crowd benchmark: {args.chars} spiders (scale {args.scale:g}), Table 3.1 scene, "
-        f"{args.steps} steps of 1/30 s after {args.warmup} warm-up steps"
-    )
+    if args.wolves:
+        who, rate = f"{args.chars} wolves (legs {WOLF_LEG} m)", "1/24"
+    else:
+        who, rate = f"{args.chars} spiders (scale {args.scale:g})", "1/30"
+    print(f"crowd benchmark: {who}, Table 3.1 scene, {args.steps} steps of {rate} s "
+          f"after {args.warmup} warm-up steps")
     print(
         f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}, numpy {np.__version__}, one process, one thread"
@@ -251,7 +295,7 @@ def main() -> None:
         )
     by = {r.name: r.step_s for r in results}
     print()
-    keys = {"LOD": "lod", "LOD zoomed": "zlod", "No LOD": "nolod"}
+    keys = {"LOD": "lod", "LOD zoomed": "zlod", "No LOD": "nolod", "Wolves": "wolves"}
     print("RESULT crowd " + " ".join(f"step_s_{keys[name]}={s:.4f}" for name, s in by.items()))
 
 
