@@ -970,7 +970,8 @@ class PathContext:
         waypoints = self.to_world(way_rc)
         spacing = self.params.sample_spacing * self.grids.cell
         # Drop coincident consecutive waypoints (the start on its own cell centre).
-        step = np.linalg.norm(np.diff(waypoints, axis=0), axis=1)
+        chords = waypoints[1:] - waypoints[:-1]
+        step = np.sqrt(np.add.reduce(chords * chords, axis=1))  # np.linalg.norm's arithmetic
         waypoints = waypoints[np.concatenate([[True], step > 1e-9])]
         if waypoints.shape[0] < 2:
             p = waypoints[:1]
@@ -1059,8 +1060,14 @@ def clearance_elevation(grids: WindowGrids, above: float) -> FloatArray:
 
 
 def _turning(samples: FloatArray) -> float:
-    """Total absolute heading change along a 2D polyline ``(m, 2)``, in radians."""
-    return turning_each(samples, [0, samples.shape[0]])[0]
+    """Total absolute heading change along a 2D polyline ``(m, 2)``, in radians:
+    :func:`turning_each` of one polyline (the same arithmetic without its bookkeeping)."""
+    d = samples[1:] - samples[:-1]
+    idx = np.flatnonzero(planar_length(d[:, 0], d[:, 1]) > 1e-9)
+    if idx.size < 2:
+        return 0.0
+    ang = np.arctan2(d[idx, 1], d[idx, 0])
+    return float(np.sum(np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)))
 
 
 def _in_place(start: FloatArray, target_z: float, ground: float, step_height: float) -> FootTrajectory:

@@ -632,7 +632,10 @@ class WindowGrids:
         """World xy of cell centres ``(..., 2)``."""
         r = np.asarray(rows, dtype=np.float64)
         c = np.asarray(cols, dtype=np.float64)
-        return np.stack([self.origin[0] + c * self.cell, self.origin[1] + r * self.cell], axis=-1)
+        out = np.empty((*np.broadcast_shapes(r.shape, c.shape), 2))
+        out[..., 0] = self.origin[0] + c * self.cell
+        out[..., 1] = self.origin[1] + r * self.cell
+        return out
 
     def inside(self, rc: IntArray) -> BoolArray:
         """Whether integer cells ``(..., 2)`` lie in the window."""
