@@ -190,41 +190,53 @@ def requests(
     ctl: StepControls, grids: dict[int, WindowGrids], params_of: ParamsOf, geometry_of: GeometryOf,
 ) -> tuple[list[FootRequest], list[tuple[int, int, int, FloatArray]]]:
     """One ``FootRequest`` per foot of ``land``, grouped by character, and for each its
-    ``(leg, row in land, character, hip at the stance reference (2,))``."""
+    ``(leg, row in land, character, hip at the stance reference (2,))``. The hips and feet
+    of every planned leg's character are found for all planned legs at once (pairs of a
+    planned leg and a leg of its character)."""
     legs_data = rig.legs
     legs, c_of = land.legs, land.chars
-    row_of = {int(leg): j for j, leg in enumerate(legs.tolist())}
-    hip_offset_xy = legs_data.hip_offset[:, :2]
+    m = legs.size
+    # the pairs (row j, leg of row j's character), row by row
+    first = legs_data.leg_start[c_of]
+    count = legs_data.leg_start[c_of + 1] - first
+    pair_row = np.repeat(np.arange(m), count)
+    bounds = np.concatenate([[0], np.cumsum(count)])
+    pair_leg = first[pair_row] + np.arange(pair_row.size) - bounds[:-1][pair_row]
+    # each character's hips at the row's stance reference, its other feet where they stand
+    # or where swinging ones will land
+    hips = land.pelvis_ref[pair_row] + rotate_xy(
+        legs_data.hip_offset[pair_leg, :2] - land.ref_rest[pair_row, :2],
+        (land.yaw_land - land.rest_yaw)[pair_row],
+    )
+    own = pair_leg == legs[pair_row]
+    other = np.flatnonzero(~own)
+    other_hips = hips[other]
+    other_feet = np.where(swinging[pair_leg[other], None], feet.plan.target[pair_leg[other], :2],
+                          feet.foot[pair_leg[other], :2])
+    own_row = np.flatnonzero(own).tolist()
+    cut = (bounds - np.arange(m + 1)).tolist()  # row j's other legs: other[cut[j]:cut[j + 1]]
+    step_heights = np.asarray(ctl.step_height, dtype=np.float64)[c_of].tolist()
+    yaw_land, hip_z = land.yaw_land.tolist(), land.hip_now[:, 2].tolist()
+    reach, sweep_half = land.reach.tolist(), land.sweep_half.tolist()
+    thickness = rig.body_thickness[c_of].tolist()
     out: list[FootRequest] = []
     rows_of: list[tuple[int, int, int, FloatArray]] = []
-    for c in np.unique(c_of).tolist():
-        sl = legs_data.leg_slice(c)
-        for leg in legs[c_of == c].tolist():
-            j = row_of[leg]
-            step_height = float(ctl.step_height[c])
-            # the hip may sink toward a footprint by as much as the reach guard lowers it; a
-            # foot stepping because it was left behind, by half of max_drop: it lands where it
-            # will not be left behind again at once
-            sink_share = p.guard_max_drop if not forced[leg] else 0.5 * p.max_drop
-            hips = land.pelvis_ref[j] + rotate_xy(
-                hip_offset_xy[sl] - land.ref_rest[j, :2],
-                np.full(sl.stop - sl.start, land.yaw_land[j] - land.rest_yaw[j]),
-            )
-            own = leg - sl.start
-            others = np.ones(sl.stop - sl.start, dtype=bool)
-            others[own] = False
-            other_idx = np.arange(sl.start, sl.stop)[others]
-            # other feet: where they stand, or where swinging ones will land
-            other_feet = np.where(
-                swinging[other_idx, None], feet.plan.target[other_idx, :2], feet.foot[other_idx, :2]
-            )
-            out.append(FootRequest(
-                grids[c], feet.foot[leg], land.preferred_xy[j], hips[own], hips[others], other_feet,
-                params_of(c, step_height), float(land.yaw_land[j]), float(land.hip_now[j, 2]),
-                geometry_of(leg, step_height), leg_reach=float(land.reach[j]),
-                reach_sweep=float(land.sweep_half[j]), reach_sink=sink_share * float(rig.body_thickness[c]),
-            ))
-            rows_of.append((leg, j, c, hips[own]))
+    legs_list, chars = legs.tolist(), c_of.tolist()
+    for j in np.argsort(c_of, kind="stable").tolist():
+        leg, c = legs_list[j], chars[j]
+        step_height = step_heights[j]
+        # the hip may sink toward a footprint by as much as the reach guard lowers it; a
+        # foot stepping because it was left behind, by half of max_drop: it lands where it
+        # will not be left behind again at once
+        sink_share = p.guard_max_drop if not forced[leg] else 0.5 * p.max_drop
+        hip_own = hips[own_row[j]]
+        out.append(FootRequest(
+            grids[c], feet.foot[leg], land.preferred_xy[j], hip_own, other_hips[cut[j]:cut[j + 1]],
+            other_feet[cut[j]:cut[j + 1]], params_of(c, step_height), yaw_land[j], hip_z[j],
+            geometry_of(leg, step_height), leg_reach=reach[j], reach_sweep=sweep_half[j],
+            reach_sink=sink_share * thickness[j],
+        ))
+        rows_of.append((leg, j, c, hip_own))
     return out, rows_of
 
 
