@@ -42,7 +42,7 @@ from .rig import Rig
 from .types import BoolArray, FloatArray, IntArray
 
 __all__ = ["HORIZON", "KEEP_OUT", "BodyBoxes", "body_boxes", "feet_in_bodies", "footprint_discs",
-           "inside_other", "mark_window", "steer"]
+           "inside_other", "mark_window", "neighbours", "steer"]
 
 #: Seconds ahead within which a possible contact steers a character.
 HORIZON = 3.0
@@ -191,6 +191,18 @@ def mark_window(grid: WindowGrids, boxes: BodyBoxes, owner: int, margin: float, 
                        grid.foot_half_extents, grid.foot_yaw)
 
 
+def neighbours(center: FloatArray, radius: FloatArray, reach: FloatArray, avoid: BoolArray) -> BoolArray:
+    """``(C, C)`` pairs ``[i, j]`` of characters ``i`` with ``avoid (C,)`` whose discs
+    (``center (C, 2)``, ``radius (C,)``, see ``footprint_discs``) are within ``reach[i]`` of
+    another's: the only ones whose bodies and feet ``i``'s feet check."""
+    d = center[:, None, :] - center[None, :, :]
+    dist2 = np.einsum("ijd,ijd->ij", d, d)
+    lim = radius[:, None] + reach[:, None] + radius[None, :]
+    near = (dist2 < lim * lim) & avoid[:, None]
+    np.fill_diagonal(near, False)
+    return np.asarray(near)
+
+
 def footprint_discs(rig: Rig) -> tuple[FloatArray, FloatArray]:
     """Each character's steering disc: its centre in the body frame ``(C, 2)`` (the middle of
     its rest feet and body box) and radius ``(C,)`` (reaching every rest foot's box and the
@@ -254,8 +266,9 @@ def steer(
         tc = np.where((b > 0.0) & (disc >= 0.0), root, np.inf)
     # already touching: any candidate still closing in is a contact now
     tc = np.where(cc < 0.0, np.where(b > 0.0, 0.0, np.inf), tc)
-    first = np.full((c, cand.shape[1]), np.inf)
-    np.minimum.at(first, ii, tc)
+    # per character (np.nonzero gives the pairs sorted by ii): the first contact over its pairs
+    rows, starts = np.unique(ii, return_index=True)
+    first = np.minimum.reduceat(tc, starts, axis=0)
     # keep right: a candidate passing close to a neighbour (within _SIDE_CLOSE of the
     # contact distance, before HORIZON) with the neighbour on its right costs more; the rule
     # is the same seen from both, so two characters agree on how they pass
@@ -263,12 +276,10 @@ def steer(
     d2_close = cc + big_r ** 2 - b * t_close
     close = (b > 0.0) & (t_close < HORIZON) & (d2_close < (_SIDE_CLOSE * big_r) ** 2)
     wrong = close & (u[..., 0] * p[..., 1] - u[..., 1] * p[..., 0] < 0.0)
-    side = np.zeros((c, cand.shape[1]))
-    np.maximum.at(side, ii, wrong.astype(np.float64))
-    rows = np.unique(ii)
+    side = np.logical_or.reduceat(wrong, starts, axis=0)
     w = _W_CONTACT * speed[rows, None]
-    contact = w * np.maximum(1.0 / np.maximum(first[rows], 1e-3) - 1.0 / HORIZON, 0.0)
-    contact = contact + _W_SIDE * speed[rows, None] * side[rows]
+    contact = w * np.maximum(1.0 / np.maximum(first, 1e-3) - 1.0 / HORIZON, 0.0)
+    contact = contact + _W_SIDE * speed[rows, None] * side
     pref = np.stack([np.cos(heading[rows]), np.sin(heading[rows])], axis=-1) * speed[rows, None]
     cost = contact + np.linalg.norm(cand[rows] - pref[:, None, :], axis=-1)
     if last is not None:

@@ -429,7 +429,6 @@ class Simulation:
             spine=[spine] * c if isinstance(spine, SpineParams) else spine,
             avoid=avoid,
         )
-        self._disc_center, self._disc_radius = crowd.footprint_discs(self.controller.rig)
         self._steered: FloatArray | None = None
         self.time = 0.0
         self._n_steps = 0
@@ -575,14 +574,9 @@ class Simulation:
         """The commanded headings and speeds of characters that avoid the others, steered
         around them (``crowd.steer``; the user's commands stay the preferred ones)."""
         ctrl = self.controller
-        yaw = ctrl.yaw
-        cos, sin = np.cos(yaw), np.sin(yaw)
-        dc = self._disc_center
-        turned = np.stack([cos * dc[:, 0] - sin * dc[:, 1], sin * dc[:, 0] + cos * dc[:, 1]], axis=1)
-        center = ctrl.pos[:, :2] + turned
-        velocity = self._speed[:, None] * np.stack([cos, sin], axis=1)
-        heading, speed = crowd.steer(center, self._disc_radius, velocity, step_ctl.heading, step_ctl.speed,
-                                     ctrl.avoid, self._steered)
+        velocity = self._speed[:, None] * np.stack([np.cos(ctrl.yaw), np.sin(ctrl.yaw)], axis=1)
+        heading, speed = crowd.steer(ctrl.disc_centers(), ctrl.discs[1], velocity, step_ctl.heading,
+                                     step_ctl.speed, ctrl.avoid, self._steered)
         self._steered = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
         return replace(step_ctl, heading=heading, speed=speed)
 
