@@ -153,6 +153,7 @@ class Controller:
         self.discs: tuple[FloatArray, FloatArray] = crowd.footprint_discs(self.rig)
         self._near = np.zeros((c, c), dtype=bool)  # crowd.neighbours of this step
         self._crowded = np.zeros(c, dtype=bool)  # characters with a neighbour
+        self._was_near = [np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)]  # (_crowd_near)
         self._planner_override = list(planner) if planner is not None else [None] * c
         # the planner's settings per character and geometry per leg, made once (planner_params,
         # leg_geometry)
@@ -504,16 +505,22 @@ class Controller:
         self._crowded = self._near.any(axis=1)
         if not self._crowded.any():
             self.bodies = None  # nobody near anybody: nothing to check this step
+            for was in self._was_near:
+                was[:] = False
 
-    def _crowd_near(self, points: FloatArray, which: BoolArray) -> BoolArray:
+    def _crowd_near(self, points: FloatArray, which: BoolArray, kind: int) -> BoolArray:
         """``(N,)`` feet ``which`` of characters that avoid the others whose ``points (N, 3)``
-        another character's body covers or is within half ``crowd.KEEP_OUT`` of."""
-        out = np.zeros(self.n_legs, dtype=bool)
+        another character's body has come within half ``crowd.KEEP_OUT`` of since the last
+        look of this ``kind`` (0: planted feet, 1: landing spots): once per approach, so a
+        foot that cannot get away does not try again at every step."""
+        near = np.zeros(self.n_legs, dtype=bool)
         legs = np.flatnonzero(which & self._crowded[self.leg_char])
         if legs.size and self.bodies is not None:
-            out[legs] = crowd.inside_other(self.bodies, points[legs, :2], self.leg_char[legs],
-                                           0.5 * crowd.KEEP_OUT * self.legs.leg_length[legs])
-        return out
+            near[legs] = crowd.inside_other(self.bodies, points[legs, :2], self.leg_char[legs],
+                                            0.5 * crowd.KEEP_OUT * self.legs.leg_length[legs])
+        was = self._was_near[kind]
+        self._was_near[kind] = near
+        return np.asarray(near & ~was)
 
     def _crowd_windows(self, grids: dict[int, WindowGrids]) -> dict[int, WindowGrids]:
         """The planning windows of characters that avoid the others with the other bodies

@@ -41,11 +41,13 @@ from ..world.terrain import WindowGrids
 from .rig import Rig
 from .types import BoolArray, FloatArray, IntArray
 
-__all__ = ["HORIZON", "KEEP_OUT", "BodyBoxes", "body_boxes", "feet_in_bodies", "footprint_discs",
-           "inside_other", "mark_window", "neighbours", "steer"]
+__all__ = ["HORIZON", "KEEP_OUT", "MAX_NEIGHBOURS", "BodyBoxes", "body_boxes", "feet_in_bodies",
+           "footprint_discs", "inside_other", "mark_window", "neighbours", "steer"]
 
 #: Seconds ahead within which a possible contact steers a character.
 HORIZON = 3.0
+#: Neighbours (the nearest) a character steers around at once.
+MAX_NEIGHBOURS = 8
 #: Margin around another body's box kept free of footprints, in leg lengths.
 KEEP_OUT = 0.1
 #: Heading offsets tried (radians), the straight one first, then right before left.
@@ -244,6 +246,13 @@ def steer(
     dist = np.hypot(d[..., 0], d[..., 1])
     near = (dist < reach) & avoid[:, None] & (speed > 0.0)[:, None]
     np.fill_diagonal(near, False)
+    if c > MAX_NEIGHBOURS + 1:
+        # the nearest few only (van den Berg et al. also bound the neighbours considered)
+        gap = np.where(near, dist - radius[None, :], np.inf)
+        keep = np.argpartition(gap, MAX_NEIGHBOURS, axis=1)[:, :MAX_NEIGHBOURS]
+        nearest = np.zeros_like(near)
+        np.put_along_axis(nearest, keep, True, axis=1)
+        near &= nearest
     ii, jj = np.nonzero(near)
     if ii.size == 0:
         return out_h, out_v
