@@ -9,9 +9,9 @@ For a character that avoids the others:
   along a flexible spine, one box per spine bone) is an obstacle for its feet: the cells
   under it (and ``KEEP_OUT`` leg lengths around it) are avoided cells of the planning window,
   so no footprint is planned inside it; a swinging foot whose landing spot another body now
-  covers re-plans, and a planted foot that another body comes within the watch distance of
-  steps away (a forced step, as for a moving crate). A character's own body never forbids
-  its own feet (every box has an owner).
+  covers re-plans, and a planted foot that another body comes within half ``KEEP_OUT`` of
+  steps away (a forced step, as for a moving crate; once per approach). A character's own
+  body never forbids its own feet (every box has an owner).
 - **Feet.** Another character's planted feet and the landing spots of its swinging ones are
   avoided discs (its sole's half size) in the window: feet never land on each other.
 - **Steering.** Before the controller plans, the commanded heading (and, if no heading
@@ -21,14 +21,18 @@ For a character that avoids the others:
   around the preferred one are scored by ``w / tc + |v_pref - v|`` (``tc``: time to the
   first contact with any neighbour if it took the candidate and the neighbour kept half the
   avoiding effort, ``2 v - v_i - v_j``; a neighbour that does not avoid is a plain velocity
-  obstacle, ``v - v_j``) and the best is taken. Candidates are tried in a fixed order (the
+  obstacle, ``v - v_j``) and the best is taken, over the ``MAX_NEIGHBOURS`` nearest. A
+  candidate that would pass close to a neighbour with the neighbour on its right costs more
+  (keep right: the rule reads the same from both, so two characters agree on the side they
+  pass; crossing paths, one of them gives way). Candidates are tried in a fixed order (the
   straight one first, then right before left), so the result is deterministic and two
   characters meeting head-on both keep right. The preferred heading and speed stay the
   user's (a path's follower aims from where the character is), so the original heading is
   resumed once nothing is in the way.
 
 Cost: one ``(C, C)`` distance matrix per step, then only the pairs close enough to meet
-within ``HORIZON`` seconds are scored (vectorised over pairs and candidates).
+within ``HORIZON`` seconds are scored (vectorised over pairs and candidates); the body and
+feet checks run only for characters with a neighbour within a leg (``neighbours``).
 """
 
 from __future__ import annotations
