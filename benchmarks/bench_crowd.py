@@ -3,6 +3,7 @@
 
     python benchmarks/bench_crowd.py [--chars 100] [--steps 60] [--warmup 15] [--seed 0]
                                      [--scale 2.0] [--profile] [--modes LOD,...]
+                                     [--avoid] [--spread 0.8]
     python benchmarks/bench_crowd.py --wolves [--chars 100] [--steps 120] [--warmup 0]
 
 The scene (benchmarks/scenes.py): a 100 m heightmap with 3000 crates, 40 % of them moving;
@@ -26,7 +27,8 @@ Three camera set-ups, as in thesis §3.7 and Table 3.1:
 benchmark's wolf, ``morphology.quadruped(spine=True)`` scaled to the Rigify wolf's 0.73 m
 legs, the quadruped walk at the preset's speed and step height, the flexible spine, pelvis
 physics, the creature-size constants of ``scaling.scaled_params`` as Generate Locomotion
-uses them, no LOD), ``--steps`` frames of 1/24 s (default 120, no warm-up), mode "Wolves".
+uses them, no LOD), ``--steps`` frames of 1/24 s (default 120, no warm-up), mode "Wolves";
+``--avoid`` and ``--spread`` as for the spiders.
 
 The table gives the mean step time and its parts (maps = window grids, planning = the
 footprint planner, IK, rest = everything else in the controller) next to the thesis's
@@ -34,6 +36,10 @@ figures (C++, four threads), then planner counts per step. Times are CPU seconds
 single-threaded process (``time.process_time``), so that other jobs on a shared machine do
 not inflate them; the wall time is printed beside them. The last line is
 ``RESULT crowd step_s_lod=<s> step_s_zlod=<s> step_s_nolod=<s>``.
+
+``--avoid``: the spiders see each other (``Simulation(avoid=...)``: bodies and feet as
+obstacles, steering); ``--spread``: the share of the world they start in (0.8; 0.1 packs
+the 100 spiders into 10 m × 10 m, where they meet all the time).
 """
 
 from __future__ import annotations
@@ -124,7 +130,7 @@ def camera_setup(mode: str, xy: FloatArray) -> tuple[list[PlannerLOD], npt.NDArr
 
 def build(args: argparse.Namespace, mode: str) -> tuple[CrowdScene, Simulation]:
     scene = make_crowd_scene(seed=args.seed)
-    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1)
+    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1, spread=args.spread)
     spider = morphology.spider(args.scale)
     gait = find_gait_preset("octopod_alternating_tetrapod").gait(spider.labels)
     gait = gait.with_cycle_time(0.7 * float(np.sqrt(args.scale)))
@@ -141,6 +147,7 @@ def build(args: argparse.Namespace, mode: str) -> tuple[CrowdScene, Simulation]:
         seed=args.seed,
         params=ControllerParams(window_cells=70, window_cell=0.07, clock=time.process_time),
         lod=lod,
+        avoid=[True] * args.chars if args.avoid else None,
     )
     return scene, sim
 
@@ -149,7 +156,7 @@ def build_wolves(args: argparse.Namespace) -> tuple[CrowdScene, Simulation]:
     """``args.chars`` wolves in one simulation on the crowd scene, with Generate's defaults
     (spine, pelvis physics, creature-size constants), at 24 fps."""
     scene = make_crowd_scene(seed=args.seed)
-    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1)
+    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1, spread=args.spread)
     unit = morphology.quadruped(1.0, spine=True)
     wolf = morphology.quadruped(WOLF_LEG / float(unit.leg_length.mean()), spine=True)
     leg = float(wolf.leg_length.mean())
@@ -161,7 +168,8 @@ def build_wolves(args: argparse.Namespace) -> tuple[CrowdScene, Simulation]:
                         pelvis_physics=True)
     sim = Simulation(scene.env, [wolf] * args.chars, preset.gait(wolf.labels), start_xy=xy, start_yaw=heading,
                      controls=controls, dt=1.0 / 24.0, phase="random", seed=args.seed, params=params,
-                     planner=[planner] * args.chars, spine=SpineParams())
+                     planner=[planner] * args.chars, spine=SpineParams(),
+                     avoid=[True] * args.chars if args.avoid else None)
     return scene, sim
 
 
@@ -236,6 +244,8 @@ def main() -> None:
                         help="untimed steps first (default 15; --wolves: 0)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scale", type=float, default=2.0)
+    parser.add_argument("--avoid", action="store_true", help="the characters see each other")
+    parser.add_argument("--spread", type=float, default=0.8, help="share of the world they start in")
     parser.add_argument("--profile", action="store_true", help="print the hottest functions of each mode")
     parser.add_argument(
         "--profile-out", default="", help="with --profile: also save each mode's stats to PREFIX.<mode>.prof"
