@@ -50,6 +50,7 @@ __all__ = [
     "basis_from_armature",
     "evaluate_pose",
     "evaluate_pose_steps",
+    "evaluate_poses_steps",
     "object_moves",
     "object_worlds",
     "write_pose",
@@ -173,18 +174,48 @@ def object_worlds(obj: bpy.types.Object, frames: np.ndarray) -> np.ndarray:
 
 def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
                          world: bool = False) -> Generator[float, None, np.ndarray]:
-    all_names = [pb.name for pb in obj.pose.bones]
-    index = np.array([all_names.index(n) for n in names], dtype=np.int64)
-    buf = np.empty(len(all_names) * 16, dtype=np.float32)
-    out = np.empty((len(frames), len(names), 4, 4))
-    for f in _frame_loop([int(x) for x in frames]):
-        ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        ev.pose.bones.foreach_get("matrix", buf)
-        out[f] = buf.reshape(-1, 4, 4).transpose(0, 2, 1)[index]
-        if world:
-            out[f] = np.array(ev.matrix_world, dtype=np.float64) @ out[f]
-        if f % _FRAMES_PER_STEP == _FRAMES_PER_STEP - 1:
-            yield (f + 1) / len(frames)
+    return (yield from evaluate_poses_steps([obj], [frames], [names], world))[0]
+
+
+def evaluate_poses_steps(objs: Sequence[bpy.types.Object], frames: Sequence[np.ndarray],
+                         names: Sequence[Sequence[str]],
+                         world: bool = False) -> Generator[float, None, list[np.ndarray]]:
+    """Per object ``objs[k]`` its bones ``names[k]``' evaluated pose matrices
+    ``(F_k, n_k, 4, 4)`` at its ``frames[k]``, the scene set to each frame of their union
+    once for all of them (a frame change evaluates every animated object of the scene, so
+    one pass for all rigs instead of one per rig). ``world``: world matrices (the evaluated
+    object's world matrix at each frame applied) instead of armature-space ones. Yields the
+    fraction done."""
+    index = []
+    bufs = []
+    for obj, want in zip(objs, names, strict=True):
+        all_names = [pb.name for pb in obj.pose.bones]
+        where = {n: i for i, n in enumerate(all_names)}
+        index.append(np.array([where[n] for n in want], dtype=np.int64))
+        bufs.append(np.empty(len(all_names) * 16, dtype=np.float32))
+    out = [np.empty((len(f), len(want), 4, 4)) for f, want in zip(frames, names, strict=True)]
+    wanted = [np.asarray(f, dtype=np.int64) for f in frames]
+    union = np.unique(np.concatenate(wanted)) if wanted else np.zeros(0, dtype=np.int64)
+    # per object, the row of each frame of the union it has (-1: not one of its frames)
+    rows = []
+    for f in wanted:
+        row = np.full(len(union), -1, dtype=np.int64)
+        row[np.searchsorted(union, f)] = np.arange(len(f))
+        rows.append(row)
+    step = max(_FRAMES_PER_STEP // max(len(objs), 1), 1)
+    for u in _frame_loop([int(x) for x in union]):
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        for k, obj in enumerate(objs):
+            at = int(rows[k][u])
+            if at < 0:
+                continue
+            ev = obj.evaluated_get(depsgraph)
+            ev.pose.bones.foreach_get("matrix", bufs[k])
+            out[k][at] = bufs[k].reshape(-1, 4, 4).transpose(0, 2, 1)[index[k]]
+            if world:
+                out[k][at] = np.array(ev.matrix_world, dtype=np.float64) @ out[k][at]
+        if u % step == step - 1:
+            yield (u + 1) / len(union)
     return out
 
 
