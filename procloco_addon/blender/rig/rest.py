@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,6 +39,9 @@ class _Rest:
     # (B,) bool: leaf bones an FBX exporter added at its parent's tail (``<parent>_end``):
     # they mark a tail, not a joint, and are left out of the rig's geometry.
     phantom: np.ndarray = None  # type: ignore[assignment]
+    # Each bone's children (not phantom), made on first use: detection asks for them
+    # hundreds of times per bone.
+    _kids: list[list[int]] | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.phantom is None:
@@ -61,7 +64,15 @@ class _Rest:
             object.__setattr__(self, "tails_meaningful", meaningful)
 
     def children(self, i: int) -> list[int]:
-        return [int(c) for c in np.flatnonzero((self.parent == i) & ~self.phantom)]
+        """Bone ``i``'s children in bone order (a new list: callers may change it)."""
+        if self._kids is None:
+            kids: list[list[int]] = [[] for _ in self.names]
+            for c, p in enumerate(self.parent.tolist()):
+                if p >= 0 and not self.phantom[c]:
+                    kids[p].append(c)
+            object.__setattr__(self, "_kids", kids)
+            return list(kids[i])
+        return list(self._kids[i])
 
     def ancestors(self, i: int) -> list[int]:
         return _ancestors_of(self.parent, i)
