@@ -104,24 +104,28 @@ COLUMNS = ("read", "terrain", "simulate", "write", "quality", "other")
 
 
 def _timed(fn: Callable[..., Any], stage: str, spent: dict[str, float]) -> Callable[..., Any]:
-    """``fn`` adding its time to ``spent[stage]``; a generator's time is its steps' (the time
-    its caller spends between them is not counted)."""
+    """``fn`` adding its wall and CPU time to ``spent[stage]`` and ``spent[stage + "_cpu"]``; a
+    generator's time is its steps' (the time its caller spends between them is not counted)."""
+
+    def add(t0: float, c0: float) -> None:
+        spent[stage] += time.perf_counter() - t0
+        spent[stage + "_cpu"] += time.process_time() - c0
 
     def steps(gen: Generator[Any, Any, Any]) -> Generator[Any, Any, Any]:
         while True:
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             try:
                 value = next(gen)
             except StopIteration as done:
-                spent[stage] += time.perf_counter() - t0
+                add(t0, c0)
                 return done.value
-            spent[stage] += time.perf_counter() - t0
+            add(t0, c0)
             yield value
 
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         out = fn(*args, **kwargs)
-        spent[stage] += time.perf_counter() - t0
+        add(t0, c0)
         return steps(out) if isinstance(out, Generator) else out
 
     return wrapper
@@ -132,7 +136,7 @@ def run(count: int, n_frames: int) -> dict[str, float]:
     import importlib
 
     wolves = build_scene(count, n_frames)
-    spent = dict.fromkeys(COLUMNS, 0.0)
+    spent = dict.fromkeys([*COLUMNS, *(c + "_cpu" for c in COLUMNS)], 0.0)
     patched = []
     for stage, module_name, name in STAGES:
         module = importlib.import_module(module_name)
@@ -148,19 +152,24 @@ def run(count: int, n_frames: int) -> dict[str, float]:
         for module, name, fn in patched:
             setattr(module, name, fn)
     assert all(w.animation_data is not None and w.animation_data.action is not None for w in wolves)
-    spent["write"] -= spent["quality"]  # (measured inside write_all_steps)
-    spent["other"] = total - sum(spent[c] for c in COLUMNS if c != "other")
+    for cpu_ in ("", "_cpu"):
+        spent["write" + cpu_] -= spent["quality" + cpu_]  # (measured inside write_all_steps)
+        staged = sum(spent[c + cpu_] for c in COLUMNS if c != "other")
+        spent["other" + cpu_] = (cpu if cpu_ else total) - staged
     return {"total": total, "cpu": cpu, **spent}
 
 
 def table(rows: dict[int, dict[str, float]]) -> None:
+    """Wall seconds, then CPU seconds (steadier on a shared machine), stage by stage."""
     first = min(rows)
-    one = rows[first]["total"] / first
-    print(f"{'rigs':>6} {'total s':>9} {'CPU s':>8} {'per rig s':>10} {'x one':>7} | "
-          + " ".join(f"{c + ' s':>10}" for c in COLUMNS))
-    for count, r in rows.items():
-        print(f"{count:>6} {r['total']:>9.2f} {r['cpu']:>8.2f} {r['total'] / count:>10.3f} "
-              f"{r['total'] / one:>7.1f} | " + " ".join(f"{r[c]:>10.2f}" for c in COLUMNS))
+    for key, what in (("total", "wall"), ("cpu", "CPU")):
+        cpu_ = "_cpu" if key == "cpu" else ""
+        one = rows[first][key] / first
+        print(f"{'rigs':>6} {what + ' s':>9} {'per rig s':>10} {'x one':>7} | "
+              + " ".join(f"{c + ' s':>10}" for c in COLUMNS))
+        for count, r in rows.items():
+            print(f"{count:>6} {r[key]:>9.2f} {r[key] / count:>10.3f} {r[key] / one:>7.1f} | "
+                  + " ".join(f"{r[c + cpu_]:>10.2f}" for c in COLUMNS))
 
 
 def _in_process(code_root: Path, count: int, n_frames: int) -> dict[str, float]:
@@ -197,12 +206,14 @@ def compare(rev: str, counts: list[int], n_frames: int) -> dict[int, dict[str, f
     table(base)
     print("this checkout:")
     table(this)
-    print("baseline / this (times faster):")
-    print(f"{'rigs':>6} {'total':>9} {'CPU':>8} | " + " ".join(f"{c:>10}" for c in COLUMNS))
-    for count in counts:
-        b, t = base[count], this[count]
-        print(f"{count:>6} {b['total'] / t['total']:>9.2f} {b['cpu'] / t['cpu']:>8.2f} | "
-              + " ".join(f"{b[c] / t[c]:>10.2f}" if t[c] > 1e-3 else f"{'-':>10}" for c in COLUMNS))
+    print("baseline / this (times faster), wall then CPU:")
+    for key, cpu_ in (("total", ""), ("cpu", "_cpu")):
+        print(f"{'rigs':>6} {key:>9} | " + " ".join(f"{c:>10}" for c in COLUMNS))
+        for count in counts:
+            b, t = base[count], this[count]
+            print(f"{count:>6} {b[key] / t[key]:>9.2f} | "
+                  + " ".join(f"{b[c + cpu_] / t[c + cpu_]:>10.2f}" if t[c + cpu_] > 1e-3 else f"{'-':>10}"
+                             for c in COLUMNS))
     return this
 
 
