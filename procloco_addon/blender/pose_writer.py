@@ -41,6 +41,7 @@ import numpy as np
 from ..core.steps import run_steps, scaled_steps
 from . import actions
 from .rig.controls import ControlKey, ControlPlan, Switch
+from .rig.rest import affine_inverse, affine_inverses
 
 __all__ = [
     "PoseRequest",
@@ -247,6 +248,7 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
     index = {b: i for i, b in enumerate(req.bones)}
     n_frames = armature.shape[0]
     cache: dict[str, np.ndarray] = {}
+    inv_rest = affine_inverses(req.rest_local)
 
     def pose(name: str) -> np.ndarray:
         if name in index:
@@ -259,7 +261,7 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
             if parent is None:
                 above: np.ndarray = np.eye(4)[None]
             else:
-                above = pose(parent) @ np.linalg.inv(req.rest_local[parent])
+                above = pose(parent) @ inv_rest[parent]
             cache[name] = np.broadcast_to(above @ (rest @ req.basis[name])[None], (n_frames, 4, 4))
         return cache[name]
 
@@ -270,8 +272,8 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
         if parent is None:
             base = np.broadcast_to(rest, (n_frames, 4, 4))
         else:
-            base = pose(parent) @ (np.linalg.inv(req.rest_local[parent]) @ rest)[None]
-        out[:, j] = np.linalg.inv(base) @ armature[:, index[name]]
+            base = pose(parent) @ (inv_rest[parent] @ rest)[None]
+        out[:, j] = affine_inverse(base) @ armature[:, index[name]]
     return out
 
 
@@ -300,6 +302,7 @@ def armature_from_basis(
     keyed = np.asarray(keyed_location, dtype=bool)[None, :, None]
     own[..., :3, 3] = np.where(keyed, locations, current[None])
     cache: dict[str, np.ndarray] = {}
+    inv_rest = affine_inverses(rest_local)
 
     def pose(name: str) -> np.ndarray:
         if name not in cache:
@@ -309,7 +312,7 @@ def armature_from_basis(
             if parent is None:
                 cache[name] = rest[None] @ b
             else:
-                cache[name] = pose(parent) @ (np.linalg.inv(rest_local[parent]) @ rest)[None] @ b
+                cache[name] = pose(parent) @ (inv_rest[parent] @ rest)[None] @ b
         return cache[name]
 
     return np.stack([np.broadcast_to(pose(b), (n_frames, 4, 4)) for b in bones], axis=1)
@@ -409,7 +412,7 @@ def write_pose_steps(
     if not req.per_frame and object_moves(obj):
         worlds = yield from scaled_steps(_object_worlds_steps(obj, req.frames), 0.0, 0.1)
         # The plan is in the world: carry it into each frame's armature space.
-        armature = (np.linalg.inv(worlds) @ req.world0[None])[:, None] @ armature
+        armature = (affine_inverse(worlds) @ req.world0[None])[:, None] @ armature
     index = {b: i for i, b in enumerate(req.bones)}
     direct = [b for b in req.bones if b in plan.direct]
     controls = list(plan.controls)
@@ -488,7 +491,7 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             m = ev[:, col[c.bone]]
             want = m.copy()
             if c.mode == "RIGID":  # carried rigidly with its anchor
-                want = armature[:, index[c.anchor]] @ np.linalg.inv(ev[:, col[c.anchor]]) @ m
+                want = armature[:, index[c.anchor]] @ affine_inverse(ev[:, col[c.anchor]]) @ m
             elif c.mode == "MOVE":  # moved by its anchor's head error; its turn is another's
                 want[:, :3, 3] += armature[:, index[c.anchor], :3, 3] - ev[:, col[c.anchor], :3, 3]
             elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
@@ -512,8 +515,8 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                 turned_pole = _turn_about(frame_w[..., 0], pole_turn[c.bone], pole - joints[:, 0])
                 want[:, :3, 3] = joints[:, 0] + turned_pole
             # The control's matrix is (what its parent and constraints give) @ basis.
-            base = m @ np.linalg.inv(basis[:, j])
-            basis[:, j] = np.linalg.inv(base) @ want
+            base = m @ affine_inverse(basis[:, j])
+            basis[:, j] = affine_inverse(base) @ want
 
 
 def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature: np.ndarray,

@@ -257,6 +257,38 @@ def _apply(m: np.ndarray, p: np.ndarray) -> np.ndarray:
     return p @ m[:3, :3].T + m[:3, 3]
 
 
+def affine_inverse(m: np.ndarray) -> np.ndarray:
+    """Inverses of affine 4x4 matrices ``(..., 4, 4)`` (last row ``0 0 0 1``: bone and object
+    matrices), element-wise. ``np.linalg.inv`` makes one LAPACK call per matrix, which costs
+    far more than the arithmetic for 4x4 matrices (and much more again when its threads wait
+    on a busy machine); the pose of a rig over its frames inverts thousands of them."""
+    m = np.asarray(m, dtype=np.float64)
+    a, b, c = m[..., :3, 0], m[..., :3, 1], m[..., :3, 2]  # the 3x3 part's columns
+    # The inverse's rows are the cross products of the columns over the determinant.
+    rows = np.stack([_cross(b, c), _cross(c, a), _cross(a, b)], axis=-2)
+    det = np.sum(a * rows[..., 0, :], axis=-1)
+    out = np.zeros(m.shape)
+    out[..., :3, :3] = rows / det[..., None, None]
+    t = m[..., :3, 3]
+    out[..., :3, 3] = -np.sum(out[..., :3, :3] * t[..., None, :], axis=-1)
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def affine_inverses(mats: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """:func:`affine_inverse` of every matrix of ``mats`` (bone name -> ``(4, 4)``), in one call."""
+    if not mats:
+        return {}
+    return dict(zip(mats, affine_inverse(np.stack(list(mats.values()))), strict=True))
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Cross products of ``(..., 3)`` vectors, written out (``np.cross`` is slower on small arrays)."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
+
+
 def _length(points: np.ndarray) -> float:
     return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 
