@@ -88,14 +88,16 @@ def build_scene(count: int, n_frames: int) -> list[bpy.types.Object]:
 
 
 #: The stages of the breakdown: (stage, module, function) wrapped with a timer for the
-#: operator's run (those a revision does not have are skipped). ``write`` is timed around
+#: operator's run (those a revision does not have are skipped; a stage's function called
+#: inside another of the same stage is counted once). ``write`` is timed around
 #: ``write_all_steps``, which also measures: its ``quality`` share is taken out of it.
 STAGES = (
     ("read", "procloco_addon.blender.locomotion.generate", "read"),
+    ("read", "procloco_addon.blender.locomotion.crowd", "read_all"),
     ("terrain", "procloco_addon.blender.locomotion.generate", "read_terrain"),
-    ("terrain", "procloco_addon.blender.locomotion.generate", "read_terrains"),
+    ("terrain", "procloco_addon.blender.locomotion.crowd", "read_terrain"),
     ("simulate", "procloco_addon.blender.locomotion.generate", "simulate"),
-    ("simulate", "procloco_addon.blender.locomotion.generate", "simulate_all"),
+    ("simulate", "procloco_addon.blender.locomotion.crowd", "simulate"),
     ("write", "procloco_addon.blender.locomotion.generate", "write_all_steps"),
     ("quality", "procloco_addon.blender.quality.measure", "measure_steps"),
     ("quality", "procloco_addon.blender.quality.measure", "measure_all_steps"),
@@ -103,29 +105,33 @@ STAGES = (
 COLUMNS = ("read", "terrain", "simulate", "write", "quality", "other")
 
 
-def _timed(fn: Callable[..., Any], stage: str, spent: dict[str, float]) -> Callable[..., Any]:
-    """``fn`` adding its wall and CPU time to ``spent[stage]`` and ``spent[stage + "_cpu"]``; a
-    generator's time is its steps' (the time its caller spends between them is not counted)."""
+def _timed(fn: Callable[..., Any], stage: str, spent: dict[str, float],
+           depth: dict[str, int]) -> Callable[..., Any]:
+    """``fn`` adding its wall and CPU time to ``spent[stage]`` and ``spent[stage + "_cpu"]``
+    (unless it runs inside another timed function of its stage: ``depth``); a generator's
+    time is its steps' (the time its caller spends between them is not counted)."""
 
-    def add(t0: float, c0: float) -> None:
-        spent[stage] += time.perf_counter() - t0
-        spent[stage + "_cpu"] += time.process_time() - c0
+    def timed_call(call: Callable[[], Any]) -> Any:
+        t0, c0 = time.perf_counter(), time.process_time()
+        depth[stage] = depth.get(stage, 0) + 1
+        try:
+            return call()
+        finally:
+            depth[stage] -= 1
+            if not depth[stage]:
+                spent[stage] += time.perf_counter() - t0
+                spent[stage + "_cpu"] += time.process_time() - c0
 
     def steps(gen: Generator[Any, Any, Any]) -> Generator[Any, Any, Any]:
         while True:
-            t0, c0 = time.perf_counter(), time.process_time()
             try:
-                value = next(gen)
+                value = timed_call(lambda: next(gen))
             except StopIteration as done:
-                add(t0, c0)
                 return done.value
-            add(t0, c0)
             yield value
 
     def wrapper(*args: Any, **kwargs: Any) -> Any:
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn(*args, **kwargs)
-        add(t0, c0)
+        out = timed_call(lambda: fn(*args, **kwargs))
         return steps(out) if isinstance(out, Generator) else out
 
     return wrapper
@@ -138,12 +144,16 @@ def run(count: int, n_frames: int) -> dict[str, float]:
     wolves = build_scene(count, n_frames)
     spent = dict.fromkeys([*COLUMNS, *(c + "_cpu" for c in COLUMNS)], 0.0)
     patched = []
+    depth: dict[str, int] = {}
     for stage, module_name, name in STAGES:
-        module = importlib.import_module(module_name)
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError:
+            continue
         fn = getattr(module, name, None)
         if fn is not None:
             patched.append((module, name, fn))
-            setattr(module, name, _timed(fn, stage, spent))
+            setattr(module, name, _timed(fn, stage, spent, depth))
     try:
         t0, c0 = time.perf_counter(), time.process_time()
         assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
