@@ -41,6 +41,7 @@ import numpy as np
 from ..core.steps import run_steps, scaled_steps
 from . import actions
 from .rig.controls import ControlKey, ControlPlan, Switch
+from .rig.rest import affine_inverse, affine_inverses
 
 __all__ = [
     "PoseRequest",
@@ -50,6 +51,7 @@ __all__ = [
     "basis_from_armature",
     "evaluate_pose",
     "evaluate_pose_steps",
+    "evaluate_poses_steps",
     "object_moves",
     "object_worlds",
     "write_pose",
@@ -173,18 +175,48 @@ def object_worlds(obj: bpy.types.Object, frames: np.ndarray) -> np.ndarray:
 
 def _evaluate_pose_steps(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
                          world: bool = False) -> Generator[float, None, np.ndarray]:
-    all_names = [pb.name for pb in obj.pose.bones]
-    index = np.array([all_names.index(n) for n in names], dtype=np.int64)
-    buf = np.empty(len(all_names) * 16, dtype=np.float32)
-    out = np.empty((len(frames), len(names), 4, 4))
-    for f in _frame_loop([int(x) for x in frames]):
-        ev = obj.evaluated_get(bpy.context.evaluated_depsgraph_get())
-        ev.pose.bones.foreach_get("matrix", buf)
-        out[f] = buf.reshape(-1, 4, 4).transpose(0, 2, 1)[index]
-        if world:
-            out[f] = np.array(ev.matrix_world, dtype=np.float64) @ out[f]
-        if f % _FRAMES_PER_STEP == _FRAMES_PER_STEP - 1:
-            yield (f + 1) / len(frames)
+    return (yield from evaluate_poses_steps([obj], [frames], [names], world))[0]
+
+
+def evaluate_poses_steps(objs: Sequence[bpy.types.Object], frames: Sequence[np.ndarray],
+                         names: Sequence[Sequence[str]],
+                         world: bool = False) -> Generator[float, None, list[np.ndarray]]:
+    """Per object ``objs[k]`` its bones ``names[k]``' evaluated pose matrices
+    ``(F_k, n_k, 4, 4)`` at its ``frames[k]``, the scene set to each frame of their union
+    once for all of them (a frame change evaluates every animated object of the scene, so
+    one pass for all rigs instead of one per rig). ``world``: world matrices (the evaluated
+    object's world matrix at each frame applied) instead of armature-space ones. Yields the
+    fraction done."""
+    index = []
+    bufs = []
+    for obj, want in zip(objs, names, strict=True):
+        all_names = [pb.name for pb in obj.pose.bones]
+        where = {n: i for i, n in enumerate(all_names)}
+        index.append(np.array([where[n] for n in want], dtype=np.int64))
+        bufs.append(np.empty(len(all_names) * 16, dtype=np.float32))
+    out = [np.empty((len(f), len(want), 4, 4)) for f, want in zip(frames, names, strict=True)]
+    wanted = [np.asarray(f, dtype=np.int64) for f in frames]
+    union = np.unique(np.concatenate(wanted)) if wanted else np.zeros(0, dtype=np.int64)
+    # per object, the row of each frame of the union it has (-1: not one of its frames)
+    rows = []
+    for f in wanted:
+        row = np.full(len(union), -1, dtype=np.int64)
+        row[np.searchsorted(union, f)] = np.arange(len(f))
+        rows.append(row)
+    step = max(_FRAMES_PER_STEP // max(len(objs), 1), 1)
+    for u in _frame_loop([int(x) for x in union]):
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        for k, obj in enumerate(objs):
+            at = int(rows[k][u])
+            if at < 0:
+                continue
+            ev = obj.evaluated_get(depsgraph)
+            ev.pose.bones.foreach_get("matrix", bufs[k])
+            out[k][at] = bufs[k].reshape(-1, 4, 4).transpose(0, 2, 1)[index[k]]
+            if world:
+                out[k][at] = np.array(ev.matrix_world, dtype=np.float64) @ out[k][at]
+        if u % step == step - 1:
+            yield (u + 1) / len(union)
     return out
 
 
@@ -216,6 +248,7 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
     index = {b: i for i, b in enumerate(req.bones)}
     n_frames = armature.shape[0]
     cache: dict[str, np.ndarray] = {}
+    inv_rest = affine_inverses(req.rest_local)
 
     def pose(name: str) -> np.ndarray:
         if name in index:
@@ -228,7 +261,7 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
             if parent is None:
                 above: np.ndarray = np.eye(4)[None]
             else:
-                above = pose(parent) @ np.linalg.inv(req.rest_local[parent])
+                above = pose(parent) @ inv_rest[parent]
             cache[name] = np.broadcast_to(above @ (rest @ req.basis[name])[None], (n_frames, 4, 4))
         return cache[name]
 
@@ -239,8 +272,8 @@ def basis_from_armature(req: PoseRequest, armature: np.ndarray, names: Sequence[
         if parent is None:
             base = np.broadcast_to(rest, (n_frames, 4, 4))
         else:
-            base = pose(parent) @ (np.linalg.inv(req.rest_local[parent]) @ rest)[None]
-        out[:, j] = np.linalg.inv(base) @ armature[:, index[name]]
+            base = pose(parent) @ (inv_rest[parent] @ rest)[None]
+        out[:, j] = affine_inverse(base) @ armature[:, index[name]]
     return out
 
 
@@ -269,6 +302,7 @@ def armature_from_basis(
     keyed = np.asarray(keyed_location, dtype=bool)[None, :, None]
     own[..., :3, 3] = np.where(keyed, locations, current[None])
     cache: dict[str, np.ndarray] = {}
+    inv_rest = affine_inverses(rest_local)
 
     def pose(name: str) -> np.ndarray:
         if name not in cache:
@@ -278,7 +312,7 @@ def armature_from_basis(
             if parent is None:
                 cache[name] = rest[None] @ b
             else:
-                cache[name] = pose(parent) @ (np.linalg.inv(rest_local[parent]) @ rest)[None] @ b
+                cache[name] = pose(parent) @ (inv_rest[parent] @ rest)[None] @ b
         return cache[name]
 
     return np.stack([np.broadcast_to(pose(b), (n_frames, 4, 4)) for b in bones], axis=1)
@@ -378,7 +412,7 @@ def write_pose_steps(
     if not req.per_frame and object_moves(obj):
         worlds = yield from scaled_steps(_object_worlds_steps(obj, req.frames), 0.0, 0.1)
         # The plan is in the world: carry it into each frame's armature space.
-        armature = (np.linalg.inv(worlds) @ req.world0[None])[:, None] @ armature
+        armature = (affine_inverse(worlds) @ req.world0[None])[:, None] @ armature
     index = {b: i for i, b in enumerate(req.bones)}
     direct = [b for b in req.bones if b in plan.direct]
     controls = list(plan.controls)
@@ -457,7 +491,7 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             m = ev[:, col[c.bone]]
             want = m.copy()
             if c.mode == "RIGID":  # carried rigidly with its anchor
-                want = armature[:, index[c.anchor]] @ np.linalg.inv(ev[:, col[c.anchor]]) @ m
+                want = armature[:, index[c.anchor]] @ affine_inverse(ev[:, col[c.anchor]]) @ m
             elif c.mode == "MOVE":  # moved by its anchor's head error; its turn is another's
                 want[:, :3, 3] += armature[:, index[c.anchor], :3, 3] - ev[:, col[c.anchor], :3, 3]
             elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
@@ -481,8 +515,8 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                 turned_pole = _turn_about(frame_w[..., 0], pole_turn[c.bone], pole - joints[:, 0])
                 want[:, :3, 3] = joints[:, 0] + turned_pole
             # The control's matrix is (what its parent and constraints give) @ basis.
-            base = m @ np.linalg.inv(basis[:, j])
-            basis[:, j] = np.linalg.inv(base) @ want
+            base = m @ affine_inverse(basis[:, j])
+            basis[:, j] = affine_inverse(base) @ want
 
 
 def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature: np.ndarray,

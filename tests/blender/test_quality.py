@@ -276,6 +276,34 @@ def test_a_bad_setup_shows_its_figures_above_the_thresholds(procloco_registered:
     assert rows["slide"].alert == (panel["slide"][0] > measure.LIMITS["slide"])
 
 
+def test_rigs_generated_together_are_each_measured_on_their_own_pose(procloco_registered: Any) -> None:
+    """Several rigs are measured in one pass over the frames: each rig's figures are its own
+    posed rig's, over its own frame range (one pinned off the ground, one walking well, on
+    ranges that overlap only in part)."""
+    from procloco_addon.core.steps import run_steps
+
+    wolf = _scene_with_wolf(ground_size=12.0)
+    other = creatures.build_wolf(bpy.context.scene, name="Other", location=(0.0, 3.0, 0.0))
+    other.procloco.use_scene_range = False
+    other.procloco.frame_start, other.procloco.frame_end = 10, 30
+    jobs = [_plan(wolf), _plan(other)]
+    _pin_feet_up(wolf, jobs[0])
+    # written and measured together (Generate's last stage), each walk as planned here
+    run_steps(generate.write_all_steps(bpy.context, jobs, measure=True))
+    mine = [_independent(o, job) for o, job in zip((wolf, other), jobs, strict=True)]
+    for o, job, theirs in zip((wolf, other), jobs, mine, strict=True):
+        q = o.procloco.quality
+        assert (q.frame_start, q.frame_end) == (int(job.frames[0]), int(job.frames[-1]))
+        panel = _figures(o)
+        for key in KEYS:
+            if key in ("few_feet_down", "over_stretched"):
+                assert panel[key][0] == theirs[key][0], (o.name, key, panel[key], theirs[key])
+            else:
+                assert panel[key][0] == pytest.approx(theirs[key][0], rel=1e-3, abs=_TOL[key]), (o.name, key)
+    assert _figures(wolf)["few_feet_down"][0] > measure.LIMITS["few_feet_down"]
+    assert _figures(other)["few_feet_down"][0] == 0
+
+
 def test_a_failed_measurement_leaves_the_walk_and_says_so(procloco_registered: Any,
                                                          monkeypatch: pytest.MonkeyPatch) -> None:
     from procloco_addon.blender import actions
@@ -285,11 +313,10 @@ def test_a_failed_measurement_leaves_the_walk_and_says_so(procloco_registered: A
     wolf.procloco.frame_end = 8
     job = _plan(wolf)
 
-    def broken(context: Any, job: Any) -> Any:
+    def broken(*args: Any) -> Any:
         raise RuntimeError("no ground today")
-        yield 0.0
 
-    monkeypatch.setattr(measure, "measure_steps", broken)
+    monkeypatch.setattr(measure, "figures_of", broken)
     made = run_steps(generate.write_all_steps(bpy.context, [job], measure=True))
     assert actions.generated_action(wolf) == made[0]
     assert "could not measure the result: no ground today" in job.warnings

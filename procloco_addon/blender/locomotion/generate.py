@@ -533,15 +533,17 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
                 except BaseException:
                     steps.close()  # this rig's Action deleted, its pose put back
                     raise
-        for k, job in enumerate(jobs if measure else ()):
-            low = share + (1.0 - share) * k / len(jobs)
-            yield low  # written and assigned; Esc from here on still takes everything back
+        if measure:
+            yield share  # written and assigned; Esc from here on still takes everything back
+            # every rig measured in one pass over the frames (one scene evaluation per frame)
             try:
-                measured.append((yield from scaled_steps(quality.measure_steps(context, job), low,
-                                                         low + (1.0 - share) / len(jobs))))
-            except Exception as err:  # the walk stands; only its figures are missing
-                measured.append(None)
-                job.warnings.append(f"could not measure the result: {err}")
+                results = yield from scaled_steps(quality.measure_all_steps(context, jobs), share, 1.0)
+            except Exception as err:  # the walks stand; only their figures are missing
+                results = [err] * len(jobs)
+            for job, figures in zip(jobs, results, strict=True):
+                if isinstance(figures, Exception):
+                    job.warnings.append(f"could not measure the result: {figures}")
+                measured.append(None if isinstance(figures, Exception) else figures)
     except BaseException:  # an error, or closed early (GeneratorExit): nothing is left
         for action, (obj, _memo) in zip(made, done, strict=False):
             actions.restore_pose(obj, action)

@@ -3,7 +3,8 @@
 
 After Generate Locomotion has keyed and assigned a rig's Action, :func:`measure_steps`
 evaluates the rig frame by frame through the depsgraph (the same pose evaluation the pose
-writer checks its controls with, :func:`..pose_writer.evaluate_pose_steps`): the world
+writer checks its controls with, :func:`..pose_writer.evaluate_pose_steps`; for many rigs
+:func:`measure_all_steps`, every rig read at each frame of one pass): the world
 matrices of every leg bone and foot bone, so Blender's constraints, drivers and the object's
 own motion are all in. From those posed legs, the walk's plan (which feet the gait plants,
 the targets it set) and the scene's ground under the posed feet, the core's
@@ -17,7 +18,7 @@ Shapes: ``F`` frames, ``L`` legs, ``P`` probes per foot.
 from __future__ import annotations
 
 import uuid
-from collections.abc import Generator
+from collections.abc import Generator, Sequence
 from typing import Any
 
 import bpy
@@ -30,8 +31,10 @@ from .property_group import FIGURES
 __all__ = [
     "ACTION_KEY",
     "clear",
+    "figures_of",
     "is_current",
     "limit_text",
+    "measure_all_steps",
     "measure_steps",
     "store",
     "summary_line",
@@ -56,16 +59,54 @@ _KIND = {key: kind for key, _label, kind in FIGURES}
 def measure_steps(context: bpy.types.Context, job: Any) -> Generator[float, None, metrics.PosedQuality]:
     """Measure ``job``'s written result on its rig (a finished ``locomotion.generate.Job``
     whose Action is assigned), yielding the fraction done; returns the figures."""
+    figures = (yield from measure_all_steps(context, [job]))[0]
+    if isinstance(figures, Exception):
+        raise figures
+    return figures
+
+
+def measure_all_steps(context: bpy.types.Context, jobs: Sequence[Any],
+                      ) -> Generator[float, None, list[metrics.PosedQuality | Exception]]:
+    """:func:`measure_steps` for every job at once: the scene is set to each frame once and
+    every rig read there (a frame change evaluates all of them anyway). Yields the fraction
+    done; returns per job its figures, or the error that kept it from being measured."""
+    out: list[metrics.PosedQuality | Exception | None] = [None] * len(jobs)
+    reads: list[tuple[int, bpy.types.Object, list[str]]] = []
+    for k, job in enumerate(jobs):
+        try:
+            obj = bpy.data.objects[job.obj_name]
+            reads.append((k, obj, _measured_bones(job)))
+        except Exception as err:  # this rig only: the others are measured
+            out[k] = err
+    mats = yield from pose_writer.evaluate_poses_steps([obj for _k, obj, _n in reads],
+                                                       [jobs[k].frames for k, _o, _n in reads],
+                                                       [names for _k, _o, names in reads], world=True)
+    for (k, obj, names), m in zip(reads, mats, strict=True):
+        try:
+            out[k] = figures_of(jobs[k], obj, names, m)
+        except Exception as err:
+            out[k] = err
+    return [figures if figures is not None else RuntimeError("not measured") for figures in out]
+
+
+def _measured_bones(job: Any) -> list[str]:
+    """The bones whose posed world matrices the figures come from: every leg bone, then
+    every foot bone."""
+    legs = job.info.legs
+    return list(dict.fromkeys([*(b for leg in legs for b in leg.bones),
+                               *(b for leg in legs for b in leg.foot)]))
+
+
+def figures_of(job: Any, obj: bpy.types.Object, names: Sequence[str],
+               mats: np.ndarray) -> metrics.PosedQuality:
+    """The figures of ``job`` from the evaluated world matrices ``mats`` ``(F, n, 4, 4)`` of
+    its rig ``obj``'s bones ``names`` (:func:`_measured_bones`) at its frames."""
     from ..locomotion import simulation
 
-    obj = bpy.data.objects[job.obj_name]
     info = job.info
     legs = info.legs
     foot_bones = [tuple(leg.foot) for leg in legs]
-    names = list(dict.fromkeys([*(b for leg in legs for b in leg.bones),
-                                *(b for fb in foot_bones for b in fb)]))
     col = {n: i for i, n in enumerate(names)}
-    mats = yield from pose_writer.evaluate_pose_steps(obj, job.frames, names, world=True)
     heads = mats[..., :3, 3]
     # A bone's tail lies along its +Y axis at its rest length (the matrix carries any scale).
     lengths = np.array([obj.data.bones[n].length for n in names])

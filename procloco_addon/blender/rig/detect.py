@@ -191,9 +191,12 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
     foot_band = 0.15 * (float(max(rest.head[:, 2].max(), rest.end[:, 2].max())) - ground)
     n = len(rest.names)
     kids = [rest.children(i) for i in range(n)]
+    subtree: dict[int, np.ndarray] = {}  # the walk up from every leaf asks for the same ones
 
     def appendage(branch: int, other: int, path: list[int]) -> bool:
-        pts = _subtree_points(rest, other)
+        if other not in subtree:
+            subtree[other] = _subtree_points(rest, other)
+        pts = subtree[other]
         reach = float(np.linalg.norm(pts - rest.head[branch], axis=1).max())
         ours = np.vstack([rest.head[path], rest.end[path]])
         if reach < 0.5 * float(np.linalg.norm(ours - rest.head[branch], axis=1).max()):

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import re
 from collections.abc import Sequence
 
@@ -37,6 +38,7 @@ HELPER_WORDS = frozenset({
 _SIDES = {"l": 1, "left": 1, "lft": 1, "r": -1, "right": -1, "rgt": -1}
 
 
+@functools.lru_cache(maxsize=8192)  # detection splits every bone's name again and again
 def split_name(name: str) -> tuple[int, tuple[str, ...]]:
     """``(side, tokens)`` of a bone name: side +1 left, -1 right, 0 none; tokens lower-case.
 

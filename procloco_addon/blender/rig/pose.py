@@ -12,7 +12,7 @@ import numpy as np
 from ...core.geometry import z_rotations
 from ...core.steps import run_steps
 from .info import RigInfo
-from .rest import _UP, _apply, _unit
+from .rest import _UP, _apply, _unit, affine_inverse, affine_inverses
 
 
 @dataclass(frozen=True)
@@ -328,13 +328,15 @@ def solve_pose_steps(
     # Armature-space pose matrices, parents before children.
     pose: dict[str, np.ndarray] = {}
     basis_out: dict[str, np.ndarray] = {}
+    parents = (info.parents[n] for n in order)
+    inv_rest = affine_inverses({p: info.rest_local[p] for p in parents if p is not None})
     for name in order:
         parent = info.parents[name]
         rest_l = info.rest_local[name]
         if parent is None:
             base = np.broadcast_to(rest_l, (n_frames, 4, 4))
         else:
-            base = pose[parent] @ (np.linalg.inv(info.rest_local[parent]) @ rest_l)[None]
+            base = pose[parent] @ (inv_rest[parent] @ rest_l)[None]
         if name in desired:
             goal = np.empty((n_frames, 4, 4))
             goal[:, :3, :3] = np.swapaxes(w_rot, 0, 1)[None] @ desired[name]
@@ -343,7 +345,7 @@ def solve_pose_steps(
             else:
                 goal[:, :3, 3] = base[:, :3, 3]  # heads follow their parents
             goal[:, 3] = (0.0, 0.0, 0.0, 1.0)
-            basis = np.linalg.inv(base) @ goal
+            basis = affine_inverse(base) @ goal
             basis_out[name] = basis
             pose[name] = base @ basis
         else:
@@ -392,7 +394,7 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
         frame_of = np.repeat(np.arange(n_frames), xy.shape[1])
         flat = xy.reshape(-1, 2)
         key = frame_of if dynamic else np.zeros_like(frame_of)
-        uniq, inverse = np.unique(np.column_stack([key, flat]), axis=0, return_inverse=True)
+        uniq, inverse = _unique_rows(np.column_stack([key, flat]))
         found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
         heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
         for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
@@ -408,6 +410,19 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     for j, k in enumerate(legs):
         name = info.legs[k].foot[0]
         desired[name] = turns[j] @ desired[name]
+
+
+def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of ``a`` ``(n, k)`` and where each row of ``a`` is among them
+    (``uniq[inverse] == a``), as ``np.unique(a, axis=0, return_inverse=True)`` gives them,
+    several times faster (a sort by columns instead of one of rows viewed as records)."""
+    order = np.lexsort(a.T[::-1])
+    ranked = a[order]
+    new = np.ones(len(a), dtype=bool)
+    new[1:] = np.any(ranked[1:] != ranked[:-1], axis=1)
+    inverse = np.empty(len(a), dtype=np.int64)
+    inverse[order] = np.cumsum(new) - 1
+    return ranked[new], inverse
 
 
 def _orthonormal(m: np.ndarray) -> np.ndarray:

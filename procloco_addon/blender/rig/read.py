@@ -21,6 +21,7 @@ from .rest import (
     _descendants,
     _length,
     _Rest,
+    affine_inverse,
     skeleton_view,
     sole_points,
     uniform_scale,
@@ -124,11 +125,12 @@ def _skin_points(obj: bpy.types.Object, bone_names: Sequence[str]) -> dict[str, 
     return {k: np.array(v) for k, v in out.items() if len(v) >= 3}
 
 
-def _posed_points(rest: _Rest, posed_local: np.ndarray, bone: int, points: np.ndarray) -> np.ndarray:
+def _posed_points(rest: _Rest, posed_local: np.ndarray, bone: int, points: np.ndarray,
+                  inv_local: np.ndarray, inv_world: np.ndarray) -> np.ndarray:
     """World ``points`` ``(p, 3)`` given at rest, moved with ``bone`` to its armature-space pose
-    ``posed_local[bone]`` (the skin follows its bone)."""
-    inv_world = np.linalg.inv(rest.world)
-    move = rest.world @ posed_local[bone] @ np.linalg.inv(rest.local[bone]) @ inv_world
+    ``posed_local[bone]`` (the skin follows its bone). ``inv_local``, ``inv_world``: the
+    inverses of ``rest.local`` and ``rest.world``."""
+    move = rest.world @ posed_local[bone] @ inv_local[bone] @ inv_world
     return _apply(move, points)
 
 
@@ -222,17 +224,19 @@ def read_rig(
     if carried:
         driven |= set(chain)
     driven |= {rest.index[t[0]] for t in ik_targets if t is not None}
-    posed_local = _posed_rest(rest, basis, driven)
+    inv_local = affine_inverse(rest.local)
+    posed_local = _posed_rest(rest, basis, driven, inv_local)
     heads = _apply(rest.world, posed_local[:, :3, 3])
     # Each bone's far joint (its tail, or on imported rigs the next bone's head) moves with the bone.
-    end_arm = _apply(np.linalg.inv(rest.world), rest.end)
-    end_bone = np.einsum("bij,bj->bi", np.linalg.inv(rest.local)[:, :3, :3], end_arm - rest.local[:, :3, 3])
+    inv_world = affine_inverse(rest.world)
+    end_arm = _apply(inv_world, rest.end)
+    end_bone = np.einsum("bij,bj->bi", inv_local[:, :3, :3], end_arm - rest.local[:, :3, 3])
     ends = _apply(rest.world,
                   np.einsum("bij,bj->bi", posed_local[:, :3, :3], end_bone) + posed_local[:, :3, 3])
 
     foot_bones = [[rest.index[f] for f in leg.foot] for leg in legs]
     foot_bones = [sorted({*fb, *(c for k in fb for c in _descendants(rest, k))}) for fb in foot_bones]
-    posed_skin = {k: _posed_points(rest, posed_local, k, skin[rest.names[k]])
+    posed_skin = {k: _posed_points(rest, posed_local, k, skin[rest.names[k]], inv_local, inv_world)
                   for fb in foot_bones for k in fb if rest.names[k] in skin}
 
     joints = []
@@ -334,9 +338,11 @@ def _current_basis(obj: bpy.types.Object) -> dict[str, np.ndarray]:
     return {pb.name: mats[i] for i, pb in enumerate(pose.bones)}
 
 
-def _posed_rest(rest: _Rest, basis: dict[str, np.ndarray], driven: set[int]) -> np.ndarray:
+def _posed_rest(rest: _Rest, basis: dict[str, np.ndarray], driven: set[int],
+                inv_local: np.ndarray) -> np.ndarray:
     """Armature-space matrices of every bone with driven bones at rest and the others as
-    currently posed (their pose persists under the generated Action). ``(B, 4, 4)``."""
+    currently posed (their pose persists under the generated Action). ``(B, 4, 4)``.
+    ``inv_local``: the inverses of ``rest.local``."""
     n = len(rest.names)
     out = np.empty((n, 4, 4))
     done = np.zeros(n, dtype=bool)
@@ -349,7 +355,7 @@ def _posed_rest(rest: _Rest, basis: dict[str, np.ndarray], driven: set[int]) -> 
         if p < 0:
             out[i] = rest.local[i] @ b
         else:
-            out[i] = solve(p) @ np.linalg.inv(rest.local[p]) @ rest.local[i] @ b
+            out[i] = solve(p) @ inv_local[p] @ rest.local[i] @ b
         done[i] = True
         return out[i]
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -39,6 +39,9 @@ class _Rest:
     # (B,) bool: leaf bones an FBX exporter added at its parent's tail (``<parent>_end``):
     # they mark a tail, not a joint, and are left out of the rig's geometry.
     phantom: np.ndarray = None  # type: ignore[assignment]
+    # Each bone's children (not phantom), made on first use: detection asks for them
+    # hundreds of times per bone.
+    _kids: list[list[int]] | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if self.phantom is None:
@@ -61,7 +64,15 @@ class _Rest:
             object.__setattr__(self, "tails_meaningful", meaningful)
 
     def children(self, i: int) -> list[int]:
-        return [int(c) for c in np.flatnonzero((self.parent == i) & ~self.phantom)]
+        """Bone ``i``'s children in bone order (a new list: callers may change it)."""
+        if self._kids is None:
+            kids: list[list[int]] = [[] for _ in self.names]
+            for c, p in enumerate(self.parent.tolist()):
+                if p >= 0 and not self.phantom[c]:
+                    kids[p].append(c)
+            object.__setattr__(self, "_kids", kids)
+            return list(kids[i])
+        return list(self._kids[i])
 
     def ancestors(self, i: int) -> list[int]:
         return _ancestors_of(self.parent, i)
@@ -244,6 +255,38 @@ def uniform_scale(world: np.ndarray) -> float | None:
 def _apply(m: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Affine 4x4 ``m`` applied to points ``(..., 3)``."""
     return p @ m[:3, :3].T + m[:3, 3]
+
+
+def affine_inverse(m: np.ndarray) -> np.ndarray:
+    """Inverses of affine 4x4 matrices ``(..., 4, 4)`` (last row ``0 0 0 1``: bone and object
+    matrices), element-wise. ``np.linalg.inv`` makes one LAPACK call per matrix, which costs
+    far more than the arithmetic for 4x4 matrices (and much more again when its threads wait
+    on a busy machine); the pose of a rig over its frames inverts thousands of them."""
+    m = np.asarray(m, dtype=np.float64)
+    a, b, c = m[..., :3, 0], m[..., :3, 1], m[..., :3, 2]  # the 3x3 part's columns
+    # The inverse's rows are the cross products of the columns over the determinant.
+    rows = np.stack([_cross(b, c), _cross(c, a), _cross(a, b)], axis=-2)
+    det = np.sum(a * rows[..., 0, :], axis=-1)
+    out = np.zeros(m.shape)
+    out[..., :3, :3] = rows / det[..., None, None]
+    t = m[..., :3, 3]
+    out[..., :3, 3] = -np.sum(out[..., :3, :3] * t[..., None, :], axis=-1)
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def affine_inverses(mats: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """:func:`affine_inverse` of every matrix of ``mats`` (bone name -> ``(4, 4)``), in one call."""
+    if not mats:
+        return {}
+    return dict(zip(mats, affine_inverse(np.stack(list(mats.values()))), strict=True))
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Cross products of ``(..., 3)`` vectors, written out (``np.cross`` is slower on small arrays)."""
+    return np.stack([u[..., 1] * v[..., 2] - u[..., 2] * v[..., 1],
+                     u[..., 2] * v[..., 0] - u[..., 0] * v[..., 2],
+                     u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]], axis=-1)
 
 
 def _length(points: np.ndarray) -> float:
