@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="where to save (default: examples_crowd.blend)")
     parser.add_argument("--spiders", type=int, default=40)
     parser.add_argument("--ants", type=int, default=20)
-    parser.add_argument("--frames", type=int, default=None, help="last frame (default 240)")
+    parser.add_argument("--frames", type=int, default=None, help="last frame (default 168)")
     parser.add_argument("--render", type=Path, default=None, help="also render frame 1 to this PNG")
     args = parser.parse_args(argv)
     warnings = build(args.output.resolve(), args.spiders, args.ants, args.frames,

@@ -4,16 +4,16 @@ each other's paths, for ``examples_crowd.blend`` (``tools/build_crowd_example.py
 
 API::
 
-    build_crowd_scene(scene, spiders=40, ants=20, frame_end=240) -> CrowdScene
+    build_crowd_scene(scene, spiders=40, ants=20, frame_end=168) -> CrowdScene
     crowd_ground_height(x, y) -> ndarray       # the ground's heightmap (gentle swells)
 
 Layout (metres; Z up): the creatures travel along X in interleaved lanes ``LANE_PITCH``
 apart, alternately a spider lane and an ant lane. The spiders start on the left (x < 0, in
-rows ``ROW_PITCH`` apart going back from ``FRONT_X``) facing +X, the ants on the right facing
+rows ``ROW_PITCH`` apart going back from ``-FRONT_X``) facing +X, the ants on the right facing
 -X, so the two groups meet in the middle and walk through each other's ranks. Across the
 middle lies a low log (STEP_OVER), and low crates (STEP_OVER) stand in several lanes; two
 tall crates (AVOID) stand beside the crowd as landmarks. Every creature walks straight along
-its lane with the settings of its kind (``creatures.RIG_SETTINGS``, the kind's gait preset),
+its lane with the settings of its kind (its gait preset, with its speed and cycle time),
 with a little of its own: a seed, a speed a few per cent off, and its gait shifted in phase,
 so the swarm does not march in lockstep.
 
@@ -44,25 +44,27 @@ ROW_PITCH = 1.0
 #: x of each group's front row (the spiders' is negative: they walk towards +X).
 FRONT_X = 1.1
 FRAME_START = 1
-FRAME_END = 240
+FRAME_END = 168
 FPS = 24
 #: Where the camera looks from: in front of the crowd (-Y side), high up.
 CAMERA_DIRECTION = (0.3, 1.0, -0.62)
-X_RANGE = (-6.5, 5.0)
+X_RANGE = (-6.0, 5.5)
 Y_RANGE = (-7.0, 7.0)
 CELL = 0.25
 LOG_RADIUS = 0.035
 LOG_X = 0.0
 #: (x, y, size, role) of the crates; the low ones stand in lanes, the tall ones beside the crowd.
 CRATES: tuple[tuple[float, float, tuple[float, float, float], str], ...] = (
-    (0.7, -2.1, (0.3, 0.3, 0.06), "STEP_OVER"),
-    (0.6, 0.3, (0.35, 0.3, 0.07), "STEP_OVER"),
-    (0.6, 2.7, (0.3, 0.35, 0.06), "STEP_OVER"),
-    (-0.6, -0.3, (0.3, 0.3, 0.06), "STEP_OVER"),
-    (-0.5, -3.9, (0.3, 0.3, 0.07), "STEP_OVER"),
-    (-0.7, 3.3, (0.3, 0.3, 0.06), "STEP_OVER"),
-    (-5.6, 2.0, (0.8, 0.8, 1.0), "AVOID"),
-    (3.6, -3.0, (0.8, 0.8, 1.0), "AVOID"),
+    (0.9, -2.7, (0.3, 0.3, 0.06), "STEP_OVER"),
+    (1.2, 0.9, (0.35, 0.3, 0.07), "STEP_OVER"),
+    (0.8, 3.3, (0.3, 0.35, 0.06), "STEP_OVER"),
+    (1.6, -0.3, (0.3, 0.3, 0.06), "STEP_OVER"),
+    (-0.9, -2.1, (0.3, 0.3, 0.06), "STEP_OVER"),
+    (-1.2, 0.3, (0.3, 0.3, 0.07), "STEP_OVER"),
+    (-0.8, 2.7, (0.3, 0.3, 0.06), "STEP_OVER"),
+    (-1.4, -4.5, (0.35, 0.3, 0.06), "STEP_OVER"),
+    (-5.0, 6.0, (0.8, 0.8, 1.0), "AVOID"),
+    (3.5, 6.0, (0.8, 0.8, 1.0), "AVOID"),
 )
 _LOG_COLOR = (0.42, 0.28, 0.16, 1.0)
 
@@ -93,12 +95,13 @@ def crowd_ground_height(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def lanes(count: int, kind: str) -> np.ndarray:
-    """y of each of ``count`` lanes of ``kind``, centred on y = 0 (ant lanes sit between spider lanes)."""
-    y = LANE_PITCH * (np.arange(count) - 0.5 * (count - 1))
-    return y + (0.25 * LANE_PITCH if kind == "ant" else -0.25 * LANE_PITCH)
+    """y of each of ``count`` lanes of ``kind``: spider lanes ``LANE_PITCH`` apart around y = 0,
+    each ant lane halfway between two spider lanes, whatever the counts."""
+    k = np.arange(count) - count // 2
+    return LANE_PITCH * (k + (0.25 if kind == "ant" else -0.25))
 
 
-def starts(kind: str, count: int, n_lanes: int) -> list[tuple[float, float]]:
+def starts(kind: str, count: int, n_lanes: int, front_x: float = FRONT_X) -> list[tuple[float, float]]:
     """Start (x, y) of ``count`` creatures of ``kind`` in ``n_lanes`` lanes, front row first,
     a little off the grid (a few cm) so the ranks are not ruler-straight."""
     ys = lanes(n_lanes, kind)
@@ -108,7 +111,7 @@ def starts(kind: str, count: int, n_lanes: int) -> list[tuple[float, float]]:
     for i in range(count):
         row, lane = divmod(i, n_lanes)
         dx, dy = rng.uniform(-0.15, 0.15), rng.uniform(-0.05, 0.05)
-        out.append((side * (FRONT_X + ROW_PITCH * row) + dx, float(ys[lane]) + dy))
+        out.append((side * (front_x + ROW_PITCH * row) + dx, float(ys[lane]) + dy))
     return out
 
 
@@ -166,10 +169,11 @@ def _individualise(rig: bpy.types.Object, index: int, rng: np.random.Generator) 
 
 
 def build_crowd_scene(scene: bpy.types.Scene, spiders: int = 40, ants: int = 20,
-                      frame_end: int = FRAME_END, spider_lanes: int = 10, ant_lanes: int = 10) -> CrowdScene:
+                      frame_end: int = FRAME_END, spider_lanes: int = 10, ant_lanes: int = 10,
+                      front_x: float = FRONT_X) -> CrowdScene:
     """The crowd (collections ``Crowd`` and ``Terrain``), a camera framing it, a sun, Workbench
     at 640×360, frames 1–``frame_end`` at 24 fps. Spiders fill ``spider_lanes`` lanes row by
-    row, ants ``ant_lanes``."""
+    row, ants ``ant_lanes``; each group's front row starts ``front_x`` from the log."""
     if spiders < 1 or ants < 0:
         raise ValueError("the crowd needs at least one spider and no negative number of ants")
     scene.render.fps = FPS
@@ -192,7 +196,7 @@ def build_crowd_scene(scene: bpy.types.Scene, spiders: int = 40, ants: int = 20,
         if count == 0:
             continue
         title = kind.capitalize()
-        places = starts(kind, count, min(count, kind_lanes))
+        places = starts(kind, count, min(count, kind_lanes), front_x)
         rng = np.random.default_rng(3 if kind == "spider" else 5)
         first = creatures.BUILDERS[kind](scene, name=f"{title}.001", location=(0.0, 0.0, 0.0),
                                          scale=CROWD_SCALE[kind], collection=crowd_coll)
