@@ -8,8 +8,9 @@ grid 3 m apart, all selected, on a flat, gently bumpy heightmap mesh large enoug
 whole herd; 120 frames at 24 fps, 1 m/s, default settings otherwise. For each count the
 scene is built afresh, then ``procloco.generate_locomotion`` runs once (straight through,
 as in background mode) and is timed as a whole; the same rigs are then generated once more
-phase by phase (``generate.prepare`` reading rigs and terrain, ``generate.simulate``, and
-``generate.write_all`` solving poses and writing keys) to show where the time goes.
+phase by phase (``crowd.read_all`` and ``crowd.read_terrain`` reading rigs and terrain,
+``crowd.simulate`` stepping them all in one simulation, and ``generate.write_all`` solving
+poses and writing keys) to show where the time goes.
 
 Prints seconds, seconds per rig and the ratio to one rig. Ends with
 ``RESULT crowd_blender one_s=<s> hundred_s=<s> ratio=<r>`` (the largest count stands for
@@ -37,7 +38,7 @@ import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
 import procloco_addon  # noqa: E402
-from procloco_addon.blender.locomotion import generate  # noqa: E402
+from procloco_addon.blender.locomotion import crowd, generate  # noqa: E402
 from tools.examples import creatures  # noqa: E402
 
 SPACING = 3.0  # m between neighbouring wolves
@@ -83,11 +84,13 @@ def run(count: int, n_frames: int) -> dict[str, float]:
     total = time.perf_counter() - t0
     context = bpy.context
     t0 = time.perf_counter()
-    jobs = [generate.prepare(context, w) for w in wolves]
+    jobs = crowd.read_all(context, wolves)
+    groups = crowd.batches(jobs)
+    for _ in crowd.read_terrain(context, groups):
+        pass
     t1 = time.perf_counter()
-    for job in jobs:
-        for _ in generate.simulate(job):
-            pass
+    for _ in crowd.simulate(groups):  # one simulation for the whole herd
+        pass
     t2 = time.perf_counter()
     generate.write_all(context, jobs)
     t3 = time.perf_counter()
