@@ -14,8 +14,8 @@ rows ``ROW_PITCH`` apart going back from ``-FRONT_X``) facing +X, the ants on th
 middle lies a low log (STEP_OVER), and low crates (STEP_OVER) stand in several lanes; two
 tall crates (AVOID) stand beside the crowd as landmarks. Every creature walks straight along
 its lane with the settings of its kind (its gait preset, with its speed and cycle time),
-with a little of its own: a seed, a speed a few per cent off, and its gait shifted in phase,
-so the swarm does not march in lockstep.
+with a little of its own: a Seed Offset (its own start phase and a slightly different
+stride), so the swarm does not march in lockstep.
 
 Copies: one spider and one ant are built and configured as in ``examples.blend`` (Detect
 Legs, the gait preset); every other creature of the kind is a linked duplicate of it, as
@@ -158,14 +158,12 @@ def linked_duplicate(rig: bpy.types.Object, name: str, collection: bpy.types.Col
     return copy
 
 
-def _individualise(rig: bpy.types.Object, index: int, rng: np.random.Generator) -> None:
-    """A creature's own seed, speed (±6 %) and gait phase (every leg's swing shifted alike)."""
+def _individualise(rig: bpy.types.Object, index: int) -> None:
+    """A creature's own Seed Offset: its own start phase and a slightly different stride. Its
+    speed and seed stay the kind's: rigs that differ in them walk in separate simulations."""
     settings = rig.procloco
-    settings.seed = index
-    settings.speed = settings.speed * float(rng.uniform(0.94, 1.06))
-    shift = float(rng.uniform(0.0, 1.0))
-    for leg in settings.legs:
-        leg.swing_start = (leg.swing_start + shift) % 1.0
+    if "seed_offset" in settings.bl_rna.properties:
+        settings.seed_offset = index + 1
 
 
 def build_crowd_scene(scene: bpy.types.Scene, spiders: int = 40, ants: int = 20,
@@ -209,7 +207,7 @@ def build_crowd_scene(scene: bpy.types.Scene, spiders: int = 40, ants: int = 20,
         for i, (rig, (x, y)) in enumerate(zip(group, places, strict=True)):
             rig.location = (x, y, float(crowd_ground_height(np.array(x), np.array(y))))
             rig.rotation_euler = (0.0, 0.0, facing + float(rng.uniform(-0.03, 0.03)))
-            _individualise(rig, i, rng)
+            _individualise(rig, i)
         out.rigs[kind] = group
     setup_render(scene)
     out.sun = add_sun(scene)

@@ -140,8 +140,10 @@ def _character(job: Job) -> _Character:
     # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
     # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
     # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
-    key = (round(job.lift, 9), round(leg_len, 9), round(job.step_height, 9), auto_physics, window[0],
-           round(window[1], 9), job.seed if effects.progression or effects.randomize_gait else None)
+    # Rounded to micrometres: linked duplicates placed and turned differently read their legs
+    # in world space, a few 1e-8 m apart in float32, and must still share one simulation.
+    key = (round(job.lift, 6), round(leg_len, 6), round(job.step_height, 9), auto_physics, window[0],
+           round(window[1], 6), job.seed if effects.progression or effects.randomize_gait else None)
     return _Character(morph, gait, origin[:2].copy(), start_yaw, speed_of,
                       None if job.path is None else job.path[:, :2], spacing, changes, effects, params,
                       planner, key)
