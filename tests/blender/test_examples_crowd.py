@@ -64,6 +64,10 @@ def test_crowd_example_generates_every_rig_and_no_foot_enters_another_body(empty
         assert all(rig.data == group[0].data for rig in group)  # linked duplicates
         assert len({rig.procloco.seed_offset for rig in group}) == len(group)
 
+    for crate in built.crates:  # every crate stands on the crowd's ground, none floats or sinks
+        x, y, z = crate.location
+        assert abs(z - float(crowd.crowd_ground_height(np.array(x), np.array(y)))) < 0.01, crate.name
+
     assert cli.main(["generate", "--all"]) == 0
 
     actions = [rig.animation_data.action for rig in rigs]

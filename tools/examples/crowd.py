@@ -189,7 +189,9 @@ def build_crowd_scene(scene: bpy.types.Scene, spiders: int = 40, ants: int = 20,
     out.log = _build_log(scene, terrain_coll, length=LANE_PITCH * (n_lanes + 1))
     for i, (x, y, size, role) in enumerate(CRATES):
         name = f"Crate.{'Low' if role == 'STEP_OVER' else 'Tall'}.{i + 1}"
-        out.crates.append(terrain.build_crate(scene, name, (x, y), size, role, terrain_coll))
+        # On the ground, which is flat under every crate (the builder's default base follows
+        # the other example's heightmap).
+        out.crates.append(terrain.build_crate(scene, name, (x, y), size, role, terrain_coll, base_z=0.0))
     for kind, count, kind_lanes in (("spider", spiders, spider_lanes), ("ant", ants, ant_lanes)):
         if count == 0:
             continue
