@@ -102,7 +102,7 @@ def _signature(job: Job) -> tuple[object, ...]:
 
 
 def vary(jobs: Sequence[Job]) -> None:
-    """Give each rig its variation (:func:`variation`, into its gaits and phase): a rig's
+    """Give each rig its variation (:func:`variation`, into its phase and gaits): a rig's
     Seed Offset when it is not 0; else, for a rig that shares its armature data with another
     rig of ``jobs`` (a linked duplicate) or walks with exactly the settings of another (a
     copy), a key from its object's name, so copies do not walk in step. Any other rig, and a
@@ -120,13 +120,15 @@ def vary(jobs: Sequence[Job]) -> None:
 
 
 def _apply_variation(job: Job, phase: float, scale: float) -> None:
-    job.phase, job.cycle_scale = phase, scale
+    """The start phase; with the gait circles also the cycle times (with Gait: Auto the
+    cycle follows the speed and the creature's size, and is left as it is)."""
+    job.phase = phase
+    if job.auto_gait is not None:
+        return
+    job.cycle_scale = scale
     job.gait = replace(job.gait, cycle_time=job.gait.cycle_time * scale)
     job.gait_changes = tuple(replace(c, gait=replace(c.gait, cycle_time=c.gait.cycle_time * scale))
                              for c in job.gait_changes)
-    if job.auto_gait is not None:
-        # Auto's cycle grows as the square root of the creature's size (Froude)
-        job.auto_gait = replace(job.auto_gait, size=job.auto_gait.size * scale * scale)
 
 
 def batches(jobs: Sequence[Job]) -> list[Batch]:

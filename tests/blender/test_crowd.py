@@ -1,0 +1,244 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Crowds: Generate Locomotion on many selected rigs at once, through the real operator.
+
+Every rig is read and checked before anything is written; the rigs that can walk together
+step in one core simulation (``locomotion.crowd``). The motion is checked on the posed rigs,
+evaluated frame by frame through the depsgraph (``pose_eval``), with the thresholds of a rig
+generated alone (``test_generate.check_thresholds``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+from procloco_addon.blender.locomotion import crowd, generate
+from tests.blender.pose_eval import leg_joints
+from tests.blender.scene_state import snapshot
+from tests.blender.test_generate import _measure_on, check_thresholds
+from tools.examples import creatures
+
+pytestmark = pytest.mark.blender
+
+FRAMES = 60
+
+
+def _ground(size: float = 16.0) -> Any:
+    bpy.ops.mesh.primitive_plane_add(size=size, location=(0.0, 0.0, 0.0))
+    obj = bpy.context.active_object
+    obj.name = "Ground"
+    return obj
+
+
+def _place(scene: Any, kind: str, name: str, xy: tuple[float, float], scale: float = 1.0,
+           yaw: float = 0.0) -> Any:
+    obj = creatures.BUILDERS[kind](scene, name=name, location=(xy[0], xy[1], 0.0), scale=scale)
+    obj.rotation_euler = (0.0, 0.0, yaw)
+    obj.procloco.use_scene_range = False
+    obj.procloco.frame_start, obj.procloco.frame_end = 1, FRAMES
+    return obj
+
+
+def _select(rigs: list[Any]) -> None:
+    for o in bpy.context.view_layer.objects:
+        o.select_set(False)
+    for o in rigs:
+        o.select_set(True)
+    bpy.context.view_layer.objects.active = rigs[0]
+    bpy.context.view_layer.update()
+
+
+def _simulated(rigs: list[Any]) -> list[generate.Job]:
+    """The jobs of a Generate of ``rigs`` (the same inputs as the operator's), simulated,
+    to read what was simulated (the swing flags and the needle the gait is judged by)."""
+    jobs = crowd.read_all(bpy.context, rigs)
+    groups = crowd.batches(jobs)
+    for _ in crowd.read_terrain(bpy.context, groups):
+        pass
+    for _ in crowd.simulate(groups):
+        pass
+    return jobs
+
+
+def _all_poses(rigs: list[Any], frames: list[int]) -> np.ndarray:
+    """Every pose bone's world matrix of every rig at each frame ``(F, bones, 4, 4)``, one
+    evaluation of the scene per frame."""
+    scene = bpy.context.scene
+    out = []
+    for frame in frames:
+        scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        mats = []
+        for obj in rigs:
+            ev = obj.evaluated_get(depsgraph)
+            world = np.array(ev.matrix_world, dtype=np.float64)
+            mats += [world @ np.array(pb.matrix, dtype=np.float64) for pb in ev.pose.bones]
+        out.append(mats)
+    return np.array(out)
+
+
+def _measured(obj: Any, job: generate.Job, rigs: list[Any], ground: Any) -> dict[str, Any]:
+    """``test_generate._measure_on`` of one rig of a batch, the other rigs' Actions taken
+    off meanwhile (evaluating every rig of the batch at each frame would only cost time)."""
+    others = [(o, o.animation_data.action) for o in rigs if o is not obj]
+    try:
+        for o, _action in others:
+            o.animation_data.action = None
+        return _measure_on(obj, job, [ground], [])
+    finally:
+        for o, action in others:
+            o.animation_data.action = action
+
+
+# ---------------------------------------------------------------------------------------
+# A batch of mixed rigs
+
+
+def _mixed_batch(scene: Any) -> list[Any]:
+    """20 rigs: 12 spiders, 5 ants, 2 robots and a wolf, spaced so that they barely meet,
+    walking about -Y at their default speeds. The spiders' headings differ by a few degrees,
+    so that they are not copies of each other (copies start at other phases: see the copies'
+    tests; a phase of the gait judged to the frame can then lift a foot 1.002 frames late by
+    the measure, for any rig)."""
+    rigs = [_place(scene, "spider", f"Spider{k:02d}", (-5.5 + 1.0 * k, 0.0), scale=4.0) for k in range(12)]
+    for k, rig in enumerate(rigs):
+        rig.procloco.heading = math.radians(2.0 * (k - 5.5))
+    rigs += [_place(scene, "ant", f"Ant{k}", (-5.0 + 1.0 * k, 3.0), scale=10.0) for k in range(5)]
+    rigs += [_place(scene, "robot", f"Robot{k}", (1.5 + 2.0 * k, 3.5), scale=0.6) for k in range(2)]
+    rigs.append(_place(scene, "wolf", "Wolf", (6.5, 1.0), scale=0.6))
+    return rigs
+
+
+def test_a_mixed_batch_meets_the_motion_thresholds_of_each_rig_and_repeats_exactly(empty_scene: Any) -> None:
+    ground = _ground()
+    rigs = _mixed_batch(empty_scene)
+    _select(rigs)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    actions = [o.animation_data.action for o in rigs]
+    assert len({a.name for a in actions}) == len(rigs)  # one Action per rig
+    frames = list(range(1, FRAMES + 1))
+    first = _all_poses(rigs, frames)
+    jobs = _simulated(rigs)  # the same inputs again: what the operator simulated
+    for obj, job in zip(rigs, jobs, strict=True):
+        m = _measured(obj, job, rigs, ground)
+        check_thresholds(m)
+        assert m["travel"] > 0.3 * m["scale"], (obj.name, m)  # every rig walked
+    # Simulated a second time and written again: the same poses (the same code path, the
+    # same seeds).
+    generate.write_all(bpy.context, jobs)
+    again = _all_poses(rigs, frames)
+    assert np.allclose(first, again, rtol=0.0, atol=1e-9)
+
+
+def test_rigs_of_one_batch_walk_as_they_would_alone(empty_scene: Any) -> None:
+    """Two spiders far apart with different headings share one simulation; each walks as
+    it does generated on its own (neither is a copy of the other: no variation)."""
+    _ground()
+    a = _place(empty_scene, "spider", "SpiderA", (-3.0, 0.0), scale=4.0)
+    b = _place(empty_scene, "spider", "SpiderB", (3.0, 0.0), scale=4.0)
+    b.procloco.heading = math.radians(30.0)
+    for rig in (a, b):
+        rig.procloco.use_avoid_others = False
+        # (the pelvis physics' first orbit still follows every character of a simulation)
+        rig.procloco.use_pelvis_physics = False
+    _select([a, b])
+    jobs = crowd.read_all(bpy.context, [a, b])
+    assert len(crowd.batches(jobs)) == 1
+    together = _simulated([a, b])
+    for k, rig in enumerate((a, b)):
+        alone = _simulated([rig])[0]
+        assert (alone.phase, alone.cycle_scale) == (0.0, 1.0)
+        ours, theirs = together[k].result, alone.result
+        assert ours is not None
+        assert theirs is not None
+        for name in ("body", "joints", "feet"):
+            same = np.allclose(getattr(ours, name), getattr(theirs, name), rtol=0.0, atol=1e-9)
+            assert same, (rig.name, name)
+        assert np.array_equal(ours.swing, theirs.swing), rig.name
+
+
+# ---------------------------------------------------------------------------------------
+# Bad input in a batch
+
+
+def test_a_refused_rig_in_a_batch_is_named_and_changes_nothing_on_any_rig(empty_scene: Any) -> None:
+    _ground()
+    good = [_place(empty_scene, "spider", f"Spider{k}", (-1.0 + 1.0 * k, 0.0), scale=4.0) for k in range(3)]
+    arm = bpy.data.armatures.new("Stick")
+    stick = bpy.data.objects.new("Stick", arm)
+    empty_scene.collection.objects.link(stick)
+    bpy.context.view_layer.objects.active = stick
+    bpy.ops.object.mode_set(mode="EDIT")
+    bone = arm.edit_bones.new("Bone")
+    bone.head, bone.tail = (0.0, 2.0, 0.0), (0.0, 2.0, 1.0)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    _select([*good[:2], stick, good[2]])
+    before = snapshot()
+    with pytest.raises(RuntimeError, match="'Stick'"):
+        bpy.ops.procloco.generate_locomotion()
+    assert snapshot() == before
+    assert all(o.animation_data is None or o.animation_data.action is None for o in good)
+
+
+# ---------------------------------------------------------------------------------------
+# Copies of one creature
+
+
+def _foot_heights(obj: Any, frames: list[int]) -> np.ndarray:
+    """Each end-effector's height over the ground ``(F, legs)``, from the posed rig."""
+    legs = [tuple(chain) for chain in creatures.LEG_CHAINS["spider"]]
+    return np.stack([j[:, -1, 2] for j in leg_joints(obj, frames, legs)], axis=1)
+
+
+def test_linked_duplicates_get_their_own_actions_and_do_not_walk_in_step(empty_scene: Any) -> None:
+    _ground()
+    first = _place(empty_scene, "spider", "Spider", (-1.0, 0.0), scale=4.0)
+    first.procloco.gait_mode = "CIRCLES"  # (with Gait: Auto only the phase varies)
+    _select([first])
+    bpy.ops.object.duplicate(linked=True)
+    copy = bpy.context.active_object
+    copy.location.x += 2.0
+    assert copy.data == first.data  # Alt+D: one armature for both
+    user = bpy.data.actions.new("Spider user walk")  # the user's own Action, shared by both
+    for rig in (first, copy):
+        rig.animation_data_create().action = user
+    _select([first, copy])
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    a, b = first.animation_data.action, copy.animation_data.action
+    assert a != b
+    assert a.name != b.name
+    assert user not in (a, b)
+    assert "Spider user walk" in bpy.data.actions  # nothing the user made is lost
+    frames = list(range(1, FRAMES + 1))
+    lift_a = _foot_heights(first, frames)
+    lift_b = _foot_heights(copy, frames)
+    # Out of step: the feet are not up and down together.
+    assert float(np.abs(lift_a - lift_b).max()) > 0.01, "the copies walk in step"
+    jobs = _simulated([first, copy])
+    assert jobs[0].phase != jobs[1].phase
+    assert jobs[0].cycle_scale != jobs[1].cycle_scale
+    assert all(0.96 <= job.cycle_scale <= 1.04 for job in jobs)
+
+
+def test_seed_offset_changes_phase_and_stride_and_zero_alone_changes_nothing(empty_scene: Any) -> None:
+    _ground()
+    rig = _place(empty_scene, "spider", "Spider", (0.0, 0.0), scale=4.0)
+    rig.procloco.gait_mode = "CIRCLES"  # (with Gait: Auto only the phase varies)
+    _select([rig])
+    plain = _simulated([rig])[0]
+    assert (plain.phase, plain.cycle_scale) == (0.0, 1.0)
+    rig.procloco.seed_offset = 3
+    varied = _simulated([rig])[0]
+    again = _simulated([rig])[0]
+    assert (varied.phase, varied.cycle_scale) == (again.phase, again.cycle_scale)  # from the offset alone
+    assert varied.phase != 0.0
+    assert varied.cycle_scale != 1.0
+    assert 0.96 <= varied.cycle_scale <= 1.04
+    assert varied.gait.cycle_time == pytest.approx(plain.gait.cycle_time * varied.cycle_scale)
+    assert plain.result is not None
+    assert varied.result is not None
+    assert float(np.abs(varied.result.joints - plain.result.joints).max()) > 1e-3
