@@ -81,7 +81,7 @@ from .obstacles import Watch
 from .pelvis import Body, Pogo
 from .pelvis_physics import PelvisPhysics
 from .profile import Profiler
-from .rig import Rig, build_rig, rate_scale
+from .rig import Rig, build_rig, character_params, rate_scale
 from .spine import SpineParams
 from .spine_link import SpineGroup, SpineLink
 from .state import FootState, sample_polyline, start_feet, support_points, swing_parameter
@@ -103,7 +103,10 @@ class Controller:
 
     ``env``: the environment; ``legs``: every character's legs (``LegBatch``); ``gaits``: one
     ``Gait`` per character; ``start_xy (C, 2)``, ``start_yaw (C,)``: initial pelvis ground
-    position and heading; ``phase (C,)``: initial needle phases; ``planner``: optional
+    position and heading; ``phase (C,)``: initial needle phases; ``params``: one
+    ``ControllerParams`` for all, or one per character differing only in
+    ``rig.PER_CHARACTER`` (creature-size scaling; ``params`` keeps the first character's,
+    ``char_params`` all of them, the rig their per-character arrays); ``planner``: optional
     per-character ``PlannerParams`` (replacing the derived ones except step height, reach,
     foot size and height change); ``lod``: optional per-character ``PlannerLOD``;
     ``controls``: the first step's commands (for the initial planning of feet that start in
@@ -125,21 +128,23 @@ class Controller:
         controls: StepControls,
         *,
         phase: npt.ArrayLike | None = None,
-        params: ControllerParams | None = None,
+        params: ControllerParams | Sequence[ControllerParams] | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: Sequence[SpineParams | None] | None = None,
     ) -> None:
         self.env = env
         self.legs = legs
-        self.params = p = params or ControllerParams()
         c, n = legs.n_chars, legs.n_legs
+        self.char_params: list[ControllerParams] = character_params(params, c)
+        # the shared knobs (the per-character ones, PER_CHARACTER, are the rig's arrays)
+        self.params = p = self.char_params[0] if c else ControllerParams()
         self.n_chars, self.n_legs = c, n
         self.leg_char = legs.leg_char
         self.link: SpineLink = spine_link.build_link(legs, spine)
         self.gait = GaitManager(legs.leg_char, gaits, phase)
         self.time = 0.0
-        self.rig: Rig = build_rig(legs, p)
+        self.rig: Rig = build_rig(legs, p, self.char_params)
         self._planner_override = list(planner) if planner is not None else [None] * c
         # the planner's settings per character and geometry per leg, made once (planner_params,
         # leg_geometry)
@@ -194,7 +199,8 @@ class Controller:
         body.pos[:, 2] = height
         on = np.asarray(controls.pelvis_physics, dtype=bool).copy()
         # the needle rate the pelvis particles' orbit was made for (re-made when it jumps)
-        self.pogo = Pogo(PelvisPhysics(link.leg_node, link.n_nodes, params=self.params.physics), on,
+        self.pogo = Pogo(PelvisPhysics(link.leg_node, link.n_nodes, params=self.params.physics,
+                                       gravity=self.rig.gravity, group=self.leg_char), on,
                          self.gait.rate()[self.leg_char].copy())
         pref_nodes = spine_link.start(link, self.env.height_at, body, support, height)
         if np.any(on):
@@ -454,7 +460,7 @@ class Controller:
 
     def _push_out(self, legs: IntArray, surface: FloatArray) -> None:
         obstacles.push_out(self.env, self.watch, self.feet.foot, legs, surface, self.hips_world()[legs],
-                           self.rig.guard_reach[legs], self.params.support_tolerance)
+                           self.rig.guard_reach[legs], self.rig.support_tolerance)
 
     def _world(self) -> World:
         """What the foot-state rules (``stepping``) read besides the feet."""

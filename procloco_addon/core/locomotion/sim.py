@@ -318,7 +318,10 @@ class Simulation:
     path, else the origin); ``start_yaw``: ``(C,)`` or scalar (default: along the path);
     ``controls``: ``Controls`` or ``f(time) -> Controls``; ``gait_changes``: scheduled
     ``GaitChange``s; ``phase``: ``(C,)`` initial needle phases, ``"random"`` (seeded by
-    ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams``;
+    ``seed``) or None (all 0); ``params``: one ``ControllerParams`` for all characters, or
+    one per character (each creature's ``scaling.scaled_params``) differing only in
+    ``rig.PER_CHARACTER`` (else a ``ValueError`` names the field); ``planner``: optional
+    per-character ``PlannerParams``;
     ``lod``: optional per-character ``PlannerLOD`` (thesis §3.7); ``spine``: ``SpineParams``
     for every character (or one per character, None for a rigid body) walking with the
     flexible spine of its morphology (``Morphology.with_spine``; thesis §4.2, §4.4);
@@ -344,7 +347,7 @@ class Simulation:
         dt: float = 1.0 / 30.0,
         phase: npt.ArrayLike | Literal["random"] | None = None,
         seed: int = 0,
-        params: ControllerParams | None = None,
+        params: ControllerParams | Sequence[ControllerParams] | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: SpineParams | Sequence[SpineParams | None] | None = None,

@@ -80,7 +80,7 @@ def schedule(
     """Step 3, first half: landings, forced steps, the swing timing of every foot and
     which feet to plan (``flags`` = (swinging, forced, failed) ``(N,)`` updated in place;
     ``rate_leg (N,)``: the needle rate)."""
-    p, env, tol = w.params, w.env, w.params.support_tolerance
+    p, env, tol = w.params, w.env, w.rig.support_tolerance
     swinging, forced, failed = flags
     # a forced step lands when its own time is up (not at the gait's touch-down)
     landing = (

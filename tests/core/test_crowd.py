@@ -1,0 +1,99 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
+"""Crowds in one simulation: characters of different sizes, each with its own controller
+settings (creature-size scaling), stepped together."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from procloco_addon.core.locomotion import morphology as morph
+from procloco_addon.core.locomotion.gait import find_gait_preset
+from procloco_addon.core.locomotion.morphology import Morphology
+from procloco_addon.core.locomotion.scaling import scaled_params
+from procloco_addon.core.locomotion.sim import Controls, SimResult, Simulation, check_motion
+from procloco_addon.core.locomotion.types import ControllerParams
+from procloco_addon.core.world.terrain import ROLE_AVOID, Boxes, Environment, Heightmap
+
+
+def _ground(moving: bool = True) -> Environment:
+    """Bumpy ground 16 m square, with (``moving``) an avoided crate sliding across both lanes."""
+    x = np.arange(-4.0, 12.0, 0.05)
+    y = np.arange(-6.0, 6.0, 0.05)
+    gx, gy = np.meshgrid(x, y)
+    hm = Heightmap(0.04 * np.sin(gx * 1.1) * np.cos(gy * 0.9), np.array([x[0], y[0]]), 0.05)
+    if not moving:
+        return Environment(hm)
+    boxes = Boxes(np.array([[2.0, 0.0, 0.0]]), np.array([[0.4, 0.4, 0.5]]), np.zeros(1),
+                  np.array([ROLE_AVOID]), np.array([True]))
+    return Environment(hm, boxes)
+
+
+def _slide(sim: Simulation) -> None:
+    """The crate slides along y through the spider's lane (y = 2) and the wolf's (y = -2)."""
+    sim.env.boxes.center[0, :2] = [1.6, 3.0 * np.sin(0.8 * sim.time)]
+
+
+def _creature(m: Morphology, preset: str) -> tuple[Morphology, object, float, float, ControllerParams]:
+    """``m`` with its preset's gait, speed and step height (leg lengths) and its scaled
+    controller settings."""
+    p = find_gait_preset(preset)
+    leg = float(m.leg_length.mean())
+    params, _ = scaled_params(leg, p.step_height * leg)
+    return m, p.gait(m.labels), p.speed * leg, p.step_height * leg, params
+
+
+def _run(chars: list[tuple[Morphology, object, float, float, ControllerParams]], start_y: list[float],
+         n: int = 48) -> SimResult:
+    env = _ground()
+    sim = Simulation(
+        env, [c[0] for c in chars], [c[1] for c in chars],  # type: ignore[misc]
+        start_xy=[[0.0, y] for y in start_y], start_yaw=0.0,
+        controls=Controls(speed=[c[2] for c in chars], heading=0.0, step_height=[c[3] for c in chars],
+                          pelvis_physics=True),
+        params=[c[4] for c in chars], dt=1.0 / 24.0,
+    )
+    return sim.run(n, on_step=_slide)
+
+
+def test_each_character_walks_with_its_own_scaled_settings_as_it_would_alone() -> None:
+    spider = _creature(morph.spider(0.5), "octopod_alternating_tetrapod")
+    wolf = _creature(morph.quadruped(1.45, spine=False), "quadruped_walk")
+    sp, wp = spider[4], wolf[4]
+    # really different settings: cells, slices, tolerances and gravity all scale
+    assert sp.window_cell is not None
+    assert wp.window_cell is not None
+    assert wp.window_cell > 2.0 * sp.window_cell
+    assert wp.physics.gravity > 2.0 * sp.physics.gravity
+    both = _run([spider, wolf], [2.0, -2.0])
+    alone = [_run([spider], [2.0]), _run([wolf], [-2.0])]
+    legs = both.legs.leg_char
+    for i, one in enumerate(alone):
+        sel = legs == i
+        # the same decisions, the same motion (two batchings: floats not bit for bit)
+        np.testing.assert_array_equal(both.contact[:, sel], one.contact)
+        np.testing.assert_array_equal(both.forced[:, sel], one.forced)
+        for name in ("joints", "foot", "footprint"):
+            np.testing.assert_allclose(getattr(both, name)[:, sel], getattr(one, name), rtol=0.0, atol=1e-9,
+                                       err_msg=name)
+        for name in ("pelvis_position", "pelvis_rotation", "needle"):
+            np.testing.assert_allclose(getattr(both, name)[:, i], getattr(one, name)[:, 0], rtol=0.0,
+                                       atol=1e-9, err_msg=name)
+        report = check_motion(both, _ground(), chars=[i])
+        assert report.passed, report.failures()
+
+
+def test_settings_other_than_the_scaled_ones_must_agree() -> None:
+    m = morph.spider()
+    gait = find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+    env = Environment(Heightmap(np.zeros((40, 40)), np.array([-1.0, -1.0]), 0.05))
+    a = ControllerParams()
+    with pytest.raises(ValueError, match="max_turn_rate"):
+        Simulation(env, [m, m], gait, start_xy=[[0, 0], [0, 1]], params=[a, replace(a, max_turn_rate=1.0)])
+    with pytest.raises(ValueError, match="physics"):
+        Simulation(env, [m, m], gait, start_xy=[[0, 0], [0, 1]],
+                   params=[a, replace(a, physics=replace(a.physics, max_substep=0.01))])
+    with pytest.raises(ValueError, match="1 controller settings for 2 characters"):
+        Simulation(env, [m, m], gait, start_xy=[[0, 0], [0, 1]], params=[a])
