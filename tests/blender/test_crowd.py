@@ -143,8 +143,6 @@ def test_rigs_of_one_batch_walk_as_they_would_alone(empty_scene: Any) -> None:
     b.procloco.heading = math.radians(30.0)
     for rig in (a, b):
         rig.procloco.use_avoid_others = False
-        # (the pelvis physics' first orbit still follows every character of a simulation)
-        rig.procloco.use_pelvis_physics = False
     _select([a, b])
     jobs = crowd.read_all(bpy.context, [a, b])
     assert len(crowd.batches(jobs)) == 1
@@ -197,7 +195,6 @@ def _foot_heights(obj: Any, frames: list[int]) -> np.ndarray:
 def test_linked_duplicates_get_their_own_actions_and_do_not_walk_in_step(empty_scene: Any) -> None:
     _ground()
     first = _place(empty_scene, "spider", "Spider", (-1.0, 0.0), scale=4.0)
-    first.procloco.gait_mode = "CIRCLES"  # (with Gait: Auto only the phase varies)
     _select([first])
     bpy.ops.object.duplicate(linked=True)
     copy = bpy.context.active_object
@@ -227,7 +224,6 @@ def test_linked_duplicates_get_their_own_actions_and_do_not_walk_in_step(empty_s
 def test_seed_offset_changes_phase_and_stride_and_zero_alone_changes_nothing(empty_scene: Any) -> None:
     _ground()
     rig = _place(empty_scene, "spider", "Spider", (0.0, 0.0), scale=4.0)
-    rig.procloco.gait_mode = "CIRCLES"  # (with Gait: Auto only the phase varies)
     _select([rig])
     plain = _simulated([rig])[0]
     assert (plain.phase, plain.cycle_scale) == (0.0, 1.0)

@@ -8,8 +8,8 @@ simulations as the rigs allow, each stepping all its rigs together frame by fram
 - :func:`vary` gives copies of one creature their own phase and stride (Seed Offset, and an
   automatic variation for linked duplicates and rigs with identical settings).
 - :func:`batches` groups the rigs that can share one simulation: the same frames, the same
-  terrain objects, the same mean foot height (the core's terrain is raised by it) and the
-  same controller constants (:func:`.simulation.batch_key`). Rigs of
+  terrain objects and the same mean foot height (the core's terrain is raised by it; see
+  :func:`.simulation.batch_key`). Rigs of
   different frame ranges are each walked over their own range, in simulations of their own:
   an animator who gave a rig its own range expects that range, and those rigs do not see
   the others.
@@ -120,15 +120,14 @@ def vary(jobs: Sequence[Job]) -> None:
 
 
 def _apply_variation(job: Job, phase: float, scale: float) -> None:
-    """The start phase; with the gait circles also the cycle times (with Gait: Auto the
-    cycle follows the speed and the creature's size, and is left as it is)."""
-    job.phase = phase
-    if job.auto_gait is not None:
-        return
-    job.cycle_scale = scale
+    """The start phase and the cycle times: the gaits' (circles and Gait Changes), or with
+    Gait: Auto the creature's size (its cycle follows the square root of it, Froude)."""
+    job.phase, job.cycle_scale = phase, scale
     job.gait = replace(job.gait, cycle_time=job.gait.cycle_time * scale)
     job.gait_changes = tuple(replace(c, gait=replace(c.gait, cycle_time=c.gait.cycle_time * scale))
                              for c in job.gait_changes)
+    if job.auto_gait is not None:
+        job.auto_gait = replace(job.auto_gait, size=job.auto_gait.size * scale * scale)
 
 
 def batches(jobs: Sequence[Job]) -> list[Batch]:

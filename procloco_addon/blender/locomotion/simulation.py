@@ -140,8 +140,8 @@ def _character(job: Job) -> _Character:
     # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
     # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
     # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
-    key = (round(job.lift, 9), round(leg_len, 9), round(job.step_height, 9), auto_physics, window[0],
-           round(window[1], 9), job.seed if effects.progression or effects.randomize_gait else None)
+    # The controller's constants differ per character only in what size scaling sets.
+    key = (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
     return _Character(morph, gait, origin[:2].copy(), start_yaw, speed_of,
                       None if job.path is None else job.path[:, :2], spacing, changes, effects, params,
                       planner, key)
@@ -149,8 +149,8 @@ def _character(job: Job) -> _Character:
 
 def batch_key(job: Job) -> tuple[Any, ...]:
     """What rigs must share to be simulated together (besides their frames and terrain):
-    the lift of the terrain (their mean foot height), the controller's constants, which the
-    core takes once per simulation, and the seed of rigs whose effects draw random numbers."""
+    the lift of the terrain (their mean foot height) and the seed of rigs whose effects draw
+    random numbers."""
     return _character(job).key
 
 
@@ -167,7 +167,7 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
         raise RuntimeError("the rigs of one simulation share one terrain (crowd.read_terrain)")
     chars = [_character(job) for job in jobs]
     if any(c.key != chars[0].key for c in chars):
-        raise RuntimeError("rigs of different controller constants in one simulation (crowd.batches)")
+        raise RuntimeError("rigs of different terrain lifts or seeds in one simulation (crowd.batches)")
     dt = jobs[0].dt
     spacing = np.concatenate([c.spacing for c in chars])
     paths = [c.path for c in chars]
@@ -197,7 +197,8 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
         terrain.environment, [c.morphology for c in chars], [c.gait for c in chars],
         start_xy=np.array([c.start_xy for c in chars]), start_yaw=[c.start_yaw for c in chars],
         controls=controls, gait_changes=changes, dt=dt, seed=seeds[0] if seeds else jobs[0].seed,
-        phase=phases if np.any(phases != 0.0) else None, params=chars[0].params,
+        phase=phases if np.any(phases != 0.0) else None,
+        params=chars[0].params if single else [c.params for c in chars],
         planner=[c.planner for c in chars], spine=spine if any(sp is not None for sp in spine) else None,
         auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars])
 
