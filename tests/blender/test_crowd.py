@@ -238,3 +238,36 @@ def test_seed_offset_changes_phase_and_stride_and_zero_alone_changes_nothing(emp
     assert plain.result is not None
     assert varied.result is not None
     assert float(np.abs(varied.result.joints - plain.result.joints).max()) > 1e-3
+
+
+def test_collection_instances_made_real_each_get_their_own_walk(empty_scene: Any) -> None:
+    """A spider in a collection, instanced twice and made real: two rigs of one armature,
+    each walks with its own Action, out of step with the other."""
+    _ground()
+    herd = bpy.data.collections.new("Herd")
+    empty_scene.collection.children.link(herd)
+    spider = creatures.build_spider(empty_scene, name="Spider", scale=4.0, collection=herd)
+    spider.procloco.use_scene_range = False
+    spider.procloco.frame_start, spider.procloco.frame_end = 1, FRAMES
+    herd.hide_render = False
+    empty_scene.view_layers[0].layer_collection.children["Herd"].exclude = True  # only the instances show
+    made = []
+    for k, x in enumerate((-1.5, 1.5)):
+        inst = bpy.data.objects.new(f"HerdInstance{k}", None)
+        inst.instance_type = "COLLECTION"
+        inst.instance_collection = herd
+        inst.location = (x, 0.0, 0.0)
+        empty_scene.collection.objects.link(inst)
+        _select([inst])
+        bpy.ops.object.duplicates_make_real()
+        made += [o for o in bpy.context.selected_objects if o.type == "ARMATURE"]
+    assert len(made) == 2
+    assert made[0].data == made[1].data  # both instances' rigs share the armature
+    _select(made)
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    a, b = (o.animation_data.action for o in made)
+    assert a != b
+    assert a.name != b.name
+    frames = list(range(1, FRAMES + 1))
+    heights = [_foot_heights(o, frames) for o in made]
+    assert float(np.abs(heights[0] - heights[1]).max()) > 0.01, "the copies walk in step"
