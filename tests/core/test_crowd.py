@@ -8,12 +8,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from procloco_addon.core import metrics as mx
 from procloco_addon.core.locomotion import morphology as morph
 from procloco_addon.core.locomotion.gait import find_gait_preset
 from procloco_addon.core.locomotion.morphology import Morphology
 from procloco_addon.core.locomotion.scaling import scaled_params
-from procloco_addon.core.locomotion.sim import Controls, SimResult, Simulation, check_motion
+from procloco_addon.core.locomotion.sim import Controls, SimResult, Simulation, check_motion, crowd_intrusion
 from procloco_addon.core.locomotion.types import ControllerParams
 from procloco_addon.core.world.terrain import ROLE_AVOID, Boxes, Environment, Heightmap
 
@@ -97,3 +100,94 @@ def test_settings_other_than_the_scaled_ones_must_agree() -> None:
                    params=[a, replace(a, physics=replace(a.physics, max_substep=0.01))])
     with pytest.raises(ValueError, match="1 controller settings for 2 characters"):
         Simulation(env, [m, m], gait, start_xy=[[0, 0], [0, 1]], params=[a])
+
+
+# ---------------------------------------------------------------- rigs that see each other
+
+
+def _flat(half: float = 5.0) -> Environment:
+    n = int(2 * half / 0.05)
+    return Environment(Heightmap(np.zeros((n, n)), np.array([-half, -half]), 0.05))
+
+
+def _spider() -> tuple[Morphology, object]:
+    m = morph.spider()
+    return m, find_gait_preset("octopod_alternating_tetrapod").gait(m.labels)
+
+
+def _box_overlap(res: SimResult, a: int, b: int) -> float:
+    """Largest overlap (m, along the line between them) of two characters' body boxes seen
+    as discs of their half widths: > 0 when the bodies run into each other."""
+    half = [float(np.min(res.legs.morphologies[i].body_box_half)) for i in (a, b)]
+    d = np.linalg.norm(res.pelvis_position[:, a, :2] - res.pelvis_position[:, b, :2], axis=1)
+    return float(np.max(half[0] + half[1] - d))
+
+
+def _walk(morphs: list[tuple[Morphology, object]], xy: list[list[float]], heading: list[float], avoid: bool,
+          n: int, speed: float = 0.3) -> SimResult:
+    sim = Simulation(_flat(), [m for m, _ in morphs], [g for _, g in morphs],  # type: ignore[misc]
+                     start_xy=xy, start_yaw=heading,
+                     controls=Controls(speed=speed, heading=heading, step_height=0.05),
+                     avoid=[avoid] * len(morphs))
+    return sim.run(n)
+
+
+def test_two_spiders_walking_head_on_pass_each_other_and_keep_off_each_other() -> None:
+    spider = _spider()
+    xy, heading = [[-1.2, 0.0], [1.2, 0.0]], [0.0, np.pi]
+    on = _walk([spider, spider], xy, heading, avoid=True, n=270)
+    # they pass: from 2.4 m apart to each a metre past the other, back on its heading
+    assert on.pelvis_position[-1, 0, 0] - on.pelvis_position[-1, 1, 0] > 1.0
+    np.testing.assert_allclose(np.cos(on.yaw[-1]), [1.0, -1.0], atol=1e-6)
+    # no foot ever inside the other's body box; the bodies never touch
+    assert crowd_intrusion(on).max() == 0.0
+    assert _box_overlap(on, 0, 1) < 0.0
+    # and both walk as cleanly as alone
+    for i in (0, 1):
+        report = check_motion(on, _flat(), chars=[i])
+        assert report.passed, report.failures()
+    assert on.stats["n_failed"].sum() == 0
+    # switched off they walk straight through each other (their bodies overlap)
+    off = _walk([spider, spider], xy, heading, avoid=False, n=120)
+    assert _box_overlap(off, 0, 1) > 0.1
+    assert np.abs(off.pelvis_position[:, :, 1]).max() < 0.01
+
+
+def test_a_spider_and_a_wolf_crossing_at_right_angles_let_each_other_pass() -> None:
+    wolf_m = morph.quadruped(1.0, spine=True)
+    wolf = (wolf_m, find_gait_preset("quadruped_walk").gait(wolf_m.labels))
+    spider = _spider()
+    # both would reach the origin at about the same time
+    xy, heading = [[-1.4, 0.0], [0.0, -1.6]], [0.0, 0.5 * np.pi]
+    on = _walk([spider, wolf], xy, heading, avoid=True, n=300, speed=0.35)
+    assert crowd_intrusion(on).max() == 0.0
+    # one gives way to the other, both go on past the crossing, back on their headings
+    assert on.pelvis_position[-1, 0, 0] > 0.3
+    assert on.pelvis_position[-1, 1, 1] > 1.0
+    np.testing.assert_allclose(on.yaw[-1], heading, atol=1e-6)
+    d = np.linalg.norm(on.pelvis_position[:, 0, :2] - on.pelvis_position[:, 1, :2], axis=1)
+    assert d.min() > 0.6
+    for i in (0, 1):
+        report = check_motion(on, _flat(), chars=[i])
+        assert report.passed, report.failures()
+    off = _walk([spider, wolf], xy, heading, avoid=False, n=150, speed=0.35)
+    assert _box_overlap(off, 0, 1) > 0.0
+    assert np.linalg.norm(off.pelvis_position[:, 0, :2] - off.pelvis_position[:, 1, :2], axis=1).min() < 0.3
+
+
+@settings(max_examples=4, deadline=None)
+@given(st.integers(2, 5), st.integers(0, 2 ** 16))
+def test_random_small_crowds_keep_their_feet_off_each_other(n: int, seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    ant = morph.hexapod(0.8)
+    kinds = [_spider(), (ant, find_gait_preset("hexapod_tripod").gait(ant.labels))]
+    morphs = [kinds[int(k)] for k in rng.integers(0, 2, n)]
+    # on a ring of 1.3 m, facing roughly across it
+    ang = 2.0 * np.pi * (np.arange(n) + rng.uniform(-0.2, 0.2, n)) / n
+    xy = (1.3 * np.column_stack([np.cos(ang), np.sin(ang)])).tolist()
+    heading = (ang + np.pi + rng.uniform(-0.6, 0.6, n)).tolist()
+    res = _walk(morphs, xy, heading, avoid=True, n=60)
+    assert np.isfinite(res.joints).all()
+    assert crowd_intrusion(res).max() == 0.0
+    legs = res.legs
+    assert mx.bone_length_error(res.joints, legs.segment_lengths, legs.n_segments).max() < 1e-6

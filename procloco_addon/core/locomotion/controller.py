@@ -71,8 +71,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..geometry import rotate_xy, rotation_matrices, wrap_angle
-from ..world.terrain import Environment
-from . import obstacles, pelvis, planning, reach, spine_link, stepping
+from ..world.terrain import Environment, WindowGrids
+from . import crowd, obstacles, pelvis, planning, reach, spine_link, stepping
 from .footprints import LegGeometry, PlannerParams
 from .gait import Gait, GaitManager, GaitStep
 from .ik import IKResult
@@ -132,6 +132,7 @@ class Controller:
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: Sequence[SpineParams | None] | None = None,
+        avoid: Sequence[bool] | None = None,
     ) -> None:
         self.env = env
         self.legs = legs
@@ -145,6 +146,10 @@ class Controller:
         self.gait = GaitManager(legs.leg_char, gaits, phase)
         self.time = 0.0
         self.rig: Rig = build_rig(legs, p, self.char_params)
+        # the characters that see the others (crowd): their bodies and feet this step
+        self.avoid: BoolArray = (np.zeros(c, dtype=bool) if avoid is None
+                                 else np.broadcast_to(np.asarray(avoid, dtype=bool), (c,)).copy())
+        self.bodies: crowd.BodyBoxes | None = None
         self._planner_override = list(planner) if planner is not None else [None] * c
         # the planner's settings per character and geometry per leg, made once (planner_params,
         # leg_geometry)
@@ -412,6 +417,7 @@ class Controller:
         prof = Profiler(stats.seconds, self.params.clock)
         self.time += dt
         gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
+        self.bodies = self.body_boxes() if self.avoid.any() else None
         flags = self.feet.flags()
         sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
         if np.any(sched.to_plan):
@@ -466,7 +472,42 @@ class Controller:
         """What the foot-state rules (``stepping``) read besides the feet."""
         return World(self.env, self.watch, self.rig, self.params, self.gait,
                      None if self.ik_result is None else self.ik_result.error, self.hips_world,
-                     self.leg_rotations, self._free_hips, self._push_out)
+                     self.leg_rotations, self._free_hips, self._push_out,
+                     None if self.bodies is None else self._crowd_near)
+
+    def body_boxes(self) -> crowd.BodyBoxes:
+        """Every character's body boxes now (``crowd.body_boxes``; along a spine, per bone)."""
+        n_joints = np.array([m.spine.n_joints if m.spine is not None and sp is not None else 0
+                             for m, sp in zip(self.legs.morphologies, self.link.params, strict=True)],
+                            dtype=np.int64)
+        joints = self.spine_joints() if self.link.groups else None
+        rig = self.rig
+        return crowd.body_boxes(rig.box_center, rig.box_half, self.body.pos, self.body.yaw, joints, n_joints)
+
+    def _crowd_near(self, points: FloatArray, which: BoolArray) -> BoolArray:
+        """``(N,)`` feet ``which`` of characters that avoid the others whose ``points (N, 3)``
+        another character's body covers or is within half ``crowd.KEEP_OUT`` of."""
+        out = np.zeros(self.n_legs, dtype=bool)
+        legs = np.flatnonzero(which & self.avoid[self.leg_char])
+        if legs.size and self.bodies is not None:
+            out[legs] = crowd.inside_other(self.bodies, points[legs, :2], self.leg_char[legs],
+                                           0.5 * crowd.KEEP_OUT * self.legs.leg_length[legs])
+        return out
+
+    def _crowd_windows(self, grids: dict[int, WindowGrids]) -> dict[int, WindowGrids]:
+        """The planning windows of characters that avoid the others with the other bodies
+        (``crowd.KEEP_OUT`` around them) and feet (planted, or where they land) avoided."""
+        if self.bodies is None:
+            return grids
+        feet = self.feet
+        spot = np.where(feet.swinging[:, None], feet.plan.target[:, :2], feet.foot[:, :2])
+        sole = np.max(self.rig.sole_half, axis=1)[self.leg_char]
+        out = dict(grids)
+        for ch, grid in grids.items():
+            if self.avoid[ch]:
+                margin = crowd.KEEP_OUT * float(self.rig.char_leg_length[ch])
+                out[ch] = crowd.mark_window(grid, self.bodies, ch, margin, spot, self.leg_char, sole)
+        return out
 
     def _free_hips(self) -> FloatArray:
         """``(N, 3)`` the hips at the height the pelvis wants, before the reach guard lowered
@@ -489,6 +530,7 @@ class Controller:
         u_grid = np.linspace(0.0, 1.0, p.trajectory_samples + 1)
         with prof.phase("maps"):
             grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
+            grids = self._crowd_windows(grids)
         with prof.phase("planning"):
             reqs, rows_of = planning.requests(rig, p, land, self.feet, flags[0], flags[1], ctl, grids,
                                               self.planner_params, self.leg_geometry)
