@@ -95,6 +95,77 @@ def _measured(obj: Any, job: generate.Job, rigs: list[Any], ground: Any) -> dict
 
 
 # ---------------------------------------------------------------------------------------
+# Rigs see each other
+
+
+def _hips_boxes(obj: Any, job: generate.Job, frames: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """The posed rig's body box at each frame, from its bones: the box around its hips in
+    the frame its hips face (front hips' centre minus hind hips'), as ``(F, 3, 3)``
+    world-to-box transforms of the ground plane (rows: x, y, 1) and half sizes ``(F, 2)``."""
+    joints = leg_joints(obj, frames, [leg.bones for leg in job.info.legs])
+    hips = np.stack([j[:, 0, :2] for j in joints], axis=1)  # (F, L, 2)
+    n = hips.shape[1]
+    forward = hips[:, : n // 2].mean(axis=1) - hips[:, n - n // 2:].mean(axis=1)
+    forward /= np.linalg.norm(forward, axis=1, keepdims=True)
+    left = np.stack([-forward[:, 1], forward[:, 0]], axis=1)
+    centre = 0.5 * (hips.min(axis=1) + hips.max(axis=1))
+    rel = hips - centre[:, None]
+    local = np.stack([np.einsum("fld,fd->fl", rel, forward), np.einsum("fld,fd->fl", rel, left)], axis=-1)
+    mid = 0.5 * (local.min(axis=1) + local.max(axis=1))
+    half = 0.5 * (local.max(axis=1) - local.min(axis=1))
+    to_box = np.zeros((len(frames), 3, 3))
+    to_box[:, 0, :2], to_box[:, 1, :2] = forward, left
+    to_box[:, 0, 2] = -np.einsum("fd,fd->f", forward, centre) - mid[:, 0]
+    to_box[:, 1, 2] = -np.einsum("fd,fd->f", left, centre) - mid[:, 1]
+    to_box[:, 2, 2] = 1.0
+    return to_box, half
+
+
+def _feet_in_box(feet: np.ndarray, to_box: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """``(F, L)`` how deep each foot ``(F, L, 2)`` is inside the box (m, <= 0 outside)."""
+    pts = np.concatenate([feet, np.ones((*feet.shape[:2], 1))], axis=-1)
+    local = np.einsum("fij,flj->fli", to_box, pts)[..., :2]
+    return np.min(half[:, None] - np.abs(local), axis=-1)
+
+
+def test_two_rigs_walking_toward_each_other_keep_out_of_each_other_and_pass(empty_scene: Any) -> None:
+    ground = _ground()
+    frames = list(range(1, 121))
+    a = _place(empty_scene, "spider", "SpiderA", (0.05, 1.2), scale=4.0)
+    b = _place(empty_scene, "spider", "SpiderB", (-0.05, -1.2), scale=4.0, yaw=math.pi)
+    for rig in (a, b):
+        rig.procloco.frame_end = frames[-1]
+        rig.procloco.speed = 0.45  # 1.3 leg lengths a second: they meet half-way
+    # (not copies of each other, so not varied: see _mixed_batch)
+    b.procloco.step_height = 0.9 * a.procloco.step_height
+    _select([a, b])
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    jobs = _simulated([a, b])
+    measured = [_measured(obj, job, [a, b], ground) for obj, job in zip((a, b), jobs, strict=True)]
+    feet = {obj.name: m["ends"][..., :2] for obj, m in zip((a, b), measured, strict=True)}
+    for me, other, job in ((a, b, jobs[1]), (b, a, jobs[0])):
+        to_box, half = _hips_boxes(other, job, frames)
+        depth = _feet_in_box(feet[me.name], to_box, half)
+        assert float(depth.max()) <= 0.0, f"a foot of {me.name} is {depth.max():.4f} m inside {other.name}"
+    # They passed each other: A (walking -Y) ends beyond where B (walking +Y) ends.
+    body = [job.result.body[:, 1, 3] for job in jobs if job.result is not None]
+    assert body[0][0] > body[1][0]
+    assert body[0][-1] < body[1][-1], (body[0][-1], body[1][-1])
+    # And they turned aside to do it: at their closest they are more than a body apart.
+    xy = [job.result.body[:, :2, 3] for job in jobs if job.result is not None]
+    closest = float(np.linalg.norm(xy[0] - xy[1], axis=1).min())
+    assert closest > 2.0 * float(np.max(_hips_boxes(a, jobs[0], frames)[1][:, 1])), closest
+    # With Avoid Other Rigs off they walk straight on, through each other.
+    for rig in (a, b):
+        rig.procloco.use_avoid_others = False
+    blind = [job.result.body[:, :2, 3] for job in _simulated([a, b]) if job.result is not None]
+    assert float(np.linalg.norm(blind[0] - blind[1], axis=1).min()) < 0.15
+    # Both within the motion thresholds of a rig alone.
+    for m in measured:
+        check_thresholds(m)
+
+
+# ---------------------------------------------------------------------------------------
 # A batch of mixed rigs
 
 

@@ -159,7 +159,7 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
     first frame; their frames, seconds per frame and :func:`batch_key` alike): each rig a
     character with its own morphology, gait and gait changes, speeds, heading or path,
     settings, effects and start (its ``phase`` and ``cycle_scale`` already in its gaits, see
-    ``crowd.vary``)."""
+    ``crowd.vary``), seeing the others when its Avoid Other Rigs is on."""
     terrain = jobs[0].terrain
     if terrain is None:
         raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
@@ -191,6 +191,7 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
                for i, c in enumerate(chars) for time, gait, transition in c.changes]
     phases = np.array([job.phase for job in jobs])
     spine = [spine_params(job) if job.morphology.spine is not None else None for job in jobs]
+    avoid = [job.use_avoid_others for job in jobs]
     seeds = [job.seed for job, c in zip(jobs, chars, strict=True)
              if c.effects.progression or c.effects.randomize_gait]
     return Simulation(
@@ -200,7 +201,10 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
         phase=phases if np.any(phases != 0.0) else None,
         params=chars[0].params if single else [c.params for c in chars],
         planner=[c.planner for c in chars], spine=spine if any(sp is not None for sp in spine) else None,
-        auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars])
+        auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars],
+        # Avoid Other Rigs: bodies and planted feet of the others kept clear, paths steered
+        # around them (core.locomotion.crowd); a rig alone has no one to avoid
+        avoid=avoid if not single and any(avoid) else None)
 
 
 def run(job: Job) -> Iterator[float]:
