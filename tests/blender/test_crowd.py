@@ -342,3 +342,19 @@ def test_collection_instances_made_real_each_get_their_own_walk(empty_scene: Any
     frames = list(range(1, FRAMES + 1))
     heights = [_foot_heights(o, frames) for o in made]
     assert float(np.abs(heights[0] - heights[1]).max()) > 0.01, "the copies walk in step"
+
+
+def test_batch_command_generates_every_rig_and_no_avoid_switches_avoidance_off(empty_scene: Any) -> None:
+    from procloco_addon.blender import cli
+
+    _ground()
+    rigs = [_place(empty_scene, "spider", f"Spider{k}", (-0.6 + 1.2 * k, 0.0), scale=4.0) for k in range(2)]
+    for rig in rigs:
+        rig.procloco.frame_end = 12
+    assert cli.main(["generate", "--all"]) == 0
+    assert all(rig.procloco.use_avoid_others for rig in rigs)
+    first = [rig.animation_data.action.name for rig in rigs]
+    assert len(set(first)) == 2
+    assert cli.main(["generate", "--rigs", "Spider0,Spider1", "--no-avoid"]) == 0
+    assert not any(rig.procloco.use_avoid_others for rig in rigs)  # saved on the rigs, as every override
+    assert all(rig.animation_data.action is not None for rig in rigs)
