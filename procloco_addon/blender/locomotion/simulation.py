@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Running the core simulation (``core.locomotion.sim.Simulation``) for one :class:`~.job.Job`, frame
-by frame.
+by frame, or for several rigs in one simulation (:func:`batch_simulation`, :func:`run_all`;
+which rigs go together: ``.crowd``).
 
-Only glue: :func:`simulation_of` is the one conversion of the rig's settings into the core's
+Only glue: :func:`_character` is the one conversion of a rig's settings into the core's
 inputs — the per-step commands (speed with the Gait Changes' ramps, heading: constant,
 turning, or steered along a path curve; step height, foot spacing, pelvis physics), the
 gait and its scheduled changes, Gait: Auto, burst progression and the gait randomizer
@@ -107,7 +108,6 @@ class _Character:
 
 def _character(job: Job) -> _Character:
     """One rig's part of a simulation."""
-    morph = job.morphology
     leg_len = float(np.mean(job.info.leg_length))
     origin = job.info.body.origin
     start_yaw = float(np.arctan2(job.info.body.forward[1], job.info.body.forward[0]))
@@ -142,7 +142,7 @@ def _character(job: Job) -> _Character:
     # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
     # The controller's constants differ per character only in what size scaling sets.
     key = (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
-    return _Character(morph, gait, origin[:2].copy(), start_yaw, speed_of,
+    return _Character(job.morphology, gait, origin[:2].copy(), start_yaw, speed_of,
                       None if job.path is None else job.path[:, :2], spacing, changes, effects, params,
                       planner, key)
 
