@@ -358,3 +358,41 @@ def test_batch_command_generates_every_rig_and_no_avoid_switches_avoidance_off(e
     assert cli.main(["generate", "--rigs", "Spider0,Spider1", "--no-avoid"]) == 0
     assert not any(rig.procloco.use_avoid_others for rig in rigs)  # saved on the rigs, as every override
     assert all(rig.animation_data.action is not None for rig in rigs)
+
+
+def test_escape_midway_through_a_batch_changes_nothing(empty_scene: Any) -> None:
+    """The modal path with two rigs in one simulation: Esc during the simulation leaves the
+    scene exactly as it was; left to run, the same loop writes both Actions."""
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
+
+    _ground()
+    rigs = [_place(empty_scene, "spider", f"Spider{k}", (-0.6 + 1.2 * k, 0.0), scale=4.0) for k in range(2)]
+    for rig in rigs:
+        rig.procloco.frame_end = 24
+    _select(rigs)
+    before = snapshot()
+    me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _jobs=[], _tick_budget_s=0.0,
+                         _cancelled_message="cancelled", _run_errors=())
+    for name in ("_prepare", "_run", "_stop", "_abort", "_discard", "_finish"):
+        setattr(me, name, getattr(Op, name).__get__(me))
+    wm = SimpleNamespace(progress_update=lambda _v: None, progress_end=lambda: None,
+                         event_timer_remove=lambda _t: None)
+    context = SimpleNamespace(**{k: getattr(bpy.context, k) for k in
+                                 ("scene", "view_layer", "active_object", "selected_objects")},
+                              window_manager=wm, area=None,
+                              evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get)
+    assert me._prepare(context)
+    assert len(me._jobs) == 2
+    me._steps = me._run(context, True)
+    timer = SimpleNamespace(type="TIMER")
+    for _ in range(6):  # (the terrain, then frames of the one simulation)
+        assert Op.modal(me, context, timer) == {"RUNNING_MODAL"}
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert snapshot() == before
+    assert me._prepare(context)
+    me._steps = me._run(context, True)
+    results = [Op.modal(me, context, timer) for _ in range(200)]
+    assert results.count({"FINISHED"}) == 1
+    assert all(rig.animation_data.action.name.startswith(f"{rig.name} ProcLoco") for rig in rigs)
