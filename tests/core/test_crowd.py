@@ -123,6 +123,24 @@ def _box_overlap(res: SimResult, a: int, b: int) -> float:
     return float(np.max(half[0] + half[1] - d))
 
 
+def _planted_gap(res: SimResult) -> float:
+    """Smallest distance (m) between two planted feet of different characters at any frame,
+    less the larger sole half size: > 0 when no foot stands on another's."""
+    legs = res.legs
+    sole = max(float(np.max(m.foot_half_extents if m.sole_half_extents is None else m.sole_half_extents))
+               for m in legs.morphologies)
+    other = legs.leg_char[:, None] != legs.leg_char[None, :]
+    gap = np.inf
+    for f in range(res.n_frames):
+        down = res.contact[f]
+        pair = other & down[:, None] & down[None, :]
+        if pair.any():
+            xy = res.foot[f, :, :2]
+            d = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+            gap = min(gap, float(d[pair].min()))
+    return gap - sole
+
+
 def _walk(morphs: list[tuple[Morphology, object]], xy: list[list[float]], heading: list[float], avoid: bool,
           n: int, speed: float = 0.3) -> SimResult:
     sim = Simulation(_flat(), [m for m, _ in morphs], [g for _, g in morphs],  # type: ignore[misc]
@@ -134,9 +152,9 @@ def _walk(morphs: list[tuple[Morphology, object]], xy: list[list[float]], headin
 
 def test_two_spiders_walking_head_on_pass_each_other_and_keep_off_each_other() -> None:
     spider = _spider()
-    xy, heading = [[-1.2, 0.0], [1.2, 0.0]], [0.0, np.pi]
-    on = _walk([spider, spider], xy, heading, avoid=True, n=270)
-    # they pass: from 2.4 m apart to each a metre past the other, back on its heading
+    xy, heading = [[-1.0, 0.0], [1.0, 0.0]], [0.0, np.pi]
+    on = _walk([spider, spider], xy, heading, avoid=True, n=230)
+    # they pass: from 2 m apart to each a metre past the other, back on its heading
     assert on.pelvis_position[-1, 0, 0] - on.pelvis_position[-1, 1, 0] > 1.0
     np.testing.assert_allclose(np.cos(on.yaw[-1]), [1.0, -1.0], atol=1e-6)
     # no foot ever inside the other's body box; the bodies never touch
@@ -148,7 +166,7 @@ def test_two_spiders_walking_head_on_pass_each_other_and_keep_off_each_other() -
         assert report.passed, report.failures()
     assert on.stats["n_failed"].sum() == 0
     # switched off they walk straight through each other (their bodies overlap)
-    off = _walk([spider, spider], xy, heading, avoid=False, n=120)
+    off = _walk([spider, spider], xy, heading, avoid=False, n=105)
     assert _box_overlap(off, 0, 1) > 0.1
     assert np.abs(off.pelvis_position[:, :, 1]).max() < 0.01
 
@@ -170,12 +188,12 @@ def test_a_spider_and_a_wolf_crossing_at_right_angles_let_each_other_pass() -> N
     for i in (0, 1):
         report = check_motion(on, _flat(), chars=[i])
         assert report.passed, report.failures()
-    off = _walk([spider, wolf], xy, heading, avoid=False, n=150, speed=0.35)
+    off = _walk([spider, wolf], xy, heading, avoid=False, n=135, speed=0.35)
     assert _box_overlap(off, 0, 1) > 0.0
     assert np.linalg.norm(off.pelvis_position[:, 0, :2] - off.pelvis_position[:, 1, :2], axis=1).min() < 0.3
 
 
-@settings(max_examples=4, deadline=None)
+@settings(max_examples=3, deadline=None)
 @given(st.integers(2, 5), st.integers(0, 2 ** 16))
 def test_random_small_crowds_keep_their_feet_off_each_other(n: int, seed: int) -> None:
     rng = np.random.default_rng(seed)
@@ -189,5 +207,6 @@ def test_random_small_crowds_keep_their_feet_off_each_other(n: int, seed: int) -
     res = _walk(morphs, xy, heading, avoid=True, n=60)
     assert np.isfinite(res.joints).all()
     assert crowd_intrusion(res).max() == 0.0
+    assert _planted_gap(res) > 0.0
     legs = res.legs
     assert mx.bone_length_error(res.joints, legs.segment_lengths, legs.n_segments).max() < 1e-6

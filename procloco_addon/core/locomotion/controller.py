@@ -150,6 +150,10 @@ class Controller:
         self.avoid: BoolArray = (np.zeros(c, dtype=bool) if avoid is None
                                  else np.broadcast_to(np.asarray(avoid, dtype=bool), (c,)).copy())
         self.bodies: crowd.BodyBoxes | None = None
+        self.discs: tuple[FloatArray, FloatArray] = crowd.footprint_discs(self.rig)
+        self._near = np.zeros((c, c), dtype=bool)  # crowd.neighbours of this step
+        self._crowded = np.zeros(c, dtype=bool)  # characters with a neighbour
+        self._was_near = [np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)]  # (_crowd_near)
         self._planner_override = list(planner) if planner is not None else [None] * c
         # the planner's settings per character and geometry per leg, made once (planner_params,
         # leg_geometry)
@@ -417,7 +421,8 @@ class Controller:
         prof = Profiler(stats.seconds, self.params.clock)
         self.time += dt
         gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
-        self.bodies = self.body_boxes() if self.avoid.any() else None
+        if self.avoid.any():
+            self._see_others()
         flags = self.feet.flags()
         sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
         if np.any(sched.to_plan):
@@ -484,15 +489,38 @@ class Controller:
         rig = self.rig
         return crowd.body_boxes(rig.box_center, rig.box_half, self.body.pos, self.body.yaw, joints, n_joints)
 
-    def _crowd_near(self, points: FloatArray, which: BoolArray) -> BoolArray:
+    def disc_centers(self) -> FloatArray:
+        """``(C, 2)`` world centres of the characters' footprint discs (``self.discs``)."""
+        dc = self.discs[0]
+        cos, sin = np.cos(self.body.yaw), np.sin(self.body.yaw)
+        turned = np.stack([cos * dc[:, 0] - sin * dc[:, 1], sin * dc[:, 0] + cos * dc[:, 1]], axis=1)
+        return np.asarray(self.body.pos[:, :2] + turned)
+
+    def _see_others(self) -> None:
+        """This step's body boxes and, for the characters that avoid the others, which
+        others are near enough to matter (a leg and the keep-out margin beyond their discs)."""
+        self.bodies = self.body_boxes()
+        reach = (0.5 + crowd.KEEP_OUT) * self.rig.char_leg_length
+        self._near = crowd.neighbours(self.disc_centers(), self.discs[1], reach, self.avoid)
+        self._crowded = self._near.any(axis=1)
+        if not self._crowded.any():
+            self.bodies = None  # nobody near anybody: nothing to check this step
+            for was in self._was_near:
+                was[:] = False
+
+    def _crowd_near(self, points: FloatArray, which: BoolArray, kind: int) -> BoolArray:
         """``(N,)`` feet ``which`` of characters that avoid the others whose ``points (N, 3)``
-        another character's body covers or is within half ``crowd.KEEP_OUT`` of."""
-        out = np.zeros(self.n_legs, dtype=bool)
-        legs = np.flatnonzero(which & self.avoid[self.leg_char])
+        another character's body has come within half ``crowd.KEEP_OUT`` of since the last
+        look of this ``kind`` (0: planted feet, 1: landing spots): once per approach, so a
+        foot that cannot get away does not try again at every step."""
+        near = np.zeros(self.n_legs, dtype=bool)
+        legs = np.flatnonzero(which & self._crowded[self.leg_char])
         if legs.size and self.bodies is not None:
-            out[legs] = crowd.inside_other(self.bodies, points[legs, :2], self.leg_char[legs],
-                                           0.5 * crowd.KEEP_OUT * self.legs.leg_length[legs])
-        return out
+            near[legs] = crowd.inside_other(self.bodies, points[legs, :2], self.leg_char[legs],
+                                            0.5 * crowd.KEEP_OUT * self.legs.leg_length[legs])
+        was = self._was_near[kind]
+        self._was_near[kind] = near
+        return np.asarray(near & ~was)
 
     def _crowd_windows(self, grids: dict[int, WindowGrids]) -> dict[int, WindowGrids]:
         """The planning windows of characters that avoid the others with the other bodies
@@ -503,10 +531,16 @@ class Controller:
         spot = np.where(feet.swinging[:, None], feet.plan.target[:, :2], feet.foot[:, :2])
         sole = np.max(self.rig.sole_half, axis=1)[self.leg_char]
         out = dict(grids)
+        b = self.bodies
         for ch, grid in grids.items():
-            if self.avoid[ch]:
+            if self._crowded[ch]:
+                near = self._near[ch]
+                mine = near[b.owner]
+                boxes = crowd.BodyBoxes(b.owner[mine], b.center[mine], b.half[mine], b.yaw[mine])
+                feet_near = near[self.leg_char]
                 margin = crowd.KEEP_OUT * float(self.rig.char_leg_length[ch])
-                out[ch] = crowd.mark_window(grid, self.bodies, ch, margin, spot, self.leg_char, sole)
+                out[ch] = crowd.mark_window(grid, boxes, ch, margin, spot[feet_near],
+                                            self.leg_char[feet_near], sole[feet_near])
         return out
 
     def _free_hips(self) -> FloatArray:

@@ -9,9 +9,9 @@ For a character that avoids the others:
   along a flexible spine, one box per spine bone) is an obstacle for its feet: the cells
   under it (and ``KEEP_OUT`` leg lengths around it) are avoided cells of the planning window,
   so no footprint is planned inside it; a swinging foot whose landing spot another body now
-  covers re-plans, and a planted foot that another body comes within the watch distance of
-  steps away (a forced step, as for a moving crate). A character's own body never forbids
-  its own feet (every box has an owner).
+  covers re-plans, and a planted foot that another body comes within half ``KEEP_OUT`` of
+  steps away (a forced step, as for a moving crate; once per approach). A character's own
+  body never forbids its own feet (every box has an owner).
 - **Feet.** Another character's planted feet and the landing spots of its swinging ones are
   avoided discs (its sole's half size) in the window: feet never land on each other.
 - **Steering.** Before the controller plans, the commanded heading (and, if no heading
@@ -21,14 +21,18 @@ For a character that avoids the others:
   around the preferred one are scored by ``w / tc + |v_pref - v|`` (``tc``: time to the
   first contact with any neighbour if it took the candidate and the neighbour kept half the
   avoiding effort, ``2 v - v_i - v_j``; a neighbour that does not avoid is a plain velocity
-  obstacle, ``v - v_j``) and the best is taken. Candidates are tried in a fixed order (the
+  obstacle, ``v - v_j``) and the best is taken, over the ``MAX_NEIGHBOURS`` nearest. A
+  candidate that would pass close to a neighbour with the neighbour on its right costs more
+  (keep right: the rule reads the same from both, so two characters agree on the side they
+  pass; crossing paths, one of them gives way). Candidates are tried in a fixed order (the
   straight one first, then right before left), so the result is deterministic and two
   characters meeting head-on both keep right. The preferred heading and speed stay the
   user's (a path's follower aims from where the character is), so the original heading is
   resumed once nothing is in the way.
 
 Cost: one ``(C, C)`` distance matrix per step, then only the pairs close enough to meet
-within ``HORIZON`` seconds are scored (vectorised over pairs and candidates).
+within ``HORIZON`` seconds are scored (vectorised over pairs and candidates); the body and
+feet checks run only for characters with a neighbour within a leg (``neighbours``).
 """
 
 from __future__ import annotations
@@ -41,11 +45,13 @@ from ..world.terrain import WindowGrids
 from .rig import Rig
 from .types import BoolArray, FloatArray, IntArray
 
-__all__ = ["HORIZON", "KEEP_OUT", "BodyBoxes", "body_boxes", "feet_in_bodies", "footprint_discs",
-           "inside_other", "mark_window", "steer"]
+__all__ = ["HORIZON", "KEEP_OUT", "MAX_NEIGHBOURS", "BodyBoxes", "body_boxes", "feet_in_bodies",
+           "footprint_discs", "inside_other", "mark_window", "neighbours", "steer"]
 
 #: Seconds ahead within which a possible contact steers a character.
 HORIZON = 3.0
+#: Neighbours (the nearest) a character steers around at once.
+MAX_NEIGHBOURS = 8
 #: Margin around another body's box kept free of footprints, in leg lengths.
 KEEP_OUT = 0.1
 #: Heading offsets tried (radians), the straight one first, then right before left.
@@ -191,6 +197,18 @@ def mark_window(grid: WindowGrids, boxes: BodyBoxes, owner: int, margin: float, 
                        grid.foot_half_extents, grid.foot_yaw)
 
 
+def neighbours(center: FloatArray, radius: FloatArray, reach: FloatArray, avoid: BoolArray) -> BoolArray:
+    """``(C, C)`` pairs ``[i, j]`` of characters ``i`` with ``avoid (C,)`` whose discs
+    (``center (C, 2)``, ``radius (C,)``, see ``footprint_discs``) are within ``reach[i]`` of
+    another's: the only ones whose bodies and feet ``i``'s feet check."""
+    d = center[:, None, :] - center[None, :, :]
+    dist2 = np.einsum("ijd,ijd->ij", d, d)
+    lim = radius[:, None] + reach[:, None] + radius[None, :]
+    near = (dist2 < lim * lim) & avoid[:, None]
+    np.fill_diagonal(near, False)
+    return np.asarray(near)
+
+
 def footprint_discs(rig: Rig) -> tuple[FloatArray, FloatArray]:
     """Each character's steering disc: its centre in the body frame ``(C, 2)`` (the middle of
     its rest feet and body box) and radius ``(C,)`` (reaching every rest foot's box and the
@@ -232,6 +250,13 @@ def steer(
     dist = np.hypot(d[..., 0], d[..., 1])
     near = (dist < reach) & avoid[:, None] & (speed > 0.0)[:, None]
     np.fill_diagonal(near, False)
+    if c > MAX_NEIGHBOURS + 1:
+        # the nearest few only (van den Berg et al. also bound the neighbours considered)
+        gap = np.where(near, dist - radius[None, :], np.inf)
+        keep = np.argpartition(gap, MAX_NEIGHBOURS, axis=1)[:, :MAX_NEIGHBOURS]
+        nearest = np.zeros_like(near)
+        np.put_along_axis(nearest, keep, True, axis=1)
+        near &= nearest
     ii, jj = np.nonzero(near)
     if ii.size == 0:
         return out_h, out_v
@@ -254,8 +279,9 @@ def steer(
         tc = np.where((b > 0.0) & (disc >= 0.0), root, np.inf)
     # already touching: any candidate still closing in is a contact now
     tc = np.where(cc < 0.0, np.where(b > 0.0, 0.0, np.inf), tc)
-    first = np.full((c, cand.shape[1]), np.inf)
-    np.minimum.at(first, ii, tc)
+    # per character (np.nonzero gives the pairs sorted by ii): the first contact over its pairs
+    rows, starts = np.unique(ii, return_index=True)
+    first = np.minimum.reduceat(tc, starts, axis=0)
     # keep right: a candidate passing close to a neighbour (within _SIDE_CLOSE of the
     # contact distance, before HORIZON) with the neighbour on its right costs more; the rule
     # is the same seen from both, so two characters agree on how they pass
@@ -263,12 +289,10 @@ def steer(
     d2_close = cc + big_r ** 2 - b * t_close
     close = (b > 0.0) & (t_close < HORIZON) & (d2_close < (_SIDE_CLOSE * big_r) ** 2)
     wrong = close & (u[..., 0] * p[..., 1] - u[..., 1] * p[..., 0] < 0.0)
-    side = np.zeros((c, cand.shape[1]))
-    np.maximum.at(side, ii, wrong.astype(np.float64))
-    rows = np.unique(ii)
+    side = np.logical_or.reduceat(wrong, starts, axis=0)
     w = _W_CONTACT * speed[rows, None]
-    contact = w * np.maximum(1.0 / np.maximum(first[rows], 1e-3) - 1.0 / HORIZON, 0.0)
-    contact = contact + _W_SIDE * speed[rows, None] * side[rows]
+    contact = w * np.maximum(1.0 / np.maximum(first, 1e-3) - 1.0 / HORIZON, 0.0)
+    contact = contact + _W_SIDE * speed[rows, None] * side
     pref = np.stack([np.cos(heading[rows]), np.sin(heading[rows])], axis=-1) * speed[rows, None]
     cost = contact + np.linalg.norm(cand[rows] - pref[:, None, :], axis=-1)
     if last is not None:

@@ -39,6 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .. import metrics as mx
+from ..geometry import wrap_angle
 from ..world.terrain import NO_SURFACE, ROLE_AVOID, Environment
 from . import crowd
 from .autogait import AutoGait, AutoGaitParams
@@ -429,8 +430,8 @@ class Simulation:
             spine=[spine] * c if isinstance(spine, SpineParams) else spine,
             avoid=avoid,
         )
-        self._disc_center, self._disc_radius = crowd.footprint_discs(self.controller.rig)
         self._steered: FloatArray | None = None
+        self._offset = np.zeros(c)  # steering's turn from the commanded heading (rad)
         self.time = 0.0
         self._n_steps = 0
         self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
@@ -575,14 +576,16 @@ class Simulation:
         """The commanded headings and speeds of characters that avoid the others, steered
         around them (``crowd.steer``; the user's commands stay the preferred ones)."""
         ctrl = self.controller
-        yaw = ctrl.yaw
-        cos, sin = np.cos(yaw), np.sin(yaw)
-        dc = self._disc_center
-        turned = np.stack([cos * dc[:, 0] - sin * dc[:, 1], sin * dc[:, 0] + cos * dc[:, 1]], axis=1)
-        center = ctrl.pos[:, :2] + turned
-        velocity = self._speed[:, None] * np.stack([cos, sin], axis=1)
-        heading, speed = crowd.steer(center, self._disc_radius, velocity, step_ctl.heading, step_ctl.speed,
-                                     ctrl.avoid, self._steered)
+        velocity = self._speed[:, None] * np.stack([np.cos(ctrl.yaw), np.sin(ctrl.yaw)], axis=1)
+        heading, speed = crowd.steer(ctrl.disc_centers(), ctrl.discs[1], velocity, step_ctl.heading,
+                                     step_ctl.speed, ctrl.avoid, self._steered)
+        # the turn away from the commanded heading is taken at once but given back no faster
+        # than the body turns (each jump of the commanded heading re-plans the swinging feet)
+        limit = ctrl.params.max_turn_rate * self.dt
+        offset = wrap_angle(heading - step_ctl.heading)
+        back = (np.abs(offset) < np.abs(self._offset)) & (offset * self._offset >= 0.0)
+        self._offset = np.where(back, self._offset + np.clip(offset - self._offset, -limit, limit), offset)
+        heading = step_ctl.heading + self._offset
         self._steered = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
         return replace(step_ctl, heading=heading, speed=speed)
 

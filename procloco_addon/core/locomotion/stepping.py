@@ -31,9 +31,9 @@ class World:
     the knobs, the gait, the last IK's error ``ik_error (N,)`` (None before the first), and
     the controller's read-outs as calls: ``hips()`` and ``leg_rot()`` now, ``free_hips()``
     (at the height the pelvis wants, see ``reach.overstretched``), ``push(legs, surface)``
-    (``obstacles.push_out`` of those feet); ``crowd(points, which)``: which of the points
-    ``(N, 3)`` of feet ``which (N,)`` another character's body covers or comes near
-    (``crowd``; None: the characters do not see each other)."""
+    (``obstacles.push_out`` of those feet); ``crowd(points, which, kind)``: which of the
+    points ``(N, 3)`` of feet ``which (N,)`` another character's body has come near since
+    the last look of that ``kind`` (``crowd``; None: the characters do not see each other)."""
 
     env: Environment
     watch: Watch
@@ -45,7 +45,7 @@ class World:
     leg_rot: Callable[[], FloatArray]
     free_hips: Callable[[], FloatArray]
     push: Callable[[IntArray, FloatArray], None]
-    crowd: Callable[[FloatArray, BoolArray], BoolArray] | None = None
+    crowd: Callable[[FloatArray, BoolArray, int], BoolArray] | None = None
 
 
 @dataclass
@@ -115,8 +115,8 @@ def schedule(
     if w.crowd is not None:
         # another character's body comes near a planted foot: it steps away; one covers a
         # swinging foot's landing spot: the swing is re-planned
-        support_gone |= w.crowd(feet.foot, ~swinging)
-        replan |= w.crowd(feet.plan.target, swinging & (gstep.swing | forced) & ~replan)
+        support_gone |= w.crowd(feet.foot, ~swinging, 0)
+        replan |= w.crowd(feet.plan.target, swinging & (gstep.swing | forced) & ~replan, 1)
     behind, stretch = overstretched(w.rig, p, w.free_hips(), feet.foot, ~swinging)
     behind &= ~support_gone
     behind &= ~wait_for_support(w.rig, p, behind & planted & ~forced, stretch, swinging | lifted, w.ik_error)
