@@ -44,6 +44,7 @@ def _place(scene: Any, kind: str, name: str, xy: tuple[float, float], scale: flo
 
 
 def _select(rigs: list[Any]) -> None:
+    bpy.context.view_layer.update()  # (objects linked since the last update are in its list)
     for o in bpy.context.view_layer.objects:
         o.select_set(False)
     for o in rigs:
