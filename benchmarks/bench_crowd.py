@@ -3,6 +3,7 @@
 
     python benchmarks/bench_crowd.py [--chars 100] [--steps 60] [--warmup 15] [--seed 0]
                                      [--scale 2.0] [--profile] [--modes LOD,...]
+                                     [--avoid] [--spread 0.8]
 
 The scene (benchmarks/scenes.py): a 100 m heightmap with 3000 crates, 40 % of them moving;
 planning windows of 70 × 70 cells of 7 cm. The crowd: ``--chars`` eight-legged spiders
@@ -27,6 +28,10 @@ figures (C++, four threads), then planner counts per step. Times are CPU seconds
 single-threaded process (``time.process_time``), so that other jobs on a shared machine do
 not inflate them; the wall time is printed beside them. The last line is
 ``RESULT crowd step_s_lod=<s> step_s_zlod=<s> step_s_nolod=<s>``.
+
+``--avoid``: the spiders see each other (``Simulation(avoid=...)``: bodies and feet as
+obstacles, steering); ``--spread``: the share of the world they start in (0.8; 0.1 packs
+the 100 spiders into 10 m × 10 m, where they meet all the time).
 """
 
 from __future__ import annotations
@@ -111,7 +116,7 @@ def camera_setup(mode: str, xy: FloatArray) -> tuple[list[PlannerLOD], npt.NDArr
 
 def build(args: argparse.Namespace, mode: str) -> tuple[CrowdScene, Simulation]:
     scene = make_crowd_scene(seed=args.seed)
-    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1)
+    xy, heading = spawn_points(scene, args.chars, seed=args.seed + 1, spread=args.spread)
     spider = morphology.spider(args.scale)
     gait = find_gait_preset("octopod_alternating_tetrapod").gait(spider.labels)
     gait = gait.with_cycle_time(0.7 * float(np.sqrt(args.scale)))
@@ -128,6 +133,7 @@ def build(args: argparse.Namespace, mode: str) -> tuple[CrowdScene, Simulation]:
         seed=args.seed,
         params=ControllerParams(window_cells=70, window_cell=0.07, clock=time.process_time),
         lod=lod,
+        avoid=[True] * args.chars if args.avoid else None,
     )
     return scene, sim
 
@@ -202,6 +208,8 @@ def main() -> None:
     parser.add_argument("--warmup", type=int, default=15)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--scale", type=float, default=2.0)
+    parser.add_argument("--avoid", action="store_true", help="the spiders see each other")
+    parser.add_argument("--spread", type=float, default=0.8, help="share of the world they start in")
     parser.add_argument("--profile", action="store_true", help="print the hottest functions of each mode")
     parser.add_argument(
         "--profile-out", default="", help="with --profile: also save each mode's stats to PREFIX.<mode>.prof"

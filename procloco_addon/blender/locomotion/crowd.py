@@ -8,8 +8,8 @@ simulations as the rigs allow, each stepping all its rigs together frame by fram
 - :func:`vary` gives copies of one creature their own phase and stride (Seed Offset, and an
   automatic variation for linked duplicates and rigs with identical settings).
 - :func:`batches` groups the rigs that can share one simulation: the same frames, the same
-  terrain objects, the same mean foot height (the core's terrain is raised by it) and the
-  same controller constants (:func:`.simulation.batch_key`). Rigs of
+  terrain objects and the same mean foot height (the core's terrain is raised by it; see
+  :func:`.simulation.batch_key`). Rigs of
   different frame ranges are each walked over their own range, in simulations of their own:
   an animator who gave a rig its own range expects that range, and those rigs do not see
   the others.
@@ -102,7 +102,7 @@ def _signature(job: Job) -> tuple[object, ...]:
 
 
 def vary(jobs: Sequence[Job]) -> None:
-    """Give each rig its variation (:func:`variation`, into its gaits and phase): a rig's
+    """Give each rig its variation (:func:`variation`, into its phase and gaits): a rig's
     Seed Offset when it is not 0; else, for a rig that shares its armature data with another
     rig of ``jobs`` (a linked duplicate) or walks with exactly the settings of another (a
     copy), a key from its object's name, so copies do not walk in step. Any other rig, and a
@@ -120,12 +120,13 @@ def vary(jobs: Sequence[Job]) -> None:
 
 
 def _apply_variation(job: Job, phase: float, scale: float) -> None:
+    """The start phase and the cycle times: the gaits' (circles and Gait Changes), or with
+    Gait: Auto the creature's size (its cycle follows the square root of it, Froude)."""
     job.phase, job.cycle_scale = phase, scale
     job.gait = replace(job.gait, cycle_time=job.gait.cycle_time * scale)
     job.gait_changes = tuple(replace(c, gait=replace(c.gait, cycle_time=c.gait.cycle_time * scale))
                              for c in job.gait_changes)
     if job.auto_gait is not None:
-        # Auto's cycle grows as the square root of the creature's size (Froude)
         job.auto_gait = replace(job.auto_gait, size=job.auto_gait.size * scale * scale)
 
 

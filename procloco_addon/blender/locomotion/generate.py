@@ -14,6 +14,9 @@ The work for one rig is a :class:`Job` in three stages:
    written);
 3. :func:`write` converts the result into pose-bone keys of a **new** Action assigned to the
    rig (the previous Action is remembered, see :mod:`..actions`).
+
+Many rigs at once (:func:`generate`, the operator): every rig read first, then the rigs that
+can walk together in one simulation (:mod:`.crowd`).
 """
 
 from __future__ import annotations

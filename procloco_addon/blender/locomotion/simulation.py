@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Running the core simulation (``core.locomotion.sim.Simulation``) for one :class:`~.job.Job`, frame
-by frame.
+by frame, or for several rigs in one simulation (:func:`batch_simulation`, :func:`run_all`;
+which rigs go together: ``.crowd``).
 
-Only glue: :func:`simulation_of` is the one conversion of the rig's settings into the core's
+Only glue: :func:`_character` is the one conversion of a rig's settings into the core's
 inputs — the per-step commands (speed with the Gait Changes' ramps, heading: constant,
 turning, or steered along a path curve; step height, foot spacing, pelvis physics), the
 gait and its scheduled changes, Gait: Auto, burst progression and the gait randomizer
@@ -107,7 +108,6 @@ class _Character:
 
 def _character(job: Job) -> _Character:
     """One rig's part of a simulation."""
-    morph = job.morphology
     leg_len = float(np.mean(job.info.leg_length))
     origin = job.info.body.origin
     start_yaw = float(np.arctan2(job.info.body.forward[1], job.info.body.forward[0]))
@@ -140,19 +140,17 @@ def _character(job: Job) -> _Character:
     # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
     # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
     # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
-    # Rounded to micrometres: linked duplicates placed and turned differently read their legs
-    # in world space, a few 1e-8 m apart in float32, and must still share one simulation.
-    key = (round(job.lift, 6), round(leg_len, 6), round(job.step_height, 9), auto_physics, window[0],
-           round(window[1], 6), job.seed if effects.progression or effects.randomize_gait else None)
-    return _Character(morph, gait, origin[:2].copy(), start_yaw, speed_of,
+    # The controller's constants differ per character only in what size scaling sets.
+    key = (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
+    return _Character(job.morphology, gait, origin[:2].copy(), start_yaw, speed_of,
                       None if job.path is None else job.path[:, :2], spacing, changes, effects, params,
                       planner, key)
 
 
 def batch_key(job: Job) -> tuple[Any, ...]:
     """What rigs must share to be simulated together (besides their frames and terrain):
-    the lift of the terrain (their mean foot height), the controller's constants, which the
-    core takes once per simulation, and the seed of rigs whose effects draw random numbers."""
+    the lift of the terrain (their mean foot height) and the seed of rigs whose effects draw
+    random numbers."""
     return _character(job).key
 
 
@@ -161,7 +159,7 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
     first frame; their frames, seconds per frame and :func:`batch_key` alike): each rig a
     character with its own morphology, gait and gait changes, speeds, heading or path,
     settings, effects and start (its ``phase`` and ``cycle_scale`` already in its gaits, see
-    ``crowd.vary``)."""
+    ``crowd.vary``), seeing the others when its Avoid Other Rigs is on."""
     terrain = jobs[0].terrain
     if terrain is None:
         raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
@@ -169,7 +167,7 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
         raise RuntimeError("the rigs of one simulation share one terrain (crowd.read_terrain)")
     chars = [_character(job) for job in jobs]
     if any(c.key != chars[0].key for c in chars):
-        raise RuntimeError("rigs of different controller constants in one simulation (crowd.batches)")
+        raise RuntimeError("rigs of different terrain lifts or seeds in one simulation (crowd.batches)")
     dt = jobs[0].dt
     spacing = np.concatenate([c.spacing for c in chars])
     paths = [c.path for c in chars]
@@ -193,15 +191,20 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
                for i, c in enumerate(chars) for time, gait, transition in c.changes]
     phases = np.array([job.phase for job in jobs])
     spine = [spine_params(job) if job.morphology.spine is not None else None for job in jobs]
+    avoid = [job.use_avoid_others for job in jobs]
     seeds = [job.seed for job, c in zip(jobs, chars, strict=True)
              if c.effects.progression or c.effects.randomize_gait]
     return Simulation(
         terrain.environment, [c.morphology for c in chars], [c.gait for c in chars],
         start_xy=np.array([c.start_xy for c in chars]), start_yaw=[c.start_yaw for c in chars],
         controls=controls, gait_changes=changes, dt=dt, seed=seeds[0] if seeds else jobs[0].seed,
-        phase=phases if np.any(phases != 0.0) else None, params=chars[0].params,
+        phase=phases if np.any(phases != 0.0) else None,
+        params=chars[0].params if single else [c.params for c in chars],
         planner=[c.planner for c in chars], spine=spine if any(sp is not None for sp in spine) else None,
-        auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars])
+        auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars],
+        # Avoid Other Rigs: bodies and planted feet of the others kept clear, paths steered
+        # around them (core.locomotion.crowd); a rig alone has no one to avoid
+        avoid=avoid if not single and any(avoid) else None)
 
 
 def run(job: Job) -> Iterator[float]:

@@ -71,8 +71,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..geometry import rotate_xy, rotation_matrices, wrap_angle
-from ..world.terrain import Environment
-from . import obstacles, pelvis, planning, reach, spine_link, stepping
+from ..world.terrain import Environment, WindowGrids
+from . import crowd, obstacles, pelvis, planning, reach, spine_link, stepping
 from .footprints import LegGeometry, PlannerParams
 from .gait import Gait, GaitManager, GaitStep
 from .ik import IKResult
@@ -81,7 +81,7 @@ from .obstacles import Watch
 from .pelvis import Body, Pogo
 from .pelvis_physics import PelvisPhysics
 from .profile import Profiler
-from .rig import Rig, build_rig, rate_scale
+from .rig import Rig, build_rig, character_params, rate_scale
 from .spine import SpineParams
 from .spine_link import SpineGroup, SpineLink
 from .state import FootState, sample_polyline, start_feet, support_points, swing_parameter
@@ -103,7 +103,10 @@ class Controller:
 
     ``env``: the environment; ``legs``: every character's legs (``LegBatch``); ``gaits``: one
     ``Gait`` per character; ``start_xy (C, 2)``, ``start_yaw (C,)``: initial pelvis ground
-    position and heading; ``phase (C,)``: initial needle phases; ``planner``: optional
+    position and heading; ``phase (C,)``: initial needle phases; ``params``: one
+    ``ControllerParams`` for all, or one per character differing only in
+    ``rig.PER_CHARACTER`` (creature-size scaling; ``params`` keeps the first character's,
+    ``char_params`` all of them, the rig their per-character arrays); ``planner``: optional
     per-character ``PlannerParams`` (replacing the derived ones except step height, reach,
     foot size and height change); ``lod``: optional per-character ``PlannerLOD``;
     ``controls``: the first step's commands (for the initial planning of feet that start in
@@ -125,21 +128,32 @@ class Controller:
         controls: StepControls,
         *,
         phase: npt.ArrayLike | None = None,
-        params: ControllerParams | None = None,
+        params: ControllerParams | Sequence[ControllerParams] | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: Sequence[SpineParams | None] | None = None,
+        avoid: Sequence[bool] | None = None,
     ) -> None:
         self.env = env
         self.legs = legs
-        self.params = p = params or ControllerParams()
         c, n = legs.n_chars, legs.n_legs
+        self.char_params: list[ControllerParams] = character_params(params, c)
+        # the shared knobs (the per-character ones, PER_CHARACTER, are the rig's arrays)
+        self.params = p = self.char_params[0] if c else ControllerParams()
         self.n_chars, self.n_legs = c, n
         self.leg_char = legs.leg_char
         self.link: SpineLink = spine_link.build_link(legs, spine)
         self.gait = GaitManager(legs.leg_char, gaits, phase)
         self.time = 0.0
-        self.rig: Rig = build_rig(legs, p)
+        self.rig: Rig = build_rig(legs, p, self.char_params)
+        # the characters that see the others (crowd): their bodies and feet this step
+        self.avoid: BoolArray = (np.zeros(c, dtype=bool) if avoid is None
+                                 else np.broadcast_to(np.asarray(avoid, dtype=bool), (c,)).copy())
+        self.bodies: crowd.BodyBoxes | None = None
+        self.discs: tuple[FloatArray, FloatArray] = crowd.footprint_discs(self.rig)
+        self._near = np.zeros((c, c), dtype=bool)  # crowd.neighbours of this step
+        self._crowded = np.zeros(c, dtype=bool)  # characters with a neighbour
+        self._was_near = [np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)]  # (_crowd_near)
         self._planner_override = list(planner) if planner is not None else [None] * c
         # the planner's settings per character and geometry per leg, made once (planner_params,
         # leg_geometry)
@@ -194,7 +208,8 @@ class Controller:
         body.pos[:, 2] = height
         on = np.asarray(controls.pelvis_physics, dtype=bool).copy()
         # the needle rate the pelvis particles' orbit was made for (re-made when it jumps)
-        self.pogo = Pogo(PelvisPhysics(link.leg_node, link.n_nodes, params=self.params.physics), on,
+        self.pogo = Pogo(PelvisPhysics(link.leg_node, link.n_nodes, params=self.params.physics,
+                                       gravity=self.rig.gravity, group=self.leg_char), on,
                          self.gait.rate()[self.leg_char].copy())
         pref_nodes = spine_link.start(link, self.env.height_at, body, support, height)
         if np.any(on):
@@ -406,6 +421,8 @@ class Controller:
         prof = Profiler(stats.seconds, self.params.clock)
         self.time += dt
         gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
+        if self.avoid.any():
+            self._see_others()
         flags = self.feet.flags()
         sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
         if np.any(sched.to_plan):
@@ -454,13 +471,77 @@ class Controller:
 
     def _push_out(self, legs: IntArray, surface: FloatArray) -> None:
         obstacles.push_out(self.env, self.watch, self.feet.foot, legs, surface, self.hips_world()[legs],
-                           self.rig.guard_reach[legs], self.params.support_tolerance)
+                           self.rig.guard_reach[legs], self.rig.support_tolerance)
 
     def _world(self) -> World:
         """What the foot-state rules (``stepping``) read besides the feet."""
         return World(self.env, self.watch, self.rig, self.params, self.gait,
                      None if self.ik_result is None else self.ik_result.error, self.hips_world,
-                     self.leg_rotations, self._free_hips, self._push_out)
+                     self.leg_rotations, self._free_hips, self._push_out,
+                     None if self.bodies is None else self._crowd_near)
+
+    def body_boxes(self) -> crowd.BodyBoxes:
+        """Every character's body boxes now (``crowd.body_boxes``; along a spine, per bone)."""
+        n_joints = np.array([m.spine.n_joints if m.spine is not None and sp is not None else 0
+                             for m, sp in zip(self.legs.morphologies, self.link.params, strict=True)],
+                            dtype=np.int64)
+        joints = self.spine_joints() if self.link.groups else None
+        rig = self.rig
+        return crowd.body_boxes(rig.box_center, rig.box_half, self.body.pos, self.body.yaw, joints, n_joints)
+
+    def disc_centers(self) -> FloatArray:
+        """``(C, 2)`` world centres of the characters' footprint discs (``self.discs``)."""
+        dc = self.discs[0]
+        cos, sin = np.cos(self.body.yaw), np.sin(self.body.yaw)
+        turned = np.stack([cos * dc[:, 0] - sin * dc[:, 1], sin * dc[:, 0] + cos * dc[:, 1]], axis=1)
+        return np.asarray(self.body.pos[:, :2] + turned)
+
+    def _see_others(self) -> None:
+        """This step's body boxes and, for the characters that avoid the others, which
+        others are near enough to matter (a leg and the keep-out margin beyond their discs)."""
+        self.bodies = self.body_boxes()
+        reach = (0.5 + crowd.KEEP_OUT) * self.rig.char_leg_length
+        self._near = crowd.neighbours(self.disc_centers(), self.discs[1], reach, self.avoid)
+        self._crowded = self._near.any(axis=1)
+        if not self._crowded.any():
+            self.bodies = None  # nobody near anybody: nothing to check this step
+            for was in self._was_near:
+                was[:] = False
+
+    def _crowd_near(self, points: FloatArray, which: BoolArray, kind: int) -> BoolArray:
+        """``(N,)`` feet ``which`` of characters that avoid the others whose ``points (N, 3)``
+        another character's body has come within half ``crowd.KEEP_OUT`` of since the last
+        look of this ``kind`` (0: planted feet, 1: landing spots): once per approach, so a
+        foot that cannot get away does not try again at every step."""
+        near = np.zeros(self.n_legs, dtype=bool)
+        legs = np.flatnonzero(which & self._crowded[self.leg_char])
+        if legs.size and self.bodies is not None:
+            near[legs] = crowd.inside_other(self.bodies, points[legs, :2], self.leg_char[legs],
+                                            0.5 * crowd.KEEP_OUT * self.legs.leg_length[legs])
+        was = self._was_near[kind]
+        self._was_near[kind] = near
+        return np.asarray(near & ~was)
+
+    def _crowd_windows(self, grids: dict[int, WindowGrids]) -> dict[int, WindowGrids]:
+        """The planning windows of characters that avoid the others with the other bodies
+        (``crowd.KEEP_OUT`` around them) and feet (planted, or where they land) avoided."""
+        if self.bodies is None:
+            return grids
+        feet = self.feet
+        spot = np.where(feet.swinging[:, None], feet.plan.target[:, :2], feet.foot[:, :2])
+        sole = np.max(self.rig.sole_half, axis=1)[self.leg_char]
+        out = dict(grids)
+        b = self.bodies
+        for ch, grid in grids.items():
+            if self._crowded[ch]:
+                near = self._near[ch]
+                mine = near[b.owner]
+                boxes = crowd.BodyBoxes(b.owner[mine], b.center[mine], b.half[mine], b.yaw[mine])
+                feet_near = near[self.leg_char]
+                margin = crowd.KEEP_OUT * float(self.rig.char_leg_length[ch])
+                out[ch] = crowd.mark_window(grid, boxes, ch, margin, spot[feet_near],
+                                            self.leg_char[feet_near], sole[feet_near])
+        return out
 
     def _free_hips(self) -> FloatArray:
         """``(N, 3)`` the hips at the height the pelvis wants, before the reach guard lowered
@@ -483,6 +564,7 @@ class Controller:
         u_grid = np.linspace(0.0, 1.0, p.trajectory_samples + 1)
         with prof.phase("maps"):
             grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
+            grids = self._crowd_windows(grids)
         with prof.phase("planning"):
             reqs, rows_of = planning.requests(rig, p, land, self.feet, flags[0], flags[1], ctl, grids,
                                               self.planner_params, self.leg_geometry)

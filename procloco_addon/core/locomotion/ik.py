@@ -231,14 +231,14 @@ def solve_ccd(
     init: FloatArray,
     *,
     max_sweeps: int = 40,
-    tolerance: float = 1e-5,
+    tolerance: float | FloatArray = 1e-5,
 ) -> FloatArray:
     """CCD with joint limits on planar chains; returns angles ``(N, s)``.
 
     Each sweep visits the joints from the end effector to the hip and turns each one so the
     end effector points at ``target (N, 2)``, clamped to ``[lo, hi]``. Joints at or past a
     leg's ``n_segments`` are left alone. Sweeps stop once every leg is within ``tolerance``
-    (metres) or after ``max_sweeps``.
+    (metres; one for all or ``(N,)``) or after ``max_sweeps``.
     """
     theta = init.copy()
     n, s = theta.shape
@@ -275,7 +275,7 @@ def solve_dls(
     init: FloatArray,
     *,
     max_iterations: int = 30,
-    tolerance: float = 1e-5,
+    tolerance: float | FloatArray = 1e-5,
     damping: float = 0.02,
     max_turn: float = 0.35,
 ) -> FloatArray:
@@ -286,28 +286,31 @@ def solve_dls(
     ``dθ = Jᵀ (J Jᵀ + λ² I)⁻¹ e`` with the joints that are pushed into a limit removed from
     the Jacobian (an active set), λ = ``damping`` times the leg length; steps are capped at
     ``max_turn`` radians. ``J Jᵀ`` is 2 × 2, so the solve is closed-form for all legs at once.
+    ``tolerance``: metres, one for all or ``(N,)``.
     """
     theta = init.copy()
     n, s = theta.shape
     rows = np.arange(n)
     valid = np.arange(s)[None, :] < n_segments[:, None]
     lam2 = (damping * lengths.sum(axis=1)) ** 2
+    tol2 = np.broadcast_to(np.asarray(tolerance, dtype=np.float64) ** 2, (n,))
     todo = rows
     # the legs still iterating: their rows of the inputs, taken again only when legs finish
-    t_len, t_seg, t_target, t_lo, t_hi, t_valid, t_lam2 = lengths, n_segments, target, lo, hi, valid, lam2
+    t_len, t_seg, t_target, t_lo, t_hi, t_valid, t_lam2, t_tol2 = (lengths, n_segments, target, lo, hi, valid,
+                                                                   lam2, tol2)
     for _ in range(max_iterations):
         th = theta[todo]
         pts = forward_planar(th, t_len)
         end = pts[np.arange(todo.size), t_seg]
         err = t_target - end
-        converged = np.einsum("ij,ij->i", err, err) <= tolerance * tolerance
+        converged = np.einsum("ij,ij->i", err, err) <= t_tol2
         if converged.all():
             break
         if converged.any():  # go on with the others only
             keep = ~converged
             todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
             t_len, t_seg, t_target = lengths[todo], n_segments[todo], target[todo]
-            t_lo, t_hi, t_valid, t_lam2 = lo[todo], hi[todo], valid[todo], lam2[todo]
+            t_lo, t_hi, t_valid, t_lam2, t_tol2 = lo[todo], hi[todo], valid[todo], lam2[todo], tol2[todo]
         r = end[:, None, :] - pts[:, :s, :]
         jac = np.empty((todo.size, 2, s))  # (m, 2, s)
         jac[:, 0] = -r[..., 1]
@@ -399,7 +402,7 @@ def solve_legs(
     *,
     max_sweeps: int = 12,
     polish_iterations: int = 30,
-    tolerance: float = 1e-5,
+    tolerance: float | FloatArray = 1e-5,
     shape_preserving: bool = True,
     mask: npt.NDArray[np.bool_] | None = None,
     prev_normal: FloatArray | None = None,
@@ -410,6 +413,7 @@ def solve_legs(
     - ``hip_world``: ``(N, 3)`` hip joint positions in the world.
     - ``body_rot``: ``(N, 3, 3)`` rotation (body to world) of the body each leg hangs from.
     - ``target_world``: ``(N, 3)`` end-effector targets.
+    - ``tolerance``: metres within which a leg's solve stops, one for all or ``(N,)``.
     - ``init``: ``(N, s)`` starting angles (the previous frame's); rest angles by default.
       Used as the CCD start of legs with three or more segments when ``shape_preserving``
       is False; with it True (the default) those legs start from ``solve_bend``.
@@ -466,6 +470,7 @@ def solve_legs(
             legs.joint_max[idx],
         )
         rows_i = np.arange(idx.size)
+        tol_i = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (n,))[idx]
 
         def miss_of(th: FloatArray) -> FloatArray:
             return np.asarray(np.linalg.norm(forward_planar(th, args[1])[rows_i, args[2]] - args[0], axis=1))
@@ -486,24 +491,24 @@ def solve_legs(
                 stepped = prev[far] + np.clip(start[far] - prev[far], -max_plane_turn, max_plane_turn)
                 followed = solve_dls(
                     t_f, len_f, nseg_f, args[3][far], args[4][far], stepped,
-                    max_iterations=polish_iterations, tolerance=1e-3 * tolerance,
+                    max_iterations=polish_iterations, tolerance=1e-3 * tol_i[far],
                 )
                 end_f = forward_planar(followed, len_f)[np.arange(far.size), nseg_f]
                 # (to well within the tolerance: planted feet would creep by it otherwise);
                 # where it does not get there, the shape-preserving start and CCD below
-                ok = np.linalg.norm(end_f - t_f, axis=1) <= tolerance
+                ok = np.linalg.norm(end_f - t_f, axis=1) <= tol_i[far]
                 theta[idx[far[ok]]] = followed[ok]
                 err_start[far[ok]] = 0.0
         # CCD and the polish only where the start misses (joint limits, odd targets)
-        miss = np.flatnonzero(err_start > tolerance)
+        miss = np.flatnonzero(err_start > tol_i)
         if miss.size:
             t_m, len_m, nseg_m = args[0][miss], args[1][miss], args[2][miss]
             lo_m, hi_m = args[3][miss], args[4][miss]
             ccd = solve_ccd(
-                t_m, len_m, nseg_m, lo_m, hi_m, start[miss], max_sweeps=max_sweeps, tolerance=tolerance
+                t_m, len_m, nseg_m, lo_m, hi_m, start[miss], max_sweeps=max_sweeps, tolerance=tol_i[miss]
             )
             refined = solve_dls(
-                t_m, len_m, nseg_m, lo_m, hi_m, ccd, max_iterations=polish_iterations, tolerance=tolerance
+                t_m, len_m, nseg_m, lo_m, hi_m, ccd, max_iterations=polish_iterations, tolerance=tol_i[miss]
             )
             err_refined = np.linalg.norm(
                 forward_planar(refined, len_m)[np.arange(miss.size), nseg_m] - t_m, axis=1

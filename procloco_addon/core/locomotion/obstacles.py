@@ -65,14 +65,15 @@ def watch_reset(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray
 
 
 def look(
-    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, tol: float
+    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, tol: FloatArray
 ) -> tuple[FloatArray, BoolArray, BoolArray]:
     """Query the watched spots ``spot (m, 3)`` of ``legs`` and the rings around them (one
     query).
 
     Returns the surface ``(m,)`` and forbidden flags ``(m,)`` at the spots, and whether a
     moving obstacle closes in on each spot ``(m,)`` (since the last look, a ring point rose
-    more than ``tol`` above the spot or became forbidden). The rings' memory moves on to now."""
+    more than its leg's ``tol (N,)`` above the spot or became forbidden). The rings' memory
+    moves on to now."""
     m = legs.size
     k = watch.offsets.shape[1]
     ring = spot[:, None, :2] + watch.offsets[legs]
@@ -81,7 +82,8 @@ def look(
     forbidden = env.forbidden_at(xy)
     ring_h = heights[m:].reshape(m, k)
     ring_f = forbidden[m:].reshape(m, k)
-    rose = (ring_h > watch.ground[legs] + tol) & (ring_h > spot[:, 2, None] + tol)
+    t = tol[legs][:, None]
+    rose = (ring_h > watch.ground[legs] + t) & (ring_h > spot[:, 2, None] + t)
     coming = (rose | (ring_f & ~watch.forbidden[legs])).any(axis=1)
     watch.ground[legs] = ring_h
     watch.forbidden[legs] = ring_f
@@ -89,11 +91,11 @@ def look(
 
 
 def trajectory_blocked(
-    env: Environment, watch: Watch, feet: FootState, swing: BoolArray, progress: FloatArray, tol: float
+    env: Environment, watch: Watch, feet: FootState, swing: BoolArray, progress: FloatArray, tol: FloatArray
 ) -> BoolArray:
     """``(N,)`` swinging feet (``swing (N,)``) whose remaining trajectory (past ``progress
-    (N,)``) or target a moving obstacle now cuts, or that an obstacle closes in on (once per
-    swing: ``feet.dodged`` is updated)."""
+    (N,)``) or target a moving obstacle now cuts (by more than the leg's ``tol (N,)``), or
+    that an obstacle closes in on (once per swing: ``feet.dodged`` is updated)."""
     legs = np.flatnonzero(swing)
     out = np.zeros(swing.shape[0], dtype=bool)
     if legs.size == 0:
@@ -110,11 +112,12 @@ def trajectory_blocked(
     surface = env.height_at(flat[:, :2]).reshape(legs.size, k)
     forbidden = env.forbidden_at(flat[:, :2]).reshape(legs.size, k)
     # only what changed since the plan counts: something rose into the path, or became forbidden
-    risen = (surface > plan.ground[legs][:, cols] + tol) & (surface > pts[..., 2] + tol)
+    t = tol[legs]
+    risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
     cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
     # the landing spot itself must still be there
     land_surface = surface[:, -1]
-    moved = np.abs(land_surface - plan.support[legs]) > tol
+    moved = np.abs(land_surface - plan.support[legs]) > t
     # and nothing moving may be closing in on it (once per swing: a foot that already
     # moved its landing spot away lands; spot_taken still stops it landing on the obstacle)
     coming = look(env, watch, legs, plan.target[legs], tol)[2] & ~feet.dodged[legs]
@@ -124,11 +127,12 @@ def trajectory_blocked(
 
 
 def check_supports(
-    env: Environment, watch: Watch, feet: FootState, planted: BoolArray, tol: float,
+    env: Environment, watch: Watch, feet: FootState, planted: BoolArray, tol: FloatArray,
     push: Callable[[IntArray, FloatArray], None],
 ) -> BoolArray:
     """``(N,)`` planted feet (``planted (N,)``) whose support moved, rose into them or became
-    forbidden (thesis sequence 4), or that a moving obstacle closes in on. A foot an
+    forbidden (thesis sequence 4; by more than the leg's ``tol (N,)``), or that a moving
+    obstacle closes in on. A foot an
     obstacle slid under anyway is pushed out by ``push(legs, surface)`` first."""
     out = np.zeros(planted.shape[0], dtype=bool)
     if not watch.dynamic or not np.any(planted):
@@ -137,8 +141,9 @@ def check_supports(
     # the foot's own spot, and something moving closing in around it (it steps away
     # before the obstacle reaches it)
     surface, forbidden, coming = look(env, watch, legs, feet.foot[legs], tol)
-    buried = surface > feet.foot[legs, 2] + tol
-    bad = (np.abs(surface - feet.support_z[legs]) > tol) | buried
+    t = tol[legs]
+    buried = surface > feet.foot[legs, 2] + t
+    bad = (np.abs(surface - feet.support_z[legs]) > t) | buried
     out[legs] = bad | forbidden | coming
     if np.any(buried):
         # an obstacle slid under a planted foot anyway: it pushes the foot out (the foot
@@ -152,13 +157,14 @@ def check_supports(
 
 def push_out(
     env: Environment, watch: Watch, foot: FloatArray, legs: IntArray, surface: FloatArray,
-    hips: FloatArray, reach: FloatArray, tol: float,
+    hips: FloatArray, reach: FloatArray, tol: FloatArray,
 ) -> None:
     """Feet ``foot[legs]`` (``foot (N, 3)``, moved in place) that a moving obstacle ran into
     (its top ``surface (m,)`` is above them) are pushed out of it the shorter way: up onto
     its top (never onto an avoided obstacle while there is room beside it), or aside to the
     nearest point around them (the watch rings, one to three times as far) that is free at
-    their height and within ``reach (m,)`` of their hips ``hips (m, 3)``."""
+    their height (within the leg's ``tol (N,)``) and within ``reach (m,)`` of their hips
+    ``hips (m, 3)``."""
     m = legs.size
     offsets = np.concatenate([f * watch.offsets[legs] for f in (1.0, 2.0, 3.0)], axis=1)
     k = offsets.shape[1]
@@ -169,7 +175,7 @@ def push_out(
     ring_h = heights[m:].reshape(m, k)
     ring_f = forbidden[m:].reshape(m, k)
     z = foot[legs, 2]
-    free = (ring_h <= z[:, None] + tol) & ~ring_f & (ring_h > VOID)
+    free = (ring_h <= z[:, None] + tol[legs][:, None]) & ~ring_f & (ring_h > VOID)
     # within the leg's reach
     top = np.maximum(ring_h, z[:, None])
     spots = np.concatenate([here[:, None, :] + offsets, top[..., None]], axis=2)
@@ -194,10 +200,11 @@ def push_out(
 
 
 def spot_taken(
-    env: Environment, watch: Watch, feet: FootState, points: FloatArray, which: BoolArray, tol: float
+    env: Environment, watch: Watch, feet: FootState, points: FloatArray, which: BoolArray, tol: FloatArray
 ) -> BoolArray:
     """``(N,)`` whether a moving obstacle now covers the footprints ``points (N, 3)`` of legs
-    ``which (N,)`` (rose above them or made them forbidden since they were planned)."""
+    ``which (N,)`` (rose above them by more than the leg's ``tol (N,)`` or made them
+    forbidden since they were planned)."""
     out = np.zeros(which.shape[0], dtype=bool)
     legs = np.flatnonzero(which)
     if not watch.dynamic or legs.size == 0:
@@ -205,7 +212,7 @@ def spot_taken(
     xy = points[legs, :2]
     surface = env.height_at(xy)
     newly_forbidden = env.forbidden_at(xy) & ~feet.plan.forbidden[legs, -1]
-    out[legs] = (surface > points[legs, 2] + tol) | newly_forbidden
+    out[legs] = (surface > points[legs, 2] + tol[legs]) | newly_forbidden
     return out
 
 

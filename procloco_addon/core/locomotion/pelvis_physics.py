@@ -101,11 +101,11 @@ def phase_times(
     stance_progress: FloatArray,
     stance_time: FloatArray,
     swing_time: FloatArray,
-    gravity: float,
-    min_time: float,
+    gravity: float | FloatArray,
+    min_time: float | FloatArray,
 ) -> PhaseTimes:
     """The phase-only part of :func:`foot_acceleration`, for phases of any shape ``(..., N)``
-    (all the sub-steps of a frame at once)."""
+    (all the sub-steps of a frame at once); ``gravity``: one for all or ``(N,)``."""
     reception = ~swing & (stance_progress < 0.5)
     propulsion = ~swing & ~reception
     t_rec = np.maximum((0.5 - stance_progress) * stance_time, min_time)
@@ -117,7 +117,7 @@ def phase_times(
 def _acceleration(
     reception: BoolArray, propulsion: BoolArray, t_rec: FloatArray, t_prop: FloatArray,
     flight: FloatArray, half_g_flight: FloatArray,
-    height: FloatArray, velocity: FloatArray, preferred: FloatArray, gravity: float,
+    height: FloatArray, velocity: FloatArray, preferred: FloatArray, gravity: float | FloatArray,
 ) -> FloatArray:
     """``a_foot (N,)`` from one sub-step's :class:`PhaseTimes` fields and the particles' state."""
     a_rec = gravity + (0.0 - velocity) / t_rec
@@ -140,7 +140,11 @@ class PelvisPhysics:
     """Per-foot pogo particles for many pelvis nodes.
 
     ``leg_node (N,)``: the node each leg pushes (flat node index across characters);
-    ``n_nodes``; ``weights (N,)`` per-leg mass shares (default equal).
+    ``n_nodes``; ``weights (N,)`` per-leg mass shares (default equal); ``gravity (N,)``: each
+    leg's own gravity (characters of different sizes; default ``params.gravity`` for all);
+    ``group (N,)``: the character of each leg (default one for all): a reset's sub-steps
+    follow the longest span of each character's own legs, so a character's orbit does not
+    depend on who else is stepped with it.
     """
 
     def __init__(
@@ -149,6 +153,8 @@ class PelvisPhysics:
         n_nodes: int,
         weights: npt.ArrayLike | None = None,
         params: PelvisPhysicsParams | None = None,
+        gravity: npt.ArrayLike | None = None,
+        group: npt.ArrayLike | None = None,
     ) -> None:
         self.leg_node = np.asarray(leg_node, dtype=np.int64)
         self.n_nodes = int(n_nodes)
@@ -159,6 +165,12 @@ class PelvisPhysics:
             else np.broadcast_to(np.asarray(weights, dtype=np.float64), (n,)).copy()
         )
         self.params = params or PelvisPhysicsParams()
+        self.gravity: float | FloatArray = (
+            self.params.gravity if gravity is None
+            else np.broadcast_to(np.asarray(gravity, dtype=np.float64), (n,)).copy()
+        )
+        self.group = np.zeros(n, dtype=np.int64) if group is None else np.asarray(group, dtype=np.int64)
+        self.n_groups = int(self.group.max()) + 1 if n else 0
         self.height = np.zeros(n)
         self.velocity = np.zeros(n)
         self.offset = np.zeros(self.n_nodes)
@@ -219,21 +231,45 @@ class PelvisPhysics:
         total = span * period
         if not np.any(total > 0.0):
             return
-        n_sub = max(1, math.ceil(float(total.max()) / self.params.max_substep))
-        h = total / n_sub
+        # each character's sub-steps: as many as its longest span needs (a leg of a character
+        # with fewer waits out the last rows: a step of 0)
+        n_leg = self._substep_counts(total)
+        h = total / n_leg
+        rows = np.arange(int(n_leg.max()))[:, None]
         preferred = self.height.copy()
-        phases = mid_stance + (np.arange(n_sub)[:, None] + 0.5) * h * rate_leg
-        self._substeps(phases, rate_leg, disk_start, disk_duration, preferred, h)
+        phases = mid_stance + (rows + 0.5) * h * rate_leg
+        self._substeps(phases, rate_leg, disk_start, disk_duration, preferred, np.where(rows < n_leg, h, 0.0),
+                       self._group_max(h))
         # one more cycle, every leg of a node in step, to measure the orbit's mean offset
-        n_sub = max(1, math.ceil(float(period.max()) / self.params.max_substep))
-        h = period / n_sub
+        n_leg = self._substep_counts(period)
+        h = period / n_leg
+        n_max = int(n_leg.max())
+        n_node = np.full(self.n_nodes, float(n_max))
+        n_node[self.leg_node] = n_leg
+        min_time = self._group_max(h)
         pref_node = np.asarray(preferred_node_height, dtype=np.float64)
         acc = np.zeros(self.n_nodes)
-        for k in range(n_sub):
+        for k in range(n_max):
             phase = needle_leg + (k + 0.5) * h * rate_leg
-            self._substeps(phase[None], rate_leg, disk_start, disk_duration, preferred, h)
-            acc += self.node_height() - pref_node
-        self.offset = acc / n_sub
+            self._substeps(phase[None], rate_leg, disk_start, disk_duration, preferred,
+                           np.where(k < n_leg, h, 0.0)[None], min_time)
+            acc += np.where(k < n_node, self.node_height() - pref_node, 0.0)
+        self.offset = acc / n_node
+
+    def _substep_counts(self, span: FloatArray) -> FloatArray:
+        """``(N,)`` sub-steps of each leg over ``span (N,)`` seconds: those the longest span
+        of its group needs at ``max_substep`` (at least one)."""
+        longest = np.zeros(self.n_groups)
+        np.maximum.at(longest, self.group, span)
+        return np.asarray(np.maximum(1.0, np.ceil(longest / self.params.max_substep))[self.group])
+
+    def _group_max(self, h: FloatArray) -> FloatArray:
+        """``(N,)`` the longest sub-step ``h (N,)`` of each leg's group (the shortest phase
+        time; a group whose sub-steps are all 0 takes the longest of all)."""
+        most = np.zeros(self.n_groups)
+        np.maximum.at(most, self.group, h)
+        per_leg = most[self.group]
+        return np.asarray(np.where(per_leg > 0.0, per_leg, h.max()))
 
     def _substeps(
         self,
@@ -243,6 +279,7 @@ class PelvisPhysics:
         disk_duration: FloatArray,
         preferred: FloatArray,
         h: FloatArray | float,
+        min_time: FloatArray | None = None,
     ) -> None:
         """Integrate one sub-step of length ``h`` per row of needle ``phases`` ``(K, N)`` (each
         leg's phase at the middle of the sub-step), in order. What depends on the phases
@@ -253,15 +290,17 @@ class PelvisPhysics:
         progress = stance_elapsed(phases, disk_start, disk_duration) / (1.0 - disk_duration)
         stance_time = (1.0 - disk_duration) * period
         swing_time = disk_duration * period
-        gravity = self.params.gravity
-        t = phase_times(swing, progress, stance_time, swing_time, gravity, float(np.max(h)))
-        for rec, prop, t_rec, t_prop, flight, half_g in zip(
-            t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight, strict=True
+        gravity = self.gravity
+        t = phase_times(swing, progress, stance_time, swing_time, gravity,
+                        float(np.max(h)) if min_time is None else min_time)
+        steps = np.broadcast_to(h, phases.shape)
+        for rec, prop, t_rec, t_prop, flight, half_g, h_k in zip(
+            t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight, steps, strict=True
         ):
             a_foot = _acceleration(rec, prop, t_rec, t_prop, flight, half_g, self.height, self.velocity,
                                    preferred, gravity)
-            self.velocity = self.velocity + (a_foot - gravity) * h
-            self.height = self.height + self.velocity * h
+            self.velocity = self.velocity + (a_foot - gravity) * h_k
+            self.height = self.height + self.velocity * h_k
 
     def step(
         self,

@@ -66,7 +66,7 @@ def replan_needed(
     need = swing & early & (heading | speed | spacing)
     feet.blocked[:] = False
     if watch.dynamic:
-        feet.blocked = swing & trajectory_blocked(env, watch, feet, swing, progress, p.support_tolerance)
+        feet.blocked = swing & trajectory_blocked(env, watch, feet, swing, progress, rig.support_tolerance)
         need |= feet.blocked
     return np.asarray(need)
 
@@ -174,7 +174,7 @@ def windows(
     (the moving crates near any of them are rasterised together)."""
     params = [
         WindowParams(
-            n_cells=p.window_cells,
+            n_cells=int(rig.window_cells[c]),
             cell=float(rig.window_cell[c]),
             foot_half_extents=(float(rig.foot_half[c, 0]), float(rig.foot_half[c, 1])),
             foot_yaw=float(body.yaw[c]),
@@ -400,7 +400,7 @@ def planner_params(
     if override is None:
         return PlannerParams(
             step_height=float(step_height),
-            slice_size=p.slice_size if level is None else level.slice_size,
+            slice_size=rig.slice_size[char] if level is None else level.slice_size,
             leg_reach=length,
             candidate_radius=p.candidate_radius * length,
             fixed_distance=p.fixed_distance * length,

@@ -166,7 +166,7 @@ def solve_ik(
     their legs reach."""
     res = solve_legs(
         rig.legs, hips, leg_rot, ik_targets(rig, foot), angles, mask=None if mask.all() else mask,
-        tolerance=p.ik_tolerance, prev_normal=prev_normal,
+        tolerance=rig.ik_tolerance, prev_normal=prev_normal,
     )
     # A swinging foot goes where its leg reaches: a point of its trajectory beyond the leg
     # (the hip rose or moved on more than foreseen) or nearer the hip than its joints fold

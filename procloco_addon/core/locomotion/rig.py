@@ -3,17 +3,52 @@
 geometry (``Rig``: mean leg length, body box, foot boxes, rest heights, the reaches the
 guards use, the longest stance sweep), and the stride rule built on it: how much faster the
 gait's needle must run so that the commanded speed never asks a stance sweep longer than the
-legs allow (``rate_scale``, thesis §3.2; step 1 of ``Controller.step``)."""
+legs allow (``rate_scale``, thesis §3.2; step 1 of ``Controller.step``).
+
+Characters of different sizes in one controller each have their own ``ControllerParams``
+(``character_params``): the fields creature-size scaling sets (``PER_CHARACTER``) become the
+per-character and per-leg arrays of ``Rig``; every other field is shared."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from .gait import GaitManager
 from .morphology import LegBatch
 from .types import BoolArray, ControllerParams, FloatArray, IntArray
+
+#: The ``ControllerParams`` fields that may differ between the characters of one controller
+#: (those ``scaling.scaled_params`` sets; of ``physics`` only its gravity).
+PER_CHARACTER = ("window_cells", "window_cell", "slice_size", "support_tolerance", "ik_tolerance",
+                 "physics.gravity")
+
+
+def character_params(params: ControllerParams | Sequence[ControllerParams] | None,
+                     n_chars: int) -> list[ControllerParams]:
+    """One ``ControllerParams`` per character from one for all (or None: the defaults) or a
+    sequence of ``n_chars``. Fields other than ``PER_CHARACTER`` must be equal across the
+    characters: a ``ValueError`` names the first that is not."""
+    if params is None or isinstance(params, ControllerParams):
+        return [params or ControllerParams()] * n_chars
+    out = list(params)
+    if len(out) != n_chars:
+        raise ValueError(f"{len(out)} controller settings for {n_chars} characters")
+    first = out[0] if out else ControllerParams()
+    for q in out[1:]:
+        for f in fields(ControllerParams):
+            if f.name in PER_CHARACTER:
+                continue
+            a, b = getattr(first, f.name), getattr(q, f.name)
+            if f.name == "physics":
+                a, b = replace(a, gravity=0.0), replace(b, gravity=0.0)
+            if a != b:
+                name = "physics (other than gravity)" if f.name == "physics" else f.name
+                raise ValueError(f"ControllerParams.{name} differs between characters; only "
+                                 f"{', '.join(PER_CHARACTER)} may")
+    return out
 
 
 @dataclass(frozen=True)
@@ -27,7 +62,11 @@ class Rig:
     planning cell size; ``rest_height``, ``rest_horizontal (N,)``: hip-to-foot drop and
     horizontal distance at rest; ``leg_arch (N,)`` (``leg_arch_shares``); ``comfort_reach``
     (a planted foot beyond it steps early), ``guard_reach (N,)`` (the pelvis sinks to keep
-    its feet within it); ``stroke_limit (C,)``: longest stance sweep (``stroke_limits``)."""
+    its feet within it); ``stroke_limit (C,)``: longest stance sweep (``stroke_limits``).
+
+    Each character's own ``PER_CHARACTER`` settings: ``window_cells (C,)``, ``slice_size``
+    (one per character, None: no slices), ``support_tolerance``, ``ik_tolerance`` and the
+    pelvis particles' ``gravity`` per leg ``(N,)``."""
 
     legs: LegBatch
     leg_char: IntArray
@@ -47,11 +86,19 @@ class Rig:
     comfort_reach: FloatArray
     guard_reach: FloatArray
     stroke_limit: FloatArray
+    window_cells: IntArray
+    slice_size: tuple[float | None, ...]
+    support_tolerance: FloatArray
+    ik_tolerance: FloatArray
+    gravity: FloatArray
 
 
-def build_rig(legs: LegBatch, p: ControllerParams) -> Rig:
-    """The ``Rig`` of ``legs`` under the knobs ``p``."""
+def build_rig(legs: LegBatch, p: ControllerParams, chars: Sequence[ControllerParams] | None = None) -> Rig:
+    """The ``Rig`` of ``legs`` under the knobs ``p`` (the shared ones) and each character's
+    own ``chars`` (``character_params``; default ``p`` for all)."""
     c = legs.n_chars
+    own = list(chars) if chars is not None else [p] * c
+    lc = legs.leg_char
     mean_leg = np.bincount(legs.leg_char, weights=legs.leg_length, minlength=c) / np.bincount(
         legs.leg_char, minlength=c
     )
@@ -61,11 +108,10 @@ def build_rig(legs: LegBatch, p: ControllerParams) -> Rig:
     # morphology gives a smaller sole)
     sole_half = np.array([m.foot_half_extents if m.sole_half_extents is None else m.sole_half_extents
                           for m in legs.morphologies])
-    window_cell = (
-        np.clip(0.065 * mean_leg, 0.005, 0.25)
-        if p.window_cell is None
-        else np.full(c, float(p.window_cell))
-    )
+    window_cell = np.array([
+        float(np.clip(0.065 * mean_leg[i], 0.005, 0.25)) if q.window_cell is None else float(q.window_cell)
+        for i, q in enumerate(own)
+    ], dtype=np.float64).reshape(c)
     rest_vec = legs.rest_foot - legs.hip_offset
     rest_height = -rest_vec[:, 2]
     rest_dist = np.linalg.norm(rest_vec, axis=1)
@@ -94,6 +140,11 @@ def build_rig(legs: LegBatch, p: ControllerParams) -> Rig:
         rest_height=rest_height, rest_horizontal=np.linalg.norm(rest_vec[:, :2], axis=1),
         leg_arch=leg_arch_shares(legs), comfort_reach=comfort_reach, guard_reach=guard_reach,
         stroke_limit=stroke_limit,
+        window_cells=np.array([q.window_cells for q in own], dtype=np.int64).reshape(c),
+        slice_size=tuple(q.slice_size for q in own),
+        support_tolerance=np.array([q.support_tolerance for q in own], dtype=np.float64).reshape(c)[lc],
+        ik_tolerance=np.array([q.ik_tolerance for q in own], dtype=np.float64).reshape(c)[lc],
+        gravity=np.array([q.physics.gravity for q in own], dtype=np.float64).reshape(c)[lc],
     )
 
 

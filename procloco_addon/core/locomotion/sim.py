@@ -32,14 +32,16 @@ the ``Effects``) give identical arrays.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from .. import metrics as mx
+from ..geometry import wrap_angle
 from ..world.terrain import NO_SURFACE, ROLE_AVOID, Environment
+from . import crowd
 from .autogait import AutoGait, AutoGaitParams
 from .controller import Controller
 from .footprints import PlannerParams
@@ -318,7 +320,10 @@ class Simulation:
     path, else the origin); ``start_yaw``: ``(C,)`` or scalar (default: along the path);
     ``controls``: ``Controls`` or ``f(time) -> Controls``; ``gait_changes``: scheduled
     ``GaitChange``s; ``phase``: ``(C,)`` initial needle phases, ``"random"`` (seeded by
-    ``seed``) or None (all 0); ``planner``: optional per-character ``PlannerParams``;
+    ``seed``) or None (all 0); ``params``: one ``ControllerParams`` for all characters, or
+    one per character (each creature's ``scaling.scaled_params``) differing only in
+    ``rig.PER_CHARACTER`` (else a ``ValueError`` names the field); ``planner``: optional
+    per-character ``PlannerParams``;
     ``lod``: optional per-character ``PlannerLOD`` (thesis §3.7); ``spine``: ``SpineParams``
     for every character (or one per character, None for a rigid body) walking with the
     flexible spine of its morphology (``Morphology.with_spine``; thesis §4.2, §4.4);
@@ -326,7 +331,9 @@ class Simulation:
     stride and cycle follow its commanded speed (``autogait.AutoGait``; its starting gait
     replaces ``gaits`` and scheduled ``GaitChange``s leave it alone); ``effects``: per
     character ``Effects`` (burst progression, gait randomizer; None: none), drawn from
-    ``seed``. A character following a path (``PathFollower``) looks one mean leg length
+    ``seed``; ``avoid``: per character, whether it sees the others (``crowd``: their bodies
+    and feet are obstacles for its feet, and it steers around them; None: none does). A
+    character following a path (``PathFollower``) looks one mean leg length
     ahead (or half a second of its commanded speed, when that is farther) and eases to a
     stop over the last half leg.
     """
@@ -344,12 +351,13 @@ class Simulation:
         dt: float = 1.0 / 30.0,
         phase: npt.ArrayLike | Literal["random"] | None = None,
         seed: int = 0,
-        params: ControllerParams | None = None,
+        params: ControllerParams | Sequence[ControllerParams] | None = None,
         planner: Sequence[PlannerParams | None] | None = None,
         lod: Sequence[PlannerLOD | None] | None = None,
         spine: SpineParams | Sequence[SpineParams | None] | None = None,
         auto_gait: Sequence[AutoGaitParams | None] | None = None,
         effects: Sequence[Effects | None] | None = None,
+        avoid: Sequence[bool] | None = None,
     ) -> None:
         if not dt > 0.0:
             raise ValueError("dt must be positive")
@@ -400,6 +408,8 @@ class Simulation:
         self._changes = sorted(gait_changes, key=lambda g: g.time)
         self._next_change = 0
         auto_list = list(auto_gait) if auto_gait is not None else [None] * c
+        if avoid is not None and len(avoid) != c:
+            raise ValueError(f"{len(avoid)} avoid switches for {c} characters")
         self._init_effects(effects, auto_list, gait_list, seed)
         step0 = self._resolve(first, xy, yaw)
         if self._prog_chars.size:  # bursts start standing still
@@ -418,7 +428,10 @@ class Simulation:
             planner=planner,
             lod=lod,
             spine=[spine] * c if isinstance(spine, SpineParams) else spine,
+            avoid=avoid,
         )
+        self._steered: FloatArray | None = None
+        self._offset = np.zeros(c)  # steering's turn from the commanded heading (rad)
         self.time = 0.0
         self._n_steps = 0
         self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
@@ -549,6 +562,8 @@ class Simulation:
                 ctrl.gait.start_transition([chars[k] for k in manual], [g[k] for k in manual],
                                            change.transition_time)
             self._next_change += 1
+        if ctrl.avoid.any():
+            step_ctl = self._steer(step_ctl)
         self.auto_gait.update(ctrl.gait, step_ctl.speed)
         self._speed = step_ctl.speed.copy()
         stats = ctrl.step(self.dt, step_ctl)
@@ -556,6 +571,23 @@ class Simulation:
         self.time = self._n_steps * self.dt  # (not a running sum: no drift over long runs)
         self._record(stats)
         return stats
+
+    def _steer(self, step_ctl: StepControls) -> StepControls:
+        """The commanded headings and speeds of characters that avoid the others, steered
+        around them (``crowd.steer``; the user's commands stay the preferred ones)."""
+        ctrl = self.controller
+        velocity = self._speed[:, None] * np.stack([np.cos(ctrl.yaw), np.sin(ctrl.yaw)], axis=1)
+        heading, speed = crowd.steer(ctrl.disc_centers(), ctrl.discs[1], velocity, step_ctl.heading,
+                                     step_ctl.speed, ctrl.avoid, self._steered)
+        # the turn away from the commanded heading is taken at once but given back no faster
+        # than the body turns (each jump of the commanded heading re-plans the swinging feet)
+        limit = ctrl.params.max_turn_rate * self.dt
+        offset = wrap_angle(heading - step_ctl.heading)
+        back = (np.abs(offset) < np.abs(self._offset)) & (offset * self._offset >= 0.0)
+        self._offset = np.where(back, self._offset + np.clip(offset - self._offset, -limit, limit), offset)
+        heading = step_ctl.heading + self._offset
+        self._steered = speed[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=1)
+        return replace(step_ctl, heading=heading, speed=speed)
 
     def run(self, n_steps: int, on_step: Callable[[Simulation], None] | None = None) -> SimResult:
         """Run ``n_steps`` steps (calling ``on_step(self)`` before each, e.g. to move
@@ -674,6 +706,21 @@ class Simulation:
             stats=stats,
             seconds=seconds,
         )
+
+
+def crowd_intrusion(result: SimResult) -> FloatArray:
+    """``(F, N)`` how deep each end effector is inside another character's body box at each
+    frame (metres, 0 outside; ``crowd.feet_in_bodies``, the boxes along a spine per bone)."""
+    legs = result.legs
+    box_center = np.array([m.body_box_center for m in legs.morphologies])
+    box_half = np.array([m.body_box_half for m in legs.morphologies])
+    end = result.end_effector
+    out = np.zeros(end.shape[:2])
+    for f in range(result.n_frames):
+        boxes = crowd.body_boxes(box_center, box_half, result.pelvis_position[f], result.yaw[f],
+                                 result.spine_joints[f], result.spine_n_joints)
+        out[f] = crowd.feet_in_bodies(boxes, end[f, :, :2], legs.leg_char)
+    return out
 
 
 def check_motion(

@@ -31,7 +31,9 @@ class World:
     the knobs, the gait, the last IK's error ``ik_error (N,)`` (None before the first), and
     the controller's read-outs as calls: ``hips()`` and ``leg_rot()`` now, ``free_hips()``
     (at the height the pelvis wants, see ``reach.overstretched``), ``push(legs, surface)``
-    (``obstacles.push_out`` of those feet)."""
+    (``obstacles.push_out`` of those feet); ``crowd(points, which, kind)``: which of the
+    points ``(N, 3)`` of feet ``which (N,)`` another character's body has come near since
+    the last look of that ``kind`` (``crowd``; None: the characters do not see each other)."""
 
     env: Environment
     watch: Watch
@@ -43,6 +45,7 @@ class World:
     leg_rot: Callable[[], FloatArray]
     free_hips: Callable[[], FloatArray]
     push: Callable[[IntArray, FloatArray], None]
+    crowd: Callable[[FloatArray, BoolArray, int], BoolArray] | None = None
 
 
 @dataclass
@@ -80,7 +83,7 @@ def schedule(
     """Step 3, first half: landings, forced steps, the swing timing of every foot and
     which feet to plan (``flags`` = (swinging, forced, failed) ``(N,)`` updated in place;
     ``rate_leg (N,)``: the needle rate)."""
-    p, env, tol = w.params, w.env, w.params.support_tolerance
+    p, env, tol = w.params, w.env, w.rig.support_tolerance
     swinging, forced, failed = flags
     # a forced step lands when its own time is up (not at the gait's touch-down)
     landing = (
@@ -109,6 +112,11 @@ def schedule(
     # it must step when its support goes or when it is left behind
     planted = ~gstep.swing | failed
     support_gone = check_supports(env, w.watch, feet, ~swinging, tol, w.push)
+    if w.crowd is not None:
+        # another character's body comes near a planted foot: it steps away; one covers a
+        # swinging foot's landing spot: the swing is re-planned
+        support_gone |= w.crowd(feet.foot, ~swinging, 0)
+        replan |= w.crowd(feet.plan.target, swinging & (gstep.swing | forced) & ~replan, 1)
     behind, stretch = overstretched(w.rig, p, w.free_hips(), feet.foot, ~swinging)
     behind &= ~support_gone
     behind &= ~wait_for_support(w.rig, p, behind & planted & ~forced, stretch, swinging | lifted, w.ik_error)
