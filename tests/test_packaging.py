@@ -105,6 +105,7 @@ def test_built_zip_validates_and_excludes_dev_files(built_zip: Path) -> None:
                  ".git/")
     leaked = [n for n in names if any(n.startswith(f) or f"/{f}" in n for f in forbidden)]
     assert leaked == []
+    assert [n for n in names if n.endswith(".blend")] == []  # the example scenes are for developers
     # Shipped gait presets travel with the extension.
     assert any(n.startswith("presets/gait/") and n.endswith(".json") for n in names)
     # The README travels with it, and so does every picture it shows.

@@ -3,6 +3,8 @@
 """ProcLoco's developer entry point: one script, run with any Python 3.11.
 
     python3 tools/dev.py example        generate locomotion on examples.blend, write the .blend and a preview
+    python3 tools/dev.py example --crowd
+                                        the same for the crowd example examples_crowd.blend (60 rigs)
     python3 tools/dev.py test           lint, type-check and run the whole test suite on Blender 5.0,
                                         then the Blender tests on Blender 4.2 LTS (what CI runs)
     python3 tools/dev.py test --portability

@@ -4,6 +4,7 @@
     python3 tools/dev.py example [--blend examples.blend] [--out out/example] [--rig NAME ...]
                                  [--frame-step N] [--resolution W H] [--close-up-frames F ...]
                                  [--no-biped] [--update-docs] [--info]
+    python3 tools/dev.py example --crowd [--blend examples_crowd.blend] [--out out/example_crowd] ...
 
 Runs Blender headless (the ``bpy`` module), enables ProcLoco the way Blender does — as an
 extension from a repository that points at this checkout — opens ``examples.blend`` (built
@@ -28,6 +29,14 @@ first by ``tools/build_examples.py`` when it is missing) and, printing its progr
 loop), ``docs/images/example_contact_sheet.png`` (six of the frames, three to a row) and
 ``docs/images/example_creatures.png`` (the close-ups). ``--info`` only lists the rigs, their
 legs and their chains.
+
+``--crowd`` does the same for the crowd example ``examples_crowd.blend`` (built first by
+``tools/build_crowd_example.py`` when missing): 40 spiders and 20 ants, each its own rig,
+walk through each other's ranks over a log and crates. It runs ``procloco generate --all``
+(no secondary motion, no biped, no close-ups) and writes ``frames/``, ``contact_sheet.png``,
+``crowd.png`` (the last frame at twice the resolution), ``walk.gif`` and
+``examples_crowd_generated.blend`` into ``out/example_crowd``; with ``--update-docs``,
+``docs/images/example_crowd.png`` and ``docs/images/example_crowd.gif``.
 """
 
 from __future__ import annotations
@@ -95,8 +104,10 @@ def plan_biped(obj: bpy.types.Object) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--blend", type=Path, default=ROOT / "examples.blend")
-    parser.add_argument("--out", type=Path, default=ROOT / "out" / "example")
+    parser.add_argument("--crowd", action="store_true",
+                        help="the crowd example examples_crowd.blend instead (out/example_crowd)")
+    parser.add_argument("--blend", type=Path, default=None, help="default: examples.blend")
+    parser.add_argument("--out", type=Path, default=None, help="default: out/example")
     parser.add_argument("--rig", action="append", default=[], help="only these rigs (default: all)")
     parser.add_argument("--frame-step", type=int, default=4, help="render every N-th frame")
     parser.add_argument("--resolution", nargs=2, type=int, default=(640, 360), metavar=("W", "H"))
@@ -108,6 +119,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="also write the README's pictures docs/images/example_*.png")
     parser.add_argument("--info", action="store_true", help="only list the rigs, their legs and chains")
     args = parser.parse_args(argv)
+    if args.crowd:
+        return crowd_main(args)
+    args.blend = args.blend or ROOT / "examples.blend"
+    args.out = args.out or ROOT / "out" / "example"
 
     t0 = time.perf_counter()
     if not args.blend.exists():
@@ -168,6 +183,58 @@ def main(argv: list[str] | None = None) -> int:
         shutil.copyfile(walk_gif, docs / "example_walk.gif")
         _say("updated docs/images/example_walk.gif, example_contact_sheet.png and example_creatures.png")
     _say(f"done in {time.perf_counter() - t0:.1f} s; results in {out}")
+    return 0
+
+
+def crowd_main(args: argparse.Namespace) -> int:
+    """``--crowd``: build (when missing), generate and render the crowd example."""
+    t0 = time.perf_counter()
+    blend = args.blend or ROOT / "examples_crowd.blend"
+    out = (args.out or ROOT / "out" / "example_crowd").resolve()
+    if not blend.exists():
+        _say(f"{blend.name} is missing: building it with tools/build_crowd_example.py")
+        importlib.import_module("tools.build_crowd_example").build(blend)
+        bpy.ops.wm.read_homefile(use_empty=True)
+    package = enable_extension()
+    _say(f"enabled {package} (Blender {bpy.app.version_string})")
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    cli = importlib.import_module(f"{package}.procloco_addon.blender.cli")
+    if args.info:
+        return int(cli.main(["info"]))
+    scene = bpy.context.scene
+    names = args.rig or sorted(o.name for o in scene.objects if o.type == "ARMATURE")
+    command = ["generate", *([x for name in names for x in ("--rig", name)] if args.rig else ["--all"])]
+    span = f"frames {scene.frame_start}-{scene.frame_end}"
+    _say(f"1/3 procloco {' '.join(command)}   ({len(names)} rigs, {span})")
+    status = int(cli.main(command))
+    if status:
+        return status
+    generate_s = time.perf_counter() - t0
+    _say(f"    generated {len(names)} rigs in {generate_s:.1f} s")
+    t1 = time.perf_counter()
+    frames = range(scene.frame_start, scene.frame_end + 1, max(1, args.frame_step))
+    _say(f"2/3 rendering {len(frames)} frames ({args.resolution[0]}x{args.resolution[1]}, Workbench)")
+    files = cli.render_frames(scene, out / "frames", frames, tuple(args.resolution))
+    sheet = cli.contact_sheet(files, out / "contact_sheet.png")
+    fps = scene.render.fps / scene.render.fps_base
+    walk_gif = cli.animated_gif(files, out / "walk.gif", max(1, args.frame_step) / fps)
+    size_mb = walk_gif.stat().st_size / 1e6
+    _say(f"    {sheet}, {walk_gif} ({size_mb:.2f} MB) in {time.perf_counter() - t1:.1f} s")
+    still_frame = scene.frame_start + int(0.6 * (scene.frame_end - scene.frame_start))
+    _say(f"3/3 the crossing at frame {still_frame} at twice the resolution")
+    big = (2 * args.resolution[0], 2 * args.resolution[1])
+    still = cli.render_frames(scene, out / "still", [still_frame], big)[0]
+    shutil.copyfile(still, out / "crowd.png")
+    saved = out / "examples_crowd_generated.blend"
+    bpy.context.preferences.filepaths.save_version = 0  # no .blend1 beside it
+    bpy.ops.wm.save_as_mainfile(filepath=str(saved), copy=True)
+    _say(f"saved {saved}")
+    if args.update_docs:
+        docs = ROOT / "docs" / "images"
+        shutil.copyfile(out / "crowd.png", docs / "example_crowd.png")
+        shutil.copyfile(walk_gif, docs / "example_crowd.gif")
+        _say("updated docs/images/example_crowd.png and example_crowd.gif")
+    _say(f"done in {time.perf_counter() - t0:.1f} s (generate {generate_s:.1f} s); results in {out}")
     return 0
 
 

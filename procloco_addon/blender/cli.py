@@ -10,11 +10,12 @@ exit status. Commands::
     procloco generate --rig NAME [--rig NAME ...] | --rigs A,B,... | --all
                       [--frames START END] [--speed M_PER_S] [--heading DEG] [--step-height M]
                       [--seed N] [--spine | --no-spine] [--visual-yaw | --no-visual-yaw]
-                      [--bake-secondary | --no-bake-secondary]
+                      [--no-avoid] [--bake-secondary | --no-bake-secondary]
                       [--cycle N [--root-motion in-place|root-bone] [--root-bone NAME]]
                       [OUTPUT OPTIONS]
         generate locomotion for the rigs (settings saved on each rig, overridden by the
-        options given); with --bake-secondary, then bake secondary motion on every rig
+        options given), all of them in one simulation where they can (each keeping off
+        the others, unless --no-avoid); with --bake-secondary, then bake secondary motion on every rig
         that has (or is suggested) pendulum chains; with --cycle, Make Cycle instead: a
         loop of N whole gait cycles on flat ground (cycle/make.py)
     procloco bake-secondary --rig NAME [--rig NAME ...] | --all [--frames START END]
@@ -154,6 +155,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="flexible spine on or off (Effects > Flexible Spine)")
     gen.add_argument("--visual-yaw", action=argparse.BooleanOptionalAction, default=None,
                      help="the body sways with the feet, lizard-like (Effects > Visual Yaw)")
+    gen.add_argument("--no-avoid", action="store_true",
+                     help="the rigs walk through each other (Generate > Crowd > Avoid Other Rigs off)")
     gen.add_argument("--bake-secondary", action=argparse.BooleanOptionalAction, default=False,
                      help="then bake secondary motion on the rigs that have (or are suggested) chains")
     gen.add_argument("--cycle", type=_number("int", 1, 64), metavar="N",
@@ -293,6 +296,8 @@ def _apply_overrides(obj: Any, args: argparse.Namespace) -> None:
         s.use_spine = bool(args.spine)
     if args.visual_yaw is not None:
         s.use_visual_yaw = bool(args.visual_yaw)
+    if getattr(args, "no_avoid", False):
+        s.use_avoid_others = False
 
 
 def _set_frames(obj: Any, args: argparse.Namespace) -> None:

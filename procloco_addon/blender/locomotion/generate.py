@@ -14,6 +14,9 @@ The work for one rig is a :class:`Job` in three stages:
    written);
 3. :func:`write` converts the result into pose-bone keys of a **new** Action assigned to the
    rig (the previous Action is remembered, see :mod:`..actions`).
+
+Many rigs at once (:func:`generate`, the operator): every rig read first, then the rigs that
+can walk together in one simulation (:mod:`.crowd`).
 """
 
 from __future__ import annotations
@@ -32,7 +35,7 @@ from ...core.steps import run_steps, scaled_steps
 from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait
 from ..rig import controls
-from . import property_group, simulation
+from . import crowd, property_group, simulation
 from .job import GaitChange, Job, settings_values
 
 __all__ = [
@@ -671,17 +674,20 @@ def generate(
     should_cancel: Callable[[], bool] | None = None,
     measure: bool = False,
 ) -> list[bpy.types.Action] | None:
-    """Generate every rig in ``objects``; all are checked before anything is written.
+    """Generate every rig in ``objects``; all are checked before anything is written, and
+    rigs that can walk together do so in one simulation (:mod:`.crowd`).
     ``measure``: store the quality figures of each result (see :func:`write_all_steps`).
 
     Returns the new Actions, or None when ``should_cancel`` asked to stop (nothing written).
     Raises :class:`GenerateError` (nothing written) on bad input.
     """
-    jobs = [prepare(context, obj) for obj in objects]
-    for job in jobs:
-        for fraction in simulate(job):
-            if progress is not None:
-                progress(job.obj_name, fraction)
-            if should_cancel is not None and should_cancel():
-                return None
+    jobs = crowd.read_all(context, objects)
+    groups = crowd.batches(jobs)  # the rigs that walk in one simulation
+    for _fraction in crowd.read_terrain(context, groups):
+        pass
+    for names, fraction in crowd.simulate(groups):
+        if progress is not None:
+            progress(names, fraction)
+        if should_cancel is not None and should_cancel():
+            return None
     return run_steps(write_all_steps(context, jobs, measure))

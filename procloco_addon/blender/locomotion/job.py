@@ -96,6 +96,13 @@ class Job:
     lift: float = 0.0
     # What Key Reduction did when it is on (keys.reduce.Reduction), else None.
     key_reduction: Any = None
+    # Crowds (several rigs in one simulation, see .crowd): the rig's feet and path keep clear
+    # of the other rigs' bodies; its Seed Offset; the needle's start phase (cycles) and the
+    # factor on its cycle times a crowd gives it (0 and 1: as generated alone).
+    use_avoid_others: bool = True
+    seed_offset: int = 0
+    phase: float = 0.0
+    cycle_scale: float = 1.0
 
 
 #: The rig settings (``obj.procloco``) a :class:`Job` takes as they are, and their types.
@@ -103,6 +110,7 @@ SETTINGS: dict[str, type] = {
     "speed": float, "turn_rate": float, "step_height": float, "spacing": float, "seed": int,
     "use_pelvis_physics": bool, "use_progression": bool, "use_gait_randomizer": bool,
     "use_visual_yaw": bool, "spine_turn_rate": float, "spine_relax_time": float, "visual_yaw_gain": float,
+    "use_avoid_others": bool, "seed_offset": int,
 }
 
 

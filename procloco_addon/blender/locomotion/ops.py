@@ -16,7 +16,7 @@ import bpy
 from .. import actions, rig
 from ..modal import ProgressOperator, Steps, poll_armature, steps_with_result
 from ..quality import measure as quality
-from . import generate
+from . import crowd, generate
 
 __all__ = [
     "PROCLOCO_OT_clear_generated_action",
@@ -115,7 +115,7 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
     def _prepare(self, context: Any) -> bool:
         rigs = rigs_to_generate(context)
         try:
-            self._jobs = [generate.read(context, obj) for obj in rigs]
+            self._jobs = crowd.read_all(context, rigs)
         except generate.GenerateError as err:
             self.report({"ERROR"}, str(err))
             return False
@@ -132,15 +132,14 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
         return {"FINISHED"}
 
     def _run(self, context: Any, modal: bool) -> Steps:
-        # Every rig's terrain is read and checked before any simulation: a refusal comes
-        # early. Reading is the first tenth of the progress bar.
-        n = len(self._jobs)
-        for k, job in enumerate(self._jobs):
-            for fraction in generate.read_terrain(context, job):
-                yield f"{job.obj_name}: reading the terrain", 0.1 * (k + fraction) / n
-        for k, job in enumerate(self._jobs):
-            for fraction in generate.simulate(job):
-                yield job.obj_name, 0.1 + 0.8 * (k + fraction) / n
+        # Every batch's terrain is read and checked before any simulation: a refusal comes
+        # early. Reading is the first tenth of the progress bar. Rigs that can walk together
+        # do so in one simulation (crowd.batches).
+        groups = crowd.batches(self._jobs)
+        for fraction in crowd.read_terrain(context, groups):
+            yield "reading the terrain", 0.1 * fraction
+        for names, fraction in crowd.simulate(groups):
+            yield names, 0.1 + 0.8 * fraction
         # Writing is the last tenth; Esc there deletes what was written and gives every rig
         # back its Action and pose (generate.write_all_steps).
         self._made = yield from steps_with_result(generate.write_all_steps(context, self._jobs, measure=True),

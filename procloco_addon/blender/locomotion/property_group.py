@@ -262,6 +262,20 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         min=0,
     )
 
+    # --- crowds ---------------------------------------------------------------------
+    use_avoid_others: BoolProperty(
+        name="Avoid Other Rigs",
+        description="Generated together with other rigs, this rig's feet keep off their bodies and planted "
+        "feet and it steers around them",
+        default=True,
+    )
+    seed_offset: IntProperty(
+        name="Seed Offset",
+        description="A different start phase and a slightly different stride (cycle time within 4 %) for "
+        "each value, so copies of one creature do not walk in step (0: as set)",
+        default=0,
+    )
+
     # --- terrain --------------------------------------------------------------------
     terrain_collection: PointerProperty(
         type=bpy.types.Collection,

@@ -1,8 +1,9 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """Running the core simulation (``core.locomotion.sim.Simulation``) for one :class:`~.job.Job`, frame
-by frame.
+by frame, or for several rigs in one simulation (:func:`batch_simulation`, :func:`run_all`;
+which rigs go together: ``.crowd``).
 
-Only glue: :func:`simulation_of` is the one conversion of the rig's settings into the core's
+Only glue: :func:`_character` is the one conversion of a rig's settings into the core's
 inputs — the per-step commands (speed with the Gait Changes' ramps, heading: constant,
 turning, or steered along a path curve; step height, foot spacing, pelvis physics), the
 gait and its scheduled changes, Gait: Auto, burst progression and the gait randomizer
@@ -18,15 +19,18 @@ before the step into frame ``k``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+import functools
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ...core.geometry import wrap_angle
 from ...core.locomotion import scaling
+from ...core.locomotion.footprints import PlannerParams
 from ...core.locomotion.gait import Gait
-from ...core.locomotion.morphology import LegBatch
+from ...core.locomotion.morphology import Morphology
 from ...core.locomotion.sim import (
     Controls,
     Effects,
@@ -37,11 +41,13 @@ from ...core.locomotion.sim import (
     speed_schedule,
 )
 from ...core.locomotion.spine import SpineParams
+from ...core.locomotion.types import ControllerParams
 from ...core.world.terrain import NO_SURFACE
 from .job import Job, RigTracks
 
 __all__ = [
-    "auto_track", "ground_function", "planning_cell", "run", "simulation_of", "speed_at",
+    "auto_track", "batch_key", "batch_simulation", "ground_function", "planning_cell", "run", "run_all",
+    "simulation_of", "speed_at",
     "spine_params", "spine_tracks", "world_tracks",
 ]
 
@@ -79,23 +85,35 @@ def planning_cell(job: Job, leg_len: float) -> float:
 def simulation_of(job: Job) -> Simulation:
     """The core simulation of ``job`` (its terrain read and at its first frame): the one
     conversion of the rig's settings into the core's inputs."""
-    terrain = job.terrain
-    if terrain is None:
-        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
-    legs = LegBatch.stack([job.morphology])
+    return batch_simulation([job])
+
+
+@dataclass
+class _Character:
+    """One rig's inputs to a shared :class:`Simulation` (see :func:`batch_simulation`)."""
+
+    morphology: Morphology
+    gait: Gait
+    start_xy: np.ndarray
+    start_yaw: float
+    speed_of: Callable[[float], float]
+    path: np.ndarray | None
+    spacing: np.ndarray
+    changes: list[tuple[float, Gait, float]]
+    effects: Effects
+    params: ControllerParams
+    planner: PlannerParams
+    key: tuple[Any, ...]  # what must be equal for rigs to share one Simulation (see .crowd)
+
+
+def _character(job: Job) -> _Character:
+    """One rig's part of a simulation."""
     leg_len = float(np.mean(job.info.leg_length))
     origin = job.info.body.origin
     start_yaw = float(np.arctan2(job.info.body.forward[1], job.info.body.forward[0]))
     speed_of = speed_at(job)
-    dt = job.dt
     spacing = job.foot_offset.copy()
-    spacing[:, 1] += (job.spacing - 1.0) * legs.rest_foot[:, 1]
-    path = None if job.path is None else [job.path[:, :2]]
-
-    def controls(t: float) -> Controls:
-        return Controls(speed=speed_of(t), heading=job.heading + job.turn_rate * t, path=path,
-                        step_height=job.step_height, spacing=spacing, pelvis_physics=job.use_pelvis_physics)
-
+    spacing[:, 1] += (job.spacing - 1.0) * job.morphology.rest_foot[:, 1]
     if job.path is not None:
         # start along the path when the rig roughly faces it, else turn toward it walking
         heading0 = PathFollower.for_leg(job.path, leg_len).heading_from(origin[:2], speed_of(0.0))[0]
@@ -109,40 +127,116 @@ def simulation_of(job: Job) -> Simulation:
         if change.frame_index == 0:
             gait = change.gait
         else:
-            changes.append(GaitChange(change.frame_index * dt, change.gait,
-                                      transition_time=change.transition_time))
+            changes.append((change.frame_index * job.dt, change.gait, change.transition_time))
     first_gait_set = any(c.frame_index == 0 for c in job.gait_changes) and job.auto_gait is None
     effects = Effects(progression=job.use_progression,
                       # a Gait Change at the first frame wins over the randomizer's first gait
                       randomize_gait=job.use_gait_randomizer and (job.use_progression or not first_gait_set),
                       cycle_time=job.gait.cycle_time)
     auto_physics = job.auto_gait is not None or job.held_auto is not None
+    window = _window(job, leg_len)
     params, planner = scaling.scaled_params(leg_len, job.step_height, auto_physics=auto_physics,
-                                            window=_window(job, leg_len))
+                                            window=window)
+    # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
+    # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
+    # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
+    # The controller's constants differ per character only in what size scaling sets.
+    key = (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
+    return _Character(job.morphology, gait, origin[:2].copy(), start_yaw, speed_of,
+                      None if job.path is None else job.path[:, :2], spacing, changes, effects, params,
+                      planner, key)
+
+
+def batch_key(job: Job) -> tuple[Any, ...]:
+    """What rigs must share to be simulated together (besides their frames and terrain):
+    the lift of the terrain (their mean foot height) and the seed of rigs whose effects draw
+    random numbers."""
+    return _character(job).key
+
+
+def batch_simulation(jobs: Sequence[Job]) -> Simulation:
+    """One core simulation of every rig of ``jobs`` (their shared terrain read and at its
+    first frame; their frames, seconds per frame and :func:`batch_key` alike): each rig a
+    character with its own morphology, gait and gait changes, speeds, heading or path,
+    settings, effects and start (its ``phase`` and ``cycle_scale`` already in its gaits, see
+    ``crowd.vary``), seeing the others when its Avoid Other Rigs is on."""
+    terrain = jobs[0].terrain
+    if terrain is None:
+        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
+    if any(job.terrain is not terrain for job in jobs):
+        raise RuntimeError("the rigs of one simulation share one terrain (crowd.read_terrain)")
+    chars = [_character(job) for job in jobs]
+    if any(c.key != chars[0].key for c in chars):
+        raise RuntimeError("rigs of different terrain lifts or seeds in one simulation (crowd.batches)")
+    dt = jobs[0].dt
+    spacing = np.concatenate([c.spacing for c in chars])
+    paths = [c.path for c in chars]
+    path = None if all(p is None for p in paths) else paths
+    base_heading = np.array([job.heading for job in jobs])
+    turn_rate = np.array([job.turn_rate for job in jobs])
+    step_height = np.array([job.step_height for job in jobs])
+    pelvis_physics = np.array([job.use_pelvis_physics for job in jobs])
+    single = len(jobs) == 1
+
+    def controls(t: float) -> Controls:
+        speed = np.array([c.speed_of(t) for c in chars])
+        if single:  # (scalars, as a rig alone always had them)
+            return Controls(speed=float(speed[0]), heading=float(base_heading[0] + turn_rate[0] * t),
+                            path=path, step_height=float(step_height[0]), spacing=spacing,
+                            pelvis_physics=bool(pelvis_physics[0]))
+        return Controls(speed=speed, heading=base_heading + turn_rate * t, path=path, step_height=step_height,
+                        spacing=spacing, pelvis_physics=pelvis_physics)
+
+    changes = [GaitChange(time, gait, chars=None if single else [i], transition_time=transition)
+               for i, c in enumerate(chars) for time, gait, transition in c.changes]
+    phases = np.array([job.phase for job in jobs])
+    spine = [spine_params(job) if job.morphology.spine is not None else None for job in jobs]
+    avoid = [job.use_avoid_others for job in jobs]
+    seeds = [job.seed for job, c in zip(jobs, chars, strict=True)
+             if c.effects.progression or c.effects.randomize_gait]
     return Simulation(
-        terrain.environment, [job.morphology], [gait], start_xy=origin[None, :2], start_yaw=[start_yaw],
-        controls=controls, gait_changes=changes, dt=dt, seed=job.seed, params=params, planner=[planner],
-        spine=[spine_params(job)] if job.morphology.spine is not None else None,
-        auto_gait=[job.auto_gait], effects=[effects])
+        terrain.environment, [c.morphology for c in chars], [c.gait for c in chars],
+        start_xy=np.array([c.start_xy for c in chars]), start_yaw=[c.start_yaw for c in chars],
+        controls=controls, gait_changes=changes, dt=dt, seed=seeds[0] if seeds else jobs[0].seed,
+        phase=phases if np.any(phases != 0.0) else None,
+        params=chars[0].params if single else [c.params for c in chars],
+        planner=[c.planner for c in chars], spine=spine if any(sp is not None for sp in spine) else None,
+        auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars],
+        # Avoid Other Rigs: bodies and planted feet of the others kept clear, paths steered
+        # around them (core.locomotion.crowd); a rig alone has no one to avoid
+        avoid=avoid if not single and any(avoid) else None)
 
 
 def run(job: Job) -> Iterator[float]:
     """Simulate ``job`` (one core step per frame after the first); yields the fraction done
     and stores its :class:`~.job.RigTracks` in ``job.result``. Meanwhile ``job.partial(n)``
     gives the first ``n`` frames' tracks (Live Preview writes a frame before the rest ran)."""
-    terrain = job.terrain
+    return run_all([job])
+
+
+def run_all(jobs: Sequence[Job]) -> Iterator[float]:
+    """:func:`run` for rigs simulated together (:func:`batch_simulation`): one core step per
+    frame moves every rig; each job gets its own tracks."""
+    terrain = jobs[0].terrain
     if terrain is None:
         raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
-    n_frames = job.frames.shape[0]
+    n_frames = jobs[0].frames.shape[0]
     terrain.apply_frame(0)
-    sim = simulation_of(job)
-    job.partial = lambda n: RigTracks.of(sim.result(n))
+    sim = batch_simulation(jobs)
+    for i, job in enumerate(jobs):
+        job.partial = functools.partial(_partial_tracks, sim, i)
     yield 1.0 / n_frames
     for f in range(1, n_frames):
         terrain.apply_frame(f)
         sim.step()
         yield (f + 1) / n_frames
-    job.result = RigTracks.of(sim.result())
+    res = sim.result()
+    for i, job in enumerate(jobs):
+        job.result = RigTracks.of(res, i)
+
+
+def _partial_tracks(sim: Simulation, char: int, n: int) -> RigTracks:
+    return RigTracks.of(sim.result(n), char)
 
 
 def auto_track(job: Job) -> Any:

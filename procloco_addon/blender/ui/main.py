@@ -173,6 +173,12 @@ class PROCLOCO_PT_generate(SidebarPanel, bpy.types.Panel):
             col.operator(idname, text=label, icon=icon)
         rig = active_rig(context)
         if rig is not None:
+            # crowds: several rigs generated together (locomotion.crowd)
+            crowd = layout.column(heading="Crowd")
+            crowd.use_property_split = True
+            crowd.use_property_decorate = False
+            crowd.prop(rig.procloco, "use_avoid_others")
+            crowd.prop(rig.procloco, "seed_offset")
             from ..live_preview.panel import draw_live_preview
 
             draw_live_preview(layout.box(), rig)
