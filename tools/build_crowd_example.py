@@ -18,20 +18,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
-_HOME = Path(tempfile.mkdtemp(prefix="procloco-crowd-"))
-os.environ.setdefault("BLENDER_USER_RESOURCES", str(_HOME / "resources"))
-os.environ.setdefault("XDG_CONFIG_HOME", str(_HOME / "config"))
-os.environ.setdefault("XDG_CACHE_HOME", str(_HOME / "cache"))
 
-import bpy  # noqa: E402
+# Keeps Blender out of the user's configuration folders before bpy is imported.
+from tools.build_examples import bpy, save_built, version_warning  # noqa: E402
 
 DEFAULT_OUTPUT = ROOT / "examples_crowd.blend"
 
@@ -40,30 +35,15 @@ def build(output: Path = DEFAULT_OUTPUT, spiders: int = 40, ants: int = 20, fram
           render: Path | None = None) -> list[str]:
     """Build the crowd in a fresh file and save it to ``output`` (frames 1-``frames``; render
     frame 1 to ``render``). Returns the warnings: settings the add-on did not take."""
-    procloco_addon = importlib.import_module("procloco_addon")
     crowd = importlib.import_module("tools.examples.crowd")
 
-    bpy.ops.wm.read_homefile(use_empty=True)
-    registered = False
-    if "procloco" not in bpy.types.Object.bl_rna.properties:
-        procloco_addon.register()
-        registered = True
-    try:
-        built = crowd.build_crowd_scene(bpy.context.scene, spiders=spiders, ants=ants,
+    def populate(scene: bpy.types.Scene) -> list[str]:
+        built = crowd.build_crowd_scene(scene, spiders=spiders, ants=ants,
                                         frame_end=frames or crowd.FRAME_END)
-        warnings = [f"{group[0].name}: rig settings not set yet: {group[0]['procloco_pending_settings']}"
-                    for group in built.rigs.values() if group[0].get("procloco_pending_settings")]
-        output.parent.mkdir(parents=True, exist_ok=True)
-        bpy.context.preferences.filepaths.save_version = 0
-        bpy.ops.wm.save_as_mainfile(filepath=str(output), compress=True)
-        if render is not None:
-            render.parent.mkdir(parents=True, exist_ok=True)
-            bpy.context.scene.render.filepath = str(render)
-            bpy.ops.render.render(write_still=True)
-    finally:
-        if registered:
-            procloco_addon.unregister()
-    return warnings
+        return [f"{group[0].name}: rig settings not set yet: {group[0]['procloco_pending_settings']}"
+                for group in built.rigs.values() if group[0].get("procloco_pending_settings")]
+
+    return save_built(output, populate, render)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -78,9 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     warnings = build(args.output.resolve(), args.spiders, args.ants, args.frames,
                      args.render.resolve() if args.render else None)
-    if bpy.app.version >= (4, 3, 0):
-        warnings.append(f"built with Blender {bpy.app.version_string}: Blender 4.2 cannot open this file; "
-                        "build the committed examples_crowd.blend with the 4.2 wheel (.venv-4.2)")
+    warnings += version_warning("examples_crowd.blend")
     for warning in warnings:
         print(f"[crowd] warning: {warning}")
     print(f"[crowd] wrote {args.output} ({args.output.stat().st_size / 1e6:.2f} MB)")

@@ -26,6 +26,7 @@ import importlib
 import os
 import sys
 import tempfile
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -48,17 +49,11 @@ def build(output: Path = DEFAULT_OUTPUT, render: Path | None = None,
     ``render``, close-ups of each creature to ``contact_sheet``). Returns the warnings:
     settings, roles or operators the add-on did not provide."""
     # Imported by name: the tools are type-checked apart from the add-on's package tree.
-    procloco_addon = importlib.import_module("procloco_addon")
     procloco_props = importlib.import_module("tools.examples.procloco_props")
     scene = importlib.import_module("tools.examples.scene")
 
-    bpy.ops.wm.read_homefile(use_empty=True)
-    registered = False
-    if "procloco" not in bpy.types.Object.bl_rna.properties:
-        procloco_addon.register()
-        registered = True
-    try:
-        built = scene.build_example_scene(bpy.context.scene)
+    def populate(scene_: bpy.types.Scene) -> list[str]:
+        built = scene.build_example_scene(scene_)
         warnings: list[str] = []
         if not procloco_props.role_registered():
             warnings.append("Object.procloco_role is not registered: terrain roles were not set")
@@ -66,20 +61,50 @@ def build(output: Path = DEFAULT_OUTPUT, render: Path | None = None,
             pending = rig.get("procloco_pending_settings", "")
             if pending:
                 warnings.append(f"{kind}: rig settings not set yet: {pending}")
+        if contact_sheet is not None:
+            after.append(lambda: scene.render_contact_sheet(bpy.context.scene, built.rigs, contact_sheet))
+        return warnings
+
+    after: list[Callable[[], object]] = []
+    return save_built(output, populate, render, after)
+
+
+def save_built(output: Path, populate: Callable[[bpy.types.Scene], list[str]], render: Path | None = None,
+               after: Sequence[Callable[[], object]] = ()) -> list[str]:
+    """Fill a fresh, empty file with ``populate(scene)`` (the add-on registered from the source
+    tree meanwhile, so the objects' ProcLoco settings are saved), save it to ``output`` without
+    a ``.blend1`` beside it, render frame 1 to ``render`` and run ``after``. Returns
+    ``populate``'s warnings."""
+    procloco_addon = importlib.import_module("procloco_addon")
+    bpy.ops.wm.read_homefile(use_empty=True)
+    registered = False
+    if "procloco" not in bpy.types.Object.bl_rna.properties:
+        procloco_addon.register()
+        registered = True
+    try:
+        warnings = populate(bpy.context.scene)
         output.parent.mkdir(parents=True, exist_ok=True)
-        bpy.context.preferences.filepaths.save_version = 0  # no examples.blend1 next to it
+        bpy.context.preferences.filepaths.save_version = 0  # no .blend1 next to it
         bpy.ops.wm.save_as_mainfile(filepath=str(output), compress=True)
         if render is not None:
             render.parent.mkdir(parents=True, exist_ok=True)
             bpy.context.scene.render.filepath = str(render)
             bpy.ops.render.render(write_still=True)
-        if contact_sheet is not None:
-            scene.render_contact_sheet(bpy.context.scene, built.rigs, contact_sheet)
+        for step in after:
+            step()
     finally:
         if registered:
             procloco_addon.unregister()
     return warnings
 
+
+
+def version_warning(name: str) -> list[str]:
+    """A warning when this Blender writes files that 4.2 LTS cannot open (4.3 and later)."""
+    if bpy.app.version < (4, 3, 0):
+        return []
+    return [f"built with Blender {bpy.app.version_string}: Blender 4.2 cannot open this file; "
+            f"build the committed {name} with the 4.2 wheel (.venv-4.2)"]
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
@@ -92,9 +117,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     warnings = build(args.output.resolve(), args.render.resolve() if args.render else None,
                      args.contact_sheet.resolve() if args.contact_sheet else None)
-    if bpy.app.version >= (4, 3, 0):
-        warnings.append(f"built with Blender {bpy.app.version_string}: Blender 4.2 cannot open this file; "
-                        "build the committed examples.blend with the 4.2 wheel (.venv-4.2)")
+    warnings += version_warning("examples.blend")
     for warning in warnings:
         print(f"[examples] warning: {warning}")
     size_mb = args.output.stat().st_size / 1e6

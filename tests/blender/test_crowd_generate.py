@@ -19,7 +19,7 @@ import pytest
 from procloco_addon.blender.locomotion import crowd, generate
 from tests.blender.pose_eval import leg_joints
 from tests.blender.scene_state import snapshot
-from tests.blender.test_generate import _measure_on, check_thresholds
+from tests.blender.test_generate import _measure_on, check_thresholds, modal_double
 from tools.examples import creatures
 
 pytestmark = pytest.mark.blender
@@ -374,16 +374,7 @@ def test_escape_midway_through_a_batch_changes_nothing(empty_scene: Any) -> None
         rig.procloco.frame_end = 24
     _select(rigs)
     before = snapshot()
-    me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _jobs=[], _tick_budget_s=0.0,
-                         _cancelled_message="cancelled", _run_errors=())
-    for name in ("_prepare", "_run", "_stop", "_abort", "_discard", "_finish"):
-        setattr(me, name, getattr(Op, name).__get__(me))
-    wm = SimpleNamespace(progress_update=lambda _v: None, progress_end=lambda: None,
-                         event_timer_remove=lambda _t: None)
-    context = SimpleNamespace(**{k: getattr(bpy.context, k) for k in
-                                 ("scene", "view_layer", "active_object", "selected_objects")},
-                              window_manager=wm, area=None,
-                              evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get)
+    me, context = modal_double()
     assert me._prepare(context)
     assert len(me._jobs) == 2
     me._steps = me._run(context, True)

@@ -654,14 +654,14 @@ def test_follows_a_path_curve(empty_scene: Any) -> None:
     assert np.linalg.norm(body[-1] - poly[-1]) < 0.6
 
 
-def test_escape_cancels_and_changes_nothing(wolf_scene: Any) -> None:
-    """The modal path: Esc after some progress leaves the scene exactly as it was."""
+def modal_double() -> tuple[Any, Any]:
+    """Generate Locomotion's modal path without a window: a stand-in for the operator with its
+    real methods bound (one frame per timer tick) and a context over the current scene and
+    selection whose window manager ignores progress and timers."""
     from types import SimpleNamespace
 
     from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
 
-    before = snapshot()
-    # one frame per timer tick
     me = SimpleNamespace(report=lambda *_a: None, _timer=None, _steps=None, _jobs=[], _tick_budget_s=0.0,
                          _cancelled_message="cancelled", _run_errors=())
     for name in ("_prepare", "_run", "_stop", "_abort", "_discard", "_finish"):
@@ -672,6 +672,18 @@ def test_escape_cancels_and_changes_nothing(wolf_scene: Any) -> None:
                                  ("scene", "view_layer", "active_object", "selected_objects")},
                               window_manager=wm, area=None,
                               evaluated_depsgraph_get=bpy.context.evaluated_depsgraph_get)
+    return me, context
+
+
+def test_escape_cancels_and_changes_nothing(wolf_scene: Any) -> None:
+    """The modal path: Esc after some progress leaves the scene exactly as it was."""
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
+
+    before = snapshot()
+    # one frame per timer tick
+    me, context = modal_double()
     assert me._prepare(context)
     me._steps = me._run(context, True)
     timer = SimpleNamespace(type="TIMER")

@@ -34,7 +34,7 @@ from mathutils import Vector
 
 from . import creatures, terrain
 from .procloco_props import set_role
-from .scene import add_sun, bound_corners, configure_example_rig, frame_camera, setup_render
+from .scene import add_sun, bound_corners, configure_example_rig, frame_camera, setup_render, start_scene
 
 #: Scale of each kind in the crowd: both about 0.6 m across (spider legs ~0.45 m).
 CROWD_SCALE: dict[str, float] = {"spider": 5.0, "ant": 20.0}
@@ -174,14 +174,7 @@ def build_crowd_scene(scene: bpy.types.Scene, spiders: int = 40, ants: int = 20,
     row, ants ``ant_lanes``; each group's front row starts ``front_x`` from the log."""
     if spiders < 1 or ants < 0:
         raise ValueError("the crowd needs at least one spider and no negative number of ants")
-    scene.render.fps = FPS
-    scene.render.fps_base = 1.0
-    scene.frame_start, scene.frame_end = FRAME_START, frame_end
-    scene.frame_set(FRAME_START)
-    crowd_coll = bpy.data.collections.new("Crowd")
-    terrain_coll = bpy.data.collections.new("Terrain")
-    scene.collection.children.link(terrain_coll)
-    scene.collection.children.link(crowd_coll)
+    crowd_coll, terrain_coll = start_scene(scene, frame_end, "Crowd")
     out = CrowdScene()
     out.ground = terrain.build_ground(scene, "Ground", X_RANGE, Y_RANGE, CELL, crowd_ground_height,
                                       collection=terrain_coll)

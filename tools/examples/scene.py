@@ -381,18 +381,26 @@ def _configure_biped(rig: bpy.types.Object) -> list[str]:
     return []
 
 
+def start_scene(scene: bpy.types.Scene, frame_end: int,
+                creatures_name: str) -> tuple[bpy.types.Collection, bpy.types.Collection]:
+    """Frames ``FRAME_START``–``frame_end`` at ``FPS`` on the first frame, and two new
+    collections in the scene: the creatures' (``creatures_name``) and ``Terrain``."""
+    scene.render.fps = FPS
+    scene.render.fps_base = 1.0
+    scene.frame_start, scene.frame_end = FRAME_START, frame_end
+    scene.frame_set(FRAME_START)
+    creature_coll = bpy.data.collections.new(creatures_name)
+    terrain_coll = bpy.data.collections.new("Terrain")
+    scene.collection.children.link(terrain_coll)
+    scene.collection.children.link(creature_coll)
+    return creature_coll, terrain_coll
+
+
 def build_example_scene(scene: bpy.types.Scene) -> ExampleScene:
     """The six creatures on the terrain (collections ``Creatures`` and ``Terrain``), a camera
     framing everything, a sun, Workbench at 640×360, frames 1–120 at 24 fps (5 s: at the
     speeds of their gait presets every creature meets its lane's obstacles)."""
-    scene.render.fps = FPS
-    scene.render.fps_base = 1.0
-    scene.frame_start, scene.frame_end = FRAME_START, FRAME_END
-    scene.frame_set(FRAME_START)
-    creature_coll = bpy.data.collections.new("Creatures")
-    terrain_coll = bpy.data.collections.new("Terrain")
-    scene.collection.children.link(terrain_coll)
-    scene.collection.children.link(creature_coll)
+    creature_coll, terrain_coll = start_scene(scene, FRAME_END, "Creatures")
     out = ExampleScene()
     out.terrain = terrain.build_terrain(scene, terrain_coll, FRAME_START, FRAME_END, FPS)
     for kind, name in CREATURE_NAMES.items():
