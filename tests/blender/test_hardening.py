@@ -133,11 +133,12 @@ def test_an_unforeseen_fault_in_an_operator_is_reported_not_raised(robot: Any,
                                                                    monkeypatch: pytest.MonkeyPatch) -> None:
     from procloco_addon.blender.locomotion import simulation
 
-    def broken(_job: Any) -> Any:
+    def broken(_jobs: Any) -> Any:
         raise ZeroDivisionError("a fault nobody foresaw")
         yield 0.0
 
-    monkeypatch.setattr(simulation, "run", broken)
+    # the one loop every Generate runs (a single rig's ``run`` too): all rigs of a batch
+    monkeypatch.setattr(simulation, "run_all", broken)
     _refused(bpy.ops.procloco.generate_locomotion, "a fault nobody foresaw")
 
 
