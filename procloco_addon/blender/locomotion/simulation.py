@@ -103,7 +103,6 @@ class _Character:
     effects: Effects
     params: ControllerParams
     planner: PlannerParams
-    key: tuple[Any, ...]  # what must be equal for rigs to share one Simulation (see .crowd)
 
 
 def _character(job: Job) -> _Character:
@@ -128,30 +127,35 @@ def _character(job: Job) -> _Character:
             gait = change.gait
         else:
             changes.append((change.frame_index * job.dt, change.gait, change.transition_time))
-    first_gait_set = any(c.frame_index == 0 for c in job.gait_changes) and job.auto_gait is None
-    effects = Effects(progression=job.use_progression,
-                      # a Gait Change at the first frame wins over the randomizer's first gait
-                      randomize_gait=job.use_gait_randomizer and (job.use_progression or not first_gait_set),
-                      cycle_time=job.gait.cycle_time)
+    effects = _effects(job)
     auto_physics = job.auto_gait is not None or job.held_auto is not None
     window = _window(job, leg_len)
     params, planner = scaling.scaled_params(leg_len, job.step_height, auto_physics=auto_physics,
                                             window=window)
-    # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
-    # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
-    # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
-    # The controller's constants differ per character only in what size scaling sets.
-    key = (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
     return _Character(job.morphology, gait, origin[:2].copy(), start_yaw, speed_of,
                       None if job.path is None else job.path[:, :2], spacing, changes, effects, params,
-                      planner, key)
+                      planner)
+
+
+def _effects(job: Job) -> Effects:
+    """Burst progression and the gait randomizer of ``job``."""
+    first_gait_set = any(c.frame_index == 0 for c in job.gait_changes) and job.auto_gait is None
+    return Effects(progression=job.use_progression,
+                   # a Gait Change at the first frame wins over the randomizer's first gait
+                   randomize_gait=job.use_gait_randomizer and (job.use_progression or not first_gait_set),
+                   cycle_time=job.gait.cycle_time)
 
 
 def batch_key(job: Job) -> tuple[Any, ...]:
     """What rigs must share to be simulated together (besides their frames and terrain):
     the lift of the terrain (their mean foot height) and the seed of rigs whose effects draw
     random numbers."""
-    return _character(job).key
+    # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
+    # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
+    # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
+    # The controller's constants differ per character only in what size scaling sets.
+    effects = _effects(job)
+    return (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
 
 
 def batch_simulation(jobs: Sequence[Job]) -> Simulation:
@@ -165,9 +169,9 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
         raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
     if any(job.terrain is not terrain for job in jobs):
         raise RuntimeError("the rigs of one simulation share one terrain (crowd.read_terrain)")
-    chars = [_character(job) for job in jobs]
-    if any(c.key != chars[0].key for c in chars):
+    if len({batch_key(job) for job in jobs}) > 1:
         raise RuntimeError("rigs of different terrain lifts or seeds in one simulation (crowd.batches)")
+    chars = [_character(job) for job in jobs]
     dt = jobs[0].dt
     spacing = np.concatenate([c.spacing for c in chars])
     paths = [c.path for c in chars]
