@@ -71,8 +71,13 @@ def read_all(context: bpy.types.Context, objects: Sequence[bpy.types.Object | No
         raise generate.GenerateError("A rig is listed twice: each rig is generated once")
     if len(jobs) > 1:
         rigs = [bpy.data.objects[job.obj_name] for job in jobs]
+        found: dict[str, list[bpy.types.Object]] = {}  # by terrain collection: the same for all its rigs
         for job, obj in zip(jobs, rigs, strict=True):
-            objs = scene_terrain.terrain_objects(context, rigs, obj.procloco.terrain_collection)
+            collection = obj.procloco.terrain_collection
+            where = "" if collection is None else collection.name
+            if where not in found:
+                found[where] = scene_terrain.terrain_objects(context, rigs, collection)
+            objs = found[where]
             if not objs:
                 raise generate.GenerateError(f"No ground mesh found for '{obj.name}': add a mesh under the "
                                              "creature (or choose the terrain collection); the other rigs "
