@@ -1025,10 +1025,11 @@ class Environment:
         order = np.argsort(which, kind="stable")
         which, r, c = which[order], r[order] + i0, c[order] + j0
         bounds = np.searchsorted(which, np.arange(todo.size + 1))
-        top = self._box_center[todo, 2] + self._box_size[todo, 2]
+        top = (self._box_center[todo, 2] + self._box_size[todo, 2])[which]
+        cuts = bounds.tolist()
         for k, b in enumerate(todo.tolist()):
-            sl = slice(bounds[k], bounds[k + 1])
-            self._moving_raster[(cell, "box", b)] = (r[sl], c[sl], np.full(bounds[k + 1] - bounds[k], top[k]))
+            sl = slice(cuts[k], cuts[k + 1])
+            self._moving_raster[(cell, "box", b)] = (r[sl], c[sl], top[sl])
         self.stats["moving_rasterised"] += int(todo.size)
 
     def _moving_soup_cells(self, cell: float, ident: int) -> tuple[IntArray, IntArray, FloatArray]:
@@ -1114,83 +1115,81 @@ class Environment:
     def _windows_of(
         self, ctr: FloatArray, n: int, cell: float, plist: list[WindowParams]
     ) -> list[WindowGrids]:
+        """The windows of one size and cell around ``ctr`` ``(m, 2)``: their static grids
+        copied from the tiles into one stack ``(m, n, n)``, then every moving box's and
+        moving mesh's cached raster near each of them pasted into that stack at once (one
+        ``maximum.at`` for all windows; each window's grids are its slice of the stack)."""
+        m = ctr.shape[0]
         i0s = np.rint(ctr[:, 1] / cell).astype(np.intp) - n // 2
         j0s = np.rint(ctr[:, 0] / cell).astype(np.intp) - n // 2
         lo_w = np.column_stack([j0s, i0s]) * cell - cell
         hi_w = lo_w + (n + 1) * cell
-        near_all: list[list[int]] = []
+        i0_list, j0_list = i0s.tolist(), j0s.tolist()
+        elev_all = np.empty((m, n, n))
+        avoid_all = np.empty((m, n, n), dtype=bool)
+        for w in range(m):
+            self._static_window(cell, n, i0_list[w], j0_list[w], elev_all[w], avoid_all[w])
+        # The moving pieces (a box's or a mesh's raster) near each window: (window, piece).
+        pieces: list[tuple[IntArray, IntArray, FloatArray]] = []
+        piece_window: list[int] = []
+        piece_avoid: list[bool] = []
         if self._dynamic_boxes.size:
             # Moving boxes sorted by their min x: each window scans only a narrow x range.
             d_sorted, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
             first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left").tolist()
             last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right").tolist()
             near_arrays = []
-            for w in range(ctr.shape[0]):
+            for w in range(m):
                 sl = slice(first[w], last[w])
                 ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
                       & (lo_sorted[sl, 1] <= hi_w[w, 1]))
                 near_arrays.append(d_sorted[sl][ok])
             self._cache_moving_boxes(cell, np.unique(np.concatenate(near_arrays)))
-            near_all = [a.tolist() for a in near_arrays]
-        moving_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic and soup.faces.shape[0]]
-        soup_box = {i: (self._soup_triangles(i)[1].min(axis=0) + self._offset(i)[:2],
-                        self._soup_triangles(i)[2].max(axis=0) + self._offset(i)[:2])
-                    for i in moving_soups}
-        avoid_box = self._box_role == ROLE_AVOID
-        out: list[WindowGrids] = []
-        for w in range(ctr.shape[0]):
-            i0 = int(i0s[w])
-            j0 = int(j0s[w])
-            elev, avoid = self._static_window(cell, n, i0, j0)
-            rows: list[IntArray] = []
-            cols: list[IntArray] = []
-            tops: list[FloatArray] = []
-            avoid_rows: list[IntArray] = []
-            avoid_cols: list[IntArray] = []
-            for b in near_all[w] if near_all else []:
-                r, c, z = self._moving_raster[(cell, "box", b)]
-                rows.append(r)
-                cols.append(c)
-                tops.append(z)
-                if avoid_box[b]:
-                    avoid_rows.append(r)
-                    avoid_cols.append(c)
-            for i in moving_soups:
-                s_lo, s_hi = soup_box[i]
+            avoid_box = (self._box_role == ROLE_AVOID).tolist()
+            raster = self._moving_raster
+            for w, near in enumerate(near_arrays):
+                for b in near.tolist():
+                    pieces.append(raster[(cell, "box", b)])
+                    piece_window.append(w)
+                    piece_avoid.append(avoid_box[b])
+        for i, soup in enumerate(self._soups):
+            if not (soup.dynamic and soup.faces.shape[0]):
+                continue
+            _, t_lo, t_hi = self._soup_triangles(i)
+            s_lo = t_lo.min(axis=0) + self._offset(i)[:2]
+            s_hi = t_hi.max(axis=0) + self._offset(i)[:2]
+            for w in range(m):
                 if np.all(s_hi >= lo_w[w]) and np.all(s_lo <= hi_w[w]):
                     r, c, z = self._moving_soup_cells(cell, i)
                     # The raster is sorted by row: only the window's rows are taken (a moving
                     # ground of a million triangles covers far more than one window).
-                    a, b = np.searchsorted(r, [i0, i0 + n])
-                    r, c, z = r[a:b], c[a:b], z[a:b]
-                    rows.append(r)
-                    cols.append(c)
-                    tops.append(z)
-                    if self._soups[i].role == ROLE_AVOID:
-                        avoid_rows.append(r)
-                        avoid_cols.append(c)
-            if rows:
-                r = np.concatenate(rows) - i0
-                c = np.concatenate(cols) - j0
-                z = np.concatenate(tops)
-                ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
-                np.maximum.at(elev, (r[ok], c[ok]), z[ok])
-            if avoid_rows:
-                r = np.concatenate(avoid_rows) - i0
-                c = np.concatenate(avoid_cols) - j0
-                ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
-                avoid[r[ok], c[ok]] = True
-            self.stats["windows"] += 1
+                    a, b = np.searchsorted(r, [i0_list[w], i0_list[w] + n])
+                    pieces.append((r[a:b], c[a:b], z[a:b]))
+                    piece_window.append(w)
+                    piece_avoid.append(soup.role == ROLE_AVOID)
+        if pieces:
+            sizes = [p[0].size for p in pieces]
+            win = np.repeat(np.asarray(piece_window, dtype=np.intp), sizes)
+            r = np.concatenate([p[0] for p in pieces]) - i0s[win]
+            c = np.concatenate([p[1] for p in pieces]) - j0s[win]
+            z = np.concatenate([p[2] for p in pieces])
+            ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
+            at = (win * n + r) * n + c
+            np.maximum.at(elev_all.reshape(-1), at[ok], z[ok])
+            av = ok & np.repeat(np.asarray(piece_avoid, dtype=bool), sizes)
+            avoid_all.reshape(-1)[at[av]] = True
+        self.stats["windows"] += m
+        out: list[WindowGrids] = []
+        for w in range(m):
             prm = plist[w]
             half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
-            origin = np.array([j0 * cell, i0 * cell])
-            out.append(WindowGrids(origin, cell, elev, avoid, half, float(prm.foot_yaw)))
+            origin = np.array([j0_list[w] * cell, i0_list[w] * cell])
+            out.append(WindowGrids(origin, cell, elev_all[w], avoid_all[w], half, float(prm.foot_yaw)))
         return out
 
-    def _static_window(self, cell: float, n: int, i0: int, j0: int) -> tuple[FloatArray, BoolArray]:
-        """Copy of the static grids of the window whose cell [0, 0] is lattice cell (i0, j0)."""
-        elev = np.empty((n, n))
-        avoid = np.empty((n, n), dtype=bool)
+    def _static_window(self, cell: float, n: int, i0: int, j0: int, elev: FloatArray, avoid: BoolArray) -> None:
+        """The static grids of the window whose cell [0, 0] is lattice cell (i0, j0), copied
+        from the tiles into ``elev`` and ``avoid`` ``(n, n)``."""
         t = self.tile_cells
         for ti in range(i0 // t, (i0 + n - 1) // t + 1):
             r_lo = max(i0, ti * t)
@@ -1203,7 +1202,6 @@ class Environment:
                 src = (slice(r_lo - ti * t, r_hi - ti * t), slice(c_lo - tj * t, c_hi - tj * t))
                 elev[dst] = te[src]
                 avoid[dst] = ta[src]
-        return elev, avoid
 
     def rasterise(
         self, origin: npt.ArrayLike, cell: float, shape: tuple[int, int]
