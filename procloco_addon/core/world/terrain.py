@@ -1187,7 +1187,9 @@ class Environment:
             out.append(WindowGrids(origin, cell, elev_all[w], avoid_all[w], half, float(prm.foot_yaw)))
         return out
 
-    def _static_window(self, cell: float, n: int, i0: int, j0: int, elev: FloatArray, avoid: BoolArray) -> None:
+    def _static_window(
+        self, cell: float, n: int, i0: int, j0: int, elev: FloatArray, avoid: BoolArray
+    ) -> None:
         """The static grids of the window whose cell [0, 0] is lattice cell (i0, j0), copied
         from the tiles into ``elev`` and ``avoid`` ``(n, n)``."""
         t = self.tile_cells
