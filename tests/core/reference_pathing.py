@@ -20,15 +20,30 @@ from procloco_addon.core.geometry import planar_length
 from procloco_addon.core.hull import upper_hull
 from procloco_addon.core.world.pathing import (
     _COLLINEAR,
+    MOVE_LENGTH,
     MOVES,
     DistanceField,
     _chord_tolerance,
-    _move_costs,
 )
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
+
+
+def _move_costs(free: BoolArray) -> list[FloatArray]:
+    """Per move, the cost of entering each cell (``inf`` if the move is not allowed);
+    ``free`` ``(h, w)``."""
+    h, w = free.shape
+    pad = np.zeros((h + 2, w + 2), dtype=bool)
+    pad[1:-1, 1:-1] = free
+    costs = []
+    for (dr, dc), length in zip(MOVES, MOVE_LENGTH, strict=True):
+        ok = free.copy()
+        if dr and dc:  # no corner cutting: both side cells must be free
+            ok &= pad[1 - dr : h + 1 - dr, 1 : w + 1] & pad[1 : h + 1, 1 - dc : w + 1 - dc]
+        costs.append(np.where(ok, length, np.inf))
+    return costs
 
 
 def wavefront(free: BoolArray, source: tuple[int, int], max_iterations: int | None = None) -> DistanceField:

@@ -402,7 +402,9 @@ _NO_COUPLE = "no valid couple: no candidate footprint can be reached from the fo
 
 
 class _Plan:
-    """One request once validated: its numbers as plain Python values."""
+    """One request once validated: its numbers as plain Python values, and ``row``, the
+    numbers the batch stacks (one :data:`_ROW` row per plan: the batch's arrays are its
+    columns, made in one call instead of one list per number)."""
 
     __slots__ = (
         "cell",
@@ -418,6 +420,7 @@ class _Plan:
         "params",
         "pref",
         "reach",
+        "row",
         "search",
         "sink",
         "sole",
@@ -429,27 +432,78 @@ class _Plan:
 
     def __init__(self, index: int, rq: FootRequest, start: FloatArray, pref: FloatArray, hip: FloatArray,
                  o_hips: FloatArray, o_feet: FloatArray, start_rc: tuple[float, float], frame: RegionFrame,
-                 half: tuple[float, float]) -> None:
+                 shape: _LegShape, window: tuple[float, float, float, int, int],
+                 pref_rc: tuple[float, float]) -> None:
+        half, sole, foot_r, straddle, reach_3d, leg_length, arch = shape
+        params = rq.params
+        cell, ox, oy, ny, nx = window
         self.index = index
-        self.sole = _sole(rq.leg, half)
+        self.sole = sole
         self.grids = rq.grids
-        self.params = rq.params
+        self.params = params
         self.leg = rq.leg
         self.search = rq.search
-        self.reach = _reach(rq)
-        self.sweep = float(rq.reach_sweep)
-        self.sink = float(rq.reach_sink)
+        self.reach = reach = _reach(rq)
+        self.sweep = sweep = float(rq.reach_sweep)
+        self.sink = sink = float(rq.reach_sink)
         self.start = start
         self.pref = pref
         self.hip = hip
         self.hip_z = None if rq.hip_z is None else float(rq.hip_z)
         self.o_hips = o_hips
         self.o_feet = o_feet
-        self.yaw = float(rq.foot_yaw)
-        self.cell = float(rq.grids.cell)
+        self.yaw = yaw = float(rq.foot_yaw)
+        self.cell = cell
         self.start_rc = start_rc
         self.frame = frame
         self.half = half
+        max_dz = reach if params.max_height_change is None else params.max_height_change
+        px, py = pref.tolist()
+        hx, hy = hip.tolist()
+        self.row = (
+            *frame, cell, ox, oy, ny, nx, half[0], half[1], sole[0], sole[1], yaw,
+            start_rc[0], start_rc[1], float(start[2]), params.step_height,
+            pref_rc[0], pref_rc[1], round(params.candidate_radius / cell, 9), hx, hy, reach + 1e-9, max_dz,
+            math.nan if self.hip_z is None else self.hip_z,
+            straddle, reach_3d, sweep, sink, leg_length, arch, foot_r,
+            params.leg_clearance_score, params.edge_height, px, py, params.fixed_distance, params.edge_score,
+            o_hips.shape[0], math.ceil((abs(half[0]) + abs(half[1])) / cell + 1.0),
+        )
+
+
+#: The leg's numbers the planner uses (:func:`_leg_shape`): foot box half sizes, sole half
+#: sizes, foot radius and the hip-check settings that do not change from plan to plan.
+_LegShape = tuple[tuple[float, float], tuple[float, float], float, float, float, float, float]
+
+#: Columns of :attr:`_Plan.row`: the search rectangle (:data:`RegionFrame`, 11), then these.
+_ROW = {name: 11 + i for i, name in enumerate((
+    "cell", "ox", "oy", "ny", "nx", "half_x", "half_y", "sole_x", "sole_y", "yaw",
+    "start_r", "start_c", "start_z", "step_height",
+    "pref_r", "pref_c", "radius", "hip_x", "hip_y", "reach", "max_dz", "hip_z",
+    "straddle", "reach_3d", "sweep", "sink", "leg_length", "arch", "foot_r",
+    "low", "edge_height", "pref_x", "pref_y", "fixed", "edge_score", "n_other", "land_reach",
+))}
+
+
+def _leg_shape(leg: LegGeometry) -> _LegShape:
+    """A leg's :data:`_LegShape` (cached: a rig's legs are planned again and again)."""
+    try:
+        return _leg_shape_cached(leg)
+    except TypeError:  # a leg built with unhashable (list or array) sizes
+        return _leg_shape_of(leg)
+
+
+def _leg_shape_of(leg: LegGeometry) -> _LegShape:
+    half_arr = np.asarray(leg.foot_half_extents, dtype=np.float64).reshape(2)
+    half = (float(half_arr[0]), float(half_arr[1]))
+    inf = math.inf
+    return (half, _sole(leg, half), math.hypot(half[0], half[1]),
+            inf if leg.max_straddle is None else leg.max_straddle,
+            inf if leg.reach_3d is None else leg.reach_3d,
+            inf if leg.leg_length is None else leg.leg_length, leg.leg_arch)
+
+
+_leg_shape_cached = functools.lru_cache(maxsize=256)(_leg_shape_of)
 
 
 def _reach(rq: FootRequest) -> float:
@@ -481,10 +535,11 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     params = rq.params
     cell = float(grids.cell)
     ox, oy = (float(v) for v in grids.origin)
-    half = tuple(float(v) for v in np.asarray(rq.leg.foot_half_extents, dtype=np.float64).reshape(2))
+    shape = _leg_shape(rq.leg)
+    half = shape[0]
     start_rc = ((sy - oy) / cell, (sx - ox) / cell)
     pref_rc = ((py - oy) / cell, (px - ox) / cell)
-    ny, nx = grids.shape
+    ny, nx = grids.elevation.shape
     if not (-0.5 <= start_rc[0] < ny - 0.5 and -0.5 <= start_rc[1] < nx - 0.5):
         return _fail(start, "the foot is outside the window grids")
     half_width = rq.search.search_half_width
@@ -496,7 +551,8 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
                          params.candidate_radius / cell + foot_cells + 1.0, 1.0 + foot_cells)
     if frame is None:
         return _fail(start, _NO_CANDIDATE)
-    return _Plan(index, rq, start, pref, hip, o_hips, o_feet, start_rc, frame, (half[0], half[1]))
+    return _Plan(index, rq, start, pref, hip, o_hips, o_feet, start_rc, frame, shape, (cell, ox, oy, ny, nx),
+                 pref_rc)
 
 
 @dataclass(frozen=True)
@@ -649,42 +705,46 @@ class _Batch:
     def __init__(self, plans: list[_Plan]) -> None:
         n = len(plans)
         self.plans = plans
-        frames = np.array([p.frame for p in plans])
-        self.r0 = r0 = frames[:, 0].astype(np.intp)
-        self.c0 = c0 = frames[:, 1].astype(np.intp)
-        self.hh = hh = frames[:, 2].astype(np.intp)
-        self.ww = ww = frames[:, 3].astype(np.intp)
+        self.rows = rows = np.array([p.row for p in plans])
+        col = _ROW
+        frames = rows[:, :11]
+        ints = frames[:, :4].astype(np.intp)
+        self.r0 = r0 = ints[:, 0]
+        self.c0 = c0 = ints[:, 1]
+        self.hh = hh = ints[:, 2]
+        self.ww = ww = ints[:, 3]
         H = int(hh.max())
         W = int(ww.max())
         self.mask = region_masks(frames, H, W)
         self.outside = ~self.mask
-        self.cell = np.array([p.cell for p in plans])
-        self.origin = np.array([[float(p.grids.origin[0]), float(p.grids.origin[1])] for p in plans])
-        self.ny = np.array([p.grids.shape[0] for p in plans])
-        self.nx = np.array([p.grids.shape[1] for p in plans])
+        self.cell = rows[:, col["cell"]]
+        self.origin = rows[:, col["ox"] : col["oy"] + 1]
+        self.ny = rows[:, col["ny"]].astype(np.intp)
+        self.nx = rows[:, col["nx"]].astype(np.intp)
         # Foot kernels: swept (the foot anywhere in its cell); the landing ones come with the
         # candidates. The margin holds the widest of them.
-        self.half_x = np.array([p.half[0] for p in plans])
-        self.half_y = np.array([p.half[1] for p in plans])
-        self.sole_x = np.array([p.sole[0] for p in plans])
-        self.sole_y = np.array([p.sole[1] for p in plans])
-        self.yaw = np.array([p.yaw for p in plans])
+        self.half_x = rows[:, col["half_x"]]
+        self.half_y = rows[:, col["half_y"]]
+        self.sole_x = rows[:, col["sole_x"]]
+        self.sole_y = rows[:, col["sole_y"]]
+        self.yaw = rows[:, col["yaw"]]
         self.sweep_off, self.sweep_in = foot_kernels(self.cell, self.half_x, self.half_y, self.yaw, True)
-        land_reach = max(math.ceil((abs(p.half[0]) + abs(p.half[1])) / p.cell + 1.0) for p in plans)
+        land_reach = int(rows[:, col["land_reach"]].max())
         self.pad = R = max(int(np.abs(self.sweep_off).max()), land_reach)
         Hp, Wp = H + 2 * R, W + 2 * R
         epad = np.full((n, Hp, Wp), -np.inf)
         apad = np.zeros((n, Hp, Wp), dtype=bool)
         avoid = np.zeros((n, H, W), dtype=bool)
+        box = ints.tolist()
         for k, p in enumerate(plans):
             g = p.grids
-            ny, nx = int(self.ny[k]), int(self.nx[k])
-            top, left = int(r0[k]) - R, int(c0[k]) - R
+            ny, nx = g.elevation.shape
+            rk, ck, h, w = box[k]
+            top, left = rk - R, ck - R
             ra, rb, ca, cb = max(top, 0), min(top + Hp, ny), max(left, 0), min(left + Wp, nx)
             epad[k, ra - top : rb - top, ca - left : cb - left] = g.elevation[ra:rb, ca:cb]
             apad[k, ra - top : rb - top, ca - left : cb - left] = g.avoid[ra:rb, ca:cb]
-            h, w = int(hh[k]), int(ww[k])
-            avoid[k, :h, :w] = g.avoid[r0[k] : r0[k] + h, c0[k] : c0[k] + w]
+            avoid[k, :h, :w] = g.avoid[rk : rk + h, ck : ck + w]
         self.epad = epad
         inner = epad[:, R : R + H, R : R + W]
         if n == 1:
@@ -696,7 +756,7 @@ class _Batch:
         core = avoid.copy()
         # Other feet: forbidden as their soles (or foot boxes), with this foot's yaw; the
         # dilation by this foot's box keeps its whole box off them.
-        n_other = np.array([p.o_feet.shape[0] for p in plans])
+        n_other = rows[:, col["n_other"]].astype(np.intp)
         if n_other.sum():
             owner = np.repeat(np.arange(n), n_other)
             feet = np.concatenate([p.o_feet for p in plans])
@@ -712,7 +772,7 @@ class _Batch:
             core[who[ok], lr[ok], lc[ok]] = True
         self.core = core
         # Lift-off zone: the cells the foot covers where it stands.
-        self.start_rc = np.array([p.start_rc for p in plans]) - np.column_stack([r0, c0])
+        self.start_rc = rows[:, col["start_r"] : col["start_c"] + 1] - ints[:, :2]
         sc = np.rint(self.start_rc).astype(np.intp)
         inside = (sc[:, 0] >= 0) & (sc[:, 0] < hh) & (sc[:, 1] >= 0) & (sc[:, 1] < ww)
         self.start_inside = inside
@@ -727,7 +787,7 @@ class _Batch:
         # What swings must clear (pathing.clearance_elevation): avoided cells above the foot
         # plus its step height left out.
         if apad.any():
-            above = np.array([float(p.start[2]) + p.params.step_height for p in plans])
+            above = rows[:, col["start_z"]] + rows[:, col["step_height"]]
             self.cpad = np.where(apad & (epad > above[:, None, None]), NO_SURFACE, epad)
         else:
             self.cpad = epad
@@ -1197,14 +1257,12 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     n = len(plans)
     r0, c0, hh, ww, mask, elev = batch.r0, batch.c0, batch.hh, batch.ww, batch.mask, batch.elev
     forbidden, cell, origin = batch.grown_inf, batch.cell, batch.origin
-    pref_rc = np.array([((float(p.pref[1]) - float(origin[k, 1])) / p.cell - int(r0[k]),
-                         (float(p.pref[0]) - float(origin[k, 0])) / p.cell - int(c0[k]))
-                        for k, p in enumerate(plans)])
+    rows, col = batch.rows, _ROW
+    pref_rc = np.column_stack([rows[:, col["pref_r"]] - r0, rows[:, col["pref_c"]] - c0])
     base = np.rint(pref_rc).astype(np.intp)
     sub = pref_rc - base  # the preferred footprint's offset inside its cell (cells)
-    radius = [round(p.params.candidate_radius / p.cell, 9) for p in plans]
-    disc = _disc_offsets(max(radius))
-    rad = np.asarray(radius)
+    rad = rows[:, col["radius"]]
+    disc = _disc_offsets(float(rad.max()))
     member = np.hypot(disc[:, 0], disc[:, 1])[None, :] <= rad[:, None] + 1e-9
     cr = base[:, 0, None] + disc[None, :, 0]
     cc = base[:, 1, None] + disc[None, :, 1]
@@ -1216,30 +1274,25 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     cl = cell[b]
     x = origin[b, 0] + (c + c0[b] + sub[b, 1]) * cl
     y = origin[b, 1] + (r + r0[b] + sub[b, 0]) * cl
-    hip = np.array([p.hip for p in plans])
+    hip = rows[:, col["hip_x"] : col["hip_y"] + 1]
     dx = x - hip[b, 0]
     dy = y - hip[b, 1]
-    reach = np.array([p.reach + 1e-9 for p in plans])
-    ok &= planar_length(dx, dy) <= reach[b]
+    ok &= planar_length(dx, dy) <= rows[b, col["reach"]]
     # Landing height: the highest surface under the foot box at its exact offset.
-    land_off, land_in = _offset_kernels(plans, sub)
+    land_off, land_in = _offset_kernels(batch, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
-    z0 = np.array([float(p.start[2]) for p in plans])
-    max_dz = np.array([p.reach if p.params.max_height_change is None
-                       else p.params.max_height_change for p in plans])
-    ok &= np.abs(z - z0[b]) <= max_dz[b]
-    hip_z = np.array([math.nan if p.hip_z is None else p.hip_z for p in plans])
+    ok &= np.abs(z - rows[b, col["start_z"]]) <= rows[b, col["max_dz"]]
+    hip_z = rows[:, col["hip_z"]]
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
         owner = b[sel]
-        settings = np.array([_hip_settings(p.leg, p.sweep, p.sink) for p in plans])
+        settings = rows[:, col["straddle"] : col["foot_r"] + 1]
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
             np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
             hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
         )
-        low = np.array([p.params.leg_clearance_score for p in plans])
-        clearance = np.where(clear, 1.0, low[b])
+        clearance = np.where(clear, 1.0, rows[b, col["low"]])
     else:
         clearance = np.ones(ok.size)
     keep = np.flatnonzero(ok)
@@ -1256,30 +1309,29 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     nc = c[:, None] + 1 + _NEIGHBOURS[None, :, 1]
     bb = b[:, None]
     ne = pad_elev[bb, nr, nc]  # (k, 8)
-    edge_h = np.array([p.params.edge_height for p in plans])[b][:, None]
+    edge_h = rows[b, col["edge_height"], None]
     free = np.count_nonzero(~pad_forb[bb, nr, nc] & (np.abs(ne - here) <= edge_h), axis=1)
     rim = np.any(here - ne > edge_h, axis=1)
-    pref = np.array([p.pref for p in plans])
-    fixed = np.array([p.params.fixed_distance for p in plans])
-    ex = x - pref[b, 0]
-    ey = y - pref[b, 1]
-    distance = np.clip(1.0 - planar_length(ex, ey) / fixed[b], 0.0, 1.0)
+    ex = x - rows[b, col["pref_x"]]
+    ey = y - rows[b, col["pref_y"]]
+    distance = np.clip(1.0 - planar_length(ex, ey) / rows[b, col["fixed"]], 0.0, 1.0)
     free_score = free / 8.0
-    edge = np.where(rim, np.array([p.params.edge_score for p in plans])[b], 1.0)
+    edge = np.where(rim, rows[b, col["edge_score"]], 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
     partial = distance * free_score * edge * clearance
     live = np.flatnonzero(partial > 0.0)
     b, d, r, c = b[live], d[live], r[live], c[live]
     x, y, z, partial = x[live], y[live], z[live], partial[live]
     xy = np.column_stack([x, y])
-    n_other = np.array([p.o_hips.shape[0] for p in plans])
+    n_other = rows[:, col["n_other"]].astype(np.intp)
     if n_other.max(initial=0) and b.size:
         j = int(n_other.max())
         o_hips = np.zeros((n, j, 2))
         o_feet = np.zeros((n, j, 2))
-        for k, p in enumerate(plans):
-            o_hips[k, : n_other[k]] = p.o_hips
-            o_feet[k, : n_other[k]] = p.o_feet
+        who = np.repeat(np.arange(n), n_other)
+        slot = np.arange(who.size) - np.repeat(np.cumsum(n_other) - n_other, n_other)
+        o_hips[who, slot] = np.concatenate([p.o_hips for p in plans])
+        o_feet[who, slot] = np.concatenate([p.o_feet for p in plans])
         valid = np.arange(j)[None, :] < n_other[b][:, None]
         crosses = _legs_cross_each(hip[b], xy, o_hips[b], o_feet[b], valid)
     else:
@@ -1333,17 +1385,14 @@ class _WindowLookup:
         return np.asarray(np.where(inside, self.flat[at], -np.inf))
 
 
-def _offset_kernels(plans: list[_Plan], sub: FloatArray) -> tuple[IntArray, BoolArray]:
-    """The landing kernel of each plan: cells covered by a foot box whose centre sits ``sub``
-    ``(n, 2)`` cells off its cell's centre (sub offsets rounded to 1e-9 cell, as cached)."""
-    n = len(plans)
-    cell = np.array([p.cell for p in plans])
-    hx = np.array([p.half[0] for p in plans])
-    hy = np.array([p.half[1] for p in plans])
-    yaw = np.array([p.yaw for p in plans])
-    sub_r = np.array([round(float(v), 9) for v in sub[:, 0]])
-    sub_c = np.array([round(float(v), 9) for v in sub[:, 1]])
-    reach = max(math.ceil((abs(p.half[0]) + abs(p.half[1])) / p.cell + 1.0) for p in plans)
+def _offset_kernels(batch: _Batch, sub: FloatArray) -> tuple[IntArray, BoolArray]:
+    """The landing kernel of each plan of ``batch``: cells covered by a foot box whose centre
+    sits ``sub`` ``(n, 2)`` cells off its cell's centre (sub offsets rounded to 1e-9 cell, as
+    cached)."""
+    cell, hx, hy, yaw = batch.cell, batch.half_x, batch.half_y, batch.yaw
+    sub_r = np.array([round(v, 9) for v in sub[:, 0].tolist()])
+    sub_c = np.array([round(v, 9) for v in sub[:, 1].tolist()])
+    reach = int(batch.rows[:, _ROW["land_reach"]].max())
     off = _rect_offsets(reach, reach)
     col = cell[:, None]
     centres = np.stack([off[None, :, 1] * col, off[None, :, 0] * col], axis=-1)
@@ -1352,7 +1401,6 @@ def _offset_kernels(plans: list[_Plan], sub: FloatArray) -> tuple[IntArray, Bool
     empty = ~member.any(axis=1)
     if empty.any():
         member[empty, (2 * reach + 1) * reach + reach] = True
-    del n
     return off, member
 
 

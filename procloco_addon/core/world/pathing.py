@@ -260,21 +260,6 @@ class DistanceField:
         return np.asarray(np.isfinite(self.dist[rc[..., 0], rc[..., 1]]))
 
 
-def _move_costs(free: BoolArray) -> list[FloatArray]:
-    """Per move, the cost of entering each cell (``inf`` if the move is not allowed);
-    ``free`` ``(..., h, w)``."""
-    h, w = free.shape[-2:]
-    pad = np.zeros((*free.shape[:-2], h + 2, w + 2), dtype=bool)
-    pad[..., 1:-1, 1:-1] = free
-    costs = []
-    for (dr, dc), length in zip(MOVES, MOVE_LENGTH, strict=True):
-        ok = free.copy()
-        if dr and dc:  # no corner cutting: both side cells must be free
-            ok &= pad[..., 1 - dr : h + 1 - dr, 1 : w + 1] & pad[..., 1 : h + 1, 1 - dc : w + 1 - dc]
-        costs.append(np.where(ok, length, np.inf))
-    return costs
-
-
 def wavefront_each(
     free: BoolArray, sources: list[tuple[int, int]], shapes: list[tuple[int, int]],
     max_iterations: int | None = None,
@@ -286,23 +271,46 @@ def wavefront_each(
     Whole-array relaxation (every move, every cell, per sweep) until nothing changes; each
     sweep costs a few numpy operations on the stack, and the number of sweeps is about the
     longest path's length in cells. The sweeps of each grid are exactly its own (grids never
-    interact): its sweep count is the sweep after which it stopped changing."""
+    interact): its sweep count is the sweep after which it stopped changing.
+
+    The grids are laid out flat, each with a border of blocked cells, one after the other:
+    a move is then a shift of the one flat array by a constant (a contiguous slice, where a
+    2D shift is a strided one), and the border cells, whose every move costs ``inf``, keep
+    one grid from reaching into the next. The moves are relaxed in the same order with the
+    same sums as on the 2D grids, so every distance, parent and sweep count is the same."""
     m, hh, ww = free.shape
-    fr = free.copy()
     src = np.asarray(sources, dtype=np.intp).reshape(m, 2)
     at = np.arange(m)
-    fr[at, src[:, 0], src[:, 1]] = True
-    costs = _move_costs(fr)
-    dist = np.full((m, hh + 2, ww + 2), np.inf)
-    dist[at, src[:, 0] + 1, src[:, 1] + 1] = 0.0
-    inner = dist[:, 1:-1, 1:-1]
+    w2 = ww + 2
+    plane = (hh + 2) * w2
+    pad = np.zeros((m, hh + 2, w2), dtype=bool)
+    pad[:, 1:-1, 1:-1] = free
+    pad[at, src[:, 0] + 1, src[:, 1] + 1] = True
+    flat_free = pad.reshape(-1)
+    lo = w2 + 1  # the first inner cell of the first grid
+    hi = m * plane - w2 - 1  # one past the last inner cell of the last grid
+    n = hi - lo
+    here = flat_free[lo:hi]
+    offsets = [dr * w2 + dc for dr, dc in MOVES]  # a move's source is the cell `offset` before
+    costs = []
+    for (dr, dc), length in zip(MOVES, MOVE_LENGTH, strict=True):
+        ok = here
+        if dr and dc:  # no corner cutting: both side cells must be free
+            ok = ok & flat_free[lo - dr * w2 : hi - dr * w2] & flat_free[lo - dc : hi - dc]
+        costs.append(np.where(ok, length, np.inf))
+    dist = np.full(m * plane, np.inf)
+    dist[at * plane + (src[:, 0] + 1) * w2 + (src[:, 1] + 1)] = 0.0
+    inner = dist[lo:hi]
+    shifted = [dist[lo - off : hi - off] for off in offsets]
     limit = max_iterations if max_iterations is not None else max(h * w for h, w in shapes) + 1
     iterations = np.zeros(m, dtype=np.intp)
     settled = np.zeros(m, dtype=bool)
+    starts = at * plane  # grid i's cells are inner[starts[i] - lo + ...]: the reduceat cuts
+    starts[0] = lo
+    cuts = starts - lo
     sweeps = 0
-    shifted = [dist[:, 1 - dr : hh + 1 - dr, 1 - dc : ww + 1 - dc] for dr, dc in MOVES]
-    cand = np.empty((m, hh, ww))
-    before = np.empty((m, hh, ww))
+    cand = np.empty(n)
+    before = np.empty(n)
     while sweeps < limit:
         np.copyto(before, inner)
         for view, cost in zip(shifted, costs, strict=True):
@@ -315,7 +323,7 @@ def wavefront_each(
                 settled[0] = True
                 break
             continue
-        same = (before == inner).reshape(m, -1).all(axis=1)
+        same = np.logical_and.reduceat(before == inner, cuts)
         iterations[same & ~settled] = sweeps
         settled |= same
         if settled.all():
@@ -323,13 +331,15 @@ def wavefront_each(
     iterations[~settled] = sweeps
     # Parent move of every reached cell: the move that realises its distance.
     stacked = np.stack([view + cost for view, cost in zip(shifted, costs, strict=True)])
-    parent = np.argmin(stacked, axis=0).astype(np.int8)
-    parent[~np.isfinite(inner)] = -1
+    flat_parent = np.full(m * plane, -1, dtype=np.int8)
+    flat_parent[lo:hi] = np.where(np.isfinite(inner), np.argmin(stacked, axis=0), -1)
+    parent = flat_parent.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
     parent[at, src[:, 0], src[:, 1]] = -1
+    grid = dist.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
     out = []
     for i, (h, w) in enumerate(shapes):
         source = (int(src[i, 0]), int(src[i, 1]))
-        out.append(DistanceField(inner[i, :h, :w].copy(), parent[i, :h, :w], source, int(iterations[i])))
+        out.append(DistanceField(grid[i, :h, :w].copy(), parent[i, :h, :w], source, int(iterations[i])))
     return out
 
 
