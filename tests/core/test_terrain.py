@@ -295,6 +295,29 @@ def test_dilating_many_masks_each_with_its_kernel_equals_one_at_a_time(seed: int
     assert all(np.array_equal(stacked[i], dilate(masks[i], one)) for i in range(5))
 
 
+@given(st.integers(0, 100_000))
+def test_dilation_equals_the_union_of_shifted_copies(seed: int) -> None:
+    """The flat, bordered shifts of ``dilate`` against the definition: a cell is set when
+    any cell it is reached from by a kernel offset is set (offsets past the grid included)."""
+    rng = np.random.default_rng(seed)
+    masks = rng.random((3, int(rng.integers(1, 9)), int(rng.integers(1, 9)))) < 0.15
+    h, w = masks.shape[1:]
+    rect = rng.random() < 0.5
+    if rect:  # a full rectangle: the row-then-column passes
+        a, b = (int(v) for v in rng.integers(0, 4, 2))
+        ii, jj = np.meshgrid(np.arange(-a, a + 1), np.arange(-b, b + 1), indexing="ij")
+        offsets = np.stack([ii.ravel(), jj.ravel()], axis=1)
+    else:
+        offsets = rng.integers(-10, 11, (int(rng.integers(1, 12)), 2))
+    want = masks.copy()
+    for di, dj in offsets.tolist():
+        for r in range(h):
+            for c in range(w):
+                if 0 <= r - di < h and 0 <= c - dj < w:
+                    want[:, r, c] |= masks[:, r - di, c - dj]
+    assert np.array_equal(dilate(masks, offsets.astype(np.intp)), want)
+
+
 def test_boxes_rasterised_each_on_its_own_grid_equal_one_grid_at_a_time() -> None:
     rng = np.random.default_rng(4)
     n = 12

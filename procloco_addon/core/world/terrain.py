@@ -288,27 +288,39 @@ def dilate(mask: BoolArray, offsets: IntArray) -> BoolArray:
     """Binary dilation of ``mask`` ``(..., h, w)`` by the cell ``offsets`` ``(k, 2)`` (every
     leading index is dilated on its own).
 
-    A kernel that fills its bounding rectangle is applied as a row pass then a column pass
-    (``(a - 1) + (b - 1)`` shifted ORs instead of ``a * b - 1``)."""
+    The grids are laid out flat, each inside a border of False cells as wide as the kernel
+    reaches, one after the other: a shift by ``(di, dj)`` is then one contiguous slice of
+    the flat array (``di`` rows of the bordered width plus ``dj``), never reaching another
+    grid. A kernel that fills its bounding rectangle is applied as a row pass then a column
+    pass (``(a - 1) + (b - 1)`` shifted ORs instead of ``a * b - 1``)."""
+    h, w = mask.shape[-2:]
+    lead = mask.shape[:-2]
     r_lo, c_lo = (int(v) for v in offsets.min(axis=0))
     r_hi, c_hi = (int(v) for v in offsets.max(axis=0))
+    rr = max(-r_lo, r_hi, 0)
+    cc = max(-c_lo, c_hi, 0)
+    w2 = w + 2 * cc
+    pad = np.zeros((*lead, h + 2 * rr, w2), dtype=bool)
+    pad[..., rr : rr + h, cc : cc + w] = mask
+    src = pad.reshape(-1)
     if offsets.shape[0] == (r_hi - r_lo + 1) * (c_hi - c_lo + 1) and offsets.shape[0] > 4:
-        rows = [(di, 0) for di in range(r_lo, r_hi + 1)]
-        cols = [(0, dj) for dj in range(c_lo, c_hi + 1)]
-        return _dilate_shifts(_dilate_shifts(mask, rows), cols)
-    return _dilate_shifts(mask, offsets.tolist())
+        rows = _shifted_or(src, [di * w2 for di in range(r_lo, r_hi + 1)])
+        out = _shifted_or(rows, list(range(c_lo, c_hi + 1)))
+    else:
+        out = _shifted_or(src, [di * w2 + dj for di, dj in offsets.tolist()])
+    return out.reshape(pad.shape)[..., rr : rr + h, cc : cc + w]
 
 
-def _dilate_shifts(mask: BoolArray, offsets: Sequence[Sequence[int]]) -> BoolArray:
-    out = mask.copy()
-    h, w = mask.shape[-2:]
-    for di, dj in offsets:
-        if di == 0 and dj == 0:
-            continue
-        if abs(di) >= h or abs(dj) >= w:
-            continue
-        src = mask[..., max(0, -di) : h - max(0, di), max(0, -dj) : w - max(0, dj)]
-        out[..., max(0, di) : h - max(0, -di), max(0, dj) : w - max(0, -dj)] |= src
+def _shifted_or(flat: BoolArray, shifts: Sequence[int]) -> BoolArray:
+    """``flat`` OR-ed with itself moved forward by each of ``shifts`` (``out[i] |= flat[i -
+    s]``; what would come from before the start or past the end is False)."""
+    out = flat.copy()
+    n = flat.size
+    for s in shifts:
+        if s > 0:
+            out[s:] |= flat[: n - s]
+        elif s < 0:
+            out[: n + s] |= flat[-s:]
     return out
 
 
