@@ -735,6 +735,8 @@ class _Batch:
         epad = np.full((n, Hp, Wp), -np.inf)
         apad = np.zeros((n, Hp, Wp), dtype=bool)
         avoid = np.zeros((n, H, W), dtype=bool)
+        # the elevation in each box, -inf past its own size
+        elev = np.full((n, H, W), -np.inf) if n > 1 else np.empty((1, H, W))
         box = ints.tolist()
         for k, p in enumerate(plans):
             g = p.grids
@@ -745,14 +747,9 @@ class _Batch:
             epad[k, ra - top : rb - top, ca - left : cb - left] = g.elevation[ra:rb, ca:cb]
             apad[k, ra - top : rb - top, ca - left : cb - left] = g.avoid[ra:rb, ca:cb]
             avoid[k, :h, :w] = g.avoid[rk : rk + h, ck : ck + w]
+            elev[k, :h, :w] = epad[k, R : R + h, R : R + w]
         self.epad = epad
-        inner = epad[:, R : R + H, R : R + W]
-        if n == 1:
-            self.elev = inner.copy()
-        else:
-            inbox = ((np.arange(H)[None, :, None] < hh[:, None, None])
-                     & (np.arange(W)[None, None, :] < ww[:, None, None]))
-            self.elev = np.where(inbox, inner, -np.inf)
+        self.elev = elev
         core = avoid.copy()
         # Other feet: forbidden as their soles (or foot boxes), with this foot's yaw; the
         # dilation by this foot's box keeps its whole box off them.
