@@ -194,7 +194,7 @@ def mark_window(grid: WindowGrids, boxes: BodyBoxes, owner: int, margin: float, 
     if not extra.any():
         return grid
     return WindowGrids(grid.origin, grid.cell, grid.elevation, grid.avoid | extra,
-                       grid.foot_half_extents, grid.foot_yaw)
+                       grid.foot_half_extents, grid.foot_yaw, stack=grid.stack)
 
 
 def neighbours(center: FloatArray, radius: FloatArray, reach: FloatArray, avoid: BoolArray) -> BoolArray:

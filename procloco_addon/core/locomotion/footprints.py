@@ -1347,7 +1347,9 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
 
 
 class _WindowLookup:
-    """The elevation of many plans' windows at points (``-inf`` outside a window)."""
+    """The elevation of many plans' windows at points (``-inf`` outside a window): read from
+    their :attr:`~.terrain.WindowGrids.stack` when they were made together, else from a
+    concatenation of their elevations."""
 
     def __init__(self, grids: list[WindowGrids]) -> None:
         index: dict[int, int] = {}
@@ -1358,10 +1360,18 @@ class _WindowLookup:
             if k == len(uniq):
                 uniq.append(g)
             which.append(k)
-        sizes = [g.elevation.size for g in uniq]
-        self.flat = (np.concatenate([g.elevation.ravel() for g in uniq]) if len(uniq) > 1
-                     else uniq[0].elevation.ravel())
-        starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
+        stack = uniq[0].stack
+        if len(uniq) == 1:
+            self.flat = uniq[0].elevation.ravel()
+            starts = np.zeros(1, dtype=np.intp)
+        elif stack is not None and all(g.stack is not None and g.stack[0] is stack[0] for g in uniq):
+            self.flat = stack[0].reshape(-1)
+            plane = stack[0].shape[1] * stack[0].shape[2]
+            starts = np.array([g.stack[1] * plane for g in uniq if g.stack is not None], dtype=np.intp)
+        else:
+            sizes = [g.elevation.size for g in uniq]
+            self.flat = np.concatenate([g.elevation.ravel() for g in uniq])
+            starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.intp)
         w = np.asarray(which)
         self.start = starts[w]
         self.ox = np.array([float(g.origin[0]) for g in uniq])[w]

@@ -576,6 +576,10 @@ class WindowGrids:
     only by the foot-shape enlargement), ``void`` (no surface) — the obstacle map without
     slices and without other feet. The planner builds its own per-slice maps with
     :meth:`obstacle_map`.
+
+    ``stack``: the windows made together (:meth:`Environment.windows`) keep their elevations
+    in one ``(m, ny, nx)`` array; this window's is ``stack[0][stack[1]]`` (None: its own
+    array). The planner reads many windows at once through it without copying them.
     """
 
     origin: FloatArray
@@ -585,6 +589,7 @@ class WindowGrids:
     foot_half_extents: tuple[float, float] = (0.03, 0.03)
     foot_yaw: float = 0.0
     _cache: dict[str, npt.NDArray[np.generic]] = field(default_factory=dict, repr=False, compare=False)
+    stack: tuple[FloatArray, int] | None = field(default=None, repr=False, compare=False)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -1196,7 +1201,8 @@ class Environment:
             prm = plist[w]
             half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
             origin = np.array([j0_list[w] * cell, i0_list[w] * cell])
-            out.append(WindowGrids(origin, cell, elev_all[w], avoid_all[w], half, float(prm.foot_yaw)))
+            out.append(WindowGrids(origin, cell, elev_all[w], avoid_all[w], half, float(prm.foot_yaw),
+                                   stack=(elev_all, w)))
         return out
 
     def _static_window(
