@@ -54,21 +54,34 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
     return watch
 
 
-def watch_reset(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray) -> None:
+def ring_points(watch: Watch, legs: IntArray, spot: FloatArray) -> FloatArray:
+    """The watch rings' points ``(m * 16, 2)`` around the spots ``spot (m, 3)`` of ``legs``."""
+    return np.asarray((spot[:, None, :2] + watch.offsets[legs]).reshape(-1, 2))
+
+
+def watch_reset(
+    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray,
+    queried: tuple[FloatArray, BoolArray] | None = None,
+) -> None:
     """Remember what is around the watched spots ``spot (m, 3)`` of ``legs (m,)`` now (a
-    foot landed, or a swing was planned)."""
+    foot landed, or a swing was planned). ``queried``: the heights and forbidden flags at
+    their ``ring_points`` when the caller asked for them already (in one query with others)."""
     if not watch.dynamic or legs.size == 0:
         return
-    pts = (spot[:, None, :2] + watch.offsets[legs]).reshape(-1, 2)
-    watch.ground[legs] = env.height_at(pts).reshape(legs.size, -1)
-    watch.forbidden[legs] = env.forbidden_at(pts).reshape(legs.size, -1)
+    if queried is None:
+        pts = ring_points(watch, legs, spot)
+        queried = (env.height_at(pts), env.forbidden_at(pts))
+    watch.ground[legs] = queried[0].reshape(legs.size, -1)
+    watch.forbidden[legs] = queried[1].reshape(legs.size, -1)
 
 
 def look(
-    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, tol: FloatArray
+    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, tol: FloatArray,
+    queried: tuple[FloatArray, BoolArray] | None = None,
 ) -> tuple[FloatArray, BoolArray, BoolArray]:
     """Query the watched spots ``spot (m, 3)`` of ``legs`` and the rings around them (one
-    query).
+    query; ``queried``: the heights and forbidden flags at the spots then their
+    ``ring_points`` when the caller asked for them already, in one query with others).
 
     Returns the surface ``(m,)`` and forbidden flags ``(m,)`` at the spots, and whether a
     moving obstacle closes in on each spot ``(m,)`` (since the last look, a ring point rose
@@ -76,10 +89,10 @@ def look(
     moves on to now."""
     m = legs.size
     k = watch.offsets.shape[1]
-    ring = spot[:, None, :2] + watch.offsets[legs]
-    xy = np.concatenate([spot[:, :2], ring.reshape(-1, 2)])
-    heights = env.height_at(xy)
-    forbidden = env.forbidden_at(xy)
+    if queried is None:
+        xy = np.concatenate([spot[:, :2], ring_points(watch, legs, spot)])
+        queried = (env.height_at(xy), env.forbidden_at(xy))
+    heights, forbidden = queried
     ring_h = heights[m:].reshape(m, k)
     ring_f = forbidden[m:].reshape(m, k)
     t = tol[legs][:, None]
@@ -108,9 +121,14 @@ def trajectory_blocked(
     u = swing_parameter(feet, progress)[legs]
     ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
     pts = plan.traj[legs][:, cols]
-    flat = pts.reshape(-1, 3)
-    surface = env.height_at(flat[:, :2]).reshape(legs.size, k)
-    forbidden = env.forbidden_at(flat[:, :2]).reshape(legs.size, k)
+    # the samples, then the landing spots and their watch rings (look), in one query
+    targets = plan.target[legs]
+    xy = np.concatenate([pts[..., :2].reshape(-1, 2), targets[:, :2], ring_points(watch, legs, targets)])
+    heights = env.height_at(xy)
+    flags = env.forbidden_at(xy)
+    n = legs.size * k
+    surface = heights[:n].reshape(legs.size, k)
+    forbidden = flags[:n].reshape(legs.size, k)
     # only what changed since the plan counts: something rose into the path, or became forbidden
     t = tol[legs]
     risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
@@ -120,7 +138,7 @@ def trajectory_blocked(
     moved = np.abs(land_surface - plan.support[legs]) > t
     # and nothing moving may be closing in on it (once per swing: a foot that already
     # moved its landing spot away lands; spot_taken still stops it landing on the obstacle)
-    coming = look(env, watch, legs, plan.target[legs], tol)[2] & ~feet.dodged[legs]
+    coming = look(env, watch, legs, targets, tol, (heights[n:], flags[n:]))[2] & ~feet.dodged[legs]
     feet.dodged[legs] |= coming
     out[legs] = cut.any(axis=1) | moved | coming
     return out

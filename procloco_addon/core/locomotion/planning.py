@@ -22,7 +22,7 @@ from . import spine_link
 from .fallback import straight_step
 from .footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from .morphology import LegBatch
-from .obstacles import Watch, onto_support, trajectory_blocked, watch_reset
+from .obstacles import Watch, onto_support, ring_points, trajectory_blocked, watch_reset
 from .pelvis import Body
 from .reach import within_reach_all
 from .rig import Rig
@@ -369,13 +369,16 @@ def commit(
     targets = np.stack([d[4] for d in done])
     ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
     ease = ease * ease * (3.0 - 2.0 * ease)
-    hole = env.height_at(targets[:, :2]) <= VOID
-    for i in np.flatnonzero(hole).tolist():
+    h = env.height_at(targets[:, :2])
+    shifted = False
+    for i in np.flatnonzero(h <= VOID).tolist():
         shift = onto_support(env, rig, targets[i, :2], int(chars[i]))
         if shift is not None:
             samples_all[i, :, :2] += shift[None, :] * ease[:, None]
             targets[i, :2] += shift
-    h = env.height_at(targets[:, :2])
+            shifted = True
+    if shifted:
+        h = env.height_at(targets[:, :2])
     exact = np.where(h > VOID, h, 0.0)
     drop = targets[:, 2] - exact
     snap = ((drop >= -1e-9) & (drop <= p.snap_tolerance * ctl.step_height[chars])) | (
@@ -386,14 +389,21 @@ def commit(
     samples_all[:, -1] = targets
     plan = feet.plan
     plan.traj[leg_ids] = samples_all
+    ring: tuple[FloatArray, BoolArray] | None = None
     if watch.dynamic:
+        # the swings' samples and the watch rings of their landing spots, in one query
         flat = samples_all[..., :2].reshape(-1, 2)
-        plan.ground[leg_ids] = env.height_at(flat).reshape(leg_ids.size, -1)
-        plan.forbidden[leg_ids] = env.forbidden_at(flat).reshape(leg_ids.size, -1)
+        xy = np.concatenate([flat, ring_points(watch, leg_ids, targets)])
+        heights = env.height_at(xy)
+        flags = env.forbidden_at(xy)
+        n = flat.shape[0]
+        plan.ground[leg_ids] = heights[:n].reshape(leg_ids.size, -1)
+        plan.forbidden[leg_ids] = flags[:n].reshape(leg_ids.size, -1)
+        ring = (heights[n:], flags[n:])
     plan.u0[leg_ids] = start_u[leg_ids]
     plan.target[leg_ids] = targets
     plan.support[leg_ids] = exact
-    watch_reset(env, watch, leg_ids, targets)
+    watch_reset(env, watch, leg_ids, targets, ring)
     plan.heading[leg_ids] = ctl.heading[chars]
     plan.speed[leg_ids] = ctl.speed[chars]
     plan.spacing[leg_ids] = ctl.spacing[leg_ids]
