@@ -252,15 +252,17 @@ def _fail(start: FloatArray, message: str, **counts: int) -> Couple:
 
 
 def _legs_cross_each(
-    hip_xy: FloatArray, foot_xy: FloatArray, other_hips: FloatArray, other_feet: FloatArray, valid: BoolArray
+    hip_xy: FloatArray, foot_xy: FloatArray, other_hips: tuple[FloatArray, FloatArray],
+    other_feet: tuple[FloatArray, FloatArray], valid: BoolArray,
 ) -> BoolArray:
     """:func:`legs_cross` of ``m`` footprints, each against its own other legs: ``hip_xy``,
-    ``foot_xy`` ``(m, 2)``, ``other_hips``, ``other_feet`` ``(m, j, 2)`` of which ``valid``
-    ``(m, j)`` are real. Returns ``(m,)``. The same arithmetic, one coordinate at a time."""
-    px, py = hip_xy[:, 0, None], hip_xy[:, 1, None]
-    rx, ry = foot_xy[:, 0, None] - px, foot_xy[:, 1, None] - py
-    qx, qy = other_hips[..., 0], other_hips[..., 1]
-    sx, sy = other_feet[..., 0] - qx, other_feet[..., 1] - qy
+    ``foot_xy`` ``(m, 2)``; ``other_hips``, ``other_feet``: their x and y ``(j, m)`` (leg by
+    leg: the arithmetic runs along the footprints), of which ``valid`` ``(j, m)`` are real.
+    Returns ``(m,)``. The same arithmetic, one coordinate at a time."""
+    px, py = hip_xy[:, 0], hip_xy[:, 1]
+    rx, ry = foot_xy[:, 0] - px, foot_xy[:, 1] - py
+    qx, qy = other_hips
+    sx, sy = other_feet[0] - qx, other_feet[1] - qy
     d1: FloatArray = rx * (qy - py) - ry * (qx - px)
     d2: FloatArray = rx * (qy + sy - py) - ry * (qx + sx - px)
     d3: FloatArray = sx * (py - qy) - sy * (px - qx)
@@ -268,7 +270,7 @@ def _legs_cross_each(
     eps = 1e-12
     hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
         ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
-    return np.asarray(np.any(hit & valid, axis=1))
+    return np.asarray(np.any(hit & valid, axis=0))
 
 
 #: Samples along the hip-footprint line of the leg clearance check (a leg's length is some
@@ -301,18 +303,18 @@ def _hip_checks(
     if rows.size == 0:
         return ok, clear
     # The leg as the straight line from the footprint up to the hip, bowed up by the arch its
-    # joints take over it: the ground under it must stay below.
-    t = (np.arange(_LEG_SAMPLES) + 0.5) / _LEG_SAMPLES
+    # joints take over it: the ground under it must stay below. Samples ``(S, m)``: sample
+    # by sample, the arithmetic runs along the footprints.
+    t = ((np.arange(_LEG_SAMPLES) + 0.5) / _LEG_SAMPLES)[:, None]
     fx, fy, fz = xy[rows, 0], xy[rows, 1], z[rows]
     vx, vy, vz = hip[rows, 0] - fx, hip[rows, 1] - fy, hip_z[rows] - fz
     flat = np.sqrt(vx * vx + vy * vy)
     chord = np.sqrt(vx * vx + vy * vy + vz * vz)
     bow = arch[rows] * 0.5 * np.sqrt(np.maximum(leg[rows] * leg[rows] - chord * chord, 0.0))
-    pts = np.stack([fx[:, None] + t[None, :] * vx[:, None], fy[:, None] + t[None, :] * vy[:, None]], axis=-1)
-    line = fz[:, None] + t[None, :] * vz[:, None] + (4.0 * t * (1.0 - t))[None, :] * bow[:, None]
-    own = t[None, :] * flat[:, None] < foot_r[rows, None]  # under the foot itself
-    under = windows.heights(pts, window_of[rows])
-    clear[rows[np.any((under > line + 1e-9) & ~own, axis=1)]] = False
+    line = fz + t * vz + (4.0 * t * (1.0 - t)) * bow
+    own = t * flat < foot_r[rows]  # under the foot itself
+    under = windows.heights(fx + t * vx, fy + t * vy, window_of[rows])
+    clear[rows[np.any((under > line + 1e-9) & ~own, axis=0)]] = False
     return ok, clear
 
 
@@ -1301,14 +1303,13 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     pad_forb[:, 1:-1, 1:-1] = forbidden | (elev < _VOID_BELOW)
     pad_elev = np.full((n_, H + 2, W + 2), -np.inf)
     pad_elev[:, 1:-1, 1:-1] = elev
-    here = elev[b, r, c][:, None]
-    nr = r[:, None] + 1 + _NEIGHBOURS[None, :, 0]
-    nc = c[:, None] + 1 + _NEIGHBOURS[None, :, 1]
-    bb = b[:, None]
-    ne = pad_elev[bb, nr, nc]  # (k, 8)
-    edge_h = rows[b, col["edge_height"], None]
-    free = np.count_nonzero(~pad_forb[bb, nr, nc] & (np.abs(ne - here) <= edge_h), axis=1)
-    rim = np.any(here - ne > edge_h, axis=1)
+    here = elev[b, r, c]
+    nr = r + 1 + _NEIGHBOURS[:, 0, None]
+    nc = c + 1 + _NEIGHBOURS[:, 1, None]
+    ne = pad_elev[b, nr, nc]  # (8, k): neighbour by neighbour
+    edge_h = rows[b, col["edge_height"]]
+    free = np.count_nonzero(~pad_forb[b, nr, nc] & (np.abs(ne - here) <= edge_h), axis=0)
+    rim = np.any(here - ne > edge_h, axis=0)
     ex = x - rows[b, col["pref_x"]]
     ey = y - rows[b, col["pref_y"]]
     distance = np.clip(1.0 - planar_length(ex, ey) / rows[b, col["fixed"]], 0.0, 1.0)
@@ -1322,15 +1323,18 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     xy = np.column_stack([x, y])
     n_other = rows[:, col["n_other"]].astype(np.intp)
     if n_other.max(initial=0) and b.size:
+        # each plan's other legs, slot by slot: (j, n) per coordinate
         j = int(n_other.max())
-        o_hips = np.zeros((n, j, 2))
-        o_feet = np.zeros((n, j, 2))
         who = np.repeat(np.arange(n), n_other)
         slot = np.arange(who.size) - np.repeat(np.cumsum(n_other) - n_other, n_other)
-        o_hips[who, slot] = np.concatenate([p.o_hips for p in plans])
-        o_feet[who, slot] = np.concatenate([p.o_feet for p in plans])
-        valid = np.arange(j)[None, :] < n_other[b][:, None]
-        crosses = _legs_cross_each(hip[b], xy, o_hips[b], o_feet[b], valid)
+        legs_xy = []
+        for part in (np.concatenate([p.o_hips for p in plans]), np.concatenate([p.o_feet for p in plans])):
+            for axis in (0, 1):
+                grid = np.zeros((j, n))
+                grid[slot, who] = part[:, axis]
+                legs_xy.append(grid[:, b])
+        valid = np.arange(j)[:, None] < n_other[b]
+        crosses = _legs_cross_each(hip[b], xy, (legs_xy[0], legs_xy[1]), (legs_xy[2], legs_xy[3]), valid)
     else:
         crosses = np.zeros(b.size, dtype=bool)
     score = partial * np.where(crosses, 0.0, 1.0)
@@ -1380,15 +1384,17 @@ class _WindowLookup:
         self.ny = np.array([g.shape[0] for g in uniq])[w]
         self.nx = np.array([g.shape[1] for g in uniq])[w]
 
-    def heights(self, pts: FloatArray, plan: IntArray) -> FloatArray:
-        """Elevation under points ``(m, S, 2)`` of plans ``plan (m,)``."""
-        cl = self.cell[plan][:, None]
-        col = np.rint((pts[..., 0] - self.ox[plan][:, None]) / cl).astype(np.intp)
-        row = np.rint((pts[..., 1] - self.oy[plan][:, None]) / cl).astype(np.intp)
-        ny = self.ny[plan][:, None]
-        nx = self.nx[plan][:, None]
+    def heights(self, x: FloatArray, y: FloatArray, plan: IntArray) -> FloatArray:
+        """Elevation under points ``(x, y)`` ``(S, m)`` of plans ``plan (m,)`` (point ``[s,
+        i]`` of plan ``plan[i]``)."""
+        cl = self.cell[plan]
+        col = np.rint((x - self.ox[plan]) / cl).astype(np.intp)
+        row = np.rint((y - self.oy[plan]) / cl).astype(np.intp)
+        ny = self.ny[plan]
+        nx = self.nx[plan]
         inside = (row >= 0) & (row < ny) & (col >= 0) & (col < nx)
-        at = self.start[plan][:, None] + np.clip(row, 0, ny - 1) * nx + np.clip(col, 0, nx - 1)
+        at = (self.start[plan] + np.minimum(np.maximum(row, 0), ny - 1) * nx
+              + np.minimum(np.maximum(col, 0), nx - 1))
         return np.asarray(np.where(inside, self.flat[at], -np.inf))
 
 
