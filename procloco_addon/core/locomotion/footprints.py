@@ -818,11 +818,12 @@ class _Batch:
         R = self.pad
         koff = kernel[used, 0] * wp + kernel[used, 1]
         at = plan * (hp * wp) + (rows + R) * wp + (cols + R)
-        vals = grid.reshape(-1)[at[:, None] + koff[None, :]]
+        # kernel cell by cell ``(k, p)``: each gather and the maximum run along the p cells
+        vals = grid.reshape(-1)[koff[:, None] + at]
         sel = member[:, used]
         if not sel.all():
-            vals = np.where(sel[plan], vals, -np.inf)
-        return np.asarray(vals.max(axis=1))
+            vals = np.where(sel.T[:, plan], vals, -np.inf)
+        return np.asarray(vals.max(axis=0))
 
     def path_context(self, f: _Foot) -> PathContext:
         """The foot's :class:`PathContext` (made on first use; it shares the foot's caches)."""
