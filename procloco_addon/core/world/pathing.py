@@ -396,16 +396,18 @@ def supercover_cells(a: npt.ArrayLike, b: npt.ArrayLike) -> IntArray:
     touches the four cells around it. Unique cells, unordered.
     """
     aa = np.asarray(a, dtype=np.float64).reshape(2)
-    pts, mask = _crossing_samples(aa, np.asarray(b, dtype=np.float64).reshape(1, 2))
-    cells = pts[0][mask[0]]
+    rows, cols, mask = _crossing_samples(aa, np.asarray(b, dtype=np.float64).reshape(1, 2))
+    cells = np.column_stack([rows[:, 0][mask[:, 0]], cols[:, 0][mask[:, 0]]])
     return np.unique(cells, axis=0)
 
 
-def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, BoolArray]:
+def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, IntArray, BoolArray]:
     """Cells around every grid-line crossing and both ends of segments ``a -> b[i]``.
 
     ``a``: ``(2,)`` shared by every segment, or ``(m, 2)`` one per segment; ``b``: ``(m, 2)``.
-    Returns ``(cells (m, K*4, 2), valid (m, K*4))``.
+    Returns ``(rows, cols, valid)``, each ``(K*4, m)``: sample by sample (the crossings'
+    parameters, then the four cells around each point), each sample's arithmetic running
+    along the segments.
     """
     m = b.shape[0]
     aa = np.broadcast_to(a, b.shape)
@@ -417,23 +419,29 @@ def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, BoolArray
     moving = np.abs(d) > 1e-12
     count = np.where(moving, np.maximum(last - first + 1, 0), 0).astype(np.intp)  # (m, 2)
     kmax = int(count.max(initial=0))
-    steps = np.arange(kmax)
+    steps = np.arange(kmax)[:, None]
     dd = np.where(moving, d, 1.0)
-    line = first[:, :, None] + steps[None, None, :] + 0.5  # (m, 2, kmax)
-    t_lines = np.clip((line - aa[:, :, None]) / dd[:, :, None], 0.0, 1.0).reshape(m, 2 * kmax)
-    t = np.concatenate([np.zeros((m, 1)), np.ones((m, 1)), t_lines], axis=1)  # (m, K)
-    ok = np.concatenate([np.ones((m, 2), dtype=bool),
-                         (steps[None, None, :] < count[:, :, None]).reshape(m, 2 * kmax)], axis=1)
-    p = aa[:, None, :] + t[..., None] * d[:, None, :]  # (m, K, 2)
-    q = p[:, :, None, :] + _CORNER_OFFSETS[None, None, :, :]  # (m, K, 4, 2)
-    cells = np.rint(q).astype(np.intp).reshape(m, -1, 2)
-    mask = np.repeat(ok, 4, axis=1)
-    return cells, mask
+    k = 2 + 2 * kmax
+    t = np.empty((k, m))  # the ends, then the crossings of row lines, then of column lines
+    t[0] = 0.0
+    t[1] = 1.0
+    ok = np.ones((k, m), dtype=bool)
+    for axis in (0, 1):
+        rows = slice(2 + axis * kmax, 2 + (axis + 1) * kmax)
+        line = first[:, axis] + steps + 0.5  # (kmax, m)
+        t[rows] = np.clip((line - aa[:, axis]) / dd[:, axis], 0.0, 1.0)
+        ok[rows] = steps < count[:, axis]
+    p0 = aa[:, 0] + t * d[:, 0]
+    p1 = aa[:, 1] + t * d[:, 1]
+    eps = _CORNER_EPS
+    r_lo, r_hi = np.rint(p0 - eps).astype(np.intp), np.rint(p0 + eps).astype(np.intp)
+    c_lo, c_hi = np.rint(p1 - eps).astype(np.intp), np.rint(p1 + eps).astype(np.intp)
+    rows_out = np.concatenate([r_lo, r_lo, r_hi, r_hi])
+    cols_out = np.concatenate([c_lo, c_hi, c_lo, c_hi])
+    return rows_out, cols_out, np.concatenate([ok, ok, ok, ok])
 
 
 _CORNER_EPS = 1e-7
-_CORNER_OFFSETS = np.array([[-_CORNER_EPS, -_CORNER_EPS], [-_CORNER_EPS, _CORNER_EPS],
-                            [_CORNER_EPS, -_CORNER_EPS], [_CORNER_EPS, _CORNER_EPS]])
 
 
 def segments_clear_each(
@@ -445,13 +453,11 @@ def segments_clear_each(
     count as outside). Same samples and result as :func:`segments_clear` per segment."""
     if b.shape[0] == 0:
         return np.zeros(0, dtype=bool)
-    cells, mask = _crossing_samples(a, b)
-    r = cells[..., 0]
-    c = cells[..., 1]
-    inside = (r >= 0) & (r < shape[:, 0, None]) & (c >= 0) & (c < shape[:, 1, None])
-    hit = blocked[which[:, None], np.where(inside, r, 0), np.where(inside, c, 0)]
+    r, c, mask = _crossing_samples(a, b)
+    inside = (r >= 0) & (r < shape[:, 0]) & (c >= 0) & (c < shape[:, 1])
+    hit = blocked[which, np.where(inside, r, 0), np.where(inside, c, 0)]
     bad = mask & (~inside | hit)
-    return np.asarray(~np.any(bad, axis=1))
+    return np.asarray(~np.any(bad, axis=0))
 
 
 def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> BoolArray:
