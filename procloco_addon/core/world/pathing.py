@@ -733,14 +733,25 @@ def lift_each(
     way3 = np.empty((nk, 3))
     way3[:, :2] = samples[kidx]
     way3[:, 2] = kz
+    # Each plan's 3D arc length: its segments in a row of their own after a 0, one running
+    # sum along the rows (the same sums, in the same order, as a cumsum per plan).
+    if owner is None:
+        arcs = np.empty((1, arc.size))
+        arcs[0, 0] = 0.0
+        np.cumsum(seg3, out=arcs[0, 1:])
+    else:
+        counts = np.diff(bounds)
+        table = np.zeros((n, int(counts.max())))
+        pos = np.arange(arc.size) - np.repeat(np.asarray(first), counts)
+        inner = pos > 0  # a sample after its plan's first: its segment from the one before
+        table[owner[inner], pos[inner]] = seg3[inner[1:]]
+        arcs = np.cumsum(table, axis=1)
+    ends = arcs[np.arange(n), np.diff(bounds) - 1].tolist()
     out = []
     for i in range(n):
         a, b = bounds[i], bounds[i + 1]
-        arc3 = np.empty(b - a)
-        arc3[0] = 0.0
-        np.cumsum(seg3[a : b - 1], out=arc3[1:])
-        out.append(FootTrajectory(points[a:b], float(arc3[-1]), way3[knot_bounds[i] : knot_bounds[i + 1]],
-                                  waypoints_2d[i], length[i], arc3, arc[a:b]))
+        out.append(FootTrajectory(points[a:b], ends[i], way3[knot_bounds[i] : knot_bounds[i + 1]],
+                                  waypoints_2d[i], length[i], arcs[i, : b - a], arc[a:b]))
     return out
 
 
