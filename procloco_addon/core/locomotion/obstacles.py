@@ -28,12 +28,22 @@ class Watch:
     """Two rings of points around every foot's watched spot: ``offsets (N, 16, 2)`` (at the
     foot box's corner distance plus ``watch_distance`` and half of it, the inner ring turned
     half a step), and what was there at the last look, ``ground (N, 16)`` and ``forbidden
-    (N, 16)``. ``dynamic``: the environment has moving parts (else nothing is watched)."""
+    (N, 16)``. ``dynamic``: the environment has moving parts (else nothing is watched).
+
+    What lets a look skip the rings no moving thing comes near (most of a crowd's feet): the
+    spot looked at last, ``spot (N, 2)``, and whether a moving obstacle reached its ring
+    then, ``stirred (N,)``; whether one reached a swing when it was planned,
+    ``swing_stirred (N,)``. A ring whose spot stayed put, that nothing moving reached then
+    or reaches now, holds what the static scene holds: what was remembered (the same for a
+    swing's samples and what was recorded when it was planned)."""
 
     offsets: FloatArray
     ground: FloatArray
     forbidden: BoolArray
     dynamic: bool
+    spot: FloatArray
+    stirred: BoolArray
+    swing_stirred: BoolArray
 
 
 def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray) -> Watch:
@@ -49,7 +59,8 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
         [outer[:, None, None] * dirs[None], inner[:, None, None] * np.roll(dirs, 1, axis=0)[None]], axis=1
     )  # (N, 16, 2), the inner ring turned half a step
     dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
-    watch = Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), dynamic)
+    watch = Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), dynamic, np.zeros((n, 2)),
+                  np.ones(n, dtype=bool), np.ones(n, dtype=bool))
     watch_reset(env, watch, np.arange(n), foot)
     return watch
 
@@ -57,6 +68,19 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
 def ring_points(watch: Watch, legs: IntArray, spot: FloatArray) -> FloatArray:
     """The watch rings' points ``(m * 16, 2)`` around the spots ``spot (m, 3)`` of ``legs``."""
     return np.asarray((spot[:, None, :2] + watch.offsets[legs]).reshape(-1, 2))
+
+
+def _ring_near(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray) -> BoolArray:
+    """``(m,)`` whether a moving obstacle reaches the rings around ``spot (m, 3)`` of ``legs``
+    now (their bounding boxes)."""
+    reach = np.abs(watch.offsets[legs]).max(axis=1)
+    return env.moving_near(spot[:, :2] - reach, spot[:, :2] + reach)
+
+
+def swing_near(env: Environment, samples: FloatArray) -> BoolArray:
+    """``(m,)`` whether a moving obstacle reaches the swings ``samples (m, k, 3)`` now (the
+    bounding box of each one's samples)."""
+    return env.moving_near(samples[..., :2].min(axis=1), samples[..., :2].max(axis=1))
 
 
 def watch_reset(
@@ -73,15 +97,36 @@ def watch_reset(
         queried = (env.height_at(pts), env.forbidden_at(pts))
     watch.ground[legs] = queried[0].reshape(legs.size, -1)
     watch.forbidden[legs] = queried[1].reshape(legs.size, -1)
+    watch.spot[legs] = spot[:, :2]
+    watch.stirred[legs] = _ring_near(env, watch, legs, spot)
+
+
+#: A look's point query: the heights and forbidden flags at the spots, then at the rings of
+#: the rows ``asked`` of them, and which rings a moving obstacle reaches now (``look_points``).
+LookQuery = tuple[FloatArray, BoolArray, IntArray, BoolArray]
+
+
+def look_points(
+    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray
+) -> tuple[FloatArray, IntArray, BoolArray]:
+    """What a look at the spots ``spot (m, 3)`` of ``legs`` asks: the points ``(p, 2)`` (the
+    spots, then the rings of the rows ``asked``), ``asked`` and which rings a moving obstacle
+    reaches now ``(m,)``. A ring is asked when its spot moved, or a moving obstacle reached
+    it at the last look or reaches it now; the others hold what the watch remembers."""
+    near = _ring_near(env, watch, legs, spot)
+    moved = np.any(spot[:, :2] != watch.spot[legs], axis=1)
+    asked = np.flatnonzero(near | moved | watch.stirred[legs])
+    xy = np.concatenate([spot[:, :2], ring_points(watch, legs[asked], spot[asked])])
+    return xy, asked, near
 
 
 def look(
     env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, tol: FloatArray,
-    queried: tuple[FloatArray, BoolArray] | None = None,
+    queried: LookQuery | None = None,
 ) -> tuple[FloatArray, BoolArray, BoolArray]:
     """Query the watched spots ``spot (m, 3)`` of ``legs`` and the rings around them (one
-    query; ``queried``: the heights and forbidden flags at the spots then their
-    ``ring_points`` when the caller asked for them already, in one query with others).
+    query of ``look_points``; ``queried``: its answer when the caller asked for those
+    points already, in one query with others).
 
     Returns the surface ``(m,)`` and forbidden flags ``(m,)`` at the spots, and whether a
     moving obstacle closes in on each spot ``(m,)`` (since the last look, a ring point rose
@@ -90,16 +135,20 @@ def look(
     m = legs.size
     k = watch.offsets.shape[1]
     if queried is None:
-        xy = np.concatenate([spot[:, :2], ring_points(watch, legs, spot)])
-        queried = (env.height_at(xy), env.forbidden_at(xy))
-    heights, forbidden = queried
-    ring_h = heights[m:].reshape(m, k)
-    ring_f = forbidden[m:].reshape(m, k)
+        xy, asked, near = look_points(env, watch, legs, spot)
+        queried = (env.height_at(xy), env.forbidden_at(xy), asked, near)
+    heights, forbidden, asked, near = queried
+    ring_h = watch.ground[legs]
+    ring_f = watch.forbidden[legs]
+    ring_h[asked] = heights[m:].reshape(asked.size, k)
+    ring_f[asked] = forbidden[m:].reshape(asked.size, k)
     t = tol[legs][:, None]
     rose = (ring_h > watch.ground[legs] + t) & (ring_h > spot[:, 2, None] + t)
     coming = (rose | (ring_f & ~watch.forbidden[legs])).any(axis=1)
     watch.ground[legs] = ring_h
     watch.forbidden[legs] = ring_f
+    watch.spot[legs] = spot[:, :2]
+    watch.stirred[legs] = near
     return heights[:m], forbidden[:m], coming
 
 
@@ -121,24 +170,31 @@ def trajectory_blocked(
     u = swing_parameter(feet, progress)[legs]
     ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
     pts = plan.traj[legs][:, cols]
-    # the samples, then the landing spots and their watch rings (look), in one query
+    # the samples of the swings a moving obstacle reached when they were planned or reaches
+    # now (the others hold what was recorded then), then the landing spots and their watch
+    # rings (look), in one query
     targets = plan.target[legs]
-    xy = np.concatenate([pts[..., :2].reshape(-1, 2), targets[:, :2], ring_points(watch, legs, targets)])
+    asked = np.flatnonzero(watch.swing_stirred[legs] | swing_near(env, plan.traj[legs]))
+    spots_xy, rings, near = look_points(env, watch, legs, targets)
+    xy = np.concatenate([pts[asked, :, :2].reshape(-1, 2), spots_xy])
     heights = env.height_at(xy)
     flags = env.forbidden_at(xy)
-    n = legs.size * k
-    surface = heights[:n].reshape(legs.size, k)
-    forbidden = flags[:n].reshape(legs.size, k)
+    n = asked.size * k
+    surface = plan.ground[legs][:, cols]
+    forbidden = plan.forbidden[legs][:, cols]
+    surface[asked] = heights[:n].reshape(asked.size, k)
+    forbidden[asked] = flags[:n].reshape(asked.size, k)
     # only what changed since the plan counts: something rose into the path, or became forbidden
     t = tol[legs]
     risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
     cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
-    # the landing spot itself must still be there
-    land_surface = surface[:, -1]
+    # the landing spot itself must still be there (the last sample is the target)
+    land_surface = heights[n : n + legs.size]
     moved = np.abs(land_surface - plan.support[legs]) > t
     # and nothing moving may be closing in on it (once per swing: a foot that already
     # moved its landing spot away lands; spot_taken still stops it landing on the obstacle)
-    coming = look(env, watch, legs, targets, tol, (heights[n:], flags[n:]))[2] & ~feet.dodged[legs]
+    coming = look(env, watch, legs, targets, tol, (heights[n:], flags[n:], rings, near))[2]
+    coming &= ~feet.dodged[legs]
     feet.dodged[legs] |= coming
     out[legs] = cut.any(axis=1) | moved | coming
     return out

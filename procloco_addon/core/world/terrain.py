@@ -1129,6 +1129,36 @@ class Environment:
             self._dynamic_sorted = (d_sorted, lo_sorted, hi_sorted, widest)
         return self._dynamic_sorted
 
+    def moving_near(self, lo: FloatArray, hi: FloatArray) -> BoolArray:
+        """``(m,)`` whether a moving box's or moving mesh's ground footprint (its xy bounds)
+        reaches each rectangle ``[lo, hi]`` (``(m, 2)`` each, world xy) now. Where none does,
+        every point query inside the rectangle answers what the static scene alone does (and
+        did at any earlier time when none did either)."""
+        m = lo.shape[0]
+        out = np.zeros(m, dtype=bool)
+        if m == 0:
+            return out
+        if self._dynamic_boxes.size:
+            # the moving boxes sorted by min x: a rectangle's candidates are a run of them
+            _, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
+            first = np.searchsorted(lo_sorted[:, 0], lo[:, 0] - widest, side="left")
+            last = np.searchsorted(lo_sorted[:, 0], hi[:, 0], side="right")
+            count = np.maximum(last - first, 0)
+            if count.sum():
+                rect = np.repeat(np.arange(m), count)
+                pos = np.arange(rect.size) - np.repeat(np.cumsum(count) - count, count) + first[rect]
+                hit = ((hi_sorted[pos, 0] >= lo[rect, 0]) & (lo_sorted[pos, 1] <= hi[rect, 1])
+                       & (hi_sorted[pos, 1] >= lo[rect, 1]))
+                out[rect[hit]] = True
+        for i, soup in enumerate(self._soups):
+            if soup.dynamic and soup.faces.shape[0]:
+                _, t_lo, t_hi = self._soup_triangles(i)
+                off = self._offset(i)[:2]
+                s_lo = t_lo.min(axis=0) + off
+                s_hi = t_hi.max(axis=0) + off
+                out |= np.all((s_hi >= lo) & (s_lo <= hi), axis=1)
+        return out
+
     def _windows_of(
         self, ctr: FloatArray, n: int, cell: float, plist: list[WindowParams]
     ) -> list[WindowGrids]:
