@@ -33,8 +33,9 @@ class Watch:
     What lets a look skip the rings no moving thing comes near (most of a crowd's feet): the
     spot looked at last, ``spot (N, 2)``, and whether a moving obstacle reached its ring
     then, ``stirred (N,)``; whether one reached a swing when it was planned,
-    ``swing_stirred (N,)``. A ring whose spot stayed put, that nothing moving reached then
-    or reaches now, holds what the static scene holds: what was remembered (the same for a
+    ``swing_stirred (N,)``, and the bounds of its samples, ``swing_box (N, 4)`` (min x, min
+    y, max x, max y). A ring whose spot stayed put, that nothing moving reached then or
+    reaches now, holds what the static scene holds: what was remembered (the same for a
     swing's samples and what was recorded when it was planned)."""
 
     offsets: FloatArray
@@ -44,6 +45,7 @@ class Watch:
     spot: FloatArray
     stirred: BoolArray
     swing_stirred: BoolArray
+    swing_box: FloatArray
 
 
 def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray) -> Watch:
@@ -60,7 +62,7 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
     )  # (N, 16, 2), the inner ring turned half a step
     dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
     watch = Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), dynamic, np.zeros((n, 2)),
-                  np.ones(n, dtype=bool), np.ones(n, dtype=bool))
+                  np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)))
     watch_reset(env, watch, np.arange(n), foot)
     return watch
 
@@ -77,10 +79,12 @@ def _ring_near(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray)
     return env.moving_near(spot[:, :2] - reach, spot[:, :2] + reach)
 
 
-def swing_near(env: Environment, samples: FloatArray) -> BoolArray:
-    """``(m,)`` whether a moving obstacle reaches the swings ``samples (m, k, 3)`` now (the
-    bounding box of each one's samples)."""
-    return env.moving_near(samples[..., :2].min(axis=1), samples[..., :2].max(axis=1))
+def swing_planned(env: Environment, watch: Watch, legs: IntArray, samples: FloatArray) -> None:
+    """Remember the bounds of the swings ``samples (m, k, 3)`` just planned for ``legs`` and
+    whether a moving obstacle reaches them now."""
+    box = np.concatenate([samples[..., :2].min(axis=1), samples[..., :2].max(axis=1)], axis=1)
+    watch.swing_box[legs] = box
+    watch.swing_stirred[legs] = env.moving_near(box[:, :2], box[:, 2:])
 
 
 def watch_reset(
@@ -174,7 +178,8 @@ def trajectory_blocked(
     # now (the others hold what was recorded then), then the landing spots and their watch
     # rings (look), in one query
     targets = plan.target[legs]
-    asked = np.flatnonzero(watch.swing_stirred[legs] | swing_near(env, plan.traj[legs]))
+    box = watch.swing_box[legs]
+    asked = np.flatnonzero(watch.swing_stirred[legs] | env.moving_near(box[:, :2], box[:, 2:]))
     spots_xy, rings, near = look_points(env, watch, legs, targets)
     xy = np.concatenate([pts[asked, :, :2].reshape(-1, 2), spots_xy])
     heights = env.height_at(xy)

@@ -22,7 +22,7 @@ from . import spine_link
 from .fallback import straight_step
 from .footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from .morphology import LegBatch
-from .obstacles import Watch, onto_support, ring_points, swing_near, trajectory_blocked, watch_reset
+from .obstacles import Watch, onto_support, ring_points, swing_planned, trajectory_blocked, watch_reset
 from .pelvis import Body
 from .reach import within_reach_all
 from .rig import Rig
@@ -399,7 +399,7 @@ def commit(
         n = flat.shape[0]
         plan.ground[leg_ids] = heights[:n].reshape(leg_ids.size, -1)
         plan.forbidden[leg_ids] = flags[:n].reshape(leg_ids.size, -1)
-        watch.swing_stirred[leg_ids] = swing_near(env, samples_all)
+        swing_planned(env, watch, leg_ids, samples_all)
         ring = (heights[n:], flags[n:])
     plan.u0[leg_ids] = start_u[leg_ids]
     plan.target[leg_ids] = targets

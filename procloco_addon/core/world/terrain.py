@@ -723,6 +723,7 @@ class Environment:
         # points one after the other).
         self._raster_ok: dict[float, BoolArray] = {}
         self._dynamic_sorted: tuple[IntArray, FloatArray, FloatArray, float] | None = None
+        self._moving_cover: tuple[FloatArray, float, BoolArray] | None = None
         self._last_pairs: tuple[tuple[int, ...], bytes, IntArray, IntArray] | None = None
         self._update_box_bounds()
         self.stats = {"tiles_rasterised": 0, "moving_rasterised": 0, "windows": 0}
@@ -759,6 +760,7 @@ class Environment:
         self._update_box_bounds(idx)
         self._box_index_dynamic = None
         self._dynamic_sorted = None
+        self._moving_cover = None
         self._last_pairs = None
         for ok in self._raster_ok.values():
             ok[idx] = False
@@ -1131,25 +1133,29 @@ class Environment:
 
     def moving_near(self, lo: FloatArray, hi: FloatArray) -> BoolArray:
         """``(m,)`` whether a moving box's or moving mesh's ground footprint (its xy bounds)
-        reaches each rectangle ``[lo, hi]`` (``(m, 2)`` each, world xy) now. Where none does,
-        every point query inside the rectangle answers what the static scene alone does (and
-        did at any earlier time when none did either)."""
+        may reach each rectangle ``[lo, hi]`` (``(m, 2)`` each, world xy) now: True for every
+        rectangle one reaches (and for some it only comes close to: the boxes are marked on
+        a grid of cells of half a metre or more, and a rectangle over more than three cells
+        across counts as reached). Where it is False, every point query inside the rectangle
+        answers what the static scene alone does (and did at any earlier time when it was
+        False too)."""
         m = lo.shape[0]
         out = np.zeros(m, dtype=bool)
         if m == 0:
             return out
         if self._dynamic_boxes.size:
-            # the moving boxes sorted by min x: a rectangle's candidates are a run of them
-            _, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
-            first = np.searchsorted(lo_sorted[:, 0], lo[:, 0] - widest, side="left")
-            last = np.searchsorted(lo_sorted[:, 0], hi[:, 0], side="right")
-            count = np.maximum(last - first, 0)
-            if count.sum():
-                rect = np.repeat(np.arange(m), count)
-                pos = np.arange(rect.size) - np.repeat(np.cumsum(count) - count, count) + first[rect]
-                hit = ((hi_sorted[pos, 0] >= lo[rect, 0]) & (lo_sorted[pos, 1] <= hi[rect, 1])
-                       & (hi_sorted[pos, 1] >= lo[rect, 1]))
-                out[rect[hit]] = True
+            origin, cell, reached = self._moving_boxes_cover()
+            top = np.array(reached.shape) - 1
+            a = np.floor((lo - origin) / cell).astype(np.intp)
+            b = np.floor((hi - origin) / cell).astype(np.intp)
+            out |= np.any(b - a > 2, axis=1)
+            a = np.minimum(np.maximum(a, 0), top)
+            b = np.minimum(np.maximum(b, 0), top)
+            # a rectangle over at most three cells each way: those cells
+            for di in range(3):
+                x = np.minimum(a[:, 0] + di, b[:, 0])
+                for dj in range(3):
+                    out |= reached[x, np.minimum(a[:, 1] + dj, b[:, 1])]
         for i, soup in enumerate(self._soups):
             if soup.dynamic and soup.faces.shape[0]:
                 _, t_lo, t_hi = self._soup_triangles(i)
@@ -1158,6 +1164,26 @@ class Environment:
                 s_hi = t_hi.max(axis=0) + off
                 out |= np.all((s_hi >= lo) & (s_lo <= hi), axis=1)
         return out
+
+    def _moving_boxes_cover(self) -> tuple[FloatArray, float, BoolArray]:
+        """The cells of a coarse grid that a moving box's xy bounds reach (kept until a box
+        moves): its origin, cell size and ``reached (nx, ny)``; the grid spans the boxes'
+        bounds with a cell of margin around them, its cells never smaller than half a metre."""
+        if self._moving_cover is None:
+            d = self._dynamic_boxes
+            lo = self._box_lo[d]
+            hi = self._box_hi[d]
+            cell = max(0.5, float((hi.max(axis=0) - lo.min(axis=0)).max()) / 1024.0)
+            origin = lo.min(axis=0) - cell
+            i0 = np.floor((lo - origin) / cell).astype(np.intp)
+            i1 = np.floor((hi - origin) / cell).astype(np.intp)
+            nx, ny = (int(v) + 2 for v in i1.max(axis=0))
+            reached = np.zeros((nx, ny), dtype=bool)
+            box, ix = _ranges_to_pairs(i0[:, 0], i1[:, 0])  # (box, x cell) pairs
+            item, iy = _ranges_to_pairs(i0[box, 1], i1[box, 1])  # each with its y cells
+            reached[ix[item], iy] = True
+            self._moving_cover = (origin, cell, reached)
+        return self._moving_cover
 
     def _windows_of(
         self, ctr: FloatArray, n: int, cell: float, plist: list[WindowParams]
