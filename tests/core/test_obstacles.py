@@ -52,7 +52,8 @@ def _watch(env: Environment, n: int, rng: np.random.Generator) -> Watch:
     radius = rng.uniform(0.05, 0.3, n)
     offsets = np.concatenate([radius[:, None, None] * dirs, 0.5 * radius[:, None, None] * dirs], axis=1)
     return Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), True, np.zeros((n, 2)),
-                 np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)))
+                 np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)),
+                 np.abs(offsets).max(axis=1))
 
 
 @given(st.integers(0, 10_000))
@@ -63,7 +64,7 @@ def test_a_look_that_skips_quiet_rings_answers_what_asking_them_all_does(seed: i
     n = 30
     spot = np.column_stack([rng.uniform(-6.0, 6.0, (n, 2)), np.zeros(n)])
     skip, full = _watch(env, n, rng), _watch(env, n, rng)
-    full.offsets = skip.offsets
+    full.offsets, full.reach = skip.offsets, skip.reach
     legs = np.arange(n)
     watch_reset(env, skip, legs, spot)
     watch_reset(env, full, legs, spot)

@@ -32,9 +32,9 @@ class Watch:
 
     What lets a look skip the rings no moving thing comes near (most of a crowd's feet): the
     spot looked at last, ``spot (N, 2)``, and whether a moving obstacle reached its ring
-    then, ``stirred (N,)``; whether one reached a swing when it was planned,
-    ``swing_stirred (N,)``, and the bounds of its samples, ``swing_box (N, 4)`` (min x, min
-    y, max x, max y). A ring whose spot stayed put, that nothing moving reached then or
+    then, ``stirred (N,)`` (a ring reaches ``reach (N, 2)`` from its spot along x and y);
+    whether one reached a swing when it was planned, ``swing_stirred (N,)``, and the bounds
+    of its samples, ``swing_box (N, 4)`` (min x, min y, max x, max y). A ring whose spot stayed put, that nothing moving reached then or
     reaches now, holds what the static scene holds: what was remembered (the same for a
     swing's samples and what was recorded when it was planned)."""
 
@@ -46,6 +46,7 @@ class Watch:
     stirred: BoolArray
     swing_stirred: BoolArray
     swing_box: FloatArray
+    reach: FloatArray
 
 
 def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray) -> Watch:
@@ -62,7 +63,8 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
     )  # (N, 16, 2), the inner ring turned half a step
     dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
     watch = Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), dynamic, np.zeros((n, 2)),
-                  np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)))
+                  np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)),
+                  np.abs(offsets).max(axis=1))
     watch_reset(env, watch, np.arange(n), foot)
     return watch
 
@@ -75,7 +77,7 @@ def ring_points(watch: Watch, legs: IntArray, spot: FloatArray) -> FloatArray:
 def _ring_near(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray) -> BoolArray:
     """``(m,)`` whether a moving obstacle reaches the rings around ``spot (m, 3)`` of ``legs``
     now (their bounding boxes)."""
-    reach = np.abs(watch.offsets[legs]).max(axis=1)
+    reach = watch.reach[legs]
     return env.moving_near(spot[:, :2] - reach, spot[:, :2] + reach)
 
 
