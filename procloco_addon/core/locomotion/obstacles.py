@@ -34,9 +34,10 @@ class Watch:
     spot looked at last, ``spot (N, 2)``, and whether a moving obstacle reached its ring
     then, ``stirred (N,)`` (a ring reaches ``reach (N, 2)`` from its spot along x and y);
     whether one reached a swing when it was planned, ``swing_stirred (N,)``, and the bounds
-    of its samples, ``swing_box (N, 4)`` (min x, min y, max x, max y). A ring whose spot stayed put, that nothing moving reached then or
-    reaches now, holds what the static scene holds: what was remembered (the same for a
-    swing's samples and what was recorded when it was planned)."""
+    of its samples, ``swing_box (N, 4)`` (min x, min y, max x, max y). A ring whose spot
+    stayed put, that nothing moving reached then or reaches now, holds what the static scene
+    holds: what was remembered (the same for a swing's samples and what was recorded when it
+    was planned)."""
 
     offsets: FloatArray
     ground: FloatArray
