@@ -488,11 +488,16 @@ _ROW = {name: 11 + i for i, name in enumerate((
 
 
 def _leg_shape(leg: LegGeometry) -> _LegShape:
-    """A leg's :data:`_LegShape` (cached: a rig's legs are planned again and again)."""
-    try:
-        return _leg_shape_cached(leg)
-    except TypeError:  # a leg built with unhashable (list or array) sizes
-        return _leg_shape_of(leg)
+    """A leg's :data:`_LegShape`, kept per leg object (a rig's legs are planned again and
+    again with the same objects)."""
+    hit = _LEG_SHAPES.get(id(leg))
+    if hit is not None and hit[0] is leg:
+        return hit[1]
+    if len(_LEG_SHAPES) > 1024:
+        _LEG_SHAPES.clear()
+    shape = _leg_shape_of(leg)
+    _LEG_SHAPES[id(leg)] = (leg, shape)
+    return shape
 
 
 def _leg_shape_of(leg: LegGeometry) -> _LegShape:
@@ -505,7 +510,8 @@ def _leg_shape_of(leg: LegGeometry) -> _LegShape:
             inf if leg.leg_length is None else leg.leg_length, leg.leg_arch)
 
 
-_leg_shape_cached = functools.lru_cache(maxsize=256)(_leg_shape_of)
+#: :func:`_leg_shape`'s cache: the leg object itself (so its id is not reused) and its shape.
+_LEG_SHAPES: dict[int, tuple[LegGeometry, _LegShape]] = {}
 
 
 def _reach(rq: FootRequest) -> float:
@@ -528,7 +534,7 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     if rq.hip_z is not None:
         finite = finite and math.isfinite(float(rq.hip_z))
     if finite and (o_hips.size or o_feet.size):
-        finite = bool(np.isfinite(o_hips).all() and np.isfinite(o_feet).all())
+        finite = all(map(math.isfinite, itertools.chain(o_hips.ravel().tolist(), o_feet.ravel().tolist())))
     if not finite:
         return _fail(np.where(np.isfinite(start), start, 0.0), "non-finite input")
     if o_hips.shape != o_feet.shape:
@@ -536,7 +542,7 @@ def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     grids = rq.grids
     params = rq.params
     cell = float(grids.cell)
-    ox, oy = (float(v) for v in grids.origin)
+    ox, oy = np.asarray(grids.origin, dtype=np.float64).tolist()
     shape = _leg_shape(rq.leg)
     half = shape[0]
     start_rc = ((sy - oy) / cell, (sx - ox) / cell)
