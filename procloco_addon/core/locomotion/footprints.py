@@ -646,8 +646,8 @@ _Maps = tuple[BoolArray, BoolArray, BoolArray]
 class _Cands:
     """The targets (candidates with a positive score) of every plan of a batch, best first
     within each plan, one plan after the other: plan ``k`` owns rows
-    ``bounds[k]:bounds[k + 1]``; ``score`` and ``cells`` also as Python lists for the search's
-    bookkeeping."""
+    ``bounds[k]:bounds[k + 1]``; ``score`` and the cells' rows and columns also as Python lists
+    for the search's bookkeeping."""
 
     xy: FloatArray
     cells: IntArray
@@ -656,7 +656,8 @@ class _Cands:
     bounds: list[int]
     n_valid: list[int]
     score_list: list[float]
-    cell_list: list[list[int]]
+    row_list: list[int]
+    col_list: list[int]
 
 
 class _Foot:
@@ -918,7 +919,7 @@ def _next_couple(f: _Foot, cands: _Cands) -> tuple[_Next, float]:
         maps = f.maps.get(level)
         if maps is None:
             return _Next.MAPS, level
-        r, c = cands.cell_list[t]
+        r, c = cands.row_list[t], cands.col_list[t]
         if maps[2][r, c]:
             st.level_pos += 1
             continue
@@ -1052,7 +1053,7 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
         ks = np.array([f.k for f, _ in evals])
         tgt = [f.base + f.order[f.st.pos] for f, _ in evals]
         t_xy = cands.xy[tgt]
-        t_cell = [(cands.cell_list[t][0], cands.cell_list[t][1]) for t in tgt]
+        t_cell = [(cands.row_list[t], cands.col_list[t]) for t in tgt]
         cl = batch.cell[ks]
         org = batch.origin[ks]
         end_rc = np.column_stack([(t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
@@ -1116,7 +1117,7 @@ def _search_alone(batch: _Batch, f: _Foot, cands: _Cands) -> None:
             ctx.maps(level)
             continue
         t = f.base + f.order[f.st.pos]
-        path = ctx.path_2d(level, (cands.cell_list[t][0], cands.cell_list[t][1]), cands.xy[t])
+        path = ctx.path_2d(level, (cands.row_list[t], cands.col_list[t]), cands.xy[t])
         if path is None:
             _after_couple(f, cands, level, False, False, 0.0, None)
             continue
@@ -1354,7 +1355,8 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     score = score[order]
     cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
     n_valid = [cuts[k + 1] - cuts[k] for k in range(n)]
-    return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells.tolist())
+    return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells[:, 0].tolist(),
+                  cells[:, 1].tolist())
 
 
 class _WindowLookup:
@@ -1431,8 +1433,10 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
     if not sliced:
         return out
     sel = np.asarray(sliced)
-    valid = mask[sel] & (elev[sel] > _VOID_BELOW)
-    tops = np.where(valid, elev[sel], -np.inf).max(axis=(1, 2)).tolist()
+    ev_sel = elev[sel]
+    valid = mask[sel] & (ev_sel > _VOID_BELOW)
+    e = np.where(valid, ev_sel, -np.inf)
+    tops = e.max(axis=(1, 2)).tolist()
     lists = []
     for i, k in enumerate(sliced):
         p = plans[k]
@@ -1447,12 +1451,11 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
         lv_arr = np.full((sel.size, j), math.inf)
         for i, lv in enumerate(lists):
             lv_arr[i, : len(lv)] = lv
-        e = np.where(valid, elev[sel], -np.inf).reshape(sel.size, 1, -1)
-        above = np.count_nonzero(e > lv_arr[:, :, None], axis=2).tolist()
+        above = np.count_nonzero(e.reshape(sel.size, 1, -1) > lv_arr[:, :, None], axis=2).tolist()
     else:
         above = []
         for i in range(sel.size):
-            ev = elev[sel[i]][valid[i]]
+            ev = ev_sel[i][valid[i]]
             above.append([int(np.count_nonzero(ev > lv)) for lv in lists[i]])
     for i, k in enumerate(sliced):
         out[k] = _distinct_levels(lists[i], above[i][: len(lists[i])])
