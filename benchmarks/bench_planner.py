@@ -160,7 +160,8 @@ def record_crowd_plans(mode: str, steps: int, warmup: int, seed: int) -> list[St
     from benchmarks import bench_crowd
     from procloco_addon.core.locomotion import planning as controller  # where the planner is called
 
-    args = argparse.Namespace(chars=100, steps=steps, warmup=warmup, seed=seed, scale=2.0, profile=False)
+    args = argparse.Namespace(chars=100, steps=steps, warmup=warmup, seed=seed, scale=2.0, profile=False,
+                              avoid=False, spread=0.8)
     scene, sim = bench_crowd.build(args, mode)
     for _ in range(warmup):
         scene.advance(sim.dt)

@@ -271,14 +271,23 @@ def _box_overlaps_cells(
     ``cos_sin``: ``cos(yaw)``, ``sin(yaw)`` when the caller has them already."""
     cos, sin = (np.cos(yaw), np.sin(yaw)) if cos_sin is None else cos_sin
     d = cell_xy - box_xy
+    return _overlaps(d[..., 0], d[..., 1], cell, hx, hy, cos, sin)
+
+
+def _overlaps(
+    dx: FloatArray, dy: FloatArray, cell: float | FloatArray, hx: float | FloatArray, hy: float | FloatArray,
+    cos: float | FloatArray, sin: float | FloatArray,
+) -> BoolArray:
+    """:func:`_box_overlaps_cells` of cells at ``(dx, dy)`` from their boxes' centres (the
+    coordinates apart, so that every operation runs along the cells)."""
     half = 0.5 * cell
     acos = np.abs(cos)
     asin = np.abs(sin)
     eps = 1e-9
-    ok_x = np.abs(d[..., 0]) < hx * acos + hy * asin + half - eps
-    ok_y = np.abs(d[..., 1]) < hx * asin + hy * acos + half - eps
-    du = d[..., 0] * cos + d[..., 1] * sin
-    dv = -d[..., 0] * sin + d[..., 1] * cos
+    ok_x = np.abs(dx) < hx * acos + hy * asin + half - eps
+    ok_y = np.abs(dy) < hx * asin + hy * acos + half - eps
+    du = dx * cos + dy * sin
+    dv = -dx * sin + dy * cos
     ok_u = np.abs(du) < hx + half * (acos + asin) - eps
     ok_v = np.abs(dv) < hy + half * (asin + acos) - eps
     return np.asarray(ok_x & ok_y & ok_u & ok_v)
@@ -405,17 +414,18 @@ def raster_boxes(
         return box, box.copy(), box.copy()
     start = np.cumsum(counts) - counts
     local = np.arange(box.size, dtype=np.intp) - start[box]
-    col = j0[box] + local % np.maximum(wcols[box], 1)
-    row = i0[box] + local // np.maximum(wcols[box], 1)
+    down, across = np.divmod(local, np.maximum(wcols[box], 1))
+    col = j0[box] + across
+    row = i0[box] + down
     if per_box:
         cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
-        cxy = np.stack([org[box, 0] + col * cl, org[box, 1] + row * cl], axis=1)
-        hit = _box_overlaps_cells(cxy, cl, center_xy[box], half_x[box], half_y[box], yaw[box],
-                                  (cos[box], sin[box]))
+        dx = (org[box, 0] + col * cl) - center_xy[box, 0]
+        dy = (org[box, 1] + row * cl) - center_xy[box, 1]
+        hit = _overlaps(dx, dy, cl, half_x[box], half_y[box], cos[box], sin[box])
     else:
-        cxy = np.stack([org[0] + col * cell, org[1] + row * cell], axis=1)
-        hit = _box_overlaps_cells(cxy, cell, center_xy[box], half_x[box], half_y[box], yaw[box],
-                                  (cos[box], sin[box]))
+        dx = (org[0] + col * cell) - center_xy[box, 0]
+        dy = (org[1] + row * cell) - center_xy[box, 1]
+        hit = _overlaps(dx, dy, cell, half_x[box], half_y[box], cos[box], sin[box])
     return box[hit], row[hit], col[hit]
 
 
