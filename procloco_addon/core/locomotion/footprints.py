@@ -95,7 +95,7 @@ from ..world.terrain import (
     _VOID_BELOW,
     NO_SURFACE,
     WindowGrids,
-    _box_overlaps_cells,
+    _overlaps,
     _rect_offsets,
     dilate_each,
     foot_kernels,
@@ -1417,9 +1417,10 @@ def _offset_kernels(batch: _Batch, sub: FloatArray) -> tuple[IntArray, BoolArray
     reach = int(batch.rows[:, _ROW["land_reach"]].max())
     off = _rect_offsets(reach, reach)
     col = cell[:, None]
-    centres = np.stack([off[None, :, 1] * col, off[None, :, 0] * col], axis=-1)
-    centre = np.stack([sub_c * cell, sub_r * cell], axis=-1)[:, None, :]
-    member = _box_overlaps_cells(centres, col, centre, hx[:, None], hy[:, None], yaw[:, None])
+    # the cell centres from the foot's centre, x and y apart
+    dx = off[None, :, 1] * col - (sub_c * cell)[:, None]
+    dy = off[None, :, 0] * col - (sub_r * cell)[:, None]
+    member = _overlaps(dx, dy, col, hx[:, None], hy[:, None], np.cos(yaw)[:, None], np.sin(yaw)[:, None])
     empty = ~member.any(axis=1)
     if empty.any():
         member[empty, (2 * reach + 1) * reach + reach] = True

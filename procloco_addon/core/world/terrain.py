@@ -248,8 +248,9 @@ def foot_kernels(
     ry = int(np.max(np.ceil(ey / cell + 0.5), initial=0))
     offsets = _rect_offsets(ry, rx)
     col = cell[:, None]
-    centres = np.stack([offsets[None, :, 1] * col, offsets[None, :, 0] * col], axis=-1)
-    member = _box_overlaps_cells(centres, col, np.zeros(2), half_x[:, None], half_y[:, None], yaw[:, None])
+    # the cell centres from the foot's centre (0, 0), x and y apart
+    member = _overlaps(offsets[None, :, 1] * col, offsets[None, :, 0] * col, col, half_x[:, None],
+                       half_y[:, None], cos[:, None], sin[:, None])
     member[:, (2 * rx + 1) * ry + rx] = True  # (0, 0) always
     return offsets, member
 
