@@ -6,7 +6,9 @@ the last look), and the checks built on them: a swing whose remaining trajectory
 spot an obstacle now cuts (``trajectory_blocked``), a planted foot whose support moved or is
 closing in (``check_supports``), a landing spot taken since it was planned (``spot_taken``),
 a foot an obstacle ran into pushed out of it (``push_out``), and a footprint over a hole
-moved onto the ground its foot box reaches (``onto_support``).
+moved onto the ground its foot box reaches (``onto_support``). A look asks the ground only
+where a moving obstacle is or was near (``look_points``, ``Environment.moving_near``): the
+rest of the scene holds what the watch remembers.
 """
 
 from __future__ import annotations
