@@ -229,13 +229,12 @@ def pogo_heights(
     np.logical_or.at(jumped, leg_char, (ratio > RATE_JUMP) | (ratio < 1.0 / RATE_JUMP))
     switched_on |= physics_on & jumped
     pogo.rate = rate_leg.copy()
-    if np.any(switched_on):
+    if switched_on.any():
         pogo.physics.reset(
             pref, needle_before, rate_leg, gait.disk_start, gait.disk_duration, nodes=switched_on[node_char]
         )
     pogo.on = physics_on.copy()
-    z = pref.copy()
-    if np.any(physics_on):
-        pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
-        z = np.where(physics_on[node_char], pogo.physics.centered_height(), z)
-    return np.asarray(z)
+    if not physics_on.any():
+        return pref.copy()
+    node = pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
+    return np.asarray(np.where(physics_on[node_char], pogo.physics.centered_height(node), pref))
