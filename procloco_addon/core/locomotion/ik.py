@@ -259,26 +259,37 @@ def solve_ccd(
     theta = init.copy()
     n, s = theta.shape
     rows = np.arange(n)
-    active_joint = np.arange(s)[None, :] < n_segments[:, None]
+    # per joint: 1.0 where the leg has it (a turn times 0 is none), the middle of its limits
+    active_joint = (np.arange(s)[None, :] < n_segments[:, None]).astype(np.float64).T.copy()
+    mid = (0.5 * (lo + hi)).T.copy()
+    lo_t, hi_t = lo.T.copy(), hi.T.copy()
+    tx, ty = target[:, 0], target[:, 1]
+    tol2 = tolerance * tolerance
+    turned = np.empty((n, 2))
     for _ in range(max_sweeps):
         pts = forward_planar(theta, lengths)
         end = pts[rows, n_segments]
-        if np.all(np.einsum("ij,ij->i", end - target, end - target) <= tolerance * tolerance):
+        if (np.einsum("ij,ij->i", end - target, end - target) <= tol2).all():
             break
         for j in range(s - 1, -1, -1):
             pivot = pts[:, j]
             v_end = end - pivot
-            v_t = target - pivot
-            cross = v_end[:, 0] * v_t[:, 1] - v_end[:, 1] * v_t[:, 0]
-            dot = v_end[:, 0] * v_t[:, 0] + v_end[:, 1] * v_t[:, 1]
-            new = wrap_to_limits(theta[:, j] + np.arctan2(cross, dot), lo[:, j], hi[:, j])
-            turn = np.where(active_joint[:, j], new - theta[:, j], 0.0)
-            theta[:, j] += turn
+            ex, ey = v_end[:, 0], v_end[:, 1]
+            px, py = pivot[:, 0], pivot[:, 1]
+            vtx, vty = tx - px, ty - py
+            cross = ex * vty - ey * vtx
+            dot = ex * vtx + ey * vty
+            # wrap_to_limits, the middle of the limits found once
+            th_j = theta[:, j]
+            m = mid[j]
+            wrapped = (th_j + np.arctan2(cross, dot) - m + np.pi) % _TWO_PI - np.pi + m
+            turn = (np.minimum(np.maximum(wrapped, lo_t[j]), hi_t[j]) - th_j) * active_joint[j]
+            theta[:, j] = th_j + turn
             c = np.cos(turn)
             sn = np.sin(turn)
-            end = pivot + np.stack(
-                [c * v_end[:, 0] - sn * v_end[:, 1], sn * v_end[:, 0] + c * v_end[:, 1]], axis=1
-            )
+            turned[:, 0] = c * ex - sn * ey
+            turned[:, 1] = sn * ex + c * ey
+            end = pivot + turned
     return theta
 
 
