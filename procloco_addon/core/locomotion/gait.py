@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..geometry import clip
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
@@ -98,7 +100,7 @@ def interpolate_disks(
     amount: FloatArray | float,
 ) -> tuple[FloatArray, FloatArray]:
     """Disks ``amount`` (0..1) of the way from source to destination, along ``direction``."""
-    lam = np.clip(np.asarray(amount, dtype=np.float64), 0.0, 1.0)
+    lam = clip(np.asarray(amount, dtype=np.float64), 0.0, 1.0)
     forward = np.mod(dst_start - src_start, 1.0)
     arc = np.where(direction > 0.0, forward, forward - 1.0)
     arc = np.where(forward == 0.0, 0.0, arc)
@@ -391,7 +393,7 @@ class GaitManager:
         cycle_time (C,))``. Outside a transition these are the destination disks."""
         t = self.time if time is None else time
         lam_c = np.where(
-            self.tr_active, np.clip((t - self.tr_t0) / np.maximum(self.tr_duration, 1e-9), 0.0, 1.0), 1.0
+            self.tr_active, clip((t - self.tr_t0) / np.maximum(self.tr_duration, 1e-9), 0.0, 1.0), 1.0
         )
         lam = lam_c[self.leg_char]
         start, duration = interpolate_disks(
@@ -458,9 +460,8 @@ class GaitManager:
         when the stride would outrun the legs).
         """
         if rate_scale is not None:
-            self.rate_scale = np.broadcast_to(
-                np.asarray(rate_scale, dtype=np.float64), (self.n_chars,)
-            ).copy()
+            self.rate_scale = np.empty(self.n_chars)
+            self.rate_scale[...] = rate_scale
         self.time += dt
         # (the disks at the new time serve the cycle time and, below, the disk swap)
         new_start, new_duration, cycle = self.target_disks()
@@ -478,7 +479,7 @@ class GaitManager:
         self.disk_start = np.where(swap, new_start, self.disk_start)
         self.disk_duration = np.where(swap, new_duration, self.disk_duration)
         done = self.tr_active & (self.time - self.tr_t0 >= self.tr_duration)
-        if np.any(done):
+        if done.any():
             # the transition is complete once every leg of the character holds its final disk
             final = (self.disk_start == self.dst_start) & (self.disk_duration == self.dst_duration)
             all_final = np.bincount(self.leg_char, weights=final.astype(np.float64), minlength=self.n_chars)

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
@@ -312,6 +312,14 @@ class PathFollower:
         return heading, 0.0 if left < 1e-3 * self.stop_distance else factor
 
 
+def _per_char(value: npt.ArrayLike, c: int, dtype: type[np.generic]) -> npt.NDArray[Any]:
+    """A fresh ``(c,)`` array of ``value`` (a scalar for all, or one per character) as
+    ``dtype``: ``np.broadcast_to(...).copy()`` without its cost."""
+    out = np.empty(c, dtype=dtype)
+    out[...] = np.asarray(value, dtype=dtype)
+    return out
+
+
 class Simulation:
     """Many characters walking in one environment.
 
@@ -503,12 +511,12 @@ class Simulation:
     def _resolve(self, ctl: Controls, xy: FloatArray, yaw: FloatArray) -> StepControls:
         c = self.legs.n_chars
         n = self.legs.n_legs
-        speed = np.broadcast_to(np.asarray(ctl.speed, dtype=np.float64), (c,)).copy()
+        speed = _per_char(ctl.speed, c, np.float64)
         if ctl.heading is None:
             # no heading asked: keep the last one (the start heading at first)
             heading = (self._start_yaw if self._held_heading is None else self._held_heading).copy()
         else:
-            heading = np.broadcast_to(np.asarray(ctl.heading, dtype=np.float64), (c,)).copy()
+            heading = _per_char(ctl.heading, c, np.float64)
         if ctl.path is not None:
             self._set_paths(ctl.path)
         for i, f in enumerate(self._followers):
@@ -526,10 +534,10 @@ class Simulation:
             speed=speed,
             # (not wrapped: the controller turns by wrapped differences)
             heading=heading,
-            step_height=np.broadcast_to(np.asarray(ctl.step_height, dtype=np.float64), (c,)).copy(),
+            step_height=_per_char(ctl.step_height, c, np.float64),
             spacing=spacing,
-            pelvis_physics=np.broadcast_to(np.asarray(ctl.pelvis_physics, dtype=bool), (c,)).copy(),
-            ik=np.broadcast_to(np.asarray(ctl.ik, dtype=bool), (c,)).copy(),
+            pelvis_physics=_per_char(ctl.pelvis_physics, c, np.bool_),
+            ik=_per_char(ctl.ik, c, np.bool_),
         )
 
     # ---------------------------------------------------------------- stepping
