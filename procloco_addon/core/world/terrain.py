@@ -745,6 +745,12 @@ class Environment:
                                   self._soups[i].role, True)
                      for i in range(len(self._soups)))
 
+    @property
+    def dynamic(self) -> bool:
+        """Whether anything here can move (boxes or soups made dynamic): what a point query
+        answers then depends on when it is asked."""
+        return bool(self._dynamic_boxes.size) or bool(self._dynamic_soups)
+
     def _offset(self, i: int) -> FloatArray:
         off = self._soup_offset.get(i)
         return off if off is not None else np.zeros(3)
