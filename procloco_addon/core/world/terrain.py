@@ -465,12 +465,13 @@ def raster_triangles(
     return tri, row, col, z
 
 
-def triangle_table(tris: FloatArray) -> FloatArray:
+def triangle_table(tris: FloatArray, out: FloatArray | None = None) -> FloatArray:
     """What :func:`triangle_hits` reads of each triangle ``(f, 3, 3)``: ``(f, 10)`` rows of the
     first corner's xy, the two edges' xy from it, the determinant of the edges (NaN for a
     triangle without ground area: no point is inside it), the first corner's z and the two
-    edges' z."""
-    out = np.empty((tris.shape[0], 10))
+    edges' z; written into ``out`` when given."""
+    if out is None:
+        out = np.empty((tris.shape[0], 10))
     a = tris[:, 0]
     out[:, 0:2] = a[:, :2]
     out[:, 2:4] = tris[:, 1, :2] - a[:, :2]
@@ -535,20 +536,35 @@ class _BucketIndex:
         nbx = int(span[0] // bucket) + 1
         nby = int(span[1] // bucket) + 1
         self.shape = (nby, nbx)
-        bx0 = ((lo[:, 0] - self.origin[0]) // bucket).astype(np.intp)
-        bx1 = np.minimum(((hi[:, 0] - self.origin[0]) // bucket).astype(np.intp), nbx - 1)
-        by0 = ((lo[:, 1] - self.origin[1]) // bucket).astype(np.intp)
-        by1 = np.minimum(((hi[:, 1] - self.origin[1]) // bucket).astype(np.intp), nby - 1)
+        # (32-bit indices while they fit: a million triangles make about four million entries)
+        idx = np.int32 if n < 2**31 - 1 and nbx * nby + 2 < 2**31 - 1 else np.intp
+        bx0 = ((lo[:, 0] - self.origin[0]) // bucket).astype(idx)
+        bx1 = np.minimum(((hi[:, 0] - self.origin[0]) // bucket).astype(idx), nbx - 1)
+        by0 = ((lo[:, 1] - self.origin[1]) // bucket).astype(idx)
+        by1 = np.minimum(((hi[:, 1] - self.origin[1]) // bucket).astype(idx), nby - 1)
         wx = bx1 - bx0 + 1
         counts = wx * (by1 - by0 + 1)
-        item = np.repeat(np.arange(n, dtype=np.intp), counts)
-        start = np.cumsum(counts) - counts
-        local = np.arange(item.size, dtype=np.intp) - start[item]
-        key = (by0[item] + local // wx[item]) * nbx + bx0[item] + local % wx[item]
+        total = int(counts.sum(dtype=np.int64))
+        if total >= 2**31 - 1:
+            idx = np.intp
+        item = np.repeat(np.arange(n, dtype=idx), counts)
+        start = (np.cumsum(counts, dtype=np.int64) - counts).astype(idx)
+        local = np.arange(total, dtype=idx)
+        local -= start[item]  # each entry's place among its item's buckets
+        width = wx[item]
+        key = local // width
+        key += by0[item]
+        key *= nbx
+        key += bx0[item]
+        local %= width
+        key += local
+        del local, width
         order = np.argsort(key, kind="stable")
         self.items = item[order]
+        del item
+        key = key[order]
         # (one more: the empty bucket past the last, read by points outside the grid)
-        self.offsets = np.searchsorted(key[order], np.arange(nbx * nby + 2)).astype(np.intp)
+        self.offsets = np.searchsorted(key, np.arange(nbx * nby + 2)).astype(np.intp)
         self._dims = np.array([float(nbx), float(nby)])
 
     def pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
@@ -903,11 +919,16 @@ class Environment:
         if self._static_soup_index is None:
             ids = np.array([i for i, soup in enumerate(self._soups) if not soup.dynamic], dtype=np.intp)
             parts = [self._soup_triangles(int(i)) for i in ids]
-            tris = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 3, 3))
+            sizes = [p[0].shape[0] for p in parts]
             tlo = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 2))
             thi = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 2))
-            owner = np.repeat(ids, [p[0].shape[0] for p in parts]).astype(np.intp)
-            self._static_soup_index = (_BucketIndex(tlo, thi), triangle_table(tris), owner, ids)
+            owner = np.repeat(ids, sizes).astype(np.intp)
+            table = np.empty((sum(sizes), 10))
+            first = 0
+            for p, size in zip(parts, sizes, strict=True):  # (soup by soup: no copy of all triangles)
+                triangle_table(p[0], table[first : first + size])
+                first += size
+            self._static_soup_index = (_BucketIndex(tlo, thi), table, owner, ids)
         return self._static_soup_index
 
     def _static_soup_hits(self, xy: FloatArray) -> tuple[IntArray, FloatArray, IntArray]:
