@@ -13,8 +13,8 @@ A leg is solved in two stages (joint model in ``morphology``):
    turns over a few frames instead of in one, and returns to the wanted plane after.
 2. the planar chain. Two-segment legs use the closed-form law-of-cosines solution. Longer
    legs start from a shape-preserving guess (the rest bend scaled by one factor found by
-   safeguarded Newton iterations, so the leg keeps its silhouette and the pose depends on
-   the target only),
+   safeguarded Newton iterations from a table of the leg's reach over that factor, made once
+   per leg set, so the leg keeps its silhouette and the pose depends on the target only),
    then run CCD sweeps with per-joint limits (the thesis's solver) and finish with a few
    damped-least-squares iterations with an active set of limits, which get out of the
    straight-leg and joint-on-limit stalls where CCD alone stops short. Joint positions are
@@ -101,8 +101,8 @@ def solve_two_segment(target: FloatArray, lengths: FloatArray, lo: FloatArray, h
 
 
 #: Knots of the table of each leg's reach over ``κ`` (:class:`BendLegs`): the Newton
-#: iterations of :func:`solve_bend` start from the table's linear interpolation, two or
-#: three steps from the answer instead of about six from ``κ = 1``.
+#: iterations of :func:`solve_bend` start from the table's linear interpolation, two steps
+#: from the answer (three reach evaluations) instead of about five from ``κ = 1``.
 _BEND_KNOTS = 33
 
 
