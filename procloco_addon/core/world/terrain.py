@@ -559,12 +559,15 @@ class _BucketIndex:
         local %= width
         key += local
         del local, width
-        order = np.argsort(key, kind="stable")
-        self.items = item[order]
+        buckets = nbx * nby
+        if buckets < 2**16 - 1:
+            key = key.astype(np.uint16)  # (a stable sort of 16-bit keys is a radix sort)
+        self.items = item[np.argsort(key, kind="stable")]
         del item
-        key = key[order]
-        # (one more: the empty bucket past the last, read by points outside the grid)
-        self.offsets = np.searchsorted(key, np.arange(nbx * nby + 2)).astype(np.intp)
+        # each bucket's first entry; one more bucket, empty, past the last: points outside
+        # the grid read it
+        self.offsets = np.zeros(buckets + 2, dtype=np.intp)
+        np.cumsum(np.bincount(key, minlength=buckets + 1), out=self.offsets[1:])
         self._dims = np.array([float(nbx), float(nby)])
 
     def pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
@@ -574,9 +577,9 @@ class _BucketIndex:
             return e, e.copy()
         nby, nbx = self.shape
         cell = np.floor((xy - self.origin) / self.bucket)  # (n, 2) bucket column and row
-        inside = ((cell >= 0.0) & (cell < self._dims)).all(axis=1)
+        ok = (cell >= 0.0) & (cell < self._dims)
         # a point outside the grid reads the empty bucket past the last one
-        key = np.where(inside, cell[:, 1] * nbx + cell[:, 0], nbx * nby).astype(np.intp)
+        key = np.where(ok[:, 0] & ok[:, 1], cell[:, 1] * nbx + cell[:, 0], nbx * nby).astype(np.intp)
         # _ranges_to_pairs of the buckets' item ranges, the offsets read once
         lo = self.offsets[key]
         count = self.offsets[key + 1] - lo
