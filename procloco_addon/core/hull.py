@@ -92,9 +92,9 @@ def upper_hull_eval(
     qa = np.asarray(xq, dtype=np.float64)
     mask = np.ones(xa.shape, dtype=bool) if valid is None else np.asarray(valid, dtype=bool)
     # Flat continuation outside the range: clamp queries into [min x, max x].
-    xmin = np.min(np.where(mask, xa, np.inf), axis=-1, keepdims=True)
-    xmax = np.max(np.where(mask, xa, -np.inf), axis=-1, keepdims=True)
-    q = np.clip(qa, xmin, xmax)
+    xmin = np.where(mask, xa, np.inf).min(axis=-1, keepdims=True)
+    xmax = np.where(mask, xa, -np.inf).max(axis=-1, keepdims=True)
+    q = np.minimum(np.maximum(qa, xmin), xmax)  # (np.clip without its dispatch)
     eps = 1e-7 * np.maximum(1.0, xmax - xmin)
     q_lo = np.maximum(q - eps, xmin)
     q_hi = np.minimum(q + eps, xmax)
@@ -108,19 +108,27 @@ def upper_hull_eval(
 
 
 def _hull_heights(xa: FloatArray, za: FloatArray, q: FloatArray, mask: BoolArray) -> FloatArray:
-    qq = q[..., :, None, None]  # (..., m, 1, 1)
-    xi = xa[..., None, :, None]  # (..., 1, n, 1)
-    xj = xa[..., None, None, :]  # (..., 1, 1, n)
-    zi = za[..., None, :, None]
-    zj = za[..., None, None, :]
-    ok = mask[..., None, :, None] & mask[..., None, None, :] & (xi <= qq) & (qq <= xj)
+    # pairs (i, j) of points: what does not depend on the queries is found once per pair,
+    # what depends on one point and the query once per point; only the interpolation and its
+    # maximum run over (query, i, j)
+    xi = xa[..., :, None]  # (..., n, 1)
+    xj = xa[..., None, :]  # (..., 1, n)
+    zi = za[..., :, None]
+    zj = za[..., None, :]
+    pair = mask[..., :, None] & mask[..., None, :]  # (..., n, n)
     dx = xj - xi
     wide = dx > 1e-12
     slope = np.where(wide, (zj - zi) / np.where(wide, dx, 1.0), 0.0)
     # A point exactly at q (i == j, or equal x) contributes its own height.
-    val = np.where(wide, zi + slope * (qq - xi), np.maximum(zi, zj))
-    val = np.where(ok, val, -np.inf)
-    return np.asarray(np.max(val, axis=(-2, -1)))
+    level = np.maximum(zi, zj)
+    qq = q[..., :, None]  # (..., m, 1)
+    left = xa[..., None, :] <= qq  # (..., m, n): x_i <= q
+    right = qq <= xa[..., None, :]  # x_j >= q
+    ok = pair[..., None, :, :] & left[..., :, :, None] & right[..., :, None, :]
+    run = (qq - xa[..., None, :])[..., :, :, None]  # (..., m, n, 1): q - x_i
+    val = np.where(wide[..., None, :, :], zi[..., None, :, :] + slope[..., None, :, :] * run,
+                   level[..., None, :, :])
+    return np.asarray(np.max(val, axis=(-2, -1), where=ok, initial=-np.inf))
 
 
 def project_along(

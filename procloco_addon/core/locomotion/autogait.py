@@ -373,7 +373,8 @@ class AutoGait:
 
     def update(self, manager: GaitManager, speed: npt.ArrayLike) -> None:
         """Retarget ``manager``'s characters for speeds ``(C,)`` m/s (non-finite: 0)."""
-        v = np.broadcast_to(np.asarray(speed, dtype=np.float64), (len(self.params),))
+        v = np.empty(len(self.params))
+        v[...] = speed  # (one for all, or one each)
         v = np.where(np.isfinite(v), np.abs(v), 0.0)
         for c, p in enumerate(self.params):
             if p is None:

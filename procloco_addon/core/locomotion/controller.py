@@ -70,7 +70,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import rotate_xy, rotation_matrices, wrap_angle
+from ..geometry import clip, rotate_xy, rotation_matrices, wrap_angle
 from ..world.terrain import Environment, WindowGrids
 from . import crowd, obstacles, pelvis, planning, reach, spine_link, stepping
 from .footprints import LegGeometry, PlannerParams
@@ -143,6 +143,8 @@ class Controller:
         self.n_chars, self.n_legs = c, n
         self.leg_char = legs.leg_char
         self.link: SpineLink = spine_link.build_link(legs, spine)
+        # the characters without a spine when some have one (else None: all rigid)
+        self._rigid: IntArray | None = None if not self.link.groups else np.flatnonzero(~self.link.has_spine)
         self.gait = GaitManager(legs.leg_char, gaits, phase)
         self.time = 0.0
         self.rig: Rig = build_rig(legs, p, self.char_params)
@@ -425,17 +427,15 @@ class Controller:
             self._see_others()
         flags = self.feet.flags()
         sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
-        if np.any(sched.to_plan):
+        if sched.to_plan.any():
             forced = flags[1]
             land_stance = np.where(
                 forced,
-                np.clip(
-                    gstep.stance_progress + sched.remaining / np.maximum(sched.stance_time, 1e-9), 0.0, 1.0
-                ),
+                clip(gstep.stance_progress + sched.remaining / np.maximum(sched.stance_time, 1e-9), 0.0, 1.0),
                 0.0,
             )
             land_stance = np.where(self.feet.forced_behind, np.minimum(land_stance, 0.5), land_stance)
-            self._plan(np.flatnonzero(sched.to_plan), ctl, flags, sched.start_u, sched.remaining,
+            self._plan(sched.to_plan.nonzero()[0], ctl, flags, sched.start_u, sched.remaining,
                        sched.stance_time, land_stance, stats, prof)
         swinging = self._move_feet(gstep, sched.progress, flags)
         self._pelvis_height(dt, ctl, needle_before, rate_leg, swinging, prof)
@@ -451,14 +451,15 @@ class Controller:
         of thesis §4.2), the feet-error feedback. Returns the gait's step, the needle before
         it and the needle rate ``(N,)``."""
         p, body, lc = self.params, self.body, self.leg_char
-        turn = np.clip(wrap_angle(ctl.heading - body.yaw), -p.max_turn_rate * dt, p.max_turn_rate * dt)
+        turn = clip(wrap_angle(ctl.heading - body.yaw), -p.max_turn_rate * dt, p.max_turn_rate * dt)
         body.yaw = wrap_angle(body.yaw + turn)
         scale = rate_scale(self.rig, self.gait, self.link.has_spine, ctl.speed, turn / dt)
-        needle_before = self.gait.needle[lc].copy()
+        needle_before = self.gait.needle[lc]  # (a fancy index: a copy)
         gstep = self.gait.advance(dt, scale)
         rate_leg = self.gait.rate()[lc]
-        fwd = np.stack([np.cos(body.yaw), np.sin(body.yaw)], axis=1)
-        body.pos[:, :2] += (ctl.speed * dt)[:, None] * fwd
+        step = ctl.speed * dt
+        body.pos[:, 0] += step * np.cos(body.yaw)
+        body.pos[:, 1] += step * np.sin(body.yaw)
         if self.link.groups:
             with prof.phase("spine"):
                 spine_link.advance(self.link, body, ctl, dt)
@@ -579,7 +580,7 @@ class Controller:
         _, forced, failed = flags
         active = (gstep.swing | forced) & ~failed
         u = swing_parameter(feet, progress)
-        moving = np.flatnonzero(active)
+        moving = active.nonzero()[0]
         if moving.size:
             feet.foot[moving] = sample_polyline(feet.plan.traj[moving], u[moving])
             if self.watch.dynamic:
@@ -587,7 +588,7 @@ class Controller:
                 # trajectory is re-planned at the next step)
                 surface = self.env.height_at(feet.foot[moving, :2])
                 hit = surface > feet.foot[moving, 2]
-                if np.any(hit):
+                if hit.any():
                     self._push_out(moving[hit], surface[hit])
         # a gait swing whose plan failed leaves the foot planted
         feet.set_flags(active, forced, failed & (gstep.swing | forced))
@@ -601,7 +602,7 @@ class Controller:
         the pogo particles, the reach guard."""
         p, body, link = self.params, self.body, self.link
         alpha = 1.0 - np.exp(-dt / np.maximum(p.height_time * self.gait.cycle_time, 1e-6))
-        rigid = None if not link.groups else np.flatnonzero(~link.has_spine)
+        rigid = self._rigid
         support = support_points(self.feet, swinging)
         if rigid is None or rigid.size:
             hull = pelvis.hull_pose(self.env, self.rig, p.body_samples, body, support, rigid)

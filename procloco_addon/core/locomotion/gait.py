@@ -35,6 +35,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
+from ..geometry import clip
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
 BoolArray = npt.NDArray[np.bool_]
@@ -98,7 +100,7 @@ def interpolate_disks(
     amount: FloatArray | float,
 ) -> tuple[FloatArray, FloatArray]:
     """Disks ``amount`` (0..1) of the way from source to destination, along ``direction``."""
-    lam = np.clip(np.asarray(amount, dtype=np.float64), 0.0, 1.0)
+    lam = clip(np.asarray(amount, dtype=np.float64), 0.0, 1.0)
     forward = np.mod(dst_start - src_start, 1.0)
     arc = np.where(direction > 0.0, forward, forward - 1.0)
     arc = np.where(forward == 0.0, 0.0, arc)
@@ -384,14 +386,19 @@ class GaitManager:
         self.direction = np.ones(self.leg_char.shape[0])
         self.src_cycle = self.cycle_time.copy()
         self.dst_cycle = self.cycle_time.copy()
+        self.legs_of = [np.flatnonzero(self.leg_char == c) for c in range(n_chars)]  # each character's legs
 
     # -------------------------------------------------------------- transitions
     def target_disks(self, time: float | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The interpolated ("computed") disks at ``time``: ``(start (N,), duration (N,),
         cycle_time (C,))``. Outside a transition these are the destination disks."""
+        if not self.tr_active.any():
+            # no transition: every leg at amount 1 (interpolate_disks' numbers, without its work)
+            duration = self.src_duration + (self.dst_duration - self.src_duration)
+            return self.dst_start.copy(), duration, self.src_cycle + (self.dst_cycle - self.src_cycle)
         t = self.time if time is None else time
         lam_c = np.where(
-            self.tr_active, np.clip((t - self.tr_t0) / np.maximum(self.tr_duration, 1e-9), 0.0, 1.0), 1.0
+            self.tr_active, clip((t - self.tr_t0) / np.maximum(self.tr_duration, 1e-9), 0.0, 1.0), 1.0
         )
         lam = lam_c[self.leg_char]
         start, duration = interpolate_disks(
@@ -411,7 +418,7 @@ class GaitManager:
             raise GaitError("one gait per character")
         start, duration, cycle = self.target_disks()
         for c, g in zip(char_idx.tolist(), gaits, strict=True):
-            legs = np.flatnonzero(self.leg_char == c)
+            legs = self.legs_of[c]
             if g.n_legs != legs.size:
                 raise GaitError(
                     f"character {c}: gait {g.name!r} has {g.n_legs} legs, the character {legs.size}"
@@ -435,7 +442,7 @@ class GaitManager:
         For small changes of the same pattern (the auto gait's duty factor and cycle
         following the speed); a new pattern goes through ``start_transition``.
         """
-        legs = np.flatnonzero(self.leg_char == char)
+        legs = self.legs_of[char]
         if gait.n_legs != legs.size:
             raise GaitError(f"character {char}: gait {gait.name!r} has {gait.n_legs} legs, "
                             f"the character {legs.size}")
@@ -458,9 +465,8 @@ class GaitManager:
         when the stride would outrun the legs).
         """
         if rate_scale is not None:
-            self.rate_scale = np.broadcast_to(
-                np.asarray(rate_scale, dtype=np.float64), (self.n_chars,)
-            ).copy()
+            self.rate_scale = np.empty(self.n_chars)
+            self.rate_scale[...] = rate_scale
         self.time += dt
         # (the disks at the new time serve the cycle time and, below, the disk swap)
         new_start, new_duration, cycle = self.target_disks()
@@ -473,12 +479,13 @@ class GaitManager:
         # disk swap, only for legs in stance, never dropping the needle deep inside a sector
         changed = (new_start != self.disk_start) | (new_duration != self.disk_duration)
         tol = step_leg + 1e-9
-        fresh_new = ~in_swing(needle, new_start, new_duration) | (swing_elapsed(needle, new_start) <= tol)
+        elapsed_new = swing_elapsed(needle, new_start)
+        fresh_new = ~(elapsed_new < new_duration - _PHASE_EPS) | (elapsed_new <= tol)  # (~in_swing | ...)
         swap = changed & ~self.swing & fresh_new
         self.disk_start = np.where(swap, new_start, self.disk_start)
         self.disk_duration = np.where(swap, new_duration, self.disk_duration)
         done = self.tr_active & (self.time - self.tr_t0 >= self.tr_duration)
-        if np.any(done):
+        if done.any():
             # the transition is complete once every leg of the character holds its final disk
             final = (self.disk_start == self.dst_start) & (self.disk_duration == self.dst_duration)
             all_final = np.bincount(self.leg_char, weights=final.astype(np.float64), minlength=self.n_chars)
@@ -486,13 +493,12 @@ class GaitManager:
             self.tr_active &= ~(done & (all_final == n_legs))
 
         was_swing = self.swing
-        self.swing = in_swing(needle, self.disk_start, self.disk_duration)
+        elapsed = swing_elapsed(needle, self.disk_start)
+        self.swing = elapsed < self.disk_duration - _PHASE_EPS  # (in_swing)
         # a swing already under way continues until its own (frozen) sector ends
         lifted = self.swing & ~was_swing
         landed = ~self.swing & was_swing
-        swing_progress = np.where(
-            self.swing, swing_elapsed(needle, self.disk_start) / self.disk_duration, 0.0
-        )
+        swing_progress = np.where(self.swing, elapsed / self.disk_duration, 0.0)
         stance_progress = np.where(
             self.swing,
             0.0,

@@ -13,8 +13,8 @@ A leg is solved in two stages (joint model in ``morphology``):
    turns over a few frames instead of in one, and returns to the wanted plane after.
 2. the planar chain. Two-segment legs use the closed-form law-of-cosines solution. Longer
    legs start from a shape-preserving guess (the rest bend scaled by one factor found by
-   safeguarded Newton iterations, so the leg keeps its silhouette and the pose depends on
-   the target only),
+   safeguarded Newton iterations from a table of the leg's reach over that factor, made once
+   per leg set, so the leg keeps its silhouette and the pose depends on the target only),
    then run CCD sweeps with per-joint limits (the thesis's solver) and finish with a few
    damped-least-squares iterations with an active set of limits, which get out of the
    straight-leg and joint-on-limit stalls where CCD alone stops short. Joint positions are
@@ -26,6 +26,7 @@ sweeps only. Shapes use ``N`` legs and ``s`` the longest leg's segment count.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -99,113 +100,130 @@ def solve_two_segment(target: FloatArray, lengths: FloatArray, lo: FloatArray, h
     return np.stack([wrap_to_limits(hip, lo[:, 0], hi[:, 0]), knee], axis=1)
 
 
-# What solve_bend finds from the legs alone (hinge pattern, the reach straight and folded):
-# the same legs every frame, so found once per leg set (a few entries: the calls per frame
-# pass the same legs).
-_BendSetup = tuple[FloatArray, npt.NDArray[np.bool_], FloatArray, FloatArray]
-_BEND_SETUP: dict[tuple[object, ...], _BendSetup] = {}
+#: Knots of the table of each leg's reach over ``κ`` (:class:`BendLegs`): the Newton
+#: iterations of :func:`solve_bend` start from the table's linear interpolation, two steps
+#: from the answer (three reach evaluations) instead of about five from ``κ = 1``.
+_BEND_KNOTS = 33
 
 
 def _bend_reach(
     kappa: FloatArray, hinge: FloatArray, lengths: FloatArray, lo: FloatArray, hi: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Joint angles ``(N, s)``, reach and d(reach)/dκ ``(N,)`` of chains bent by ``kappa (N,)``
-    (:func:`solve_bend`)."""
-    # (called some ten times per leg and frame: written with few, plain array operations)
+    (:func:`solve_bend`), and the end effector ``(N,)`` as a complex number (x + iy)."""
+    # (called a few times per leg and frame: written with few, plain array operations; the
+    # planar chain as complex numbers: the end is sum(l e^{iφ}), its derivative i sum(l φ' e^{iφ}))
     raw = kappa[:, None] * hinge
     th = np.minimum(np.maximum(raw, lo), hi)
     th[:, 0] = 0.0
-    free = (raw > lo) & (raw < hi)
-    dth = np.where(free, hinge, 0.0)
-    phi = th.cumsum(axis=1)
-    dphi = dth.cumsum(axis=1)
-    c, sn = np.cos(phi), np.sin(phi)
-    ex, ey = np.add.reduce(lengths * c, axis=1), np.add.reduce(lengths * sn, axis=1)
-    ld = lengths * dphi
-    dex, dey = -np.add.reduce(ld * sn, axis=1), np.add.reduce(ld * c, axis=1)
-    r = np.sqrt(ex * ex + ey * ey)
-    dr = (ex * dex + ey * dey) / np.maximum(r, 1e-12)
-    return th, r, dr
+    dphi = (hinge * ((raw > lo) & (raw < hi))).cumsum(axis=1)
+    z = lengths * np.exp(1j * th.cumsum(axis=1))
+    end = z.sum(axis=1)
+    r = np.abs(end)
+    # d|E|/dκ = Re(conj(E) dE) / |E| with dE = i sum(l φ' e^{iφ})
+    dr = -(end.conj() * (z * dphi).sum(axis=1)).imag / np.maximum(r, 1e-12)
+    return th, r, dr, end
 
 
-def _bend_setup(
-    lengths: FloatArray, n_segments: IntArray, lo: FloatArray, hi: FloatArray, rest: FloatArray,
-    max_bend: float,
-) -> _BendSetup:
-    """``(hinge (N, s), valid (N, s), reach straight (N,), reach folded (N,))`` of
-    :func:`solve_bend`'s legs, cached by value (read only)."""
-    arrays = (lengths, n_segments, lo, hi, rest)
-    key = (float(max_bend), *((a.dtype.str, a.shape, a.tobytes()) for a in arrays))
-    made = _BEND_SETUP.get(key)
-    if made is not None:
-        return made
-    n, s = rest.shape
-    valid = np.arange(s)[None, :] < n_segments[:, None]
-    hinge = rest.copy()
-    hinge[:, 0] = 0.0
-    hinge = np.where(valid, hinge, 0.0)
-    straight = np.abs(hinge).sum(axis=1) < 1e-3
-    if straight.any():
-        side = np.where(lo + hi >= 0.0, 1.0, -1.0)
-        default = np.where(valid, 0.3 * side, 0.0)
-        default[:, 0] = 0.0
-        hinge[straight] = default[straight]
-    _, r_straight, _ = _bend_reach(np.zeros(n), hinge, lengths, lo, hi)
-    _, r_folded, _ = _bend_reach(np.full(n, max_bend), hinge, lengths, lo, hi)
-    for a in (hinge, valid, r_straight, r_folded):
-        a.flags.writeable = False
-    if len(_BEND_SETUP) >= 64:
-        _BEND_SETUP.clear()
-    made = (hinge, valid, r_straight, r_folded)
-    _BEND_SETUP[key] = made
-    return made
+@dataclass(frozen=True, eq=False)
+class BendLegs:
+    """What :func:`solve_bend` finds from the legs alone, once per leg set: segment
+    ``lengths``, ``n_segments``, limits ``lo``/``hi`` ``(N, s)``, the ``hinge`` pattern (rest
+    hinges; a leg straight at rest bends toward the side its limits allow), the ``valid``
+    joints, the reach straight and folded ``(N,)`` and the reach at ``κ`` = ``knots`` ``(K,)``,
+    ``knot_reach (N, K)``."""
+
+    lengths: FloatArray
+    n_segments: IntArray
+    lo: FloatArray
+    hi: FloatArray
+    hinge: FloatArray
+    valid: npt.NDArray[np.bool_]
+    r_straight: FloatArray
+    r_folded: FloatArray
+    knots: FloatArray
+    knot_reach: FloatArray
+    max_bend: float
+
+    @classmethod
+    def make(
+        cls, lengths: FloatArray, n_segments: IntArray, lo: FloatArray, hi: FloatArray, rest: FloatArray,
+        max_bend: float = 3.0,
+    ) -> BendLegs:
+        n, s = rest.shape
+        valid = np.arange(s)[None, :] < n_segments[:, None]
+        hinge = rest.copy()
+        hinge[:, 0] = 0.0
+        hinge = np.where(valid, hinge, 0.0)
+        straight = np.abs(hinge).sum(axis=1) < 1e-3
+        if straight.any():
+            side = np.where(lo + hi >= 0.0, 1.0, -1.0)
+            default = np.where(valid, 0.3 * side, 0.0)
+            default[:, 0] = 0.0
+            hinge[straight] = default[straight]
+        knots = np.linspace(0.0, max_bend, _BEND_KNOTS)
+        k = knots.size
+        every = np.repeat(np.arange(n), k)  # (n * k,) each leg at every knot
+        _, reach, _, _ = _bend_reach(np.tile(knots, n), hinge[every], lengths[every], lo[every], hi[every])
+        knot_reach = reach.reshape(n, k)
+        return cls(lengths, n_segments, lo, hi, hinge, valid, knot_reach[:, 0].copy(),
+                   knot_reach[:, -1].copy(), knots, knot_reach, float(max_bend))
+
+    def take(self, rows: IntArray) -> BendLegs:
+        """These legs only."""
+        return BendLegs(self.lengths[rows], self.n_segments[rows], self.lo[rows], self.hi[rows],
+                        self.hinge[rows], self.valid[rows], self.r_straight[rows], self.r_folded[rows],
+                        self.knots, self.knot_reach[rows], self.max_bend)
 
 
 def solve_bend(
     target: FloatArray,
-    lengths: FloatArray,
-    n_segments: IntArray,
-    lo: FloatArray,
-    hi: FloatArray,
-    rest: FloatArray,
+    legs: BendLegs,
     *,
-    max_bend: float = 3.0,
     iterations: int = 40,
     tolerance: float = 1e-10,
-) -> FloatArray:
-    """Shape-preserving start for chains of any length; returns angles ``(N, s)``.
+) -> tuple[FloatArray, FloatArray]:
+    """Shape-preserving start for chains of any length (``legs``: :class:`BendLegs`);
+    returns angles ``(N, s)`` and where their end effectors are ``(N,)`` (x + iy).
 
     The hinges take ``κ`` times their rest angles (clamped to their limits; a leg straight at
     rest bends toward the side its limits allow), with one ``κ ∈ [0, max_bend]`` per leg
     found by safeguarded Newton iterations (bisection whenever a step would leave the bracket)
-    so the chain's reach equals the target distance; the hip pitch then
-    aims the chain at the target. The leg keeps its rest silhouette, only more or less
-    folded, and the pose depends on the target alone (no drift from frame to frame).
-    Targets closer than the most folded pose stay at ``κ = max_bend``; beyond reach the leg
-    is straight. Callers refine with ``solve_ccd``/``solve_dls`` where limits interfere.
+    so the chain's reach equals the target distance, starting from the leg's table of reach
+    over ``κ``; the hip pitch then aims the chain at the target. The leg keeps its rest
+    silhouette, only more or less folded, and the pose depends on the target alone (no drift
+    from frame to frame). Targets closer than the most folded pose stay at ``κ = max_bend``;
+    beyond reach the leg is straight. Callers refine with ``solve_ccd``/``solve_dls`` where
+    limits interfere.
     """
-    n = rest.shape[0]
+    n = target.shape[0]
     rows = np.arange(n)
-    hinge, valid, r_straight, r_folded = _bend_setup(lengths, n_segments, lo, hi, rest, max_bend)
+    hinge, lengths, lo, hi, max_bend = legs.hinge, legs.lengths, legs.lo, legs.hi, legs.max_bend
     dist = np.sqrt(np.einsum("ij,ij->i", target, target))
-
+    tol = tolerance * lengths.sum(axis=1)
+    # out of reach either way: straight, or folded as far as allowed
+    too_far = legs.r_straight <= dist
+    too_close = legs.r_folded >= dist
+    settled = too_far | too_close
+    # the start: the table's knots either side of the target distance, interpolated
+    k = legs.knots.size
+    j = np.minimum(np.maximum((legs.knot_reach > dist[:, None]).sum(axis=1), 1), k - 1)
+    r0, r1 = legs.knot_reach[rows, j - 1], legs.knot_reach[rows, j]
+    span = r0 - r1
+    guess = legs.knots[j - 1] + (legs.knots[1] - legs.knots[0]) * np.minimum(
+        np.maximum((r0 - dist) / np.where(span > 0.0, span, 1.0), 0.0), 1.0)
+    kappa = np.where(too_far, 0.0, np.where(too_close, max_bend, guess))
     # safeguarded Newton on κ: the reach shrinks as the leg folds, so [k_lo, k_hi] brackets
     # the answer and a Newton step that leaves it is replaced by bisection
     k_lo = np.zeros(n)  # straight: longest reach
     k_hi = np.full(n, max_bend)
-    tol = tolerance * lengths.sum(axis=1)
-    # out of reach either way: straight, or folded as far as allowed
-    too_far = r_straight <= dist
-    too_close = r_folded >= dist
-    kappa = np.where(too_far, 0.0, np.where(too_close, max_bend, 1.0))
-    settled = too_far | too_close
-    th = None  # the angles at the final kappa, when the loop ends on it
-    for _ in range(iterations):
-        th_k, r, dr = _bend_reach(kappa, hinge, lengths, lo, hi)
+    for i in range(iterations + 1):
+        th, r, dr, end = _bend_reach(kappa, hinge, lengths, lo, hi)
+        if i == iterations:
+            break
         f = r - dist
         done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
         if done.all():
-            th = th_k
             break
         longer = f > 0.0
         k_lo = np.where(longer, kappa, k_lo)
@@ -214,12 +232,10 @@ def solve_bend(
         newton = kappa - f / np.where(falling, dr, -1.0)
         ok = falling & (newton >= k_lo) & (newton <= k_hi)
         kappa = np.where(done, kappa, np.where(ok, newton, 0.5 * (k_lo + k_hi)))
-    if th is None:
-        th, _, _ = _bend_reach(kappa, hinge, lengths, lo, hi)
-    end = forward_planar(th, lengths)[rows, n_segments]
-    th[:, 0] = np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(end[:, 1], end[:, 0])
-    th[:, 0] = wrap_to_limits(th[:, 0], lo[:, 0], hi[:, 0])
-    return np.where(valid, th, 0.0)
+    hip = wrap_to_limits(np.arctan2(target[:, 1], target[:, 0]) - np.arctan2(end.imag, end.real), lo[:, 0],
+                         hi[:, 0])
+    th[:, 0] = hip
+    return np.where(legs.valid, th, 0.0), end * np.exp(1j * hip)
 
 
 def solve_ccd(
@@ -243,26 +259,37 @@ def solve_ccd(
     theta = init.copy()
     n, s = theta.shape
     rows = np.arange(n)
-    active_joint = np.arange(s)[None, :] < n_segments[:, None]
+    # per joint: 1.0 where the leg has it (a turn times 0 is none), the middle of its limits
+    active_joint = (np.arange(s)[None, :] < n_segments[:, None]).astype(np.float64).T.copy()
+    mid = (0.5 * (lo + hi)).T.copy()
+    lo_t, hi_t = lo.T.copy(), hi.T.copy()
+    tx, ty = target[:, 0], target[:, 1]
+    tol2 = tolerance * tolerance
+    turned = np.empty((n, 2))
     for _ in range(max_sweeps):
         pts = forward_planar(theta, lengths)
         end = pts[rows, n_segments]
-        if np.all(np.einsum("ij,ij->i", end - target, end - target) <= tolerance * tolerance):
+        if (np.einsum("ij,ij->i", end - target, end - target) <= tol2).all():
             break
         for j in range(s - 1, -1, -1):
             pivot = pts[:, j]
             v_end = end - pivot
-            v_t = target - pivot
-            cross = v_end[:, 0] * v_t[:, 1] - v_end[:, 1] * v_t[:, 0]
-            dot = v_end[:, 0] * v_t[:, 0] + v_end[:, 1] * v_t[:, 1]
-            new = wrap_to_limits(theta[:, j] + np.arctan2(cross, dot), lo[:, j], hi[:, j])
-            turn = np.where(active_joint[:, j], new - theta[:, j], 0.0)
-            theta[:, j] += turn
+            ex, ey = v_end[:, 0], v_end[:, 1]
+            px, py = pivot[:, 0], pivot[:, 1]
+            vtx, vty = tx - px, ty - py
+            cross = ex * vty - ey * vtx
+            dot = ex * vtx + ey * vty
+            # wrap_to_limits, the middle of the limits found once
+            th_j = theta[:, j]
+            m = mid[j]
+            wrapped = (th_j + np.arctan2(cross, dot) - m + np.pi) % _TWO_PI - np.pi + m
+            turn = (np.minimum(np.maximum(wrapped, lo_t[j]), hi_t[j]) - th_j) * active_joint[j]
+            theta[:, j] = th_j + turn
             c = np.cos(turn)
             sn = np.sin(turn)
-            end = pivot + np.stack(
-                [c * v_end[:, 0] - sn * v_end[:, 1], sn * v_end[:, 0] + c * v_end[:, 1]], axis=1
-            )
+            turned[:, 0] = c * ex - sn * ey
+            turned[:, 1] = sn * ex + c * ey
+            end = pivot + turned
     return theta
 
 
@@ -290,36 +317,39 @@ def solve_dls(
     """
     theta = init.copy()
     n, s = theta.shape
-    rows = np.arange(n)
-    valid = np.arange(s)[None, :] < n_segments[:, None]
-    lam2 = (damping * lengths.sum(axis=1)) ** 2
-    tol2 = np.broadcast_to(np.asarray(tolerance, dtype=np.float64) ** 2, (n,))
-    todo = rows
-    # the legs still iterating: their rows of the inputs, taken again only when legs finish
-    t_len, t_seg, t_target, t_lo, t_hi, t_valid, t_lam2, t_tol2 = (lengths, n_segments, target, lo, hi, valid,
-                                                                   lam2, tol2)
+    # the legs still iterating (``todo``), their angles ``th`` and their rows of the inputs,
+    # taken again only when legs finish (the arithmetic is the same for every leg: a leg
+    # stalled on a limit with the target along it gets out by the last bits of its gradient)
+    todo = np.arange(n)
+    th = theta
+    t_len, t_seg, t_target, t_lo, t_hi = lengths, n_segments, target, lo, hi
+    t_lo_in, t_hi_in = lo + 1e-9, hi - 1e-9
+    t_valid = np.arange(s)[None, :] < n_segments[:, None]
+    t_lam2 = (damping * lengths.sum(axis=1)) ** 2
+    t_tol2 = np.zeros(n) + np.asarray(tolerance, dtype=np.float64) ** 2
+    rows = todo
     for _ in range(max_iterations):
-        th = theta[todo]
         pts = forward_planar(th, t_len)
-        end = pts[np.arange(todo.size), t_seg]
+        end = pts[rows, t_seg]
         err = t_target - end
         converged = np.einsum("ij,ij->i", err, err) <= t_tol2
-        if converged.all():
-            break
-        if converged.any():  # go on with the others only
+        if converged.any():
+            theta[todo] = th
+            if converged.all():
+                return theta
             keep = ~converged
             todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
+            rows = np.arange(todo.size)
             t_len, t_seg, t_target = lengths[todo], n_segments[todo], target[todo]
-            t_lo, t_hi, t_valid, t_lam2, t_tol2 = lo[todo], hi[todo], valid[todo], lam2[todo], tol2[todo]
+            t_lo, t_hi, t_lo_in, t_hi_in = lo[todo], hi[todo], t_lo_in[keep], t_hi_in[keep]
+            t_valid, t_lam2, t_tol2 = t_valid[keep], t_lam2[keep], t_tol2[keep]
         r = end[:, None, :] - pts[:, :s, :]
         jac = np.empty((todo.size, 2, s))  # (m, 2, s)
         jac[:, 0] = -r[..., 1]
         jac[:, 1] = r[..., 0]
         grad = np.einsum("mks,mk->ms", jac, err)
-        at_lo = (th <= t_lo + 1e-9) & (grad < 0.0)
-        at_hi = (th >= t_hi - 1e-9) & (grad > 0.0)
-        free = t_valid & ~at_lo & ~at_hi
-        jac = jac * free[:, None, :]
+        blocked = ((th <= t_lo_in) & (grad < 0.0)) | ((th >= t_hi_in) & (grad > 0.0))
+        jac *= (t_valid & ~blocked)[:, None, :]
         a11 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 0]) + t_lam2
         a22 = np.einsum("ms,ms->m", jac[:, 1], jac[:, 1]) + t_lam2
         a12 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 1])
@@ -329,42 +359,80 @@ def solve_dls(
         step = jac[:, 0] * x0[:, None] + jac[:, 1] * x1[:, None]
         biggest = np.abs(step).max(axis=1, keepdims=True)
         step *= np.minimum(1.0, max_turn / np.maximum(biggest, 1e-12))
-        theta[todo] = np.minimum(np.maximum(th + step, t_lo), t_hi)
+        th = np.minimum(np.maximum(th + step, t_lo), t_hi)
+    theta[todo] = th
     return theta
 
 
+@dataclass(frozen=True, eq=False)
+class _LegSet:
+    """What :func:`solve_legs` finds from a ``LegBatch`` alone, once per batch: for the leg
+    plane, ``rest_dc (N, 2, 2)`` (the rest foot's horizontal direction as the matrix giving
+    the dot and cross products with another), the fade length ``fade (N,)``, the rest
+    normal ``normal (N, 3)`` and its quarter turn about z ``normal_turned`` (z zeroed), the
+    legs of one, two and more segments (``one``, ``two``, ``many``) and the last ones'
+    :class:`BendLegs`."""
+
+    rest_dc: FloatArray
+    fade: FloatArray
+    normal: FloatArray
+    normal_flat: FloatArray
+    normal_turned: FloatArray
+    one: IntArray
+    two: IntArray
+    many: IntArray
+    bend: BendLegs
+
+
+_LEG_SETS: weakref.WeakKeyDictionary[LegBatch, _LegSet] = weakref.WeakKeyDictionary()
+
+
+def _leg_set(legs: LegBatch) -> _LegSet:
+    """:class:`_LegSet` of ``legs``, made on first use (a ``LegBatch`` is immutable)."""
+    made = _LEG_SETS.get(legs)
+    if made is None:
+        rel = legs.rest_foot - legs.hip_offset
+        rx, ry = rel[:, 0], rel[:, 1]
+        rest_dc = np.stack([np.stack([rx, ry], axis=1), np.stack([-ry, rx], axis=1)], axis=1)
+        nrm = legs.plane_normal
+        flat = nrm.copy()
+        flat[:, 2] = 0.0
+        turned = np.stack([-nrm[:, 1], nrm[:, 0], np.zeros(legs.n_legs)], axis=1)
+        seg = legs.n_segments
+        many = np.flatnonzero(seg >= 3)
+        bend = BendLegs.make(legs.segment_lengths[many], seg[many], legs.joint_min[many],
+                             legs.joint_max[many], legs.rest_angles[many])
+        made = _LegSet(rest_dc, 0.25 * legs.leg_length, nrm, flat, turned, np.flatnonzero(seg == 1),
+                       np.flatnonzero(seg == 2), many, bend)
+        _LEG_SETS[legs] = made
+    return made
+
+
 def leg_plane_normals(
-    target_body: FloatArray,
-    hip_body: FloatArray,
-    rest_foot_body: FloatArray,
-    rest_normal_body: FloatArray,
-    yaw_weight: FloatArray,
-    leg_length: FloatArray,
-) -> FloatArray:
-    """Leg-plane normals ``(N, 3)`` in the body frame for feet at ``target_body (N, 3)``.
+    target_body: FloatArray, legs: _LegSet, yaw_weight: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Leg-plane normals ``(N, 3)`` in the body frame for feet at ``target_body (N, 3)`` (from
+    the hips), and the unit hip-target lines ``(N, 3)``.
 
     The rest normal is turned about the body's z axis by ``yaw_weight`` times the foot's yaw
     (the angle between its rest and current horizontal directions from the hip, faded out as
     the foot comes under the hip), then the component along the hip-target line is removed.
     """
-    d = target_body - hip_body
+    d = target_body
     d_h = d[:, :2]
-    r_h = (rest_foot_body - hip_body)[:, :2]
-    yaw = np.arctan2(r_h[:, 0] * d_h[:, 1] - r_h[:, 1] * d_h[:, 0], np.einsum("ij,ij->i", r_h, d_h))
-    fade = np.minimum(np.maximum(vector_norm(d_h) / (0.25 * leg_length), 0.0), 1.0)
+    dot_cross = np.einsum("nij,nj->ni", legs.rest_dc, d_h)
+    yaw = np.arctan2(dot_cross[:, 1], dot_cross[:, 0])
+    h2 = np.einsum("ij,ij->i", d_h, d_h)
+    fade = np.minimum(np.sqrt(h2) / legs.fade, 1.0)
     psi = yaw_weight * fade * yaw
-    c = np.cos(psi)
-    sn = np.sin(psi)
-    pref = np.empty_like(rest_normal_body)
-    pref[:, 0] = c * rest_normal_body[:, 0] - sn * rest_normal_body[:, 1]
-    pref[:, 1] = sn * rest_normal_body[:, 0] + c * rest_normal_body[:, 1]
-    pref[:, 2] = rest_normal_body[:, 2]
-    d_len = vector_norm(d, keepdims=True)
+    pref = np.cos(psi)[:, None] * legs.normal_flat + np.sin(psi)[:, None] * legs.normal_turned
+    pref[:, 2] = legs.normal[:, 2]
+    d_len = np.sqrt(h2 + d[:, 2] * d[:, 2])[:, None]
     d_hat = np.divide(d, d_len, out=np.zeros_like(d), where=d_len > 1e-12)
     normal = pref - np.einsum("ij,ij->i", pref, d_hat)[:, None] * d_hat
     norm = vector_norm(normal, keepdims=True)
     # target along the preferred normal itself: keep the unprojected rest normal
-    return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), rest_normal_body)
+    return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), legs.normal), d_hat
 
 
 def follow_normals(
@@ -385,11 +453,12 @@ def follow_normals(
     p = prev - np.einsum("ij,ij->i", prev, axis)[:, None] * axis
     p_len = vector_norm(p, keepdims=True)
     p = p / np.maximum(p_len, 1e-12)
-    sin = np.einsum("ij,ij->i", cross(p, normal), axis)
-    cos = np.einsum("ij,ij->i", p, normal)
-    turn = np.minimum(np.maximum(np.arctan2(sin, cos), -max_turn), max_turn)
+    side = cross(axis, p)  # p turned a quarter about the axis
+    # the turn from p to normal about the axis: sin = (p x normal) . axis = (axis x p) . normal
+    turn = np.arctan2(np.einsum("ij,ij->i", side, normal), np.einsum("ij,ij->i", p, normal))
+    turn = np.minimum(np.maximum(turn, -max_turn), max_turn)[:, None]
     # Rodrigues about the axis; p is perpendicular to it
-    out = np.cos(turn)[:, None] * p + np.sin(turn)[:, None] * cross(axis, p)
+    out = np.cos(turn) * p + np.sin(turn) * side
     return np.where(p_len > 1e-6, out, normal)
 
 
@@ -425,58 +494,48 @@ def solve_legs(
       segments start from ``init`` moved toward the shape-preserving pose by at most that
       much per joint, so a foot moving by small steps moves every bone by small steps.
     """
+    ls = _leg_set(legs)
     n = legs.n_legs
-    rows = np.arange(n)
     theta0 = legs.rest_angles if init is None else init
-    rot_t = np.transpose(body_rot, (0, 2, 1))
-    target_body = np.einsum("nij,nj->ni", rot_t, target_world - hip_world)
-    zero = np.zeros((n, 3))
-    rest_foot_rel = legs.rest_foot - legs.hip_offset
-    normal_body = leg_plane_normals(
-        target_body, zero, rest_foot_rel, legs.plane_normal, legs.yaw_weight, legs.leg_length
-    )
+    target_body = np.einsum("nji,nj->ni", body_rot, target_world - hip_world)
+    normal_body, axis = leg_plane_normals(target_body, ls, legs.yaw_weight)
     if prev_normal is not None:
-        t_len = vector_norm(target_body, keepdims=True)
-        axis = np.divide(target_body, t_len, out=np.zeros_like(target_body), where=t_len > 1e-12)
         prev = np.asarray(prev_normal, dtype=np.float64)
         normal_body = follow_normals(normal_body, prev, axis, max_plane_turn)
     a, b = plane_axes(normal_body, _UP)
-    target_2d = np.stack(
-        [np.einsum("ij,ij->i", target_body, a), np.einsum("ij,ij->i", target_body, b)], axis=1
-    )
+    target_2d = np.empty((n, 2))
+    target_2d[:, 0] = np.einsum("ij,ij->i", target_body, a)
+    target_2d[:, 1] = np.einsum("ij,ij->i", target_body, b)
 
     theta = theta0.copy()
-    solve = np.ones(n, dtype=bool) if mask is None else mask.astype(bool)
-    two = solve & (legs.n_segments == 2)
-    if two.any():
-        idx = np.flatnonzero(two)
-        theta[idx, :2] = solve_two_segment(
-            target_2d[idx], legs.segment_lengths[idx, :2], legs.joint_min[idx, :2], legs.joint_max[idx, :2]
+    one, two, many, bend = ls.one, ls.two, ls.many, ls.bend
+    if mask is not None:  # the legs to solve only
+        solve = np.asarray(mask, dtype=bool)
+        one, two = one[solve[one]], two[solve[two]]
+        keep = np.flatnonzero(solve[many])
+        if keep.size < many.size:
+            many, bend = many[keep], bend.take(keep)
+    if two.size:
+        theta[two, :2] = solve_two_segment(
+            target_2d[two], legs.segment_lengths[two, :2], legs.joint_min[two, :2], legs.joint_max[two, :2]
         )
-    one = solve & (legs.n_segments == 1)
-    if one.any():
-        idx = np.flatnonzero(one)
-        theta[idx, 0] = wrap_to_limits(
-            np.arctan2(target_2d[idx, 1], target_2d[idx, 0]), legs.joint_min[idx, 0], legs.joint_max[idx, 0]
+    if one.size:
+        theta[one, 0] = wrap_to_limits(
+            np.arctan2(target_2d[one, 1], target_2d[one, 0]), legs.joint_min[one, 0], legs.joint_max[one, 0]
         )
-    many = solve & (legs.n_segments >= 3)
-    if many.any():
-        idx = np.flatnonzero(many)
-        args = (
-            target_2d[idx],
-            legs.segment_lengths[idx],
-            legs.n_segments[idx],
-            legs.joint_min[idx],
-            legs.joint_max[idx],
-        )
+    if many.size:
+        idx = many
+        t_i = target_2d[idx]
+        lengths, n_seg, lo, hi = bend.lengths, bend.n_segments, bend.lo, bend.hi
         rows_i = np.arange(idx.size)
-        tol_i = np.broadcast_to(np.asarray(tolerance, dtype=np.float64), (n,))[idx]
-
-        def miss_of(th: FloatArray) -> FloatArray:
-            return np.asarray(np.linalg.norm(forward_planar(th, args[1])[rows_i, args[2]] - args[0], axis=1))
-
-        start = solve_bend(*args, legs.rest_angles[idx]) if init is None or shape_preserving else theta0[idx]
-        err_start = miss_of(start)
+        tol_i = (np.zeros(n) + tolerance)[idx]
+        if init is None or shape_preserving:
+            start, end = solve_bend(t_i, bend)
+            miss_start = end - (t_i[:, 0] + 1j * t_i[:, 1])
+            err_start = np.sqrt(miss_start.real * miss_start.real + miss_start.imag * miss_start.imag)
+        else:
+            start = theta0[idx]
+            err_start = vector_norm(forward_planar(start, lengths)[rows_i, n_seg] - t_i)
         theta[idx] = start
         if init is not None and shape_preserving and prev_normal is not None:
             # Frame after frame: from last frame's pose toward the shape-preserving one by a
@@ -485,34 +544,34 @@ def solve_legs(
             # the leg another way) the leg gets there over a few frames, the damped least
             # squares (the smallest joint motion) reaching the target from the stepped pose.
             prev = theta0[idx]
-            far = np.flatnonzero(np.any(np.abs(start - prev) > max_plane_turn, axis=1))
+            far = (np.abs(start - prev) > max_plane_turn).any(axis=1).nonzero()[0]
             if far.size:
-                t_f, len_f, nseg_f = args[0][far], args[1][far], args[2][far]
-                stepped = prev[far] + np.clip(start[far] - prev[far], -max_plane_turn, max_plane_turn)
+                t_f, len_f, nseg_f = t_i[far], lengths[far], n_seg[far]
+                prev_f = prev[far]
+                turn = np.minimum(np.maximum(start[far] - prev_f, -max_plane_turn), max_plane_turn)
+                stepped = prev_f + turn
                 followed = solve_dls(
-                    t_f, len_f, nseg_f, args[3][far], args[4][far], stepped,
+                    t_f, len_f, nseg_f, lo[far], hi[far], stepped,
                     max_iterations=polish_iterations, tolerance=1e-3 * tol_i[far],
                 )
                 end_f = forward_planar(followed, len_f)[np.arange(far.size), nseg_f]
                 # (to well within the tolerance: planted feet would creep by it otherwise);
                 # where it does not get there, the shape-preserving start and CCD below
-                ok = np.linalg.norm(end_f - t_f, axis=1) <= tol_i[far]
+                ok = vector_norm(end_f - t_f) <= tol_i[far]
                 theta[idx[far[ok]]] = followed[ok]
                 err_start[far[ok]] = 0.0
         # CCD and the polish only where the start misses (joint limits, odd targets)
-        miss = np.flatnonzero(err_start > tol_i)
+        miss = (err_start > tol_i).nonzero()[0]
         if miss.size:
-            t_m, len_m, nseg_m = args[0][miss], args[1][miss], args[2][miss]
-            lo_m, hi_m = args[3][miss], args[4][miss]
+            t_m, len_m, nseg_m = t_i[miss], lengths[miss], n_seg[miss]
+            lo_m, hi_m = lo[miss], hi[miss]
             ccd = solve_ccd(
                 t_m, len_m, nseg_m, lo_m, hi_m, start[miss], max_sweeps=max_sweeps, tolerance=tol_i[miss]
             )
             refined = solve_dls(
                 t_m, len_m, nseg_m, lo_m, hi_m, ccd, max_iterations=polish_iterations, tolerance=tol_i[miss]
             )
-            err_refined = np.linalg.norm(
-                forward_planar(refined, len_m)[np.arange(miss.size), nseg_m] - t_m, axis=1
-            )
+            err_refined = vector_norm(forward_planar(refined, len_m)[np.arange(miss.size), nseg_m] - t_m)
             # out of reach, the straight start is already the closest pose: keep the better one
             better = err_refined < err_start[miss]
             theta[idx[miss[better]]] = refined[better]
@@ -520,8 +579,8 @@ def solve_legs(
     pts = forward_planar(theta, legs.segment_lengths)
     joints_body = pts[..., 0:1] * a[:, None, :] + pts[..., 1:2] * b[:, None, :]
     joints_world = hip_world[:, None, :] + np.einsum("nij,nkj->nki", body_rot, joints_body)
-    end = joints_world[rows, legs.n_segments]
-    error = np.linalg.norm(end - target_world, axis=1)
+    end_world = joints_world[np.arange(n), legs.n_segments]
+    error = vector_norm(end_world - target_world)
     normal_world = np.einsum("nij,nj->ni", body_rot, normal_body)
     return IKResult(
         joints=joints_world, plane_normal=normal_world, angles=theta, error=error, normal_body=normal_body

@@ -26,6 +26,7 @@ girdle — joined by the spine's joints. :meth:`Morphology.with_spine` adds one;
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
@@ -425,6 +426,11 @@ def chain_angles(joints: FloatArray, normal: FloatArray, up: FloatArray, n_segme
     return np.where(valid, rel, 0.0)
 
 
+def _read_only(a: FloatArray) -> FloatArray:
+    a.flags.writeable = False
+    return a
+
+
 @dataclass(frozen=True, eq=False)
 class LegBatch:
     """Legs of many characters on one flat axis of ``N`` legs (the IK/gait/physics axis).
@@ -463,20 +469,22 @@ class LegBatch:
     def hip_offset(self) -> FloatArray:
         return self.rest_joints[:, 0]
 
-    @property
+    # (the derived arrays below are made once and read only: a step asks for them a few
+    # dozen times)
+    @functools.cached_property
     def rest_foot(self) -> FloatArray:
-        return self.rest_joints[np.arange(self.n_legs), self.n_segments]
+        return _read_only(self.rest_joints[np.arange(self.n_legs), self.n_segments])
 
-    @property
+    @functools.cached_property
     def foot_lift(self) -> FloatArray:
         """``(N,)`` each end-effector's height above the ground its foot is planned on
         (``Morphology.foot_lift``; 0 where a character has none)."""
-        return np.concatenate([np.zeros(m.n_legs) if m.foot_lift is None else m.foot_lift
-                               for m in self.morphologies])
+        return _read_only(np.concatenate([np.zeros(m.n_legs) if m.foot_lift is None else m.foot_lift
+                                          for m in self.morphologies]))
 
-    @property
+    @functools.cached_property
     def leg_length(self) -> FloatArray:
-        return self.segment_lengths.sum(axis=1)
+        return _read_only(self.segment_lengths.sum(axis=1))
 
     def leg_slice(self, char: int) -> slice:
         return slice(int(self.leg_start[char]), int(self.leg_start[char + 1]))

@@ -13,13 +13,15 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import vector_norm
+from ..geometry import clip, vector_norm
 from ..hull import hull_height_and_pitch
 from ..world.terrain import Environment
 from .gait import GaitManager
 from .pelvis_physics import PelvisPhysics
 from .rig import Rig
 from .types import RATE_JUMP, VOID, BoolArray, ControllerParams, FloatArray, IntArray
+
+_XY = np.array([0, 1])
 
 
 @dataclass
@@ -187,14 +189,14 @@ def feedback_move(
     leg length ``leg_length (C,)``, worked off over a cycle ``cycle_time (C,)``; the part
     worked off is taken out of ``feedback`` (in place). None when no error matters."""
     c = leg_length.shape[0]
-    mean: FloatArray = np.stack(
-        [np.bincount(leg_char, weights=feedback[:, k], minlength=c) for k in (0, 1)], axis=1
-    )
-    mean = mean / np.bincount(leg_char, minlength=c)[:, None]
+    # both components' sums in one bincount (bins 2 c and 2 c + 1)
+    bins = (2 * leg_char[:, None] + _XY).reshape(-1)
+    sums = np.bincount(bins, weights=feedback.reshape(-1), minlength=2 * c)
+    mean = sums.reshape(c, 2) / np.bincount(leg_char, minlength=c)[:, None]
     significant = vector_norm(mean) > p.feedback_threshold * leg_length
-    if not np.any(significant):
+    if not significant.any():
         return None
-    share = np.clip(p.feedback_gain * dt / cycle_time, 0.0, 1.0)
+    share = clip(p.feedback_gain * dt / cycle_time, 0.0, 1.0)
     move = np.where(significant[:, None], mean * share[:, None], 0.0)
     # the part worked off is consumed
     feedback -= np.where(significant[leg_char, None], feedback * share[leg_char, None], 0.0)
@@ -225,17 +227,16 @@ def pogo_heights(
     # whose flights are sized for the old cycle, metres high on a slow gait's long stance.
     # Such a jump (over RATE_JUMP in one step) puts them on the new rate's orbit.
     ratio = rate_leg / np.maximum(pogo.rate, 1e-12)
-    jumped = np.zeros(physics_on.shape[0], dtype=bool)
-    np.logical_or.at(jumped, leg_char, (ratio > RATE_JUMP) | (ratio < 1.0 / RATE_JUMP))
+    jumped = np.bincount(leg_char, weights=(ratio > RATE_JUMP) | (ratio < 1.0 / RATE_JUMP),
+                         minlength=physics_on.shape[0]) > 0.0
     switched_on |= physics_on & jumped
     pogo.rate = rate_leg.copy()
-    if np.any(switched_on):
+    if switched_on.any():
         pogo.physics.reset(
             pref, needle_before, rate_leg, gait.disk_start, gait.disk_duration, nodes=switched_on[node_char]
         )
     pogo.on = physics_on.copy()
-    z = pref.copy()
-    if np.any(physics_on):
-        pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
-        z = np.where(physics_on[node_char], pogo.physics.centered_height(), z)
-    return np.asarray(z)
+    if not physics_on.any():
+        return pref.copy()
+    node = pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
+    return np.asarray(np.where(physics_on[node_char], pogo.physics.centered_height(node), pref))

@@ -32,6 +32,7 @@ flight phase is an exact parabola (second differences equal ``-g h²``).
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -77,8 +78,8 @@ def foot_acceleration(
     ``min_time`` (one integration step) so the last step of a phase is not singular.
     """
     t = phase_times(swing, stance_progress, stance_time, swing_time, gravity, min_time)
-    return _acceleration(t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight,
-                         height, velocity, preferred, gravity)
+    return _acceleration(t.stance_g, t.time_left, t.aim, t.flight, t.half_g_flight, height, velocity,
+                         preferred)
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,10 @@ class PhaseTimes:
     """What :func:`foot_acceleration` needs from the feet's phases alone, shape ``(..., N)``
     each: in ``reception`` / ``propulsion``, the time left of the reception ``t_rec`` and
     of the propulsion ``t_prop``, and ``half_g_flight`` = ``0.5 g (t_prop + swing_time)``
-    with ``flight`` = ``t_prop + swing_time``."""
+    with ``flight`` = ``t_prop + swing_time``. The acceleration ``G + (X - v) / T``
+    (:func:`_acceleration`) reads them as ``stance_g`` (``G``: ``g`` in stance, 0 in swing),
+    ``time_left`` (``T``: ``t_rec`` in reception, ``t_prop`` in propulsion, inf in swing)
+    and ``aim`` (1 in propulsion, where ``X`` is the take-off velocity ``v0``, else 0)."""
 
     reception: BoolArray
     propulsion: BoolArray
@@ -94,6 +98,9 @@ class PhaseTimes:
     t_prop: FloatArray
     flight: FloatArray
     half_g_flight: FloatArray
+    stance_g: FloatArray
+    time_left: FloatArray
+    aim: FloatArray
 
 
 def phase_times(
@@ -111,19 +118,21 @@ def phase_times(
     t_rec = np.maximum((0.5 - stance_progress) * stance_time, min_time)
     t_prop = np.maximum((1.0 - stance_progress) * stance_time, min_time)
     t_flight = t_prop + swing_time
-    return PhaseTimes(reception, propulsion, t_rec, t_prop, t_flight, 0.5 * gravity * t_flight)
+    stance_g = np.where(swing, 0.0, gravity)
+    time_left = np.where(reception, t_rec, np.where(propulsion, t_prop, np.inf))
+    return PhaseTimes(reception, propulsion, t_rec, t_prop, t_flight, 0.5 * gravity * t_flight, stance_g,
+                      time_left, propulsion.astype(np.float64))
 
 
 def _acceleration(
-    reception: BoolArray, propulsion: BoolArray, t_rec: FloatArray, t_prop: FloatArray,
-    flight: FloatArray, half_g_flight: FloatArray,
-    height: FloatArray, velocity: FloatArray, preferred: FloatArray, gravity: float | FloatArray,
+    stance_g: FloatArray, time_left: FloatArray, aim: FloatArray, flight: FloatArray,
+    half_g_flight: FloatArray, height: FloatArray, velocity: FloatArray, preferred: FloatArray,
 ) -> FloatArray:
-    """``a_foot (N,)`` from one sub-step's :class:`PhaseTimes` fields and the particles' state."""
-    a_rec = gravity + (0.0 - velocity) / t_rec
-    v0 = (preferred - height) / flight + half_g_flight
-    a_prop = gravity + (v0 - velocity) / t_prop
-    return np.where(reception, a_rec, np.where(propulsion, a_prop, 0.0))
+    """``a_foot (N,)`` from one sub-step's :class:`PhaseTimes` fields and the particles' state:
+    ``G + (X - v) / T``, i.e. ``g + (0 - v) / t_rec`` in reception (eq. 4.4b aiming at
+    ``v_T = 0``), ``g + (v0 - v) / t_prop`` in propulsion with ``v0 = (y_T - y) / flight +
+    g flight / 2`` (eq. 4.5c), 0 in swing."""
+    return stance_g + (((preferred - height) / flight + half_g_flight) * aim - velocity) / time_left
 
 
 def node_acceleration(
@@ -174,22 +183,27 @@ class PelvisPhysics:
         self.height = np.zeros(n)
         self.velocity = np.zeros(n)
         self.offset = np.zeros(self.n_nodes)
+        # each node's total weight (the weights are fixed)
+        self._node_weight = np.bincount(self.leg_node, weights=self.weights, minlength=self.n_nodes)
 
-    def centered_height(self) -> FloatArray:
+    def centered_height(self, node: FloatArray | None = None) -> FloatArray:
         """``(n_nodes,)`` node heights minus their running mean offset from the preferred height.
 
         In the thesis's model ``y_T`` is the height at touch-down, so the orbit's mean sits
         below (long stances) or above (long flights) it: a hexapod in a tetrapod gait would
         walk a third of its height lower with physics on. Subtracting the offset (averaged
         over two cycles) keeps the body at the height the user set and the bounce's shape.
+        ``node``: :meth:`node_height` when the caller has it already.
         """
+        if node is None:
+            node = self.node_height()
         if not self.params.centered:
-            return self.node_height()
-        return self.node_height() - self.offset
+            return node
+        return node - self.offset
 
     def node_height(self) -> FloatArray:
         """``(n_nodes,)`` weighted mean height of each node's particles."""
-        total = np.bincount(self.leg_node, weights=self.weights, minlength=self.n_nodes)
+        total = self._node_weight
         acc = np.bincount(self.leg_node, weights=self.weights * self.height, minlength=self.n_nodes)
         return np.divide(acc, total, out=np.zeros(self.n_nodes), where=total > 0.0)
 
@@ -248,13 +262,17 @@ class PelvisPhysics:
         n_node[self.leg_node] = n_leg
         min_time = self._group_max(h)
         pref_node = np.asarray(preferred_node_height, dtype=np.float64)
-        acc = np.zeros(self.n_nodes)
-        for k in range(n_max):
-            phase = needle_leg + (k + 0.5) * h * rate_leg
-            self._substeps(phase[None], rate_leg, disk_start, disk_duration, preferred,
-                           np.where(k < n_leg, h, 0.0)[None], min_time)
-            acc += np.where(k < n_node, self.node_height() - pref_node, 0.0)
-        self.offset = acc / n_node
+        rows = np.arange(n_max)[:, None]
+        phases = needle_leg + (rows + 0.5) * h * rate_leg
+        heights = self._substeps(phases, rate_leg, disk_start, disk_duration, preferred,
+                                 np.where(rows < n_leg, h, 0.0), min_time, trace=True)
+        # the node heights after each sub-step (:meth:`node_height` of every row at once), summed in order
+        bins = (rows * self.n_nodes + self.leg_node).reshape(-1)
+        sums = np.bincount(bins, weights=(self.weights * heights).reshape(-1), minlength=n_max * self.n_nodes)
+        total = self._node_weight
+        node = np.divide(sums.reshape(n_max, self.n_nodes), total, out=np.zeros((n_max, self.n_nodes)),
+                         where=total > 0.0)
+        self.offset = np.where(rows < n_node, node - pref_node, 0.0).cumsum(axis=0)[-1] / n_node
 
     def _substep_counts(self, span: FloatArray) -> FloatArray:
         """``(N,)`` sub-steps of each leg over ``span (N,)`` seconds: those the longest span
@@ -280,11 +298,13 @@ class PelvisPhysics:
         preferred: FloatArray,
         h: FloatArray | float,
         min_time: FloatArray | None = None,
-    ) -> None:
+        trace: bool = False,
+    ) -> FloatArray:
         """Integrate one sub-step of length ``h`` per row of needle ``phases`` ``(K, N)`` (each
         leg's phase at the middle of the sub-step), in order. What depends on the phases
         alone (swing or stance, stance progress) is found for all rows at once; only the
-        particles' update runs per sub-step."""
+        particles' update runs per sub-step (:func:`_acceleration`). ``trace``: return the
+        heights after every sub-step ``(K, N)`` (else only the last ``(1, N)``)."""
         period = 1.0 / np.maximum(rate_leg, 1e-9)
         swing = in_swing(phases, disk_start, disk_duration)
         progress = stance_elapsed(phases, disk_start, disk_duration) / (1.0 - disk_duration)
@@ -293,14 +313,19 @@ class PelvisPhysics:
         gravity = self.gravity
         t = phase_times(swing, progress, stance_time, swing_time, gravity,
                         float(np.max(h)) if min_time is None else min_time)
-        steps = np.broadcast_to(h, phases.shape)
-        for rec, prop, t_rec, t_prop, flight, half_g, h_k in zip(
-            t.reception, t.propulsion, t.t_rec, t.t_prop, t.flight, t.half_g_flight, steps, strict=True
-        ):
-            a_foot = _acceleration(rec, prop, t_rec, t_prop, flight, half_g, self.height, self.velocity,
-                                   preferred, gravity)
-            self.velocity = self.velocity + (a_foot - gravity) * h_k
-            self.height = self.height + self.velocity * h_k
+        # (one step length for all: repeated, not broadcast, so ``zip`` is not strict)
+        steps = itertools.repeat(h) if isinstance(h, float) else np.broadcast_to(h, phases.shape)
+        height, velocity = self.height, self.velocity
+        seen = []
+        for g_k, t_k, aim_k, flight, half_g, h_k in zip(t.stance_g, t.time_left, t.aim, t.flight,
+                                                        t.half_g_flight, steps, strict=False):
+            a_foot = _acceleration(g_k, t_k, aim_k, flight, half_g, height, velocity, preferred)
+            velocity = velocity + (a_foot - gravity) * h_k
+            height = height + velocity * h_k
+            if trace:
+                seen.append(height)
+        self.height, self.velocity = height, velocity
+        return np.array(seen) if trace else height[None]
 
     def step(
         self,
@@ -327,5 +352,6 @@ class PelvisPhysics:
         period = np.zeros(self.n_nodes)
         np.maximum.at(period, self.leg_node, 1.0 / np.maximum(rate_leg, 1e-9))
         alpha = 1.0 - np.exp(-dt / np.maximum(2.0 * period, 1e-9))
-        self.offset += alpha * (self.node_height() - pref_node - self.offset)
-        return self.node_height()
+        node = self.node_height()
+        self.offset += alpha * (node - pref_node - self.offset)
+        return node

@@ -33,13 +33,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt
 
 from .. import metrics as mx
-from ..geometry import wrap_angle
+from ..geometry import rotation_matrices, wrap_angle
 from ..world.terrain import NO_SURFACE, ROLE_AVOID, Environment
 from . import crowd
 from .autogait import AutoGait, AutoGaitParams
@@ -49,6 +49,7 @@ from .gait import Gait
 from .morphology import LegBatch, Morphology
 from .progression import ProgressionParams, ProgressionState, effects_step, initial_gaits
 from .spine import SpineParams
+from .state import Phase
 from .types import ControllerParams, PlannerLOD, StepControls, StepStats
 
 FloatArray = npt.NDArray[np.float64]
@@ -312,6 +313,14 @@ class PathFollower:
         return heading, 0.0 if left < 1e-3 * self.stop_distance else factor
 
 
+def _per_char(value: npt.ArrayLike, c: int, dtype: type[np.generic]) -> npt.NDArray[Any]:
+    """A fresh ``(c,)`` array of ``value`` (a scalar for all, or one per character) as
+    ``dtype``: ``np.broadcast_to(...).copy()`` without its cost."""
+    out = np.empty(c, dtype=dtype)
+    out[...] = np.asarray(value, dtype=dtype)
+    return out
+
+
 class Simulation:
     """Many characters walking in one environment.
 
@@ -435,6 +444,7 @@ class Simulation:
         self.time = 0.0
         self._n_steps = 0
         self._frames: list[dict[str, npt.NDArray[np.generic]]] = []
+        self._leg_rows = np.arange(self.legs.n_legs)
         self._stats: list[StepStats] = []
         # The controller's initial pose does not yet keep the hips within reach of the feet
         # (its reach guard runs in a step): a vanishing step settles frame 0, moving nothing.
@@ -503,12 +513,12 @@ class Simulation:
     def _resolve(self, ctl: Controls, xy: FloatArray, yaw: FloatArray) -> StepControls:
         c = self.legs.n_chars
         n = self.legs.n_legs
-        speed = np.broadcast_to(np.asarray(ctl.speed, dtype=np.float64), (c,)).copy()
+        speed = _per_char(ctl.speed, c, np.float64)
         if ctl.heading is None:
             # no heading asked: keep the last one (the start heading at first)
             heading = (self._start_yaw if self._held_heading is None else self._held_heading).copy()
         else:
-            heading = np.broadcast_to(np.asarray(ctl.heading, dtype=np.float64), (c,)).copy()
+            heading = _per_char(ctl.heading, c, np.float64)
         if ctl.path is not None:
             self._set_paths(ctl.path)
         for i, f in enumerate(self._followers):
@@ -526,10 +536,10 @@ class Simulation:
             speed=speed,
             # (not wrapped: the controller turns by wrapped differences)
             heading=heading,
-            step_height=np.broadcast_to(np.asarray(ctl.step_height, dtype=np.float64), (c,)).copy(),
+            step_height=_per_char(ctl.step_height, c, np.float64),
             spacing=spacing,
-            pelvis_physics=np.broadcast_to(np.asarray(ctl.pelvis_physics, dtype=bool), (c,)).copy(),
-            ik=np.broadcast_to(np.asarray(ctl.ik, dtype=bool), (c,)).copy(),
+            pelvis_physics=_per_char(ctl.pelvis_physics, c, np.bool_),
+            ik=_per_char(ctl.ik, c, np.bool_),
         )
 
     # ---------------------------------------------------------------- stepping
@@ -599,44 +609,42 @@ class Simulation:
         return self.result()
 
     def _record(self, stats: StepStats) -> None:
+        """Keep this frame. What the frames give at once is left to :meth:`result`: the body
+        rotations (from yaw, pitch and roll), the contacts (from the feet's phases), the
+        needle's steps and, over ground that never moves, the ground under the feet (one
+        point query for every frame)."""
         ctrl = self.controller
         res = ctrl.ik_result
         assert res is not None
-        prev_needle = np.asarray(
-            self._frames[-1]["needle"] if self._frames else ctrl.gait.needle, dtype=np.float64
-        )
-        self._frames.append(
-            {
-                "pos": ctrl.pos.copy(),
-                "rot": ctrl.rotations(),
-                "yaw": ctrl.yaw.copy(),
-                "pitch": ctrl.pitch.copy(),
-                "roll": ctrl.roll.copy(),
-                "joints": res.joints.copy(),
-                "normal": res.plane_normal.copy(),
-                "angles": res.angles.copy(),
-                "foot": ctrl.ik_targets(),
-                "contact": ~ctrl.swinging,
-                "forced": ctrl.forced.copy(),
-                "failed": ctrl.plan_failed.copy(),
-                "ground": self.env.height_at(
-                    res.joints[np.arange(self.legs.n_legs), self.legs.n_segments, :2]
-                ),
-                "footprint": ctrl.target.copy(),
-                "preferred": ctrl.preferred.copy(),
-                "needle": ctrl.gait.needle.copy(),
-                "phase_step": np.mod(ctrl.gait.needle - prev_needle, 1.0),
-                "phase_rate": np.asarray(ctrl.gait.rate(), dtype=np.float64).copy(),
-                "speed": self._speed.copy(),
-                "auto_band": np.asarray(self.auto_gait.band, dtype=np.int64).copy(),
-                "ik_error": res.error.copy(),
-                "disk_start": ctrl.gait.disk_start.copy(),
-                "disk_duration": ctrl.gait.disk_duration.copy(),
-                "leg_frame": ctrl.leg_rotations(),
-                "spine_joints": ctrl.spine_joints(),
-                "spine_rotation": ctrl.spine_rotations(),
-            }
-        )
+        frame = {
+            "pos": ctrl.pos.copy(),
+            "yaw": ctrl.yaw.copy(),
+            "pitch": ctrl.pitch.copy(),
+            "roll": ctrl.roll.copy(),
+            "joints": res.joints.copy(),
+            "normal": res.plane_normal.copy(),
+            "angles": res.angles.copy(),
+            "foot": ctrl.ik_targets(),
+            "phase": ctrl.feet.phase.copy(),
+            "footprint": ctrl.target.copy(),
+            "preferred": ctrl.preferred.copy(),
+            "needle": ctrl.gait.needle.copy(),
+            "phase_rate": ctrl.gait.rate(),
+            "speed": self._speed.copy(),
+            "auto_band": np.array(self.auto_gait.band, dtype=np.int64),
+            "ik_error": res.error.copy(),
+            "disk_start": ctrl.gait.disk_start.copy(),
+            "disk_duration": ctrl.gait.disk_duration.copy(),
+            "leg_frame": ctrl.leg_rotations(),
+            "spine_joints": ctrl.spine_joints(),
+            "spine_rotation": ctrl.spine_rotations(),
+        }
+        end_xy = res.joints[self._leg_rows, self.legs.n_segments, :2]
+        if self.env.dynamic:  # the ground under the feet now: it moves
+            frame["ground"] = self.env.height_at(end_xy)
+        else:
+            frame["end_xy"] = end_xy
+        self._frames.append(frame)
         self._stats.append(stats)
 
     @property
@@ -648,9 +656,22 @@ class Simulation:
         """Everything recorded so far as a ``SimResult`` (or its first ``n_frames`` frames,
         e.g. for a preview while the rest runs)."""
         fr = self._frames if n_frames is None else self._frames[:n_frames]
+        asked = [f for f in fr if "ground" not in f]
+        if asked:  # the ground under the feet of frames over ground that never moves, kept
+            n = self.legs.n_legs
+            ground = self.env.height_at(np.concatenate([f.pop("end_xy") for f in asked]))
+            for k, f in enumerate(asked):
+                f["ground"] = ground[k * n : (k + 1) * n]
 
         def stack(key: str) -> npt.NDArray[np.generic]:
             return np.stack([f[key] for f in fr])
+
+        yaw = stack("yaw").astype(np.float64)
+        pitch = stack("pitch").astype(np.float64)
+        roll = stack("roll").astype(np.float64)
+        phase = stack("phase")
+        needle = stack("needle").astype(np.float64)
+        before = np.concatenate([needle[:1], needle[:-1]])  # (the first frame: itself, a step of 0)
 
         names = (
             "n_plans",
@@ -673,22 +694,23 @@ class Simulation:
             legs=self.legs,
             time=np.arange(len(fr)) * self.dt,
             pelvis_position=stack("pos").astype(np.float64),
-            pelvis_rotation=stack("rot").astype(np.float64),
-            yaw=stack("yaw").astype(np.float64),
-            pitch=stack("pitch").astype(np.float64),
-            roll=stack("roll").astype(np.float64),
+            pelvis_rotation=rotation_matrices(yaw.reshape(-1), pitch.reshape(-1), roll.reshape(-1)).reshape(
+                (*yaw.shape, 3, 3)),
+            yaw=yaw,
+            pitch=pitch,
+            roll=roll,
             joints=stack("joints").astype(np.float64),
             plane_normal=stack("normal").astype(np.float64),
             angles=stack("angles").astype(np.float64),
             foot=stack("foot").astype(np.float64),
-            contact=stack("contact").astype(bool),
-            forced=stack("forced").astype(bool),
-            plan_failed=stack("failed").astype(bool),
+            contact=~((phase == int(Phase.SWING)) | (phase == int(Phase.FORCED))),
+            forced=phase == int(Phase.FORCED),
+            plan_failed=phase == int(Phase.STUCK),
             ground=stack("ground").astype(np.float64),
             footprint=stack("footprint").astype(np.float64),
             preferred=stack("preferred").astype(np.float64),
-            needle=stack("needle").astype(np.float64),
-            phase_step=stack("phase_step").astype(np.float64),
+            needle=needle,
+            phase_step=np.mod(needle - before, 1.0),
             phase_rate=stack("phase_rate").astype(np.float64),
             speed=stack("speed").astype(np.float64),
             auto_band=stack("auto_band").astype(np.int64),

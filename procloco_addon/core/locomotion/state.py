@@ -27,6 +27,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from ..geometry import clip
 from .types import BoolArray, FloatArray, IntArray
 
 
@@ -37,6 +38,10 @@ class Phase(IntEnum):
     SWING = 1
     FORCED = 2
     STUCK = 3
+
+
+# (plain ints: an enum member compared with an array is converted at every comparison)
+_SWING, _FORCED, _STUCK = int(Phase.SWING), int(Phase.FORCED), int(Phase.STUCK)
 
 
 @dataclass
@@ -92,17 +97,17 @@ class FootState:
     @property
     def swinging(self) -> BoolArray:
         """``(N,)`` feet in the air (``SWING`` or ``FORCED``)."""
-        return np.asarray((self.phase == Phase.SWING) | (self.phase == Phase.FORCED))
+        return np.asarray((self.phase == _SWING) | (self.phase == _FORCED))
 
     @property
     def forced(self) -> BoolArray:
         """``(N,)`` feet on a forced step."""
-        return np.asarray(self.phase == Phase.FORCED)
+        return np.asarray(self.phase == _FORCED)
 
     @property
     def plan_failed(self) -> BoolArray:
         """``(N,)`` feet down in their swing sector because their plan failed."""
-        return np.asarray(self.phase == Phase.STUCK)
+        return np.asarray(self.phase == _STUCK)
 
     def flags(self) -> tuple[BoolArray, BoolArray, BoolArray]:
         """The phases unpacked into fresh ``(swinging, forced, failed)`` arrays ``(N,)``."""
@@ -111,17 +116,15 @@ class FootState:
     def set_flags(self, swinging: BoolArray, forced: BoolArray, failed: BoolArray) -> None:
         """Pack ``(swinging, forced, failed)`` back into phases. Raises ``ValueError`` on a
         combination that is no phase (a bug in the step's rules)."""
-        legal = (failed & ~swinging & ~forced) | (~failed & (swinging | ~forced))
-        if not np.all(legal):
-            raise ValueError(f"feet {np.flatnonzero(~legal).tolist()} in no phase")
+        illegal = (failed & (swinging | forced)) | (forced & ~swinging)
+        if illegal.any():
+            raise ValueError(f"feet {illegal.nonzero()[0].tolist()} in no phase")
         self.phase = phases_of(swinging, forced, failed)
 
 
 def phases_of(swinging: BoolArray, forced: BoolArray, failed: BoolArray) -> IntArray:
     """``(N,)`` the ``Phase`` of each foot from its flags (see ``FootState.set_flags``)."""
-    return np.where(
-        failed, Phase.STUCK, np.where(forced, Phase.FORCED, np.where(swinging, Phase.SWING, Phase.PLANTED))
-    ).astype(np.int64)
+    return np.where(failed, _STUCK, np.where(forced, _FORCED, swinging.astype(np.int64)))
 
 
 def start_feet(foot: FloatArray, samples: int) -> FootState:
@@ -165,14 +168,14 @@ def support_points(feet: FootState, swinging: BoolArray) -> FloatArray:
 def swing_parameter(feet: FootState, progress: FloatArray) -> FloatArray:
     """``(N,)`` each foot's parameter along its trajectory at swing ``progress (N,)``."""
     u0 = feet.plan.u0
-    return np.asarray(np.clip((progress - u0) / np.maximum(1.0 - u0, 1e-9), 0.0, 1.0))
+    return clip((progress - u0) / np.maximum(1.0 - u0, 1e-9), 0.0, 1.0)
 
 
 def sample_polyline(samples: FloatArray, u: FloatArray) -> FloatArray:
     """Points at parameters ``u (m,)`` in [0, 1] of polylines ``(m, k + 1, 3)`` sampled at
     uniform parameters (linear interpolation)."""
     k = samples.shape[1] - 1
-    x = np.clip(u, 0.0, 1.0) * k
+    x = clip(u, 0.0, 1.0) * k
     i = np.minimum(np.floor(x).astype(np.int64), k - 1)
     f = (x - i)[:, None]
     rows = np.arange(samples.shape[0])

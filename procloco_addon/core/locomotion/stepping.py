@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry import clip
 from ..world.terrain import Environment
 from .gait import GaitManager, GaitStep
 from .obstacles import Watch, check_supports, spot_taken, watch_reset
@@ -64,7 +65,7 @@ class Schedule:
 def land(env: Environment, watch: Watch, feet: FootState, landing: BoolArray, flags: Flags) -> None:
     """Feet ``landing (N,)`` touch down on their targets (``flags`` = (swinging, forced,
     failed) updated in place)."""
-    legs = np.flatnonzero(landing)
+    legs = landing.nonzero()[0]
     if legs.size == 0:
         return
     feet.foot[legs] = feet.plan.target[legs]
@@ -101,11 +102,11 @@ def schedule(
     # a normal lift ends a forced step
     forced &= ~gstep.lifted
     progress = np.where(
-        forced, np.clip(feet.forced_elapsed / feet.forced_duration, 0.0, 1.0), gstep.swing_progress
+        forced, clip(feet.forced_elapsed / feet.forced_duration, 0.0, 1.0), gstep.swing_progress
     )
     # where the foot is now: the progress of the previous frame (a new trajectory starts there)
     step_progress = np.where(forced, dt / feet.forced_duration, rate_leg * dt / w.gait.disk_duration)
-    start_u = np.clip(progress - step_progress, 0.0, 1.0)
+    start_u = clip(progress - step_progress, 0.0, 1.0)
     remaining = (1.0 - progress) * np.where(forced, feet.forced_duration, gstep.swing_time)
     replan = replan_needed(env, w.watch, w.rig, p, feet, ctl, progress, swinging & (gstep.swing | forced))
     # a foot still down in its swing sector (its plan failed) is planted like any other:
@@ -129,7 +130,7 @@ def schedule(
     forced_time = forced_step_time(w, feet, dt, ctl, gstep, forced_new)
     rushed = replan & feet.blocked & ~forced_new & (remaining < 0.5 * forced_time)
     forced_new |= rushed
-    if np.any(forced_new):
+    if forced_new.any():
         forced |= forced_new
         feet.forced_duration[forced_new] = forced_time[forced_new]
         # a forced step leaves in the frame it starts (its first frame's share of the
@@ -139,7 +140,7 @@ def schedule(
         start_u = np.where(forced_new, 0.0, start_u)
         remaining = np.where(forced_new, feet.forced_duration - dt, remaining)
         stats.n_forced = int((forced_new & ~rushed).sum())
-    feet.swing_u = np.clip(progress, 0.0, 1.0)
+    feet.swing_u = clip(progress, 0.0, 1.0)
     # a foot whose plan failed stays down this cycle (it steps early if it gets left behind)
     stats.n_replans = int((replan & ~lifted).sum())
     return Schedule(progress, start_u, remaining, gstep.stance_time, lifted | forced_new | replan)
@@ -152,7 +153,7 @@ def forced_step_time(
     jump there); a foot left behind for cycles (its plans failed) has more than a stride
     to cover."""
     forced_time = np.maximum(w.params.forced_swing * gstep.swing_time, 2.0 * dt)
-    if np.any(forced_new & feet.forced_behind):
+    if (forced_new & feet.forced_behind).any():
         catch_up = np.maximum(forced_time, catch_up_time(
             w.rig, w.gait.disk_duration, ctl.speed, gstep.swing_time, w.hips(), w.leg_rot(), feet.foot))
         forced_time = np.where(feet.forced_behind, catch_up, forced_time)

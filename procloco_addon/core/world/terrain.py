@@ -488,25 +488,42 @@ def raster_triangles(
     return tri, row, col, z
 
 
+def triangle_table(tris: FloatArray, out: FloatArray | None = None) -> FloatArray:
+    """What :func:`triangle_hits` reads of each triangle ``(f, 3, 3)``: ``(f, 10)`` rows of the
+    first corner's xy, the two edges' xy from it, the determinant of the edges (NaN for a
+    triangle without ground area: no point is inside it), the first corner's z and the two
+    edges' z; written into ``out`` when given."""
+    if out is None:
+        out = np.empty((tris.shape[0], 10))
+    a = tris[:, 0]
+    out[:, 0:2] = a[:, :2]
+    out[:, 2:4] = tris[:, 1, :2] - a[:, :2]
+    out[:, 4:6] = tris[:, 2, :2] - a[:, :2]
+    den = out[:, 2] * out[:, 5] - out[:, 3] * out[:, 4]
+    out[:, 6] = np.where(np.abs(den) > 1e-15, den, np.nan)
+    out[:, 7] = a[:, 2]
+    out[:, 8] = tris[:, 1, 2] - a[:, 2]
+    out[:, 9] = tris[:, 2, 2] - a[:, 2]
+    return out
+
+
 def triangle_hits(
-    tris: FloatArray, xy: FloatArray, point: IntArray, tri: IntArray
+    table: FloatArray, xy: FloatArray, point: IntArray, tri: IntArray
 ) -> tuple[IntArray, IntArray, FloatArray]:
     """Which candidate (point, triangle) pairs hit: points ``xy`` ``(n, 2)`` inside the ground
-    projection of triangles ``tris`` ``(f, 3, 3)``, candidates ``point``/``tri`` ``(m,)``.
-    Returns the pairs that hit and the triangle's height at the point, ``(k,)`` each."""
-    t = tris[tri]
-    a = t[:, 0, :2]
-    e1 = t[:, 1, :2] - a
-    e2 = t[:, 2, :2] - a
-    p = xy[point] - a
-    den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    good = np.abs(den) > 1e-15
-    den = np.where(good, den, 1.0)
-    u = (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / den
-    v = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
+    projection of triangles (their :func:`triangle_table` ``(f, 10)``), candidates
+    ``point``/``tri`` ``(m,)``. Returns the pairs that hit and the triangle's height at the
+    point, ``(k,)`` each."""
+    t = table[tri]
+    q = xy[point]
+    px = q[:, 0] - t[:, 0]
+    py = q[:, 1] - t[:, 1]
+    e1x, e1y, e2x, e2y, den = t[:, 2], t[:, 3], t[:, 4], t[:, 5], t[:, 6]
+    u = (px * e2y - py * e2x) / den
+    v = (e1x * py - e1y * px) / den
     tol = -1e-9
-    inside = good & (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
-    z = t[:, 0, 2] + u * (t[:, 1, 2] - t[:, 0, 2]) + v * (t[:, 2, 2] - t[:, 0, 2])
+    inside = (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
+    z = t[:, 7] + u * t[:, 8] + v * t[:, 9]
     return point[inside], tri[inside], z[inside]
 
 
@@ -523,14 +540,18 @@ class _BucketIndex:
             self.bucket = 1.0
             self.origin = np.zeros(2)
             self.shape = (1, 1)
-            self.offsets = np.zeros(2, dtype=np.intp)
+            self.offsets = np.zeros(3, dtype=np.intp)
             self.items = np.zeros(0, dtype=np.intp)
+            self._dims = np.ones(2)
             return
         ext = hi - lo
         typical = float(np.median(np.max(ext, axis=1))) if n else 1.0
         self.origin = lo.min(axis=0)
         span = hi.max(axis=0) - self.origin
-        bucket = max(2.0 * typical, 1e-3)
+        # Buckets the size of a typical item: each item in about four buckets, a point's
+        # candidates the few items over its bucket (twice that size gave about 18 candidates
+        # per point on a triangulated grid, where the exact test cost more than the lookup).
+        bucket = max(typical, 1e-3)
         # Keep the bucket grid reasonably small for sparse, large worlds.
         while (span[0] / bucket + 1) * (span[1] / bucket + 1) > 4.0e6:
             bucket *= 2.0
@@ -538,19 +559,39 @@ class _BucketIndex:
         nbx = int(span[0] // bucket) + 1
         nby = int(span[1] // bucket) + 1
         self.shape = (nby, nbx)
-        bx0 = ((lo[:, 0] - self.origin[0]) // bucket).astype(np.intp)
-        bx1 = np.minimum(((hi[:, 0] - self.origin[0]) // bucket).astype(np.intp), nbx - 1)
-        by0 = ((lo[:, 1] - self.origin[1]) // bucket).astype(np.intp)
-        by1 = np.minimum(((hi[:, 1] - self.origin[1]) // bucket).astype(np.intp), nby - 1)
+        # (32-bit indices while they fit: a million triangles make about four million entries)
+        idx = np.int32 if n < 2**31 - 1 and nbx * nby + 2 < 2**31 - 1 else np.intp
+        bx0 = ((lo[:, 0] - self.origin[0]) // bucket).astype(idx)
+        bx1 = np.minimum(((hi[:, 0] - self.origin[0]) // bucket).astype(idx), nbx - 1)
+        by0 = ((lo[:, 1] - self.origin[1]) // bucket).astype(idx)
+        by1 = np.minimum(((hi[:, 1] - self.origin[1]) // bucket).astype(idx), nby - 1)
         wx = bx1 - bx0 + 1
         counts = wx * (by1 - by0 + 1)
-        item = np.repeat(np.arange(n, dtype=np.intp), counts)
-        start = np.cumsum(counts) - counts
-        local = np.arange(item.size, dtype=np.intp) - start[item]
-        key = (by0[item] + local // wx[item]) * nbx + bx0[item] + local % wx[item]
-        order = np.argsort(key, kind="stable")
-        self.items = item[order]
-        self.offsets = np.searchsorted(key[order], np.arange(nbx * nby + 1)).astype(np.intp)
+        total = int(counts.sum(dtype=np.int64))
+        if total >= 2**31 - 1:
+            idx = np.intp
+        item = np.repeat(np.arange(n, dtype=idx), counts)
+        start = (np.cumsum(counts, dtype=np.int64) - counts).astype(idx)
+        local = np.arange(total, dtype=idx)
+        local -= start[item]  # each entry's place among its item's buckets
+        width = wx[item]
+        key = local // width
+        key += by0[item]
+        key *= nbx
+        key += bx0[item]
+        local %= width
+        key += local
+        del local, width
+        buckets = nbx * nby
+        if buckets < 2**16 - 1:
+            key = key.astype(np.uint16)  # (a stable sort of 16-bit keys is a radix sort)
+        self.items = item[np.argsort(key, kind="stable")]
+        del item
+        # each bucket's first entry; one more bucket, empty, past the last: points outside
+        # the grid read it
+        self.offsets = np.zeros(buckets + 2, dtype=np.intp)
+        np.cumsum(np.bincount(key, minlength=buckets + 1), out=self.offsets[1:])
+        self._dims = np.array([float(nbx), float(nby)])
 
     def pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
         """(point, item) candidate pairs for points ``(n, 2)``."""
@@ -558,15 +599,15 @@ class _BucketIndex:
             e = np.zeros(0, dtype=np.intp)
             return e, e.copy()
         nby, nbx = self.shape
-        bx = np.floor((xy[:, 0] - self.origin[0]) / self.bucket).astype(np.intp)
-        by = np.floor((xy[:, 1] - self.origin[1]) / self.bucket).astype(np.intp)
-        inside = (bx >= 0) & (bx < nbx) & (by >= 0) & (by < nby)
-        key = np.where(inside, by * nbx + bx, 0)
+        cell = np.floor((xy - self.origin) / self.bucket)  # (n, 2) bucket column and row
+        ok = (cell >= 0.0) & (cell < self._dims)
+        # a point outside the grid reads the empty bucket past the last one
+        key = np.where(ok[:, 0] & ok[:, 1], cell[:, 1] * nbx + cell[:, 0], nbx * nby).astype(np.intp)
         # _ranges_to_pairs of the buckets' item ranges, the offsets read once
         lo = self.offsets[key]
-        count = np.where(inside, self.offsets[key + 1] - lo, 0)
+        count = self.offsets[key + 1] - lo
         point = np.repeat(np.arange(xy.shape[0], dtype=np.intp), count)
-        shift = np.cumsum(count) - count - lo
+        shift = count.cumsum() - count - lo
         pos = np.arange(point.size, dtype=np.intp) - shift[point]
         return point, self.items[pos]
 
@@ -723,6 +764,7 @@ class Environment:
         self._soup_tris: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
         self._soup_role = np.array([soup.role for soup in self._soups], dtype=np.int_)
         self._static_soup_index: tuple[_BucketIndex, FloatArray, IntArray, IntArray] | None = None
+        self._dynamic_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic]
         # Translation of each dynamic soup from its stored vertices (move_soup): the triangles,
         # their index and their raster are kept and only the queries are shifted.
         self._soup_offset: dict[int, FloatArray] = {}
@@ -753,6 +795,12 @@ class Environment:
                      TriangleSoup(self._soups[i].vertices + self._soup_offset[i], self._soups[i].faces,
                                   self._soups[i].role, True)
                      for i in range(len(self._soups)))
+
+    @property
+    def dynamic(self) -> bool:
+        """Whether anything here can move (boxes or soups made dynamic): what a point query
+        answers then depends on when it is asked."""
+        return bool(self._dynamic_boxes.size) or bool(self._dynamic_soups)
 
     def _offset(self, i: int) -> FloatArray:
         off = self._soup_offset.get(i)
@@ -890,32 +938,39 @@ class Environment:
         if off is not None:
             xy = xy - off[:2]
         point, tri = self._soup_index[i].pairs(xy)
-        point, tri, z = triangle_hits(tris, xy, point, tri)
+        # (a moving soup's table only for the candidates: it may be large and change)
+        point, _, z = triangle_hits(triangle_table(tris[tri]), xy, point, np.arange(tri.size))
         if off is not None:
             z = z + off[2]
         return point, z
 
     def _static_soups(self) -> tuple[_BucketIndex, FloatArray, IntArray, IntArray]:
         """Every static soup's triangles in one bucket index, built once (static soups never
-        change): the index, the triangles ``(f, 3, 3)``, the soup of each triangle ``(f,)``
-        and the static soups' ids. One query then answers for all of them (a scene of a ground
-        and ten crates asked eleven indices per point query before)."""
+        change): the index, the triangles' :func:`triangle_table` ``(f, 10)``, the soup of each
+        triangle ``(f,)`` and the static soups' ids. One query then answers for all of them (a
+        scene of a ground and ten crates asked eleven indices per point query before)."""
         if self._static_soup_index is None:
             ids = np.array([i for i, soup in enumerate(self._soups) if not soup.dynamic], dtype=np.intp)
             parts = [self._soup_triangles(int(i)) for i in ids]
-            tris = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 3, 3))
+            sizes = [p[0].shape[0] for p in parts]
             tlo = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 2))
             thi = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 2))
-            owner = np.repeat(ids, [p[0].shape[0] for p in parts]).astype(np.intp)
-            self._static_soup_index = (_BucketIndex(tlo, thi), tris, owner, ids)
+            owner = np.repeat(ids, sizes).astype(np.intp)
+            table = np.empty((sum(sizes), 10))
+            first = 0
+            for p, size in zip(parts, sizes, strict=True):  # (soup by soup: no copy of all triangles)
+                triangle_table(p[0], table[first : first + size])
+                first += size
+            self._static_soup_index = (_BucketIndex(tlo, thi), table, owner, ids)
         return self._static_soup_index
 
     def _static_soup_hits(self, xy: FloatArray) -> tuple[IntArray, FloatArray, IntArray]:
-        """(point, height, soup) of every static soup triangle under points ``(n, 2)``."""
-        index, tris, owner, _ = self._static_soups()
+        """(point, height, triangle) of every static soup triangle under points ``(n, 2)``
+        (the triangle's soup: ``_static_soups()[2]``)."""
+        index, table, _, _ = self._static_soups()
         point, tri = index.pairs(xy)
-        point, tri, z = triangle_hits(tris, xy, point, tri)
-        return point, z, owner[tri]
+        point, tri, z = triangle_hits(table, xy, point, tri)
+        return point, z, tri
 
     def height_at(self, xy: npt.ArrayLike) -> FloatArray:
         """Highest surface (terrain and every obstacle) under each point ``(n, 2)``: ``(n,)``.
@@ -931,10 +986,9 @@ class Environment:
             np.maximum.at(out, point, self._box_top[box])
         pt, z, _ = self._static_soup_hits(p)
         np.maximum.at(out, pt, z)
-        for i, soup in enumerate(self._soups):
-            if soup.dynamic:
-                pt, z = self._soup_hits(i, p)
-                np.maximum.at(out, pt, z)
+        for i in self._dynamic_soups:
+            pt, z = self._soup_hits(i, p)
+            np.maximum.at(out, pt, z)
         return out
 
     def forbidden_at(self, xy: npt.ArrayLike) -> BoolArray:
@@ -944,8 +998,8 @@ class Environment:
         point, box = self._box_pairs(p)
         out[point[self._box_role[box] == ROLE_AVOID]] = True
         if any(soup.role == ROLE_AVOID and not soup.dynamic for soup in self._soups):
-            pt, _, owner = self._static_soup_hits(p)
-            out[pt[self._soup_role[owner] == ROLE_AVOID]] = True
+            pt, _, tri = self._static_soup_hits(p)
+            out[pt[self._soup_role[self._static_soups()[2][tri]] == ROLE_AVOID]] = True
         for i, soup in enumerate(self._soups):
             if soup.role == ROLE_AVOID and soup.dynamic:
                 pt, _ = self._soup_hits(i, p)
