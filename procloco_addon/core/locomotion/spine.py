@@ -535,7 +535,8 @@ class SpineBatch:
     arrays (``joint_segment (J,)``, ``curve_ends``/``curve_end_value``: the joints at their
     key segment's ends, ``leg_pivot``, ``leg_key_joint``, ``leg_bone_row``, ``leg_on_bone
     (L,)``, ``pad_index``), ``membership (L, K)`` (which node each leg hangs from),
-    ``leg_count (K,)``, ``has_legs (K,)``, ``leg_mine (K, L)``.
+    ``leg_count (K,)``, ``has_legs (K,)``, ``node_legs (K, M)``: the legs of each node (``M``
+    the most legs of any node; ``node_leg_valid (K, M)`` marks the ones that are there).
 
     Per character, one row each (``B`` rows: the number of characters, or 1 for a batch made
     by :meth:`of`, which broadcasts over any number): every float array of the models
@@ -571,7 +572,8 @@ class SpineBatch:
     membership: FloatArray = field(init=False)
     leg_count: FloatArray = field(init=False)
     has_legs: BoolArray = field(init=False)
-    leg_mine: BoolArray = field(init=False)
+    node_legs: IntArray = field(init=False)
+    node_leg_valid: BoolArray = field(init=False)
     any_visual_yaw: bool = field(init=False)
     all_visual_yaw: bool = field(init=False)
     any_foot_pitch: bool = field(init=False)
@@ -668,7 +670,15 @@ class SpineBatch:
         set_(self, "membership", member)
         set_(self, "leg_count", np.maximum(count, _EPS))
         set_(self, "has_legs", count > _EPS)
-        set_(self, "leg_mine", leg_key[None, :] == np.arange(n_k)[:, None])
+        most = int(count.max()) if n_l else 0
+        node_legs = np.zeros((n_k, most), dtype=np.intp)
+        node_leg_valid = np.zeros((n_k, most), dtype=bool)
+        for k in range(n_k):
+            mine = np.flatnonzero(leg_key == k)
+            node_legs[k, :mine.size] = mine
+            node_leg_valid[k, :mine.size] = True
+        set_(self, "node_legs", node_legs)
+        set_(self, "node_leg_valid", node_leg_valid)
 
         def rows(values: Sequence[npt.ArrayLike]) -> FloatArray:
             return np.stack([np.asarray(v, dtype=np.float64) for v in values])
@@ -1002,17 +1012,20 @@ def terrain_guides(
         rel = feet[..., :2] - xy[:, node_of_leg]
         # arc length grows from the head to the back: a foot ahead of its node comes before it
         fx = arc[:, node_of_leg] - np.einsum("cli,cli->cl", rel, fwd)  # (C, L)
-        # One column per leg, valid only in its own node's row.
+        # Each node's row gets a column per leg of its own (as many as the node with the most
+        # legs has; the spare ones not valid).
         m = x.shape[2]
-        x_all = np.empty((c, k, m + n_l))
+        own = spines.node_legs  # (K, M)
+        n_own = own.shape[1]
+        x_all = np.empty((c, k, m + n_own))
         x_all[..., :m] = x
-        x_all[..., m:] = fx[:, None, :]
-        z_all = np.empty((c, k, m + n_l))
+        x_all[..., m:] = fx[:, own]
+        z_all = np.empty((c, k, m + n_own))
         z_all[..., :m] = z
-        z_all[..., m:] = feet[:, None, :, 2]
-        valid_all = np.empty((c, k, m + n_l), dtype=bool)
+        z_all[..., m:] = feet[:, own, 2]
+        valid_all = np.empty((c, k, m + n_own), dtype=bool)
         valid_all[..., :m] = valid
-        valid_all[..., m:] = spines.leg_mine
+        valid_all[..., m:] = spines.node_leg_valid
         x, z, valid = x_all, z_all, valid_all
     nothing = ~valid.any(axis=2, keepdims=True)
     if nothing.any():
