@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import fields
 
 import numpy as np
 import pytest
@@ -732,3 +733,22 @@ def test_a_batch_needs_one_structure_and_one_kind_of_spine() -> None:
         SpineBatch.stack([m, m], [SpineParams()])
     # sizes, limits and carriers' rows may differ; the structure is what the indices use
     assert _scaled(m, 2.0, joint_pitch_limit=0.1).structure == m.structure
+
+
+def test_taking_rows_of_a_batch_takes_every_per_character_array() -> None:
+    """``SpineBatch.take`` (the characters still stretched in the reach repeats) selects
+    every array with a row per character, and only those."""
+    m = quadruped()
+    models = [_scaled(m, 1.0 + 0.1 * i) for i in range(5)]  # 5 rows: no other axis is 5 long
+    batch = SpineBatch.stack(models, [SpineParams(turn_rate=1.0 + i) for i in range(5)])
+    rows = np.array([1, 3])
+    sub = batch.take(rows)
+    for f in fields(SpineBatch):
+        value = getattr(batch, f.name)
+        if isinstance(value, np.ndarray) and value.shape[:1] == (5,):
+            np.testing.assert_array_equal(getattr(sub, f.name), value[rows], err_msg=f.name)
+        elif isinstance(value, np.ndarray):
+            assert getattr(sub, f.name) is value, f.name
+    assert sub.models == (models[1], models[3])
+    one = SpineBatch.of(m)
+    assert one.take(rows) is one  # one row broadcasts over any characters
