@@ -414,9 +414,10 @@ def test_spine_pose_is_written_where_the_core_puts_it(empty_scene: Any) -> None:
     guides[:, 0, 2] += 0.1 * t
     yaw = heading[:, None] + np.array([0.5, 0.25, 0.0])[None] * t[:, None]
     pitch = np.array([0.1, 0.05, -0.05])[None] * t[:, None]
-    pose = core_spine.build_spine(model, guides, yaw, pitch)
-    hips = core_spine.hip_positions(model, pose)
-    frames_leg = core_spine.leg_frames(model, pose)
+    spines = core_spine.SpineBatch.of(model)
+    pose = core_spine.build_spine(spines, guides, yaw, pitch)
+    hips = core_spine.hip_positions(spines, pose)
+    frames_leg = core_spine.leg_frames(spines, pose)
     to_body = np.linalg.inv(info.body.matrix)
     joints = []
     for k, rest_j in enumerate(info.joints):

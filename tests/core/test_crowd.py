@@ -17,6 +17,7 @@ from procloco_addon.core.locomotion.gait import find_gait_preset
 from procloco_addon.core.locomotion.morphology import Morphology
 from procloco_addon.core.locomotion.scaling import scaled_params
 from procloco_addon.core.locomotion.sim import Controls, SimResult, Simulation, check_motion, crowd_intrusion
+from procloco_addon.core.locomotion.spine import SpineParams
 from procloco_addon.core.locomotion.types import ControllerParams
 from procloco_addon.core.world.terrain import ROLE_AVOID, Boxes, Environment, Heightmap
 
@@ -86,6 +87,47 @@ def test_each_character_walks_with_its_own_scaled_settings_as_it_would_alone() -
                                        atol=1e-9, err_msg=name)
         report = check_motion(both, _ground(), chars=[i])
         assert report.passed, report.failures()
+
+
+def _wolves(sizes: list[float], spine: list[SpineParams], start_y: list[float],
+            n: int = 60) -> tuple[SimResult, int]:
+    """Wolves of ``sizes`` (with their scaled settings and their own spine settings) walking
+    on the bumpy ground, turning left after a second; the result and how many spine groups
+    the simulation stepped them in."""
+    wolves = [_creature(morph.quadruped(s, spine=True), "quadruped_walk") for s in sizes]
+
+    def controls(t: float) -> Controls:
+        return Controls(speed=[w[2] for w in wolves], heading=0.6 if t > 1.0 else 0.0,
+                        step_height=[w[3] for w in wolves], pelvis_physics=True)
+
+    sim = Simulation(_ground(), [w[0] for w in wolves], [w[1] for w in wolves],  # type: ignore[misc]
+                     start_xy=[[0.0, y] for y in start_y], start_yaw=0.0, controls=controls,
+                     params=[w[4] for w in wolves], spine=spine, dt=1.0 / 24.0)
+    return sim.run(n, on_step=_slide), len(sim.controller.spine_groups)
+
+
+def test_wolves_of_other_sizes_and_spine_settings_share_one_spine_group_and_walk_as_alone() -> None:
+    """Copies of a rig in a herd differ in size and settings: their spines are stepped as one
+    group (one set of array operations for all), each with its own rest pose and settings,
+    and each walks exactly as it does alone."""
+    sizes, start_y = [1.2, 1.45, 1.0], [2.0, -2.0, 0.0]
+    spine = [SpineParams(), SpineParams(turn_rate=np.radians(80), relax_time=0.3, foot_pitch_weight=0.8),
+             SpineParams(visual_yaw=True, max_visual_yaw=np.radians(20))]
+    herd, groups = _wolves(sizes, spine, start_y)
+    assert groups == 1
+    legs = herd.legs.leg_char
+    for i in range(3):
+        one, alone_groups = _wolves([sizes[i]], [spine[i]], [start_y[i]])
+        assert alone_groups == 1
+        sel = legs == i
+        # the same decisions, the same motion (two batchings: floats not bit for bit)
+        np.testing.assert_array_equal(herd.contact[:, sel], one.contact)
+        for name in ("joints", "foot", "footprint"):
+            np.testing.assert_allclose(getattr(herd, name)[:, sel], getattr(one, name), rtol=0.0, atol=1e-9,
+                                       err_msg=name)
+        for name in ("pelvis_position", "pelvis_rotation", "spine_joints", "spine_rotation"):
+            np.testing.assert_allclose(getattr(herd, name)[:, i], getattr(one, name)[:, 0], rtol=0.0,
+                                       atol=1e-9, err_msg=name)
 
 
 def test_settings_other_than_the_scaled_ones_must_agree() -> None:

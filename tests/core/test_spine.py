@@ -4,11 +4,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import fields
 
 import numpy as np
 import pytest
 
 from procloco_addon.core.locomotion.spine import (
+    SpineBatch,
     SpineModel,
     SpineParams,
     SpinePlan,
@@ -85,11 +87,11 @@ def bone_yaw_pitch(joints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def run_turn(model: SpineModel, params: SpineParams, heading: float, speed: float, steps: int,
              height_at: Callable[[np.ndarray], np.ndarray] = flat,
              ) -> tuple[list[SpinePlan], list[np.ndarray], list[object]]:
+    sb = SpineBatch.of(model, params)
     state = SpineState.at_rest(model, np.zeros((1, 2)), 0.0)
     plans, joints, poses = [], [], []
     for _ in range(steps):
-        state, plan, pose = spine_step(model, state, params, heading, speed * DT, DT,
-                                       ground_guides(model, height_at))
+        state, plan, pose = spine_step(sb, state, heading, speed * DT, DT, ground_guides(sb, height_at))
         plans.append(plan)
         joints.append(pose.joints[0])
         poses.append(pose)
@@ -128,9 +130,10 @@ def test_bad_spines_are_refused() -> None:
 def test_walking_straight_keeps_the_rest_pose_exactly(arched: bool) -> None:
     m = quadruped(arched=arched)
     heading = 0.7
+    sb = SpineBatch.of(m)
     state = SpineState.at_rest(m, np.array([[1.0, 2.0]]), heading)
     for i in range(20):
-        state, plan, pose = spine_step(m, state, SpineParams(), heading, 0.05, DT, ground_guides(m, flat))
+        state, plan, pose = spine_step(sb, state, heading, 0.05, DT, ground_guides(sb, flat))
         moved = np.array([1.0, 2.0]) + 0.05 * (i + 1) * np.array([np.cos(heading), np.sin(heading)])
         expected = rest_world(m, moved, heading, lift=0.5)
         assert np.abs(pose.joints[0] - expected).max() < 1e-9
@@ -234,7 +237,7 @@ def test_turning_in_place_saturates_from_the_head_then_rotates_about_the_node_be
     lim = m.node_yaw_limit
     bends, node1 = [], []
     for _ in range(80):
-        plan = plan_spine(m, state, params, side * (np.pi - 1e-6), 0.0, DT)
+        plan = plan_spine(SpineBatch.of(m, params), state, side * (np.pi - 1e-6), 0.0, DT)
         state = SpineState(plan.key_xy)
         bends.append(np.abs(plan.bend[0]))
         node1.append(plan.key_xy[0, 1].copy())
@@ -259,13 +262,13 @@ def test_back_node_relaxes_over_time() -> None:
     params = SpineParams(turn_rate=np.radians(240), relax_time=0.5)
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
     for _ in range(8):  # bend the spine by turning in place
-        state = SpineState(plan_spine(m, state, params, np.pi / 2, 0.0, DT).key_xy)
+        state = SpineState(plan_spine(SpineBatch.of(m, params), state, np.pi / 2, 0.0, DT).key_xy)
     heading = np.arctan2(*(state.key_xy[0, 0] - state.key_xy[0, 1])[::-1])
-    bend0 = abs(plan_spine(m, state, params, heading, 0.0, 0.0).bend[0, 1])
+    bend0 = abs(plan_spine(SpineBatch.of(m, params), state, heading, 0.0, 0.0).bend[0, 1])
     assert bend0 > np.radians(20)
     # Standing still, facing where the head faces: the back straightens as exp(-t / relax).
     for _ in range(15):
-        plan = plan_spine(m, state, params, heading, 0.0, DT)
+        plan = plan_spine(SpineBatch.of(m, params), state, heading, 0.0, DT)
         state = SpineState(plan.key_xy)
     assert abs(plan.bend[0, 1]) == pytest.approx(bend0 * np.exp(-15 * DT / 0.5), rel=1e-6)
 
@@ -277,7 +280,7 @@ def test_nodes_follow_the_path_of_the_head() -> None:
     params = SpineParams(turn_rate=np.radians(45))
     head_path = [state.key_xy[0, 0].copy()]
     for _ in range(120):
-        plan = plan_spine(m, state, params, np.pi / 2, 0.02, DT)
+        plan = plan_spine(SpineBatch.of(m, params), state, np.pi / 2, 0.02, DT)
         state = SpineState(plan.key_xy)
         head_path.append(plan.key_xy[0, 0].copy())
     path = np.array(head_path)
@@ -293,7 +296,7 @@ def test_nodes_follow_the_path_of_the_head() -> None:
 
 def test_characters_are_independent_in_a_batch() -> None:
     m = quadruped()
-    params = SpineParams()
+    sb = SpineBatch.of(m)
     origins = np.array([[0.0, 0.0], [3.0, 1.0], [-2.0, 4.0]])
     headings = np.array([0.0, 1.0, -2.0])
     targets = np.array([1.5, -0.5, 2.9])
@@ -301,10 +304,10 @@ def test_characters_are_independent_in_a_batch() -> None:
     batch = SpineState.at_rest(m, origins, headings)
     singles = [SpineState.at_rest(m, origins[i:i + 1], headings[i]) for i in range(3)]
     for _ in range(25):
-        batch, _, pose = spine_step(m, batch, params, targets, speeds * DT, DT, ground_guides(m, flat))
+        batch, _, pose = spine_step(sb, batch, targets, speeds * DT, DT, ground_guides(sb, flat))
         for i in range(3):
-            singles[i], _, single_pose = spine_step(m, singles[i], params, targets[i], speeds[i] * DT, DT,
-                                                    ground_guides(m, flat))
+            singles[i], _, single_pose = spine_step(sb, singles[i], targets[i], speeds[i] * DT, DT,
+                                                    ground_guides(sb, flat))
             assert np.allclose(pose.joints[i], single_pose.joints[0], atol=1e-12)
 
 
@@ -326,12 +329,12 @@ def stairs(rise: float = 0.1, run: float = 0.3, start: float = 1.0, n: int = 12)
 def test_spine_stays_above_stairs_and_pitches_with_them() -> None:
     m = quadruped()
     env = stairs()
-    params = SpineParams()
+    sb = SpineBatch.of(m)
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
     pitches = []
     whole_body_pitch = []
     for _ in range(150):  # 3 m at 0.6 m/s: over the first step and well up the stairs
-        state, _, pose = spine_step(m, state, params, 0.0, 0.02, DT, ground_guides(m, env.height_at))
+        state, _, pose = spine_step(sb, state, 0.0, 0.02, DT, ground_guides(sb, env.height_at))
         j = pose.joints[0]
         clearance = j[:, 2] - env.height_at(j[:, :2])
         assert clearance.min() > 0.25  # the body never touches the steps
@@ -353,8 +356,8 @@ def test_node_over_a_hole_keeps_the_ground_under_the_body() -> None:
                       np.zeros(2), np.full(2, ROLE_GROUND), np.zeros(2, dtype=bool))
     env = Environment(boxes=platforms)
     assert env.height_at(np.array([[0.3, 0.0]]))[0] == NO_SURFACE
-    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
-    node_z, pitch = terrain_guides(m, plan, env.height_at)
+    plan = plan_spine(SpineBatch.of(m), SpineState.at_rest(m, np.zeros((1, 2)), 0.0), 0.0, 0.0, DT)
+    node_z, pitch = terrain_guides(SpineBatch.of(m), plan, env.height_at)
     # The shoulders' whole stretch is over the trench: they keep the height the rest of the
     # body stands at instead of falling in.
     assert node_z[0] == pytest.approx(0.2 + m.key_rest_height)
@@ -363,10 +366,10 @@ def test_node_over_a_hole_keeps_the_ground_under_the_body() -> None:
 
 def test_feet_on_a_crate_raise_their_node() -> None:
     m = quadruped()
-    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    plan = plan_spine(SpineBatch.of(m), SpineState.at_rest(m, np.zeros((1, 2)), 0.0), 0.0, 0.0, DT)
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
     feet[0, 2:, 2] = 0.3  # both hind feet up on something the slice did not see
-    node_z, _ = terrain_guides(m, plan, lambda xy: np.zeros(len(xy)), feet)
+    node_z, _ = terrain_guides(SpineBatch.of(m), plan, lambda xy: np.zeros(len(xy)), feet)
     assert node_z[0, 2] == pytest.approx(0.3 + m.key_rest_height[2])
     assert node_z[0, 1] == pytest.approx(m.key_rest_height[1])
 
@@ -383,11 +386,11 @@ def test_ramp_gives_exact_pitch_and_constant_height_above_ground() -> None:
         return terrain.height_at(np.reshape(xy, (-1, 2))).reshape(np.shape(xy)[:-1])
 
     state = SpineState.at_rest(m, np.array([[2.0, 0.0]]), 0.0)
-    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
-    node_z, env = terrain_guides(m, plan, ramp)
+    plan = plan_spine(SpineBatch.of(m), state, 0.0, 0.0, DT)
+    node_z, env = terrain_guides(SpineBatch.of(m), plan, ramp)
     assert env[0] == pytest.approx(np.full(3, slope), abs=1e-9)
     assert node_z[0] == pytest.approx(ramp(plan.key_xy[0]) + m.key_rest_height, abs=1e-9)
-    pose = finish_spine(m, plan, SpineParams(), node_z, env)
+    pose = finish_spine(SpineBatch.of(m), plan, node_z, env)
     _, pitch = bone_yaw_pitch(pose.joints[0])
     _, rest_pitch = bone_yaw_pitch(m.joint_rest)
     # Bones point backward: a nose-up slope tilts each of them down by the slope. (Near the
@@ -396,45 +399,45 @@ def test_ramp_gives_exact_pitch_and_constant_height_above_ground() -> None:
     assert pitch[:2] - rest_pitch[:2] == pytest.approx(np.full(2, -slope), abs=np.radians(3.0))
     # Facing downhill, the pitch is negative.
     back = SpineState.at_rest(m, np.array([[2.0, 0.0]]), np.pi)
-    _, env_down = terrain_guides(m, plan_spine(m, back, SpineParams(), np.pi, 0.0, DT), ramp)
+    _, env_down = terrain_guides(SpineBatch.of(m), plan_spine(SpineBatch.of(m), back, np.pi, 0.0, DT), ramp)
     assert env_down[0] == pytest.approx(np.full(3, -slope), abs=1e-9)
 
 
 def test_feet_induce_pitch_averaged_with_the_environment() -> None:
     m = quadruped()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
-    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    plan = plan_spine(SpineBatch.of(m), state, 0.0, 0.0, DT)
     node_z = m.key_rest_height[None, :].copy()
     env = np.array([[0.05, 0.05, 0.05]])
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None]  # rest feet in the world
-    params = SpineParams(foot_pitch_weight=0.5)
+    sb = SpineBatch.of(m, SpineParams(foot_pitch_weight=0.5))
     # Feet where they stand at rest on this ground (flat here): they induce the ground's
     # own pitch, so the node keeps the environment pitch.
-    assert node_pitch(m, plan, node_z, env, feet, params) == pytest.approx(env)
+    assert node_pitch(sb, plan, node_z, env, feet) == pytest.approx(env)
     # Both front feet 0.2 m ahead: each induces atan(0.2 / 0.5) more; averaged half/half.
     ahead = feet.copy()
     ahead[0, :2, 0] += 0.2
-    pitch = node_pitch(m, plan, node_z, env, ahead, params)
+    pitch = node_pitch(sb, plan, node_z, env, ahead)
     assert pitch[0, 1] == pytest.approx(0.05 + 0.5 * np.arctan2(0.2, 0.5))
     assert pitch[0, 0] == pytest.approx(0.05)  # the head has no feet
     assert pitch[0, 2] == pytest.approx(0.05)  # hind feet at rest
     # A foot lower than the ground it should stand on lifts the nose less.
     low = feet.copy()
     low[0, 2:, 2] -= 0.1
-    assert node_pitch(m, plan, node_z, env, low, params)[0, 2] == pytest.approx(0.05)  # right below
+    assert node_pitch(sb, plan, node_z, env, low)[0, 2] == pytest.approx(0.05)  # right below
 
 
 def test_splayed_feet_standing_on_a_slope_induce_the_slope() -> None:
     m = hexapod_like()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
-    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    plan = plan_spine(SpineBatch.of(m), state, 0.0, 0.0, DT)
     slope = np.radians(12)
     node_ground = np.tan(slope) * plan.key_xy[0, :, 0]
     node_z = (node_ground + m.key_rest_height)[None]
     feet = m.foot_rest.copy()
     feet[:, 2] = np.tan(slope) * feet[:, 0]  # the feet stand on the slope under the body
     env = np.full((1, 4), slope)
-    pitch = node_pitch(m, plan, node_z, env, feet[None], SpineParams(foot_pitch_weight=1.0))
+    pitch = node_pitch(SpineBatch.of(m, SpineParams(foot_pitch_weight=1.0)), plan, node_z, env, feet[None])
     assert pitch[0] == pytest.approx(env[0], abs=1e-9)
 
 
@@ -444,23 +447,23 @@ def test_splayed_feet_standing_on_a_slope_induce_the_slope() -> None:
 def test_visual_yaw_turns_the_girdle_toward_the_feet_offsets() -> None:
     m = lizard()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
-    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
+    plan = plan_spine(SpineBatch.of(m), state, 0.0, 0.0, DT)
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.05]))[None].copy()
     params = SpineParams(visual_yaw=True)
-    assert visual_yaw(m, plan, feet, params) == pytest.approx(np.zeros((1, 3)))
+    assert visual_yaw(SpineBatch.of(m, params), plan, feet) == pytest.approx(np.zeros((1, 3)))
     # Left front foot forward, right front foot back: both feet swing clockwise about the
     # shoulders, so the shoulders turn right (negative yaw) by the feet's mean angle.
     feet[0, 0, 0] += 0.04
     feet[0, 1, 0] -= 0.04
-    yaw = visual_yaw(m, plan, feet, params)
+    yaw = visual_yaw(SpineBatch.of(m, params), plan, feet)
     one_foot = np.arctan2(0.04, 0.11)
     assert yaw[0, 1] == pytest.approx(-one_foot)
     assert yaw[0, 0] == 0.0
     assert yaw[0, 2] == pytest.approx(0.0)
 
     node_z = m.key_rest_height[None, :] + 0.0
-    on = finish_spine(m, plan, params, node_z, np.zeros((1, 3)), feet)
-    off = finish_spine(m, plan, SpineParams(visual_yaw=False), node_z, np.zeros((1, 3)), feet)
+    on = finish_spine(SpineBatch.of(m, params), plan, node_z, np.zeros((1, 3)), feet)
+    off = finish_spine(SpineBatch.of(m, SpineParams(visual_yaw=False)), plan, node_z, np.zeros((1, 3)), feet)
     frames_on = on.key_frames(m)[0]
     frames_off = off.key_frames(m)[0]
     shoulder_yaw_on = np.arctan2(frames_on[1, 1, 0], frames_on[1, 0, 0])
@@ -475,11 +478,12 @@ def test_visual_yaw_turns_the_girdle_toward_the_feet_offsets() -> None:
 
 def test_visual_yaw_is_clamped() -> None:
     m = lizard()
-    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    plan = plan_spine(SpineBatch.of(m), SpineState.at_rest(m, np.zeros((1, 2)), 0.0), 0.0, 0.0, DT)
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.05]))[None].copy()
     feet[0, 0, 0] += 0.5
     feet[0, 1, 0] -= 0.5
-    yaw = visual_yaw(m, plan, feet, SpineParams(visual_yaw=True, max_visual_yaw=np.radians(20)))
+    clamped = SpineBatch.of(m, SpineParams(visual_yaw=True, max_visual_yaw=np.radians(20)))
+    yaw = visual_yaw(clamped, plan, feet)
     assert yaw[0, 1] == pytest.approx(-np.radians(20))
 
 
@@ -488,13 +492,13 @@ def test_visual_yaw_is_clamped() -> None:
 
 def test_hips_ride_with_their_girdle() -> None:
     m = quadruped()
-    pose = build_spine(m, np.array([[[0.6, 0.0, 0.6], [0.3, 0.0, 0.5], [-0.3, 0.0, 0.5]]]),
+    pose = build_spine(SpineBatch.of(m), np.array([[[0.6, 0.0, 0.6], [0.3, 0.0, 0.5], [-0.3, 0.0, 0.5]]]),
                        np.zeros((1, 3)), np.zeros((1, 3)))
-    assert hip_positions(m, pose)[0] == pytest.approx(m.hip_rest + np.array([0.0, 0.0, 0.5]))
+    assert hip_positions(SpineBatch.of(m), pose)[0] == pytest.approx(m.hip_rest + np.array([0.0, 0.0, 0.5]))
     # Turned by 90 degrees about z: the hips turn with it.
-    turned = build_spine(m, np.array([[[0.0, 0.6, 0.6], [0.0, 0.3, 0.5], [0.0, -0.3, 0.5]]]),
+    turned = build_spine(SpineBatch.of(m), np.array([[[0.0, 0.6, 0.6], [0.0, 0.3, 0.5], [0.0, -0.3, 0.5]]]),
                          np.full((1, 3), np.pi / 2), np.zeros((1, 3)))
-    hips = hip_positions(m, turned)[0]
+    hips = hip_positions(SpineBatch.of(m), turned)[0]
     expected = np.stack([-m.hip_rest[:, 1], m.hip_rest[:, 0], m.hip_rest[:, 2] + 0.5], axis=1)
     assert hips == pytest.approx(expected)
 
@@ -502,15 +506,15 @@ def test_hips_ride_with_their_girdle() -> None:
 def test_step_four_is_repeated_until_the_legs_reach() -> None:
     m = quadruped()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
-    plan = plan_spine(m, state, SpineParams(), 0.0, 0.0, DT)
-    pose = finish_spine(m, plan, SpineParams(), m.key_rest_height[None, :], np.zeros((1, 3)))
+    plan = plan_spine(SpineBatch.of(m), state, 0.0, 0.0, DT)
+    pose = finish_spine(SpineBatch.of(m), plan, m.key_rest_height[None, :], np.zeros((1, 3)))
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
     feet[0, :2, 2] -= 0.15  # the front feet stand in a hole: 0.65 m below the shoulders
     reach = np.full(4, 0.55)
-    before = np.linalg.norm(feet[0] - hip_positions(m, pose)[0], axis=1)
+    before = np.linalg.norm(feet[0] - hip_positions(SpineBatch.of(m), pose)[0], axis=1)
     assert before[:2].min() > 0.55
-    fixed = repeat_for_reach(m, pose, feet, reach, iterations=6)
-    after = np.linalg.norm(feet[0] - hip_positions(m, fixed)[0], axis=1)
+    fixed = repeat_for_reach(SpineBatch.of(m), pose, feet, reach, iterations=6)
+    after = np.linalg.norm(feet[0] - hip_positions(SpineBatch.of(m), fixed)[0], axis=1)
     assert after.max() <= 0.55 + 1e-3
     assert fixed.guide_xyz[0, 1, 2] < pose.guide_xyz[0, 1, 2] - 0.05  # the shoulders dropped
     lengths = np.linalg.norm(np.diff(fixed.joints[0], axis=0), axis=1)
@@ -520,7 +524,7 @@ def test_step_four_is_repeated_until_the_legs_reach() -> None:
 def test_negative_distance_means_standing_still() -> None:
     m = quadruped()
     state = SpineState.at_rest(m, np.zeros((1, 2)), 0.0)
-    plan = plan_spine(m, state, SpineParams(), 0.0, -1.0, DT)  # negative distance is clamped
+    plan = plan_spine(SpineBatch.of(m), state, 0.0, -1.0, DT)  # negative distance is clamped
     assert plan.key_xy == pytest.approx(state.key_xy)
     assert plan.distance[0] == 0.0
 
@@ -537,9 +541,9 @@ def test_hips_ride_with_their_carrier_bone_like_a_child_bone() -> None:
                          leg_bone=[2, 2, 5, 5])
     assert m.leg_pivot.tolist() == [3, 3, 6, 6]
     # a bent spine: the head guide swung to the left and lowered
-    pose = build_spine(m, np.array([[[0.55, 0.25, 0.5], [0.3, 0.0, 0.5], [-0.3, 0.0, 0.5]]]),
+    pose = build_spine(SpineBatch.of(m), np.array([[[0.55, 0.25, 0.5], [0.3, 0.0, 0.5], [-0.3, 0.0, 0.5]]]),
                        np.array([[0.8, 0.4, 0.0]]), np.array([[0.1, 0.05, 0.0]]))
-    hips = hip_positions(m, pose)[0]
+    hips = hip_positions(SpineBatch.of(m), pose)[0]
     for leg, bone in enumerate([2, 2, 5, 5]):
         rot = pose.bone_rotation[0, bone]
         back = m.leg_pivot[leg]
@@ -549,11 +553,11 @@ def test_hips_ride_with_their_carrier_bone_like_a_child_bone() -> None:
         for joint in (bone, bone + 1):
             assert np.linalg.norm(hips[leg] - pose.joints[0, joint]) == pytest.approx(
                 np.linalg.norm(m.hip_rest[leg] - m.joint_rest[joint]))
-    frames = leg_frames(m, pose)[0]
+    frames = leg_frames(SpineBatch.of(m), pose)[0]
     assert frames[0] == pytest.approx(pose.bone_rotation[0, 2])
     assert frames[3] == pytest.approx(pose.bone_rotation[0, 5])
     # the default (no carrier) keeps the key node frames
-    assert leg_frames(base, pose)[0, 0] == pytest.approx(pose.key_frames(base)[0, 1])
+    assert leg_frames(SpineBatch.of(base), pose)[0, 0] == pytest.approx(pose.key_frames(base)[0, 1])
     with pytest.raises(ValueError, match="leg_bone"):
         SpineModel.build(base.joint_rest, base.key_joint, base.leg_key, base.hip_rest, base.foot_rest,
                          leg_bone=[2, 2, 6, 6])
@@ -563,32 +567,32 @@ def test_feet_ahead_of_their_node_on_a_step_lift_its_nose() -> None:
     """A foot standing ahead of its node on something higher tilts that node's hull up at
     the front (the slice runs from the head to the back: ahead is before the node)."""
     m = quadruped()
-    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
+    plan = plan_spine(SpineBatch.of(m), SpineState.at_rest(m, np.zeros((1, 2)), 0.0), 0.0, 0.0, DT)
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
     feet[0, :2, :2] += [0.15, 0.0]  # front feet 0.15 m ahead of the shoulders...
     feet[0, :2, 2] = 0.1  # ... up on a step
-    _, pitch = terrain_guides(m, plan, flat, feet)
+    _, pitch = terrain_guides(SpineBatch.of(m), plan, flat, feet)
     assert pitch[0, 1] > np.radians(10)  # nose up
     feet[0, :2, :2] -= [0.3, 0.0]  # the same step behind the shoulders: nose down
-    _, pitch = terrain_guides(m, plan, flat, feet)
+    _, pitch = terrain_guides(SpineBatch.of(m), plan, flat, feet)
     assert pitch[0, 1] < -np.radians(10)
 
 
 def test_reach_repeat_moves_a_node_by_its_one_stretched_leg_and_is_bounded() -> None:
     m = quadruped()
-    plan = plan_spine(m, SpineState.at_rest(m, np.zeros((1, 2)), 0.0), SpineParams(), 0.0, 0.0, DT)
-    pose = finish_spine(m, plan, SpineParams(), m.key_rest_height[None, :], np.zeros((1, 3)))
+    plan = plan_spine(SpineBatch.of(m), SpineState.at_rest(m, np.zeros((1, 2)), 0.0), 0.0, 0.0, DT)
+    pose = finish_spine(SpineBatch.of(m), plan, m.key_rest_height[None, :], np.zeros((1, 3)))
     feet = (m.foot_rest + np.array([0.0, 0.0, 0.5]))[None].copy()
     feet[0, 2, 0] -= 0.2  # one hind foot left 0.2 m behind: 0.54 m from its hip
     reach = np.full(4, 0.52)
-    fixed = repeat_for_reach(m, pose, feet, reach, iterations=4)
-    after = np.linalg.norm(feet[0] - hip_positions(m, fixed)[0], axis=1)
+    fixed = repeat_for_reach(SpineBatch.of(m), pose, feet, reach, iterations=4)
+    after = np.linalg.norm(feet[0] - hip_positions(SpineBatch.of(m), fixed)[0], axis=1)
     assert after.max() <= 0.52 + 1e-9
     # bounded: the hips may not move more than max_shift, so the leg stays stretched
-    held = repeat_for_reach(m, pose, feet, reach, iterations=4, max_shift=0.005)
+    held = repeat_for_reach(SpineBatch.of(m), pose, feet, reach, iterations=4, max_shift=0.005)
     moved = np.linalg.norm(held.guide_xyz - pose.guide_xyz, axis=-1)
     assert moved.max() <= 0.005 + 1e-12
-    assert np.linalg.norm(feet[0, 2] - hip_positions(m, held)[0, 2]) > 0.52
+    assert np.linalg.norm(feet[0, 2] - hip_positions(SpineBatch.of(m), held)[0, 2]) > 0.52
 
 
 def _limit_joints_walk(
@@ -642,3 +646,109 @@ def test_frames_and_bone_rotations_are_the_turns_they_name() -> None:
                       np.sin(model.rest_chord_pitch)], axis=-1)
     assert_close(np.einsum("bij,bj->bi", model.rest_unturn, chord),
                  np.broadcast_to([1.0, 0.0, 0.0], chord.shape), "unturn")
+
+
+# ------------------------------------------------------------------ batches of spines
+
+
+def _scaled(model: SpineModel, scale: float, **kwargs: object) -> SpineModel:
+    """``model`` ``scale`` times larger (same structure), with other limits if given."""
+    return SpineModel.build(model.joint_rest * scale, model.key_joint, model.leg_key, model.hip_rest * scale,
+                            model.foot_rest * scale, leg_bone=model.leg_bone, **kwargs)  # type: ignore[arg-type]
+
+
+def _wavy(xy: np.ndarray) -> np.ndarray:
+    return 0.05 * np.sin(1.7 * xy[..., 0]) * np.cos(1.1 * xy[..., 1])
+
+
+def test_a_batch_of_different_spines_steps_each_as_it_would_alone() -> None:
+    """Spines of one structure but other sizes, limits and settings stepped as one batch (a
+    herd of wolves in one simulation) give each character what it gets alone, step by step:
+    steps 1-2 while turning, the terrain guides and the feet's pitch, the visual yaw of the
+    characters that have it, step 4 and its reach repeats with some characters stretched
+    and others not (floats to the cross-path tolerance: the batch is another array shape)."""
+    base = quadruped(arched=True)
+    models = [base, _scaled(base, 1.3, joint_yaw_limit=np.radians(12.0)),
+              _scaled(base, 0.8, node_yaw_limit=0.3)]
+    params = [SpineParams(), SpineParams(turn_rate=np.radians(200), relax_time=0.3, foot_pitch_weight=0.8),
+              SpineParams(visual_yaw=True, visual_yaw_gain=0.7, turn_rate=np.radians(60))]
+    batch = SpineBatch.stack(models, params)
+    alone = [SpineBatch.of(m, p) for m, p in zip(models, params, strict=True)]
+    assert batch.n_rows == 3
+    origins = np.array([[0.0, 0.0], [2.0, 1.0], [-1.5, 2.5]])
+    headings = np.array([0.0, 1.0, -2.0])
+    targets = np.array([1.6, -0.8, 2.9])
+    speeds = np.array([0.6, 1.0, 0.4])
+    size = np.array([1.0, 1.3, 0.8])
+    reach = np.array([0.56, 10.0, 0.56]) * size  # the first and last get stretched, the middle one never
+    state = SpineState.at_rest(batch, origins, headings)
+    states = [SpineState.at_rest(a, origins[i:i + 1], headings[i]) for i, a in enumerate(alone)]
+    pulls = np.zeros(3, dtype=int)  # steps in which the repeats moved each character's guides
+    for step in range(40):
+        plan = plan_spine(batch, state, targets, speeds * DT, DT)
+        state = SpineState(plan.key_xy)
+        free = finish_spine(batch, plan, *terrain_guides(batch, plan, _wavy))
+        # feet under the hips, swinging fore and aft: pitch, visual yaw and reach all act
+        feet = hip_positions(batch, free)
+        feet[..., 2] -= 0.55 * size[:, None]
+        feet[..., 0] += 0.12 * size[:, None] * np.sin(0.4 * step + np.arange(4))
+        z, env_pitch = terrain_guides(batch, plan, _wavy, feet)
+        pitch = node_pitch(batch, plan, z, env_pitch, feet)
+        pose = finish_spine(batch, plan, z, env_pitch, feet)
+        pulled = repeat_for_reach(batch, pose, feet, reach[:, None] * np.ones(4), iterations=4,
+                                  max_shift=np.array([0.05, 0.08, 0.04]))
+        moved = np.abs(pulled.guide_xyz - pose.guide_xyz).max(axis=(1, 2)) > 0.0
+        pulls += moved
+        for i, a in enumerate(alone):
+            plan_i = plan_spine(a, states[i], targets[i], speeds[i] * DT, DT)
+            states[i] = SpineState(plan_i.key_xy)
+            assert_close(plan.key_xy[i], plan_i.key_xy[0], "key_xy")
+            assert_close(plan.key_heading[i], plan_i.key_heading[0], "key_heading")
+            z_i, env_i = terrain_guides(a, plan_i, _wavy, feet[i:i + 1])
+            assert_close(z[i], z_i[0], "height")
+            assert_close(env_pitch[i], env_i[0], "env pitch")
+            assert_close(pitch[i], node_pitch(a, plan_i, z_i, env_i, feet[i:i + 1])[0], "pitch")
+            pose_i = finish_spine(a, plan_i, z_i, env_i, feet[i:i + 1])
+            assert_close(pose.joints[i], pose_i.joints[0], "joints")
+            assert_close(pose.joint_frame[i], pose_i.joint_frame[0], "frames")
+            pulled_i = repeat_for_reach(a, pose_i, feet[i:i + 1], reach[i] * np.ones(4), iterations=4,
+                                        max_shift=[0.05, 0.08, 0.04][i])
+            assert_close(pulled.joints[i], pulled_i.joints[0], "pulled joints")
+            assert_close(hip_positions(batch, pulled)[i], hip_positions(a, pulled_i)[0], "hips")
+    # the repeats ran on part of the batch (the characters still stretched), not on all of it
+    assert pulls[1] == 0
+    assert pulls[[0, 2]].min() > 20
+    # the settings did act: the visual yaw turned the third character's nodes only
+    assert np.abs(pose.key_yaw[2] - plan.key_heading[2]).max() > 0.01
+    assert np.abs(pose.key_yaw[:2] - plan.key_heading[:2]).max() == 0.0
+
+
+def test_a_batch_needs_one_structure_and_one_kind_of_spine() -> None:
+    m = quadruped()
+    with pytest.raises(ValueError, match="structure"):
+        SpineBatch.stack([m, hexapod_like()], [SpineParams(), SpineParams()])
+    with pytest.raises(ValueError, match="flexible and rigid"):
+        SpineBatch.stack([m, _scaled(m, 1.2)], [SpineParams(), SpineParams(flexible=False)])
+    with pytest.raises(ValueError, match="one each"):
+        SpineBatch.stack([m, m], [SpineParams()])
+    # sizes, limits and carriers' rows may differ; the structure is what the indices use
+    assert _scaled(m, 2.0, joint_pitch_limit=0.1).structure == m.structure
+
+
+def test_taking_rows_of_a_batch_takes_every_per_character_array() -> None:
+    """``SpineBatch.take`` (the characters still stretched in the reach repeats) selects
+    every array with a row per character, and only those."""
+    m = quadruped()
+    models = [_scaled(m, 1.0 + 0.1 * i) for i in range(5)]  # 5 rows: no other axis is 5 long
+    batch = SpineBatch.stack(models, [SpineParams(turn_rate=1.0 + i) for i in range(5)])
+    rows = np.array([1, 3])
+    sub = batch.take(rows)
+    for f in fields(SpineBatch):
+        value = getattr(batch, f.name)
+        if isinstance(value, np.ndarray) and value.shape[:1] == (5,):
+            np.testing.assert_array_equal(getattr(sub, f.name), value[rows], err_msg=f.name)
+        elif isinstance(value, np.ndarray):
+            assert getattr(sub, f.name) is value, f.name
+    assert sub.models == (models[1], models[3])
+    one = SpineBatch.of(m)
+    assert one.take(rows) is one  # one row broadcasts over any characters

@@ -5,7 +5,11 @@ A quadruped or a lizard does not turn like a plank. Its body is split into *virt
 nodes* ("key nodes" here): the head node, which carries no legs, then one node per girdle
 (shoulders, hips, ...), each carrying the legs attached to it. The real spine joints of the
 rig lie on a chain from the head node to the back node. Every step runs the thesis's four
-steps, vectorised over ``C`` characters that share one :class:`SpineModel`:
+steps, vectorised over ``C`` characters stepped together as one :class:`SpineBatch`: their
+spines share one structure (joints, key nodes, the legs on them), each with its own rest
+geometry (:class:`SpineModel`: a rig's size and proportions) and settings
+(:class:`SpineParams`), so a herd of wolves of different sizes costs the array operations of
+one.
 
 1. **Orientation** (§4.2.1, :func:`plan_spine`): the head turns toward the wanted heading
    (at most ``turn_rate``). The turn is absorbed front to back: each key node bends as far as
@@ -26,7 +30,8 @@ steps, vectorised over ``C`` characters that share one :class:`SpineModel`:
    turns from its rest direction by the turn of the curve over its own stretch, and the joint
    chain is rebuilt from the anchor node with the exact bone lengths, every joint within its
    yaw/pitch limits. When the legs cannot reach their footprints, :func:`refit` and
-   :func:`repeat_for_reach` run step 4 again on guides moved to where the legs can hold them.
+   :func:`repeat_for_reach` run step 4 again on guides moved to where the legs can hold them
+   (with the tangents of the first build: only the guides move).
 
 :func:`spine_step` chains the four steps. Shapes: ``C`` characters, ``K`` key nodes (head
 first), ``J`` spine joints (head first), ``L`` legs. Angles in radians; a heading is the
@@ -36,7 +41,7 @@ body frame is x forward, y left, z up; rest positions are in it.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -49,6 +54,7 @@ from ..world.terrain import NO_SURFACE
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+BoolArray = npt.NDArray[np.bool_]
 
 #: A terrain height query: world ``xy`` ``(n, 2)`` -> ground height ``(n,)``, such as
 #: ``core.world.terrain.Environment.height_at``; heights at or below ``NO_SURFACE / 2`` are holes.
@@ -57,28 +63,46 @@ HeightFn = Callable[[FloatArray], FloatArray]
 _CURVE_SAMPLES = 25  # dense samples per key segment for arc-length lookups
 _CURVE_S = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
 _CURVE_BASIS = hermite_basis(_CURVE_S)  # (m, 4), the same for every curve
+_CURVE_STEP = float(_CURVE_S[1] - _CURVE_S[0])
 _EPS = 1e-12
+_TWO_PI = 2.0 * np.pi
 DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
 DEFAULT_JOINT_PITCH_LIMIT = float(np.radians(20.0))
 
+# A step of a spine character is a few hundred array operations on arrays of a handful of
+# elements, where each call costs more than its arithmetic: the helpers below do what the
+# numpy conveniences do (np.clip, wrap_angle, np.concatenate of pads, np.linspace) with
+# fewer calls, and everything that depends on the rest pose alone is computed once per
+# batch (SpineBatch).
 
 
+def _wrap(a: FloatArray) -> FloatArray:
+    """``wrap_angle`` of a float array (the same arithmetic, without its conversions)."""
+    return np.asarray(np.mod(a + np.pi, _TWO_PI) - np.pi)
 
-def _rot2(angle: FloatArray) -> FloatArray:
-    """2D rotation matrices ``(..., 2, 2)`` for angles ``(...)``."""
+
+def _clamp(a: FloatArray, lo: npt.ArrayLike, hi: npt.ArrayLike) -> FloatArray:
+    """``np.clip`` without its dispatch (the bounds broadcast against ``a``)."""
+    return np.asarray(np.minimum(np.maximum(a, lo), hi))
+
+
+def _turn_xy(v: FloatArray, angle: FloatArray) -> FloatArray:
+    """2-vectors ``v (..., 2)`` turned by ``angle`` (broadcast against ``v[..., 0]``),
+    written out (a 2x2 rotation's products and sums, in the order a matrix product takes)."""
     c, s = np.cos(angle), np.sin(angle)
-    out = np.empty((*np.shape(angle), 2, 2))
-    out[..., 0, 0] = c
-    out[..., 0, 1] = -s
-    out[..., 1, 0] = s
-    out[..., 1, 1] = c
+    x, y = v[..., 0], v[..., 1]
+    turned_x = c * x - s * y
+    out = np.empty((*turned_x.shape, 2))
+    out[..., 0] = turned_x
+    out[..., 1] = s * x + c * y
     return out
 
 
 def _rotate_about(points: FloatArray, centre: FloatArray, angle: FloatArray) -> FloatArray:
     """Rotate ``points`` ``(C, n, 2)`` about ``centre`` ``(C, 2)`` by ``angle`` ``(C,)``."""
-    rel = points - centre[:, None, :]
-    return centre[:, None, :] + np.einsum("cij,cnj->cni", _rot2(angle), rel)
+    out = _turn_xy(points - centre[:, None, :], angle[:, None])
+    out += centre[:, None, :]
+    return out
 
 
 def _segment_angles(key_xy: FloatArray) -> FloatArray:
@@ -87,26 +111,36 @@ def _segment_angles(key_xy: FloatArray) -> FloatArray:
     return np.arctan2(d[..., 1], d[..., 0])
 
 
-def _bends(seg_angle: FloatArray) -> FloatArray:
-    """Bend at every key node ``(C, K)``: the turn from the segment behind to the one in
-    front (positive to the left); zero at the head and the back node."""
-    c = seg_angle.shape[0]
-    inner = wrap_angle(seg_angle[:, :-1] - seg_angle[:, 1:])
-    return np.concatenate([np.zeros((c, 1)), inner, np.zeros((c, 1))], axis=1)
+def _bend_at(key_xy: FloatArray, i: int) -> FloatArray:
+    """The bend ``(C,)`` at inner key node ``i``: the turn from the segment behind it to the
+    one in front (positive to the left), from those two segments alone."""
+    d = key_xy[:, i - 1:i + 1, :] - key_xy[:, i:i + 2, :]
+    a = np.arctan2(d[..., 1], d[..., 0])
+    return _wrap(a[:, 0] - a[:, 1])
 
 
-def _node_headings(seg_angle: FloatArray) -> FloatArray:
-    """Heading of each key node ``(C, K)``: the bisector of its two segments. The two end
-    nodes turn from their segment by half the next node's bend, as on a circular arc through
-    three nodes, so a bent spine has no kink in its tangents at the ends."""
-    half_bend = 0.5 * wrap_angle(seg_angle[:, :-1] - seg_angle[:, 1:])  # (C, K - 2)
-    inner = seg_angle[:, 1:] + half_bend
-    if half_bend.shape[1]:
-        head = seg_angle[:, :1] + half_bend[:, :1]
-        back = seg_angle[:, -1:] - half_bend[:, -1:]
+def _headings_and_bends(seg_angle: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Heading ``(C, K)`` and bend ``(C, K)`` of every key node from its segments' angles.
+
+    The bend is the turn from the segment behind to the one in front (positive to the left;
+    zero at the head and the back node). The heading is the bisector of the node's two
+    segments; the two end nodes turn from their segment by half the next node's bend, as on
+    a circular arc through three nodes, so a bent spine has no kink in its tangents at the
+    ends."""
+    c, n_seg = seg_angle.shape
+    inner = _wrap(seg_angle[:, :-1] - seg_angle[:, 1:])  # (C, K - 2)
+    bend = np.zeros((c, n_seg + 1))
+    bend[:, 1:-1] = inner
+    half = 0.5 * inner
+    heading = np.empty((c, n_seg + 1))
+    heading[:, 1:-1] = seg_angle[:, 1:] + half
+    if n_seg > 1:
+        heading[:, 0] = seg_angle[:, 0] + half[:, 0]
+        heading[:, -1] = seg_angle[:, -1] - half[:, -1]
     else:
-        head, back = seg_angle[:, :1], seg_angle[:, -1:]
-    return wrap_angle(np.concatenate([head, inner, back], axis=1))
+        heading[:, 0] = seg_angle[:, 0]
+        heading[:, -1] = seg_angle[:, -1]
+    return _wrap(heading), bend
 
 
 # The rotations are written element by element into one array (not stacked from rows): a
@@ -133,7 +167,8 @@ def frame_from_yaw_pitch(yaw: npt.ArrayLike, pitch: npt.ArrayLike) -> FloatArray
     p = np.asarray(pitch, dtype=np.float64)
     cy, sy = np.cos(y), np.sin(y)
     cp, sp = np.cos(p), np.sin(p)
-    out = np.empty((*np.broadcast_shapes(y.shape, p.shape), 3, 3))
+    shape = y.shape if y.shape == p.shape else np.broadcast_shapes(y.shape, p.shape)
+    out = np.empty((*shape, 3, 3))
     out[..., 0, 0] = cy * cp
     out[..., 0, 1] = -sy
     out[..., 0, 2] = -cy * sp
@@ -147,8 +182,9 @@ def frame_from_yaw_pitch(yaw: npt.ArrayLike, pitch: npt.ArrayLike) -> FloatArray
 
 
 def _direction(yaw: FloatArray, pitch: FloatArray) -> FloatArray:
+    """Unit vectors ``(..., 3)`` at heading ``yaw`` and elevation ``pitch`` (same shapes)."""
     cp = np.cos(pitch)
-    out = np.empty((*np.broadcast_shapes(np.shape(yaw), np.shape(pitch)), 3))
+    out = np.empty((*np.shape(pitch), 3))
     out[..., 0] = cp * np.cos(yaw)
     out[..., 1] = cp * np.sin(yaw)
     out[..., 2] = np.sin(pitch)
@@ -165,12 +201,24 @@ def _yaw_pitch(v: FloatArray) -> tuple[FloatArray, FloatArray]:
     return np.arctan2(v[..., 1], v[..., 0]), np.arctan2(v[..., 2], np.hypot(v[..., 0], v[..., 1]))
 
 
+_UNIT_SAMPLES: dict[int, FloatArray] = {}
+
+
+def _unit_samples(n: int) -> FloatArray:
+    """``np.linspace(0, 1, n)``, made once per ``n``."""
+    u = _UNIT_SAMPLES.get(n)
+    if u is None:
+        u = _UNIT_SAMPLES[n] = np.linspace(0.0, 1.0, n)
+    return u
+
+
 # ----------------------------------------------------------------------------- the model
 
 
 @dataclass(frozen=True, eq=False)
 class SpineModel:
-    """A character's spine in its rest pose (body frame), shared by all characters using it.
+    """A rig's spine in its rest pose (body frame); characters step through the spine
+    functions as a :class:`SpineBatch` of these (with their settings).
 
     - ``joint_rest``: ``(J, 3)`` spine joints from the head (0) to the back node (J - 1).
     - ``key_joint``: ``(K,)`` the joints that are virtual pelvis nodes, increasing, starting at
@@ -248,6 +296,14 @@ class SpineModel:
         """``(K, 3)`` rest positions of the key nodes."""
         return self.joint_rest[self.key_joint]
 
+    @property
+    def structure(self) -> tuple[object, ...]:
+        """What spines stepped together in one :class:`SpineBatch` must share: the key
+        joints (so the joint count), the key node each leg hangs from, the bone each leg
+        rides with, the anchor node. Sizes, proportions and limits may differ."""
+        return (tuple(self.key_joint.tolist()), tuple(self.leg_key.tolist()),
+                tuple(np.asarray(self.leg_bone).tolist()), self.anchor_key)
+
     def __post_init__(self) -> None:
         joints = np.asarray(self.joint_rest, dtype=np.float64)
         key = np.asarray(self.key_joint, dtype=np.int64)
@@ -308,7 +364,7 @@ class SpineModel:
 
         # Rest tangent of every key node: central difference of its neighbours (ends: chord).
         seg_angle = _segment_angles(key_pos[None, :, :2])
-        set_(self, "rest_key_heading", _node_headings(seg_angle)[0])
+        set_(self, "rest_key_heading", _headings_and_bends(seg_angle)[0][0])
         fwd = np.empty((n_k, 3))
         fwd[0] = key_pos[0] - key_pos[1]
         fwd[-1] = key_pos[-2] - key_pos[-1]
@@ -326,8 +382,10 @@ class SpineModel:
         set_(self, "joint_at_start", self.joint_fraction <= 0.0)
         set_(self, "joint_at_end", self.joint_fraction >= 1.0)
 
+        ends = self.joint_at_start | self.joint_at_end
         rest_samples = _sample_curve(
-            self, key_pos[None], self.rest_key_heading[None], self.rest_key_pitch[None]
+            key_pos[None], -_direction(self.rest_key_heading[None], self.rest_key_pitch[None]),
+            self.joint_segment, self.joint_fraction, ends, self.joint_at_end[ends].astype(np.float64),
         )[0]
         rest_yaw, rest_pitch = _yaw_pitch(np.diff(rest_samples, axis=0))
         set_(self, "rest_chord_yaw", rest_yaw)
@@ -448,6 +506,244 @@ class SpineParams:
             raise ValueError("foot_pitch_weight must be in [0, 1]")
 
 
+#: SpineBatch fields with one row per character (the rest of them are the shared structure).
+_PER_CHARACTER = (
+    "joint_rest", "key_rest", "foot_rest", "anchor_rest", "anchor_rest_xy", "key_chord",
+    "key_chord_sq", "key_chord_sum", "node_yaw_limit", "joint_yaw_limit", "joint_pitch_limit",
+    "key_rest_height", "rest_key_pitch", "rest_key_heading",
+    "rest_head_angle", "joint_fraction", "rest_chord_yaw", "rest_chord_pitch", "rest_unturn",
+    "bone_dir", "bone_length", "hip_pivot_offset", "slice_margin", "rest_foot_ahead",
+    "rest_foot_depth", "rest_foot_yaw", "yaw_weight", "yaw_weight_sum", "yaw_has", "turn_rate",
+    "relax_time", "foot_pitch_weight", "foot_pitch_nodes", "visual_yaw", "visual_yaw_gain",
+    "max_visual_yaw",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class SpineBatch:
+    """The spines of characters stepped together: one structure, each character's own rest
+    geometry and settings. Every spine function takes one.
+
+    Made from one :class:`SpineModel` and :class:`SpineParams` per character (``models``,
+    ``params``; :meth:`of` for one model and settings that any number of characters share).
+    The models must have the same :attr:`SpineModel.structure` (key joints, the key node and
+    bone of each leg, the anchor node) and the settings the same ``flexible``; sizes,
+    proportions, limits and the other settings may differ per character.
+
+    Shared (from the structure): ``n_joints``, ``n_keys``, ``n_legs``, ``key_joint (K,)``,
+    ``leg_key (L,)``, ``anchor_key``, ``anchor_joint``, ``flexible``, and step 4's index
+    arrays (``joint_segment (J,)``, ``curve_ends``/``curve_end_value``: the joints at their
+    key segment's ends, ``leg_pivot``, ``leg_key_joint``, ``leg_bone_row``, ``leg_on_bone
+    (L,)``, ``pad_index``), ``membership (L, K)`` (which node each leg hangs from),
+    ``leg_count (K,)``, ``has_legs (K,)``, ``node_legs (K, M)``: the legs of each node (``M``
+    the most legs of any node; ``node_leg_valid (K, M)`` marks the ones that are there).
+
+    Per character, one row each (``B`` rows: the number of characters, or 1 for a batch made
+    by :meth:`of`, which broadcasts over any number): every float array of the models
+    (``joint_rest (B, J, 3)``, ``bone_length (B, J - 1)``, ``rest_unturn (B, J - 1, 3, 3)``,
+    ...), constants of steps 3-4 computed from the rest pose once (``rest_foot_ahead``,
+    ``rest_foot_depth``, ``rest_foot_yaw (B, L)``: each foot's rest place seen from its node,
+    ``yaw_weight (B, L, K)``, ...), and the settings as arrays (``turn_rate``,
+    ``relax_time``, ``foot_pitch_weight``, ``visual_yaw``, ``visual_yaw_gain``,
+    ``max_visual_yaw (B,)``).
+    """
+
+    models: tuple[SpineModel, ...]
+    params: tuple[SpineParams, ...]
+    n_joints: int = field(init=False)
+    n_keys: int = field(init=False)
+    n_legs: int = field(init=False)
+    key_joint: IntArray = field(init=False)
+    leg_key: IntArray = field(init=False)
+    anchor_key: int = field(init=False)
+    anchor_joint: int = field(init=False)
+    flexible: bool = field(init=False)
+    joint_segment: IntArray = field(init=False)
+    curve_ends: BoolArray = field(init=False)
+    curve_end_value: FloatArray = field(init=False)
+    leg_pivot: IntArray = field(init=False)
+    leg_key_joint: IntArray = field(init=False)
+    leg_bone_row: IntArray = field(init=False)
+    leg_on_bone: BoolArray = field(init=False)
+    any_leg_on_bone: bool = field(init=False)
+    all_legs_on_bone: bool = field(init=False)
+    pad_index: IntArray = field(init=False)
+    others: IntArray = field(init=False)
+    membership: FloatArray = field(init=False)
+    leg_count: FloatArray = field(init=False)
+    has_legs: BoolArray = field(init=False)
+    node_legs: IntArray = field(init=False)
+    node_leg_valid: BoolArray = field(init=False)
+    any_visual_yaw: bool = field(init=False)
+    all_visual_yaw: bool = field(init=False)
+    any_foot_pitch: bool = field(init=False)
+    joint_rest: FloatArray = field(init=False)
+    key_rest: FloatArray = field(init=False)
+    foot_rest: FloatArray = field(init=False)
+    anchor_rest: FloatArray = field(init=False)
+    anchor_rest_xy: FloatArray = field(init=False)
+    key_chord: FloatArray = field(init=False)
+    key_chord_sq: FloatArray = field(init=False)
+    key_chord_sum: FloatArray = field(init=False)
+    node_yaw_limit: FloatArray = field(init=False)
+    joint_yaw_limit: FloatArray = field(init=False)
+    joint_pitch_limit: FloatArray = field(init=False)
+    key_rest_height: FloatArray = field(init=False)
+    rest_key_pitch: FloatArray = field(init=False)
+    rest_key_heading: FloatArray = field(init=False)
+    rest_head_angle: FloatArray = field(init=False)
+    joint_fraction: FloatArray = field(init=False)
+    rest_chord_yaw: FloatArray = field(init=False)
+    rest_chord_pitch: FloatArray = field(init=False)
+    rest_unturn: FloatArray = field(init=False)
+    bone_dir: FloatArray = field(init=False)
+    bone_length: FloatArray = field(init=False)
+    hip_pivot_offset: FloatArray = field(init=False)
+    slice_margin: FloatArray = field(init=False)
+    rest_foot_ahead: FloatArray = field(init=False)
+    rest_foot_depth: FloatArray = field(init=False)
+    rest_foot_yaw: FloatArray = field(init=False)
+    yaw_weight: FloatArray = field(init=False)
+    yaw_weight_sum: FloatArray = field(init=False)
+    yaw_has: BoolArray = field(init=False)
+    turn_rate: FloatArray = field(init=False)
+    relax_time: FloatArray = field(init=False)
+    foot_pitch_weight: FloatArray = field(init=False)
+    foot_pitch_nodes: BoolArray = field(init=False)
+    visual_yaw: BoolArray = field(init=False)
+    visual_yaw_gain: FloatArray = field(init=False)
+    max_visual_yaw: FloatArray = field(init=False)
+
+    @classmethod
+    def of(cls, model: SpineModel, params: SpineParams | None = None) -> SpineBatch:
+        """One model and settings for any number of characters."""
+        return cls((model,), (params if params is not None else SpineParams(),))
+
+    @classmethod
+    def stack(cls, models: Sequence[SpineModel], params: Sequence[SpineParams]) -> SpineBatch:
+        """One model and settings per character."""
+        return cls(tuple(models), tuple(params))
+
+    @property
+    def n_rows(self) -> int:
+        """``B``: rows of the per-character arrays (1 broadcasts over any number)."""
+        return len(self.models)
+
+    def __post_init__(self) -> None:
+        models, params = self.models, self.params
+        if not models or len(models) != len(params):
+            raise ValueError(f"{len(models)} spine models for {len(params)} settings (one each, at least "
+                             "one)")
+        first = models[0]
+        for i, m in enumerate(models[1:], 1):
+            if m.structure != first.structure:
+                raise ValueError(f"spine {i} has another structure than spine 0 (key joints, legs' nodes and "
+                                 "bones, anchor): such spines are stepped in separate batches")
+        if len({p.flexible for p in params}) != 1:
+            raise ValueError("flexible and rigid spines are stepped in separate batches")
+        set_ = object.__setattr__
+        n_j, n_k, n_l = first.n_joints, first.n_keys, first.n_legs
+        key, leg_key = first.key_joint, first.leg_key
+        set_(self, "n_joints", n_j)
+        set_(self, "n_keys", n_k)
+        set_(self, "n_legs", n_l)
+        set_(self, "key_joint", key)
+        set_(self, "leg_key", leg_key)
+        set_(self, "anchor_key", int(first.anchor_key))
+        set_(self, "anchor_joint", int(key[first.anchor_key]))
+        set_(self, "flexible", bool(params[0].flexible))
+        set_(self, "joint_segment", first.joint_segment)
+        ends = first.joint_at_start | first.joint_at_end
+        set_(self, "curve_ends", ends)
+        set_(self, "curve_end_value", first.joint_at_end[ends].astype(np.float64))
+        set_(self, "leg_pivot", first.leg_pivot)
+        set_(self, "leg_key_joint", first.leg_key_joint)
+        set_(self, "leg_bone_row", first.leg_bone_row)
+        set_(self, "leg_on_bone", first.leg_on_bone)
+        set_(self, "any_leg_on_bone", bool(first.leg_on_bone.any()))
+        set_(self, "all_legs_on_bone", bool(first.leg_on_bone.all()))
+        # each joint's two bones (one at the ends): the mean turn of a joint's frame
+        set_(self, "pad_index", np.array([0, *range(n_j - 1), n_j - 2], dtype=np.intp))
+        set_(self, "others", np.array([0, *range(2, n_k)], dtype=np.intp))
+        member = (leg_key[:, None] == np.arange(n_k)[None, :]).astype(np.float64)
+        count = member.sum(axis=0)
+        set_(self, "membership", member)
+        set_(self, "leg_count", np.maximum(count, _EPS))
+        set_(self, "has_legs", count > _EPS)
+        most = int(count.max()) if n_l else 0
+        node_legs = np.zeros((n_k, most), dtype=np.intp)
+        node_leg_valid = np.zeros((n_k, most), dtype=bool)
+        for k in range(n_k):
+            mine = np.flatnonzero(leg_key == k)
+            node_legs[k, :mine.size] = mine
+            node_leg_valid[k, :mine.size] = True
+        set_(self, "node_legs", node_legs)
+        set_(self, "node_leg_valid", node_leg_valid)
+
+        def rows(values: Sequence[npt.ArrayLike]) -> FloatArray:
+            return np.stack([np.asarray(v, dtype=np.float64) for v in values])
+
+        aj = self.anchor_joint
+        set_(self, "joint_rest", rows([m.joint_rest for m in models]))
+        set_(self, "key_rest", rows([m.key_rest for m in models]))
+        set_(self, "foot_rest", rows([m.foot_rest for m in models]))
+        set_(self, "anchor_rest", rows([m.joint_rest[aj] for m in models]))
+        set_(self, "anchor_rest_xy", rows([m.key_rest[first.anchor_key, :2] for m in models]))
+        set_(self, "key_chord", rows([m.key_chord for m in models]))
+        set_(self, "key_chord_sq", rows([m.key_chord * m.key_chord for m in models]))
+        set_(self, "key_chord_sum", rows([float(m.key_chord.sum()) for m in models]))
+        for name in ("node_yaw_limit", "joint_yaw_limit", "joint_pitch_limit", "key_rest_height",
+                     "rest_key_pitch", "rest_key_heading", "joint_fraction", "rest_chord_yaw",
+                     "rest_chord_pitch", "rest_unturn", "bone_dir", "bone_length", "hip_pivot_offset"):
+            set_(self, name, rows([getattr(m, name) for m in models]))
+        set_(self, "rest_head_angle", rows([_segment_angles(m.key_rest[None, :, :2])[0, 0] for m in models]))
+        set_(self, "slice_margin", rows([m.slice_margin for m in models]))
+
+        # Steps 3's feet at rest, seen from their node (node_pitch, visual_yaw).
+        ahead, depth, yaw, weight = [], [], [], []
+        for m in models:
+            rest_rel = m.foot_rest - m.key_rest[leg_key]
+            rest_heading = m.rest_key_heading[leg_key]
+            ahead.append(rest_rel[:, 0] * np.cos(rest_heading) + rest_rel[:, 1] * np.sin(rest_heading))
+            depth.append(-rest_rel[:, 2])
+            flat = m.foot_rest[:, :2] - m.key_rest[leg_key, :2]
+            yaw.append(np.arctan2(flat[:, 1], flat[:, 0]) - rest_heading)
+            # feet right under their node have no direction to speak of: weigh by rest distance
+            weight.append(member * np.linalg.norm(flat, axis=1)[:, None])
+        set_(self, "rest_foot_ahead", rows(ahead))
+        set_(self, "rest_foot_depth", rows(depth))
+        set_(self, "rest_foot_yaw", rows(yaw))
+        set_(self, "yaw_weight", rows(weight))
+        wsum = self.yaw_weight.sum(axis=1)  # (B, K)
+        set_(self, "yaw_weight_sum", np.maximum(wsum, _EPS))
+        set_(self, "yaw_has", wsum > _EPS)
+
+        set_(self, "turn_rate", rows([p.turn_rate for p in params]))
+        set_(self, "relax_time", rows([p.relax_time for p in params]))
+        set_(self, "foot_pitch_weight", rows([p.foot_pitch_weight for p in params]))
+        set_(self, "foot_pitch_nodes", self.has_legs[None, :] & (self.foot_pitch_weight[:, None] != 0.0))
+        set_(self, "any_foot_pitch", bool(np.any(self.foot_pitch_weight != 0.0)))
+        set_(self, "visual_yaw", np.array([p.visual_yaw for p in params], dtype=bool))
+        set_(self, "any_visual_yaw", bool(self.visual_yaw.any()))
+        set_(self, "all_visual_yaw", bool(self.visual_yaw.all()))
+        set_(self, "visual_yaw_gain", rows([p.visual_yaw_gain for p in params]))
+        set_(self, "max_visual_yaw", rows([p.max_visual_yaw for p in params]))
+
+    def take(self, rows: IntArray) -> SpineBatch:
+        """The batch of characters ``rows`` only (itself when its rows broadcast)."""
+        if self.n_rows == 1:
+            return self
+        out = object.__new__(SpineBatch)
+        for f in fields(SpineBatch):
+            object.__setattr__(out, f.name, getattr(self, f.name))
+        pick = rows.tolist()
+        object.__setattr__(out, "models", tuple(self.models[i] for i in pick))
+        object.__setattr__(out, "params", tuple(self.params[i] for i in pick))
+        for name in _PER_CHARACTER:
+            object.__setattr__(out, name, getattr(self, name)[rows])
+        return out
+
+
 @dataclass(frozen=True)
 class SpineState:
     """The spine carried from one step to the next: key node positions ``(C, K, 2)`` in the
@@ -460,12 +756,14 @@ class SpineState:
         return int(self.key_xy.shape[0])
 
     @classmethod
-    def at_rest(cls, model: SpineModel, origin_xy: npt.ArrayLike, heading: npt.ArrayLike) -> SpineState:
-        """Characters standing in their rest pose: body origins ``(C, 2)``, headings ``(C,)``."""
+    def at_rest(cls, spines: SpineBatch | SpineModel, origin_xy: npt.ArrayLike,
+                heading: npt.ArrayLike) -> SpineState:
+        """Characters standing in their rest pose: body origins ``(C, 2)``, headings ``(C,)``
+        (the rest pose of a batch's rows, or of one model for all)."""
         origin = np.atleast_2d(np.asarray(origin_xy, dtype=np.float64))
-        head = np.broadcast_to(np.asarray(heading, dtype=np.float64), origin.shape[:1])
-        rest = model.key_rest[:, :2]
-        return cls(origin[:, None, :] + np.einsum("cij,kj->cki", _rot2(head), rest))
+        head = _as_shape(heading, origin.shape[:1])
+        rest = spines.key_rest[..., :2]  # (B, K, 2) or (K, 2)
+        return cls(origin[:, None, :] + _turn_xy(rest, head[:, None]))
 
 
 @dataclass(frozen=True)
@@ -473,7 +771,7 @@ class SpinePlan:
     """Steps 1-2: the key nodes on the ground plane.
 
     ``key_xy`` ``(C, K, 2)``; ``key_heading`` ``(C, K)`` each node's heading (the bisector of
-    its segments; the end nodes as on an arc, see ``_node_headings``), the frame its legs'
+    its segments; the end nodes as on an arc, see ``_headings_and_bends``), the frame its legs'
     footprints are planned in; ``bend`` ``(C, K)`` each node's sideways bend (0 at the ends);
     ``distance`` ``(C,)`` the distance the head moved; ``steer_heading`` ``(C,)`` the head
     segment's direction, the heading the user steers (what ``desired_heading`` is compared to).
@@ -497,7 +795,9 @@ class SpinePose:
       bones' turn); :meth:`key_frames` gives them at the key nodes.
     - ``guide_xyz``: ``(C, K, 3)`` the key node guides the curve went through;
       ``key_yaw``/``key_pitch`` ``(C, K)`` the tangents' heading (with visual yaw) and the
-      nodes' pitch (deviation from rest, nose up).
+      nodes' pitch (deviation from rest, nose up); ``tangent`` ``(C, K, 3)`` the curve's unit
+      tangents at the key nodes, pointing from the head to the back (what :func:`refit`
+      builds on).
     - ``yaw_dev``/``pitch_dev``: ``(C, J - 1)`` each bone's turn from rest (yaw about world up,
       pitch in its vertical plane, sign of the bone's rest direction), after the limits.
     """
@@ -508,25 +808,25 @@ class SpinePose:
     guide_xyz: FloatArray
     key_yaw: FloatArray
     key_pitch: FloatArray
+    tangent: FloatArray
     yaw_dev: FloatArray
     pitch_dev: FloatArray
 
-    def key_positions(self, model: SpineModel) -> FloatArray:
+    def key_positions(self, spines: SpineBatch | SpineModel) -> FloatArray:
         """``(C, K, 3)`` final positions of the key nodes."""
-        return self.joints[:, model.key_joint]
+        return self.joints[:, spines.key_joint]
 
-    def key_frames(self, model: SpineModel) -> FloatArray:
+    def key_frames(self, spines: SpineBatch | SpineModel) -> FloatArray:
         """``(C, K, 3, 3)`` final body-to-world rotations of the key nodes."""
-        return self.joint_frame[:, model.key_joint]
+        return self.joint_frame[:, spines.key_joint]
 
 
 # ------------------------------------------------------------------------ steps 1 and 2
 
 
 def plan_spine(
-    model: SpineModel,
+    spines: SpineBatch,
     state: SpineState,
-    params: SpineParams,
     desired_heading: npt.ArrayLike,
     distance: npt.ArrayLike,
     dt: float,
@@ -538,51 +838,52 @@ def plan_spine(
     """
     xy = np.array(state.key_xy, dtype=np.float64, copy=True)
     c, k = xy.shape[0], xy.shape[1]
-    want = np.broadcast_to(np.asarray(desired_heading, dtype=np.float64), (c,))
-    dist = np.maximum(np.broadcast_to(np.asarray(distance, dtype=np.float64), (c,)), 0.0)
+    want = _as_shape(desired_heading, (c,))
+    dist = np.maximum(_as_shape(distance, (c,)), 0.0)
     seg = _segment_angles(xy)
-    max_turn = params.turn_rate * float(dt)
-    turn = np.clip(wrap_angle(want - seg[:, 0]), -max_turn, max_turn)
+    max_turn = spines.turn_rate * float(dt)
+    turn = _clamp(_wrap(want - seg[:, 0]), -max_turn, max_turn)
 
-    if not params.flexible:
-        xy = _rigid_move(model, xy, turn, dist)
+    if not spines.flexible:
+        xy = _rigid_move(spines, xy, turn, dist)
     else:
-        xy = _turn_from_head(model, xy, turn)
+        xy = _turn_from_head(spines, xy, turn)
         # Standing still leaves the nodes exactly where they are (no round-off creep).
-        xy = np.where((dist > 0.0)[:, None, None], _advance_on_support(model, xy, dist), xy)
-        xy = _clamp_bends(model, xy)
+        moving = dist > 0.0
+        if moving.all():
+            xy = _advance_on_support(spines, xy, dist)
+        elif moving.any():
+            xy = np.where(moving[:, None, None], _advance_on_support(spines, xy, dist), xy)
+        xy = _clamp_bends(spines, xy)
         if k >= 3:
             # The back node relaxes its bend toward straight (thesis §4.2.2, in green in
             # figure 4.13), exponentially with the relax time.
-            bend = _bends(_segment_angles(xy))[:, k - 2]
-            keep = np.exp(-float(dt) / params.relax_time)
-            xy[:, k - 1:] = _rotate_about(xy[:, k - 1:], xy[:, k - 2], bend * (1.0 - keep))
+            keep = np.exp(-float(dt) / spines.relax_time)
+            xy[:, k - 1:] = _rotate_about(xy[:, k - 1:], xy[:, k - 2], _bend_at(xy, k - 2) * (1.0 - keep))
 
     seg = _segment_angles(xy)
-    return SpinePlan(key_xy=xy, key_heading=_node_headings(seg), bend=_bends(seg), distance=dist,
-                     steer_heading=seg[:, 0].copy())
+    heading, bend = _headings_and_bends(seg)
+    return SpinePlan(key_xy=xy, key_heading=heading, bend=bend, distance=dist, steer_heading=seg[:, 0].copy())
 
 
-def _turn_from_head(model: SpineModel, xy: FloatArray, turn: FloatArray) -> FloatArray:
+def _turn_from_head(spines: SpineBatch, xy: FloatArray, turn: FloatArray) -> FloatArray:
     """Thesis §4.2.1: each inner node takes what its limit allows, front to back; the rest
     rotates the whole spine about the node just behind the head."""
     k = xy.shape[1]
-    remaining = turn.copy()
+    remaining = turn
     for i in range(1, k - 1):
-        bend = _bends(_segment_angles(xy))[:, i]
-        limit = model.node_yaw_limit[i]
+        bend = _bend_at(xy, i)
+        limit = spines.node_yaw_limit[:, i]
         # Only moves that do not push the bend further past its limit are allowed.
-        lo = np.minimum(-limit - bend, 0.0)
-        hi = np.maximum(limit - bend, 0.0)
-        share = np.clip(remaining, lo, hi)
+        share = _clamp(remaining, np.minimum(-limit - bend, 0.0), np.maximum(limit - bend, 0.0))
         xy[:, :i] = _rotate_about(xy[:, :i], xy[:, i], share)
         remaining = remaining - share
-    others = np.array([0, *range(2, k)], dtype=np.intp)  # (np.r_ costs more than the rotation)
+    others = spines.others
     xy[:, others] = _rotate_about(xy[:, others], xy[:, 1], remaining)
     return xy
 
 
-def _advance_on_support(model: SpineModel, xy: FloatArray, dist: FloatArray) -> FloatArray:
+def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) -> FloatArray:
     """Thesis §4.2.2: the head moves ahead; every following node is put on the previous
     spine (continued straight behind the back node) at its chord length from the node in
     front."""
@@ -591,83 +892,74 @@ def _advance_on_support(model: SpineModel, xy: FloatArray, dist: FloatArray) -> 
     head_dir /= vector_norm(head_dir, keepdims=True)
     tail_dir = xy[:, -1] - xy[:, -2]
     tail_dir /= vector_norm(tail_dir, keepdims=True)
-    reach = dist + float(model.key_chord.sum()) + 1.0
-    new_head = xy[:, 0] + dist[:, None] * head_dir
-    beyond_back = xy[:, -1] + reach[:, None] * tail_dir
-    support = np.concatenate([new_head[:, None], xy, beyond_back[:, None]], axis=1)  # (C, K + 2, 2)
+    reach = dist + spines.key_chord_sum + 1.0
+    support = np.empty((c, k + 2, 2))  # the new head, the old spine, far beyond the back node
+    support[:, 0] = xy[:, 0] + dist[:, None] * head_dir
+    support[:, 1:-1] = xy
+    support[:, -1] = xy[:, -1] + reach[:, None] * tail_dir
     a = support[:, :-1]  # segment starts (C, S, 2)
     d = support[:, 1:] - a
-    dd = np.einsum("csi,csi->cs", d, d)
-    n_seg = a.shape[1]
-    seg_idx = np.arange(n_seg)
+    dx, dy = d[..., 0], d[..., 1]
+    dd = dx * dx + dy * dy  # (the products summed in the order np.einsum takes)
+    usable = dd > _EPS
+    four_dd = 4.0 * dd
+    two_dd = 2.0 * np.maximum(dd, _EPS)
+    seg_idx = np.arange(k + 1)
     out = np.empty_like(xy)
     out[:, 0] = support[:, 0]
     g = np.zeros(c, dtype=np.int64)
     t = np.zeros(c)
     rows = np.arange(c)
     for i in range(1, k):
-        q = out[:, i - 1]
-        radius = model.key_chord[i - 1]
-        f = a - q[:, None, :]
-        b = 2.0 * np.einsum("csi,csi->cs", f, d)
-        cc = np.einsum("csi,csi->cs", f, f) - radius * radius
-        disc = b * b - 4.0 * dd * cc
-        root = (-b + np.sqrt(np.maximum(disc, 0.0))) / (2.0 * np.maximum(dd, _EPS))
-        t_min = np.where(seg_idx[None, :] == g[:, None], t[:, None], 0.0)
-        ok = (seg_idx[None, :] >= g[:, None]) & (disc >= 0.0) & (dd > _EPS)
-        ok &= (root >= t_min - 1e-12) & (root <= 1.0 + 1e-12)
-        first = np.argmax(ok, axis=1)  # the long last segment always qualifies
-        g = first
-        t = np.minimum(np.maximum(root[rows, first], 0.0), 1.0)
-        out[:, i] = a[rows, first] + t[:, None] * d[rows, first]
+        f = a - out[:, i - 1, None, :]
+        fx, fy = f[..., 0], f[..., 1]
+        b = 2.0 * (fx * dx + fy * dy)
+        cc = (fx * fx + fy * fy) - spines.key_chord_sq[:, i - 1, None]
+        disc = b * b - four_dd * cc
+        root = (-b + np.sqrt(np.maximum(disc, 0.0))) / two_dd
+        ok = usable & (disc >= 0.0) & (root <= 1.0 + 1e-12)
+        if i == 1:  # from the head: every segment, from its start
+            ok &= root >= -1e-12
+        else:  # the segment the last node is on, from where it is; the ones after it
+            t_min = np.where(seg_idx[None, :] == g[:, None], t[:, None], 0.0)
+            ok &= (seg_idx[None, :] >= g[:, None]) & (root >= t_min - 1e-12)
+        g = ok.argmax(axis=1)  # the long last segment always qualifies
+        t = _clamp(root[rows, g], 0.0, 1.0)
+        out[:, i] = a[rows, g] + t[:, None] * d[rows, g]
     return out
 
 
-def _clamp_bends(model: SpineModel, xy: FloatArray) -> FloatArray:
+def _clamp_bends(spines: SpineBatch, xy: FloatArray) -> FloatArray:
     """Bring every inner node's bend back within its limit, front to back, by turning the
     part of the spine behind it."""
     k = xy.shape[1]
     for i in range(1, k - 1):
-        bend = _bends(_segment_angles(xy))[:, i]
-        limit = model.node_yaw_limit[i]
-        excess = bend - np.clip(bend, -limit, limit)
-        if np.any(excess != 0.0):
+        bend = _bend_at(xy, i)
+        limit = spines.node_yaw_limit[:, i]
+        excess = bend - _clamp(bend, -limit, limit)
+        if (excess != 0.0).any():
             # Turning the rear part by +x changes this bend by -x.
             xy[:, i + 1:] = _rotate_about(xy[:, i + 1:], xy[:, i], excess)
     return xy
 
 
-def _rigid_move(model: SpineModel, xy: FloatArray, turn: FloatArray, dist: FloatArray) -> FloatArray:
+def _rigid_move(spines: SpineBatch, xy: FloatArray, turn: FloatArray, dist: FloatArray) -> FloatArray:
     """No spine: the rest-shaped body turns about its origin and moves along its heading."""
-    rest = model.key_rest[:, :2]
-    heading = _segment_angles(xy)[:, 0] - _segment_angles(rest[None])[0, 0]
+    rest = spines.key_rest[..., :2]  # (B, K, 2)
+    heading = _segment_angles(xy)[:, 0] - spines.rest_head_angle
     # The body origin implied by the anchor node (the body is rigid, any node would do).
-    anchor = model.anchor_key
-    origin = xy[:, anchor] - np.einsum("cij,j->ci", _rot2(heading), rest[anchor])
+    anchor = spines.anchor_key
+    origin = xy[:, anchor] - _turn_xy(rest[:, anchor], heading)
     heading = heading + turn
     origin = origin + dist[:, None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
-    return origin[:, None, :] + np.einsum("cij,kj->cki", _rot2(heading), rest)
+    return origin[:, None, :] + _turn_xy(rest, heading[:, None])
 
 
 # ------------------------------------------------------------------------------- step 3
 
 
-def _membership(model: SpineModel) -> FloatArray:
-    """``(L, K)`` one-hot: which key node each leg hangs from."""
-    return (model.leg_key[:, None] == np.arange(model.n_keys)[None, :]).astype(np.float64)
-
-
-def _node_mean(model: SpineModel, values: FloatArray, weight: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Weighted mean over each key node's legs of ``values`` ``(C, L)``: ``(C, K)`` and a
-    ``(K,)`` mask of the nodes that have legs with weight (others get 0)."""
-    m = _membership(model) * weight[:, None]
-    wsum = m.sum(axis=0)
-    has = wsum > _EPS
-    return np.where(has[None, :], (values @ m) / np.maximum(wsum, _EPS)[None, :], 0.0), has
-
-
 def terrain_guides(
-    model: SpineModel,
+    spines: SpineBatch,
     plan: SpinePlan,
     height_at: HeightFn,
     foot_world: npt.ArrayLike | None = None,
@@ -686,13 +978,18 @@ def terrain_guides(
     """
     xy = plan.key_xy
     c, k = xy.shape[0], xy.shape[1]
-    chord = vector_norm(xy[:, 1:] - xy[:, :-1])  # (C, K - 1)
-    arc = np.concatenate([np.zeros((c, 1)), chord.cumsum(axis=1)], axis=1)  # (C, K)
-    margin = model.slice_margin
-    lo = np.concatenate([arc[:, :1] - margin, 0.5 * (arc[:, :-1] + arc[:, 1:])], axis=1)
-    hi = np.concatenate([0.5 * (arc[:, :-1] + arc[:, 1:]), arc[:, -1:] + margin], axis=1)
-    u = np.linspace(0.0, 1.0, max(2, int(samples_per_node)))
-    s = lo[..., None] + (hi - lo)[..., None] * u  # (C, K, n)
+    arc = np.zeros((c, k))  # arc length of each node from the head
+    vector_norm(xy[:, 1:] - xy[:, :-1]).cumsum(axis=1, out=arc[:, 1:])
+    margin = spines.slice_margin
+    mid = 0.5 * (arc[:, :-1] + arc[:, 1:])
+    lo = np.empty((c, k))
+    lo[:, 0] = arc[:, 0] - margin
+    lo[:, 1:] = mid
+    hi = np.empty((c, k))
+    hi[:, :-1] = mid
+    hi[:, -1] = arc[:, -1] + margin
+    n = max(2, int(samples_per_node))
+    s = lo[..., None] + (hi - lo)[..., None] * _unit_samples(n)  # (C, K, n)
     pts = _polyline_at(xy, arc, s)  # (C, K, n, 2)
     z = np.asarray(height_at(pts.reshape(-1, 2)), dtype=np.float64).reshape(s.shape)
     valid = z > 0.5 * NO_SURFACE
@@ -704,18 +1001,32 @@ def terrain_guides(
         x = np.concatenate([x, np.broadcast_to(s.reshape(c, 1, -1), whole.shape)], axis=2)
         z = np.concatenate([z, np.broadcast_to(z.reshape(c, 1, -1), whole.shape)], axis=2)
         valid = np.concatenate([valid, whole & lost[..., None]], axis=2)
-    if foot_world is not None and model.n_legs:
-        feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
-        fwd = np.stack([np.cos(plan.key_heading), np.sin(plan.key_heading)], axis=-1)  # (C, K, 2)
-        node_of_leg = model.leg_key
+    n_l = spines.n_legs
+    if foot_world is not None and n_l:
+        feet = np.asarray(foot_world, dtype=np.float64).reshape(c, n_l, 3)
+        node_of_leg = spines.leg_key
+        heading = plan.key_heading[:, node_of_leg]
+        fwd = np.empty((c, n_l, 2))  # each leg's node's forward direction
+        fwd[..., 0] = np.cos(heading)
+        fwd[..., 1] = np.sin(heading)
         rel = feet[..., :2] - xy[:, node_of_leg]
         # arc length grows from the head to the back: a foot ahead of its node comes before it
-        fx = arc[:, node_of_leg] - np.einsum("cli,cli->cl", rel, fwd[:, node_of_leg])  # (C, L)
-        # One column per leg, valid only in its own node's row.
-        mine = node_of_leg[None, :] == np.arange(k)[:, None]  # (K, L)
-        x = np.concatenate([x, np.broadcast_to(fx[:, None, :], (c, k, model.n_legs))], axis=2)
-        z = np.concatenate([z, np.broadcast_to(feet[:, None, :, 2], (c, k, model.n_legs))], axis=2)
-        valid = np.concatenate([valid, np.broadcast_to(mine, (c, k, model.n_legs))], axis=2)
+        fx = arc[:, node_of_leg] - np.einsum("cli,cli->cl", rel, fwd)  # (C, L)
+        # Each node's row gets a column per leg of its own (as many as the node with the most
+        # legs has; the spare ones not valid).
+        m = x.shape[2]
+        own = spines.node_legs  # (K, M)
+        n_own = own.shape[1]
+        x_all = np.empty((c, k, m + n_own))
+        x_all[..., :m] = x
+        x_all[..., m:] = fx[:, own]
+        z_all = np.empty((c, k, m + n_own))
+        z_all[..., :m] = z
+        z_all[..., m:] = feet[:, own, 2]
+        valid_all = np.empty((c, k, m + n_own), dtype=bool)
+        valid_all[..., :m] = valid
+        valid_all[..., m:] = spines.node_leg_valid
+        x, z, valid = x_all, z_all, valid_all
     nothing = ~valid.any(axis=2, keepdims=True)
     if nothing.any():
         # No ground and no feet at all: a flat floor at 0 keeps the numbers finite.
@@ -724,7 +1035,7 @@ def terrain_guides(
         valid = np.concatenate([valid, nothing], axis=2)
     ground, slope = upper_hull_eval(x, z, arc[..., None], valid)
     # The slope is along the spine from head to back; nose up means the ground rises forward.
-    return ground[..., 0] + model.key_rest_height[None, :], -np.arctan(slope[..., 0])
+    return ground[..., 0] + spines.key_rest_height, -np.arctan(slope[..., 0])
 
 
 def _polyline_at(xy: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
@@ -732,7 +1043,7 @@ def _polyline_at(xy: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
     past both ends): ``(C, K, n, 2)``."""
     c, k = xy.shape[0], xy.shape[1]
     flat = s.reshape(c, -1)
-    seg = np.clip(np.sum(flat[..., None] >= arc[:, None, 1:-1], axis=-1), 0, k - 2)  # (C, m)
+    seg = _clamp((flat[..., None] >= arc[:, None, 1:-1]).sum(axis=-1), 0, k - 2)  # (C, m)
     rows = np.arange(c)[:, None]
     a = xy[rows, seg]
     b = xy[rows, seg + 1]
@@ -743,12 +1054,11 @@ def _polyline_at(xy: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
 
 
 def node_pitch(
-    model: SpineModel,
+    spines: SpineBatch,
     plan: SpinePlan,
     node_z: npt.ArrayLike,
     env_pitch: npt.ArrayLike,
     foot_world: npt.ArrayLike | None,
-    params: SpineParams,
 ) -> FloatArray:
     """Each key node's pitch ``(C, K)`` (thesis §4.2.3): environment pitch averaged with the
     pitch its feet induce.
@@ -762,183 +1072,194 @@ def node_pitch(
     (the head) keep the environment pitch.
     """
     env = np.asarray(env_pitch, dtype=np.float64)
-    if foot_world is None or model.n_legs == 0 or params.foot_pitch_weight == 0.0:
+    if foot_world is None or spines.n_legs == 0 or not spines.any_foot_pitch:
         return env.copy()
     c, k = plan.key_xy.shape[:2]
-    env = np.broadcast_to(env, (c, k))
-    feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
-    z = np.broadcast_to(np.asarray(node_z, dtype=np.float64), (c, k))
-    leg = model.leg_key
+    env = _as_shape(env, (c, k))
+    feet = np.asarray(foot_world, dtype=np.float64).reshape(c, spines.n_legs, 3)
+    z = _as_shape(node_z, (c, k))
+    leg = spines.leg_key
     heading = plan.key_heading[:, leg]
     rel_xy = feet[..., :2] - plan.key_xy[:, leg]
     ahead = rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading)
     below = z[:, leg] - feet[..., 2]
-    rest_rel = model.foot_rest - model.key_rest[leg]
-    rest_heading = model.rest_key_heading[leg]
-    rest_ahead = rest_rel[:, 0] * np.cos(rest_heading) + rest_rel[:, 1] * np.sin(rest_heading)
+    rest_ahead = spines.rest_foot_ahead
     # The rest place on the sloped ground: further below the node behind it, less ahead.
-    ref_below = -rest_rel[None, :, 2] - rest_ahead[None, :] * np.tan(env[:, leg])
-    change = wrap_angle(np.arctan2(ahead, below) - np.arctan2(rest_ahead[None, :], ref_below))  # (C, L)
-    mean_change, has = _node_mean(model, change, np.ones(model.n_legs))
+    ref_below = spines.rest_foot_depth - rest_ahead * np.tan(env[:, leg])
+    change = _wrap(np.arctan2(ahead, below) - np.arctan2(rest_ahead, ref_below))  # (C, L)
+    mean_change = (change @ spines.membership) / spines.leg_count
     # (1 - w) env + w (env + change) = env + w change
-    return np.where(has[None, :], env + params.foot_pitch_weight * mean_change, env)
+    return np.where(spines.foot_pitch_nodes, env + spines.foot_pitch_weight[:, None] * mean_change, env)
 
 
-def visual_yaw(
-    model: SpineModel, plan: SpinePlan, foot_world: npt.ArrayLike, params: SpineParams
-) -> FloatArray:
+def visual_yaw(spines: SpineBatch, plan: SpinePlan, foot_world: npt.ArrayLike) -> FloatArray:
     """The lizard's visual yaw of each key node's tangent ``(C, K)`` (thesis §4.4).
 
     Every foot's yaw is the angle, seen from above, between the direction from its node to
     the foot now and the direction to its rest place (in the node's current frame); a node
     turns by the mean of its feet's yaws (times ``visual_yaw_gain``, clamped to
-    ``max_visual_yaw``). Nodes without feet do not turn.
+    ``max_visual_yaw``; the feet weighed by their rest distance from the node: a foot right
+    under it has no direction to speak of). Nodes without feet do not turn. Computed for
+    every character; the callers add it where ``SpineParams.visual_yaw`` is on.
     """
     c, k = plan.key_xy.shape[:2]
-    if model.n_legs == 0:
+    if spines.n_legs == 0:
         return np.zeros((c, k))
-    feet = np.asarray(foot_world, dtype=np.float64).reshape(c, model.n_legs, 3)
-    leg = model.leg_key
+    feet = np.asarray(foot_world, dtype=np.float64).reshape(c, spines.n_legs, 3)
+    leg = spines.leg_key
     rel = feet[..., :2] - plan.key_xy[:, leg]
-    rest_rel = model.foot_rest[:, :2] - model.key_rest[leg, :2]
     now = np.arctan2(rel[..., 1], rel[..., 0]) - plan.key_heading[:, leg]
-    rest = np.arctan2(rest_rel[:, 1], rest_rel[:, 0]) - model.rest_key_heading[leg]
-    # Feet right under their node have no direction to speak of: weigh by rest distance.
-    weight = np.linalg.norm(rest_rel, axis=1)
-    mean, _ = _node_mean(model, wrap_angle(now - rest), weight)
-    return np.clip(params.visual_yaw_gain * mean, -params.max_visual_yaw, params.max_visual_yaw)
+    turned = (_wrap(now - spines.rest_foot_yaw)[:, None, :] @ spines.yaw_weight)[:, 0]  # (C, K)
+    mean = np.where(spines.yaw_has, turned / spines.yaw_weight_sum, 0.0)
+    limit = spines.max_visual_yaw[:, None]
+    return _clamp(spines.visual_yaw_gain[:, None] * mean, -limit, limit)
+
+
+def _with_visual_yaw(spines: SpineBatch, plan: SpinePlan, foot_world: npt.ArrayLike) -> FloatArray:
+    """Each key node's tangent heading ``(C, K)``: its heading plus, for the characters with
+    ``visual_yaw`` on, :func:`visual_yaw`."""
+    turn = visual_yaw(spines, plan, foot_world)
+    if not spines.all_visual_yaw:
+        turn = np.where(spines.visual_yaw[:, None], turn, 0.0)
+    return np.asarray(plan.key_heading + turn)
 
 
 # ------------------------------------------------------------------------------- step 4
 
 
 def _sample_curve(
-    model: SpineModel, key_xyz: FloatArray, key_yaw: FloatArray, key_pitch: FloatArray
+    key_xyz: FloatArray, tangent: FloatArray, segment: IntArray, fraction: FloatArray,
+    ends: BoolArray, end_value: FloatArray,
 ) -> FloatArray:
-    """Points ``(C, J, 3)`` on the Hermite curve through the key nodes at the joints' arc
-    fractions. ``key_pitch`` here is the absolute tangent pitch (forward, nose up)."""
+    """Points ``(C, J, 3)`` on the Hermite curve through the key nodes ``(C, K, 3)`` along
+    their unit ``tangent`` ``(C, K, 3)`` (from the head toward the back) at the joints' arc
+    fractions: joint ``j`` at ``fraction[..., j]`` of the arc of key segment ``segment[j]``;
+    the joints ``ends`` at the parameters ``end_value`` exactly (0 or 1: the key nodes)."""
     c, k = key_xyz.shape[:2]
     m = _CURVE_SAMPLES
-    back = -_direction(key_yaw, key_pitch)  # the curve runs from the head to the back
     chord = vector_norm(key_xyz[:, 1:] - key_xyz[:, :-1], keepdims=True)  # (C, K - 1, 1)
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
     ctrl[:, :, 0] = key_xyz[:, :-1]
     ctrl[:, :, 1] = key_xyz[:, 1:]
-    ctrl[:, :, 2] = back[:, :-1] * chord
-    ctrl[:, :, 3] = back[:, 1:] * chord
-    s = _CURVE_S
+    ctrl[:, :, 2] = tangent[:, :-1] * chord
+    ctrl[:, :, 3] = tangent[:, 1:] * chord
     dense = _CURVE_BASIS @ ctrl  # (C, K - 1, m, 3): (m, 4) weights times (4, 3) controls
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
     vector_norm(dense[:, :, 1:] - dense[:, :, :-1]).cumsum(axis=2, out=table[:, :, 1:])
-    seg = model.joint_segment
-    tab = table[:, seg]  # (C, J, m)
-    target = model.joint_fraction[None, :] * tab[..., -1]
-    idx = np.minimum(np.maximum((tab < target[..., None]).sum(axis=-1), 1), m - 1)  # (C, J)
-    flat = tab.reshape(-1, m)
-    rows = np.arange(flat.shape[0])
-    l0 = flat[rows, (idx - 1).ravel()].reshape(idx.shape)
-    l1 = flat[rows, idx.ravel()].reshape(idx.shape)
+    tab = table[:, segment]  # (C, J, m)
+    target = fraction * tab[..., -1]
+    idx = _clamp((tab < target[..., None]).sum(axis=-1), 1, m - 1)  # (C, J)
+    rows = np.arange(c)[:, None]
+    l0 = table[rows, segment, idx - 1]
+    l1 = table[rows, segment, idx]
     frac = (target - l0) / np.maximum(l1 - l0, _EPS)
-    param = s[idx - 1] + np.minimum(np.maximum(frac, 0.0), 1.0) * (s[1] - s[0])
+    param = _CURVE_S[idx - 1] + _clamp(frac, 0.0, 1.0) * _CURVE_STEP
     # Exact ends: key joints sit on their key node.
-    param[:, model.joint_at_start] = 0.0
-    param[:, model.joint_at_end] = 1.0
-    return np.asarray(np.einsum("cjf,cjfd->cjd", hermite_basis(param), ctrl[:, seg]))
+    param[:, ends] = end_value
+    return np.asarray(np.einsum("cjf,cjfd->cjd", hermite_basis(param), ctrl[:, segment]))
 
 
 def build_spine(
-    model: SpineModel,
+    spines: SpineBatch,
     key_xyz: npt.ArrayLike,
     key_yaw: npt.ArrayLike,
     key_pitch: npt.ArrayLike,
+    tangent: FloatArray | None = None,
 ) -> SpinePose:
     """Step 4 (thesis §4.2.4): the final spine from key node guides.
 
     ``key_xyz`` ``(C, K, 3)`` guide positions; ``key_yaw`` ``(C, K)`` tangent headings
     (node heading plus any visual yaw); ``key_pitch`` ``(C, K)`` node pitch, nose up, as a
-    deviation from the rest pose (0 keeps the rest posture). Bone lengths are exact: the
-    chain is rebuilt from the anchor node with each bone's rest direction turned by the
-    curve's turn over that bone, each joint's turn limited to its yaw and pitch limits.
+    deviation from the rest pose (0 keeps the rest posture); ``tangent``: the unit tangents
+    ``(C, K, 3)`` those give (``SpinePose.tangent``), when the caller has them already. Bone
+    lengths are exact: the chain is rebuilt from the anchor node with each bone's rest
+    direction turned by the curve's turn over that bone, each joint's turn limited to its
+    yaw and pitch limits.
     """
     guide = np.asarray(key_xyz, dtype=np.float64)
     c = guide.shape[0]
+    n_j = spines.n_joints
     yaw = _as_shape(key_yaw, guide.shape[:2])
     pitch = _as_shape(key_pitch, guide.shape[:2])
-    samples = _sample_curve(model, guide, yaw, model.rest_key_pitch[None, :] + pitch)
+    if tangent is None:
+        tangent = -_direction(yaw, spines.rest_key_pitch + pitch)  # the curve runs from the head to the back
+    samples = _sample_curve(guide, tangent, spines.joint_segment, spines.joint_fraction, spines.curve_ends,
+                            spines.curve_end_value)
     chord_yaw, chord_pitch = _yaw_pitch(samples[:, 1:] - samples[:, :-1])  # (C, J - 1)
-    yaw_dev = wrap_angle(chord_yaw - model.rest_chord_yaw[None, :])
-    pitch_dev = chord_pitch - model.rest_chord_pitch[None, :]
-    yaw_dev, pitch_dev = _limit_joints(model, yaw_dev, pitch_dev)
-
-    rest_yaw = model.rest_chord_yaw[None, :]
-    rest_pitch = model.rest_chord_pitch[None, :]
-    # Rz(yaw) Ry(-pitch) of the turned chord after the rest chord's inverse (rest_unturn)
-    rotation = frame_from_yaw_pitch(rest_yaw + yaw_dev, rest_pitch + pitch_dev) @ model.rest_unturn
-    bone_world = np.einsum("cbij,bj->cbi", rotation, model.bone_dir) * model.bone_length[None, :, None]
-
-    anchor_joint = int(model.key_joint[model.anchor_key])
-    joints = np.empty((c, model.n_joints, 3))
-    joints[:, anchor_joint] = guide[:, model.anchor_key]
-    if anchor_joint < model.n_joints - 1:
-        behind = bone_world[:, anchor_joint:].cumsum(axis=1)
-        joints[:, anchor_joint + 1:] = guide[:, model.anchor_key, None] + behind
-    if anchor_joint > 0:
-        ahead = bone_world[:, :anchor_joint][:, ::-1].cumsum(axis=1)[:, ::-1]
-        joints[:, :anchor_joint] = guide[:, model.anchor_key, None] - ahead
+    yaw_dev, pitch_dev = _limit_joints(spines, _wrap(chord_yaw - spines.rest_chord_yaw),
+                                       chord_pitch - spines.rest_chord_pitch)
 
     # Joint frames: the mean turn of the bones on either side (one bone at the ends). For a
-    # bone pointing backward, a positive pitch deviation lowers the nose.
-    pad_y = np.concatenate([yaw_dev[:, :1], yaw_dev, yaw_dev[:, -1:]], axis=1)
-    pad_p = np.concatenate([pitch_dev[:, :1], pitch_dev, pitch_dev[:, -1:]], axis=1)
-    j_yaw = pad_y[:, :-1] + 0.5 * wrap_angle(pad_y[:, 1:] - pad_y[:, :-1])
-    j_nose = -0.5 * (pad_p[:, :-1] + pad_p[:, 1:])
-    frames = frame_from_yaw_pitch(j_yaw, j_nose)
+    # bone pointing backward, a positive pitch deviation lowers the nose. Bones and joints
+    # are turned in one call: (C, J - 1) bone angles, then (C, J) joint angles.
+    pad_y = yaw_dev[:, spines.pad_index]
+    pad_p = pitch_dev[:, spines.pad_index]
+    turn_yaw = np.empty((c, 2 * n_j - 1))
+    turn_pitch = np.empty((c, 2 * n_j - 1))
+    np.add(spines.rest_chord_yaw, yaw_dev, out=turn_yaw[:, :n_j - 1])
+    np.add(spines.rest_chord_pitch, pitch_dev, out=turn_pitch[:, :n_j - 1])
+    turn_yaw[:, n_j - 1:] = pad_y[:, :-1] + 0.5 * _wrap(pad_y[:, 1:] - pad_y[:, :-1])
+    turn_pitch[:, n_j - 1:] = -0.5 * (pad_p[:, :-1] + pad_p[:, 1:])
+    turned = frame_from_yaw_pitch(turn_yaw, turn_pitch)
+    # Rz(yaw) Ry(-pitch) of the turned chord after the rest chord's inverse (rest_unturn)
+    rotation = turned[:, :n_j - 1] @ spines.rest_unturn
+    bone_world = np.einsum("...bij,...bj->...bi", rotation, spines.bone_dir) * spines.bone_length[..., None]
+
+    aj = spines.anchor_joint
+    anchor = guide[:, spines.anchor_key]
+    joints = np.empty((c, n_j, 3))
+    joints[:, aj] = anchor
+    if aj < n_j - 1:
+        joints[:, aj + 1:] = anchor[:, None] + bone_world[:, aj:].cumsum(axis=1)
+    if aj > 0:
+        joints[:, :aj] = anchor[:, None] - bone_world[:, :aj][:, ::-1].cumsum(axis=1)[:, ::-1]
     return SpinePose(
         joints=joints,
         bone_rotation=rotation,
-        joint_frame=frames,
+        joint_frame=turned[:, n_j - 1:],
         guide_xyz=guide.copy(),
         key_yaw=np.array(yaw, copy=True),
         key_pitch=np.array(pitch, copy=True),
+        tangent=tangent,
         yaw_dev=yaw_dev,
         pitch_dev=pitch_dev,
     )
 
 
 def _limit_joints(
-    model: SpineModel, yaw_dev: FloatArray, pitch_dev: FloatArray
+    spines: SpineBatch | SpineModel, yaw_dev: FloatArray, pitch_dev: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """Limit the change of turn at every joint, working outward from the anchor joint."""
+    """Limit the change of turn at every joint, working outward from the anchor joint.
+    ``yaw_dev``, ``pitch_dev`` ``(C, J - 1)`` are not changed."""
     n_b = yaw_dev.shape[1]
+    yls = np.asarray(spines.joint_yaw_limit)  # (B, J) or (J,)
+    pls = np.asarray(spines.joint_pitch_limit)
     # Mostly no joint is at its limit: then every turn stays as it is (the walk below would
     # only add rounding), found with a few array operations instead of a loop over bones.
     if n_b < 2 or (
-        (np.abs(yaw_dev[:, 1:] - yaw_dev[:, :-1]) < model.joint_yaw_limit[1:n_b]).all()
-        and (np.abs(pitch_dev[:, 1:] - pitch_dev[:, :-1]) < model.joint_pitch_limit[1:n_b]).all()
+        (np.abs(yaw_dev[:, 1:] - yaw_dev[:, :-1]) < yls[..., 1:n_b]).all()
+        and (np.abs(pitch_dev[:, 1:] - pitch_dev[:, :-1]) < pls[..., 1:n_b]).all()
     ):
-        return yaw_dev.copy(), pitch_dev.copy()
+        return yaw_dev, pitch_dev
     yaw = yaw_dev.copy()
     pitch = pitch_dev.copy()
-    anchor_joint = int(model.key_joint[model.anchor_key])
+    anchor_joint = int(spines.key_joint[spines.anchor_key])
     # Bones behind the anchor keep the first one's turn as reference; so do bones ahead.
     ref_back = min(anchor_joint, n_b - 1)
-    # np.minimum(np.maximum()) is np.clip without its dispatch cost (this loop runs per bone).
-    yls, pls = model.joint_yaw_limit.tolist(), model.joint_pitch_limit.tolist()
     for b in range(ref_back + 1, n_b):  # joint b joins bone b - 1 and bone b
-        yl, pl = yls[b], pls[b]
-        yaw[:, b] = yaw[:, b - 1] + np.minimum(np.maximum(wrap_angle(yaw[:, b] - yaw[:, b - 1]), -yl), yl)
-        pitch[:, b] = pitch[:, b - 1] + np.minimum(np.maximum(pitch[:, b] - pitch[:, b - 1], -pl), pl)
+        yl, pl = yls[..., b], pls[..., b]
+        yaw[:, b] = yaw[:, b - 1] + _clamp(_wrap(yaw[:, b] - yaw[:, b - 1]), -yl, yl)
+        pitch[:, b] = pitch[:, b - 1] + _clamp(pitch[:, b] - pitch[:, b - 1], -pl, pl)
     for b in range(ref_back - 1, -1, -1):  # joint b + 1 joins bone b and bone b + 1
-        yl, pl = yls[b + 1], pls[b + 1]
-        yaw[:, b] = yaw[:, b + 1] + np.minimum(np.maximum(wrap_angle(yaw[:, b] - yaw[:, b + 1]), -yl), yl)
-        pitch[:, b] = pitch[:, b + 1] + np.minimum(np.maximum(pitch[:, b] - pitch[:, b + 1], -pl), pl)
+        yl, pl = yls[..., b + 1], pls[..., b + 1]
+        yaw[:, b] = yaw[:, b + 1] + _clamp(_wrap(yaw[:, b] - yaw[:, b + 1]), -yl, yl)
+        pitch[:, b] = pitch[:, b + 1] + _clamp(pitch[:, b] - pitch[:, b + 1], -pl, pl)
     return yaw, pitch
 
 
 def finish_spine(
-    model: SpineModel,
+    spines: SpineBatch,
     plan: SpinePlan,
-    params: SpineParams,
     node_z: npt.ArrayLike,
     env_pitch: npt.ArrayLike,
     foot_world: npt.ArrayLike | None = None,
@@ -946,49 +1267,53 @@ def finish_spine(
     """Steps 3 and 4 from a plan: node heights ``(C, K)`` (hull height plus rest height plus
     the pseudo-physics offset), environment pitch ``(C, K)``, current feet ``(C, L, 3)``."""
     c, k = plan.key_xy.shape[:2]
-    z = np.broadcast_to(np.asarray(node_z, dtype=np.float64), (c, k))
-    env = np.broadcast_to(np.asarray(env_pitch, dtype=np.float64), (c, k))
-    pitch = node_pitch(model, plan, z, env, foot_world, params)
+    z = _as_shape(node_z, (c, k))
+    env = _as_shape(env_pitch, (c, k))
+    pitch = node_pitch(spines, plan, z, env, foot_world)
     yaw = plan.key_heading.copy()
-    if params.visual_yaw and foot_world is not None:
-        yaw = yaw + visual_yaw(model, plan, foot_world, params)
-    guide = np.concatenate([plan.key_xy, z[..., None]], axis=-1)
-    return build_spine(model, guide, yaw, pitch)
+    if spines.any_visual_yaw and foot_world is not None:
+        yaw = _with_visual_yaw(spines, plan, foot_world)
+    guide = np.empty((c, k, 3))
+    guide[..., :2] = plan.key_xy
+    guide[..., 2] = z
+    return build_spine(spines, guide, yaw, pitch)
 
 
-def refit(model: SpineModel, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePose:
+def refit(spines: SpineBatch, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePose:
     """Step 4 again on new guides ``(C, K, 3)`` with the same tangents (thesis §4.2.4: when
     the leg IK cannot reach, the spine is rebuilt on the closest positions it can hold)."""
-    return build_spine(model, key_xyz, pose.key_yaw, pose.key_pitch)
+    return build_spine(spines, key_xyz, pose.key_yaw, pose.key_pitch, pose.tangent)
 
 
-def leg_frames(model: SpineModel, pose: SpinePose) -> FloatArray:
+def leg_frames(spines: SpineBatch, pose: SpinePose) -> FloatArray:
     """Body-to-world rotation each leg hangs from ``(C, L, 3, 3)``: its carrier bone's
     rotation (``SpineModel.leg_bone``), else the frame of its key node."""
-    key_frames = pose.joint_frame[:, model.leg_key_joint]
-    if not model.any_leg_on_bone:
+    if spines.all_legs_on_bone:
+        return np.asarray(pose.bone_rotation[:, spines.leg_bone_row])
+    key_frames = pose.joint_frame[:, spines.leg_key_joint]
+    if not spines.any_leg_on_bone:
         return np.asarray(key_frames)
-    bone_frames = pose.bone_rotation[:, model.leg_bone_row]
-    return np.asarray(np.where(model.leg_on_bone[None, :, None, None], bone_frames, key_frames))
+    bone_frames = pose.bone_rotation[:, spines.leg_bone_row]
+    return np.asarray(np.where(spines.leg_on_bone[None, :, None, None], bone_frames, key_frames))
 
 
-def hip_positions(model: SpineModel, pose: SpinePose, frames: FloatArray | None = None) -> FloatArray:
+def hip_positions(spines: SpineBatch, pose: SpinePose, frames: FloatArray | None = None) -> FloatArray:
     """World hip positions ``(C, L, 3)``: each hip rides with its carrier bone (turning about
     the bone's back joint) or, without one, with the frame of its key node (``frames``: the
     pose's :func:`leg_frames` ``(C, L, 3, 3)`` when the caller has them already)."""
     if frames is None:
-        frames = leg_frames(model, pose)
-    return pose.joints[:, model.leg_pivot] + np.matmul(frames, model.hip_pivot_offset[:, :, None])[..., 0]
+        frames = leg_frames(spines, pose)
+    return pose.joints[:, spines.leg_pivot] + np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
 
 
 def repeat_for_reach(
-    model: SpineModel,
+    spines: SpineBatch,
     pose: SpinePose,
     foot_world: npt.ArrayLike,
     leg_reach: npt.ArrayLike,
     iterations: int = 3,
     slack: float = 0.995,
-    max_shift: float = np.inf,
+    max_shift: npt.ArrayLike = np.inf,
     hips: FloatArray | None = None,
 ) -> SpinePose:
     """Repeat step 4 until every hip is within ``leg_reach`` of its foot.
@@ -1002,38 +1327,73 @@ def repeat_for_reach(
     the hook of thesis §4.2.4 with reach as the legs' ability; a controller whose IK knows
     better (joint limits) can compute its own guides and call :func:`refit`.
     ``foot_world`` ``(C, L, 3)``, ``leg_reach`` ``(L,)`` or ``(C, L)``; no guide moves further than
-    ``max_shift`` from where it was (a foot beyond help is the controller's to step).
-    ``hips`` ``(C, L, 3)``: ``hip_positions(model, pose)`` when the caller has them already.
+    ``max_shift`` (a scalar or ``(C,)``) from where it was (a foot beyond help is the
+    controller's to step). ``hips`` ``(C, L, 3)``: ``hip_positions(spines, pose)`` when the
+    caller has them already.
     """
-    if model.n_legs == 0:
-        return pose
+    return reach_repeats(spines, pose, foot_world, leg_reach, iterations, slack, max_shift, hips)[0]
+
+
+def reach_repeats(
+    spines: SpineBatch,
+    pose: SpinePose,
+    foot_world: npt.ArrayLike,
+    leg_reach: npt.ArrayLike,
+    iterations: int = 3,
+    slack: float = 0.995,
+    max_shift: npt.ArrayLike = np.inf,
+    hips: FloatArray | None = None,
+) -> tuple[SpinePose, FloatArray | None]:
+    """:func:`repeat_for_reach`, and the hips ``(C, L, 3)`` of the pose it returns when it
+    measured them on that pose for every character (else None)."""
+    if spines.n_legs == 0:
+        return pose, hips
     feet = np.asarray(foot_world, dtype=np.float64)
     n_chars = pose.joints.shape[0]
     reach_all = np.asarray(leg_reach, dtype=np.float64)
-    reach_all = np.broadcast_to(reach_all if reach_all.ndim == 2 else reach_all[None, :],
-                                (n_chars, model.n_legs))
-    member = _membership(model)
+    if reach_all.shape != (n_chars, spines.n_legs):
+        reach_all = np.broadcast_to(reach_all if reach_all.ndim == 2 else reach_all[None, :],
+                                    (n_chars, spines.n_legs))
+    cap_all = np.asarray(max_shift, dtype=np.float64)
+    if cap_all.ndim:
+        cap_all = cap_all.reshape(-1, 1, 1)
+    member = spines.membership
     start = pose.guide_xyz
-    rows = np.arange(pose.joints.shape[0])  # characters still stretched (only they are rebuilt)
+    # The characters still stretched (only they are rebuilt): None while that is all of them.
+    rows: IntArray | None = None
+    sub_spines = spines
+    last_hips: FloatArray | None = None
     for i in range(max(0, int(iterations))):
-        sub = pose_rows(pose, rows)
-        to_foot = feet[rows] - (hips if i == 0 and hips is not None else hip_positions(model, sub))
+        sub = pose if rows is None else pose_rows(pose, rows)
+        hip = hips if i == 0 and hips is not None else hip_positions(sub_spines, sub)
+        last_hips = hip if rows is None else None
+        to_foot = (feet if rows is None else feet[rows]) - hip
         dist = vector_norm(to_foot)
-        reach = reach_all[rows]
+        reach = reach_all if rows is None else reach_all[rows]
         stretched = (dist > reach + 1e-12).any(axis=1)
         if not stretched.any():
             break
         excess = np.maximum(dist - slack * reach, 0.0)
-        rows, to_foot, dist, excess = rows[stretched], to_foot[stretched], dist[stretched], excess[stretched]
+        if rows is None and stretched.all():
+            cap = cap_all
+            base = start
+        else:
+            rows = (np.arange(n_chars) if rows is None else rows)[stretched]
+            to_foot, dist, excess = to_foot[stretched], dist[stretched], excess[stretched]
+            sub = pose_rows(pose, rows)
+            sub_spines = spines.take(rows)
+            cap = cap_all[rows] if cap_all.ndim else cap_all
+            base = start[rows]
         pull = to_foot * (excess * excess / np.maximum(dist, _EPS))[..., None]
         weight = excess @ member  # (c, K)
         shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
-        sub = pose_rows(pose, rows)
-        moved = sub.guide_xyz + shift - start[rows]
+        moved = sub.guide_xyz + shift - base
         size = vector_norm(moved, keepdims=True)
-        moved *= np.minimum(1.0, max_shift / np.maximum(size, _EPS))
-        pose = pose_with_rows(pose, rows, refit(model, sub, start[rows] + moved))
-    return pose
+        moved *= np.minimum(1.0, cap / np.maximum(size, _EPS))
+        new = refit(sub_spines, sub, base + moved)
+        pose = new if rows is None else pose_with_rows(pose, rows, new)
+        last_hips = None
+    return pose, last_hips
 
 
 def pose_rows(pose: SpinePose, rows: IntArray) -> SpinePose:
@@ -1063,9 +1423,8 @@ GuideFn = Callable[[SpinePlan], tuple[FloatArray, FloatArray]]
 
 
 def spine_step(
-    model: SpineModel,
+    spines: SpineBatch,
     state: SpineState,
-    params: SpineParams,
     desired_heading: npt.ArrayLike,
     distance: npt.ArrayLike,
     dt: float,
@@ -1076,17 +1435,19 @@ def spine_step(
     (e.g. :func:`terrain_guides` plus the pseudo-physics), pitch, visual yaw, final curve.
     Returns the state for the next step, the plan (node headings for the feet) and the pose.
     """
-    plan = plan_spine(model, state, params, desired_heading, distance, dt)
+    plan = plan_spine(spines, state, desired_heading, distance, dt)
     node_z, env_pitch = guides(plan)
-    pose = finish_spine(model, plan, params, node_z, env_pitch, foot_world)
+    pose = finish_spine(spines, plan, node_z, env_pitch, foot_world)
     return SpineState(plan.key_xy), plan, pose
 
 
-def ground_guides(model: SpineModel, height_at: HeightFn, foot_world: npt.ArrayLike | None = None) -> GuideFn:
+def ground_guides(
+    spines: SpineBatch, height_at: HeightFn, foot_world: npt.ArrayLike | None = None
+) -> GuideFn:
     """A :data:`GuideFn` from a terrain height query alone (no pseudo-physics)."""
 
     def guides(plan: SpinePlan) -> tuple[FloatArray, FloatArray]:
-        return terrain_guides(model, plan, height_at, foot_world)
+        return terrain_guides(spines, plan, height_at, foot_world)
 
     return guides
 
@@ -1094,6 +1455,7 @@ def ground_guides(model: SpineModel, height_at: HeightFn, foot_world: npt.ArrayL
 __all__ = [
     "GuideFn",
     "HeightFn",
+    "SpineBatch",
     "SpineModel",
     "SpineParams",
     "SpinePlan",
@@ -1109,6 +1471,7 @@ __all__ = [
     "plan_spine",
     "pose_rows",
     "pose_with_rows",
+    "reach_repeats",
     "refit",
     "repeat_for_reach",
     "spine_step",

@@ -5,7 +5,10 @@ the spine groups lives here.
 A character whose morphology has a spine and which is given ``SpineParams`` walks on its
 virtual pelvis nodes instead of one rigid pelvis. ``SpineLink`` holds the pelvis nodes of
 every character (one per rigid character, ``K`` per spine) and the groups of characters
-stepped together through the spine functions (one shared model and settings); the functions
+stepped together through the spine functions: every character whose spine has the same
+structure (``SpineModel.structure``: key joints, the legs' nodes and bones) and the same
+``flexible`` setting is in one group, as one ``SpineBatch`` with each character's own rest
+geometry and settings, so many characters cost the array operations of one; the functions
 below are the controller's steps for them: set-up (``build_link``, ``start``), steps 1-2
 (``advance``), the feedback shift (``shift``), step 3 (``guides``), step 4 with the reach
 pull and its release (``pose``), where each leg's node will be when its foot lands
@@ -24,6 +27,7 @@ from ..geometry import rotate_xy, vector_norm, wrap_angle
 from .morphology import LegBatch
 from .pelvis import Body
 from .spine import (
+    SpineBatch,
     SpineModel,
     SpineParams,
     SpinePlan,
@@ -36,8 +40,8 @@ from .spine import (
     plan_spine,
     pose_rows,
     pose_with_rows,
+    reach_repeats,
     refit,
-    repeat_for_reach,
     terrain_guides,
     visual_yaw,
 )
@@ -46,15 +50,15 @@ from .types import BoolArray, ControllerParams, FloatArray, IntArray, StepContro
 
 @dataclass(eq=False)
 class SpineGroup:
-    """Characters stepped together through the spine functions: one shared ``SpineModel``
-    and ``SpineParams``. ``chars (g,)``; ``legs (g, L)`` flat leg rows; ``nodes (g, K)`` flat
+    """Characters stepped together through the spine functions: ``spines``, one
+    ``SpineBatch`` (one structure; each character's own ``SpineModel`` and ``SpineParams``).
+    ``chars (g,)``; ``legs (g, L)`` flat leg rows; ``nodes (g, K)`` flat
     pelvis-node rows; ``plan``/``pose``: the last steps 1-2 and step 4; ``height``,
     ``pitch (g, K)``: each node's filtered preferred height and pitch (deviation from rest);
     ``reach_shift (g, K, 3)``: how far the last step 4 moved each node's guide so the legs
     reach their feet (released gradually, see ``ControllerParams.reach_release_time``)."""
 
-    model: SpineModel
-    params: SpineParams
+    spines: SpineBatch
     chars: IntArray
     legs: IntArray
     nodes: IntArray
@@ -74,7 +78,8 @@ class SpineLink:
     (N,)``: the node each leg hangs from; ``spine_legs``: rows of the legs on a spine;
     ``hips``, ``hips_free (N, 3)``: where the spine puts each hip (after and before step 4's
     reach pull; only spine legs' rows are used); ``leg_rot (N, 3, 3)``: each spine leg's
-    frame."""
+    frame; ``char_group``, ``char_row (C,)``: each character's group (-1 without a spine)
+    and its row in it."""
 
     params: list[SpineParams | None]
     has_spine: BoolArray
@@ -88,6 +93,8 @@ class SpineLink:
     hips_free: FloatArray
     leg_rot: FloatArray
     groups: list[SpineGroup]
+    char_group: IntArray
+    char_row: IntArray
 
     @property
     def all_legs(self) -> bool:
@@ -103,8 +110,10 @@ def build_link(legs: LegBatch, spine: Sequence[SpineParams | None] | None) -> Sp
         raise ValueError(f"{len(params)} spine settings for {c} characters")
     has_spine = np.array([sp is not None for sp in params], dtype=bool)
     counts = np.ones(c, dtype=np.int64)
-    grouped: dict[tuple[int, SpineParams], list[int]] = {}
-    models: dict[int, SpineModel] = {}
+    # one group per spine structure (and rigid or flexible): characters of different sizes,
+    # proportions and settings step together
+    grouped: dict[tuple[object, ...], list[int]] = {}
+    models: list[SpineModel | None] = [None] * c
     for i, sp in enumerate(params):
         if sp is None:
             continue
@@ -112,26 +121,33 @@ def build_link(legs: LegBatch, spine: Sequence[SpineParams | None] | None) -> Sp
         if model is None:
             raise ValueError(f"character {i} has spine settings but its morphology has no spine")
         counts[i] = model.n_keys
-        models[id(model)] = model
-        grouped.setdefault((id(model), sp), []).append(i)
+        models[i] = model
+        grouped.setdefault((model.structure, sp.flexible), []).append(i)
     node_start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     local = np.where(has_spine[lc], legs.pelvis_node, 0)
     groups: list[SpineGroup] = []
-    for (mid, sp), chars in grouped.items():
-        model = models[mid]
+    char_group = np.full(c, -1, dtype=np.int64)
+    char_row = np.zeros(c, dtype=np.int64)
+    for chars in grouped.values():
+        spines = SpineBatch.stack([m for i in chars if (m := models[i]) is not None],
+                                  [sp for i in chars if (sp := params[i]) is not None])
         ch = np.array(chars, dtype=np.int64)
+        char_group[ch] = len(groups)
+        char_row[ch] = np.arange(ch.size)
         start = legs.leg_start
         leg_rows = np.stack([np.arange(start[i], start[i + 1]) for i in chars])
-        nodes = node_start[ch][:, None] + np.arange(model.n_keys)[None, :]
-        empty = SpinePlan(np.zeros((ch.size, model.n_keys, 2)), np.zeros((ch.size, model.n_keys)),
-                          np.zeros((ch.size, model.n_keys)), np.zeros(ch.size), np.zeros(ch.size))
-        groups.append(SpineGroup(model, sp, ch, leg_rows, nodes, empty))
+        k = spines.n_keys
+        nodes = node_start[ch][:, None] + np.arange(k)[None, :]
+        empty = SpinePlan(np.zeros((ch.size, k, 2)), np.zeros((ch.size, k)), np.zeros((ch.size, k)),
+                          np.zeros(ch.size), np.zeros(ch.size))
+        groups.append(SpineGroup(spines, ch, leg_rows, nodes, empty))
     return SpineLink(
         params=params, has_spine=has_spine, node_start=node_start, n_nodes=int(node_start[-1]),
         node_char=np.repeat(np.arange(c), counts), leg_node=(node_start[lc] + local).astype(np.int64),
         spine_legs=np.flatnonzero(has_spine[lc]),
-        max_spine_joints=max((m.n_joints for m in models.values()), default=0),
+        max_spine_joints=max((m.n_joints for m in models if m is not None), default=0),
         hips=np.zeros((n, 3)), hips_free=np.zeros((n, 3)), leg_rot=np.zeros((n, 3, 3)), groups=groups,
+        char_group=char_group, char_row=char_row,
     )
 
 
@@ -144,11 +160,11 @@ def start(
     heights ``height (C,)`` for theirs)."""
     pref = np.asarray(height, dtype=np.float64)[link.node_char].copy()
     for g in link.groups:
-        state = SpineState.at_rest(g.model, body.pos[g.chars, :2], body.yaw[g.chars])
-        g.plan = plan_spine(g.model, state, g.params, body.yaw[g.chars], 0.0, 0.0)
-        h, env_pitch = terrain_guides(g.model, g.plan, height_at, support[g.legs])
+        state = SpineState.at_rest(g.spines, body.pos[g.chars, :2], body.yaw[g.chars])
+        g.plan = plan_spine(g.spines, state, body.yaw[g.chars], 0.0, 0.0)
+        h, env_pitch = terrain_guides(g.spines, g.plan, height_at, support[g.legs])
         g.height = h
-        g.pitch = node_pitch(g.model, g.plan, h, env_pitch, support[g.legs], g.params)
+        g.pitch = node_pitch(g.spines, g.plan, h, env_pitch, support[g.legs])
         pref[g.nodes] = h
     return pref
 
@@ -156,12 +172,11 @@ def start(
 def body_from_plan(g: SpineGroup, body: Body) -> None:
     """The body frame of spine characters from their anchor node on the ground plane
     (the pelvis the planner windows and the records refer to)."""
-    m = g.model
-    k = m.anchor_key
-    yaw = wrap_angle(g.plan.key_heading[:, k] - m.rest_key_heading[k])
+    sb = g.spines
+    k = sb.anchor_key
+    yaw = wrap_angle(g.plan.key_heading[:, k] - sb.rest_key_heading[:, k])
     body.yaw[g.chars] = yaw
-    rest = np.broadcast_to(m.key_rest[k, :2], (yaw.size, 2))
-    body.pos[g.chars, :2] = g.plan.key_xy[:, k] - rotate_xy(rest, yaw)
+    body.pos[g.chars, :2] = g.plan.key_xy[:, k] - rotate_xy(sb.anchor_rest_xy, yaw)
 
 
 def advance(link: SpineLink, body: Body, ctl: StepControls, dt: float) -> None:
@@ -170,12 +185,10 @@ def advance(link: SpineLink, body: Body, ctl: StepControls, dt: float) -> None:
     their node in the ground plane until step 4 places them."""
     for g in link.groups:
         old = g.plan.key_xy
-        g.plan = plan_spine(
-            g.model, SpineState(old), g.params, ctl.heading[g.chars], ctl.speed[g.chars] * dt, dt
-        )
-        moved = g.plan.key_xy - old
-        link.hips[g.legs, :2] += moved[:, g.model.leg_key]
-        link.hips_free[g.legs, :2] += moved[:, g.model.leg_key]
+        g.plan = plan_spine(g.spines, SpineState(old), ctl.heading[g.chars], ctl.speed[g.chars] * dt, dt)
+        moved = (g.plan.key_xy - old)[:, g.spines.leg_key]
+        link.hips[g.legs, :2] += moved
+        link.hips_free[g.legs, :2] += moved
         body_from_plan(g, body)
 
 
@@ -200,10 +213,10 @@ def guides(
     pref = rigid_height[link.node_char].copy()
     for g in link.groups:
         feet = support[g.legs]
-        height, env_pitch = terrain_guides(g.model, g.plan, height_at, feet)
+        height, env_pitch = terrain_guides(g.spines, g.plan, height_at, feet)
         a = alpha[g.chars][:, None]
         g.height = g.height + a * (height - g.height)
-        pitch = node_pitch(g.model, g.plan, g.height, env_pitch, feet, g.params)
+        pitch = node_pitch(g.spines, g.plan, g.height, env_pitch, feet)
         g.pitch = g.pitch + a * (pitch - g.pitch)
         pref[g.nodes] = g.height
     return pref
@@ -234,35 +247,39 @@ def pose(
     repeated on guides pulled toward the feet while a leg cannot reach; then the hips,
     leg frames and body frame of every spine character."""
     for g in link.groups:
-        m = g.model
-        has_legs = np.bincount(m.leg_key, minlength=m.n_keys) > 0
-        z = np.where(physics_on[g.chars][:, None] & has_legs[None, :], node_z[g.nodes], g.height)
+        sb = g.spines
+        c, k = g.nodes.shape
+        z = np.where(physics_on[g.chars][:, None] & sb.has_legs, node_z[g.nodes], g.height)
         yaw = g.plan.key_heading
-        if g.params.visual_yaw:
-            yaw = yaw + visual_yaw(m, g.plan, at.foot[g.legs], g.params)
-        guide = np.concatenate([g.plan.key_xy, z[..., None]], axis=-1)
-        pose = build_spine(m, guide, yaw, g.pitch)
-        hips_free = hip_positions(m, pose)
+        if sb.any_visual_yaw:
+            turn = visual_yaw(sb, g.plan, at.foot[g.legs])
+            yaw = yaw + (turn if sb.all_visual_yaw else np.where(sb.visual_yaw[:, None], turn, 0.0))
+        guide = np.empty((c, k, 3))
+        guide[..., :2] = g.plan.key_xy
+        guide[..., 2] = z
+        pose = build_spine(sb, guide, yaw, g.pitch)
+        hips_free = hip_positions(sb, pose)
         link.hips_free[g.legs] = hips_free
         # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
-        max_shift = p.guard_max_drop * float(at.body_thickness[g.chars[0]])
+        max_shift = p.guard_max_drop * at.body_thickness[g.chars]
         free = pose
         reach = spine_reach(g, at, p.swing_reach_slack)
         # a swinging foot pulls as if it were already down at its landing height (within
         # its growing reach), so the body is as low as that foot needs when it lands
-        feet = at.foot[g.legs].copy()
+        feet = at.foot[g.legs]
         swing = at.swinging[g.legs]
-        feet[swing, 2] = np.minimum(feet[swing, 2], at.target[g.legs][swing, 2])
+        if swing.any():
+            feet[swing, 2] = np.minimum(feet[swing, 2], at.target[g.legs][swing, 2])
         feet[..., 2] += at.foot_lift[g.legs]
-        pose = repeat_for_reach(m, pose, feet, reach, iterations=6, max_shift=max_shift, hips=hips_free)
-        pose, g.reach_shift = release_pull(g, free, pose, feet, reach, dt, p.reach_release_time)
+        pose, hips = reach_repeats(sb, pose, feet, reach, iterations=6, max_shift=max_shift, hips=hips_free)
+        pose, g.reach_shift, hips = release_pull(g, free, pose, feet, reach, dt, p.reach_release_time, hips)
         g.pose = pose
-        frames = leg_frames(m, pose)
-        link.hips[g.legs] = hip_positions(m, pose, frames)
+        frames = leg_frames(sb, pose)
+        link.hips[g.legs] = hip_positions(sb, pose, frames) if hips is None else hips
         link.leg_rot[g.legs] = frames
-        aj = int(m.key_joint[m.anchor_key])
+        aj = sb.anchor_joint
         frame = pose.joint_frame[:, aj]
-        body.pos[g.chars] = pose.joints[:, aj] - np.einsum("cij,j->ci", frame, m.joint_rest[aj])
+        body.pos[g.chars] = pose.joints[:, aj] - np.einsum("...ij,...j->...i", frame, sb.anchor_rest)
         body.yaw[g.chars] = np.arctan2(frame[:, 1, 0], frame[:, 0, 0])
         body.pitch[g.chars] = np.arctan2(frame[:, 2, 0], np.hypot(frame[:, 0, 0], frame[:, 1, 0]))
         body.roll[g.chars] = 0.0
@@ -271,31 +288,38 @@ def pose(
 
 def release_pull(
     g: SpineGroup, free: SpinePose, pulled: SpinePose, feet: FloatArray, reach: FloatArray,
-    dt: float, release_time: float,
-) -> tuple[SpinePose, FloatArray]:
+    dt: float, release_time: float, pulled_hips: FloatArray | None = None,
+) -> tuple[SpinePose, FloatArray, FloatArray | None]:
     """A node pulled toward a stretched leg's foot goes back to its guide over
     ``release_time``, not in one frame when the foot steps (the chest would drop and
     spring back by centimetres per frame); the pull itself acts at once. ``free``: step
-    4 without pulls, ``pulled``: with this frame's pulls. Returns the pose and each
-    node's guide shift ``(g, K, 3)`` (kept for the next frame)."""
+    4 without pulls, ``pulled``: with this frame's pulls (``pulled_hips``: its hips, when
+    known). Returns the pose, each node's guide shift ``(g, K, 3)`` (kept for the next
+    frame) and the hips of the returned pose when known (else None)."""
     need = pulled.guide_xyz - free.guide_xyz
     if g.reach_shift is None or g.reach_shift.shape != need.shape or dt <= 0.0:
-        return pulled, need
+        return pulled, need, pulled_hips
     decayed = g.reach_shift * float(np.exp(-dt / max(release_time, 1e-9)))
     keep = vector_norm(decayed) > vector_norm(need)
     if not keep.any():
-        return pulled, need
+        return pulled, need, pulled_hips
     trial = np.where(keep[..., None], decayed, need)
-    m = g.model
-    slow = refit(m, free, free.guide_xyz + trial)
+    sb = g.spines
+    slow = refit(sb, free, free.guide_xyz + trial)
+    slow_hips = hip_positions(sb, slow)
+    if pulled_hips is None:
+        pulled_hips = hip_positions(sb, pulled)
     # kept only where it leaves no leg further from its foot than the pull did
-    over = vector_norm(feet - hip_positions(m, slow)) > np.maximum(
-        vector_norm(feet - hip_positions(m, pulled)), reach
-    ) + 1e-9
+    over = vector_norm(feet - slow_hips) > np.maximum(vector_norm(feet - pulled_hips), reach) + 1e-9
     ok = ~over.any(axis=1)
+    shift = np.where(ok[:, None, None], trial, need)
+    if ok.all():
+        return slow, shift, slow_hips
+    if not ok.any():
+        return pulled, shift, pulled_hips
     rows = np.flatnonzero(ok)
-    out = pose_with_rows(pulled, rows, pose_rows(slow, rows)) if rows.size else pulled
-    return out, np.where(ok[:, None, None], trial, need)
+    return (pose_with_rows(pulled, rows, pose_rows(slow, rows)), shift,
+            np.where(ok[:, None, None], slow_hips, pulled_hips))
 
 
 def spine_reach(g: SpineGroup, at: PoseInputs, slack_share: float) -> FloatArray:
@@ -321,14 +345,15 @@ def landing_refs(
     the head's path, thesis §4.2.2) and past the head along the head's own extrapolated
     arc."""
     ref_xy, yaw_land, ref_rest, rest_yaw = out
-    for g in link.groups:
-        rows = np.flatnonzero(np.isin(c_of, g.chars))
+    group_of = link.char_group[c_of]
+    for gi, g in enumerate(link.groups):
+        rows = np.flatnonzero(group_of == gi)
         if rows.size == 0:
             continue
-        m, plan = g.model, g.plan
+        sb, plan = g.spines, g.plan
         chars = c_of[rows]
-        r = np.searchsorted(g.chars, chars)
-        k = m.leg_key[legs[rows] - legs_data.leg_start[chars]]
+        r = link.char_row[chars]
+        k = sb.leg_key[legs[rows] - legs_data.leg_start[chars]]
         xy = plan.key_xy[r]  # (m, K, 2)
         heading = plan.key_heading[r]
         arc = np.concatenate([np.zeros((rows.size, 1)),
@@ -338,22 +363,22 @@ def landing_refs(
         at = np.arange(rows.size)
         s = arc[at, k] - dist
         # on the spine: between node i and node i + 1
-        i = np.clip(np.sum(arc[:, 1:-1] < s[:, None], axis=1), 0, m.n_keys - 2)
+        i = np.clip(np.sum(arc[:, 1:-1] < s[:, None], axis=1), 0, sb.n_keys - 2)
         span = arc[at, i + 1] - arc[at, i]
         f = np.clip((s - arc[at, i]) / np.maximum(span, 1e-12), 0.0, 1.0)
         on_xy = xy[at, i] + f[:, None] * (xy[at, i + 1] - xy[at, i])
         on_yaw = heading[at, i] + f * wrap_angle(heading[at, i + 1] - heading[at, i])
         # past the head: the head's arc toward the commanded heading
         ahead = np.maximum(-s, 0.0)
-        limit = g.params.turn_rate * ahead / np.maximum(speed, 1e-9)
+        limit = sb.turn_rate[r] * ahead / np.maximum(speed, 1e-9)
         head_turn = np.clip(wrap_angle(ctl.heading[chars] - plan.steer_heading[r]), -limit, limit)
         mid = heading[:, 0] + 0.5 * head_turn
         past_xy = xy[:, 0] + ahead[:, None] * np.stack([np.cos(mid), np.sin(mid)], axis=1)
         past = s < 0.0
         ref_xy[rows] = np.where(past[:, None], past_xy, on_xy)
         yaw_land[rows] = np.where(past, heading[:, 0] + head_turn, on_yaw)
-        ref_rest[rows] = m.key_rest[k]
-        rest_yaw[rows] = m.rest_key_heading[k]
+        ref_rest[rows] = sb.key_rest[r, k]
+        rest_yaw[rows] = sb.rest_key_heading[r, k]
 
 
 def joints(link: SpineLink, pos: FloatArray) -> FloatArray:
@@ -364,7 +389,7 @@ def joints(link: SpineLink, pos: FloatArray) -> FloatArray:
     for g in link.groups:
         if g.pose is None:
             continue
-        j = g.model.n_joints
+        j = g.spines.n_joints
         out[g.chars, :j] = g.pose.joints
         out[g.chars, j:] = g.pose.joints[:, -1:]
     return out
@@ -378,5 +403,5 @@ def bone_rotations(link: SpineLink, n_chars: int) -> FloatArray:
     out[:] = np.eye(3)
     for g in link.groups:
         if g.pose is not None:
-            out[g.chars, : g.model.n_joints - 1] = g.pose.bone_rotation
+            out[g.chars, : g.spines.n_joints - 1] = g.pose.bone_rotation
     return out
