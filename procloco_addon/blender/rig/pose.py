@@ -136,6 +136,18 @@ GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 NEAR_SHARE = 0.3
 
 
+def _sole_reach(rel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For sole points ``rel`` ``(F, P, 3)`` (relative to the end-effector): the foot's
+    forward direction ``d`` ``(F, 2)``, each point's forward reach along it ``a`` ``(F, P)``,
+    and which points are far enough ahead to limit the pitch, ``ahead`` ``(F, P)`` (points
+    just ahead of the ankle and behind it never do: :data:`NEAR_SHARE`)."""
+    d = rel[..., :2].sum(axis=1)
+    d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
+    d = np.divide(d, d_norm, out=np.zeros_like(d), where=d_norm > 1e-12)
+    a = np.einsum("fpi,fi->fp", rel[..., :2], d)  # forward reach of each point
+    return d, a, a > NEAR_SHARE * np.maximum(a.max(axis=1, keepdims=True), 1e-12)
+
+
 def _foot_pitch(
     rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
     lift: np.ndarray | None = None,
@@ -148,18 +160,16 @@ def _foot_pitch(
     down a slope they follow it. Points behind the end-effector (heels) are left alone.
     ``lift`` ``(F,)``: how far the end-effector is above where it stands when planted (``inf``
     over no ground); the downward pitch fades out as the foot rises by half its length, so a
-    lifted foot does not point its toes at the ground below (swing, or over a gap).
+    lifted foot does not point its toes at the ground below (swing, or over a gap). Only the
+    heights of :func:`_sole_reach`'s points ahead are read.
     """
-    d = rel[..., :2].sum(axis=1)
-    d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
-    d = np.divide(d, d_norm, out=np.zeros_like(d), where=d_norm > 1e-12)
-    a = np.einsum("fpi,fi->fp", rel[..., :2], d)  # forward reach of each point
+    d, a, ahead = _sole_reach(rel)
     b = rel[..., 2]
     c = heights - end[:, None, 2]
     radius = np.hypot(a, b)
     # Points just ahead of the ankle are left out: a sole pitched about the ankle swings them
     # back and barely down (the skin under an ankle would forbid any downward pitch).
-    ok = (a > NEAR_SHARE * np.maximum(a.max(axis=1, keepdims=True), 1e-12)) & np.isfinite(heights)
+    ok = ahead & np.isfinite(heights)
     need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
     theta = np.where(ok, need, -np.inf).max(axis=1)
     theta = np.where(np.isfinite(theta), theta, 0.0)
@@ -375,6 +385,8 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
         rels.append(np.einsum("fij,pj->fpi", leg_yaw[:, k], info.foot_points[k] - info.joints[k][-1]))
     counts = [r.shape[1] for r in rels]
     bounds = np.cumsum([0, *counts])
+    # Only the sole points ahead of each ankle limit its pitch: the others' heights are not asked.
+    asked = np.concatenate([_sole_reach(rel)[2] for rel in rels], axis=1)  # (F, P)
     turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
     pitched: list[np.ndarray | None] = [None] * len(legs)
     # How far each end-effector is above where it would stand on the ground under it.
@@ -391,12 +403,13 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
         xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
                              for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
         # Planted feet query the same places frame after frame: ask once per distinct place.
-        frame_of = np.repeat(np.arange(n_frames), xy.shape[1])
-        flat = xy.reshape(-1, 2)
+        frame_of = np.repeat(np.arange(n_frames), xy.shape[1])[asked.reshape(-1)]
+        flat = xy[asked]
         key = frame_of if dynamic else np.zeros_like(frame_of)
         uniq, inverse = _unique_rows(np.column_stack([key, flat]))
         found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
-        heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
+        heights = np.full(xy.shape[:2], -np.inf)
+        heights[asked] = found[inverse.reshape(-1)]
         for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
             theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit, lifts[j])
             before = pitched[j]

@@ -465,35 +465,54 @@ def raster_triangles(
     return tri, row, col, z
 
 
-def triangle_hits(
-    tris: FloatArray, xy: FloatArray, point: IntArray, tri: IntArray
-) -> tuple[IntArray, IntArray, FloatArray]:
-    """Which candidate (point, triangle) pairs hit: points ``xy`` ``(n, 2)`` inside the ground
-    projection of triangles ``tris`` ``(f, 3, 3)``, candidates ``point``/``tri`` ``(m,)``.
-    Returns the pairs that hit and the triangle's height at the point, ``(k,)`` each."""
-    t = tris[tri]
-    a = t[:, 0, :2]
-    e1 = t[:, 1, :2] - a
-    e2 = t[:, 2, :2] - a
-    p = xy[point] - a
-    den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-    good = np.abs(den) > 1e-15
-    den = np.where(good, den, 1.0)
-    u = (p[:, 0] * e2[:, 1] - p[:, 1] * e2[:, 0]) / den
-    v = (e1[:, 0] * p[:, 1] - e1[:, 1] * p[:, 0]) / den
-    tol = -1e-9
-    inside = good & (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
-    z = t[:, 0, 2] + u * (t[:, 1, 2] - t[:, 0, 2]) + v * (t[:, 2, 2] - t[:, 0, 2])
-    return point[inside], tri[inside], z[inside]
+class TriangleTable:
+    """Triangles ``(f, 3, 3)`` prepared for point queries: what the barycentric test of a
+    (point, triangle) pair needs of the triangle (its first corner, edges, determinant and
+    heights), computed once per triangle and stored column by column, so a query gathers a few
+    numbers per pair instead of the whole triangle and redoes none of the per-triangle work."""
+
+    def __init__(self, tris: FloatArray) -> None:
+        a = tris[:, 0, :2]
+        e1 = tris[:, 1, :2] - a
+        e2 = tris[:, 2, :2] - a
+        den = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        self.good = np.abs(den) > 1e-15
+        self.den = np.where(self.good, den, 1.0)
+        self.ax, self.ay = a[:, 0].copy(), a[:, 1].copy()
+        self.e1x, self.e1y = e1[:, 0].copy(), e1[:, 1].copy()
+        self.e2x, self.e2y = e2[:, 0].copy(), e2[:, 1].copy()
+        self.z0 = tris[:, 0, 2].copy()
+        self.dz1 = tris[:, 1, 2] - tris[:, 0, 2]
+        self.dz2 = tris[:, 2, 2] - tris[:, 0, 2]
+
+    def hits(self, xy: FloatArray, point: IntArray, tri: IntArray) -> tuple[IntArray, IntArray, FloatArray]:
+        """Which candidate (point, triangle) pairs hit: points ``xy`` ``(n, 2)`` inside the
+        ground projection of the triangles, candidates ``point``/``tri`` ``(m,)``. Returns the
+        pairs that hit and the triangle's height at the point, ``(k,)`` each. The tests run in
+        two rounds (most candidates fail the first barycentric coordinate)."""
+        tol = -1e-9
+        px = xy[:, 0].take(point) - self.ax.take(tri)
+        py = xy[:, 1].take(point) - self.ay.take(tri)
+        den = self.den.take(tri)
+        u = (px * self.e2y.take(tri) - py * self.e2x.take(tri)) / den
+        keep = (u >= tol) & self.good.take(tri)
+        point, tri, u, px, py, den = point[keep], tri[keep], u[keep], px[keep], py[keep], den[keep]
+        v = (self.e1x.take(tri) * py - self.e1y.take(tri) * px) / den
+        keep = (v >= tol) & (u + v <= 1.0 - tol)
+        point, tri, u, v = point[keep], tri[keep], u[keep], v[keep]
+        z = self.z0.take(tri) + u * self.dz1.take(tri) + v * self.dz2.take(tri)
+        return point, tri, z
 
 
 # ---------------------------------------------------------------------------------------
 # Spatial index for point queries
 # ---------------------------------------------------------------------------------------
 class _BucketIndex:
-    """Items with 2D bounding boxes, bucketed on a regular grid (CSR layout)."""
+    """Items with 2D bounding boxes, bucketed on a regular grid (CSR layout): buckets
+    ``spread`` times the typical item's size (triangles of a mesh, which tile the ground, are
+    bucketed at their own size: a point then has about 8 candidates instead of 18)."""
 
-    def __init__(self, lo: FloatArray, hi: FloatArray) -> None:
+    def __init__(self, lo: FloatArray, hi: FloatArray, spread: float = 2.0) -> None:
         n = lo.shape[0]
         self.n = n
         if n == 0:
@@ -507,7 +526,7 @@ class _BucketIndex:
         typical = float(np.median(np.max(ext, axis=1))) if n else 1.0
         self.origin = lo.min(axis=0)
         span = hi.max(axis=0) - self.origin
-        bucket = max(2.0 * typical, 1e-3)
+        bucket = max(spread * typical, 1e-3)
         # Keep the bucket grid reasonably small for sparse, large worlds.
         while (span[0] / bucket + 1) * (span[1] / bucket + 1) > 4.0e6:
             bucket *= 2.0
@@ -693,8 +712,9 @@ class Environment:
         self._box_index_dynamic: _BucketIndex | None = None
         self._soup_index: dict[int, _BucketIndex] = {}
         self._soup_tris: dict[int, tuple[FloatArray, FloatArray, FloatArray]] = {}
+        self._soup_table: dict[int, TriangleTable] = {}
         self._soup_role = np.array([soup.role for soup in self._soups], dtype=np.int_)
-        self._static_soup_index: tuple[_BucketIndex, FloatArray, IntArray, IntArray] | None = None
+        self._static_soup_index: tuple[_BucketIndex, TriangleTable, IntArray, IntArray] | None = None
         # Translation of each dynamic soup from its stored vertices (move_soup): the triangles,
         # their index and their raster are kept and only the queries are shifted.
         self._soup_offset: dict[int, FloatArray] = {}
@@ -855,19 +875,21 @@ class Environment:
     def _soup_hits(self, i: int, xy: FloatArray) -> tuple[IntArray, FloatArray]:
         tris, tlo, thi = self._soup_triangles(i)
         if i not in self._soup_index:
-            self._soup_index[i] = _BucketIndex(tlo, thi)
+            self._soup_index[i] = _BucketIndex(tlo, thi, spread=1.0)
+            self._soup_table[i] = TriangleTable(tris)
+        table = self._soup_table[i]
         off = self._soup_offset.get(i)
         if off is not None:
             xy = xy - off[:2]
         point, tri = self._soup_index[i].pairs(xy)
-        point, tri, z = triangle_hits(tris, xy, point, tri)
+        point, tri, z = table.hits(xy, point, tri)
         if off is not None:
             z = z + off[2]
         return point, z
 
-    def _static_soups(self) -> tuple[_BucketIndex, FloatArray, IntArray, IntArray]:
+    def _static_soups(self) -> tuple[_BucketIndex, TriangleTable, IntArray, IntArray]:
         """Every static soup's triangles in one bucket index, built once (static soups never
-        change): the index, the triangles ``(f, 3, 3)``, the soup of each triangle ``(f,)``
+        change): the index, the triangles' query table, the soup of each triangle ``(f,)``
         and the static soups' ids. One query then answers for all of them (a scene of a ground
         and ten crates asked eleven indices per point query before)."""
         if self._static_soup_index is None:
@@ -877,14 +899,14 @@ class Environment:
             tlo = np.concatenate([p[1] for p in parts]) if parts else np.zeros((0, 2))
             thi = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 2))
             owner = np.repeat(ids, [p[0].shape[0] for p in parts]).astype(np.intp)
-            self._static_soup_index = (_BucketIndex(tlo, thi), tris, owner, ids)
+            self._static_soup_index = (_BucketIndex(tlo, thi, spread=1.0), TriangleTable(tris), owner, ids)
         return self._static_soup_index
 
     def _static_soup_hits(self, xy: FloatArray) -> tuple[IntArray, FloatArray, IntArray]:
         """(point, height, soup) of every static soup triangle under points ``(n, 2)``."""
-        index, tris, owner, _ = self._static_soups()
+        index, table, owner, _ = self._static_soups()
         point, tri = index.pairs(xy)
-        point, tri, z = triangle_hits(tris, xy, point, tri)
+        point, tri, z = table.hits(xy, point, tri)
         return point, z, owner[tri]
 
     def height_at(self, xy: npt.ArrayLike) -> FloatArray:
