@@ -389,27 +389,28 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     asked = np.concatenate([_sole_reach(rel)[2] for rel in rels], axis=1)  # (F, P)
     turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
     pitched: list[np.ndarray | None] = [None] * len(legs)
+    angles = [np.zeros(n_frames) for _ in legs]  # each turn's angle (the first: none)
     # How far each end-effector is above where it would stand on the ground under it.
     end_xy = np.concatenate([end[:, :2] for end in ends])
     end_frame = np.tile(np.arange(n_frames), len(legs))
     under = np.asarray(ground(end_frame if dynamic else np.zeros_like(end_frame), end_xy), dtype=np.float64)
     lifts = [end[:, 2] - info.foot_height[k] - under[j * n_frames:(j + 1) * n_frames]
              for j, (k, end) in enumerate(zip(legs, ends, strict=True))]
+    frame_of = np.repeat(np.arange(n_frames)[:, None], bounds[-1], axis=1)  # (F, P)
+    heights = np.full(asked.shape, -np.inf)
+    changed = [np.ones(n_frames, dtype=bool) for _ in legs]
     # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
     # where the pitched points are, the pitch from the rest sole). After the first the pitch
     # only rises: a toe pitched down past an edge onto the higher ground it now stands over
     # is lifted, never pitched down again (a down-and-up swing could end inside the edge).
     for _ in range(3):
+        # Heights asked again only where a foot turned since they were read (elsewhere its
+        # points stand where they stood).
+        ask = asked & np.repeat(np.stack(changed, axis=1), counts, axis=1)
         xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
                              for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
-        # Planted feet query the same places frame after frame: ask once per distinct place.
-        frame_of = np.repeat(np.arange(n_frames), xy.shape[1])[asked.reshape(-1)]
-        flat = xy[asked]
-        key = frame_of if dynamic else np.zeros_like(frame_of)
-        uniq, inverse = _unique_rows(np.column_stack([key, flat]))
-        found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
-        heights = np.full(xy.shape[:2], -np.inf)
-        heights[asked] = found[inverse.reshape(-1)]
+        key = frame_of[ask] if dynamic else np.zeros(int(ask.sum()), dtype=np.int64)
+        heights[ask] = np.asarray(ground(key, xy[ask]), dtype=np.float64)
         for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
             theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit, lifts[j])
             before = pitched[j]
@@ -419,23 +420,13 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
             axis = np.cross(np.concatenate([d, np.zeros((n_frames, 1))], axis=1), _UP)
             axis_n = np.linalg.norm(axis, axis=1, keepdims=True)
             axis = np.divide(axis, axis_n, out=np.zeros_like(axis), where=axis_n > 1e-12)
-            turns[j] = _axis_rotation(axis, np.where(axis_n[:, 0] > 1e-12, theta, 0.0))
+            angle = np.where(axis_n[:, 0] > 1e-12, theta, 0.0)
+            changed[j] = angle != angles[j]
+            angles[j] = angle
+            turns[j] = _axis_rotation(axis, angle)
     for j, k in enumerate(legs):
         name = info.legs[k].foot[0]
         desired[name] = turns[j] @ desired[name]
-
-
-def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct rows of ``a`` ``(n, k)`` and where each row of ``a`` is among them
-    (``uniq[inverse] == a``), as ``np.unique(a, axis=0, return_inverse=True)`` gives them,
-    several times faster (a sort by columns instead of one of rows viewed as records)."""
-    order = np.lexsort(a.T[::-1])
-    ranked = a[order]
-    new = np.ones(len(a), dtype=bool)
-    new[1:] = np.any(ranked[1:] != ranked[:-1], axis=1)
-    inverse = np.empty(len(a), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    return ranked[new], inverse
 
 
 def _orthonormal(m: np.ndarray) -> np.ndarray:
