@@ -388,3 +388,41 @@ def test_escape_midway_through_a_batch_changes_nothing(empty_scene: Any) -> None
     results = [Op.modal(me, context, timer) for _ in range(200)]
     assert results.count({"FINISHED"}) == 1
     assert all(rig.animation_data.action.name.startswith(f"{rig.name} ProcLoco") for rig in rigs)
+
+
+def test_copies_of_a_rig_read_together_are_detected_once(empty_scene: Any,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Detection is a matter of a rig's shape: copies standing elsewhere (one on a table)
+    share the legs found for the first; a rig of another shape (a spider, a wolf with a
+    shorter hind leg) is detected on its own, and gets the legs it gets alone."""
+    from procloco_addon.blender import rig
+    from procloco_addon.blender.rig import read
+
+    _ground()
+    wolves = [_place(empty_scene, "wolf", f"Wolf{k}", (3.0 * k, 0.0)) for k in range(3)]
+    wolves[2].location.z = 0.8
+    odd = _place(empty_scene, "wolf", "Odd", (0.0, 4.0))
+    spider = _place(empty_scene, "spider", "Spider", (3.0, 4.0))
+    bpy.context.view_layer.objects.active = odd
+    bpy.ops.object.mode_set(mode="EDIT")
+    shin = odd.data.edit_bones["shin.L"]
+    shin.head.z += 0.05  # a shorter thigh: another shape (its legs are found the same way)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    rigs = [*wolves, odd, spider]
+    bpy.context.view_layer.update()
+    alone = {o.name: rig.detect_legs(o) for o in rigs}
+    calls = []
+    find_legs = read.find_legs
+
+    def counted(rest: Any, constrained: Any, name: str) -> Any:
+        calls.append(name)
+        return find_legs(rest, constrained, name)
+
+    monkeypatch.setattr(read, "find_legs", counted)
+    with rig.reading_once():
+        together = {o.name: rig.detect_legs(o) for o in rigs}
+    assert calls == ["Wolf0", "Odd", "Spider"]
+    assert together == alone
+    jobs = crowd.read_all(bpy.context, rigs)  # Generate's reading: one block for every rig
+    assert calls[3:] == ["Wolf0", "Odd", "Spider"]
+    assert [list(j.info.legs) for j in jobs] == [alone[o.name] for o in rigs]

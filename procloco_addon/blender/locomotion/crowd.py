@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import bpy
 import numpy as np
 
-from .. import scene_terrain
+from .. import rig, scene_terrain
 from . import simulation
 from .job import Job, settings_values
 
@@ -57,15 +57,16 @@ def read_all(context: bpy.types.Context, objects: Sequence[bpy.types.Object | No
     from . import generate
 
     jobs = []
-    for obj in objects:
-        try:
-            job = generate.read(context, obj)
-        except generate.GenerateError as err:
-            name = "" if obj is None else obj.name
-            if name and f"'{name}'" not in str(err):
-                raise generate.GenerateError(f"'{name}': {err}") from err
-            raise
-        jobs.append(job)
+    with rig.reading_once():  # nothing changes while the rigs are read: copies are detected once
+        for obj in objects:
+            try:
+                job = generate.read(context, obj)
+            except generate.GenerateError as err:
+                name = "" if obj is None else obj.name
+                if name and f"'{name}'" not in str(err):
+                    raise generate.GenerateError(f"'{name}': {err}") from err
+                raise
+            jobs.append(job)
     names = {job.obj_name for job in jobs}
     if len(names) < len(jobs):
         raise generate.GenerateError("A rig is listed twice: each rig is generated once")

@@ -293,10 +293,21 @@ def parse_gait_preset(data: Any, path: Path | str = "<data>") -> GaitPreset:
     )
 
 
+# Presets read, by path: the file's (modification time, size) when read and its preset.
+_loaded: dict[Path, tuple[tuple[int, int], GaitPreset]] = {}
+
+
 def load_gait_preset(path: Path | str) -> GaitPreset:
-    """Read and validate a gait preset file; ``GaitPresetError`` says what is wrong."""
+    """Read and validate a gait preset file; ``GaitPresetError`` says what is wrong. A file
+    read before and unchanged since (its modification time and size) is not read again
+    (Generate on a hundred rigs looks the shipped presets up for each); the preset's arrays
+    are read-only."""
     p = Path(path)
     try:
+        stat = p.stat()
+        known = _loaded.get(p)
+        if known is not None and known[0] == (stat.st_mtime_ns, stat.st_size):
+            return known[1]
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise _fail(p, f"cannot be read ({exc.strerror or exc})") from exc
@@ -304,7 +315,11 @@ def load_gait_preset(path: Path | str) -> GaitPreset:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise _fail(p, f"is not valid JSON (line {exc.lineno}: {exc.msg})") from exc
-    return parse_gait_preset(data, p)
+    preset = parse_gait_preset(data, p)
+    preset.swing_start.setflags(write=False)
+    preset.swing_duration.setflags(write=False)
+    _loaded[p] = ((stat.st_mtime_ns, stat.st_size), preset)
+    return preset
 
 
 def find_gait_preset(name: str, directory: Path | None = None) -> GaitPreset:
