@@ -41,7 +41,7 @@ import numpy as np
 from ..core.steps import run_steps, scaled_steps
 from . import actions
 from .rig.controls import ControlKey, ControlPlan, Switch
-from .rig.rest import affine_inverse, affine_inverses
+from .rig.rest import affine_inverse, affine_inverses, nearest_rotation
 
 __all__ = [
     "PoseRequest",
@@ -318,12 +318,6 @@ def armature_from_basis(
     return np.stack([np.broadcast_to(pose(b), (n_frames, 4, 4)) for b in bones], axis=1)
 
 
-def _orthonormal(m: np.ndarray) -> np.ndarray:
-    u, _s, vt = np.linalg.svd(m)
-    r = u @ vt
-    return r
-
-
 def _key(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
          basis: np.ndarray, location: np.ndarray | Sequence[bool]) -> None:
     """Key rotation (and location where ``location[b]``) of ``basis`` ``(F, n, 4, 4)``."""
@@ -331,7 +325,7 @@ def _key(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, na
 
     if not names:
         return
-    rot = _orthonormal(basis[..., :3, :3])
+    rot = nearest_rotation(basis[..., :3, :3])
     quats = matrix_to_quaternion(rot)
     actions.write_pose_bone_transforms(action, obj, frames, names, rotations=quats)
     loc = [i for i, k in enumerate(location) if k]
@@ -495,12 +489,12 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             elif c.mode == "MOVE":  # moved by its anchor's head error; its turn is another's
                 want[:, :3, 3] += armature[:, index[c.anchor], :3, 3] - ev[:, col[c.anchor], :3, 3]
             elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
-                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
-                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                d = nearest_rotation(armature[:, index[c.anchor], :3, :3])
+                e = nearest_rotation(ev[:, col[c.anchor], :3, :3])
                 want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
             elif c.mode == "IK":  # turned like its anchor, moved by the end-effector's error
-                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
-                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                d = nearest_rotation(armature[:, index[c.anchor], :3, :3])
+                e = nearest_rotation(ev[:, col[c.anchor], :3, :3])
                 want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
                 want[:, :3, 3] += want_joints[c.leg][:, -1] - got_joints[c.leg][:, -1]
             else:  # POLE: at its rest offset from the knee in the leg's frame, turned about the

@@ -12,7 +12,7 @@ import numpy as np
 from ...core.geometry import z_rotations
 from ...core.steps import run_steps
 from .info import RigInfo
-from .rest import _UP, _apply, _unit, affine_inverse, affine_inverses
+from .rest import _UP, _apply, _unit, affine_inverse, affine_inverses, nearest_rotation
 
 
 @dataclass(frozen=True)
@@ -363,7 +363,7 @@ def solve_pose_steps(
         done += 1
         yield done / n_steps
 
-    rotations = np.stack([matrix_to_quaternion(_orthonormal(basis_out[b][:, :3, :3])) for b in bones], axis=1)
+    rotations = np.stack([matrix_to_quaternion(nearest_rotation(basis_out[b][:, :3, :3])) for b in bones], axis=1)
     locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)
     keyed = np.array([b in moved_heads for b in bones])
     return PoseTracks(bones, rotations, locations, keyed)
@@ -427,11 +427,6 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     for j, k in enumerate(legs):
         name = info.legs[k].foot[0]
         desired[name] = turns[j] @ desired[name]
-
-
-def _orthonormal(m: np.ndarray) -> np.ndarray:
-    u, _s, vt = np.linalg.svd(m)
-    return u @ vt
 
 
 def _hierarchy_order(info: RigInfo, bones: Sequence[str]) -> list[str]:
