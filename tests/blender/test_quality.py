@@ -17,6 +17,7 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
+from mathutils import Matrix
 
 from procloco_addon.blender import cli
 from procloco_addon.blender.locomotion import generate
@@ -356,7 +357,7 @@ _LEG_BONES = ("shoulder.L", "front_thigh.L", "front_shin.L", "front_foot.L", "fr
 
 
 def _keyed_metarig() -> Any:
-    """Rigify's wolf metarig, turned and moved, keyed by hand in every way a walk or an
+    """Rigify's wolf metarig, turned and moved under a parent, keyed by hand in every way a walk or an
     animator keys it: quaternions, an Euler shoulder (the metarig's own YXZ), an axis-angle
     thigh, Bézier keys on a few frames only (the frames between are curves), a Cycles
     modifier past the last key, location on a free bone and on a connected one (ignored),
@@ -369,6 +370,12 @@ def _keyed_metarig() -> Any:
     rig = bpy.context.active_object
     rig.location = (1.5, -2.0, 0.3)
     rig.rotation_euler = (0.0, 0.0, 0.7)
+    holder = bpy.data.objects.new("Holder", None)  # the rig parented to a turned, moved empty
+    bpy.context.scene.collection.objects.link(holder)
+    holder.location = (0.4, 0.2, -0.1)
+    holder.rotation_euler = (0.0, 0.0, -0.3)
+    rig.parent = holder
+    rig.matrix_parent_inverse = Matrix.Translation((0.1, -0.2, 0.05)) @ Matrix.Rotation(0.2, 4, "Z")
     pose = rig.pose.bones
     assert pose["shoulder.L"].rotation_mode == "YXZ"
     assert rig.data.bones["shin.L"].use_connect and not rig.data.bones["thigh.L"].use_connect
@@ -418,8 +425,8 @@ def test_a_plain_rig_is_posed_from_its_action_as_the_depsgraph_poses_it(procloco
     assert np.abs(np.diff(blender[..., :3, 3], axis=0)).max() > 0.01
 
 
-@pytest.mark.parametrize("change", ["constraint", "nla", "driver", "object_keys", "rest_position",
-                                    "inherit_scale"])
+@pytest.mark.parametrize("change", ["constraint", "nla", "driver", "object_keys", "parent_keys",
+                                    "rest_position", "inherit_scale"])
 def test_anything_else_that_moves_bones_leaves_the_rig_to_the_depsgraph(procloco_registered: Any,
                                                                          change: str) -> None:
     from procloco_addon.blender.quality import posed
@@ -433,6 +440,8 @@ def test_anything_else_that_moves_bones_leaves_the_rig_to_the_depsgraph(procloco
         rig.pose.bones["tail.001" if "tail.001" in rig.pose.bones else "spine.003"].driver_add("location", 0)
     elif change == "object_keys":
         rig.keyframe_insert("location", frame=1)
+    elif change == "parent_keys":
+        rig.parent.keyframe_insert("location", frame=1)
     elif change == "rest_position":
         rig.data.pose_position = "REST"
     else:

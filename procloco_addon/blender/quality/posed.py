@@ -53,9 +53,24 @@ def _plain_object(obj: bpy.types.Object) -> bool:
     if data_adt is not None and (data_adt.action is not None or len(data_adt.drivers)
                                  or len(data_adt.nla_tracks)):
         return False
-    if obj.parent is not None and pose_writer.object_moves(obj.parent):
+    if any(len(pb.constraints) for pb in obj.pose.bones):
         return False
-    return not any(len(pb.constraints) for pb in obj.pose.bones)
+    child = obj
+    while child.parent is not None:  # parented plainly to objects that do not move
+        if child.parent_type != "OBJECT" or pose_writer.object_moves(child.parent):
+            return False
+        child = child.parent
+    return True
+
+
+def _world(obj: bpy.types.Object) -> np.ndarray:
+    """The world matrix of an object that does not move: its own transform (location,
+    rotation, scale and their deltas) under its parents' (asking the depsgraph to evaluate
+    a herd whose Actions were just assigned costs more than the measurement)."""
+    own = np.array(obj.matrix_basis, dtype=np.float64)
+    if obj.parent is None:
+        return own
+    return _world(obj.parent) @ np.array(obj.matrix_parent_inverse, dtype=np.float64) @ own
 
 
 def _chain_order(bones: bpy.types.ArmatureBones, names: Sequence[str]) -> list[str]:
@@ -212,6 +227,4 @@ def plain_poses(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str])
     for j, parent in enumerate(parents):
         above = offset[j][None] if parent is None else pose[:, at[parent.name]] @ offset[j][None]
         pose[:, j] = above @ basis[:, j]
-    # (the object does not move: its world matrix now, evaluated, is the one of every frame)
-    world = np.array(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).matrix_world, dtype=np.float64)
-    return world[None, None] @ pose[:, [at[n] for n in names]]
+    return _world(obj)[None, None] @ pose[:, [at[n] for n in names]]
