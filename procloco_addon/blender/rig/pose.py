@@ -254,7 +254,7 @@ def solve_pose_steps(
     order = _hierarchy_order(info, info.driven_bones)  # parents before children
     n_steps = len(info.legs) + len(order) + 1
     done = 0
-    delta = body_world @ np.linalg.inv(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
+    delta = body_world @ affine_inverse(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
     delta_rot = delta[:, :3, :3]
     body_rest_t = info.body.matrix[:3, :3].T  # world rest -> body frame
     n_legs = len(info.legs)
@@ -269,7 +269,7 @@ def solve_pose_steps(
         raise ValueError("the rig's spine is driven: give its spine_rotation and spine_joints")
     w = info.world
     w_rot = w[:3, :3] / info.scale
-    w_inv = np.linalg.inv(w)
+    w_inv = affine_inverse(w)
 
     # Desired world rotation (F, 3, 3) of every driven bone; world head of the body bone.
     rest_rot = {n: w_rot @ (m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0))
@@ -363,8 +363,9 @@ def solve_pose_steps(
         done += 1
         yield done / n_steps
 
-    rotations = np.stack([matrix_to_quaternion(nearest_rotation(basis_out[b][:, :3, :3])) for b in bones], axis=1)
-    locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)
+    basis_all = np.stack([basis_out[b] for b in bones], axis=1)  # (F, B, 4, 4)
+    rotations = matrix_to_quaternion(nearest_rotation(basis_all[..., :3, :3]))
+    locations = basis_all[..., :3, 3]
     keyed = np.array([b in moved_heads for b in bones])
     return PoseTracks(bones, rotations, locations, keyed)
 
