@@ -94,6 +94,7 @@ def build_scene(count: int, n_frames: int) -> list[bpy.types.Object]:
 STAGES = (
     ("read", "procloco_addon.blender.locomotion.generate", "read"),
     ("read", "procloco_addon.blender.locomotion.crowd", "read_all"),
+    ("read", "procloco_addon.blender.locomotion.crowd", "read_all_steps"),
     ("terrain", "procloco_addon.blender.locomotion.generate", "read_terrain"),
     ("terrain", "procloco_addon.blender.locomotion.crowd", "read_terrain"),
     ("simulate", "procloco_addon.blender.locomotion.generate", "simulate"),

@@ -378,7 +378,8 @@ def _keyed_metarig() -> Any:
     rig.matrix_parent_inverse = Matrix.Translation((0.1, -0.2, 0.05)) @ Matrix.Rotation(0.2, 4, "Z")
     pose = rig.pose.bones
     assert pose["shoulder.L"].rotation_mode == "YXZ"
-    assert rig.data.bones["shin.L"].use_connect and not rig.data.bones["thigh.L"].use_connect
+    assert rig.data.bones["shin.L"].use_connect
+    assert not rig.data.bones["thigh.L"].use_connect
     pose["thigh.R"].rotation_mode = "AXIS_ANGLE"
     pose["front_foot.L"].rotation_quaternion = (0.9, 0.3, 0.1, 0.0)  # posed, never keyed
     rng = np.random.default_rng(7)

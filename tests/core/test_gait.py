@@ -158,7 +158,8 @@ def test_a_preset_file_is_read_again_once_it_changes(tmp_path: Path) -> None:
     path.write_text(json.dumps(data))
     os.utime(path, ns=(1, 1))  # another modification time, as an edit gives it
     again = gaits.load_gait_preset(path)
-    assert again.cycle_time == 2.5 and first.cycle_time != 2.5
+    assert again.cycle_time == 2.5
+    assert first.cycle_time != 2.5
     path.write_text("{")
     with pytest.raises(GaitPresetError, match="not valid JSON"):
         gaits.load_gait_preset(path)

@@ -170,7 +170,8 @@ def _shape_key(rest: _Rest, constrained: np.ndarray) -> tuple[object, ...]:
     100 wolves is detected once)."""
     origin = rest.world[:3, 3]
     unit = 1e-9 * max(rest.scale, 1e-12)
-    where = [np.round((a - origin) / unit).astype(np.int64).tobytes() for a in (rest.head, rest.tail, rest.end)]
+    where = [np.round((a - origin) / unit).astype(np.int64).tobytes()
+             for a in (rest.head, rest.tail, rest.end)]
     return (rest.names, rest.parent.tobytes(), rest.phantom.tobytes(), rest.tails_meaningful,
             constrained.tobytes(), np.round(rest.world[:3, :3] / max(rest.scale, 1e-12), 12).tobytes(),
             rest.local.tobytes(), *where)
