@@ -9,12 +9,11 @@ simulations as the rigs allow, each stepping all its rigs together frame by fram
 - :func:`vary` gives copies of one creature their own phase and stride (Seed Offset, and an
   automatic variation for linked duplicates and rigs with identical settings).
 - :func:`batches` groups the rigs that can share one simulation: the same frames, the same
-  terrain objects and, for rigs whose effects draw random numbers, the same seed (see
-  :func:`.simulation.batch_key`); rigs whose feet stand at different heights above their
-  ground (a spider's on it, an ant's or a wolf's a few centimetres over it) walk together
-  (:func:`.simulation.rise`). Rigs of different frame ranges are each walked over their
-  own range, in simulations of their own: an animator who gave a rig its own range expects
-  that range, and those rigs do not see the others.
+  terrain objects and the same mean foot height (the core's terrain is raised by it; see
+  :func:`.simulation.batch_key`). Rigs of
+  different frame ranges are each walked over their own range, in simulations of their own:
+  an animator who gave a rig its own range expects that range, and those rigs do not see
+  the others.
 - :func:`read_terrain` reads each batch's terrain once and checks there is ground under
   every rig; :func:`simulate` runs each batch's simulation.
 """

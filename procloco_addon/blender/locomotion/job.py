@@ -152,29 +152,20 @@ class RigTracks:
     auto_band: np.ndarray | None = None
 
     @classmethod
-    def of(cls, res: SimResult, char: int = 0, rise: float = 0.0) -> RigTracks:
-        """The tracks of character ``char`` of a core result, raised by ``rise`` (m): a rig
-        whose feet stand higher above the ground than the simulation's terrain was lifted
-        (see ``simulation.run_all``) walked the same steps that much lower."""
+    def of(cls, res: SimResult, char: int = 0) -> RigTracks:
+        """The tracks of character ``char`` of a core result."""
         legs = np.flatnonzero(res.legs.leg_char == char)
         body = np.zeros((res.n_frames, 4, 4))
         body[:, :3, :3] = res.pelvis_rotation[:, char]
         body[:, :3, 3] = res.pelvis_position[:, char]
         body[:, 3, 3] = 1.0
         n_spine = int(res.spine_n_joints[char])
-        joints, feet = res.joints[:, legs], res.foot[:, legs]
-        spine = res.spine_joints[:, char, :n_spine] if n_spine else None
-        if rise != 0.0:
-            up = np.array([0.0, 0.0, rise])
-            body[:, 2, 3] += rise
-            joints, feet = joints + up, feet + up
-            spine = None if spine is None else spine + up
         return cls(
-            body=body, joints=joints, swing=~res.contact[:, legs], feet=feet,
+            body=body, joints=res.joints[:, legs], swing=~res.contact[:, legs], feet=res.foot[:, legs],
             ik_error=res.ik_error[:, legs], needle=res.needle[:, char], phase_rate=res.phase_rate[:, char],
             forced=res.forced[:, legs], plan_failed=res.plan_failed[:, legs],
             disk_start=res.disk_start[:, legs], leg_frame=res.leg_frame[:, legs],
-            spine_joints=spine,
+            spine_joints=res.spine_joints[:, char, :n_spine] if n_spine else None,
             spine_rotation=res.spine_rotation[:, char, :n_spine - 1] if n_spine else None,
             disk_duration=res.disk_duration[:, legs], speed=res.speed[:, char],
             auto_band=res.auto_band[:, char])

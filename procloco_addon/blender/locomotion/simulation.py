@@ -46,8 +46,8 @@ from ...core.world.terrain import NO_SURFACE
 from .job import Job, RigTracks
 
 __all__ = [
-    "auto_track", "batch_key", "batch_simulation", "ground_function", "planning_cell", "rise", "run",
-    "run_all", "simulation_of", "speed_at",
+    "auto_track", "batch_key", "batch_simulation", "ground_function", "planning_cell", "run", "run_all",
+    "simulation_of", "speed_at",
     "spine_params", "spine_tracks", "world_tracks",
 ]
 
@@ -148,29 +148,14 @@ def _effects(job: Job) -> Effects:
 
 def batch_key(job: Job) -> tuple[Any, ...]:
     """What rigs must share to be simulated together (besides their frames and terrain):
-    the seed of rigs whose effects draw random numbers. (Their foot heights may differ: see
-    :func:`run_all`. The controller's constants differ per character only in what size
-    scaling sets.)"""
+    the lift of the terrain (their mean foot height) and the seed of rigs whose effects draw
+    random numbers."""
+    # The terrain is raised by the rig's mean foot height (``lift``): the core has one terrain
+    # per simulation. (Raising every foot by ``Morphology.foot_lift`` over unraised ground
+    # instead is not the same walk: the pelvis keeps its height above the ground, not the feet.)
+    # The controller's constants differ per character only in what size scaling sets.
     effects = _effects(job)
-    return (job.seed if effects.progression or effects.randomize_gait else None,)
-
-
-def rise(job: Job) -> float:
-    """How much higher than simulated the rig of ``job`` walks (m): its mean foot height
-    (``job.lift``) over the lift of the simulation's terrain.
-
-    A rig's end-effectors stand its foot height above the ground: the core, which puts them
-    on its terrain, walks it on the scene's terrain raised by that much. The core has one
-    terrain per simulation, raised by the first rig's lift; walking on a surface a few
-    centimetres lower or higher is the same walk moved down or up (every height the core
-    reads is the terrain's; the rigs see each other's bodies and feet on the ground plane),
-    so each rig's tracks are raised by the difference (``RigTracks.of``). (Raising its feet
-    by ``Morphology.foot_lift`` over the unraised ground instead is not the same walk: the
-    pelvis keeps its height above the ground, not the feet.)"""
-    terrain = job.terrain
-    if terrain is None:
-        raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
-    return job.lift - terrain.z_offset
+    return (round(job.lift, 9), job.seed if effects.progression or effects.randomize_gait else None)
 
 
 def batch_simulation(jobs: Sequence[Job]) -> Simulation:
@@ -185,7 +170,7 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
     if any(job.terrain is not terrain for job in jobs):
         raise RuntimeError("the rigs of one simulation share one terrain (crowd.read_terrain)")
     if len({batch_key(job) for job in jobs}) > 1:
-        raise RuntimeError("rigs of different seeds in one simulation (crowd.batches)")
+        raise RuntimeError("rigs of different terrain lifts or seeds in one simulation (crowd.batches)")
     chars = [_character(job) for job in jobs]
     dt = jobs[0].dt
     spacing = np.concatenate([c.spacing for c in chars])
@@ -243,7 +228,7 @@ def run_all(jobs: Sequence[Job]) -> Iterator[float]:
     terrain.apply_frame(0)
     sim = batch_simulation(jobs)
     for i, job in enumerate(jobs):
-        job.partial = functools.partial(_partial_tracks, sim, i, rise(job))
+        job.partial = functools.partial(_partial_tracks, sim, i)
     yield 1.0 / n_frames
     for f in range(1, n_frames):
         terrain.apply_frame(f)
@@ -251,11 +236,11 @@ def run_all(jobs: Sequence[Job]) -> Iterator[float]:
         yield (f + 1) / n_frames
     res = sim.result()
     for i, job in enumerate(jobs):
-        job.result = RigTracks.of(res, i, rise(job))
+        job.result = RigTracks.of(res, i)
 
 
-def _partial_tracks(sim: Simulation, char: int, up: float, n: int) -> RigTracks:
-    return RigTracks.of(sim.result(n), char, up)
+def _partial_tracks(sim: Simulation, char: int, n: int) -> RigTracks:
+    return RigTracks.of(sim.result(n), char)
 
 
 def auto_track(job: Job) -> Any:
