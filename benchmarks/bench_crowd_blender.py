@@ -84,6 +84,9 @@ def build_scene(count: int, n_frames: int) -> list[bpy.types.Object]:
     for wolf in wolves:
         wolf.select_set(True)
     bpy.context.view_layer.objects.active = wolves[0]
+    # The scene evaluated once, as the viewport has it before the click (else the operator's
+    # first view layer update evaluates every new rig and skin, a cost of building the scene)
+    bpy.context.view_layer.update()
     return wolves
 
 
