@@ -377,12 +377,41 @@ def solve_pose_steps(
     return PoseTracks(bones, rotations, locations, keyed)
 
 
+#: A foot whose end-effector stays this close (a share of the leg's length) to where it
+#: stood, its heading unchanged, stands still: a planted foot, held by the IK to a
+#: nanometre.
+HELD = 1e-9
+
+
+def _stands_since(ends: np.ndarray, yaw: np.ndarray, tol: float) -> np.ndarray:
+    """For each frame and foot, the frame it has stood still since ``(F, J)`` (its own when
+    it moved): the same heading ``yaw`` ``(F, J, 3, 3)`` as the frame before and its
+    end-effector ``ends`` ``(F, J, 3)`` within ``tol`` of where it stood then."""
+    n_frames, n_feet = ends.shape[:2]
+    first = np.repeat(np.arange(n_frames)[:, None], n_feet, axis=1)
+    same = np.all(yaw[1:] == yaw[:-1], axis=(-2, -1)).tolist()  # (F - 1, J)
+    where = ends.tolist()
+    for j in range(n_feet):
+        r = 0
+        for f in range(1, n_frames):
+            here, there = where[f][j], where[r][j]
+            if same[f - 1][j] and max(abs(here[0] - there[0]), abs(here[1] - there[1]),
+                                      abs(here[2] - there[2])) <= tol:
+                first[f, j] = r
+            else:
+                r = f
+    return first
+
+
 def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.ndarray,
                 rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
                 limit: float) -> None:
     """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`).
     ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of each foot (:func:`_held_foot_yaw`). Every
-    foot at once: its sole points follow one another, foot after foot."""
+    foot at once: its sole points follow one another, foot after foot. On a ground that does
+    not move, a foot that stands still (its heading the same and its end-effector within
+    :data:`HELD` of where it stood first, as a planted foot does) keeps the pitch it had
+    there: its sole is pitched once per stance, and cannot flicker on an edge it stands on."""
     dynamic = bool(getattr(ground, "dynamic", True))
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
     if not legs:
@@ -394,6 +423,11 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     ends = np.stack([np.asarray(joints_world[k], dtype=np.float64)[:, -1] for k in legs], axis=1)  # (F, J, 3)
     rest_points = np.concatenate([info.foot_points[k] - info.joints[k][-1] for k in legs])  # (P, 3)
     rel = np.einsum("fpij,pj->fpi", leg_yaw[:, legs][:, foot], rest_points)  # (F, P, 3)
+    # (over a moving ground a foot standing still may find other ground under it)
+    first = (np.repeat(np.arange(n_frames)[:, None], len(legs), axis=1) if dynamic else
+             _stands_since(ends, leg_yaw[:, legs], HELD * max(float(np.mean(info.leg_length)), 1e-3)))
+    own = first == np.arange(n_frames)[:, None]  # (F, J) the frames a foot's pitch is found at
+    chosen = np.arange(len(legs))[None]
     reach = _sole_reach(rel, starts)
     # Only the sole points ahead of each ankle limit its pitch: the others' heights are not asked.
     asked = reach[2]
@@ -401,10 +435,11 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     pitched: np.ndarray | None = None
     angles = np.zeros((n_frames, len(legs)))  # each turn's angle (the first: none)
     # How far each end-effector is above where it would stand on the ground under it.
-    end_xy = ends[..., :2].transpose(1, 0, 2).reshape(-1, 2)  # foot by foot
-    end_frame = np.tile(np.arange(n_frames), len(legs))
-    under = np.asarray(ground(end_frame if dynamic else np.zeros_like(end_frame), end_xy), dtype=np.float64)
-    lifts = ends[..., 2] - info.foot_height[legs][None] - under.reshape(len(legs), n_frames).T  # (F, J)
+    under = np.full((n_frames, len(legs)), np.nan)
+    at = np.nonzero(own)
+    under[at] = np.asarray(ground(at[0] if dynamic else np.zeros_like(at[0]), ends[at][:, :2]),
+                           dtype=np.float64)
+    lifts = ends[..., 2] - info.foot_height[legs][None] - under  # (F, J)
     frame_of = np.repeat(np.arange(n_frames)[:, None], rel.shape[1], axis=1)  # (F, P)
     heights = np.full(asked.shape, -np.inf)
     changed = np.ones((n_frames, len(legs)), dtype=bool)
@@ -419,11 +454,12 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     for _ in range(3):
         # Heights asked again only where a foot turned since they were read (elsewhere its
         # points stand where they stood).
-        ask = asked & changed[:, foot]
+        ask = asked & (changed & own)[:, foot]
         xy = ends[:, foot, :2] + np.einsum("fpij,fpj->fpi", turns[:, foot, :2], rel)
         key = frame_of[ask] if dynamic else np.zeros(int(ask.sum()), dtype=np.int64)
         heights[ask] = np.asarray(ground(key, xy[ask]), dtype=np.float64)
         theta, _d = _foot_pitch(rel, starts, ends, heights, limit, lifts, reach)
+        theta = theta[first, chosen]  # a standing foot's from where it began to stand
         if pitched is not None:
             theta = np.maximum(theta, pitched)
         pitched = theta
