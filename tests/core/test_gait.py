@@ -144,7 +144,8 @@ def test_preset_round_trips_through_json(tmp_path: Path) -> None:
 
 def test_a_preset_file_is_read_again_once_it_changes(tmp_path: Path) -> None:
     """An unchanged file is read once (the same preset, its arrays read-only so nobody can
-    change the kept copy); an edited one is read again, a broken one refused again."""
+    change the kept copy); an edited one is read again, a broken one refused again; a folder
+    is listed again once a file is added."""
     import os
 
     path = tmp_path / "mine.json"
@@ -163,6 +164,11 @@ def test_a_preset_file_is_read_again_once_it_changes(tmp_path: Path) -> None:
     path.write_text("{")
     with pytest.raises(GaitPresetError, match="not valid JSON"):
         gaits.load_gait_preset(path)
+    # The folder's files are listed again once one is added.
+    assert gaits.list_gait_presets(tmp_path) == [path]
+    (tmp_path / "another.json").write_text(json.dumps(data))
+    os.utime(tmp_path, ns=(2, 2))  # (a folder's time, as adding a file sets it)
+    assert gaits.list_gait_presets(tmp_path) == [tmp_path / "another.json", path]
 
 
 def test_gait_refuses_zero_and_full_swings() -> None:

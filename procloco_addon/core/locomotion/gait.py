@@ -24,6 +24,7 @@ file and the problem.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
@@ -201,15 +202,29 @@ class GaitPreset:
         }
 
 
+@functools.cache
 def gait_preset_dir() -> Path:
     """The folder of the shipped gait presets (``presets/gait`` at the extension root)."""
     return Path(__file__).resolve().parents[3] / "presets" / "gait"
 
 
+# Preset files listed, by folder: the folder's modification time then and its files.
+_listed: dict[Path, tuple[int, list[Path]]] = {}
+
+
 def list_gait_presets(directory: Path | None = None) -> list[Path]:
-    """Preset files in ``directory`` (default the shipped ones), sorted by file name."""
+    """Preset files in ``directory`` (default the shipped ones), sorted by file name (listed
+    again only once the folder changed: a file added, removed or renamed)."""
     folder = gait_preset_dir() if directory is None else Path(directory)
-    return sorted(folder.glob("*.json"))
+    try:
+        stamp = folder.stat().st_mtime_ns
+    except OSError:
+        return []
+    known = _listed.get(folder)
+    if known is None or known[0] != stamp:
+        known = (stamp, sorted(folder.glob("*.json")))
+        _listed[folder] = known
+    return list(known[1])
 
 
 def _fail(path: Path | str, problem: str) -> GaitPresetError:
