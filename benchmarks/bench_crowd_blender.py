@@ -193,7 +193,8 @@ def _in_process(code_root: Path, count: int, n_frames: int) -> dict[str, float]:
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)
     lines = [ln for ln in done.stdout.splitlines() if ln.startswith("RUN ")]
     if done.returncode != 0 or not lines:
-        raise RuntimeError(f"run of {code_root} failed:\n{done.stdout[-2000:]}\n{done.stderr[-4000:]}")
+        raise RuntimeError(f"run of {code_root} failed (exit {done.returncode}):\n{done.stdout[-2000:]}\n"
+                           f"{done.stderr[-4000:]}")
     out: dict[str, float] = json.loads(lines[-1][len("RUN "):])
     return out
 
@@ -253,7 +254,9 @@ def main() -> None:
         finally:
             procloco_addon.unregister()
         if args.one_run:
-            print("RUN " + json.dumps(rows[counts[0]]))
+            # (on a line of its own: Blender cuts a long report, such as the Generated line
+            # naming a hundred Actions, before its line break)
+            print("\nRUN " + json.dumps(rows[counts[0]]))
             return
         # (the table after every run: the operator prints its progress while it works)
         print(header)
