@@ -8,7 +8,9 @@ does it, for plain rigs and for control rigs:
 
 - **Free solved bones** (:attr:`.rig.controls.ControlPlan.direct`, a plain FK rig's bones) get the
   ``matrix_basis`` that puts them at their target under their parent's target pose
-  (:func:`basis_from_armature`), exactly, without evaluating the rig.
+  (:func:`basis_from_armature`), exactly, without evaluating the rig; when the request
+  carries those channels already (Generate solves them so) and the object does not move,
+  they are keyed as they are.
 - **Controls** (:attr:`.rig.controls.ControlPlan.controls`) are solved *through* Blender: the rig
   is evaluated at every frame, each control is moved by the error of the solved bone it drives
   (``RIGID``: rigidly with it; ``MOVE``: by its head's error only, when it points at
