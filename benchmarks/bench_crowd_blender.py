@@ -84,6 +84,9 @@ def build_scene(count: int, n_frames: int) -> list[bpy.types.Object]:
     for wolf in wolves:
         wolf.select_set(True)
     bpy.context.view_layer.objects.active = wolves[0]
+    # The scene evaluated once, as the viewport has it before the click (else the operator's
+    # first view layer update evaluates every new rig and skin, a cost of building the scene)
+    bpy.context.view_layer.update()
     return wolves
 
 
@@ -94,6 +97,7 @@ def build_scene(count: int, n_frames: int) -> list[bpy.types.Object]:
 STAGES = (
     ("read", "procloco_addon.blender.locomotion.generate", "read"),
     ("read", "procloco_addon.blender.locomotion.crowd", "read_all"),
+    ("read", "procloco_addon.blender.locomotion.crowd", "read_all_steps"),
     ("terrain", "procloco_addon.blender.locomotion.generate", "read_terrain"),
     ("terrain", "procloco_addon.blender.locomotion.crowd", "read_terrain"),
     ("simulate", "procloco_addon.blender.locomotion.generate", "simulate"),
@@ -189,7 +193,8 @@ def _in_process(code_root: Path, count: int, n_frames: int) -> dict[str, float]:
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)
     lines = [ln for ln in done.stdout.splitlines() if ln.startswith("RUN ")]
     if done.returncode != 0 or not lines:
-        raise RuntimeError(f"run of {code_root} failed:\n{done.stdout[-2000:]}\n{done.stderr[-4000:]}")
+        raise RuntimeError(f"run of {code_root} failed (exit {done.returncode}):\n{done.stdout[-2000:]}\n"
+                           f"{done.stderr[-4000:]}")
     out: dict[str, float] = json.loads(lines[-1][len("RUN "):])
     return out
 
@@ -249,7 +254,9 @@ def main() -> None:
         finally:
             procloco_addon.unregister()
         if args.one_run:
-            print("RUN " + json.dumps(rows[counts[0]]))
+            # (on a line of its own: Blender cuts a long report, such as the Generated line
+            # naming a hundred Actions, before its line break)
+            print("\nRUN " + json.dumps(rows[counts[0]]))
             return
         # (the table after every run: the operator prints its progress while it works)
         print(header)

@@ -42,7 +42,7 @@ quaternions are ``(..., 4)`` in Blender's ``(w, x, y, z)`` order.
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -75,6 +75,7 @@ __all__ = [
     "remember_pose",
     "restore_previous_action",
     "rotation_channels",
+    "sample_channels",
     "undo_assignment",
     "write_bezier_channels",
     "write_channels",
@@ -617,6 +618,57 @@ def read_channels(
         co2 = co.reshape(-1, 2).astype(np.float64)
         out.append((Channel(fc.data_path, fc.array_index, fc.group.name if fc.group else ""),
                     co2[:, 0], co2[:, 1]))
+    return out
+
+
+def sample_channels(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray,
+                    select: Callable[[str], bool] | None = None) -> dict[tuple[str, int], np.ndarray]:
+    """What each F-curve of ``action`` for ``obj`` (whose data path ``select`` accepts, all
+    by default) gives at the integer ``frames`` ``(F,)``, ``{(data_path, index): values (F,)}``,
+    as the animation system evaluates it: muted curves (or curves of a muted group) are left
+    out; on a frame that holds a key the curve's value is that key's (the keys read in bulk),
+    elsewhere, and on a curve with modifiers, the curve is evaluated (``FCurve.evaluate``).
+    Nothing is changed."""
+    fcurves = _fcurve_collection(action, obj, create=False)
+    if fcurves is None:
+        return {}
+    wanted = np.asarray(frames, dtype=np.float64).reshape(-1)
+    curves = []
+    for fc in fcurves:
+        if fc.mute or (select is not None and not select(fc.data_path)):
+            continue
+        if fc.group is not None and fc.group.mute:
+            continue
+        curves.append((fc, len(fc.keyframe_points)))
+    if not curves:
+        return {}
+    counts = np.array([n for _fc, n in curves], dtype=np.int64)
+    start = np.concatenate([[0], np.cumsum(counts)])
+    co = np.empty(2 * int(start[-1]), dtype=np.float32)
+    for (fc, n), s in zip(curves, start, strict=False):
+        fc.keyframe_points.foreach_get("co", co[2 * s: 2 * (s + n)])
+    keys = co.reshape(-1, 2).astype(np.float64)
+    # Every curve's keys in one sorted run of (curve, frame): one search finds each wanted frame.
+    span = float(max(np.abs(keys[:, 0]).max(initial=0.0), np.abs(wanted).max(initial=0.0))) * 2.0 + 2.0
+    owner = np.repeat(np.arange(len(curves)), counts)
+    ranked = owner * span + keys[:, 0]
+    asked = (np.arange(len(curves))[:, None] * span + wanted[None]).reshape(-1)
+    found = np.zeros(asked.shape, dtype=bool)
+    values = np.full(asked.shape, np.nan)
+    if ranked.size:
+        at = np.minimum(np.searchsorted(ranked, asked), ranked.size - 1)
+        found = ranked[at] == asked
+        values[found] = keys[at[found], 1]
+    found = found.reshape(len(curves), -1)
+    values = values.reshape(len(curves), -1)
+    complete = found.all(axis=1)
+    out: dict[tuple[str, int], np.ndarray] = {}
+    for c, (fc, _n) in enumerate(curves):
+        row = values[c]
+        if len(fc.modifiers) or not complete[c]:
+            for f in range(wanted.shape[0]) if len(fc.modifiers) else np.flatnonzero(~found[c]):
+                row[f] = fc.evaluate(float(wanted[f]))
+        out[(fc.data_path, fc.array_index)] = row
     return out
 
 

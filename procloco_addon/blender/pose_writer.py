@@ -8,7 +8,9 @@ does it, for plain rigs and for control rigs:
 
 - **Free solved bones** (:attr:`.rig.controls.ControlPlan.direct`, a plain FK rig's bones) get the
   ``matrix_basis`` that puts them at their target under their parent's target pose
-  (:func:`basis_from_armature`), exactly, without evaluating the rig.
+  (:func:`basis_from_armature`), exactly, without evaluating the rig; when the request
+  carries those channels already (Generate solves them so) and the object does not move,
+  they are keyed as they are.
 - **Controls** (:attr:`.rig.controls.ControlPlan.controls`) are solved *through* Blender: the rig
   is evaluated at every frame, each control is moved by the error of the solved bone it drives
   (``RIGID``: rigidly with it; ``MOVE``: by its head's error only, when it points at
@@ -41,7 +43,7 @@ import numpy as np
 from ..core.steps import run_steps, scaled_steps
 from . import actions
 from .rig.controls import ControlKey, ControlPlan, Switch
-from .rig.rest import affine_inverse, affine_inverses
+from .rig.rest import affine_inverse, affine_inverses, nearest_rotation
 
 __all__ = [
     "PoseRequest",
@@ -75,11 +77,16 @@ class PoseRequest:
 
     ``rest_local`` / ``parents`` / ``basis``: every bone's armature rest matrix, parent and
     current ``matrix_basis`` (bones that are not solved keep their pose).
+
+    ``rotations`` ``(F, B, 4)`` and ``locations`` ``(F, B, 3)``: the solved bones'
+    ``matrix_basis`` as channels, when the caller solved them so (Generate); then
+    ``armature`` may be None (it follows from them, :func:`armature_from_basis`), and free
+    bones of a rig that does not move are keyed from them as they are.
     """
 
     frames: np.ndarray
     bones: tuple[str, ...]
-    armature: np.ndarray
+    armature: np.ndarray | None
     keyed_location: np.ndarray
     world0: np.ndarray
     rest_local: dict[str, np.ndarray]
@@ -92,6 +99,17 @@ class PoseRequest:
     # Armature-space poses ``(F, 4, 4)`` of bones that are not solved but that solved bones
     # hang from, as sampled (an animated body); others are taken as currently posed.
     parent_pose: dict[str, np.ndarray] = field(default_factory=dict)
+    rotations: np.ndarray | None = None
+    locations: np.ndarray | None = None
+
+    def armature_space(self) -> np.ndarray:
+        """``armature``, or when not given the pose its channels give."""
+        if self.armature is not None:
+            return np.asarray(self.armature, dtype=np.float64)
+        if self.rotations is None or self.locations is None:
+            raise ValueError("a pose request needs its armature-space pose or its channels")
+        return armature_from_basis(self.bones, self.rotations, self.locations, self.rest_local, self.parents,
+                                   self.basis, self.keyed_location)
 
 
 @dataclass
@@ -318,12 +336,6 @@ def armature_from_basis(
     return np.stack([np.broadcast_to(pose(b), (n_frames, 4, 4)) for b in bones], axis=1)
 
 
-def _orthonormal(m: np.ndarray) -> np.ndarray:
-    u, _s, vt = np.linalg.svd(m)
-    r = u @ vt
-    return r
-
-
 def _key(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
          basis: np.ndarray, location: np.ndarray | Sequence[bool]) -> None:
     """Key rotation (and location where ``location[b]``) of ``basis`` ``(F, n, 4, 4)``."""
@@ -331,13 +343,19 @@ def _key(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, na
 
     if not names:
         return
-    rot = _orthonormal(basis[..., :3, :3])
-    quats = matrix_to_quaternion(rot)
-    actions.write_pose_bone_transforms(action, obj, frames, names, rotations=quats)
+    quats = matrix_to_quaternion(nearest_rotation(basis[..., :3, :3]))
+    _key_channels(action, obj, frames, names, quats, basis[..., :3, 3], location)
+
+
+def _key_channels(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str],
+                  rotations: np.ndarray, locations: np.ndarray,
+                  location: np.ndarray | Sequence[bool]) -> None:
+    """Key ``rotations`` ``(F, n, 4)`` (and ``locations`` ``(F, n, 3)`` where ``location[b]``)."""
+    actions.write_pose_bone_transforms(action, obj, frames, names, rotations=rotations)
     loc = [i for i, k in enumerate(location) if k]
     if loc:
         actions.write_pose_bone_transforms(action, obj, frames, [names[i] for i in loc],
-                                           locations=basis[:, loc][..., :3, 3])
+                                           locations=locations[:, loc])
 
 
 def _key_switches(action: bpy.types.Action, obj: bpy.types.Object, frames: np.ndarray,
@@ -408,25 +426,35 @@ def write_pose_steps(
     """
     report = WriteReport(plan=plan)
     frames = np.asarray(req.frames, dtype=np.float64)
-    armature = np.asarray(req.armature, dtype=np.float64)
-    if not req.per_frame and object_moves(obj):
+    armature: np.ndarray | None = None
+    moves = not req.per_frame and object_moves(obj)
+    if moves:
         worlds = yield from scaled_steps(_object_worlds_steps(obj, req.frames), 0.0, 0.1)
         # The plan is in the world: carry it into each frame's armature space.
-        armature = (affine_inverse(worlds) @ req.world0[None])[:, None] @ armature
+        armature = (affine_inverse(worlds) @ req.world0[None])[:, None] @ req.armature_space()
     index = {b: i for i, b in enumerate(req.bones)}
     direct = [b for b in req.bones if b in plan.direct]
     controls = list(plan.controls)
-    if direct:
-        basis = basis_from_armature(req, armature, direct)
-        _key(action, obj, frames, direct, basis, [bool(req.keyed_location[index[b]]) for b in direct])
+    located = [bool(req.keyed_location[index[b]]) for b in direct]
+    if direct and req.rotations is not None and req.locations is not None and not moves:
+        # the solved channels as they are (their armature-space pose gives them back)
+        cols = [index[b] for b in direct]
+        _key_channels(action, obj, frames, direct, req.rotations[:, cols], req.locations[:, cols], located)
+    elif direct:
+        armature = req.armature_space() if armature is None else armature
+        _key(action, obj, frames, direct, basis_from_armature(req, armature, direct), located)
     _key_switches(action, obj, frames, plan.switches)
     report.keyed = [*direct, *(c.bone for c in controls)]
     if assign:
         actions.assign_generated_action(obj, action, replace=replace, superseded=superseded)
     yield 0.1
+    if controls or (check and req.legs):
+        armature = req.armature_space() if armature is None else armature
     if controls:
+        assert armature is not None
         yield from _solve_controls(action, obj, frames, armature, req, controls, report, index)
     elif check and req.legs:
+        assert armature is not None
         report.leg_error = yield from scaled_steps(_leg_errors(obj, req, armature, index), 0.1, 1.0)
     return report
 
@@ -495,12 +523,12 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
             elif c.mode == "MOVE":  # moved by its anchor's head error; its turn is another's
                 want[:, :3, 3] += armature[:, index[c.anchor], :3, 3] - ev[:, col[c.anchor], :3, 3]
             elif c.mode == "TURN":  # turned like its anchor; its head follows its parent
-                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
-                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                d = nearest_rotation(armature[:, index[c.anchor], :3, :3])
+                e = nearest_rotation(ev[:, col[c.anchor], :3, :3])
                 want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
             elif c.mode == "IK":  # turned like its anchor, moved by the end-effector's error
-                d = _orthonormal(armature[:, index[c.anchor], :3, :3])
-                e = _orthonormal(ev[:, col[c.anchor], :3, :3])
+                d = nearest_rotation(armature[:, index[c.anchor], :3, :3])
+                e = nearest_rotation(ev[:, col[c.anchor], :3, :3])
                 want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
                 want[:, :3, 3] += want_joints[c.leg][:, -1] - got_joints[c.leg][:, -1]
             else:  # POLE: at its rest offset from the knee in the leg's frame, turned about the

@@ -376,7 +376,7 @@ def test_escape_midway_through_a_batch_changes_nothing(empty_scene: Any) -> None
     before = snapshot()
     me, context = modal_double()
     assert me._prepare(context)
-    assert len(me._jobs) == 2
+    assert len(me._rigs) == 2
     me._steps = me._run(context, True)
     timer = SimpleNamespace(type="TIMER")
     for _ in range(6):  # (the terrain, then frames of the one simulation)
@@ -388,3 +388,66 @@ def test_escape_midway_through_a_batch_changes_nothing(empty_scene: Any) -> None
     results = [Op.modal(me, context, timer) for _ in range(200)]
     assert results.count({"FINISHED"}) == 1
     assert all(rig.animation_data.action.name.startswith(f"{rig.name} ProcLoco") for rig in rigs)
+
+
+def test_copies_of_a_rig_read_together_are_detected_once(empty_scene: Any,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """Detection is a matter of a rig's shape: copies standing elsewhere (one on a table)
+    share the legs found for the first; a rig of another shape (a spider, a wolf with a
+    shorter hind leg) is detected on its own, and gets the legs it gets alone."""
+    from procloco_addon.blender import rig
+    from procloco_addon.blender.rig import read
+
+    _ground()
+    wolves = [_place(empty_scene, "wolf", f"Wolf{k}", (3.0 * k, 0.0)) for k in range(3)]
+    wolves[2].location.z = 0.8
+    odd = _place(empty_scene, "wolf", "Odd", (0.0, 4.0))
+    spider = _place(empty_scene, "spider", "Spider", (3.0, 4.0))
+    bpy.context.view_layer.objects.active = odd
+    bpy.ops.object.mode_set(mode="EDIT")
+    shin = odd.data.edit_bones["shin.L"]
+    shin.head.z += 0.05  # a shorter thigh: another shape (its legs are found the same way)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    rigs = [*wolves, odd, spider]
+    bpy.context.view_layer.update()
+    alone = {o.name: rig.detect_legs(o) for o in rigs}
+    calls = []
+    find_legs = read.find_legs
+
+    def counted(rest: Any, constrained: Any, name: str) -> Any:
+        calls.append(name)
+        return find_legs(rest, constrained, name)
+
+    monkeypatch.setattr(read, "find_legs", counted)
+    with rig.reading_once():
+        together = {o.name: rig.detect_legs(o) for o in rigs}
+    assert calls == ["Wolf0", "Odd", "Spider"]
+    assert together == alone
+    jobs = crowd.read_all(bpy.context, rigs)  # Generate's reading: one block for every rig
+    assert calls[3:] == ["Wolf0", "Odd", "Spider"]
+    assert [list(j.info.legs) for j in jobs] == [alone[o.name] for o in rigs]
+
+
+def test_reading_a_herd_shows_its_progress_and_stops_on_escape(empty_scene: Any) -> None:
+    """The rigs are read in the modal steps, one a step: the progress bar moves while a herd
+    is read, and Esc then leaves everything as it was (nothing is read ahead of the steps)."""
+    from types import SimpleNamespace
+
+    from procloco_addon.blender.locomotion.ops import PROCLOCO_OT_generate_locomotion as Op
+    from procloco_addon.blender.rig import read
+
+    _ground()
+    rigs = [_place(empty_scene, "spider", f"Spider{k}", (-1.2 + 1.2 * k, 0.0), scale=4.0) for k in range(3)]
+    _select(rigs)
+    before = snapshot()
+    me, context = modal_double()
+    assert me._prepare(context)
+    assert me._jobs == []  # nothing read yet
+    me._steps = me._run(context, True)
+    shown = [next(me._steps) for _ in range(2)]
+    assert [text for text, _f in shown] == ["reading the rigs"] * 2
+    assert [f for _t, f in shown] == pytest.approx([0.05 / 3, 0.1 / 3])
+    assert read._read_once is not None  # in the middle of the reading
+    assert Op.modal(me, context, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert read._read_once is None  # its block closed: nothing kept from it
+    assert snapshot() == before

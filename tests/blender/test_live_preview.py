@@ -212,12 +212,11 @@ def test_debounce_waits_for_edits_to_settle(wolf: Any, clock: Clock) -> None:
 
 
 def test_the_current_frame_is_shown_before_the_rest_of_the_range(wolf: Any, clock: Clock,
-                                                                  monkeypatch: pytest.MonkeyPatch) -> None:
-    # (short timer calls: with the default budget a fast machine finishes the rest of the
-    # range in the call that showed the current frame, and the test never sees it alone)
-    monkeypatch.setattr(handler, "BUDGET_S", 0.002)
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
     wolf.procloco.live_preview = True
     bpy.context.scene.frame_set(4)
+    # one step a tick (a tick's time budget could hold the whole short regeneration)
+    monkeypatch.setattr(handler, "BUDGET_S", 0.0)
     partial = None
     for _ in range(500):
         handler.tick()
@@ -472,10 +471,11 @@ def test_a_file_saved_in_the_middle_of_a_regeneration_leaves_no_preview_behind(
         wolf: Any, clock: Clock, tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
     wolf.procloco.live_preview = True
     settle(clock)
-    monkeypatch.setattr(handler, "BUDGET_S", 0.002)  # (else a fast machine ends the walk in the same call)
     bpy.context.scene.frame_set(3)
     clock.now += 1.0
     wolf.procloco.speed = 1.2
+    # one step a tick (a tick's time budget could hold the whole short regeneration)
+    monkeypatch.setattr(handler, "BUDGET_S", 0.0)
     for _ in range(500):  # until the current frame's pose is shown, the rest still to come
         handler.tick()
         clock.now += 0.01

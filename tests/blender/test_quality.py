@@ -17,6 +17,7 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
+from mathutils import Matrix
 
 from procloco_addon.blender import cli
 from procloco_addon.blender.locomotion import generate
@@ -345,3 +346,105 @@ def test_batch_command_prints_the_quality_line_per_rig(empty_scene: Any,
         assert f"stance slide {q.slide * 1000:.2f} mm" in line
         assert f"too few feet down {q.few_feet_down} frame" in line
         assert line.endswith("all within the thresholds")
+
+
+# ---------------------------------------------------------------------------------------
+# Plain rigs posed from their Actions, without the depsgraph
+
+
+_LEG_BONES = ("shoulder.L", "front_thigh.L", "front_shin.L", "front_foot.L", "front_toe.L",
+              "thigh.L", "shin.L", "foot.L", "toe.L", "thigh.R", "shin.R", "foot.R")
+
+
+def _keyed_metarig() -> Any:
+    """Rigify's wolf metarig, turned and moved under a parent, keyed by hand in every way a walk or an
+    animator keys it: quaternions, an Euler shoulder (the metarig's own YXZ), an axis-angle
+    thigh, Bézier keys on a few frames only (the frames between are curves), a Cycles
+    modifier past the last key, location on a free bone and on a connected one (ignored),
+    scale on the root, a muted curve, and a bone posed but not keyed."""
+    import addon_utils
+
+    bpy.ops.wm.read_homefile(use_empty=True)
+    addon_utils.enable("rigify", default_set=True)
+    bpy.ops.object.armature_wolf_metarig_add()
+    rig = bpy.context.active_object
+    rig.location = (1.5, -2.0, 0.3)
+    rig.rotation_euler = (0.0, 0.0, 0.7)
+    holder = bpy.data.objects.new("Holder", None)  # the rig parented to a turned, moved empty
+    bpy.context.scene.collection.objects.link(holder)
+    holder.location = (0.4, 0.2, -0.1)
+    holder.rotation_euler = (0.0, 0.0, -0.3)
+    rig.parent = holder
+    rig.matrix_parent_inverse = Matrix.Translation((0.1, -0.2, 0.05)) @ Matrix.Rotation(0.2, 4, "Z")
+    pose = rig.pose.bones
+    assert pose["shoulder.L"].rotation_mode == "YXZ"
+    assert rig.data.bones["shin.L"].use_connect
+    assert not rig.data.bones["thigh.L"].use_connect
+    pose["thigh.R"].rotation_mode = "AXIS_ANGLE"
+    pose["front_foot.L"].rotation_quaternion = (0.9, 0.3, 0.1, 0.0)  # posed, never keyed
+    rng = np.random.default_rng(7)
+    for frame in (1, 4, 9):
+        pose["shoulder.L"].rotation_euler = rng.uniform(-0.5, 0.5, 3)
+        pose["shoulder.L"].keyframe_insert("rotation_euler", frame=frame)
+        pose["thigh.R"].rotation_axis_angle = (rng.uniform(-1.0, 1.0), *rng.uniform(-1.0, 1.0, 3))
+        pose["thigh.R"].keyframe_insert("rotation_axis_angle", frame=frame)
+        for name in ("thigh.L", "shin.L", "foot.L", "front_thigh.L", "front_shin.L"):
+            q = rng.normal(size=4)
+            pose[name].rotation_quaternion = q / np.linalg.norm(q) * 1.3  # unnormalised on purpose
+            pose[name].keyframe_insert("rotation_quaternion", frame=frame)
+        for name in ("thigh.L", "shin.L"):
+            pose[name].location = rng.uniform(-0.1, 0.1, 3)
+            pose[name].keyframe_insert("location", frame=frame)
+        pose["spine.004"].scale = rng.uniform(0.8, 1.2, 3)
+        pose["spine.004"].keyframe_insert("scale", frame=frame)
+        pose["thigh.R"].location = (0.0, 0.0, 5.0)
+        pose["thigh.R"].keyframe_insert("location", frame=frame)
+    from procloco_addon.blender import actions
+
+    fcurves = actions._fcurve_collection(rig.animation_data.action, rig, create=False)
+    for fc in fcurves:
+        if fc.data_path.endswith('["thigh.R"].location'):
+            fc.mute = True
+        if fc.data_path.endswith('["thigh.L"].rotation_quaternion') and fc.array_index == 1:
+            fc.modifiers.new("CYCLES")
+    pose["thigh.R"].location = (0.0, 0.0, 0.0)
+    return rig
+
+
+def test_a_plain_rig_is_posed_from_its_action_as_the_depsgraph_poses_it(procloco_registered: Any) -> None:
+    from procloco_addon.blender.quality import posed
+    from tests.blender.pose_eval import pose_matrices
+
+    rig = _keyed_metarig()
+    frames = np.arange(1, 15)
+    mine = posed.plain_poses(rig, frames, _LEG_BONES)
+    assert mine is not None, "a rig with no constraints, drivers or NLA is plain"
+    blender = pose_matrices(rig, [int(f) for f in frames], _LEG_BONES)
+    # float32 in Blender, float64 here: a few tenths of a micrometre on a metre-sized rig
+    assert np.abs(mine - blender).max() < 1e-5
+    # and the keys do move the legs: the comparison is not between two rest poses
+    assert np.abs(np.diff(blender[..., :3, 3], axis=0)).max() > 0.01
+
+
+@pytest.mark.parametrize("change", ["constraint", "nla", "driver", "object_keys", "parent_keys",
+                                    "rest_position", "inherit_scale"])
+def test_anything_else_that_moves_bones_leaves_the_rig_to_the_depsgraph(procloco_registered: Any,
+                                                                         change: str) -> None:
+    from procloco_addon.blender.quality import posed
+
+    rig = _keyed_metarig()
+    if change == "constraint":  # on a bone off the measured legs: an IK could still pull them
+        rig.pose.bones["spine.006"].constraints.new("COPY_ROTATION")
+    elif change == "nla":
+        rig.animation_data.nla_tracks.new()
+    elif change == "driver":
+        rig.pose.bones["tail.001" if "tail.001" in rig.pose.bones else "spine.003"].driver_add("location", 0)
+    elif change == "object_keys":
+        rig.keyframe_insert("location", frame=1)
+    elif change == "parent_keys":
+        rig.parent.keyframe_insert("location", frame=1)
+    elif change == "rest_position":
+        rig.data.pose_position = "REST"
+    else:
+        rig.data.bones["shin.L"].inherit_scale = "NONE"
+    assert posed.plain_poses(rig, np.arange(1, 5), _LEG_BONES) is None

@@ -505,3 +505,49 @@ def test_feet_follow_the_ground_they_stand_on_and_not_the_ground_below_them(empt
     assert np.all(above < 0.006 * leg_length), above  # and down onto it
     # In the air, or over nothing, the paw keeps its rest orientation.
     np.testing.assert_allclose(tilt[3:], 0.0, atol=0.1)
+
+
+def test_a_standing_foot_keeps_its_pitch_on_an_edge_and_a_moved_one_finds_its_own(empty_scene: Any) -> None:
+    """Over ground that does not move, a foot standing still (the IK holds a planted
+    end-effector to a nanometre, not to the last bit) is pitched once, where it began to
+    stand: with its toe exactly on the edge of a step, end-effectors a tenth of a nanometre
+    apart do not flicker its pitch from frame to frame. A foot moved by a millimetre, onto
+    the step, is pitched where it is."""
+    arm = creatures.build_wolf(empty_scene)
+    info = rig.read_rig(arm)
+    k = [leg.label for leg in info.legs].index("L2")
+    end = info.joints[k][-1]
+    forward = info.body.forward[:2] / np.linalg.norm(info.body.forward[:2])
+    reach = float(np.max((info.foot_points[k][:, :2] - end[:2]) @ forward))  # the toe tip, ahead
+    contact_z = float(info.contact[k, 2])
+
+    def ground(frame_index: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        ahead = (xy - end[:2]) @ forward
+        return contact_z + np.where(ahead > reach, 0.02, 0.0)  # a 2 cm step at the toe tip
+
+    ground.dynamic = False  # type: ignore[attr-defined]
+    n = 6
+    body = np.repeat(info.body.matrix[None], n, axis=0)
+    joints = [np.repeat(j[None], n, axis=0) for j in info.joints]
+    nudge = np.zeros(3)
+    nudge[:2] = 1e-10 * forward
+    joints[k][1::2, -1] += nudge  # (odd frames: the tip a tenth of a nanometre onto the step)
+    tracks = rig.solve_pose(info, body, joints, ground=ground)
+    toe = tracks.bones.index(info.legs[k].foot[0])
+
+    def turn(q: np.ndarray, r: np.ndarray) -> np.ndarray:  # degrees between quaternions
+        return np.degrees(2.0 * np.arccos(np.clip(np.abs(np.sum(q * r, axis=-1)), 0.0, 1.0)))
+
+    assert np.abs(tracks.rotations[1:, toe] - tracks.rotations[:1, toe]).max() < 1e-8
+    alone = rig.solve_pose(info, body[:1], [j[:1] for j in joints], ground=ground)
+    assert np.abs(tracks.rotations[0, toe] - alone.rotations[0, toe]).max() < 1e-12
+    # (pitched frame by frame, as over a moving ground, the nudged frames do step up)
+    ground.dynamic = True  # type: ignore[attr-defined]
+    flicker = rig.solve_pose(info, body, joints, ground=ground).rotations[:, toe]
+    assert turn(flicker[1::2], flicker[::2]).min() > 1.0
+    ground.dynamic = False  # type: ignore[attr-defined]
+    # Moved a millimetre forward from frame 3 on, the foot stands on the step's edge: pitched up.
+    joints[k][3:, -1] += 1000.0 * 1e-6 * np.append(forward, 0.0)
+    moved = rig.solve_pose(info, body, joints, ground=ground).rotations[:, toe]
+    assert turn(moved[3], moved[2]) > 1.0
+    assert np.abs(moved[4:] - moved[3:4]).max() < 1e-8

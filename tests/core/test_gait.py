@@ -142,6 +142,35 @@ def test_preset_round_trips_through_json(tmp_path: Path) -> None:
     assert again.source == preset.source
 
 
+def test_a_preset_file_is_read_again_once_it_changes(tmp_path: Path) -> None:
+    """An unchanged file is read once (the same preset, its arrays read-only so nobody can
+    change the kept copy); an edited one is read again, a broken one refused again; a folder
+    is listed again once a file is added."""
+    import os
+
+    path = tmp_path / "mine.json"
+    data = gaits.find_gait_preset("hexapod_tetrapod").to_json()
+    path.write_text(json.dumps(data))
+    first = gaits.load_gait_preset(path)
+    assert gaits.load_gait_preset(path) is first
+    with pytest.raises(ValueError, match="read-only"):
+        first.swing_start[0] = 0.5
+    data["cycle_time"] = 2.5
+    path.write_text(json.dumps(data))
+    os.utime(path, ns=(1, 1))  # another modification time, as an edit gives it
+    again = gaits.load_gait_preset(path)
+    assert again.cycle_time == 2.5
+    assert first.cycle_time != 2.5
+    path.write_text("{")
+    with pytest.raises(GaitPresetError, match="not valid JSON"):
+        gaits.load_gait_preset(path)
+    # The folder's files are listed again once one is added.
+    assert gaits.list_gait_presets(tmp_path) == [path]
+    (tmp_path / "another.json").write_text(json.dumps(data))
+    os.utime(tmp_path, ns=(2, 2))  # (a folder's time, as adding a file sets it)
+    assert gaits.list_gait_presets(tmp_path) == [tmp_path / "another.json", path]
+
+
 def test_gait_refuses_zero_and_full_swings() -> None:
     with pytest.raises(GaitError, match="strictly between 0 and 1"):
         Gait(np.array([0.0, 0.5]), np.array([0.4, 1.0]), 1.0)

@@ -2,9 +2,10 @@
 """Generate Locomotion for many rigs at once: every rig read and checked, then as few core
 simulations as the rigs allow, each stepping all its rigs together frame by frame.
 
-- :func:`read_all` reads every rig (:func:`.generate.read`); a refusal names the rig and
-  nothing is changed on any rig. The terrain of a batch leaves out every rig of it (a
-  neighbour's skin is not ground: the neighbour is a character of the same simulation).
+- :func:`read_all` reads every rig (:func:`.generate.read`; :func:`read_all_steps` as
+  progress steps); a refusal names the rig and nothing is changed on any rig. The terrain
+  of a batch leaves out every rig of it (a neighbour's skin is not ground: the neighbour is
+  a character of the same simulation).
 - :func:`vary` gives copies of one creature their own phase and stride (Seed Offset, and an
   automatic variation for linked duplicates and rigs with identical settings).
 - :func:`batches` groups the rigs that can share one simulation: the same frames, the same
@@ -21,17 +22,19 @@ from __future__ import annotations
 
 import time
 import zlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Generator, Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
 
-from .. import scene_terrain
+from ...core.steps import run_steps
+from .. import rig, scene_terrain
 from . import simulation
 from .job import Job, settings_values
 
-__all__ = ["CYCLE_VARIATION", "Batch", "batches", "read_all", "read_terrain", "simulate", "variation", "vary"]
+__all__ = ["CYCLE_VARIATION", "Batch", "batches", "read_all", "read_all_steps", "read_terrain", "simulate",
+           "variation", "vary"]
 
 #: Largest change of a varied rig's cycle times (a share: ±4 %).
 CYCLE_VARIATION = 0.04
@@ -54,18 +57,27 @@ class Batch:
 def read_all(context: bpy.types.Context, objects: Sequence[bpy.types.Object | None]) -> list[Job]:
     """Read and check every rig (not the terrain: :func:`read_terrain`), then :func:`vary`
     them. Raises ``GenerateError`` naming the rig refused; changes nothing."""
+    return run_steps(read_all_steps(context, objects))
+
+
+def read_all_steps(context: bpy.types.Context, objects: Sequence[bpy.types.Object | None],
+                   ) -> Generator[float, None, list[Job]]:
+    """:func:`read_all` as progress steps: yields the fraction of the rigs read (the
+    operator shows it and stops on Esc while a herd is read); returns the jobs."""
     from . import generate
 
     jobs = []
-    for obj in objects:
-        try:
-            job = generate.read(context, obj)
-        except generate.GenerateError as err:
-            name = "" if obj is None else obj.name
-            if name and f"'{name}'" not in str(err):
-                raise generate.GenerateError(f"'{name}': {err}") from err
-            raise
-        jobs.append(job)
+    with rig.reading_once():  # nothing changes while the rigs are read: copies are detected once
+        for k, obj in enumerate(objects):
+            try:
+                job = generate.read(context, obj)
+            except generate.GenerateError as err:
+                name = "" if obj is None else obj.name
+                if name and f"'{name}'" not in str(err):
+                    raise generate.GenerateError(f"'{name}': {err}") from err
+                raise
+            jobs.append(job)
+            yield (k + 1) / max(len(objects), 1)
     names = {job.obj_name for job in jobs}
     if len(names) < len(jobs):
         raise generate.GenerateError("A rig is listed twice: each rig is generated once")

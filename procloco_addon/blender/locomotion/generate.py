@@ -601,15 +601,15 @@ def _keyed_action_steps(
     request = pose_writer.PoseRequest(
         frames=job.frames,
         bones=tracks.bones,
-        armature=pose_writer.armature_from_basis(tracks.bones, tracks.rotations, tracks.locations,
-                                                 info.rest_local, info.parents, info.basis,
-                                                 tracks.keyed_location),
+        armature=None,  # (it follows from the channels, when a control or a check needs it)
         keyed_location=tracks.keyed_location,
         world0=info.world,
         rest_local=info.rest_local,
         parents=info.parents,
         basis=info.basis,
         legs=tuple(leg.bones for leg in info.legs),
+        rotations=tracks.rotations,
+        locations=tracks.locations,
     )
     action = actions.new_action(obj, f"ProcLoco {job.action_kind}".strip())
     if job.action_kind:

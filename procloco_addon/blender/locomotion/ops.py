@@ -105,6 +105,7 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
 
     _cancelled_message: ClassVar[str] = "Generation cancelled: nothing was changed"
     _run_errors: ClassVar[tuple[type[Exception], ...]] = (generate.GenerateError,)
+    _rigs: list[Any]
     _jobs: list[generate.Job]
     _made: list[Any]
 
@@ -113,12 +114,9 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
         return poll_armature(cls, context, "Select an armature (the rig to animate)")
 
     def _prepare(self, context: Any) -> bool:
-        rigs = rigs_to_generate(context)
-        try:
-            self._jobs = crowd.read_all(context, rigs)
-        except generate.GenerateError as err:
-            self.report({"ERROR"}, str(err))
-            return False
+        # The rigs are read in the first steps of _run (a herd takes a while: progress, Esc).
+        self._rigs = rigs_to_generate(context)
+        self._jobs = []
         return True
 
     def _finish(self, context: Any) -> set[str]:
@@ -132,12 +130,23 @@ class PROCLOCO_OT_generate_locomotion(ProgressOperator, bpy.types.Operator):
         return {"FINISHED"}
 
     def _run(self, context: Any, modal: bool) -> Steps:
-        # Every batch's terrain is read and checked before any simulation: a refusal comes
-        # early. Reading is the first tenth of the progress bar. Rigs that can walk together
-        # do so in one simulation (crowd.batches).
+        # Every rig and every batch's terrain are read and checked before any simulation: a
+        # refusal comes early, with nothing changed. Reading is the first tenth of the
+        # progress bar. Rigs that can walk together do so in one simulation (crowd.batches).
+        reading = crowd.read_all_steps(context, self._rigs)
+        try:
+            while True:
+                try:
+                    fraction = next(reading)
+                except StopIteration as done:
+                    self._jobs = done.value
+                    break
+                yield "reading the rigs", 0.05 * fraction
+        finally:
+            reading.close()
         groups = crowd.batches(self._jobs)
         for fraction in crowd.read_terrain(context, groups):
-            yield "reading the terrain", 0.1 * fraction
+            yield "reading the terrain", 0.05 + 0.05 * fraction
         for names, fraction in crowd.simulate(groups):
             yield names, 0.1 + 0.8 * fraction
         # Writing is the last tenth; Esc there deletes what was written and gives every rig

@@ -2,11 +2,13 @@
 """The quality figures of a generated walk, measured on the written result.
 
 After Generate Locomotion has keyed and assigned a rig's Action, :func:`measure_steps`
-evaluates the rig frame by frame through the depsgraph (the same pose evaluation the pose
-writer checks its controls with, :func:`..pose_writer.evaluate_pose_steps`; for many rigs
-:func:`measure_all_steps`, every rig read at each frame of one pass): the world
-matrices of every leg bone and foot bone, so Blender's constraints, drivers and the object's
-own motion are all in. From those posed legs, the walk's plan (which feet the gait plants,
+reads the posed rig at every frame: the world matrices of every leg bone and foot bone. A
+plain rig (no constraints, drivers, NLA or moving object: :mod:`.posed`) is posed from its
+Action's channels without the depsgraph; any other rig is evaluated frame by frame through
+the depsgraph (the same pose evaluation the pose writer checks its controls with,
+:func:`..pose_writer.evaluate_pose_steps`; for many rigs :func:`measure_all_steps`, every
+such rig read at each frame of one pass), so Blender's constraints, drivers and the
+object's own motion are all in. From those posed legs, the walk's plan (which feet the gait plants,
 the targets it set) and the scene's ground under the posed feet, the core's
 :func:`...core.metrics.posed_quality` computes the five figures the panel shows, against
 the design's thresholds. :func:`store` saves them on the rig's settings (saved in the
@@ -26,6 +28,7 @@ import numpy as np
 
 from ...core import metrics
 from .. import pose_writer
+from . import posed
 from .property_group import FIGURES
 
 __all__ = [
@@ -67,9 +70,10 @@ def measure_steps(context: bpy.types.Context, job: Any) -> Generator[float, None
 
 def measure_all_steps(context: bpy.types.Context, jobs: Sequence[Any],
                       ) -> Generator[float, None, list[metrics.PosedQuality | Exception]]:
-    """:func:`measure_steps` for every job at once: the scene is set to each frame once and
-    every rig read there (a frame change evaluates all of them anyway). Yields the fraction
-    done; returns per job its figures, or the error that kept it from being measured."""
+    """:func:`measure_steps` for every job at once: plain rigs posed from their Actions, the
+    others read at each frame of one pass over the frames (a frame change evaluates all of
+    them anyway). Yields the fraction done; returns per job its figures, or the error that
+    kept it from being measured."""
     out: list[metrics.PosedQuality | Exception | None] = [None] * len(jobs)
     reads: list[tuple[int, bpy.types.Object, list[str]]] = []
     for k, job in enumerate(jobs):
@@ -78,12 +82,27 @@ def measure_all_steps(context: bpy.types.Context, jobs: Sequence[Any],
             reads.append((k, obj, _measured_bones(job)))
         except Exception as err:  # this rig only: the others are measured
             out[k] = err
-    mats = yield from pose_writer.evaluate_poses_steps([obj for _k, obj, _n in reads],
-                                                       [jobs[k].frames for k, _o, _n in reads],
-                                                       [names for _k, _o, names in reads], world=True)
-    for (k, obj, names), m in zip(reads, mats, strict=True):
+    # Plain rigs are posed from their Actions; the others through the depsgraph, in one pass.
+    mats: dict[int, np.ndarray] = {}
+    for k, obj, names in reads:
         try:
-            out[k] = figures_of(jobs[k], obj, names, m)
+            plain = posed.plain_poses(obj, jobs[k].frames, names)
+        except Exception as err:
+            out[k] = err
+            continue
+        if plain is not None:
+            mats[k] = plain
+    rest = [(k, obj, names) for k, obj, names in reads if k not in mats and out[k] is None]
+    if rest:
+        evaluated = yield from pose_writer.evaluate_poses_steps(
+            [obj for _k, obj, _n in rest], [jobs[k].frames for k, _o, _n in rest],
+            [names for _k, _o, names in rest], world=True)
+        mats.update((k, m) for (k, _o, _n), m in zip(rest, evaluated, strict=True))
+    for k, obj, names in reads:
+        if k not in mats:
+            continue
+        try:
+            out[k] = figures_of(jobs[k], obj, names, mats[k])
         except Exception as err:
             out[k] = err
     return [figures if figures is not None else RuntimeError("not measured") for figures in out]

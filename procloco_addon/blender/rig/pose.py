@@ -12,7 +12,7 @@ import numpy as np
 from ...core.geometry import z_rotations
 from ...core.steps import run_steps
 from .info import RigInfo
-from .rest import _UP, _apply, _unit, affine_inverse, affine_inverses
+from .rest import _UP, _apply, _unit, affine_inverse, affine_inverses, nearest_rotation
 
 
 @dataclass(frozen=True)
@@ -136,35 +136,52 @@ GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 NEAR_SHARE = 0.3
 
 
-def _foot_pitch(
-    rel: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
-    lift: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pitch ``(F,)`` about each foot's horizontal cross axis that sets its sole on the ground.
-
-    rel: ``(F, P, 3)`` sole points relative to the end-effector ``end`` ``(F, 3)`` (foot at its
-    yaw-turned rest orientation); heights ``(F, P)`` ground under them. The smallest rotation
-    keeping every forward point above the ground: up a slope or onto an edge the toes lift,
-    down a slope they follow it. Points behind the end-effector (heels) are left alone.
-    ``lift`` ``(F,)``: how far the end-effector is above where it stands when planted (``inf``
-    over no ground); the downward pitch fades out as the foot rises by half its length, so a
-    lifted foot does not point its toes at the ground below (swing, or over a gap).
-    """
-    d = rel[..., :2].sum(axis=1)
+def _sole_reach(rel: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For the sole points ``rel`` ``(F, P, 3)`` of feet (relative to each end-effector; foot
+    ``j``'s points from ``starts[j]`` to the next start): each foot's forward direction ``d``
+    ``(F, J, 2)``, each point's forward reach along its foot's ``a`` ``(F, P)``, and which
+    points are far enough ahead to limit the pitch, ``ahead`` ``(F, P)`` (points just ahead of
+    the ankle and behind it never do: :data:`NEAR_SHARE`)."""
+    d = np.add.reduceat(rel[..., :2], starts, axis=1)
     d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
     d = np.divide(d, d_norm, out=np.zeros_like(d), where=d_norm > 1e-12)
-    a = np.einsum("fpi,fi->fp", rel[..., :2], d)  # forward reach of each point
+    foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, rel.shape[1])))
+    a = np.einsum("fpi,fpi->fp", rel[..., :2], d[:, foot])  # forward reach of each point
+    reach = np.maximum.reduceat(a, starts, axis=1)
+    return d, a, a > NEAR_SHARE * np.maximum(reach, 1e-12)[:, foot]
+
+
+def _foot_pitch(
+    rel: np.ndarray, starts: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
+    lift: np.ndarray | None = None, reach: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pitch ``(F, J)`` about each foot's horizontal cross axis that sets its sole on the
+    ground, and each foot's forward direction ``(F, J, 2)``.
+
+    rel: ``(F, P, 3)`` sole points relative to their end-effector ``end`` ``(F, J, 3)`` (foot
+    ``j``'s points from ``starts[j]`` on; the foot at its yaw-turned rest orientation);
+    heights ``(F, P)`` ground under them. The smallest rotation keeping every forward point
+    above the ground: up a slope or onto an edge the toes lift, down a slope they follow it.
+    Points behind the end-effector (heels) are left alone. ``lift`` ``(F, J)``: how far each
+    end-effector is above where it stands when planted (``inf`` over no ground); the downward
+    pitch fades out as the foot rises by half its length, so a lifted foot does not point its
+    toes at the ground below (swing, or over a gap). Only the heights of the points ahead
+    (:func:`_sole_reach`, ``reach`` when already known) are read.
+    """
+    d, a, ahead = _sole_reach(rel, starts) if reach is None else reach
+    foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, rel.shape[1])))
     b = rel[..., 2]
-    c = heights - end[:, None, 2]
+    c = heights - end[:, foot, 2]
     radius = np.hypot(a, b)
     # Points just ahead of the ankle are left out: a sole pitched about the ankle swings them
     # back and barely down (the skin under an ankle would forbid any downward pitch).
-    ok = (a > NEAR_SHARE * np.maximum(a.max(axis=1, keepdims=True), 1e-12)) & np.isfinite(heights)
-    need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
-    theta = np.where(ok, need, -np.inf).max(axis=1)
+    ok = ahead & np.isfinite(heights)
+    with np.errstate(invalid="ignore"):  # (the heights not read: -inf)
+        need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
+    theta = np.maximum.reduceat(np.where(ok, need, -np.inf), starts, axis=1)
     theta = np.where(np.isfinite(theta), theta, 0.0)
     if lift is not None:
-        fade = 0.5 * np.where(ok, radius, 0.0).max(axis=1)
+        fade = 0.5 * np.maximum.reduceat(np.where(ok, radius, 0.0), starts, axis=1)
         with np.errstate(invalid="ignore", divide="ignore"):
             share = np.clip(1.0 - np.maximum(lift, 0.0) / np.maximum(fade, 1e-12), 0.0, 1.0)
         theta = np.where(theta < 0.0, theta * np.nan_to_num(share, nan=0.0), theta)
@@ -172,7 +189,7 @@ def _foot_pitch(
 
 
 def _axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Rotations ``(F, 3, 3)`` by ``angle (F,)`` about unit ``axis (F, 3)`` (Rodrigues)."""
+    """Rotations ``(..., 3, 3)`` by ``angle (...)`` about unit ``axis (..., 3)`` (Rodrigues)."""
     k = axis
     kx = np.zeros((*k.shape[:-1], 3, 3))
     kx[..., 0, 1], kx[..., 0, 2] = -k[..., 2], k[..., 1]
@@ -244,7 +261,7 @@ def solve_pose_steps(
     order = _hierarchy_order(info, info.driven_bones)  # parents before children
     n_steps = len(info.legs) + len(order) + 1
     done = 0
-    delta = body_world @ np.linalg.inv(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
+    delta = body_world @ affine_inverse(info.body.matrix)[None]  # (F, 4, 4) rest body -> current
     delta_rot = delta[:, :3, :3]
     body_rest_t = info.body.matrix[:3, :3].T  # world rest -> body frame
     n_legs = len(info.legs)
@@ -259,7 +276,7 @@ def solve_pose_steps(
         raise ValueError("the rig's spine is driven: give its spine_rotation and spine_joints")
     w = info.world
     w_rot = w[:3, :3] / info.scale
-    w_inv = np.linalg.inv(w)
+    w_inv = affine_inverse(w)
 
     # Desired world rotation (F, 3, 3) of every driven bone; world head of the body bone.
     rest_rot = {n: w_rot @ (m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0))
@@ -353,81 +370,106 @@ def solve_pose_steps(
         done += 1
         yield done / n_steps
 
-    rotations = np.stack([matrix_to_quaternion(_orthonormal(basis_out[b][:, :3, :3])) for b in bones], axis=1)
-    locations = np.stack([basis_out[b][:, :3, 3] for b in bones], axis=1)
+    basis_all = np.stack([basis_out[b] for b in bones], axis=1)  # (F, B, 4, 4)
+    rotations = matrix_to_quaternion(nearest_rotation(basis_all[..., :3, :3]))
+    locations = basis_all[..., :3, 3]
     keyed = np.array([b in moved_heads for b in bones])
     return PoseTracks(bones, rotations, locations, keyed)
+
+
+#: A foot whose end-effector stays this close (a share of the leg's length) to where it
+#: stood, its heading unchanged, stands still: a planted foot, held by the IK to a
+#: nanometre.
+HELD = 1e-9
+
+
+def _stands_since(ends: np.ndarray, yaw: np.ndarray, tol: float) -> np.ndarray:
+    """For each frame and foot, the frame it has stood still since ``(F, J)`` (its own when
+    it moved): the same heading ``yaw`` ``(F, J, 3, 3)`` as the frame before and its
+    end-effector ``ends`` ``(F, J, 3)`` within ``tol`` of where it stood then."""
+    n_frames, n_feet = ends.shape[:2]
+    first = np.repeat(np.arange(n_frames)[:, None], n_feet, axis=1)
+    same = np.all(yaw[1:] == yaw[:-1], axis=(-2, -1)).tolist()  # (F - 1, J)
+    where = ends.tolist()
+    for j in range(n_feet):
+        r = 0
+        for f in range(1, n_frames):
+            here, there = where[f][j], where[r][j]
+            if same[f - 1][j] and max(abs(here[0] - there[0]), abs(here[1] - there[1]),
+                                      abs(here[2] - there[2])) <= tol:
+                first[f, j] = r
+            else:
+                r = f
+    return first
 
 
 def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.ndarray,
                 rest_rot: dict[str, np.ndarray], desired: dict[str, np.ndarray], ground: GroundFn,
                 limit: float) -> None:
     """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`).
-    ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of each foot (:func:`_held_foot_yaw`)."""
+    ``leg_yaw`` ``(F, L, 3, 3)``: the heading turn of each foot (:func:`_held_foot_yaw`). Every
+    foot at once: its sole points follow one another, foot after foot. On a ground that does
+    not move, a foot that stands still (its heading the same and its end-effector within
+    :data:`HELD` of where it stood first, as a planted foot does) keeps the pitch it had
+    there: its sole is pitched once per stance, and cannot flicker on an edge it stands on."""
     dynamic = bool(getattr(ground, "dynamic", True))
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
     if not legs:
         return
     n_frames = leg_yaw.shape[0]
-    rels, ends = [], []
-    for k in legs:
-        ends.append(np.asarray(joints_world[k], dtype=np.float64)[:, -1])
-        rels.append(np.einsum("fij,pj->fpi", leg_yaw[:, k], info.foot_points[k] - info.joints[k][-1]))
-    counts = [r.shape[1] for r in rels]
-    bounds = np.cumsum([0, *counts])
-    turns = [np.eye(3)[None].repeat(n_frames, axis=0) for _ in legs]
-    pitched: list[np.ndarray | None] = [None] * len(legs)
+    counts = np.array([info.foot_points[k].shape[0] for k in legs])
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    foot = np.repeat(np.arange(len(legs)), counts)  # the foot of each sole point
+    ends = np.stack([np.asarray(joints_world[k], dtype=np.float64)[:, -1] for k in legs], axis=1)  # (F, J, 3)
+    rest_points = np.concatenate([info.foot_points[k] - info.joints[k][-1] for k in legs])  # (P, 3)
+    rel = np.einsum("fpij,pj->fpi", leg_yaw[:, legs][:, foot], rest_points)  # (F, P, 3)
+    # (over a moving ground a foot standing still may find other ground under it)
+    first = (np.repeat(np.arange(n_frames)[:, None], len(legs), axis=1) if dynamic else
+             _stands_since(ends, leg_yaw[:, legs], HELD * max(float(np.mean(info.leg_length)), 1e-3)))
+    own = first == np.arange(n_frames)[:, None]  # (F, J) the frames a foot's pitch is found at
+    chosen = np.arange(len(legs))[None]
+    reach = _sole_reach(rel, starts)
+    # Only the sole points ahead of each ankle limit its pitch: the others' heights are not asked.
+    asked = reach[2]
+    turns = np.broadcast_to(np.eye(3), (n_frames, len(legs), 3, 3))
+    pitched: np.ndarray | None = None
+    angles = np.zeros((n_frames, len(legs)))  # each turn's angle (the first: none)
     # How far each end-effector is above where it would stand on the ground under it.
-    end_xy = np.concatenate([end[:, :2] for end in ends])
-    end_frame = np.tile(np.arange(n_frames), len(legs))
-    under = np.asarray(ground(end_frame if dynamic else np.zeros_like(end_frame), end_xy), dtype=np.float64)
-    lifts = [end[:, 2] - info.foot_height[k] - under[j * n_frames:(j + 1) * n_frames]
-             for j, (k, end) in enumerate(zip(legs, ends, strict=True))]
+    under = np.full((n_frames, len(legs)), np.nan)
+    at = np.nonzero(own)
+    under[at] = np.asarray(ground(at[0] if dynamic else np.zeros_like(at[0]), ends[at][:, :2]),
+                           dtype=np.float64)
+    lifts = ends[..., 2] - info.foot_height[legs][None] - under  # (F, J)
+    frame_of = np.repeat(np.arange(n_frames)[:, None], rel.shape[1], axis=1)  # (F, P)
+    heights = np.full(asked.shape, -np.inf)
+    changed = np.ones((n_frames, len(legs)), dtype=bool)
     # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
     # where the pitched points are, the pitch from the rest sole). After the first the pitch
     # only rises: a toe pitched down past an edge onto the higher ground it now stands over
     # is lifted, never pitched down again (a down-and-up swing could end inside the edge).
+    axis = np.concatenate([reach[0], np.zeros((n_frames, len(legs), 1))], axis=-1)
+    axis = np.cross(axis, _UP)
+    axis_n = np.linalg.norm(axis, axis=-1, keepdims=True)
+    axis = np.divide(axis, axis_n, out=np.zeros_like(axis), where=axis_n > 1e-12)
     for _ in range(3):
-        xy = np.concatenate([end[:, None, :2] + np.einsum("fij,fpj->fpi", turn, rel)[..., :2]
-                             for turn, rel, end in zip(turns, rels, ends, strict=True)], axis=1)
-        # Planted feet query the same places frame after frame: ask once per distinct place.
-        frame_of = np.repeat(np.arange(n_frames), xy.shape[1])
-        flat = xy.reshape(-1, 2)
-        key = frame_of if dynamic else np.zeros_like(frame_of)
-        uniq, inverse = _unique_rows(np.column_stack([key, flat]))
-        found = np.asarray(ground(uniq[:, 0].astype(np.int64), uniq[:, 1:]), dtype=np.float64)
-        heights = found[inverse.reshape(-1)].reshape(xy.shape[:2])
-        for j, (rel, end) in enumerate(zip(rels, ends, strict=True)):
-            theta, d = _foot_pitch(rel, end, heights[:, bounds[j]:bounds[j + 1]], limit, lifts[j])
-            before = pitched[j]
-            if before is not None:
-                theta = np.maximum(theta, before)
-            pitched[j] = theta
-            axis = np.cross(np.concatenate([d, np.zeros((n_frames, 1))], axis=1), _UP)
-            axis_n = np.linalg.norm(axis, axis=1, keepdims=True)
-            axis = np.divide(axis, axis_n, out=np.zeros_like(axis), where=axis_n > 1e-12)
-            turns[j] = _axis_rotation(axis, np.where(axis_n[:, 0] > 1e-12, theta, 0.0))
+        # Heights asked again only where a foot turned since they were read (elsewhere its
+        # points stand where they stood).
+        ask = asked & (changed & own)[:, foot]
+        xy = ends[:, foot, :2] + np.einsum("fpij,fpj->fpi", turns[:, foot, :2], rel)
+        key = frame_of[ask] if dynamic else np.zeros(int(ask.sum()), dtype=np.int64)
+        heights[ask] = np.asarray(ground(key, xy[ask]), dtype=np.float64)
+        theta, _d = _foot_pitch(rel, starts, ends, heights, limit, lifts, reach)
+        theta = theta[first, chosen]  # a standing foot's from where it began to stand
+        if pitched is not None:
+            theta = np.maximum(theta, pitched)
+        pitched = theta
+        angle = np.where(axis_n[..., 0] > 1e-12, theta, 0.0)
+        changed = angle != angles
+        angles = angle
+        turns = _axis_rotation(axis, angle)
     for j, k in enumerate(legs):
         name = info.legs[k].foot[0]
-        desired[name] = turns[j] @ desired[name]
-
-
-def _unique_rows(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The distinct rows of ``a`` ``(n, k)`` and where each row of ``a`` is among them
-    (``uniq[inverse] == a``), as ``np.unique(a, axis=0, return_inverse=True)`` gives them,
-    several times faster (a sort by columns instead of one of rows viewed as records)."""
-    order = np.lexsort(a.T[::-1])
-    ranked = a[order]
-    new = np.ones(len(a), dtype=bool)
-    new[1:] = np.any(ranked[1:] != ranked[:-1], axis=1)
-    inverse = np.empty(len(a), dtype=np.int64)
-    inverse[order] = np.cumsum(new) - 1
-    return ranked[new], inverse
-
-
-def _orthonormal(m: np.ndarray) -> np.ndarray:
-    u, _s, vt = np.linalg.svd(m)
-    return u @ vt
+        desired[name] = turns[:, j] @ desired[name]
 
 
 def _hierarchy_order(info: RigInfo, bones: Sequence[str]) -> list[str]:

@@ -36,13 +36,16 @@ def _object_world(obj: bpy.types.Object) -> np.ndarray:
 
 # Rest arrays and skin points already read inside a reading_once() block, by object name.
 _read_once: dict[str, tuple[_Rest, dict[str, np.ndarray]]] | None = None
+# Legs detected inside a reading_once() block, by the rig's shape (see _shape_key).
+_detected_once: dict[tuple[object, ...], list[LegChain]] = {}
 
 
 @contextmanager
 def reading_once() -> Iterator[None]:
     """Inside the block each rig's rest arrays (bones and skin) are read once, however many
-    legs and readers ask for them: for a reader that changes nothing in between (Generate's
-    settings check reads them once per leg, then for the rig)."""
+    legs and readers ask for them, and copies of one rig are detected once: for a reader
+    that changes nothing in between (Generate's settings check reads them once per leg, then
+    for the rig; Generate on many rigs reads them all in one block)."""
     global _read_once
     outer = _read_once
     if outer is None:
@@ -52,6 +55,7 @@ def reading_once() -> Iterator[None]:
     finally:
         if outer is None:
             _read_once = None
+            _detected_once.clear()
 
 
 def _rest_of(obj: bpy.types.Object) -> _Rest:
@@ -150,7 +154,27 @@ def detect_legs(obj: bpy.types.Object) -> list[LegChain]:
     pbones = obj.pose.bones
     constrained = np.array([any(c.type in _OVERRIDING_CONSTRAINTS for c in pbones[n].constraints)
                             for n in rest.names], dtype=bool)
-    return find_legs(rest, constrained, obj.name)
+    if _read_once is None:
+        return find_legs(rest, constrained, obj.name)
+    key = _shape_key(rest, constrained)
+    if key not in _detected_once:
+        _detected_once[key] = find_legs(rest, constrained, obj.name)
+    return list(_detected_once[key])
+
+
+def _shape_key(rest: _Rest, constrained: np.ndarray) -> tuple[object, ...]:
+    """What detection sees of a rig, wherever it stands: bone names, parents, constraints,
+    and its joints relative to the object's origin in world axes, to a nanometre per metre
+    of scale. Detection is a matter of the rig's shape (what reaches the ground, which
+    bones pair up): copies of one rig, moved, get the legs found for the first (a herd of
+    100 wolves is detected once)."""
+    origin = rest.world[:3, 3]
+    unit = 1e-9 * max(rest.scale, 1e-12)
+    where = [np.round((a - origin) / unit).astype(np.int64).tobytes()
+             for a in (rest.head, rest.tail, rest.end)]
+    return (rest.names, rest.parent.tobytes(), rest.phantom.tobytes(), rest.tails_meaningful,
+            constrained.tobytes(), np.round(rest.world[:3, :3] / max(rest.scale, 1e-12), 12).tobytes(),
+            rest.local.tobytes(), *where)
 
 
 def facing_source(obj: bpy.types.Object, legs: Sequence[LegChain]) -> str:

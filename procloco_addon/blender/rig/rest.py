@@ -275,6 +275,28 @@ def affine_inverse(m: np.ndarray) -> np.ndarray:
     return out
 
 
+def nearest_rotation(m: np.ndarray) -> np.ndarray:
+    """The rotation nearest each matrix ``(..., 3, 3)`` (its polar factor, what ``u @ vt`` of
+    its SVD gives), by Newton's iteration ``X <- (X + X^-T) / 2`` written out element-wise
+    (a LAPACK SVD per matrix costs far more for the thousands of nearly orthonormal 3x3
+    matrices a walk's bones give: two or three iterations reach the last bit)."""
+    x = np.asarray(m, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for _ in range(30):
+            a, b, c = x[..., :, 0], x[..., :, 1], x[..., :, 2]
+            cof = np.stack([_cross(b, c), _cross(c, a), _cross(a, b)], axis=-1)  # det * X^-T
+            det = np.sum(a * cof[..., :, 0], axis=-1)
+            nxt = 0.5 * (x + cof / det[..., None, None])
+            done = float(np.abs(nxt - x).max(initial=0.0)) <= 1e-15
+            x = nxt
+            if done:
+                break
+    if not np.all(np.isfinite(x)):  # a singular matrix (a bone scaled to nothing): the SVD's answer
+        u, _s, vt = np.linalg.svd(np.asarray(m, dtype=np.float64))
+        x = u @ vt
+    return x
+
+
 def affine_inverses(mats: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """:func:`affine_inverse` of every matrix of ``mats`` (bone name -> ``(4, 4)``), in one call."""
     if not mats:

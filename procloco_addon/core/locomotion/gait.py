@@ -24,6 +24,7 @@ file and the problem.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import re
@@ -203,15 +204,29 @@ class GaitPreset:
         }
 
 
+@functools.cache
 def gait_preset_dir() -> Path:
     """The folder of the shipped gait presets (``presets/gait`` at the extension root)."""
     return Path(__file__).resolve().parents[3] / "presets" / "gait"
 
 
+# Preset files listed, by folder: the folder's modification time then and its files.
+_listed: dict[Path, tuple[int, list[Path]]] = {}
+
+
 def list_gait_presets(directory: Path | None = None) -> list[Path]:
-    """Preset files in ``directory`` (default the shipped ones), sorted by file name."""
+    """Preset files in ``directory`` (default the shipped ones), sorted by file name (listed
+    again only once the folder changed: a file added, removed or renamed)."""
     folder = gait_preset_dir() if directory is None else Path(directory)
-    return sorted(folder.glob("*.json"))
+    try:
+        stamp = folder.stat().st_mtime_ns
+    except OSError:
+        return []
+    known = _listed.get(folder)
+    if known is None or known[0] != stamp:
+        known = (stamp, sorted(folder.glob("*.json")))
+        _listed[folder] = known
+    return list(known[1])
 
 
 def _fail(path: Path | str, problem: str) -> GaitPresetError:
@@ -295,10 +310,21 @@ def parse_gait_preset(data: Any, path: Path | str = "<data>") -> GaitPreset:
     )
 
 
+# Presets read, by path: the file's (modification time, size) when read and its preset.
+_loaded: dict[Path, tuple[tuple[int, int], GaitPreset]] = {}
+
+
 def load_gait_preset(path: Path | str) -> GaitPreset:
-    """Read and validate a gait preset file; ``GaitPresetError`` says what is wrong."""
+    """Read and validate a gait preset file; ``GaitPresetError`` says what is wrong. A file
+    read before and unchanged since (its modification time and size) is not read again
+    (Generate on a hundred rigs looks the shipped presets up for each); the preset's arrays
+    are read-only."""
     p = Path(path)
     try:
+        stat = p.stat()
+        known = _loaded.get(p)
+        if known is not None and known[0] == (stat.st_mtime_ns, stat.st_size):
+            return known[1]
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise _fail(p, f"cannot be read ({exc.strerror or exc})") from exc
@@ -306,7 +332,11 @@ def load_gait_preset(path: Path | str) -> GaitPreset:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise _fail(p, f"is not valid JSON (line {exc.lineno}: {exc.msg})") from exc
-    return parse_gait_preset(data, p)
+    preset = parse_gait_preset(data, p)
+    preset.swing_start.setflags(write=False)
+    preset.swing_duration.setflags(write=False)
+    _loaded[p] = ((stat.st_mtime_ns, stat.st_size), preset)
+    return preset
 
 
 def find_gait_preset(name: str, directory: Path | None = None) -> GaitPreset:
