@@ -21,9 +21,10 @@ by a constraint, not rotated by an IK chain) and it is not a mechanism bone (Rig
 Auto-Rig Pro's ``ORG-``/``MCH-``/``DEF-``/``VIS_``/``WGT-`` bones, or bones only in hidden bone
 collections).
 
-Per leg (:func:`plan_controls`): the **IK control** is the most upstream control feeding the
-leg's IK target that does not also carry the leg's hip (the body's controls and the rig's root
-move the whole leg); the **pole** is the one feeding the IK's pole. Properties that drivers
+Per leg (:func:`plan_controls`): the **IK control** is the IK target itself when the animator
+moves it (MMD's ``左足ＩＫ``, even under a leg IK parent), else the most upstream control
+feeding the leg's IK target that does not also carry the leg's hip (the body's controls and
+the rig's root move the whole leg); the **pole** is the one feeding the IK's pole. Properties that drivers
 read to switch a leg between FK and IK (Rigify's ``IK_FK`` on ``thigh_parent.L``, Auto-Rig
 Pro's ``ik_fk_switch``) and to turn its pole on (Rigify's ``pole_vector``) are
 :class:`Switch` es: they are set to the value that puts the leg in IK with a pole, and keyed.
@@ -473,7 +474,9 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
             # and FK controls hang from the hip's parent) and not through the pole.
             cands = [c for c in graph.controls_upstream(targets, blocked=poles) if c not in base
                      and (hip_parent is None or hip_parent.name not in graph.upstream([c]))]
-            roots = graph.roots(cands)
+            # The IK target itself when the animator moves it (MMD's leg IK under its leg IK
+            # parent), else the most upstream control moving it (Rigify's foot_ik.L).
+            roots = [t for t in targets if t in cands][:1] or graph.roots(cands)
             if roots:
                 up = graph.upstream(leg_bones)
                 ik_ctrl = min(roots, key=lambda c: (up.get(c, 1 << 30), c))
