@@ -668,6 +668,64 @@ def _ik_quadruped_bones() -> list[Spec]:
     return body + left + _mirror(left, _swap(".L", ".R"))
 
 
+def _dragon_bones() -> list[Spec]:
+    """A dragon: four legs, folded wings hanging low beside the body, a jaw, and a long tail
+    whose last bones lie on the ground behind it."""
+    body = _chain(
+        ["hips", "spine", "chest"],
+        None,
+        [(0.0, 0.5, 1.3), (0.0, 0.15, 1.35), (0.0, -0.2, 1.38), (0.0, -0.5, 1.42)],
+    )
+    body += _chain(["neck", "head"], "chest", [(0.0, -0.5, 1.42), (0.0, -0.8, 1.7), (0.0, -1.1, 1.6)])
+    body.append(("jaw", "head", (0.0, -0.85, 1.6), (0.0, -1.1, 1.45)))
+    body += _chain(
+        [f"tail.{k:03d}" for k in range(1, 7)],
+        "hips",
+        [
+            (0.0, 0.5, 1.3),
+            (0.0, 0.9, 1.0),
+            (0.0, 1.3, 0.6),
+            (0.0, 1.7, 0.25),
+            (0.0, 2.1, 0.06),
+            (0.0, 2.5, 0.02),
+            (0.0, 2.9, 0.0),
+        ],
+    )
+    left = _chain(
+        ["upper_arm.L", "forearm.L", "hand.L", "finger.L"],
+        "chest",
+        [(0.25, -0.35, 1.25), (0.3, -0.25, 0.75), (0.3, -0.4, 0.2), (0.3, -0.5, 0.03), (0.3, -0.62, 0.0)],
+    )
+    left += _chain(
+        ["thigh.L", "shin.L", "foot.L", "toe.L"],
+        "hips",
+        [(0.25, 0.45, 1.2), (0.3, 0.1, 0.8), (0.3, 0.4, 0.25), (0.3, 0.3, 0.03), (0.3, 0.15, 0.0)],
+    )
+    left += _chain(
+        ["wing_upper.L", "wing_fore.L", "wing_finger1.L"],
+        "chest",
+        [(0.15, -0.2, 1.45), (0.6, 0.0, 1.6), (0.55, 0.5, 1.0), (0.5, 1.0, 0.35)],
+    )
+    left.append(("wing_finger2.L", "wing_fore.L", (0.55, 0.5, 1.0), (0.6, 0.8, 0.5)))
+    return body + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _numbered(bones: Sequence[Spec]) -> tuple[list[Spec], dict[str, str]]:
+    """``bones`` renamed ``Bone``, ``Bone.001``, ... in order (a file with no names), and the
+    new name of each old one."""
+    new = {b[0]: f"Bone.{i:03d}" if i else "Bone" for i, b in enumerate(bones)}
+    return [(new[n], new[p] if p else None, h, t) for n, p, h, t in bones], new
+
+
+_DRAGON_NUMBERED = _numbered(_dragon_bones())
+_DRAGON_LEGS = {
+    "L1": ("upper_arm.L", "hand.L"),
+    "R1": ("upper_arm.R", "hand.R"),
+    "L2": ("thigh.L", "foot.L"),
+    "R2": ("thigh.R", "foot.R"),
+}
+
+
 # ---------------------------------------------------------------------------------------
 # Building
 
@@ -912,6 +970,11 @@ FIXTURES: dict[str, Fixture] = {
                 "R2": ("thigh.R", "shin.R"),
             }
         ),
+    ),
+    "dragon": Fixture(lambda sc, n: build(sc, n, _dragon_bones()), Expected(_DRAGON_LEGS)),
+    "dragon_numbered": Fixture(
+        lambda sc, n: build(sc, n, _DRAGON_NUMBERED[0]),
+        Expected({k: (_DRAGON_NUMBERED[1][h], _DRAGON_NUMBERED[1][e]) for k, (h, e) in _DRAGON_LEGS.items()}),
     ),
     "shark": Fixture(
         _metarig("shark"), Expected(refusal="no chain of bones from the body reaches the ground"), False

@@ -293,10 +293,8 @@ def test_foot_controls_hanging_from_the_root_are_not_legs(named: bool) -> None:
     root = tree.add(-1, [0.0, 0.0, 0.0], [0.0, 0.0, 0.1])
     pelvis = _biped(tree)
     tree.parent[pelvis] = root
-    controls = []
-    for side in (1.0, -1.0):
-        controls.append(tree.chain(root, np.array([[0.1 * side, 0.03, 0.08], [0.1 * side, -0.12, 0.0],
-                                                   [0.1 * side, -0.12, -0.05]])))
+    controls = [tree.chain(root, np.array([[0.1 * side, 0.03, 0.08], [0.1 * side, -0.12, 0.0],
+                                           [0.1 * side, -0.12, -0.05]])) for side in (1.0, -1.0)]
     names = list(tree.names)
     if named:
         for c, side in zip(controls, "LR", strict=True):
@@ -304,6 +302,28 @@ def test_foot_controls_hanging_from_the_root_are_not_legs(named: bool) -> None:
     rest = _rest(names, tree.parent, np.array(tree.head), np.array(tree.tail))
     legs = find_legs(rest, np.zeros(len(names), dtype=bool), "biped")
     assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
+@pytest.mark.parametrize("tail_bones", [2, 6])
+def test_a_tail_lying_on_the_ground_is_not_a_leg(tail_bones: int) -> None:
+    # No names to say so: a quadruped whose tail (long, or of many bones) ends on the ground
+    # behind it; a leg on the midline ahead, as long as the others, stays a leg.
+    tree = Tree()
+    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
+    for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
+        for side in (1.0, -1.0):
+            pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
+                            [0.2 * side, y - 0.15, 0.0]])
+            tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
+    front = tree.chain(spine[1], np.array([[0.0, -0.5, 1.0], [0.0, -0.7, 0.55], [0.0, -0.75, 0.05],
+                                           [0.0, -0.85, 0.0]]))
+    tree.legs.append([tree.names[i] for i in front])
+    y = np.linspace(0.5, 2.6 if tail_bones > 2 else 2.2, tail_bones + 1)
+    tree.chain(spine[0], np.column_stack([np.zeros_like(y), y, np.maximum(1.0 - 0.6 * (y - 0.5), 0.0)]))
+    rest = _rest(tree.names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "creature")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+    assert sorted(leg.label for leg in legs) == ["L2", "L3", "M1", "R2", "R3"]
 
 
 def test_detection_imports_without_bpy(repo_root: Any) -> None:

@@ -34,7 +34,9 @@ A leaf bone parented to the root beside each foot (an IK target) is a one-bone c
 is never a leg; an IK bone with its toe bone there (MMD's leg IK, ``CTRL_foot > CTRL_toe``)
 has its hip at the ankle and is not one either. A bone named as a helper that the next bone
 of its chain hangs from (Genesis' ``lThighBend > lThighTwist > lShin``) is a segment of the
-leg, not a helper.
+leg, not a helper. A chain on the midline hanging from behind every paired leg, reaching
+further back and longer than the legs (or of more bones) is a tail lying on the ground, not
+a leg, whatever its bones are called.
 
 The **body bone** (:attr:`RigInfo.body_bone`) is the legs' common ancestor, or the highest
 plain bone above it (not a root, control or mechanism bone, not driven by a constraint, well

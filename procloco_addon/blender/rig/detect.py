@@ -391,7 +391,46 @@ def find_legs(rest: _Rest, constrained: np.ndarray, rig_name: str) -> list[LegCh
         legs.append(LegChain(tuple(rest.names[i] for i in ik), tuple(rest.names[i] for i in foot), side,
                              reason=reason))
     forward, _source = forward_of(rest, legs)
-    return _mark_pairs(_label_legs(rest, legs, forward))
+    labelled = _label_legs(rest, legs, forward)
+    tails = _tails(rest, labelled, forward)
+    if tails:
+        kept = [LegChain(leg.bones, leg.foot, leg.side, reason=leg.reason)
+                for leg in labelled if leg not in tails]
+        forward, _source = forward_of(rest, kept)
+        labelled = _label_legs(rest, kept, forward)
+    return _mark_pairs(labelled)
+
+
+#: A chain on the midline longer than this many times the paired legs (on average) is a tail.
+TAIL_SHARE = 1.5
+
+
+def _tails(rest: _Rest, legs: Sequence[LegChain], forward: np.ndarray) -> list[LegChain]:
+    """The midline chains of ``legs`` that are a tail lying on the ground, not a leg (a rig
+    with no names that say so: ``Bone.005``): unpaired, hanging from behind every paired
+    leg's hip, reaching further back, and longer than :data:`TAIL_SHARE` times the paired
+    legs or of more bones than any of them. A pentapod's midline leg (ahead, as long as the
+    others) stays a leg. Only on rigs with two paired legs or more."""
+    paired = [leg for leg in legs if leg.side != 0]
+    if len(paired) < 2:
+        return []
+
+    def pts(leg: LegChain) -> np.ndarray:
+        return _chain_points(rest, [rest.index[b] for b in (*leg.bones, *leg.foot)])
+
+    length = float(np.mean([_length(pts(leg)) for leg in paired]))
+    bones = max(len(leg.bones) + len(leg.foot) for leg in paired)
+    hips_fwd = min(float(pts(leg)[0] @ forward) for leg in paired)
+    out = []
+    for leg in legs:
+        if leg.side != 0:
+            continue
+        p = pts(leg)
+        behind = float(p[0] @ forward) < hips_fwd and float(p[-1] @ forward) < float(p[0] @ forward)
+        long = _length(p) > TAIL_SHARE * length or len(leg.bones) + len(leg.foot) > bones
+        if behind and long:
+            out.append(leg)
+    return out
 
 
 def _dedupe_reasons(rest: _Rest, found: list[tuple[list[int], str]],
