@@ -392,7 +392,8 @@ def restore_previous_action(obj: bpy.types.Object) -> bool:
 def remember_pose(action: bpy.types.Action, obj: bpy.types.Object, bones: Sequence[str],
                   props: Sequence[tuple[str, str]] = ()) -> None:
     """Store on ``action`` the current transform channels of pose ``bones`` and the custom
-    properties ``props`` (``(bone, name)``) of ``obj``, for :func:`clear_generated_action`.
+    properties ``props`` (``(bone, name)``, or a pose bone's own float such as ``ik_stretch``)
+    of ``obj``, for :func:`clear_generated_action`.
 
     When the object's current Action is a generated one that remembers the pose before it,
     that older memory wins for the channels it holds (Clear goes back to the user's pose).
@@ -411,10 +412,14 @@ def remember_pose(action: bpy.types.Action, obj: bpy.types.Object, bones: Sequen
     for bone, prop in props:
         key = json.dumps([bone, prop])
         pb = pbones.get(bone)
-        if pb is not None and prop in pb and key not in data["props"]:
+        if pb is None or key in data["props"]:
+            continue
+        if prop in pb:
             value = pb[prop]
             if isinstance(value, (bool, int, float)):
                 data["props"][key] = [type(value).__name__, float(value)]
+        elif isinstance(getattr(pb, prop, None), float):  # a pose bone's own (ik_stretch)
+            data["props"][key] = ["rna", float(getattr(pb, prop))]
     action[_RESTORE] = json.dumps(data)
 
 
@@ -439,7 +444,9 @@ def _restore_from_action(obj: bpy.types.Object, action: bpy.types.Action) -> Non
     for key, (kind, value) in data.get("props", {}).items():
         bone, prop = json.loads(key)
         pb = pbones.get(bone)
-        if pb is not None and prop in pb:
+        if pb is not None and kind == "rna":
+            setattr(pb, prop, float(value))
+        elif pb is not None and prop in pb:
             pb[prop] = kinds.get(kind, float)(value)
 
 

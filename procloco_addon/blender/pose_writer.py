@@ -19,10 +19,14 @@ does it, for plain rigs and for control rigs:
   plane), keyed, and the rig is evaluated again,
   until the solved bones are within 0.1 mm (and 0.1 degree) of their targets, or a pass no
   longer helps (two to four passes on generated Rigify rigs; a pass costs one depsgraph
-  evaluation per frame). A pole is turned about the hip-to-end axis until the knee lands.
-  Whatever lies between the control and the deform bones
-  (IK with stretch, foot-roll mechanisms, parent switches) is Blender's own.
-- **Switches** (:class:`.rig.controls.Switch`) are keyed at their chosen value.
+  evaluation per frame). A pole is turned about the hip-to-end axis until the knee lands
+  (by what the knee misses when that is under a quarter turn: a knee on the far side is no
+  offset to turn by). Each frame keeps the keys of the pass that placed it best (its feet and
+  body first, its knees a hundredth as much): a pass may improve most frames and flip a knee
+  in another. Whatever lies between the control and the deform bones (foot-roll mechanisms,
+  parent switches) is Blender's own.
+- **Switches** (:class:`.rig.controls.Switch`) are keyed at their chosen value, the IK
+  chains' stretch (``ik_stretch``) off included.
 
 The targets are given for the object's world matrix at the first frame (``world0``); when the
 object moves (an animated parent, object keys, constraints), each frame's target is carried
@@ -66,6 +70,8 @@ __all__ = [
 _TOL = 1e-4
 _TOL_ANGLE = 2e-3
 _MAX_PASSES = 5
+#: How much less a knee's error (a pole's) counts than a foot's when a frame's best pass is chosen.
+_POLE_WEIGHT = 100.0
 
 
 @dataclass(frozen=True)
@@ -494,6 +500,9 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
     scale = max(float(np.mean([np.sum(v) for v in lengths.values()])) if lengths else 1.0, 1e-9)
     last = worst = np.inf
     stalled = 0
+    best_error = np.full(frames.size, np.inf)
+    best_basis = basis.copy()
+    best_leg_error = np.zeros((frames.size, len(leg_ids)))
     legged = any(c.mode in {"IK", "POLE"} for c in controls)
     located = [c.mode != "TURN" for c in controls]
     for p in range(_MAX_PASSES + 1):
@@ -503,16 +512,27 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                                 0.1 + (p + 1) * share)
         report.passes = p + 1
         got_joints = {k: _joints(ev[:, [col[b] for b in chains[k]]], lengths[k]) for k in leg_ids}
-        report.leg_error = [float(np.linalg.norm(got_joints[k][:, -1] - want_joints[k][:, -1], axis=-1).max())
-                            for k in leg_ids]
-        errors = [_control_error(c, ev, col, armature, index, got_joints, want_joints, scale)
-                  for c in controls]
-        worst = max(errors, default=0.0)
+        leg_error = np.stack([np.linalg.norm(got_joints[k][:, -1] - want_joints[k][:, -1], axis=-1)
+                              for k in leg_ids], axis=1) if leg_ids else np.zeros((frames.size, 0))
+        per_frame = np.stack([_control_error(c, ev, col, armature, index, got_joints, want_joints, scale)
+                              / (_POLE_WEIGHT if c.mode == "POLE" else 1.0) for c in controls], axis=1).max(axis=1)
+        # Each frame keeps the pass that placed it best: a pass may improve most frames and
+        # flip a knee in another (an IK that bends its own way there). The feet and the body
+        # come first: a knee counts a hundredth as much (a flipped knee, centimetres off, still
+        # loses to a pass whose feet are a tenth of a millimetre further).
+        better = per_frame < best_error
+        best_error[better] = per_frame[better]
+        best_basis[better] = basis[better]
+        best_leg_error[better] = leg_error[better]
+        report.leg_error = [float(e) for e in best_leg_error.max(axis=0)] if leg_ids else []
+        worst = float(best_error.max())
         # Done when close enough, or when passes no longer help (a rig that cannot get there).
         # Legs whose IK bends a little its own way stop improving after two or three passes;
         # chains of controls may get worse before they get better, and run all passes.
         stalled = stalled + 1 if legged and worst > 0.99 * last else 0
         if worst < 1.0 or p == _MAX_PASSES or stalled >= 2:
+            if not np.array_equal(best_basis, basis):  # the last pass is not the best everywhere
+                _key(action, obj, frames, ctrl_names, best_basis, located)
             break
         last = worst
         for j, c in enumerate(controls):
@@ -538,7 +558,9 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                 frame_g = _leg_frame(got_joints[c.leg])
                 miss = np.arctan2(np.einsum("fi,fi->f", frame_w[..., 1], frame_g[..., 2]),
                                   np.einsum("fi,fi->f", frame_w[..., 1], frame_g[..., 1]))
-                pole_turn[c.bone] = pole_turn[c.bone] + miss
+                # A knee on the far side is no small offset to turn the pole by: the IK did
+                # not reach there this pass (a target out of reach, a chain still straight).
+                pole_turn[c.bone] = pole_turn[c.bone] + np.where(np.abs(miss) < 0.5 * np.pi, miss, 0.0)
                 pole = joints[:, 1] + np.einsum("fij,j->fi", frame_w, pole_offset[c.bone])
                 turned_pole = _turn_about(frame_w[..., 0], pole_turn[c.bone], pole - joints[:, 0])
                 want[:, :3, 3] = joints[:, 0] + turned_pole
@@ -549,23 +571,22 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
 
 def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature: np.ndarray,
                    index: dict[str, int], got: dict[int, np.ndarray], want: dict[int, np.ndarray],
-                   scale: float) -> float:
-    """How far what control ``c`` places still is, in tolerances (under 1: close enough)."""
+                   scale: float) -> np.ndarray:
+    """How far what control ``c`` places still is at each frame ``(F,)``, in tolerances
+    (under 1: close enough)."""
     tol = _TOL * scale
     if c.mode == "POLE":
-        return float(np.linalg.norm(got[c.leg][:, 1] - want[c.leg][:, 1], axis=-1).max()) / tol
-    turn = _angle(armature[:, index[c.anchor], :3, :3], ev[:, col[c.anchor], :3, :3]) / _TOL_ANGLE
+        return np.linalg.norm(got[c.leg][:, 1] - want[c.leg][:, 1], axis=-1) / tol
+    turn = _angles(armature[:, index[c.anchor], :3, :3], ev[:, col[c.anchor], :3, :3]) / _TOL_ANGLE
     if c.mode == "TURN":
         return turn
     if c.mode == "IK":
-        moved = float(np.linalg.norm(got[c.leg][:, -1] - want[c.leg][:, -1], axis=-1).max())
+        moved = np.linalg.norm(got[c.leg][:, -1] - want[c.leg][:, -1], axis=-1)
     elif c.mode == "MOVE":
-        return float(np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3],
-                                    axis=-1).max()) / tol
+        return np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3], axis=-1) / tol
     else:
-        moved = float(np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3],
-                                     axis=-1).max())
-    return max(moved / tol, turn)
+        moved = np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3], axis=-1)
+    return np.maximum(moved / tol, turn)
 
 
 def _turn_about(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -574,11 +595,11 @@ def _turn_about(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarra
     return v * c + np.cross(axis, v) * s + axis * np.sum(axis * v, axis=-1, keepdims=True) * (1.0 - c)
 
 
-def _angle(want: np.ndarray, got: np.ndarray) -> float:
-    """Largest angle (radians) between rotations ``want`` and ``got`` ``(F, 3, 3)`` (got may be scaled)."""
+def _angles(want: np.ndarray, got: np.ndarray) -> np.ndarray:
+    """Angles (radians) ``(F,)`` between rotations ``want`` and ``got`` ``(F, 3, 3)`` (got may be scaled)."""
     got = got / np.linalg.norm(got, axis=-2, keepdims=True)
     cos = (np.trace(np.swapaxes(want, -1, -2) @ got, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return float(np.arccos(np.clip(cos, -1.0, 1.0)).max())
+    return np.asarray(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def _pole_offset(req: PoseRequest, chain: Sequence[str], lengths: np.ndarray, pole: str) -> np.ndarray:

@@ -25,6 +25,7 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -358,6 +359,374 @@ def _root_legs_bones() -> list[Spec]:
 
 
 # ---------------------------------------------------------------------------------------
+# Rigs as their tools make them (hierarchies as published for each tool)
+
+
+def _lerp(a: Vec, b: Vec, t: float) -> Vec:
+    return (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]), a[2] + t * (b[2] - a[2]))
+
+
+def _plus(a: Vec, d: Vec) -> Vec:
+    return (a[0] + d[0], a[1] + d[1], a[2] + d[2])
+
+
+#: A 1.75 m humanoid's left leg: hip, knee, ankle, ball, toe tip (creature space).
+_HIP, _KNEE, _ANKLE, _BALL, _TIP = (
+    (0.1, 0.0, 0.95),
+    (0.1, -0.02, 0.52),
+    (0.1, 0.03, 0.08),
+    (0.1, -0.1, 0.015),
+    (0.1, -0.17, 0.01),
+)
+_SHOULDER = (0.17, 0.0, 1.45)
+
+
+def _arm(names: Sequence[str], parent: str, clavicle: str, clavicle_parent: str) -> list[Spec]:
+    """A left arm in A pose (45° down): a clavicle, then ``names`` from the shoulder to the hand."""
+    c = math.cos(math.radians(45))
+
+    def along(d: float) -> Vec:
+        return (_SHOULDER[0] + c * d, 0.0, _SHOULDER[2] - c * d)
+
+    pts = [_SHOULDER, *(along(0.62 * (k + 1) / len(names)) for k in range(len(names)))]
+    return [(clavicle, clavicle_parent, (0.03, 0.0, 1.45), _SHOULDER), *_chain(names, clavicle, pts)]
+
+
+def _spine(names: Sequence[str], parent: str | None, bottom: float = 1.0, top: float = 1.5) -> list[Spec]:
+    zs = np.linspace(bottom, top, len(names) + 1)
+    return _chain(names, parent, [(0.0, 0.0, float(z)) for z in zs])
+
+
+def _mixamo_full_bones() -> list[Spec]:
+    """Mixamo as it downloads: end bones (``LeftToe_End``, ``HeadTop_End``), eyes, four bones
+    per finger."""
+    p = "mixamorig:"
+    body = _spine([f"{p}Hips", f"{p}Spine", f"{p}Spine1", f"{p}Spine2"], None)
+    body += _spine([f"{p}Neck", f"{p}Head"], f"{p}Spine2", 1.5, 1.75)
+    body += [
+        (f"{p}HeadTop_End", f"{p}Head", (0.0, 0.0, 1.75), (0.0, 0.0, 1.85)),
+        (f"{p}LeftEye", f"{p}Head", (0.03, -0.08, 1.65), (0.03, -0.1, 1.65)),
+        (f"{p}RightEye", f"{p}Head", (-0.03, -0.08, 1.65), (-0.03, -0.1, 1.65)),
+    ]
+    left = _chain(
+        [f"{p}LeftUpLeg", f"{p}LeftLeg", f"{p}LeftFoot", f"{p}LeftToeBase"],
+        f"{p}Hips",
+        [_HIP, _KNEE, _ANKLE, _BALL, _TIP],
+    )
+    left.append((f"{p}LeftToe_End", f"{p}LeftToeBase", _TIP, (0.1, -0.22, 0.01)))
+    left += _arm(
+        [f"{p}LeftArm", f"{p}LeftForeArm", f"{p}LeftHand"], f"{p}Spine2", f"{p}LeftShoulder", f"{p}Spine2"
+    )
+    hand = left[-1]
+    for k, finger in enumerate(("Thumb", "Index", "Middle", "Ring", "Pinky")):
+        start = _plus(hand[3], (0.0, 0.012 * (k - 2), 0.0))
+        pts = [_plus(start, (0.018 * j, 0.0, -0.018 * j)) for j in range(5)]
+        left += _chain([f"{p}LeftHand{finger}{j}" for j in range(1, 5)], f"{p}LeftHand", pts)
+    return body + left + _mirror(left, _swap("Left", "Right"))
+
+
+def _ue5_bones() -> list[Spec]:
+    """The UE5 mannequin (Manny): twist and corrective bones on the legs, ``ik_foot_root`` >
+    ``ik_foot_l`` and the hand IK bones under ``root``; it faces +Y."""
+    body = [("root", None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.2))]
+    body += _spine(["pelvis", "spine_01", "spine_02", "spine_03", "spine_04", "spine_05"], "root")
+    body += _spine(["neck_01", "neck_02", "head"], "spine_05", 1.5, 1.75)
+    left = _chain(["thigh_l", "calf_l", "foot_l", "ball_l"], "pelvis", [_HIP, _KNEE, _ANKLE, _BALL, _TIP])
+    left += [
+        ("thigh_twist_01_l", "thigh_l", _lerp(_HIP, _KNEE, 0.3), _lerp(_HIP, _KNEE, 0.5)),
+        ("thigh_twist_02_l", "thigh_l", _lerp(_HIP, _KNEE, 0.6), _lerp(_HIP, _KNEE, 0.8)),
+        ("thigh_twistCor_01_l", "thigh_twist_01_l", _lerp(_HIP, _KNEE, 0.3), _lerp(_HIP, _KNEE, 0.35)),
+        ("thigh_correctiveRoot_l", "thigh_l", _HIP, _lerp(_HIP, _KNEE, 0.1)),
+    ]
+    for k, d in (
+        ("bck", (0.0, 0.08, 0.0)),
+        ("fwd", (0.0, -0.08, 0.0)),
+        ("out", (0.07, 0.0, 0.0)),
+        ("in", (-0.06, 0.0, 0.0)),
+    ):
+        h = _plus(_lerp(_HIP, _KNEE, 0.1), d)
+        left.append((f"thigh_{k}_l", "thigh_correctiveRoot_l", h, _plus(h, (0.0, 0.0, -0.05))))
+    left += [
+        ("calf_twist_01_l", "calf_l", _lerp(_KNEE, _ANKLE, 0.3), _lerp(_KNEE, _ANKLE, 0.5)),
+        ("calf_twist_02_l", "calf_l", _lerp(_KNEE, _ANKLE, 0.6), _lerp(_KNEE, _ANKLE, 0.8)),
+        ("calf_correctiveRoot_l", "calf_l", _KNEE, _lerp(_KNEE, _ANKLE, 0.1)),
+        (
+            "calf_knee_l",
+            "calf_correctiveRoot_l",
+            _plus(_KNEE, (0.0, -0.06, 0.0)),
+            _plus(_KNEE, (0.0, -0.06, -0.04)),
+        ),
+        (
+            "calf_kneeBack_l",
+            "calf_correctiveRoot_l",
+            _plus(_KNEE, (0.0, 0.06, 0.0)),
+            _plus(_KNEE, (0.0, 0.06, -0.04)),
+        ),
+        ("ankle_bck_l", "foot_l", _plus(_ANKLE, (0.0, 0.05, -0.01)), _plus(_ANKLE, (0.0, 0.07, -0.02))),
+        ("ankle_fwd_l", "foot_l", _plus(_ANKLE, (0.0, -0.04, 0.0)), _plus(_ANKLE, (0.0, -0.06, -0.01))),
+    ]
+    left += _arm(["upperarm_l", "lowerarm_l", "hand_l"], "spine_05", "clavicle_l", "spine_05")
+    ik = [
+        ("ik_foot_root", "root", (0.0, 0.0, 0.0), (0.0, 0.1, 0.0)),
+        ("ik_foot_l", "ik_foot_root", _ANKLE, _plus(_ANKLE, (0.0, 0.1, 0.0))),
+        (
+            "ik_foot_r",
+            "ik_foot_root",
+            (-_ANKLE[0], _ANKLE[1], _ANKLE[2]),
+            (-_ANKLE[0], _ANKLE[1] + 0.1, _ANKLE[2]),
+        ),
+        ("ik_hand_root", "root", (0.0, 0.0, 0.0), (0.0, 0.1, 0.0)),
+        ("ik_hand_gun", "ik_hand_root", (-0.45, -0.1, 1.0), (-0.45, 0.0, 1.0)),
+        ("ik_hand_l", "ik_hand_gun", (0.45, -0.1, 1.0), (0.45, 0.0, 1.0)),
+        ("ik_hand_r", "ik_hand_gun", (-0.45, -0.1, 1.0), (-0.45, 0.0, 1.0)),
+        ("interaction", "root", (0.0, 0.0, 0.0), (0.0, 0.1, 0.0)),
+        ("center_of_mass", "root", (0.0, 0.0, 0.0), (0.0, 0.1, 0.0)),
+    ]
+    bones = body + left + _mirror(left, lambda n: re.sub(r"_l$", "_r", n)) + ik
+    return [(n, p, (-h[0], -h[1], h[2]), (-t[0], -t[1], t[2])) for n, p, h, t in bones]
+
+
+def _cc4_bones() -> list[Spec]:
+    """Character Creator 4: ``CC_Base_BoneRoot`` > ``CC_Base_Hip`` > (``CC_Base_Pelvis`` >
+    thighs) and (``CC_Base_Waist`` > spine > arms, head): the legs and the upper body hang
+    from two children of the hip bone."""
+    p = "CC_Base_"
+    body = [
+        (f"{p}BoneRoot", None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.2)),
+        (f"{p}Hip", f"{p}BoneRoot", (0.0, 0.0, 1.0), (0.0, 0.0, 1.1)),
+        (f"{p}Pelvis", f"{p}Hip", (0.0, 0.0, 1.0), (0.0, 0.0, 0.9)),
+    ]
+    body += _spine([f"{p}Waist", f"{p}Spine01", f"{p}Spine02"], f"{p}Hip")
+    body += _spine([f"{p}NeckTwist01", f"{p}NeckTwist02", f"{p}Head"], f"{p}Spine02", 1.5, 1.75)
+    body += [
+        (f"{p}FacialBone", f"{p}Head", (0.0, -0.02, 1.62), (0.0, -0.05, 1.62)),
+        (f"{p}JawRoot", f"{p}FacialBone", (0.0, -0.02, 1.6), (0.0, -0.08, 1.56)),
+    ]
+    left = _chain(
+        [f"{p}L_Thigh", f"{p}L_Calf", f"{p}L_Foot", f"{p}L_ToeBase"],
+        f"{p}Pelvis",
+        [_HIP, _KNEE, _ANKLE, _BALL, _TIP],
+    )
+    left += [
+        (f"{p}L_ThighTwist01", f"{p}L_Thigh", _HIP, _lerp(_HIP, _KNEE, 0.5)),
+        (f"{p}L_ThighTwist02", f"{p}L_Thigh", _lerp(_HIP, _KNEE, 0.5), _KNEE),
+        (f"{p}L_CalfTwist01", f"{p}L_Calf", _KNEE, _lerp(_KNEE, _ANKLE, 0.5)),
+        (f"{p}L_CalfTwist02", f"{p}L_Calf", _lerp(_KNEE, _ANKLE, 0.5), _ANKLE),
+        (f"{p}L_KneeShareBone", f"{p}L_Calf", _KNEE, _plus(_KNEE, (0.0, -0.05, 0.0))),
+    ]
+    for k, toe in enumerate(("BigToe1", "IndexToe1", "MidToe1", "RingToe1", "PinkyToe1")):
+        h = _plus(_BALL, (0.012 * (2 - k), 0.0, 0.0))
+        left.append((f"{p}L_{toe}", f"{p}L_ToeBase", h, _plus(h, (0.0, -0.03, -0.003))))
+    left += _arm(
+        [f"{p}L_Upperarm", f"{p}L_Forearm", f"{p}L_Hand"], f"{p}Spine02", f"{p}L_Clavicle", f"{p}Spine02"
+    )
+    return body + left + _mirror(left, _swap("_L_", "_R_"))
+
+
+def _max_biped_bones() -> list[Spec]:
+    """3ds Max Biped as its FBX export has it: ``Bip01`` (the centre of mass) > ``Bip01 Pelvis``
+    > ``Bip01 Spine`` > the thighs (not the pelvis), ``Bip01 Footsteps`` on the ground under
+    ``Bip01``, ``Nub`` end bones, the clavicles under the neck."""
+    body = [
+        ("Bip01", None, (0.0, 0.0, 1.0), (0.0, -0.1, 1.0)),
+        ("Bip01 Footsteps", "Bip01", (0.0, 0.0, 0.0), (0.0, -0.1, 0.0)),
+    ]
+    body += _spine(
+        ["Bip01 Pelvis", "Bip01 Spine", "Bip01 Spine1", "Bip01 Spine2", "Bip01 Neck"], "Bip01", 1.0, 1.55
+    )
+    body += _spine(["Bip01 Head", "Bip01 HeadNub"], "Bip01 Neck", 1.55, 1.85)
+    left = _chain(
+        ["Bip01 L Thigh", "Bip01 L Calf", "Bip01 L Foot", "Bip01 L Toe0"],
+        "Bip01 Spine",
+        [_HIP, _KNEE, _ANKLE, _BALL, _TIP],
+    )
+    left.append(("Bip01 L Toe0Nub", "Bip01 L Toe0", _TIP, (0.1, -0.2, 0.01)))
+    left += _arm(
+        ["Bip01 L UpperArm", "Bip01 L Forearm", "Bip01 L Hand"],
+        "Bip01 Neck",
+        "Bip01 L Clavicle",
+        "Bip01 Neck",
+    )
+    left += _chain(
+        ["Bip01 L Finger0", "Bip01 L Finger0Nub"],
+        "Bip01 L Hand",
+        [left[-1][3], _plus(left[-1][3], (0.02, 0.0, -0.02)), _plus(left[-1][3], (0.04, 0.0, -0.04))],
+    )
+    return body + left + _mirror(left, _swap(" L ", " R "))
+
+
+def _genesis8_bones() -> list[Spec]:
+    """DAZ Genesis 8: ``hip`` > ``pelvis`` > ``lThighBend`` > ``lThighTwist`` > ``lShin`` >
+    ``lFoot`` > ``lMetatarsals`` > ``lToe`` (the thigh in two bones, the shin hanging from
+    the twist bone's end); ``hip`` > ``abdomenLower`` > ... the upper body."""
+    body = [
+        ("hip", None, (0.0, 0.0, 1.0), (0.0, 0.0, 1.05)),
+        ("pelvis", "hip", (0.0, 0.0, 1.0), (0.0, 0.0, 0.9)),
+    ]
+    body += _spine(["abdomenLower", "abdomenUpper", "chestLower", "chestUpper"], "hip")
+    body += _spine(["neckLower", "neckUpper", "head"], "chestUpper", 1.5, 1.75)
+    left = _chain(
+        ["lThighBend", "lThighTwist", "lShin", "lFoot", "lMetatarsals", "lToe"],
+        "pelvis",
+        [_HIP, _lerp(_HIP, _KNEE, 0.45), _KNEE, _ANKLE, (0.1, -0.05, 0.03), _BALL, _TIP],
+    )
+    for k, toe in enumerate(("lBigToe", "lSmallToe1", "lSmallToe2", "lSmallToe3", "lSmallToe4")):
+        h = _plus(_TIP, (0.01 * (2 - k), 0.01, 0.0))
+        left.append((toe, "lToe", h, _plus(h, (0.0, -0.025, -0.002))))
+    left += _arm(
+        ["lShldrBend", "lShldrTwist", "lForearmBend", "lForearmTwist", "lHand"],
+        "chestUpper",
+        "lCollar",
+        "chestUpper",
+    )
+    return body + left + _mirror(left, lambda n: "r" + n[1:] if re.match(r"^l[A-Z]", n) else n)
+
+
+def _mmd_bones(ik_parent: bool) -> list[Spec]:
+    """A PMX model as mmd_tools imports it (Japanese names only): 全ての親 > センター >
+    グルーブ > 腰 > 下半身 > 左足 > 左ひざ > 左足首 > 左つま先, the upper body from 腰, and the
+    leg IK bones 左足ＩＫ > 左つま先ＩＫ under the root (``ik_parent``: under 左足IK親 on the
+    ground, as newer models have them)."""
+    body: list[Spec] = [
+        ("全ての親", None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.1)),
+        ("センター", "全ての親", (0.0, 0.0, 0.6), (0.0, 0.0, 0.5)),
+        ("グルーブ", "センター", (0.0, 0.0, 0.65), (0.0, 0.0, 0.75)),
+        ("腰", "グルーブ", (0.0, 0.02, 0.95), (0.0, 0.0, 1.0)),
+        ("下半身", "腰", (0.0, 0.0, 1.0), (0.0, 0.0, 0.9)),
+    ]
+    body += _spine(["上半身", "上半身2", "首", "頭"], "腰", 1.0, 1.72)
+    left = _chain(
+        ["左足", "左ひざ", "左足首", "左つま先"], "下半身", [_HIP, _KNEE, _ANKLE, _BALL, (0.1, -0.12, 0.0)]
+    )
+    left += _chain(
+        ["左肩", "左腕", "左ひじ", "左手首"],
+        "上半身2",
+        [(0.03, 0.0, 1.43), (0.16, 0.0, 1.42), (0.35, 0.0, 1.25), (0.52, 0.0, 1.08), (0.58, 0.0, 1.02)],
+    )
+    parent = "全ての親"
+    if ik_parent:
+        left.append(("左足IK親", "全ての親", (_ANKLE[0], _ANKLE[1], 0.0), (_ANKLE[0], _ANKLE[1], 0.05)))
+        parent = "左足IK親"
+    left += _chain(["左足ＩＫ", "左つま先ＩＫ"], parent, [_ANKLE, _BALL, _plus(_BALL, (0.0, 0.0, -0.05))])
+    return body + left + _mirror(left, _swap("左", "右"))
+
+
+def _mmd(scene: Any, name: str, ik_parent: bool = False) -> Any:
+    """:func:`_mmd_bones` with MMD's IK: the knee pulled to 左足ＩＫ (two bones), the ankle to
+    左つま先ＩＫ (one)."""
+    arm = build(scene, name, _mmd_bones(ik_parent))
+    for side in "左右":
+        for bone, target, count in (
+            (f"{side}ひざ", f"{side}足ＩＫ", 2),
+            (f"{side}足首", f"{side}つま先ＩＫ", 1),
+        ):
+            c = arm.pose.bones[bone].constraints.new("IK")
+            c.target, c.subtarget, c.chain_count = arm, target, count
+    bpy.context.view_layer.update()
+    return arm
+
+
+def _ik_quadruped_bones() -> list[Spec]:
+    """A hand-made quadruped with IK controls named ``CTRL_``: a reverse-foot chain
+    ``CTRL_foot.L > CTRL_toe.L`` per foot under ``root``, standing on the ground beside each
+    foot, and pole bones."""
+    body: list[Spec] = [("root", None, (0.0, 0.0, 0.0), (0.0, 0.4, 0.0))]
+    body += _chain(
+        ["hips", "spine", "chest"],
+        "root",
+        [(0.0, 0.35, 0.9), (0.0, 0.1, 0.92), (0.0, -0.15, 0.94), (0.0, -0.35, 0.97)],
+    )
+    body += _chain(["neck", "head"], "chest", [(0.0, -0.35, 0.97), (0.0, -0.55, 1.15), (0.0, -0.75, 1.1)])
+    left = _chain(
+        ["upperarm.L", "forearm.L", "paw.L", "toes.L"],
+        "chest",
+        [
+            (0.15, -0.35, 0.9),
+            (0.16, -0.25, 0.5),
+            (0.16, -0.33, 0.12),
+            (0.16, -0.38, 0.02),
+            (0.16, -0.45, 0.0),
+        ],
+    )
+    left += _chain(
+        ["thigh.L", "shin.L", "hindpaw.L", "hindtoes.L"],
+        "hips",
+        [(0.15, 0.4, 0.85), (0.16, 0.2, 0.5), (0.16, 0.45, 0.15), (0.16, 0.4, 0.02), (0.16, 0.33, 0.0)],
+    )
+    left += _chain(
+        ["CTRL_foot.L", "CTRL_toe.L"], "root", [(0.16, -0.33, 0.12), (0.16, -0.38, 0.02), (0.16, -0.45, 0.0)]
+    )
+    left += _chain(
+        ["CTRL_hindfoot.L", "CTRL_hindtoe.L"],
+        "root",
+        [(0.16, 0.45, 0.15), (0.16, 0.4, 0.02), (0.16, 0.33, 0.0)],
+    )
+    left += [
+        ("pole_front.L", "root", (0.16, -0.7, 0.5), (0.16, -0.8, 0.5)),
+        ("pole_hind.L", "root", (0.16, 0.8, 0.5), (0.16, 0.9, 0.5)),
+    ]
+    return body + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _dragon_bones() -> list[Spec]:
+    """A dragon: four legs, folded wings hanging low beside the body, a jaw, and a long tail
+    whose last bones lie on the ground behind it."""
+    body = _chain(
+        ["hips", "spine", "chest"],
+        None,
+        [(0.0, 0.5, 1.3), (0.0, 0.15, 1.35), (0.0, -0.2, 1.38), (0.0, -0.5, 1.42)],
+    )
+    body += _chain(["neck", "head"], "chest", [(0.0, -0.5, 1.42), (0.0, -0.8, 1.7), (0.0, -1.1, 1.6)])
+    body.append(("jaw", "head", (0.0, -0.85, 1.6), (0.0, -1.1, 1.45)))
+    body += _chain(
+        [f"tail.{k:03d}" for k in range(1, 7)],
+        "hips",
+        [
+            (0.0, 0.5, 1.3),
+            (0.0, 0.9, 1.0),
+            (0.0, 1.3, 0.6),
+            (0.0, 1.7, 0.25),
+            (0.0, 2.1, 0.06),
+            (0.0, 2.5, 0.02),
+            (0.0, 2.9, 0.0),
+        ],
+    )
+    left = _chain(
+        ["upper_arm.L", "forearm.L", "hand.L", "finger.L"],
+        "chest",
+        [(0.25, -0.35, 1.25), (0.3, -0.25, 0.75), (0.3, -0.4, 0.2), (0.3, -0.5, 0.03), (0.3, -0.62, 0.0)],
+    )
+    left += _chain(
+        ["thigh.L", "shin.L", "foot.L", "toe.L"],
+        "hips",
+        [(0.25, 0.45, 1.2), (0.3, 0.1, 0.8), (0.3, 0.4, 0.25), (0.3, 0.3, 0.03), (0.3, 0.15, 0.0)],
+    )
+    left += _chain(
+        ["wing_upper.L", "wing_fore.L", "wing_finger1.L"],
+        "chest",
+        [(0.15, -0.2, 1.45), (0.6, 0.0, 1.6), (0.55, 0.5, 1.0), (0.5, 1.0, 0.35)],
+    )
+    left.append(("wing_finger2.L", "wing_fore.L", (0.55, 0.5, 1.0), (0.6, 0.8, 0.5)))
+    return body + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _numbered(bones: Sequence[Spec]) -> tuple[list[Spec], dict[str, str]]:
+    """``bones`` renamed ``Bone``, ``Bone.001``, ... in order (a file with no names), and the
+    new name of each old one."""
+    new = {b[0]: f"Bone.{i:03d}" if i else "Bone" for i, b in enumerate(bones)}
+    return [(new[n], new[p] if p else None, h, t) for n, p, h, t in bones], new
+
+
+_DRAGON_NUMBERED = _numbered(_dragon_bones())
+_DRAGON_LEGS = {
+    "L1": ("upper_arm.L", "hand.L"),
+    "R1": ("upper_arm.R", "hand.R"),
+    "L2": ("thigh.L", "foot.L"),
+    "R2": ("thigh.R", "foot.R"),
+}
+
+
+# ---------------------------------------------------------------------------------------
 # Building
 
 
@@ -370,19 +739,24 @@ def build(
     rotation: Sequence[float] = (0.0, 0.0, 0.0),
     connect: bool = True,
     turn: Sequence[float] = (0.0, 0.0, 0.0),
+    scale: float = 1.0,
 ) -> Any:
     """An armature of ``bones`` (creature space) with a capsule skin, standing on z = 0.
 
     ``rotation``: the object's Euler rotation; the bones are placed so that the rig still
     stands in the world; ``turn`` then turns the object (and the rig with it).
     ``plus_y > 0``: every bone points along its own armature +Y with that length, as glTF/FBX
-    importers leave them (the tails mean nothing).
+    importers leave them (the tails mean nothing). ``scale``: the object's uniform scale, the
+    bones made larger by its inverse (an FBX in centimetres: 0.01). Helper bones
+    (:data:`HELPERS`: roots, IK targets, end markers) deform nothing and have no skin.
     """
     data = bpy.data.armatures.new(name)
     arm = bpy.data.objects.new(name, data)
     scene.collection.objects.link(arm)
     arm.rotation_euler = tuple(rotation)
-    inv = Matrix.LocRotScale(None, arm.rotation_euler, None).inverted().to_3x3()
+    arm.scale = (scale, scale, scale)
+    inv = Matrix.LocRotScale(None, arm.rotation_euler, (scale, scale, scale)).inverted().to_3x3()
+    plus_y /= scale
     bpy.context.view_layer.objects.active = arm
     bpy.ops.object.mode_set(mode="EDIT")
     eb = data.edit_bones
@@ -396,11 +770,21 @@ def build(
             if connect and plus_y == 0.0 and (Vector(eb[p].tail) - Vector(eb[n].head)).length < 1e-6:
                 eb[n].use_connect = True
     bpy.ops.object.mode_set(mode="OBJECT")
-    _skin(arm, bones, np.array(inv), scene)
+    for b in data.bones:
+        b.use_deform = not HELPERS.search(b.name)
+    _skin(arm, [spec for spec in bones if not HELPERS.search(spec[0])], np.array(inv), scene)
     if any(turn):
         arm.rotation_euler = tuple(turn)
     bpy.context.view_layer.update()
     return arm
+
+
+#: Bones that deform nothing in the rigs they stand for: roots, IK targets and poles, end
+#: markers, Biped's footsteps, MMD's root and leg IK bones.
+HELPERS = re.compile(
+    r"(^root$|Root|^ik_|^CTRL_|_ctrl\.|^pole|Footsteps|^Bip01$|interaction|center_of_mass|"
+    r"_End$|Nub$|全ての親|ＩＫ|IK親)"
+)
 
 
 def _skin(arm: Any, bones: Sequence[Spec], to_armature: np.ndarray, scene: Any) -> Any:
@@ -547,6 +931,51 @@ FIXTURES: dict[str, Fixture] = {
     "rigify_horse": Fixture(_metarig("horse"), _pair("shoulder", "f_hoof", "thigh", "r_hoof"), False),
     "rigify_bird": Fixture(_metarig("bird"), _pair("thigh", "shin"), False),
     "rigify_basic_human": Fixture(_metarig("basic_human"), _pair("thigh", "shin"), False),
+    # Rigs as their tools make them (the hierarchies of the tools, the skin only on deform bones)
+    "mixamo_fbx": Fixture(
+        lambda sc, n: build(
+            sc, n, _mixamo_full_bones(), plus_y=0.05, rotation=(math.pi / 2, 0.0, 0.0), scale=0.01
+        ),
+        _human_expected(MIXAMO, _swap("Left", "Right")),
+    ),
+    "ue5_manny": Fixture(
+        lambda sc, n: build(sc, n, _ue5_bones()),
+        Expected({"L1": ("thigh_l", "calf_l"), "R1": ("thigh_r", "calf_r")}),
+    ),
+    "cc4": Fixture(
+        lambda sc, n: build(sc, n, _cc4_bones()),
+        Expected({"L1": ("CC_Base_L_Thigh", "CC_Base_L_Calf"), "R1": ("CC_Base_R_Thigh", "CC_Base_R_Calf")}),
+    ),
+    "max_biped": Fixture(
+        lambda sc, n: build(sc, n, _max_biped_bones(), connect=False),
+        _human_expected(BIPED, _swap(" L ", " R ")),
+    ),
+    "genesis8": Fixture(
+        lambda sc, n: build(sc, n, _genesis8_bones()),
+        Expected({"L1": ("lThighBend", "lShin"), "R1": ("rThighBend", "rShin")}),
+    ),
+    "mmd": Fixture(_mmd, Expected({"L1": ("左足", "左ひざ"), "R1": ("右足", "右ひざ")}), False),
+    "mmd_ik_parent": Fixture(
+        lambda sc, n: _mmd(sc, n, ik_parent=True),
+        Expected({"L1": ("左足", "左ひざ"), "R1": ("右足", "右ひざ")}),
+        False,
+    ),
+    "ik_quadruped": Fixture(
+        lambda sc, n: build(sc, n, _ik_quadruped_bones()),
+        Expected(
+            {
+                "L1": ("upperarm.L", "paw.L"),
+                "R1": ("upperarm.R", "paw.R"),
+                "L2": ("thigh.L", "shin.L"),
+                "R2": ("thigh.R", "shin.R"),
+            }
+        ),
+    ),
+    "dragon": Fixture(lambda sc, n: build(sc, n, _dragon_bones()), Expected(_DRAGON_LEGS)),
+    "dragon_numbered": Fixture(
+        lambda sc, n: build(sc, n, _DRAGON_NUMBERED[0]),
+        Expected({k: (_DRAGON_NUMBERED[1][h], _DRAGON_NUMBERED[1][e]) for k, (h, e) in _DRAGON_LEGS.items()}),
+    ),
     "shark": Fixture(
         _metarig("shark"), Expected(refusal="no chain of bones from the body reaches the ground"), False
     ),

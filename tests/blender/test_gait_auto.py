@@ -326,3 +326,22 @@ def test_chart_layout_puts_the_bands_and_the_speed_on_one_axis() -> None:
     assert np.all(np.diff(layout.curve[:, 1]) > 0.0)  # the speed rises: so does the line
     assert layout.marker_x == pytest.approx(layout.curve[10, 0])
     assert geometry.chart_layout(np.array([2.7]), speed, None, 320, 160).marker_x is None
+
+
+def test_five_legs_other_than_the_pentapods_walk_on_their_circles(empty_scene: Any) -> None:
+    # Auto's five-legged gaits are the pentapod's (M1 ahead, then two pairs): a five-legged rig
+    # labelled otherwise (two pairs, then its odd leg behind) walks with its gait circles.
+    obj, leg = _creature(empty_scene, "robot", 1.0)
+    relabel = {"M1": "M3", "L2": "L1", "R2": "R1", "L3": "L2", "R3": "R2"}
+    for item in obj.procloco.legs:
+        item.label = relabel[item.label]
+    settings = obj.procloco
+    settings.use_scene_range = False
+    settings.frame_start, settings.frame_end = 1, 24
+    job = generate.prepare(bpy.context, obj)
+    assert any("Auto gait knows no gaits for 5 legs (" in w for w in job.warnings), job.warnings
+    assert job.auto_gait is None
+    for _ in generate.simulate(job):
+        pass
+    generate.write(bpy.context, job)
+    assert float(np.linalg.norm(job.result.body[-1, :2, 3] - job.result.body[0, :2, 3])) > 0.1 * leg

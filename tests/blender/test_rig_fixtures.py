@@ -183,12 +183,28 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     out["planted_turn"] = max(
         (float(turn[both[:, k], i].max()) for i, k in foot_cols if both[:, k].any()), default=0.0
     )
+    out["left_behind"] = left_behind(obj, frames, out["travel"])
     return out
+
+
+def left_behind(obj: Any, frames: list[int], travel: float) -> list[str]:
+    """The deform bones with skin that did not come along: each travels, from the first frame
+    to the last, less than half the body's ``travel`` (the whole body moves with the feet)."""
+    skinned: set[str] = set()
+    for o in bpy.data.objects:
+        if o.type == "MESH" and any(m.type == "ARMATURE" and m.object == obj for m in o.modifiers):
+            weighted = {g.group for v in o.data.vertices for g in v.groups if g.weight > 0.0}
+            skinned |= {g.name for g in o.vertex_groups if g.index in weighted}
+    names = [b.name for b in obj.data.bones if b.use_deform and b.name in skinned]
+    mats = pose_matrices(obj, [frames[0], frames[-1]], names)
+    moved = np.linalg.norm(mats[1, :, :2, 3] - mats[0, :, :2, 3], axis=-1)
+    return [n for n, d in zip(names, moved.tolist(), strict=True) if d < 0.5 * travel]
 
 
 def check_motion(m: dict[str, Any]) -> None:
     check_thresholds(m)  # the per-frame bone turns too (check_no_pops)
     assert m["foot_drift"] <= 1e-4 * m["leg"], m
+    assert not m["left_behind"], m
 
 
 def _height(obj: Any) -> float:
@@ -244,7 +260,8 @@ def _report(name: str, job: generate.Job, m: dict[str, Any]) -> None:
     print(
         f"\nRIGTABLE | {name} | {legs} | travel {m['travel']:.3f} m | slide {m['slide'] * 1000:.3f} mm | "
         f"penetration {m['penetration'] * 1000:.2f} mm | turn {m['bone_turn']:.1f} deg | "
-        f"planted {m['planted_turn']:.2f} deg | leg {float(job.info.leg_length.mean()):.3f} m"
+        f"planted {m['planted_turn']:.2f} deg | leg {float(job.info.leg_length.mean()):.3f} m | "
+        f"body bone {job.info.body_bone}"
     )
 
 

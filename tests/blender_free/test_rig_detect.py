@@ -227,6 +227,8 @@ def test_a_leaf_takes_its_far_end_from_the_skin_when_its_tail_is_a_guess() -> No
         ("Leg1Base.L", 1, ("leg", "1", "base")),
         ("FrontLeftLeg", 1, ("front", "leg")),
         ("BackRightToe", -1, ("back", "toe")),
+        ("lThighTwist", 1, ("thigh", "twist")),
+        ("CTRL_foot.L", 1, ("ctrl", "foot")),
     ],
 )
 def test_names_of_the_tools_animators_get_rigs_from(name: str, side: int, tokens: tuple[str, ...]) -> None:
@@ -253,6 +255,75 @@ def test_jaws_and_antennae_reaching_the_ground_are_not_legs() -> None:
     assert len(_ground_chains(rest)) == 4
     legs = find_legs(rest, np.zeros(len(names), dtype=bool), "spider")
     assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
+def _biped(tree: Tree, thigh: int = 1) -> int:
+    """A biped's pelvis, spine and two legs (``thigh`` bones from hip to knee) into ``tree``;
+    its legs are appended to ``tree.legs``. Returns the pelvis."""
+    pelvis = tree.add(-1, [0.0, 0.0, 1.0], [0.0, 0.0, 0.9])
+    tree.chain(pelvis, np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.3], [0.0, 0.0, 1.7]]))
+    for side in (1.0, -1.0):
+        hip, knee = np.array([0.1 * side, 0.0, 0.95]), np.array([0.1 * side, -0.02, 0.52])
+        upper = [hip + (knee - hip) * k / thigh for k in range(thigh + 1)]
+        pts = np.array([*upper, [0.1 * side, 0.03, 0.08], [0.1 * side, -0.12, 0.0]])
+        tree.legs.append([tree.names[i] for i in tree.chain(pelvis, pts)])
+    return pelvis
+
+
+def test_a_thigh_in_two_bones_named_bend_and_twist_is_one_leg() -> None:
+    # Genesis 8: lThighBend > lThighTwist > lShin; "twist" names a helper elsewhere (UE's
+    # thigh_twist_01_l, a leaf beside the thigh), here the thigh's lower half.
+    tree = Tree()
+    _biped(tree, thigh=2)
+    names = list(tree.names)
+    for leg, prefix in zip(tree.legs, "lr", strict=True):
+        for k, part in enumerate(("ThighBend", "ThighTwist", "Shin", "Foot")):
+            names[names.index(leg[k])] = prefix + part
+    rest = _rest(names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(names), dtype=bool), "genesis")
+    assert sorted((*leg.bones, *leg.foot) for leg in legs) == [
+        ("lThighBend", "lThighTwist", "lShin", "lFoot"), ("rThighBend", "rThighTwist", "rShin", "rFoot")]
+
+
+@pytest.mark.parametrize("named", [False, True])
+def test_foot_controls_hanging_from_the_root_are_not_legs(named: bool) -> None:
+    # An IK bone at each ankle with its toe bone (MMD's leg IK, a reverse foot) hangs from
+    # the root beside the legs and reaches the ground: a chain low beside the legs' hips.
+    tree = Tree()
+    root = tree.add(-1, [0.0, 0.0, 0.0], [0.0, 0.0, 0.1])
+    pelvis = _biped(tree)
+    tree.parent[pelvis] = root
+    controls = [tree.chain(root, np.array([[0.1 * side, 0.03, 0.08], [0.1 * side, -0.12, 0.0],
+                                           [0.1 * side, -0.12, -0.05]])) for side in (1.0, -1.0)]
+    names = list(tree.names)
+    if named:
+        for c, side in zip(controls, "LR", strict=True):
+            names[c[0]], names[c[1]] = f"CTRL_foot.{side}", f"CTRL_toe.{side}"
+    rest = _rest(names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(names), dtype=bool), "biped")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
+@pytest.mark.parametrize("tail_bones", [2, 6])
+def test_a_tail_lying_on_the_ground_is_not_a_leg(tail_bones: int) -> None:
+    # No names to say so: a quadruped whose tail (long, or of many bones) ends on the ground
+    # behind it; a leg on the midline ahead, as long as the others, stays a leg.
+    tree = Tree()
+    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
+    for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
+        for side in (1.0, -1.0):
+            pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
+                            [0.2 * side, y - 0.15, 0.0]])
+            tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
+    front = tree.chain(spine[1], np.array([[0.0, -0.5, 1.0], [0.0, -0.7, 0.55], [0.0, -0.75, 0.05],
+                                           [0.0, -0.85, 0.0]]))
+    tree.legs.append([tree.names[i] for i in front])
+    y = np.linspace(0.5, 2.6 if tail_bones > 2 else 2.2, tail_bones + 1)
+    tree.chain(spine[0], np.column_stack([np.zeros_like(y), y, np.maximum(1.0 - 0.6 * (y - 0.5), 0.0)]))
+    rest = _rest(tree.names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "creature")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+    assert sorted(leg.label for leg in legs) == ["L2", "L3", "M1", "R2", "R3"]
 
 
 def test_detection_imports_without_bpy(repo_root: Any) -> None:

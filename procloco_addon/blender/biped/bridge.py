@@ -390,7 +390,7 @@ def _write_pose(
     prev_slot = str(adt.action_slot.identifier) if (adt is not None and actions.is_slotted()
                                                     and adt.action_slot is not None) else ""
     basis_before = [pb.matrix_basis.copy() for pb in obj.pose.bones]
-    props_before = {(s.bone, s.prop): obj.pose.bones[s.bone][s.prop] for s in plan.switches}
+    props_before = {s: s.read(obj) for s in plan.switches}
     try:
         actions.assign_action(obj, action)
         return pose_writer.write_pose(action, obj, request, plan, assign=False)
@@ -398,8 +398,8 @@ def _write_pose(
         actions.assign_action(obj, prev, slot_identifier=prev_slot)
         for pb, m in zip(obj.pose.bones, basis_before, strict=True):
             pb.matrix_basis = m
-        for (bone, prop), value in props_before.items():
-            obj.pose.bones[bone][prop] = value
+        for switch, value in props_before.items():
+            switch.write(obj, value)
 
 
 # ---------------------------------------------------------------------------------------

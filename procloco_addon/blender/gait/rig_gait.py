@@ -252,16 +252,25 @@ def set_auto_override(obj: Any, band: str, preset: core_gait.GaitPreset | None) 
 def auto_params(obj: Any, info: Any) -> autogait.AutoGaitParams | None:
     """Core auto-gait parameters of armature ``obj`` read as ``info`` (``rig.RigInfo``):
     its legs' family, hip height (hips above the ground contacts at rest), leg length,
-    gait speed scale and overrides. None when no family fits the leg count."""
+    gait speed scale and overrides. None when no family fits the legs (their count, or the
+    labels of the family's shipped presets)."""
     settings = _settings(obj)
     labels = [leg.label for leg in info.legs]
     hips = np.array([j[0, 2] for j in info.joints])
     hip_height = float(np.mean(hips - info.contact[:, 2]))
     leg_length = float(np.mean(info.leg_length))
-    return autogait.auto_gait_params(
-        labels, max(hip_height, 1e-3 * leg_length), leg_length,
-        speed_scale=float(settings.gait_speed_scale) if settings is not None else 1.0,
-        overrides=auto_overrides(obj))
+    overrides = auto_overrides(obj)
+    try:
+        return autogait.auto_gait_params(
+            labels, max(hip_height, 1e-3 * leg_length), leg_length,
+            speed_scale=float(settings.gait_speed_scale) if settings is not None else 1.0,
+            overrides=overrides)
+    except core_gait.GaitError:
+        if overrides:
+            raise  # the animator's own preset does not fit: say so
+        # The family's presets are for other legs (five legs with the odd one behind, not
+        # the pentapod's M1 ahead): no Auto gait, the gait circles.
+        return None
 
 
 @dataclass(frozen=True, eq=False)

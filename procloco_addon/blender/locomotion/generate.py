@@ -394,8 +394,9 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         except core_gait.GaitError as err:
             raise GenerateError(f"Gait of '{obj.name}': {err}") from err
         if auto is None:
-            warnings.append(f"Auto gait knows no gaits for {len(info.legs)} legs: '{obj.name}' walks with "
-                            "its gait circles")
+            labels = ", ".join(leg.label for leg in info.legs)
+            warnings.append(f"Auto gait knows no gaits for {len(info.legs)} legs ({labels}): '{obj.name}' "
+                            "walks with its gait circles")
         elif settings.use_gait_randomizer:
             warnings.append(f"'{obj.name}' uses Auto gait: the gait randomizer is left out")
     job = Job(

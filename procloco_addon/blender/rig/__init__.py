@@ -28,9 +28,21 @@ Detection (:func:`detect_legs`, :func:`.detect.find_legs`) works in two passes:
    ends at a leaf, hangs from a branching bone and reaches down to the ground.
 
 Either way a candidate is a leg only if it has at least two bones, its lowest point is
-near the ground (the lowest contact of all candidates) and it reaches down from its hip.
+near the ground (the lowest contact of all candidates), it reaches down from its hip and its
+hip stands with the others' (at least a third of the highest hip's height above the ground).
 A leaf bone parented to the root beside each foot (an IK target) is a one-bone chain and
-is never a leg.
+is never a leg; an IK bone with its toe bone there (MMD's leg IK, ``CTRL_foot > CTRL_toe``)
+has its hip at the ankle and is not one either. A bone named as a helper that the next bone
+of its chain hangs from (Genesis' ``lThighBend > lThighTwist > lShin``) is a segment of the
+leg, not a helper. A chain on the midline hanging from behind every paired leg, reaching
+further back and longer than the legs (or of more bones) is a tail lying on the ground, not
+a leg, whatever its bones are called.
+
+The **body bone** (:attr:`RigInfo.body_bone`) is the legs' common ancestor, or the highest
+plain bone above it (not a root, control or mechanism bone, not driven by a constraint, well
+above the ground): Character Creator hangs the legs from ``CC_Base_Pelvis`` and the upper
+body from ``CC_Base_Hip`` above it, and moving the pelvis alone would leave the upper body
+behind.
 
 Geometry is read in **world space** from the armature's rest pose placed by the object's
 world matrix, so scaled, rotated and moved rigs work (a uniform object scale is required:

@@ -21,12 +21,16 @@ by a constraint, not rotated by an IK chain) and it is not a mechanism bone (Rig
 Auto-Rig Pro's ``ORG-``/``MCH-``/``DEF-``/``VIS_``/``WGT-`` bones, or bones only in hidden bone
 collections).
 
-Per leg (:func:`plan_controls`): the **IK control** is the most upstream control feeding the
-leg's IK target that does not also carry the leg's hip (the body's controls and the rig's root
-move the whole leg); the **pole** is the one feeding the IK's pole. Properties that drivers
+Per leg (:func:`plan_controls`): the **IK control** is the IK target itself when the animator
+moves it (MMD's ``左足ＩＫ``, even under a leg IK parent), else the most upstream control
+feeding the leg's IK target that does not also carry the leg's hip (the body's controls and
+the rig's root move the whole leg); the **pole** is the one feeding the IK's pole. Properties that drivers
 read to switch a leg between FK and IK (Rigify's ``IK_FK`` on ``thigh_parent.L``, Auto-Rig
 Pro's ``ik_fk_switch``) and to turn its pole on (Rigify's ``pole_vector``) are
 :class:`Switch` es: they are set to the value that puts the leg in IK with a pole, and keyed.
+When every bone of a leg is (or copies) a bone of an IK chain, that chain's stretch
+(``ik_stretch``) is keyed off too: Blender's IK shortens stretchy bones when that reaches the
+target with less bending (Rigify's chains stretch by 0.1).
 A leg with no IK upstream (an FK control rig) has each of its driven bones turned by the
 nearest control upstream of it that does not carry the hip (its FK control: Auto-Rig Pro's
 ``c_thigh_fk.l``), parent first.
@@ -245,17 +249,34 @@ class ConstraintGraph:
 
 @dataclass(frozen=True)
 class Switch:
-    """A custom property ``prop`` of pose bone ``bone`` set (and keyed) to ``value``."""
+    """A custom property ``prop`` of pose bone ``bone`` set (and keyed) to ``value``; with
+    ``kind`` ``"STRETCH"``, the pose bone's own ``ik_stretch`` (an IK chain's bone)."""
 
     bone: str
     prop: str
     value: float
-    kind: str  # "IK_FK" or "POLE"
+    kind: str  # "IK_FK", "POLE" or "STRETCH"
 
     @property
     def data_path(self) -> str:
         bone, prop = bpy.utils.escape_identifier(self.bone), bpy.utils.escape_identifier(self.prop)
+        if self.kind == "STRETCH":
+            return f'pose.bones["{bone}"].{self.prop}'
         return f'pose.bones["{bone}"]["{prop}"]'
+
+    def read(self, obj: bpy.types.Object) -> float:
+        """The value the switch has on ``obj`` now."""
+        pb = obj.pose.bones[self.bone]
+        return float(getattr(pb, self.prop) if self.kind == "STRETCH" else pb[self.prop])
+
+    def write(self, obj: bpy.types.Object, value: float) -> None:
+        """Set the switch on ``obj`` to ``value`` (the property keeps its type)."""
+        pb = obj.pose.bones[self.bone]
+        if self.kind == "STRETCH":
+            setattr(pb, self.prop, float(value))
+        else:
+            old = pb[self.prop]
+            pb[self.prop] = type(old)(value) if isinstance(old, (bool, int, float)) else value
 
 
 @dataclass(frozen=True)
@@ -415,6 +436,34 @@ def _choose_switches(obj: bpy.types.Object, leg_bones: Sequence[str], chain: Seq
     return out
 
 
+def _stretch_switches(obj: bpy.types.Object, graph: ConstraintGraph, bones: Sequence[str]) -> list[Switch]:
+    """The bones of the IK chain that ``bones`` are or copy and that may stretch (``ik_stretch``
+    > 0, not driven), each a switch to no stretch. Blender's IK shortens a stretchy chain's bones
+    when that reaches the target with less bending: a generated Rigify human's thigh and
+    shin by up to 2.5 % while it walks. The walk never asks a leg to reach beyond its length."""
+    adt = obj.animation_data
+    driven = set()
+    if adt is not None:
+        for fc in adt.drivers:
+            m = re.match(r'^pose\.bones\["((?:[^"\\]|\\.)*)"\]\.ik_stretch$', fc.data_path)
+            if m is not None and not fc.mute:
+                driven.add(_unescape(m.group(1)))
+    pbones = obj.pose.bones
+    # Only when every bone of the leg is, or copies, a bone of an IK chain: that chain solves the
+    # leg and its stretch only squashes it. Where a bone follows something else (the paw of
+    # Rigify's three-bone legs copies the target its stretchy helper chains place), the stretch
+    # is part of the mechanism and stays.
+    chain: set[str] = set()
+    for b in bones:
+        solving = {b} if graph.nodes[b].in_ik else {
+            d for d, kind in graph.nodes[b].deps.items() if kind == 1 and graph.nodes[d].in_ik}
+        if not solving:
+            return []
+        chain |= solving
+    return [Switch(n, "ik_stretch", 0.0, "STRETCH") for n in sorted(chain)
+            if float(pbones[n].ik_stretch) > 0.0 and n not in driven]
+
+
 def plan_controls(
     obj: bpy.types.Object,
     legs: Sequence[tuple[Sequence[str], Sequence[str]]],
@@ -435,6 +484,8 @@ def plan_controls(
             switches.append(_choose_switches(obj, [*bones, *foot[:1]], bones, originals))
         # _choose_switches leaves its choices set: read the graph in that state.
         graph = ConstraintGraph(obj)
+        for k, (bones, _foot) in enumerate(legs):
+            switches[k].extend(_stretch_switches(obj, graph, bones))
         return _plan(graph, legs, body, list(others), solved, switches)
     finally:
         if originals:
@@ -473,7 +524,9 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
             # and FK controls hang from the hip's parent) and not through the pole.
             cands = [c for c in graph.controls_upstream(targets, blocked=poles) if c not in base
                      and (hip_parent is None or hip_parent.name not in graph.upstream([c]))]
-            roots = graph.roots(cands)
+            # The IK target itself when the animator moves it (MMD's leg IK under its leg IK
+            # parent), else the most upstream control moving it (Rigify's foot_ik.L).
+            roots = [t for t in targets if t in cands][:1] or graph.roots(cands)
             if roots:
                 up = graph.upstream(leg_bones)
                 ik_ctrl = min(roots, key=lambda c: (up.get(c, 1 << 30), c))
@@ -575,7 +628,9 @@ def describe_leg(leg: LegControls) -> str:
         parts.append(f"IK {leg.ik}")
     if leg.pole:
         parts.append(f"pole {leg.pole}")
-    parts.extend(f"{s.prop} = {s.value:g} on {s.bone}" for s in leg.switches)
+    parts.extend(f"{s.prop} = {s.value:g} on {s.bone}" for s in leg.switches if s.kind != "STRETCH")
+    if any(s.kind == "STRETCH" for s in leg.switches):
+        parts.append("IK stretch off")
     return ", ".join(parts)
 
 

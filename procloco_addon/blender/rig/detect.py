@@ -87,9 +87,30 @@ def _foot_after(rest: _Rest, end: int) -> list[int]:
     return out
 
 
+def _segments(rest: _Rest) -> np.ndarray:
+    """``(B,)`` bool: bones that are a segment of their chain, a child hanging from their far
+    joint (Genesis' ``lThighTwist``, the thigh's lower half with the shin at its end)."""
+    out = np.zeros(len(rest.names), dtype=bool)
+    for i in range(len(rest.names)):
+        length = float(np.linalg.norm(rest.end[i] - rest.head[i]))
+        if length > 0.0 and any(np.linalg.norm(rest.head[c] - rest.end[i]) <= 0.01 * length
+                                for c in rest.children(i)):
+            out[i] = True
+    return out
+
+
+def _control_bones(rest: _Rest) -> np.ndarray:
+    """``(B,)`` bool: bones named as controls or helpers (IK targets, poles, twist helpers...),
+    not counting limb segments named twist (:func:`_segments`)."""
+    segment = _segments(rest)
+    return np.array([_is_control_name(split_name(n)[1], bool(segment[i])) for i, n in enumerate(rest.names)],
+                    dtype=bool)
+
+
 def _name_chains(rest: _Rest) -> list[list[int]]:
     info = [split_name(n) for n in rest.names]
-    legish = [_is_leg_name(t) for _s, t in info]
+    segment = _segments(rest)
+    legish = [_is_leg_name(t, bool(segment[i])) for i, (_s, t) in enumerate(info)]
     group = [(s, _leg_number(t)) for s, t in info]
     chains: list[list[int]] = []
     for i in range(len(rest.names)):
@@ -159,8 +180,8 @@ def _dedupe(rest: _Rest, chains: list[list[int]], constrained: np.ndarray) -> li
 
 def _rig_ground(rest: _Rest) -> float:
     """The rig's lowest point along world up, over every bone that is not a control."""
-    keep = [i for i, n in enumerate(rest.names)
-            if not _is_control_name(split_name(n)[1]) and not rest.phantom[i]]
+    control = _control_bones(rest)
+    keep = [i for i in range(len(rest.names)) if not control[i] and not rest.phantom[i]]
     if not keep:
         keep = list(range(len(rest.names)))
     return float(min(rest.head[keep, 2].min(), rest.end[keep, 2].min()))
@@ -185,7 +206,7 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
     are dropped.
     """
     names = [split_name(n)[1] for n in rest.names]
-    control = np.array([_is_control_name(t) for t in names], dtype=bool)
+    control = _control_bones(rest)
     ground = _rig_ground(rest)
     # Bones this low belong to the feet (a paw's pads and fingers, a hoof's parts).
     foot_band = 0.15 * (float(max(rest.head[:, 2].max(), rest.end[:, 2].max())) - ground)
@@ -265,11 +286,26 @@ def _merge_names(rest: _Rest, geo: list[list[int]], named: list[list[int]]) -> l
     return out
 
 
+#: A leg's hip stands at least this share of the highest hip's height above the ground.
+HIP_SHARE = 1.0 / 3.0
+
+
 def _chains_along(rest: _Rest) -> list[tuple[list[int], str]]:
-    """The leg chains of ``rest`` with world +Z up, and why each was chosen."""
+    """The leg chains of ``rest`` with world +Z up, and why each was chosen.
+
+    A chain whose hip is low beside the others' (under :data:`HIP_SHARE` of the highest
+    hip's height above the ground) is not a leg: it is a foot control hanging from the root
+    (an IK bone with its toe bone, ``CTRL_foot.L > CTRL_toe.L``, MMD's leg IK), not a limb
+    carrying the body.
+    """
     named = [c for c in _name_chains(rest)
              if not any(_is_non_leg_name(split_name(rest.names[b])[1]) for b in c)]
-    return _merge_names(rest, _valid_legs(rest, _ground_chains(rest)), _valid_legs(rest, named))
+    found = _merge_names(rest, _valid_legs(rest, _ground_chains(rest)), _valid_legs(rest, named))
+    if not found:
+        return found
+    ground = min(float(_chain_points(rest, c)[:, 2].min()) for c, _r in found)
+    hip = np.array([float(rest.head[c[0], 2]) - ground for c, _r in found])
+    return [f for f, h in zip(found, hip.tolist(), strict=True) if h >= HIP_SHARE * float(hip.max())]
 
 
 _AXES = {"+X": (1.0, 0.0, 0.0), "-X": (-1.0, 0.0, 0.0), "+Y": (0.0, 1.0, 0.0), "-Y": (0.0, -1.0, 0.0),
@@ -290,13 +326,17 @@ def _turned(rest: _Rest, axis: np.ndarray) -> _Rest:
                  rest.world, rest.scale, rest.end @ rot.T, rest.tails_meaningful, rest.phantom)
 
 
-def _stance(rest: _Rest, chains: Sequence[Sequence[int]]) -> float:
-    """How well ``chains`` stand: their mean drop from hip to tip over the rig's height."""
+def _drop(rest: _Rest, chains: Sequence[Sequence[int]]) -> float:
+    """The mean drop of ``chains`` from hip to tip along world up (0 without chains)."""
     if not chains:
         return 0.0
+    return float(np.mean([float(rest.head[c[0], 2] - _chain_points(rest, c)[:, 2].min()) for c in chains]))
+
+
+def _stance(rest: _Rest, chains: Sequence[Sequence[int]]) -> float:
+    """How well ``chains`` stand: their mean drop from hip to tip over the rig's height."""
     height = float(np.ptp(np.concatenate([rest.head[:, 2], rest.end[:, 2]])))
-    drops = [float(rest.head[c[0], 2] - _chain_points(rest, c)[:, 2].min()) for c in chains]
-    return float(np.mean(drops)) / max(height, 1e-12)
+    return _drop(rest, chains) / max(height, 1e-12)
 
 
 def _describe(rest: _Rest, chains: Sequence[Sequence[int]]) -> str:
@@ -325,8 +365,12 @@ def find_legs(rest: _Rest, constrained: np.ndarray, rig_name: str) -> list[LegCh
     # ... or when it finds more legs standing better (an upside-down rig's knees, a
     # sprawling rig's legs on its side, against the few chains that hang down).
     # One chain alone cannot hold a body up: two legs along another axis win over it.
+    # More chains count only when they reach down further too: a thin biped lying on its face
+    # has its toes and foot controls "hanging" towards the ground, by a foot's length.
+    drop_here = _drop(rest, [c for c, _r in found])
     better = [k for k in score if len(other[k]) >= 2 and (
-        score[k] > 2.0 * here or len(found) < 2 or (score[k] > here and len(other[k]) > len(found)))]
+        score[k] > 2.0 * here or len(found) < 2
+        or (score[k] > here and len(other[k]) > len(found) and _drop(turned[k], other[k]) > drop_here))]
     best_axis = max(better, key=lambda k: (score[k] * len(other[k]), k == "-Z")) if better else ""
     n_best = len(other[best_axis]) if better else 0
     if better:
@@ -347,7 +391,46 @@ def find_legs(rest: _Rest, constrained: np.ndarray, rig_name: str) -> list[LegCh
         legs.append(LegChain(tuple(rest.names[i] for i in ik), tuple(rest.names[i] for i in foot), side,
                              reason=reason))
     forward, _source = forward_of(rest, legs)
-    return _mark_pairs(_label_legs(rest, legs, forward))
+    labelled = _label_legs(rest, legs, forward)
+    tails = _tails(rest, labelled, forward)
+    if tails:
+        kept = [LegChain(leg.bones, leg.foot, leg.side, reason=leg.reason)
+                for leg in labelled if leg not in tails]
+        forward, _source = forward_of(rest, kept)
+        labelled = _label_legs(rest, kept, forward)
+    return _mark_pairs(labelled)
+
+
+#: A chain on the midline longer than this many times the paired legs (on average) is a tail.
+TAIL_SHARE = 1.5
+
+
+def _tails(rest: _Rest, legs: Sequence[LegChain], forward: np.ndarray) -> list[LegChain]:
+    """The midline chains of ``legs`` that are a tail lying on the ground, not a leg (a rig
+    with no names that say so: ``Bone.005``): unpaired, hanging from behind every paired
+    leg's hip, reaching further back, and longer than :data:`TAIL_SHARE` times the paired
+    legs or of more bones than any of them. A pentapod's midline leg (ahead, as long as the
+    others) stays a leg. Only on rigs with two paired legs or more."""
+    paired = [leg for leg in legs if leg.side != 0]
+    if len(paired) < 2:
+        return []
+
+    def pts(leg: LegChain) -> np.ndarray:
+        return _chain_points(rest, [rest.index[b] for b in (*leg.bones, *leg.foot)])
+
+    length = float(np.mean([_length(pts(leg)) for leg in paired]))
+    bones = max(len(leg.bones) + len(leg.foot) for leg in paired)
+    hips_fwd = min(float(pts(leg)[0] @ forward) for leg in paired)
+    out = []
+    for leg in legs:
+        if leg.side != 0:
+            continue
+        p = pts(leg)
+        behind = float(p[0] @ forward) < hips_fwd and float(p[-1] @ forward) < float(p[0] @ forward)
+        long = _length(p) > TAIL_SHARE * length or len(leg.bones) + len(leg.foot) > bones
+        if behind and long:
+            out.append(leg)
+    return out
 
 
 def _dedupe_reasons(rest: _Rest, found: list[tuple[list[int], str]],

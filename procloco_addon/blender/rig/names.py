@@ -7,7 +7,8 @@ import functools
 import re
 from collections.abc import Sequence
 
-_PREFIX = re.compile(r"^(def|org|mch|ctrl|ctl|jnt|jt|bn|bone|b|mixamorig\d*|cc_base|bip\d*)[-_.:\s]+",
+# Prefixes that say nothing of what a bone is (``CTRL_``/``ctl_`` do: they stay, as words).
+_PREFIX = re.compile(r"^(def|org|mch|jnt|jt|bn|bone|b|mixamorig\d*|cc_base|bip\d*)[-_.:\s]+",
                      re.IGNORECASE)
 _SIDE_SUFFIX = re.compile(r"[-_.\s](l|r|left|right|lft|rgt)((?:\.\d+)?)$", re.IGNORECASE)
 _SIDE_PREFIX = re.compile(r"^(l|r|left|right|lft|rgt)[-_.\s]", re.IGNORECASE)
@@ -35,6 +36,9 @@ HELPER_WORDS = frozenset({
     "tweak", "parent", "socket", "pivot", "vis", "hint", "aim", "root", "master", "prop", "rot", "ctl",
     "tip", "end", "nub", "null", "snap", "lock", "spin",
 })
+# Helper words that also name a segment of a limb: Genesis' ``lThighBend > lThighTwist > lShin``
+# (a twist bone with the shin hanging from its end is the thigh's lower half, not a helper).
+SEGMENT_WORDS = frozenset({"twist"})
 _SIDES = {"l": 1, "left": 1, "lft": 1, "r": -1, "right": -1, "rgt": -1}
 
 
@@ -73,18 +77,27 @@ def split_name(name: str) -> tuple[int, tuple[str, ...]]:
     return side, tokens
 
 
-def _is_leg_name(tokens: Sequence[str]) -> bool:
+def _is_leg_name(tokens: Sequence[str], segment: bool = False) -> bool:
+    """Whether a name marks a leg bone. ``segment``: the bone is a segment of its chain (the
+    next bone hangs from its end), so a segment word (``lThighTwist``) does not make it a helper."""
     words = set(tokens)
-    return bool(words & LEG_WORDS) and not (words & HELPER_WORDS)
+    helpers = words & HELPER_WORDS
+    if segment:
+        helpers -= SEGMENT_WORDS
+    return bool(words & LEG_WORDS) and not helpers
 
 
 def _is_helper_name(tokens: Sequence[str]) -> bool:
     return bool(set(tokens) & HELPER_WORDS)
 
 
-def _is_control_name(tokens: Sequence[str]) -> bool:
-    """A control or mechanism bone (IK target, pole, twist...); a toe's tip bone is not."""
-    return bool(set(tokens) & (HELPER_WORDS - TIP_WORDS))
+def _is_control_name(tokens: Sequence[str], segment: bool = False) -> bool:
+    """A control or mechanism bone (IK target, pole, twist...); a toe's tip bone is not, nor
+    (``segment``: the next bone of its chain hangs from its end) a limb segment named twist."""
+    words = set(tokens) & (HELPER_WORDS - TIP_WORDS)
+    if segment:
+        words -= SEGMENT_WORDS
+    return bool(words)
 
 
 def _is_non_leg_name(tokens: Sequence[str]) -> bool:

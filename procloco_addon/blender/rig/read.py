@@ -4,13 +4,14 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
 
 import bpy
 import numpy as np
 
-from .detect import LegChain, _forward_axis, _label_legs, find_legs, forward_of, leg_between
+from .detect import LegChain, _control_bones, _forward_axis, _label_legs, find_legs, forward_of, leg_between
 from .info import BodyInfo, RigInfo
 from .rest import (
     _UP,
@@ -238,6 +239,11 @@ def read_rig(
                               for leg in legs]))
     chain = _spine_chain(skel, body_idx, hip_idx, forward, mean_leg)
     carried = spine and _spine_layout(skel, chain, hip_idx, rest.head, rest.end) is not None
+    if not carried:
+        # The body moves as one from its highest plain bone (CC_Base_Hip, not CC_Base_Pelvis).
+        ground = min(float(_chain_points(rest, [rest.index[b] for b in leg.bones])[:, 2].min())
+                     for leg in legs)
+        body_idx = _carrier(obj, rest, body_idx, ground + 0.25 * mean_leg)
 
     basis = _current_basis(obj)
     for name in at_rest:
@@ -333,6 +339,40 @@ def read_rig(
         warnings=tuple(warnings),
         spine_layout=layout,
     )
+
+
+_SKELETON_COPY = re.compile(r"^(ORG|DEF|MCH)[-_.]")
+
+
+def _carrier(obj: bpy.types.Object, rest: _Rest, body: int, above: float) -> int:
+    """The bone that carries the body: ``body`` (the legs' common ancestor), or the highest of
+    its plain ancestors, so no part of the body stays behind when it moves. Character
+    Creator's legs hang from ``CC_Base_Pelvis`` and its spine from ``CC_Base_Hip`` above it,
+    3ds Max Biped's from ``Bip01 Spine`` under ``Bip01 Pelvis``: moving the pelvis alone
+    would leave the upper body (the hips) where they were.
+
+    The climb stops below a bone that is not plain: named as a control or helper (the
+    placement root ``root``, ``CC_Base_BoneRoot``, ``c_root_master``), a mechanism or
+    deform copy (``ORG-``, ``DEF-``, ``MCH-``), driven by a constraint, or with its head no
+    higher than ``above`` (world z: a root at the ground). A body bone that is itself driven
+    (a control rig's) is left to the controls that drive it.
+    """
+    pbones = obj.pose.bones
+    control = _control_bones(rest)
+
+    def plain(i: int) -> bool:
+        name = rest.names[i]
+        return (not control[i] and not rest.phantom[i] and not _SKELETON_COPY.match(name)
+                and not any(c.type in _OVERRIDING_CONSTRAINTS for c in pbones[name].constraints))
+
+    if not plain(body):
+        return body
+    cur = body
+    while True:
+        p = int(rest.parent[cur])
+        if p < 0 or not plain(p) or float(rest.head[p, 2]) <= above:
+            return cur
+        cur = p
 
 
 def _ik_target(obj: bpy.types.Object, rest: _Rest, leg: LegChain) -> tuple[str, int] | None:
