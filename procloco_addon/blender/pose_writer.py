@@ -515,7 +515,8 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
         leg_error = np.stack([np.linalg.norm(got_joints[k][:, -1] - want_joints[k][:, -1], axis=-1)
                               for k in leg_ids], axis=1) if leg_ids else np.zeros((frames.size, 0))
         per_frame = np.stack([_control_error(c, ev, col, armature, index, got_joints, want_joints, scale)
-                              / (_POLE_WEIGHT if c.mode == "POLE" else 1.0) for c in controls], axis=1).max(axis=1)
+                              / (_POLE_WEIGHT if c.mode == "POLE" else 1.0) for c in controls],
+                             axis=1).max(axis=1)
         # Each frame keeps the pass that placed it best: a pass may improve most frames and
         # flip a knee in another (an IK that bends its own way there). The feet and the body
         # come first: a knee counts a hundredth as much (a flipped knee, centimetres off, still
@@ -582,10 +583,10 @@ def _control_error(c: ControlKey, ev: np.ndarray, col: dict[str, int], armature:
         return turn
     if c.mode == "IK":
         moved = np.linalg.norm(got[c.leg][:, -1] - want[c.leg][:, -1], axis=-1)
-    elif c.mode == "MOVE":
-        return np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3], axis=-1) / tol
     else:
         moved = np.linalg.norm(ev[:, col[c.anchor], :3, 3] - armature[:, index[c.anchor], :3, 3], axis=-1)
+        if c.mode == "MOVE":
+            return moved / tol
     return np.maximum(moved / tol, turn)
 
 
