@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The array helpers of the rig modules that replace slower numpy calls (no bpy): the
-element-wise inverse of affine matrices, distinct rows, a bone's children. Each is checked
-against what it stands for (``np.linalg.inv``, ``np.unique(axis=0)``, a scan of the parents),
+element-wise inverse of affine matrices and a bone's children. Each is checked
+against what it stands for (``np.linalg.inv``, a scan of the parents),
 floats within a tolerance (two code paths), decisions exactly."""
 
 from __future__ import annotations
@@ -10,7 +10,6 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from procloco_addon.blender.rig.pose import _unique_rows
 from procloco_addon.blender.rig.rest import _Rest, affine_inverse
 
 seeds = st.integers(0, 2**32 - 1)
@@ -29,20 +28,6 @@ def test_affine_inverse_inverts_bone_and_object_matrices(seed: int, n: int) -> N
     np.testing.assert_allclose(inv @ m, np.broadcast_to(np.eye(4), m.shape), atol=1e-9)
     np.testing.assert_allclose(inv, np.linalg.inv(m), rtol=1e-9, atol=1e-9)
     np.testing.assert_allclose(affine_inverse(m[0]), np.linalg.inv(m[0]), rtol=1e-9, atol=1e-9)
-
-
-@given(seeds, st.integers(1, 300))
-def test_unique_rows_are_the_distinct_rows_and_map_back(seed: int, n: int) -> None:
-    rng = np.random.default_rng(seed)
-    # frames and grid places: many repeats (planted feet), some negative zeros
-    a = np.column_stack([rng.integers(0, 4, n), np.round(rng.normal(size=(n, 2)), 1)]).astype(np.float64)
-    a[rng.random(n) < 0.1, 1] = -0.0
-    uniq, inverse = _unique_rows(a)
-    want, want_inverse = np.unique(a, axis=0, return_inverse=True)
-    np.testing.assert_array_equal(uniq[inverse], a)
-    assert len(uniq) == len(want)
-    np.testing.assert_array_equal(uniq, want)
-    np.testing.assert_array_equal(inverse, want_inverse.reshape(-1))
 
 
 @given(seeds, st.integers(1, 60))
