@@ -360,49 +360,63 @@ def cardinal_samples(
     """
     pts = np.asarray(points, dtype=np.float64)
     n_seg = pts.shape[0] - 1
-    chords = np.diff(pts, axis=0)
+    chords = pts[1:] - pts[:-1]
     h = np.sqrt(np.add.reduce(chords * chords, axis=-1))
-    if np.all(h > 1e-12):  # no coincident points: cardinal_tangents' guarded divisions are plain ones
+    d = pts.shape[1]
+    # the control points of every segment (its two points and two tangents), one row each
+    ctrl = np.empty((n_seg, 4, d))
+    ctrl[:, 0] = pts[:-1]
+    ctrl[:, 1] = pts[1:]
+    if h.min() > 1e-12:  # no coincident points: cardinal_tangents' guarded divisions are plain ones
         direction = np.empty_like(pts)
         direction[1:-1] = (pts[2:] - pts[:-2]) / (h[:-1] + h[1:])[:, None]
         direction[0] = chords[0] / h[0]
         direction[-1] = chords[-1] / h[-1]
         scale = 2.0 * tension * h[:, None]
-        t_start, t_end = direction[:-1] * scale, direction[1:] * scale
+        np.multiply(direction[:-1], scale, out=ctrl[:, 2])
+        np.multiply(direction[1:], scale, out=ctrl[:, 3])
     else:
-        t_start, t_end = cardinal_tangents(pts, tension)
-    # One gather per evaluation: the segment's two points and two tangents.
-    ctrl = np.stack([pts[:-1], pts[1:], t_start, t_end], axis=1)  # (n_seg, 4, d)
+        ctrl[:, 2], ctrl[:, 3] = cardinal_tangents(pts, tension)
     top = float(n_seg)
     k = max(4, int(samples_per_segment))
+    last = n_seg - 1
 
-    def split(t: FloatArray) -> tuple[npt.NDArray[np.intp], FloatArray]:
-        # t is within [0, n_seg] wherever this is called: HermiteCurve's clip changes nothing
-        seg = np.minimum(np.floor(t).astype(np.intp), n_seg - 1)
-        return seg, t - seg
-
-    def combine(w: FloatArray, seg: npt.NDArray[np.intp]) -> FloatArray:
+    def evaluate(t: FloatArray, deriv: bool = False) -> FloatArray:
+        # the curve (or its derivative) at parameters t within [0, n_seg] (HermiteCurve's
+        # clip changes nothing there): the powers of each t by the basis matrix, then the
+        # segment's control points weighted by them (the same products as HermiteCurve's)
+        seg = np.floor(t).astype(np.intp)
+        np.minimum(seg, last, out=seg)
+        s = t - seg
+        if deriv:
+            powers = np.empty((s.size, 3))
+            powers[:, 0] = s**2
+            powers[:, 1] = s
+            powers[:, 2] = 1.0
+            w = powers @ _HERMITE_DERIV_MATRIX
+        else:
+            powers = np.empty((s.size, 4))
+            powers[:, 0] = s**3
+            powers[:, 1] = s**2
+            powers[:, 2] = s
+            powers[:, 3] = 1.0
+            w = powers @ HERMITE_MATRIX
         c = ctrl[seg]
         return np.asarray(w[:, 0:1] * c[:, 0] + w[:, 1:2] * c[:, 1] + w[:, 2:3] * c[:, 2]
                           + w[:, 3:4] * c[:, 3])
 
-    def evaluate(t: FloatArray) -> FloatArray:
-        seg, s = split(t)
-        return combine(np.stack([s**3, s**2, s, np.ones_like(s)], axis=-1) @ HERMITE_MATRIX, seg)
-
-    table_t = _linspace(top, n_seg * k + 1)  # np.linspace(0.0, n - 1.0, ...)
+    table_t = _linspace(top, n_seg * k + 1)
     dense = evaluate(table_t)
-    d = np.diff(dense, axis=0)
+    dd = dense[1:] - dense[:-1]
     table_len = np.empty(table_t.size)
     table_len[0] = 0.0
-    np.cumsum(np.sqrt(np.add.reduce(d * d, axis=-1)), out=table_len[1:])
+    np.cumsum(np.sqrt(np.add.reduce(dd * dd, axis=-1)), out=table_len[1:])
     length = float(table_len[-1])
     arc = _linspace(length, max(2, math.ceil(length / spacing) + 1))
     # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.
     t = np.interp(arc, table_len, table_t)  # arc is within [0, length]: its clip changes nothing
     approx = np.interp(t, table_t, table_len)
-    seg, s = split(t)
-    v = combine(np.stack([s**2, s, np.ones_like(s)], axis=-1) @ _HERMITE_DERIV_MATRIX, seg)
+    v = evaluate(t, True)
     speed = np.sqrt(np.add.reduce(v * v, axis=-1))
     fast = speed > 1e-12
     t = t + np.where(fast, (arc - approx) / np.where(fast, speed, 1.0), 0.0)

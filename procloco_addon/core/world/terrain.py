@@ -544,10 +544,13 @@ class _BucketIndex:
             self.items = np.zeros(0, dtype=np.intp)
             self._dims = np.ones(2)
             return
-        ext = hi - lo
-        typical = float(np.median(np.max(ext, axis=1))) if n else 1.0
-        self.origin = lo.min(axis=0)
-        span = hi.max(axis=0) - self.origin
+        # (coordinates one at a time: a reduction across the two columns of an (n, 2) array
+        # is a strided loop, several times slower than two contiguous ones)
+        lx, ly, hx, hy = lo[:, 0], lo[:, 1], hi[:, 0], hi[:, 1]
+        typical = float(np.median(np.maximum(hx - lx, hy - ly)))
+        ox, oy = float(lx.min()), float(ly.min())
+        self.origin = np.array([ox, oy])
+        span = (float(hx.max()) - ox, float(hy.max()) - oy)
         # Buckets the size of a typical item: each item in about four buckets, a point's
         # candidates the few items over its bucket (twice that size gave about 18 candidates
         # per point on a triangulated grid, where the exact test cost more than the lookup).
@@ -556,15 +559,17 @@ class _BucketIndex:
         while (span[0] / bucket + 1) * (span[1] / bucket + 1) > 4.0e6:
             bucket *= 2.0
         self.bucket = bucket
-        nbx = int(span[0] // bucket) + 1
-        nby = int(span[1] // bucket) + 1
+        nbx = math.floor(span[0] / bucket) + 1
+        nby = math.floor(span[1] / bucket) + 1
         self.shape = (nby, nbx)
         # (32-bit indices while they fit: a million triangles make about four million entries)
         idx = np.int32 if n < 2**31 - 1 and nbx * nby + 2 < 2**31 - 1 else np.intp
-        bx0 = ((lo[:, 0] - self.origin[0]) // bucket).astype(idx)
-        bx1 = np.minimum(((hi[:, 0] - self.origin[0]) // bucket).astype(idx), nbx - 1)
-        by0 = ((lo[:, 1] - self.origin[1]) // bucket).astype(idx)
-        by1 = np.minimum(((hi[:, 1] - self.origin[1]) // bucket).astype(idx), nby - 1)
+        # An item's buckets: floor((bound - origin) / bucket), as pairs() finds a point's, so a
+        # point within an item's bounds is within its buckets (both roundings are monotone).
+        bx0 = np.floor((lx - ox) / bucket).astype(idx)
+        bx1 = np.minimum(np.floor((hx - ox) / bucket).astype(idx), nbx - 1)
+        by0 = np.floor((ly - oy) / bucket).astype(idx)
+        by1 = np.minimum(np.floor((hy - oy) / bucket).astype(idx), nby - 1)
         wx = bx1 - bx0 + 1
         counts = wx * (by1 - by0 + 1)
         total = int(counts.sum(dtype=np.int64))
@@ -1238,11 +1243,14 @@ class Environment:
             d = self._dynamic_boxes
             lo = self._box_lo[d]
             hi = self._box_hi[d]
-            cell = max(0.5, float((hi.max(axis=0) - lo.min(axis=0)).max()) / 1024.0)
-            origin = lo.min(axis=0) - cell
+            # (column by column: reductions across an (n, 2) array's columns are strided loops)
+            lx, ly = float(lo[:, 0].min()), float(lo[:, 1].min())
+            hx, hy = float(hi[:, 0].max()), float(hi[:, 1].max())
+            cell = max(0.5, max(hx - lx, hy - ly) / 1024.0)
+            origin = np.array([lx - cell, ly - cell])
             i0 = np.floor((lo - origin) / cell).astype(np.intp)
             i1 = np.floor((hi - origin) / cell).astype(np.intp)
-            nx, ny = (int(v) + 2 for v in i1.max(axis=0))
+            nx, ny = int(i1[:, 0].max()) + 2, int(i1[:, 1].max()) + 2
             reached = np.zeros((nx, ny), dtype=bool)
             box, ix = _ranges_to_pairs(i0[:, 0], i1[:, 0])  # (box, x cell) pairs
             item, iy = _ranges_to_pairs(i0[box, 1], i1[box, 1])  # each with its y cells
