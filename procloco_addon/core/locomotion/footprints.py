@@ -86,7 +86,6 @@ from ..world.pathing import (
     region_frame,
     region_masks,
     segments_clear_each,
-    straightness_score,
     turning_each,
     vertical_factor,
     wavefront_each,
@@ -1007,17 +1006,15 @@ def _straight_plans(
     samples = np.column_stack([sx, sy])
     bl = bounds.tolist()
     turning = turning_each(samples, bl)
+    good = moving & clean
     status = np.where(moving, np.where(clean, 1, 0), -1).tolist()
-    lens = length.tolist()
-    s2 = []
-    for j in range(m):
-        if status[j] != 1:
-            s2.append(0.0)
-            continue
-        a, b = bl[j], bl[j + 1]
-        ddx = float(sx[b - 1] - sx[a])
-        ddy = float(sy[b - 1] - sy[a])
-        s2.append(straightness_score(planar_length(ddx, ddy), lens[j], turning[j]))
+    # straightness_score of every clean plan, element-wise (the same IEEE operations as on
+    # Python floats): direct distance over length, times 1 / (1 + turning / 2 pi)
+    first = bounds[:-1]
+    last = bounds[1:] - 1
+    direct = planar_length(sx[last] - sx[first], sy[last] - sy[first])
+    ratio = np.minimum(direct / np.where(good, length, 1.0), 1.0)
+    s2 = np.where(good, ratio / (1.0 + np.asarray(turning) / (2.0 * math.pi)), 0.0).tolist()
     way = np.stack([np.column_stack([w0x, w0y]), np.column_stack([w1x, w1y])], axis=1)
     return _StraightPlans(status, s2, samples, arc, length, bl, rows, cols, way)
 

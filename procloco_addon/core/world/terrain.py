@@ -989,8 +989,9 @@ class Environment:
         point, box = self._box_pairs(p)
         if point.size:
             np.maximum.at(out, point, self._box_top[box])
-        pt, z, _ = self._static_soup_hits(p)
-        np.maximum.at(out, pt, z)
+        if self._static_soups()[0].n:  # (a scene of boxes and a heightmap has no static soup)
+            pt, z, _ = self._static_soup_hits(p)
+            np.maximum.at(out, pt, z)
         for i in self._dynamic_soups:
             pt, z = self._soup_hits(i, p)
             np.maximum.at(out, pt, z)
