@@ -53,7 +53,7 @@ def _watch(env: Environment, n: int, rng: np.random.Generator) -> Watch:
     offsets = np.concatenate([radius[:, None, None] * dirs, 0.5 * radius[:, None, None] * dirs], axis=1)
     return Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), True, np.zeros((n, 2)),
                  np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)),
-                 np.abs(offsets).max(axis=1))
+                 np.abs(offsets).max(axis=1), np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool))
 
 
 @given(st.integers(0, 10_000))

@@ -39,7 +39,8 @@ class Watch:
     of its samples, ``swing_box (N, 4)`` (min x, min y, max x, max y). A ring whose spot
     stayed put, that nothing moving reached then or reaches now, holds what the static scene
     holds: what was remembered (the same for a swing's samples and what was recorded when it
-    was planned)."""
+    was planned). The spot itself, inside its ring, likewise: what was there at the last
+    look, ``spot_ground (N,)`` and ``spot_forbidden (N,)``, where ``spot_known (N,)``."""
 
     offsets: FloatArray
     ground: FloatArray
@@ -50,6 +51,9 @@ class Watch:
     swing_stirred: BoolArray
     swing_box: FloatArray
     reach: FloatArray
+    spot_ground: FloatArray
+    spot_forbidden: BoolArray
+    spot_known: BoolArray
 
 
 def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray) -> Watch:
@@ -67,7 +71,7 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
     dynamic = bool(env.boxes.dynamic.any()) or any(soup.dynamic for soup in env.soups)
     watch = Watch(offsets, np.zeros((n, 16)), np.zeros((n, 16), dtype=bool), dynamic, np.zeros((n, 2)),
                   np.ones(n, dtype=bool), np.ones(n, dtype=bool), np.zeros((n, 4)),
-                  np.abs(offsets).max(axis=1))
+                  np.abs(offsets).max(axis=1), np.zeros(n), np.zeros(n, dtype=bool), np.zeros(n, dtype=bool))
     watch_reset(env, watch, np.arange(n), foot)
     return watch
 
@@ -94,39 +98,49 @@ def swing_planned(env: Environment, watch: Watch, legs: IntArray, samples: Float
 
 def watch_reset(
     env: Environment, watch: Watch, legs: IntArray, spot: FloatArray,
-    queried: tuple[FloatArray, BoolArray] | None = None,
+    queried: tuple[FloatArray, BoolArray, FloatArray, BoolArray] | None = None,
 ) -> None:
-    """Remember what is around the watched spots ``spot (m, 3)`` of ``legs (m,)`` now (a
-    foot landed, or a swing was planned). ``queried``: the heights and forbidden flags at
-    their ``ring_points`` when the caller asked for them already (in one query with others)."""
+    """Remember what is at and around the watched spots ``spot (m, 3)`` of ``legs (m,)`` now
+    (a foot landed, or a swing was planned). ``queried``: the heights and forbidden flags at
+    their ``ring_points``, then at the spots, when the caller asked for them already (in one
+    query with others)."""
     if not watch.dynamic or legs.size == 0:
         return
     if queried is None:
-        pts = ring_points(watch, legs, spot)
-        queried = (env.height_at(pts), env.forbidden_at(pts))
+        pts = np.concatenate([ring_points(watch, legs, spot), spot[:, :2]])
+        heights, flags = env.height_at(pts), env.forbidden_at(pts)
+        k = heights.size - legs.size
+        queried = (heights[:k], flags[:k], heights[k:], flags[k:])
     watch.ground[legs] = queried[0].reshape(legs.size, -1)
     watch.forbidden[legs] = queried[1].reshape(legs.size, -1)
+    watch.spot_ground[legs] = queried[2]
+    watch.spot_forbidden[legs] = queried[3]
+    watch.spot_known[legs] = True
     watch.spot[legs] = spot[:, :2]
     watch.stirred[legs] = _ring_near(env, watch, legs, spot)
 
 
-#: A look's point query: the heights and forbidden flags at the spots, then at the rings of
-#: the rows ``asked`` of them, and which rings a moving obstacle reaches now (``look_points``).
-LookQuery = tuple[FloatArray, BoolArray, IntArray, BoolArray]
+#: A look's point query: the heights and forbidden flags at the spots of the rows
+#: ``asked[0]``, then at the rings of the rows ``asked[1]``, and which rings a moving
+#: obstacle reaches now (``look_points``).
+LookQuery = tuple[FloatArray, BoolArray, tuple[IntArray, IntArray], BoolArray]
 
 
 def look_points(
     env: Environment, watch: Watch, legs: IntArray, spot: FloatArray
-) -> tuple[FloatArray, IntArray, BoolArray]:
+) -> tuple[FloatArray, tuple[IntArray, IntArray], BoolArray]:
     """What a look at the spots ``spot (m, 3)`` of ``legs`` asks: the points ``(p, 2)`` (the
-    spots, then the rings of the rows ``asked``), ``asked`` and which rings a moving obstacle
-    reaches now ``(m,)``. A ring is asked when its spot moved, or a moving obstacle reached
-    it at the last look or reaches it now; the others hold what the watch remembers."""
+    spots of the rows ``asked[0]``, then the rings of the rows ``asked[1]``), ``asked`` and
+    which rings a moving obstacle reaches now ``(m,)``. A ring is asked when its spot moved,
+    or a moving obstacle reached it at the last look or reaches it now; a spot too, and when
+    the watch does not know what is there; the others hold what the watch remembers."""
     near = _ring_near(env, watch, legs, spot)
     moved = np.any(spot[:, :2] != watch.spot[legs], axis=1)
-    asked = np.flatnonzero(near | moved | watch.stirred[legs])
-    xy = np.concatenate([spot[:, :2], ring_points(watch, legs[asked], spot[asked])])
-    return xy, asked, near
+    stirred = near | moved | watch.stirred[legs]
+    rings = np.flatnonzero(stirred)
+    spots = np.flatnonzero(stirred | ~watch.spot_known[legs])
+    xy = np.concatenate([spot[spots, :2], ring_points(watch, legs[rings], spot[rings])])
+    return xy, (spots, rings), near
 
 
 def look(
@@ -141,24 +155,31 @@ def look(
     moving obstacle closes in on each spot ``(m,)`` (since the last look, a ring point rose
     more than its leg's ``tol (N,)`` above the spot or became forbidden). The rings' memory
     moves on to now."""
-    m = legs.size
     k = watch.offsets.shape[1]
     if queried is None:
         xy, asked, near = look_points(env, watch, legs, spot)
         queried = (env.height_at(xy), env.forbidden_at(xy), asked, near)
-    heights, forbidden, asked, near = queried
+    heights, forbidden, (spots, rings), near = queried
+    m = spots.size
+    here_h = watch.spot_ground[legs]
+    here_f = watch.spot_forbidden[legs]
+    here_h[spots] = heights[:m]
+    here_f[spots] = forbidden[:m]
     ring_h = watch.ground[legs]
     ring_f = watch.forbidden[legs]
-    ring_h[asked] = heights[m:].reshape(asked.size, k)
-    ring_f[asked] = forbidden[m:].reshape(asked.size, k)
+    ring_h[rings] = heights[m:].reshape(rings.size, k)
+    ring_f[rings] = forbidden[m:].reshape(rings.size, k)
     t = tol[legs][:, None]
     rose = (ring_h > watch.ground[legs] + t) & (ring_h > spot[:, 2, None] + t)
     coming = (rose | (ring_f & ~watch.forbidden[legs])).any(axis=1)
     watch.ground[legs] = ring_h
     watch.forbidden[legs] = ring_f
+    watch.spot_ground[legs] = here_h
+    watch.spot_forbidden[legs] = here_f
+    watch.spot_known[legs] = True
     watch.spot[legs] = spot[:, :2]
     watch.stirred[legs] = near
-    return heights[:m], forbidden[:m], coming
+    return here_h, here_f, coming
 
 
 def trajectory_blocked(
@@ -198,12 +219,11 @@ def trajectory_blocked(
     t = tol[legs]
     risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
     cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
-    # the landing spot itself must still be there (the last sample is the target)
-    land_surface = heights[n : n + legs.size]
+    # the landing spot itself must still be there, and nothing moving may be closing in on
+    # it (once per swing: a foot that already moved its landing spot away lands; spot_taken
+    # still stops it landing on the obstacle)
+    land_surface, _, coming = look(env, watch, legs, targets, tol, (heights[n:], flags[n:], rings, near))
     moved = np.abs(land_surface - plan.support[legs]) > t
-    # and nothing moving may be closing in on it (once per swing: a foot that already
-    # moved its landing spot away lands; spot_taken still stops it landing on the obstacle)
-    coming = look(env, watch, legs, targets, tol, (heights[n:], flags[n:], rings, near))[2]
     coming &= ~feet.dodged[legs]
     feet.dodged[legs] |= coming
     out[legs] = cut.any(axis=1) | moved | coming

@@ -389,9 +389,10 @@ def commit(
     samples_all[:, -1] = targets
     plan = feet.plan
     plan.traj[leg_ids] = samples_all
-    ring: tuple[FloatArray, BoolArray] | None = None
+    ring: tuple[FloatArray, BoolArray, FloatArray, BoolArray] | None = None
     if watch.dynamic:
-        # the swings' samples and the watch rings of their landing spots, in one query
+        # the swings' samples (the last one is the landing spot) and the watch rings of
+        # their landing spots, in one query
         flat = samples_all[..., :2].reshape(-1, 2)
         xy = np.concatenate([flat, ring_points(watch, leg_ids, targets)])
         heights = env.height_at(xy)
@@ -400,7 +401,7 @@ def commit(
         plan.ground[leg_ids] = heights[:n].reshape(leg_ids.size, -1)
         plan.forbidden[leg_ids] = flags[:n].reshape(leg_ids.size, -1)
         swing_planned(env, watch, leg_ids, samples_all)
-        ring = (heights[n:], flags[n:])
+        ring = (heights[n:], flags[n:], plan.ground[leg_ids, -1], plan.forbidden[leg_ids, -1])
     plan.u0[leg_ids] = start_u[leg_ids]
     plan.target[leg_ids] = targets
     plan.support[leg_ids] = exact
