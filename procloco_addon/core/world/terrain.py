@@ -905,11 +905,8 @@ class Environment:
         if self._box_index_static is None:
             s = self._static_boxes
             self._box_index_static = _BucketIndex(self._box_lo[s], self._box_hi[s])
-        if self._box_index_dynamic is None:
-            d = self._dynamic_boxes
-            self._box_index_dynamic = _BucketIndex(self._box_lo[d], self._box_hi[d])
         p1, b1 = self._box_index_static.pairs(xy)
-        p2, b2 = self._box_index_dynamic.pairs(xy)
+        p2, b2 = self._dynamic_index().pairs(xy)
         point = np.concatenate([p1, p2])
         box = np.concatenate([self._static_boxes[b1], self._dynamic_boxes[b2]])
         # The point in its box's frame, column by column (1-D gathers: the queries run to
@@ -1205,11 +1202,14 @@ class Environment:
     def moving_near(self, lo: FloatArray, hi: FloatArray) -> BoolArray:
         """``(m,)`` whether a moving box's or moving mesh's ground footprint (its xy bounds)
         may reach each rectangle ``[lo, hi]`` (``(m, 2)`` each, world xy) now: True for every
-        rectangle one reaches (and for some it only comes close to: the boxes are marked on
-        a grid of cells of half a metre or more, and a rectangle over more than three cells
-        across counts as reached). Where it is False, every point query inside the rectangle
-        answers what the static scene alone does (and did at any earlier time when it was
-        False too)."""
+        rectangle one reaches (and for some it only comes within a nanometre of, or that is
+        more than a few metres across). Where it is False, every point query inside the
+        rectangle answers what the static scene alone does (and did at any earlier time when
+        it was False too).
+
+        The moving boxes: a coarse grid of the cells their bounds reach (cells of half a
+        metre or more) rules out most rectangles at once; each other one is tested against
+        the bounds of the boxes in its buckets of the moving boxes' point-query index."""
         m = lo.shape[0]
         out = np.zeros(m, dtype=bool)
         if m == 0:
@@ -1219,14 +1219,17 @@ class Environment:
             top = np.array(reached.shape) - 1
             a = np.floor((lo - origin) / cell).astype(np.intp)
             b = np.floor((hi - origin) / cell).astype(np.intp)
-            out |= np.any(b - a > 2, axis=1)
+            maybe = np.any(b - a > 2, axis=1)
             a = np.minimum(np.maximum(a, 0), top)
             b = np.minimum(np.maximum(b, 0), top)
             # a rectangle over at most three cells each way: those cells
             for di in range(3):
                 x = np.minimum(a[:, 0] + di, b[:, 0])
                 for dj in range(3):
-                    out |= reached[x, np.minimum(a[:, 1] + dj, b[:, 1])]
+                    maybe |= reached[x, np.minimum(a[:, 1] + dj, b[:, 1])]
+            rows = np.flatnonzero(maybe)
+            if rows.size:
+                out[rows] = self._moving_boxes_reach(lo[rows], hi[rows])
         for i, soup in enumerate(self._soups):
             if soup.dynamic and soup.faces.shape[0]:
                 _, t_lo, t_hi = self._soup_triangles(i)
@@ -1235,6 +1238,49 @@ class Environment:
                 s_hi = t_hi.max(axis=0) + off
                 out |= np.all((s_hi >= lo) & (s_lo <= hi), axis=1)
         return out
+
+    def _moving_boxes_reach(self, lo: FloatArray, hi: FloatArray) -> BoolArray:
+        """``(m,)`` whether a moving box's xy bounds, a nanometre larger each way (the point
+        queries' own rounding is far below it), reach each rectangle ``[lo, hi]`` (``(m, 2)``
+        each); rectangles over more than 36 buckets of the index count as reached. The boxes
+        looked at: those in the rectangle's buckets of the moving boxes' point-query index
+        (every box is in every bucket its bounds reach)."""
+        index = self._dynamic_index()
+        m = lo.shape[0]
+        if index.n == 0:
+            return np.zeros(m, dtype=bool)
+        eps = 1e-9
+        nby, nbx = index.shape
+        ox, oy = float(index.origin[0]), float(index.origin[1])
+        bucket = index.bucket
+        x0 = np.maximum(np.floor((lo[:, 0] - eps - ox) / bucket), 0.0).astype(np.intp)
+        x1 = np.minimum(np.floor((hi[:, 0] + eps - ox) / bucket), nbx - 1.0).astype(np.intp)
+        y0 = np.maximum(np.floor((lo[:, 1] - eps - oy) / bucket), 0.0).astype(np.intp)
+        y1 = np.minimum(np.floor((hi[:, 1] + eps - oy) / bucket), nby - 1.0).astype(np.intp)
+        wx = np.maximum(x1 - x0 + 1, 0)
+        count = wx * np.maximum(y1 - y0 + 1, 0)
+        wide = count > 36
+        count[wide] = 0
+        # (rectangle, bucket) pairs, then (rectangle, box) pairs: the buckets' item ranges
+        rect, local = _ranges_to_pairs(np.zeros(m, dtype=np.intp), count - 1)
+        key = (y0[rect] + local // wx[rect]) * nbx + x0[rect] + local % wx[rect]
+        first = index.offsets[key]
+        pair, at = _ranges_to_pairs(first, index.offsets[key + 1] - 1)
+        rect = rect[pair]
+        box = self._dynamic_boxes[index.items[at]]
+        blo, bhi = self._box_lo, self._box_hi
+        hit = ((blo[box, 0] - eps <= hi[rect, 0]) & (bhi[box, 0] + eps >= lo[rect, 0])
+               & (blo[box, 1] - eps <= hi[rect, 1]) & (bhi[box, 1] + eps >= lo[rect, 1]))
+        out = wide.copy()
+        out[rect[hit]] = True
+        return out
+
+    def _dynamic_index(self) -> _BucketIndex:
+        """The moving boxes' point-query index (built at the first query after they moved)."""
+        if self._box_index_dynamic is None:
+            d = self._dynamic_boxes
+            self._box_index_dynamic = _BucketIndex(self._box_lo[d], self._box_hi[d])
+        return self._box_index_dynamic
 
     def _moving_boxes_cover(self) -> tuple[FloatArray, float, BoolArray]:
         """The cells of a coarse grid that a moving box's xy bounds reach (kept until a box
