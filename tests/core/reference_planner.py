@@ -32,9 +32,8 @@ from procloco_addon.core.locomotion.footprints import (
     _disc_offsets,
     _distinct_levels,
     _fail,
-    _hip_reach,
+    _hip_checks,
     _hip_settings,
-    _leg_clear,
     _level_list,
     _reach,
     _sole,
@@ -144,15 +143,11 @@ def score_candidates(
         sel = np.flatnonzero(ok)
         m = sel.size
         clear = np.ones(ok.size, dtype=bool)
-        hips = np.broadcast_to(hip_xy, (m, 2))
-        hip_zs = np.full(m, float(hip_z))
-        settings = np.tile(_hip_settings(leg, rq.reach_sweep, rq.reach_sink), (m, 1))
-        ok[sel] = _hip_reach(xy[sel], z[sel], elev[r[sel], c[sel]], hips, hip_zs, settings)
-        line = sel[ok[sel] & np.isfinite(settings[:, 4])]
-        k = line.size
-        lookup = _WindowLookup([ctx.grids])
-        clear[line] = _leg_clear(xy[line], z[line], hips[:k], hip_zs[:k], settings[:k], lookup,
-                                 np.zeros(k, dtype=np.intp))
+        ok[sel], clear[sel] = _hip_checks(
+            xy[sel], z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
+            np.full(m, float(hip_z)), np.tile(_hip_settings(leg, rq.reach_sweep, rq.reach_sink), (m, 1)),
+            _WindowLookup([ctx.grids]), np.zeros(m, dtype=np.intp),
+        )
         clearance = np.where(clear[ok], 1.0, params.leg_clearance_score)
     else:
         clearance = np.ones(int(np.count_nonzero(ok)))

@@ -573,7 +573,7 @@ def test_footprints_stay_within_the_legs_3d_reach_of_the_hip(hip_z: float) -> No
 
 
 def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
-    from procloco_addon.core.locomotion.footprints import _hip_reach
+    from procloco_addon.core.locomotion.footprints import _hip_checks, _WindowLookup
 
     # Two footprints on the ground (z at their own point 0), one whose foot box reaches 6 cm
     # higher ground (it lands at 0.06): with max_straddle 1 cm only the first is a candidate.
@@ -581,51 +581,7 @@ def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
     z = np.array([0.0, 0.06])
     inf = math.inf
     settings = np.tile([0.01, inf, 0.0, 0.0, inf, 0.0, 0.03], (2, 1))
-    ok = _hip_reach(xy, z, np.zeros(2), np.zeros((2, 2)), np.full(2, 0.3), settings)
+    ok, clear = _hip_checks(xy, z, np.zeros(2), np.zeros((2, 2)), np.full(2, 0.3), settings,
+                            _WindowLookup([window()]), np.zeros(2, dtype=np.intp))
     assert ok.tolist() == [True, False]
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_targets_scored_lazily_by_their_leg_line_end_in_the_order_of_all_scores(
-    seed: int, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """The leg-line criterion is found for each plan's first few targets only and for the
-    rest when its search reaches them: once every plan is finalised, the targets, scores and
-    order are those of scoring every target at once, and every plan's first targets were final
-    from the start."""
-    from procloco_addon.core.locomotion import footprints as fp
-
-    rng = np.random.default_rng(seed)
-    # crates between the hips and the preferred footprints: many leg lines do not clear
-    spots = rng.uniform(-0.1, 0.5, (12, 2)).tolist()
-    w = window([(x, y, 0.07, 0.07, 0.25, ROLE_AVOID) for x, y in spots])
-    settings = replace(P, candidate_radius=0.35, leg_length=0.6)
-    requests = []
-    for _ in range(6):
-        pref = rng.uniform([0.1, -0.15], [0.35, 0.15])
-        hip = pref + rng.uniform([-0.15, 0.2], [0.15, 0.35])
-        requests.append(settings.request(w, START, pref, hip, NO_LEGS, NO_LEGS, 0.0, 0.3))
-    plans = [p for p in (fp._validate(i, rq) for i, rq in enumerate(requests)) if isinstance(p, fp._Plan)]
-
-    def scored() -> fp._Cands:
-        return fp._score_all(plans, fp._Batch(plans))
-
-    lazy = scored()
-    assert lazy.lazy is not None  # some scores were left for later
-    prefix = [(lazy.row_list[b : b + k], lazy.score_list[b : b + k])
-              for b, k in zip(lazy.bounds, lazy.known, strict=False)]
-    lazy.finalize(list(range(len(plans))))
-    monkeypatch.setattr(fp, "_EAGER_TARGETS", 10**9)
-    eager = scored()
-    assert eager.lazy is None
-    assert lazy.bounds == eager.bounds
-    assert lazy.known == lazy.n_valid == eager.n_valid
-    assert lazy.score_list == eager.score_list
-    assert lazy.row_list == eager.row_list
-    assert lazy.col_list == eager.col_list
-    assert np.array_equal(lazy.xy, eager.xy)
-    assert np.array_equal(lazy.z, eager.z)
-    assert any(s < max(lazy.score_list) * settings.leg_clearance_score * 1.01 for s in lazy.score_list)
-    for b, (rows, scores) in zip(lazy.bounds, prefix, strict=False):
-        assert lazy.row_list[b : b + len(rows)] == rows
-        assert lazy.score_list[b : b + len(scores)] == scores
+    assert clear.all()

@@ -42,14 +42,11 @@ plan is a :class:`Couple` with ``ok=False`` and a ``message``.
 ``(n, H, W)`` arrays (:class:`_Batch`: each foot's box at the top-left of its slice, blocked
 past its own size), and every step of the search that does not depend on the others runs
 once for all of them: the other feet's cells, foot kernels, obstacle maps of each slice (one
-dilation per distinct kernel), candidate scores (:func:`_score_all`; the costly leg-line
-criterion, which only ever lowers a score, of each plan's first few targets only, the rest's
-when its search reaches them: :class:`_Cands`), slice levels (:func:`_levels_all`). Then
-the search goes in rounds (:func:`_run`): each foot's search is a :class:`_Search` (its next
-target and slice, its :class:`_Best` couple so far, its counts) that :func:`_next_couple`
-advances over the couples needing no array work and stops at what it needs next
-(:class:`_Next`: the maps of a slice, the rest of its targets' order, a couple evaluated, or
-the end); a round
+dilation per distinct kernel), candidate scores (:func:`_score_all`), slice levels
+(:func:`_levels_all`). Then the search goes in rounds (:func:`_run`): each foot's search is a
+:class:`_Search` (its next target and slice, its :class:`_Best` couple so far, its counts)
+that :func:`_next_couple` advances over the couples needing no array work and stops at what
+it needs next (:class:`_Next`: the maps of a slice, a couple evaluated, or the end); a round
 evaluates the next couple of every foot still searching (its line of sight, its straight
 plan, the wavefronts its couple needs, the 3D trajectories) in a few vectorised calls, and
 :func:`_after_couple` books each. Numpy's cost per call, not its arithmetic, is what a plan
@@ -280,52 +277,44 @@ def _legs_cross_each(
 _LEG_SAMPLES = 16
 
 
-def _hip_reach(
+def _hip_checks(
     xy: FloatArray, z: FloatArray, centre_z: FloatArray, hip: FloatArray, hip_z: FloatArray,
-    settings: FloatArray,
-) -> BoolArray:
-    """Which footprints ``xy (k, 2)`` landing at ``z (k,)`` (the ground at their own point
-    ``centre_z (k,)``) are candidates at all by the checks that need the hip ``hip (k, 2)``
-    at ``hip_z (k,)`` (:class:`LegGeometry`: ``max_straddle``, ``reach_3d``). ``settings``
-    ``(k, 7)``: per footprint ``max_straddle, reach_3d, reach_sweep, reach_sink, leg_length,
-    leg_arch, foot radius`` (``inf``: that check off)."""
-    straddle, reach, sweep, sink = settings[:, 0], settings[:, 1], settings[:, 2], settings[:, 3]
+    settings: FloatArray, windows: _WindowLookup, window_of: IntArray,
+) -> tuple[BoolArray, BoolArray]:
+    """The checks of footprints ``xy (k, 2)`` landing at ``z (k,)`` (the ground at their own
+    point ``centre_z (k,)``) that need the hip ``hip (k, 2)`` at ``hip_z (k,)``
+    (:class:`PlannerParams`): which are candidates at all (``max_straddle``, ``reach_3d``)
+    and which of those have their leg line clear (``leg_length``; True where not checked).
+    ``settings`` ``(k, 7)``: per footprint ``max_straddle, reach_3d, reach_sweep,
+    reach_sink, leg_length, leg_arch, foot radius`` (``inf``: that check off).
+    ``windows``: the elevation maps, ``window_of (k,)``: which of them each footprint plans
+    in."""
+    straddle, reach, sweep, sink, leg, arch, foot_r = settings.T
     ok = ~(z - centre_z > straddle)
     dx = xy[:, 0] - hip[:, 0]
     dy = xy[:, 1] - hip[:, 1]
     dh = np.sqrt(dx * dx + dy * dy) + sweep
     dz = hip_z - z
     dz = np.where(dz > sink, dz - sink, np.where(dz < 0.0, -dz, 0.0))
-    return np.asarray(ok & ~(dh * dh + dz * dz > reach * reach))
-
-
-def _leg_clear(
-    xy: FloatArray, z: FloatArray, hip: FloatArray, hip_z: FloatArray, settings: FloatArray,
-    windows: _WindowLookup, window_of: IntArray,
-) -> BoolArray:
-    """Whether the leg line of footprints ``xy (k, 2)`` landing at ``z (k,)`` clears the
-    ground (:class:`LegGeometry` ``leg_length``, whose check is on for every one of them):
-    the straight line from the footprint up to the hip ``hip (k, 2)`` at ``hip_z (k,)``,
-    bowed up by the arch its joints take over it, must pass over the elevation maps
-    ``windows`` (``window_of (k,)``: which of them each footprint plans in); ``settings``
-    as for :func:`_hip_reach`. Each footprint's answer is its own (any subset of footprints
-    gives the same answers)."""
-    leg, arch, foot_r = settings[:, 4], settings[:, 5], settings[:, 6]
-    clear = np.ones(z.size, dtype=bool)
-    if z.size == 0:
-        return clear
-    # Samples ``(S, m)``: sample by sample, the arithmetic runs along the footprints.
+    ok &= ~(dh * dh + dz * dz > reach * reach)
+    clear = np.ones(ok.size, dtype=bool)
+    rows = np.flatnonzero(ok & np.isfinite(leg))
+    if rows.size == 0:
+        return ok, clear
+    # The leg as the straight line from the footprint up to the hip, bowed up by the arch its
+    # joints take over it: the ground under it must stay below. Samples ``(S, m)``: sample
+    # by sample, the arithmetic runs along the footprints.
     t = ((np.arange(_LEG_SAMPLES) + 0.5) / _LEG_SAMPLES)[:, None]
-    fx, fy, fz = xy[:, 0], xy[:, 1], z
-    vx, vy, vz = hip[:, 0] - fx, hip[:, 1] - fy, hip_z - fz
+    fx, fy, fz = xy[rows, 0], xy[rows, 1], z[rows]
+    vx, vy, vz = hip[rows, 0] - fx, hip[rows, 1] - fy, hip_z[rows] - fz
     flat = np.sqrt(vx * vx + vy * vy)
     chord = np.sqrt(vx * vx + vy * vy + vz * vz)
-    bow = arch * 0.5 * np.sqrt(np.maximum(leg * leg - chord * chord, 0.0))
+    bow = arch[rows] * 0.5 * np.sqrt(np.maximum(leg[rows] * leg[rows] - chord * chord, 0.0))
     line = fz + t * vz + (4.0 * t * (1.0 - t)) * bow
-    own = t * flat < foot_r  # under the foot itself
-    under = windows.heights(fx + t * vx, fy + t * vy, window_of)
-    clear[np.any((under > line + 1e-9) & ~own, axis=0)] = False
-    return clear
+    own = t * flat < foot_r[rows]  # under the foot itself
+    under = windows.heights(fx + t * vx, fy + t * vy, window_of[rows])
+    clear[rows[np.any((under > line + 1e-9) & ~own, axis=0)]] = False
+    return ok, clear
 
 
 def _hip_settings(leg: LegGeometry, sweep: float, sink: float) -> list[float]:
@@ -356,15 +345,6 @@ def _disc_offsets(radius_cells: float) -> IntArray:
     off = off[np.hypot(off[:, 0], off[:, 1]) <= radius_cells + 1e-9]
     off.setflags(write=False)
     return off
-
-
-@functools.lru_cache(maxsize=64)
-def _disc_distances(radius_cells: float) -> FloatArray:
-    """Lengths of :func:`_disc_offsets` (cells)."""
-    off = _disc_offsets(radius_cells)
-    dist = np.hypot(off[:, 0], off[:, 1])
-    dist.setflags(write=False)
-    return dist
 
 
 def _level_list(z0: float, slice_size: float, top: float) -> list[float]:
@@ -614,7 +594,6 @@ class _Next(enum.Enum):
     """What a foot's search needs next (:func:`_next_couple`)."""
 
     MAPS = enum.auto()  # the obstacle maps of its next slice
-    ORDER = enum.auto()  # the final scores and order of its plan's remaining targets
     EVAL = enum.auto()  # its next couple evaluated (line of sight, 2D plan, maybe 3D)
     END = enum.auto()  # nothing: the search is over
 
@@ -667,16 +646,7 @@ class _Cands:
     """The targets (candidates with a positive score) of every plan of a batch, best first
     within each plan, one plan after the other: plan ``k`` owns rows
     ``bounds[k]:bounds[k + 1]``; ``score`` and the cells' rows and columns also as Python lists
-    for the search's bookkeeping.
-
-    The leg-line criterion (:func:`_leg_clear`, a fifth of the score where the leg's line
-    to the hip does not clear the ground) is the costly one and only ever lowers a score, so
-    it is found first for the few best targets of each plan only: plan ``k``'s first
-    ``known[k]`` rows are its final best ones, in their final order (every other target's
-    score is at most ``bound``, its score without that criterion, and sorts after them);
-    :meth:`finalize` finds the rest of a plan's scores and order when its search reaches
-    them (most searches end within the first few targets). ``lazy``: the search data of
-    that step (``None`` when every score is final)."""
+    for the search's bookkeeping."""
 
     xy: FloatArray
     cells: IntArray
@@ -687,69 +657,6 @@ class _Cands:
     score_list: list[float]
     row_list: list[int]
     col_list: list[int]
-    known: list[int]
-    lazy: _LazyLegs | None = None
-
-    def finalize(self, plans: list[int]) -> None:
-        """Every score and the final order of the targets of ``plans``."""
-        lazy = self.lazy
-        assert lazy is not None
-        plans = sorted(plans)
-        rows = np.concatenate([np.arange(self.bounds[k] + self.known[k], self.bounds[k + 1]) for k in plans])
-        pend = rows[~lazy.evaluated[rows]]
-        owner = lazy.plan[pend]
-        clear = _leg_clear(self.xy[pend], self.z[pend], lazy.hip[owner], lazy.hip_z[owner],
-                           lazy.settings[owner], lazy.windows(), owner)
-        self.score[pend] = lazy.bound[pend] * np.where(clear, 1.0, lazy.low[owner])
-        lazy.evaluated[rows] = True
-        # the rest of each plan in score order (ties: nearer the preferred footprint, then
-        # row, then column), the plans staying apart
-        at = rows[np.lexsort((self.cells[rows, 1], self.cells[rows, 0], lazy.dist[rows], -self.score[rows],
-                              lazy.plan[rows]))]
-        for arr in (self.xy, self.cells, self.z, self.score, lazy.dist, lazy.bound):
-            arr[rows] = arr[at]
-        scores = self.score[rows].tolist()
-        r_new = self.cells[rows, 0].tolist()
-        c_new = self.cells[rows, 1].tolist()
-        i = 0
-        for k in plans:
-            a, b = self.bounds[k] + self.known[k], self.bounds[k + 1]
-            self.score_list[a:b] = scores[i : i + b - a]
-            self.row_list[a:b] = r_new[i : i + b - a]
-            self.col_list[a:b] = c_new[i : i + b - a]
-            i += b - a
-            self.known[k] = self.n_valid[k]
-
-
-@dataclass
-class _LazyLegs:
-    """What :meth:`_Cands.finalize` needs to find the leg-line criterion later: per target
-    (aligned with the :class:`_Cands` rows) its ``plan``, ``dist`` (cells from the preferred
-    footprint: the order's tie-break), ``bound`` (its score without the criterion) and
-    whether its score is final (``evaluated``); per plan the ``hip (n, 2)``, ``hip_z (n,)``,
-    :func:`_hip_reach` ``settings (n, 7)`` and the factor ``low (n,)`` of a leg line that does
-    not clear; the windows' elevation lookup (made on first use)."""
-
-    plan: IntArray
-    dist: FloatArray
-    bound: FloatArray
-    evaluated: BoolArray
-    hip: FloatArray
-    hip_z: FloatArray
-    settings: FloatArray
-    low: FloatArray
-    grids: list[WindowGrids]
-    lookup: _WindowLookup | None = None
-
-    def windows(self) -> _WindowLookup:
-        if self.lookup is None:
-            self.lookup = _WindowLookup(self.grids)
-        return self.lookup
-
-
-#: Targets of each plan whose leg-line criterion :func:`_score_all` finds at once (the rest
-#: when the search reaches them).
-_EAGER_TARGETS = 4
 
 
 class _Foot:
@@ -1000,8 +907,6 @@ def _next_couple(f: _Foot, cands: _Cands) -> tuple[_Next, float]:
     while True:
         if st.done or st.pos >= len(order):
             return _Next.END, 0.0
-        if order[st.pos] >= cands.known[f.k]:
-            return _Next.ORDER, 0.0
         t = f.base + order[st.pos]
         if st.level_pos == 0 and not f.exhaustive and st.best is not None and scores[t] <= st.best_score:
             return _Next.END, 0.0  # Appendix E: no couple with this target can beat the best one
@@ -1130,20 +1035,15 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
         pending = active
         while pending:
             need: list[tuple[_Foot, float]] = []
-            ordering: list[_Foot] = []
             for f in pending:
                 kind, level = _next_couple(f, cands)
                 if kind is _Next.MAPS:
                     need.append((f, level))
-                elif kind is _Next.ORDER:
-                    ordering.append(f)
                 elif kind is _Next.EVAL:
                     evals.append((f, level))
             if need:
                 batch.add_maps([f for f, _ in need], [lv for _, lv in need])
-            if ordering:
-                cands.finalize([f.k for f in ordering])
-            pending = [f for f, _ in need] + ordering
+            pending = [f for f, _ in need]
         if not evals:
             return
         m = len(evals)
@@ -1212,9 +1112,6 @@ def _search_alone(batch: _Batch, f: _Foot, cands: _Cands) -> None:
             return
         if kind is _Next.MAPS:
             ctx.maps(level)
-            continue
-        if kind is _Next.ORDER:
-            cands.finalize([f.k])
             continue
         t = f.base + f.order[f.st.pos]
         path = ctx.path_2d(level, (cands.row_list[t], cands.col_list[t]), cands.xy[t])
@@ -1390,16 +1287,21 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     z = batch.max_under(b, r, c, land_off, land_in)
     ok &= np.abs(z - rows[b, col["start_z"]]) <= rows[b, col["max_dz"]]
     hip_z = rows[:, col["hip_z"]]
-    settings = rows[:, col["straddle"] : col["foot_r"] + 1]
-    line = np.zeros(ok.size, dtype=bool)  # the leg-line criterion applies
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
         owner = b[sel]
-        ok[sel] = _hip_reach(np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
-                             hip[owner], hip_z[owner], settings[owner])
-        line[sel] = ok[sel] & np.isfinite(settings[owner, 4])
+        settings = rows[:, col["straddle"] : col["foot_r"] + 1]
+        clear = np.ones(ok.size, dtype=bool)
+        ok[sel], clear[sel] = _hip_checks(
+            np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
+            hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
+        )
+        clearance = np.where(clear, 1.0, rows[b, col["low"]])
+    else:
+        clearance = np.ones(ok.size)
     keep = np.flatnonzero(ok)
-    b, d, r, c, x, y, z, line = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep], line[keep]
+    b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
+    clearance = clearance[keep]
     # Neighbour criteria, the search box padded as "not free".
     n_, H, W = elev.shape
     pad_forb = np.ones((n_, H + 2, W + 2), dtype=bool)
@@ -1419,9 +1321,9 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     free_score = free / 8.0
     edge = np.where(rim, rows[b, col["edge_score"]], 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
-    partial = distance * free_score * edge  # the leg-line factor comes last (see _Cands)
+    partial = distance * free_score * edge * clearance
     live = np.flatnonzero(partial > 0.0)
-    b, d, r, c, line = b[live], d[live], r[live], c[live], line[live]
+    b, d, r, c = b[live], d[live], r[live], c[live]
     x, y, z, partial = x[live], y[live], z[live], partial[live]
     xy = np.column_stack([x, y])
     n_other = rows[:, col["n_other"]].astype(np.intp)
@@ -1440,54 +1342,18 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
         crosses = _legs_cross_each(hip[b], xy, (legs_xy[0], legs_xy[1]), (legs_xy[2], legs_xy[3]), valid)
     else:
         crosses = np.zeros(b.size, dtype=bool)
-    bound = partial * np.where(crosses, 0.0, 1.0)  # the score without the leg-line factor
-    keep = np.flatnonzero(bound > 0.0)
-    b, d, r, c, xy, z, bound, line = (b[keep], d[keep], r[keep], c[keep], xy[keep], z[keep], bound[keep],
-                                      line[keep])
-    dist = _disc_distances(float(rad.max()))[d]
-    score = bound.copy()
-    lazy = None
-    if line.any():
-        # The leg-line factor (low in (0, 1]) of each plan's first targets by that bound now,
-        # and of any it could make zero or raise (a factor outside (0, 1]); the others' when
-        # their plan's search reaches them (_Cands.finalize).
-        order = np.lexsort((c, r, dist, -bound, b))
-        b, r, c, xy, z, bound, score, line, dist = (b[order], r[order], c[order], xy[order], z[order],
-                                                    bound[order], score[order], line[order], dist[order])
-        low = rows[:, col["low"]]
-        low_b = low[b]
-        rank = np.arange(b.size) - np.searchsorted(b, b)
-        now = line & ((rank < _EAGER_TARGETS) | ~((low_b > 0.0) & (low_b <= 1.0)) | ~(bound * low_b > 0.0))
-        lazy = _LazyLegs(b, dist, bound, ~line | now, hip, hip_z, settings, low, [p.grids for p in plans])
-        pend = np.flatnonzero(now)
-        owner = b[pend]
-        clear = _leg_clear(xy[pend], z[pend], hip[owner], hip_z[owner], settings[owner], lazy.windows(),
-                           owner)
-        score[pend] = bound[pend] * np.where(clear, 1.0, low[owner])
-        keep = np.flatnonzero(score > 0.0)
-        b, r, c, xy, z, score = b[keep], r[keep], c[keep], xy[keep], z[keep], score[keep]
-        lazy.plan, lazy.dist, lazy.bound, lazy.evaluated = b, dist[keep], bound[keep], lazy.evaluated[keep]
-        dist = lazy.dist
-    # Best first (where the leg-line factor is still to come: by the bound); ties: nearer the
-    # preferred footprint, then row, then column.
-    order = np.lexsort((c, r, dist, -score, b))
-    b, xy, z, score = b[order], xy[order], z[order], score[order]
+    score = partial * np.where(crosses, 0.0, 1.0)
+    keep = np.flatnonzero(score > 0.0)
+    b, d, r, c, xy, z, score = b[keep], d[keep], r[keep], c[keep], xy[keep], z[keep], score[keep]
+    # Best first; ties: nearer the preferred footprint, then row, then column.
+    order = np.lexsort((c, r, np.hypot(disc[d, 0], disc[d, 1]), -score, b))
+    b = b[order]
     cells = np.column_stack([r[order], c[order]])
-    cuts = np.searchsorted(b, np.arange(n + 1))
-    bl = cuts.tolist()
-    n_valid = [bl[k + 1] - bl[k] for k in range(n)]
-    known = n_valid
-    if lazy is not None:
-        lazy.plan, lazy.dist, lazy.bound, lazy.evaluated = (b, lazy.dist[order], lazy.bound[order],
-                                                            lazy.evaluated[order])
-        # a plan's final best targets: those before its first one whose factor is to come
-        waiting = np.append(np.flatnonzero(~lazy.evaluated), b.size)
-        first = waiting[np.searchsorted(waiting, cuts[:-1])]
-        known = (np.minimum(first, cuts[1:]) - cuts[:-1]).tolist()
-        if known == n_valid:
-            lazy = None
-    return _Cands(xy, cells, z, score, bl, n_valid, score.tolist(), cells[:, 0].tolist(),
-                  cells[:, 1].tolist(), list(known), lazy)
+    score = score[order]
+    cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
+    n_valid = [cuts[k + 1] - cuts[k] for k in range(n)]
+    return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells[:, 0].tolist(),
+                  cells[:, 1].tolist())
 
 
 class _WindowLookup:
