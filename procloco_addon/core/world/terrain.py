@@ -781,7 +781,6 @@ class Environment:
         # points one after the other).
         self._raster_ok: dict[float, BoolArray] = {}
         self._dynamic_sorted: tuple[IntArray, FloatArray, FloatArray, float] | None = None
-        self._moving_cover: tuple[FloatArray, float, BoolArray] | None = None
         self._last_pairs: tuple[tuple[int, ...], bytes, IntArray, IntArray] | None = None
         self._update_box_bounds()
         self.stats = {"tiles_rasterised": 0, "moving_rasterised": 0, "windows": 0}
@@ -824,7 +823,6 @@ class Environment:
         self._update_box_bounds(idx)
         self._box_index_dynamic = None
         self._dynamic_sorted = None
-        self._moving_cover = None
         self._last_pairs = None
         for ok in self._raster_ok.values():
             ok[idx] = False
@@ -1207,29 +1205,14 @@ class Environment:
         rectangle answers what the static scene alone does (and did at any earlier time when
         it was False too).
 
-        The moving boxes: a coarse grid of the cells their bounds reach (cells of half a
-        metre or more) rules out most rectangles at once; each other one is tested against
-        the bounds of the boxes in its buckets of the moving boxes' point-query index."""
+        The moving boxes: each rectangle is tested against the bounds of the boxes in its
+        buckets of the moving boxes' point-query index."""
         m = lo.shape[0]
         out = np.zeros(m, dtype=bool)
         if m == 0:
             return out
         if self._dynamic_boxes.size:
-            origin, cell, reached = self._moving_boxes_cover()
-            top = np.array(reached.shape) - 1
-            a = np.floor((lo - origin) / cell).astype(np.intp)
-            b = np.floor((hi - origin) / cell).astype(np.intp)
-            maybe = np.any(b - a > 2, axis=1)
-            a = np.minimum(np.maximum(a, 0), top)
-            b = np.minimum(np.maximum(b, 0), top)
-            # a rectangle over at most three cells each way: those cells
-            for di in range(3):
-                x = np.minimum(a[:, 0] + di, b[:, 0])
-                for dj in range(3):
-                    maybe |= reached[x, np.minimum(a[:, 1] + dj, b[:, 1])]
-            rows = np.flatnonzero(maybe)
-            if rows.size:
-                out[rows] = self._moving_boxes_reach(lo[rows], hi[rows])
+            out = self._moving_boxes_reach(lo, hi)
         for i, soup in enumerate(self._soups):
             if soup.dynamic and soup.faces.shape[0]:
                 _, t_lo, t_hi = self._soup_triangles(i)
@@ -1281,29 +1264,6 @@ class Environment:
             d = self._dynamic_boxes
             self._box_index_dynamic = _BucketIndex(self._box_lo[d], self._box_hi[d])
         return self._box_index_dynamic
-
-    def _moving_boxes_cover(self) -> tuple[FloatArray, float, BoolArray]:
-        """The cells of a coarse grid that a moving box's xy bounds reach (kept until a box
-        moves): its origin, cell size and ``reached (nx, ny)``; the grid spans the boxes'
-        bounds with a cell of margin around them, its cells never smaller than half a metre."""
-        if self._moving_cover is None:
-            d = self._dynamic_boxes
-            lo = self._box_lo[d]
-            hi = self._box_hi[d]
-            # (column by column: reductions across an (n, 2) array's columns are strided loops)
-            lx, ly = float(lo[:, 0].min()), float(lo[:, 1].min())
-            hx, hy = float(hi[:, 0].max()), float(hi[:, 1].max())
-            cell = max(0.5, max(hx - lx, hy - ly) / 1024.0)
-            origin = np.array([lx - cell, ly - cell])
-            i0 = np.floor((lo - origin) / cell).astype(np.intp)
-            i1 = np.floor((hi - origin) / cell).astype(np.intp)
-            nx, ny = int(i1[:, 0].max()) + 2, int(i1[:, 1].max()) + 2
-            reached = np.zeros((nx, ny), dtype=bool)
-            box, ix = _ranges_to_pairs(i0[:, 0], i1[:, 0])  # (box, x cell) pairs
-            item, iy = _ranges_to_pairs(i0[box, 1], i1[box, 1])  # each with its y cells
-            reached[ix[item], iy] = True
-            self._moving_cover = (origin, cell, reached)
-        return self._moving_cover
 
     def _windows_of(
         self, ctr: FloatArray, n: int, cell: float, plist: list[WindowParams]
