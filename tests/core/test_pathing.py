@@ -476,6 +476,11 @@ def test_plain_python_hull_waypoints_equal_the_numpy_ones(seed: int) -> None:
     gap = float(rng.choice([0.0, 0.02, 0.1]))
     want = reference_pathing.hull_waypoints(s, z, gap).tolist()
     assert _hull_knots_increasing(s.tolist(), z.tolist(), gap) == want
+    # the same points among others (many plans' samples one after the other)
+    pad = int(rng.integers(0, 5))
+    s_all = [-1.0] * pad + s.tolist() + [9.0, 10.0]
+    z_all = [5.0] * pad + z.tolist() + [5.0, 5.0]
+    assert _hull_knots_increasing(s_all, z_all, gap, pad, pad + s.size) == [pad + k for k in want]
 
 
 @given(st.integers(0, 100_000))

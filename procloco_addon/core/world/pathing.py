@@ -597,13 +597,17 @@ def _chord_tolerance(min_gap: float) -> float:
     return 1e-6 * min_gap if min_gap > 0.0 else 1e-9
 
 
-def _hull_knots_increasing(s: list[float], required: list[float], min_gap: float) -> list[int]:
+def _hull_knots_increasing(
+    s: list[float], required: list[float], min_gap: float, start: int = 0, stop: int | None = None
+) -> list[int]:
     """Upper-hull vertices of ``(s, required)`` for strictly increasing ``s`` (a monotone
     chain, collinear points dropped to :data:`_COLLINEAR`), without vertices closer than
     ``min_gap`` to the previous one when the chord that replaces them still clears every
-    sample; in plain Python floats (a few dozen points: cheaper than numpy calls)."""
+    sample; in plain Python floats (a few dozen points: cheaper than numpy calls). Of the
+    points ``start:stop`` only (indices into the whole lists: many plans' samples one after
+    the other are not copied plan by plan)."""
     hull: list[int] = []
-    for k in range(len(s)):
+    for k in range(start, len(s) if stop is None else stop):
         sk = s[k]
         zk = required[k]
         while len(hull) >= 2:
@@ -695,8 +699,7 @@ def lift_each(
     knot_bounds = [0]
     for i in range(n):
         a, b = bounds[i], bounds[i + 1]
-        local = _hull_knots_increasing(s_list[a:b], r_list[a:b], min_gap[i])
-        knots.extend(a + k for k in local)
+        knots.extend(_hull_knots_increasing(s_list, r_list, min_gap[i], a, b))
         knot_bounds.append(len(knots))
     kidx = np.asarray(knots)
     ks = arc[kidx]
