@@ -369,7 +369,20 @@ def commit(
     targets = np.stack([d[4] for d in done])
     ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
     ease = ease * ease * (3.0 - 2.0 * ease)
-    h = env.height_at(targets[:, :2])
+    samples_all[:, -1, :2] = targets[:, :2]
+    n = samples_all.shape[0] * samples_all.shape[1]
+
+    def ask() -> tuple[FloatArray, FloatArray, BoolArray]:
+        # the ground under the footprints; where things move, in one query with the swings'
+        # samples (the last one is the footprint) and the watch rings of their landing spots
+        if not watch.dynamic:
+            return env.height_at(targets[:, :2]), np.zeros(0), np.zeros(0, dtype=bool)
+        xy = np.concatenate([samples_all[..., :2].reshape(-1, 2), ring_points(watch, leg_ids, targets)])
+        heights = env.height_at(xy)
+        k = samples_all.shape[1]
+        return heights[k - 1 : n : k], heights, env.forbidden_at(xy)
+
+    h, heights, flags = ask()
     shifted = False
     for i in np.flatnonzero(h <= VOID).tolist():
         shift = onto_support(env, rig, targets[i, :2], int(chars[i]))
@@ -378,7 +391,7 @@ def commit(
             targets[i, :2] += shift
             shifted = True
     if shifted:
-        h = env.height_at(targets[:, :2])
+        h, heights, flags = ask()
     exact = np.where(h > VOID, h, 0.0)
     drop = targets[:, 2] - exact
     snap = ((drop >= -1e-9) & (drop <= p.snap_tolerance * ctl.step_height[chars])) | (
@@ -391,13 +404,6 @@ def commit(
     plan.traj[leg_ids] = samples_all
     ring: tuple[FloatArray, BoolArray, FloatArray, BoolArray] | None = None
     if watch.dynamic:
-        # the swings' samples (the last one is the landing spot) and the watch rings of
-        # their landing spots, in one query
-        flat = samples_all[..., :2].reshape(-1, 2)
-        xy = np.concatenate([flat, ring_points(watch, leg_ids, targets)])
-        heights = env.height_at(xy)
-        flags = env.forbidden_at(xy)
-        n = flat.shape[0]
         plan.ground[leg_ids] = heights[:n].reshape(leg_ids.size, -1)
         plan.forbidden[leg_ids] = flags[:n].reshape(leg_ids.size, -1)
         swing_planned(env, watch, leg_ids, samples_all)
