@@ -790,12 +790,9 @@ class _Batch:
         at = np.arange(n)
         here = avoid[at, np.where(inside, sc[:, 0], 0), np.where(inside, sc[:, 1], 0)]
         # What swings must clear (pathing.clearance_elevation): avoided cells above the foot
-        # plus its step height left out.
-        if apad.any():
-            above = rows[:, col["start_z"]] + rows[:, col["step_height"]]
-            self.cpad = np.where(apad & (epad > above[:, None, None]), NO_SURFACE, epad)
-        else:
-            self.cpad = epad
+        # plus its step height left out (max_under applies it to the cells it reads).
+        self.apad = apad if apad.any() else None
+        self.above = rows[:, col["start_z"]] + rows[:, col["step_height"]]
         on_avoid = np.flatnonzero(inside & here)
         if on_avoid.size:
             # The foot stands on an avoided obstacle (it moved under the foot): let it leave
@@ -819,13 +816,15 @@ class _Batch:
         (what :meth:`PathContext.kernel_max` gives). ``clearance``: of the elevation a swing
         must clear (:meth:`PathContext.clearance_grid`)."""
         used = np.flatnonzero(member.any(axis=0))
-        grid = self.cpad if clearance else self.epad
-        _, hp, wp = grid.shape
+        _, hp, wp = self.epad.shape
         R = self.pad
         koff = kernel[used, 0] * wp + kernel[used, 1]
         at = plan * (hp * wp) + (rows + R) * wp + (cols + R)
         # kernel cell by cell ``(k, p)``: each gather and the maximum run along the p cells
-        vals = grid.reshape(-1)[koff[:, None] + at]
+        where = koff[:, None] + at
+        vals = self.epad.reshape(-1)[where]
+        if clearance and self.apad is not None:
+            vals = np.where(self.apad.reshape(-1)[where] & (vals > self.above[plan]), NO_SURFACE, vals)
         sel = member[:, used]
         if not sel.all():
             vals = np.where(sel.T[:, plan], vals, -np.inf)
@@ -851,7 +850,10 @@ class _Batch:
         keep = [k for k in range(len(self.plans)) if cands.n_valid[k] > 0]
         if not keep:
             return {}
-        sel = np.asarray(keep)
+        if len(keep) == len(self.plans):  # (every plan: no copies of the stacks)
+            sel: IntArray | slice = slice(None)
+        else:
+            sel = np.asarray(keep)
         core = self.core[sel]
         grown = self.grown_inf[sel]
         blocked = (grown | self.outside[sel]) & ~self.liftoff[sel]
@@ -1302,18 +1304,18 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     keep = np.flatnonzero(ok)
     b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
     clearance = clearance[keep]
-    # Neighbour criteria, the search box padded as "not free".
-    n_, H, W = elev.shape
-    pad_forb = np.ones((n_, H + 2, W + 2), dtype=bool)
-    pad_forb[:, 1:-1, 1:-1] = forbidden | (elev < _VOID_BELOW)
-    pad_elev = np.full((n_, H + 2, W + 2), -np.inf)
-    pad_elev[:, 1:-1, 1:-1] = elev
+    # Neighbour criteria (8, k), neighbour by neighbour; past the stacked boxes "not free"
+    # with no ground (read where they are, not from padded copies of the stacks).
+    _, H, W = elev.shape
     here = elev[b, r, c]
-    nr = r + 1 + _NEIGHBOURS[:, 0, None]
-    nc = c + 1 + _NEIGHBOURS[:, 1, None]
-    ne = pad_elev[b, nr, nc]  # (8, k): neighbour by neighbour
+    nr = r + _NEIGHBOURS[:, 0, None]
+    nc = c + _NEIGHBOURS[:, 1, None]
+    out = (nr < 0) | (nr >= H) | (nc < 0) | (nc >= W)
+    at = (b * H + np.where(out, 0, nr)) * W + np.where(out, 0, nc)
+    ne = np.where(out, -np.inf, elev.reshape(-1)[at])
     edge_h = rows[b, col["edge_height"]]
-    free = np.count_nonzero(~pad_forb[b, nr, nc] & (np.abs(ne - here) <= edge_h), axis=0)
+    taken = out | forbidden.reshape(-1)[at] | (ne < _VOID_BELOW)
+    free = np.count_nonzero(~taken & (np.abs(ne - here) <= edge_h), axis=0)
     rim = np.any(here - ne > edge_h, axis=0)
     ex = x - rows[b, col["pref_x"]]
     ey = y - rows[b, col["pref_y"]]
