@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -461,21 +461,33 @@ def raster_triangles(
     its own grid: ``origin`` ``(k, 2)``, ``cell`` ``(k,)`` and ``shape`` and ``first`` pairs
     of ``(k,)`` arrays (the same arithmetic per triangle as with one grid).
     """
+    parts = list(raster_triangle_pieces(origin, cell, shape, tris, first))
+    if len(parts) == 1:
+        return parts[0]
+    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts]), np.concatenate([p[3] for p in parts]))
+
+
+def raster_triangle_pieces(
+    origin: FloatArray, cell: float | FloatArray, shape: tuple[int, int] | tuple[IntArray, IntArray],
+    tris: FloatArray, first: tuple[int, int] | tuple[IntArray, IntArray] = (0, 0),
+) -> Iterator[tuple[IntArray, IntArray, IntArray, FloatArray]]:
+    """:func:`raster_triangles` in pieces of at most ``_RASTER_CHUNK`` triangles (what it
+    returns, cut: each piece's ``tri`` counts from the first triangle of all), for a caller
+    that uses each piece at once."""
     k = tris.shape[0]
     org = np.asarray(origin, dtype=np.float64)
     cl = np.asarray(cell, dtype=np.float64)
     if k <= _RASTER_CHUNK:
-        return _raster_triangles(org, cl, shape, tris, first)
+        yield _raster_triangles(org, cl, shape, tris, first)
+        return
     per_tri = org.ndim == 2
     grid = [org, cl, np.asarray(shape[0]), np.asarray(shape[1]), np.asarray(first[0]), np.asarray(first[1])]
-    parts = []
     for s0 in range(0, k, _RASTER_CHUNK):
         sl = slice(s0, s0 + _RASTER_CHUNK)
         o, c, ny, nx, f0, f1 = (a[sl] if per_tri and a.ndim else a for a in grid)
         tri, row, col, z = _raster_triangles(o, c, (ny, nx), tris[sl], (f0, f1))
-        parts.append((tri + s0, row, col, z))
-    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
-            np.concatenate([p[2] for p in parts]), np.concatenate([p[3] for p in parts]))
+        yield tri + s0, row, col, z
 
 
 def _min3(v: FloatArray) -> FloatArray:
@@ -1306,10 +1318,18 @@ class Environment:
         lo = origin + np.column_stack([c0 - 1, r0 - 1]) * cell[:, None]
         hi = origin + np.column_stack([c1, r1]) * cell[:, None]
 
-        def paste(rect: IntArray, row: IntArray, col: IntArray, z: FloatArray, avoided: BoolArray) -> None:
-            at = off[rect] + (row - r0[rect]) * w[rect] + (col - c0[rect])
+        # where a cell (row, col) of a rectangle is in the rectangles' flat arrays: its
+        # rectangle's base + row * width + col
+        base = off - r0 * w - c0
+
+        def paste(rect: IntArray, row: IntArray, col: IntArray, z: FloatArray,
+                  avoided: BoolArray | bool) -> None:
+            at = base.take(rect) + row * w.take(rect) + col
             np.maximum.at(elev, at, z)
-            avoid[at[avoided]] = True
+            if avoided is True:
+                avoid[at] = True
+            elif avoided is not False:
+                avoid[at[avoided]] = True
 
         s = self._static_boxes
         if s.size:
@@ -1333,9 +1353,9 @@ class Environment:
             if index is None:
                 index = self._rect_index[i] = _RectIndex(tlo, thi)
             rect, tri = index.pairs(lo, hi)
-            pair, row, col, z = raster_triangles(origin[rect], cell[rect], (r1[rect], c1[rect]), tris[tri],
-                                                 first=(r0[rect], c0[rect]))
-            paste(rect[pair], row, col, z, np.full(pair.size, soup.role == ROLE_AVOID))
+            for pair, row, col, z in raster_triangle_pieces(origin[rect], cell[rect], (r1[rect], c1[rect]),
+                                                            tris[tri], first=(r0[rect], c0[rect])):
+                paste(rect.take(pair), row, col, z, soup.role == ROLE_AVOID)
         for k, (c, i, j) in enumerate(zip(cid.tolist(), ti.tolist(), tj.tolist(), strict=True)):
             key = (self._cells[c], i, j)
             tile = self._tiles.get(key)
