@@ -928,8 +928,12 @@ class Environment:
         self._soups: list[TriangleSoup] = list(soups)
         self.tile_cells = int(tile_cells)
         # Static tiles are filled block by block (a block: block_cells a side), only the blocks
-        # a window covers; the keys of the filled blocks (_block_key), sorted.
-        self.block_cells = 8 if self.tile_cells % 8 == 0 else self.tile_cells
+        # a window covers, when static meshes make a cell dear to rasterise (else a tile at
+        # once: a heightmap's and boxes' cells cost little, and a whole tile is then made in
+        # one go instead of a few blocks at most steps); the keys of the filled blocks
+        # (_block_key), sorted.
+        meshes = any(not soup.dynamic and soup.faces.shape[0] for soup in soups)
+        self.block_cells = 8 if meshes and self.tile_cells % 8 == 0 else self.tile_cells
         self._tiles: dict[_TileKey, tuple[FloatArray, BoolArray]] = {}
         self._filled = np.zeros(0, dtype=np.int64)
         self._cell_ids: dict[float, int] = {}
