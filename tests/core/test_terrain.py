@@ -8,6 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from procloco_addon.core.world import terrain
 from procloco_addon.core.world.terrain import (
     NO_SURFACE,
     ROLE_AVOID,
@@ -517,3 +518,91 @@ def test_point_queries_over_rotated_boxes_equal_a_box_by_box_test(seed: int) -> 
     assert got[0] == hm.heights[0, 0]
     assert got[1] == hm.heights[-1, -1]
     assert got[2] == NO_SURFACE
+
+
+def _grid_mesh(rng: np.random.Generator, n: int, lo: float, hi: float) -> TriangleSoup:
+    """A heightmap-like mesh: an n x n lattice of bumpy vertices in quads cut in two."""
+    xs = np.linspace(lo, hi, n) + rng.uniform(-0.01, 0.01)
+    gx, gy = np.meshgrid(xs, xs + rng.uniform(-0.3, 0.3))
+    gz = 0.03 * np.sin(3.0 * gx) * np.cos(2.0 * gy) + rng.normal(0.0, 0.005, gx.shape)
+    a = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+    faces = np.concatenate([np.column_stack([a, a + 1, a + n + 1]), np.column_stack([a, a + n + 1, a + n])])
+    return TriangleSoup(np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()]), faces, ROLE_GROUND)
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_static_window_grids_are_cut_from_whole_tiles_rasterised_bit_for_bit(seed: int) -> None:
+    # The static grids are filled block by block, in batches of rectangles of many tiles and
+    # cell sizes; every cell must hold exactly what a rasterisation of its whole tile holds
+    # (the tile's origin and arithmetic: what the planner saw when tiles were made whole).
+    rng = np.random.default_rng(seed)
+    tile = int(rng.choice([16, 20, 48, 128]))
+    hm = Heightmap(rng.normal(size=(31, 31)) * 0.05, np.array([-3.1, -2.7]), 0.23) if seed % 3 else None
+    nb = int(rng.integers(0, 20))
+    xy = rng.uniform(-2.5, 2.5, (nb, 2))
+    crates = Boxes(np.column_stack([xy, rng.uniform(-0.05, 0.05, nb)]),
+                   np.column_stack([rng.uniform(0.05, 0.5, (nb, 2)), rng.uniform(0.02, 0.4, nb)]),
+                   rng.uniform(-np.pi, np.pi, nb), rng.choice([ROLE_STEP_OVER, ROLE_AVOID], nb),
+                   np.zeros(nb, dtype=bool))
+    lid = rng.uniform(-1.0, 1.0, (8, 3)) * [0.3, 0.3, 0.2] + [*rng.uniform(-1.0, 1.0, 2), 0.2]
+    soups = [_grid_mesh(rng, 30, -3.0, 3.0), TriangleSoup(lid, rng.integers(0, 8, (12, 3)), ROLE_AVOID),
+             TriangleSoup(np.array([[-5.0, -5.0, 0.1], [5.0, -5.0, 0.0], [0.0, 5.0, 0.4]]),
+                          np.array([[0, 1, 2]]), ROLE_STEP_OVER)]
+    env = Environment(hm, crates, soups, tile_cells=tile)
+    whole: dict[tuple[float, int, int], tuple[np.ndarray, np.ndarray]] = {}
+    for _ in range(3):
+        m = int(rng.integers(1, 6))
+        params = [WindowParams(n_cells=int(rng.integers(3, 60)), cell=float(rng.choice([0.03, 0.05, 0.071])))
+                  for _ in range(m)]
+        for w, prm in zip(env.windows(rng.uniform(-2.5, 2.5, (m, 2)), params), params, strict=True):
+            n, cell = prm.n_cells, prm.cell
+            i0, j0 = (np.rint(w.origin[::-1] / cell)).astype(int)
+            for r in range(n):
+                for c in (0, n - 1, int(rng.integers(0, n))):
+                    ti, tj = (i0 + r) // tile, (j0 + c) // tile
+                    if (cell, ti, tj) not in whole:
+                        whole[(cell, ti, tj)] = env.rasterise(np.array([tj * tile * cell, ti * tile * cell]),
+                                                              cell, (tile, tile))
+                    elev, avoid = whole[(cell, ti, tj)]
+                    ri, ci = i0 + r - ti * tile, j0 + c - tj * tile
+                    assert w.elevation[r, c] == elev[ri, ci]
+                    assert w.avoid[r, c] == avoid[ri, ci]
+
+
+def test_triangles_rasterised_each_on_its_own_grid_part_equal_one_whole_grid_at_a_time(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Per-triangle grids, parts of grids (first, shape) and batches cut in pieces give the
+    # cells and heights of one whole grid at a time, bit for bit.
+    monkeypatch.setattr(terrain, "_RASTER_CHUNK", 7)
+    rng = np.random.default_rng(6)
+    tris = _grid_mesh(rng, 6, -0.4, 0.4)
+    tris = tris.vertices[tris.faces]
+    k = tris.shape[0]
+    origin = rng.uniform(-0.5, -0.3, (k, 2))
+    cell = rng.choice([0.05, 0.07], k)
+    first = (rng.integers(0, 6, k), rng.integers(0, 6, k))
+    shape = (first[0] + rng.integers(3, 12, k), first[1] + rng.integers(3, 12, k))
+    tri, row, col, z = raster_triangles(origin, cell, shape, tris, first)
+    assert tri.size
+    for i in range(k):
+        _, r, c, z1 = raster_triangles(origin[i], float(cell[i]), (int(shape[0][i]), int(shape[1][i])),
+                                       tris[i : i + 1])
+        keep = (r >= first[0][i]) & (c >= first[1][i])
+        mine = tri == i
+        assert sorted(zip(row[mine].tolist(), col[mine].tolist(), z[mine].tolist(), strict=True)) == sorted(
+            zip(r[keep].tolist(), c[keep].tolist(), z1[keep].tolist(), strict=True))
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_rectangle_index_finds_every_item_whose_bounds_overlap(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 300))
+    lo = rng.uniform(-3.0, 3.0, (n, 2))
+    hi = lo + rng.exponential(0.1, (n, 2)) * (1.0 + 20.0 * (rng.random((n, 1)) < 0.05))  # a few wide ones
+    qlo = rng.uniform(-4.0, 4.0, (40, 2))
+    qhi = qlo + rng.uniform(0.0, 1.5, (40, 2))
+    qlo[0], qhi[0] = lo[0], lo[0]  # touching counts
+    query, item = terrain._RectIndex(lo, hi).pairs(qlo, qhi)
+    want = np.nonzero(np.all((hi[None] >= qlo[:, None]) & (lo[None] <= qhi[:, None]), axis=2))
+    assert sorted(zip(query.tolist(), item.tolist(), strict=True)) == sorted(
+        zip(want[0].tolist(), want[1].tolist(), strict=True))

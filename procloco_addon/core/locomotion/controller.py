@@ -152,6 +152,7 @@ class Controller:
         self.avoid: BoolArray = (np.zeros(c, dtype=bool) if avoid is None
                                  else np.broadcast_to(np.asarray(avoid, dtype=bool), (c,)).copy())
         self.bodies: crowd.BodyBoxes | None = None
+        self._spine_n_joints: IntArray | None = None  # (body_boxes)
         self.discs: tuple[FloatArray, FloatArray] = crowd.footprint_discs(self.rig)
         self._near = np.zeros((c, c), dtype=bool)  # crowd.neighbours of this step
         self._crowded = np.zeros(c, dtype=bool)  # characters with a neighbour
@@ -483,12 +484,14 @@ class Controller:
 
     def body_boxes(self) -> crowd.BodyBoxes:
         """Every character's body boxes now (``crowd.body_boxes``; along a spine, per bone)."""
-        n_joints = np.array([m.spine.n_joints if m.spine is not None and sp is not None else 0
-                             for m, sp in zip(self.legs.morphologies, self.link.params, strict=True)],
-                            dtype=np.int64)
+        if self._spine_n_joints is None:  # (fixed: made at the first look)
+            self._spine_n_joints = np.array(
+                [m.spine.n_joints if m.spine is not None and sp is not None else 0
+                 for m, sp in zip(self.legs.morphologies, self.link.params, strict=True)], dtype=np.int64)
         joints = self.spine_joints() if self.link.groups else None
         rig = self.rig
-        return crowd.body_boxes(rig.box_center, rig.box_half, self.body.pos, self.body.yaw, joints, n_joints)
+        return crowd.body_boxes(rig.box_center, rig.box_half, self.body.pos, self.body.yaw, joints,
+                                self._spine_n_joints)
 
     def disc_centers(self) -> FloatArray:
         """``(C, 2)`` world centres of the characters' footprint discs (``self.discs``)."""

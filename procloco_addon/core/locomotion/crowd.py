@@ -96,23 +96,22 @@ def body_boxes(box_center: FloatArray, box_half: FloatArray, pos: FloatArray, ya
     rigid = np.flatnonzero(~spined)
     cos, sin = np.cos(yaw[rigid]), np.sin(yaw[rigid])
     bc = box_center[rigid]
-    owner = [rigid]
     turned = np.stack([cos * bc[:, 0] - sin * bc[:, 1], sin * bc[:, 0] + cos * bc[:, 1]], axis=1)
-    center = [pos[rigid, :2] + turned]
-    half = [box_half[rigid]]
-    yaws = [yaw[rigid]]
-    if spine_joints is not None and spine_n_joints is not None and np.any(spined):
-        for i in np.flatnonzero(spined):
-            j = spine_joints[i, : int(spine_n_joints[i]), :2]
-            seg = np.diff(j, axis=0)
-            length = np.hypot(seg[:, 0], seg[:, 1])
-            width = float(box_half[i, 1])
-            owner.append(np.full(seg.shape[0], i, dtype=np.int64))
-            center.append(0.5 * (j[1:] + j[:-1]))
-            half.append(np.column_stack([0.5 * length + 0.5 * width, np.full(seg.shape[0], width)]))
-            yaws.append(np.arctan2(seg[:, 1], seg[:, 0]))
-    return BodyBoxes(np.concatenate(owner).astype(np.int64), np.concatenate(center), np.concatenate(half),
-                     np.concatenate(yaws))
+    out = BodyBoxes(rigid.astype(np.int64), pos[rigid, :2] + turned, box_half[rigid], yaw[rigid])
+    if spine_joints is None or spine_n_joints is None or not np.any(spined):
+        return out
+    # every spined character's bones at once, character after character, head first
+    sp = np.flatnonzero(spined)
+    bones = np.asarray(spine_n_joints)[sp] - 1
+    j = spine_joints[sp, :, :2]
+    real = np.arange(j.shape[1] - 1)[None, :] < bones[:, None]
+    seg = (j[:, 1:] - j[:, :-1])[real]
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    width = np.repeat(box_half[sp, 1], bones)
+    return BodyBoxes(np.concatenate([out.owner, np.repeat(sp, bones)]).astype(np.int64),
+                     np.concatenate([out.center, (0.5 * (j[:, 1:] + j[:, :-1]))[real]]),
+                     np.concatenate([out.half, np.column_stack([0.5 * length + 0.5 * width, width])]),
+                     np.concatenate([out.yaw, np.arctan2(seg[:, 1], seg[:, 0])]))
 
 
 def _local(boxes: BodyBoxes, xy: FloatArray) -> FloatArray:
@@ -260,19 +259,27 @@ def steer(
     ii, jj = np.nonzero(near)
     if ii.size == 0:
         return out_h, out_v
-    # candidates (C, K, 2) around each preferred velocity
+    # candidates (C, K) around each preferred velocity, x and y apart (every (pair,
+    # candidate) array below runs along the candidates)
     ang = heading[:, None] + np.repeat(_OFFSETS, _SPEEDS.size)[None, :]
     mag = speed[:, None] * np.tile(_SPEEDS, _OFFSETS.size)[None, :]
-    cand = np.stack([np.cos(ang), np.sin(ang)], axis=-1) * mag[..., None]
-    v_i, v_j = velocity[ii], velocity[jj]
+    cand_x, cand_y = np.cos(ang) * mag, np.sin(ang) * mag
+    cx, cy = cand_x[ii], cand_y[ii]
+    vjx, vjy = velocity[jj, 0][:, None], velocity[jj, 1][:, None]
     # reciprocal toward a neighbour that also avoids, a plain velocity obstacle otherwise
-    recip = avoid[jj][:, None, None]
-    u = np.where(recip, 2.0 * cand[ii] - v_i[:, None, :] - v_j[:, None, :], cand[ii] - v_j[:, None, :])
-    p = d[ii, jj][:, None, :]
+    recip = avoid[jj]
+    if np.all(recip):
+        ux = 2.0 * cx - velocity[ii, 0][:, None] - vjx
+        uy = 2.0 * cy - velocity[ii, 1][:, None] - vjy
+    else:
+        r = recip[:, None]
+        ux = np.where(r, 2.0 * cx - velocity[ii, 0][:, None] - vjx, cx - vjx)
+        uy = np.where(r, 2.0 * cy - velocity[ii, 1][:, None] - vjy, cy - vjy)
+    px, py = d[ii, jj, 0][:, None], d[ii, jj, 1][:, None]
     big_r = (radius[ii] + radius[jj])[:, None]
-    a = np.einsum("pkd,pkd->pk", u, u)
-    b = np.einsum("pkd,pkd->pk", np.broadcast_to(p, u.shape), u)
-    cc = np.broadcast_to(np.einsum("pkd,pkd->pk", p, p) - big_r ** 2, a.shape)
+    a = ux * ux + uy * uy
+    b = px * ux + py * uy
+    cc = np.broadcast_to(px * px + py * py - big_r ** 2, a.shape)
     disc = b * b - a * cc
     with np.errstate(divide="ignore", invalid="ignore"):
         root = (b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, 1e-18)
@@ -288,15 +295,18 @@ def steer(
     t_close = b / np.maximum(a, 1e-18)
     d2_close = cc + big_r ** 2 - b * t_close
     close = (b > 0.0) & (t_close < HORIZON) & (d2_close < (_SIDE_CLOSE * big_r) ** 2)
-    wrong = close & (u[..., 0] * p[..., 1] - u[..., 1] * p[..., 0] < 0.0)
+    wrong = close & (ux * py - uy * px < 0.0)
     side = np.logical_or.reduceat(wrong, starts, axis=0)
     w = _W_CONTACT * speed[rows, None]
     contact = w * np.maximum(1.0 / np.maximum(first, 1e-3) - 1.0 / HORIZON, 0.0)
     contact = contact + _W_SIDE * speed[rows, None] * side
-    pref = np.stack([np.cos(heading[rows]), np.sin(heading[rows])], axis=-1) * speed[rows, None]
-    cost = contact + np.linalg.norm(cand[rows] - pref[:, None, :], axis=-1)
+    ex = cand_x[rows] - (np.cos(heading[rows]) * speed[rows])[:, None]
+    ey = cand_y[rows] - (np.sin(heading[rows]) * speed[rows])[:, None]
+    cost = contact + np.sqrt(ex * ex + ey * ey)
     if last is not None:
-        cost = cost + _W_CHANGE * np.linalg.norm(cand[rows] - last[rows, None, :], axis=-1)
+        ex = cand_x[rows] - last[rows, 0][:, None]
+        ey = cand_y[rows] - last[rows, 1][:, None]
+        cost = cost + _W_CHANGE * np.sqrt(ex * ex + ey * ey)
     best = np.argmin(cost, axis=1)
     k_off, k_speed = np.divmod(best, _SPEEDS.size)
     out_h[rows] = heading[rows] + _OFFSETS[k_off]

@@ -20,7 +20,10 @@ For planning, the environment near a character is turned into two grids (thesis 
   apart, since they are not valid footprints but are not inside an obstacle either.
 
 Windows are cut from a fixed world lattice (cell ``(i, j)`` is centred at ``(j, i) * cell``),
-so static content is rasterised once per world tile and cached; moving boxes and meshes are
+so static content is rasterised once and cached in world tiles (each cell computed from its
+tile's origin); a tile is filled block by block, only the blocks some window covers, and the
+new blocks of a whole step (every window, every cell size) are rasterised in one batch, the
+triangles of each static mesh found through a rectangle index; moving boxes and meshes are
 rasterised on demand, only when a window overlaps them, and that raster is reused until they
 move again (thesis: "we compute the map's representation of dynamic objects when they move near
 the multi-legged character"). :meth:`Environment.windows` cuts the windows of a whole step at
@@ -39,7 +42,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -377,15 +380,19 @@ def _ranges_to_pairs(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
 def raster_boxes(
     origin: FloatArray, cell: float | FloatArray, shape: tuple[int, int] | tuple[IntArray, IntArray],
     center_xy: FloatArray, half_x: FloatArray, half_y: FloatArray, yaw: FloatArray,
+    first: tuple[int, int] | tuple[IntArray, IntArray] = (0, 0),
 ) -> tuple[IntArray, IntArray, IntArray]:
     """Cells of a grid overlapped by oriented rectangles.
 
     The grid has cell ``[0, 0]`` centred at ``origin`` ``(2,)``; rectangles have centres
     ``(n, 2)``, half extents ``(n,)`` and yaw ``(n,)``. Returns ``(box, row, col)`` index
-    arrays of every overlapping (rectangle, cell) pair, vectorised over all rectangles.
+    arrays of every overlapping (rectangle, cell) pair, vectorised over all rectangles. Only
+    the grid's rows ``first[0]`` up to ``shape[0]`` and columns ``first[1]`` up to
+    ``shape[1]`` are looked at.
 
     Each rectangle may have its own grid: ``origin`` ``(n, 2)``, ``cell`` ``(n,)`` and
-    ``shape`` a pair of ``(n,)`` arrays (the same arithmetic per rectangle as with one grid).
+    ``shape`` and ``first`` pairs of ``(n,)`` arrays (the same arithmetic per rectangle as
+    with one grid).
     """
     n = center_xy.shape[0]
     if n == 0:
@@ -403,9 +410,9 @@ def raster_boxes(
     ey = half_x * asin + half_y * acos
     fx = (center_xy[:, 0] - org[..., 0]) / cell
     fy = (center_xy[:, 1] - org[..., 1]) / cell
-    j0 = np.maximum(np.floor(fx - ex / cell - 0.5).astype(np.intp), 0)
+    j0 = np.maximum(np.floor(fx - ex / cell - 0.5).astype(np.intp), first[1])
     j1 = np.minimum(np.ceil(fx + ex / cell + 0.5).astype(np.intp), nx - 1)
-    i0 = np.maximum(np.floor(fy - ey / cell - 0.5).astype(np.intp), 0)
+    i0 = np.maximum(np.floor(fy - ey / cell - 0.5).astype(np.intp), first[0])
     i1 = np.minimum(np.ceil(fy + ey / cell + 0.5).astype(np.intp), ny - 1)
     wcols = np.maximum(j1 - j0 + 1, 0)
     hrows = np.maximum(i1 - i0 + 1, 0)
@@ -430,8 +437,14 @@ def raster_boxes(
     return box[hit], row[hit], col[hit]
 
 
+#: Triangles rasterised together at most (larger batches are cut: arrays of about a hundred
+#: thousand (triangle, cell) pairs stay in the processor's cache, twice as fast per pair).
+_RASTER_CHUNK = 2048
+
+
 def raster_triangles(
-    origin: FloatArray, cell: float, shape: tuple[int, int], tris: FloatArray
+    origin: FloatArray, cell: float | FloatArray, shape: tuple[int, int] | tuple[IntArray, IntArray],
+    tris: FloatArray, first: tuple[int, int] | tuple[IntArray, IntArray] = (0, 0),
 ) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
     """Cells of a grid overlapped by triangles ``(k, 3, 3)`` and a height for each.
 
@@ -441,50 +454,129 @@ def raster_triangles(
     triangle's plane over the cell, capped by the triangle's highest vertex: never below the
     highest point of the triangle inside the cell. Returns ``(tri, row, col, z)``; the caller
     takes the maximum per cell.
+
+    The grid has cell ``[0, 0]`` centred at ``origin`` ``(2,)``; only its rows ``first[0]``
+    up to ``shape[0]`` and columns ``first[1]`` up to ``shape[1]`` are looked at (a part of a
+    grid gives exactly the cells and heights of the whole grid there). Each triangle may have
+    its own grid: ``origin`` ``(k, 2)``, ``cell`` ``(k,)`` and ``shape`` and ``first`` pairs
+    of ``(k,)`` arrays (the same arithmetic per triangle as with one grid).
     """
-    ny, nx = shape
+    parts = list(raster_triangle_pieces(origin, cell, shape, tris, first))
+    if len(parts) == 1:
+        return parts[0]
+    return (np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts]),
+            np.concatenate([p[2] for p in parts]), np.concatenate([p[3] for p in parts]))
+
+
+def raster_triangle_pieces(
+    origin: FloatArray, cell: float | FloatArray, shape: tuple[int, int] | tuple[IntArray, IntArray],
+    tris: FloatArray, first: tuple[int, int] | tuple[IntArray, IntArray] = (0, 0),
+) -> Iterator[tuple[IntArray, IntArray, IntArray, FloatArray]]:
+    """:func:`raster_triangles` in pieces of at most ``_RASTER_CHUNK`` triangles (what it
+    returns, cut: each piece's ``tri`` counts from the first triangle of all), for a caller
+    that uses each piece at once."""
+    k = tris.shape[0]
+    org = np.asarray(origin, dtype=np.float64)
+    cl = np.asarray(cell, dtype=np.float64)
+    if k <= _RASTER_CHUNK:
+        yield _raster_triangles(org, cl, shape, tris, first)
+        return
+    per_tri = org.ndim == 2
+    grid = [org, cl, np.asarray(shape[0]), np.asarray(shape[1]), np.asarray(first[0]), np.asarray(first[1])]
+    for s0 in range(0, k, _RASTER_CHUNK):
+        sl = slice(s0, s0 + _RASTER_CHUNK)
+        o, c, ny, nx, f0, f1 = (a[sl] if per_tri and a.ndim else a for a in grid)
+        tri, row, col, z = _raster_triangles(o, c, (ny, nx), tris[sl], (f0, f1))
+        yield tri + s0, row, col, z
+
+
+def _min3(v: FloatArray) -> FloatArray:
+    """``(k,)`` the least of each row of ``v (k, 3)`` (the same as ``v.min(axis=1)``, faster)."""
+    return np.minimum(np.minimum(v[:, 0], v[:, 1]), v[:, 2])
+
+
+def _max3(v: FloatArray) -> FloatArray:
+    """``(k,)`` the greatest of each row of ``v (k, 3)``."""
+    return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
+
+
+def _raster_triangles(
+    org: FloatArray, cl: FloatArray, shape: tuple[int, int] | tuple[IntArray, IntArray], tris: FloatArray,
+    first: tuple[int, int] | tuple[IntArray, IntArray],
+) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+    """:func:`raster_triangles` of one batch (``org`` and ``cl`` arrays already)."""
     k = tris.shape[0]
     e = np.zeros(0, dtype=np.intp)
     if k == 0:
         return e, e.copy(), e.copy(), np.zeros(0)
-    fx = (tris[..., 0] - origin[0]) / cell  # (k, 3) in cells
-    fy = (tris[..., 1] - origin[1]) / cell
-    j0 = np.maximum(np.ceil(fx.min(axis=1) - 0.5).astype(np.intp), 0)
-    j1 = np.minimum(np.floor(fx.max(axis=1) + 0.5).astype(np.intp), nx - 1)
-    i0 = np.maximum(np.ceil(fy.min(axis=1) - 0.5).astype(np.intp), 0)
-    i1 = np.minimum(np.floor(fy.max(axis=1) + 0.5).astype(np.intp), ny - 1)
+    per_tri = org.ndim == 2
+    ox, oy = org[..., 0], org[..., 1]
+    if per_tri:  # (one grid per triangle: its numbers against the triangle's three corners)
+        fx = (tris[..., 0] - ox[:, None]) / (cl[:, None] if cl.ndim else cl)  # (k, 3) in cells
+        fy = (tris[..., 1] - oy[:, None]) / (cl[:, None] if cl.ndim else cl)
+    else:
+        fx = (tris[..., 0] - ox) / cl
+        fy = (tris[..., 1] - oy) / cl
+    j0 = np.maximum(np.ceil(_min3(fx) - 0.5).astype(np.intp), first[1])
+    j1 = np.minimum(np.floor(_max3(fx) + 0.5).astype(np.intp), np.asarray(shape[1]) - 1)
+    i0 = np.maximum(np.ceil(_min3(fy) - 0.5).astype(np.intp), first[0])
+    i1 = np.minimum(np.floor(_max3(fy) + 0.5).astype(np.intp), np.asarray(shape[0]) - 1)
     wcols = np.maximum(j1 - j0 + 1, 0)
     counts = wcols * np.maximum(i1 - i0 + 1, 0)
     tri = np.repeat(np.arange(k, dtype=np.intp), counts)
     if tri.size == 0:
         return e, e.copy(), e.copy(), np.zeros(0)
     start = np.cumsum(counts) - counts
-    local = np.arange(tri.size, dtype=np.intp) - start[tri]
-    col = j0[tri] + local % np.maximum(wcols[tri], 1)
-    row = i0[tri] + local // np.maximum(wcols[tri], 1)
+    local = np.arange(tri.size, dtype=np.intp) - start.take(tri)
+    down, across = np.divmod(local, np.maximum(wcols, 1).take(tri))
+    col = j0.take(tri) + across
+    row = i0.take(tri) + down
+    colf = col.astype(np.float64)
+    rowf = row.astype(np.float64)
     hit = np.ones(tri.size, dtype=bool)
     for a in range(3):
         # Each edge normal and the triangle's extent along it are the triangle's own: found
-        # per triangle, then looked up per (triangle, cell) pair.
+        # per triangle, then looked up per (triangle, cell) pair; the cell's centre and
+        # reach along the normal, (centre - reach) - 1e-12 and (centre + reach) + 1e-12
         b = (a + 1) % 3
         nxa = -(fy[:, b] - fy[:, a])  # (k,)
         nya = fx[:, b] - fx[:, a]
         proj = fx * nxa[:, None] + fy * nya[:, None]  # (k, 3)
-        centre = col * nxa[tri] + row * nya[tri]
-        reach = (0.5 * (np.abs(nxa) + np.abs(nya)))[tri]
-        hit &= ((proj.max(axis=1)[tri] >= centre - reach - 1e-12)
-                & (proj.min(axis=1)[tri] <= centre + reach + 1e-12))
+        centre = colf * nxa.take(tri)
+        centre += rowf * nya.take(tri)
+        reach = (0.5 * (np.abs(nxa) + np.abs(nya))).take(tri)
+        bound = centre - reach
+        bound -= 1e-12
+        hit &= _max3(proj).take(tri) >= bound
+        centre += reach
+        centre += 1e-12
+        hit &= _min3(proj).take(tri) <= centre
     tri, row, col = tri[hit], row[hit], col[hit]
+    colf, rowf = colf[hit], rowf[hit]
     normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
     flat_ok = np.abs(normal[:, 2]) > 1e-12
     nz = np.where(flat_ok, normal[:, 2], 1.0)
     gx = -normal[:, 0] / nz
     gy = -normal[:, 1] / nz
-    px = origin[0] + col * cell - tris[tri, 0, 0]
-    py = origin[1] + row * cell - tris[tri, 0, 1]
-    top = tris[:, :, 2].max(axis=1)
-    plane = tris[tri, 0, 2] + gx[tri] * px + gy[tri] * py + 0.5 * cell * (np.abs(gx[tri]) + np.abs(gy[tri]))
-    z = np.where(flat_ok[tri], np.minimum(plane, top[tri]), top[tri])
+    # the plane's highest point over the cell: z0 + gx px + gy py + half a cell (|gx| + |gy|),
+    # (px, py) the cell's centre from the first corner (origin + col cell - x0)
+    rise = 0.5 * cl * (np.abs(gx) + np.abs(gy))
+    cl_t = cl.take(tri) if cl.ndim else cl
+    px = colf * cl_t
+    px += ox.take(tri) if per_tri else ox
+    px -= tris[:, 0, 0].take(tri)
+    py = rowf * cl_t
+    py += oy.take(tri) if per_tri else oy
+    py -= tris[:, 0, 1].take(tri)
+    px *= gx.take(tri)
+    px += tris[:, 0, 2].take(tri)
+    py *= gy.take(tri)
+    px += py
+    px += rise.take(tri)
+    top = _max3(tris[:, :, 2]).take(tri)
+    z = np.minimum(px, top, out=px)
+    if not np.all(flat_ok):
+        z = np.where(flat_ok.take(tri), z, top)
     return tri, row, col, z
 
 
@@ -617,6 +709,67 @@ class _BucketIndex:
         return point, self.items[pos]
 
 
+class _RectIndex:
+    """Items with 2D bounding boxes for rectangle queries: each item in the one bucket of its
+    lower corner (CSR layout), items wider than a bucket apart; a rectangle's candidates are
+    the buckets from a bucket before its lower corner to its upper corner (each item once)."""
+
+    def __init__(self, lo: FloatArray, hi: FloatArray) -> None:
+        self.lo_x, self.lo_y = lo[:, 0].copy(), lo[:, 1].copy()
+        self.hi_x, self.hi_y = hi[:, 0].copy(), hi[:, 1].copy()
+        n = lo.shape[0]
+        ext = np.max(hi - lo, axis=1) if n else np.zeros(0)
+        # Buckets of two typical items a side (a rectangle's candidates: the items starting
+        # up to a bucket before it)
+        bucket = max(2.0 * float(np.median(ext)) if n else 1.0, 1e-3)
+        self.origin = lo.min(axis=0) if n else np.zeros(2)
+        span = (lo.max(axis=0) - self.origin) if n else np.zeros(2)
+        while (span[0] / bucket + 1) * (span[1] / bucket + 1) > 4.0e6:
+            bucket *= 2.0
+        self.bucket = bucket
+        small = ext <= bucket
+        self.wide = np.nonzero(~small)[0]
+        items = np.nonzero(small)[0]
+        nbx = int(span[0] // bucket) + 1
+        nby = int(span[1] // bucket) + 1
+        self.shape = (nby, nbx)
+        b = np.minimum(np.floor((lo[items] - self.origin) / bucket).astype(np.intp), [nbx - 1, nby - 1])
+        key = b[:, 1] * nbx + b[:, 0]
+        self.items = items[np.argsort(key, kind="stable")]
+        self.offsets = np.zeros(nbx * nby + 1, dtype=np.intp)
+        np.cumsum(np.bincount(key, minlength=nbx * nby), out=self.offsets[1:])
+
+    def pairs(self, qlo: FloatArray, qhi: FloatArray) -> tuple[IntArray, IntArray]:
+        """(query, item) pairs of the items whose bounds overlap rectangles ``[qlo, qhi]``
+        (``(q, 2)`` each; bounds touching count)."""
+        nby, nbx = self.shape
+        # An item reaching the rectangle starts at most a bucket before it (its bucket found
+        # with the same arithmetic as the items', from a point a little further back: rounding
+        # only moves the bounds outwards)
+        a = np.floor((qlo - 1.001 * self.bucket - self.origin) / self.bucket)
+        b = np.floor((qhi - self.origin) / self.bucket)
+        bx0 = np.maximum(a[:, 0], 0).astype(np.intp)
+        by0 = np.maximum(a[:, 1], 0).astype(np.intp)
+        bx1 = np.minimum(b[:, 0], nbx - 1).astype(np.intp)
+        by1 = np.minimum(b[:, 1], nby - 1).astype(np.intp)
+        by1 = np.where(bx1 >= bx0, by1, -1)  # (no columns: no rows)
+        query, row = _ranges_to_pairs(by0, by1)
+        start = self.offsets[row * nbx + bx0[query]]
+        stop = self.offsets[row * nbx + bx1[query] + 1]
+        run, pos = _ranges_to_pairs(start, stop - 1)
+        query = query[run]
+        item = self.items[pos]
+        if self.wide.size:
+            q_w, w_w = np.nonzero(np.ones((qlo.shape[0], self.wide.size), dtype=bool))
+            query = np.concatenate([query, q_w])
+            item = np.concatenate([item, self.wide[w_w]])
+        ok = self.hi_x.take(item) >= qlo[:, 0].take(query)
+        ok &= self.hi_y.take(item) >= qlo[:, 1].take(query)
+        ok &= self.lo_x.take(item) <= qhi[:, 0].take(query)
+        ok &= self.lo_y.take(item) <= qhi[:, 1].take(query)
+        return query[ok], item[ok]
+
+
 # ---------------------------------------------------------------------------------------
 # Window grids
 # ---------------------------------------------------------------------------------------
@@ -730,6 +883,25 @@ class WindowGrids:
 # ---------------------------------------------------------------------------------------
 _TileKey = tuple[float, int, int]
 
+_KEY_HALF = 1 << 20  # block rows and columns from -2**20 to 2**20 - 1 in a key
+
+
+def _block_key(cid: IntArray, bi: IntArray, bj: IntArray) -> npt.NDArray[np.int64]:
+    """One int64 per (cell size id, block row, block column) (or per tile), ordered as the
+    triples are."""
+    if bi.size and (min(int(bi.min()), int(bj.min())) < -_KEY_HALF
+                    or max(int(bi.max()), int(bj.max())) >= _KEY_HALF):
+        raise ValueError("a window lies too far from the world origin for its cell size")
+    return np.asarray(((cid.astype(np.int64) * (2 * _KEY_HALF) + (bi + _KEY_HALF)) * (2 * _KEY_HALF)
+                       + (bj + _KEY_HALF)), dtype=np.int64)
+
+
+def _block_of_key(key: npt.NDArray[np.int64]) -> tuple[IntArray, IntArray, IntArray]:
+    """The (cell size id, block row, block column) of keys (:func:`_block_key`)."""
+    rest, bj = np.divmod(key, 2 * _KEY_HALF)
+    cid, bi = np.divmod(rest, 2 * _KEY_HALF)
+    return cid.astype(np.intp), (bi - _KEY_HALF).astype(np.intp), (bj - _KEY_HALF).astype(np.intp)
+
 
 class Environment:
     """Terrain and obstacles, with point queries and cached per-character window grids.
@@ -760,7 +932,18 @@ class Environment:
         self._dynamic_boxes = np.nonzero(self._box_dynamic)[0]
         self._soups: list[TriangleSoup] = list(soups)
         self.tile_cells = int(tile_cells)
+        # Static tiles are filled block by block (a block: block_cells a side), only the blocks
+        # a window covers, when static meshes make a cell dear to rasterise (else a tile at
+        # once: a heightmap's and boxes' cells cost little, and a whole tile is then made in
+        # one go instead of a few blocks at most steps); the keys of the filled blocks
+        # (_block_key), sorted.
+        meshes = any(not soup.dynamic and soup.faces.shape[0] for soup in soups)
+        self.block_cells = 8 if meshes and self.tile_cells % 8 == 0 else self.tile_cells
         self._tiles: dict[_TileKey, tuple[FloatArray, BoolArray]] = {}
+        self._filled = np.zeros(0, dtype=np.int64)
+        self._cell_ids: dict[float, int] = {}
+        self._cells: list[float] = []
+        self._rect_index: dict[int, _RectIndex] = {}
         # Lattice rasters of moving things, reused until they move: key (cell, kind, id).
         self._moving_raster: dict[tuple[float, str, int], tuple[IntArray, IntArray, FloatArray]] = {}
         self._box_index_static: _BucketIndex | None = None
@@ -862,6 +1045,7 @@ class Environment:
     def clear_cache(self) -> None:
         """Forget every cached tile and raster (memory only; results do not change)."""
         self._tiles.clear()
+        self._filled = np.zeros(0, dtype=np.int64)
         self._moving_raster.clear()
         self._raster_offset.clear()
         self._raster_ok.clear()
@@ -1029,8 +1213,12 @@ class Environment:
             if soup.role == ROLE_AVOID:
                 avoid[r, c] = True
 
-    def _heightmap_cells(self, origin: FloatArray, cell: float, shape: tuple[int, int]) -> FloatArray:
-        """Highest terrain height over each cell's area (exact for the bilinear surface).
+    def _heightmap_cells(
+        self, origin: FloatArray, cell: float, shape: tuple[int, int], first: tuple[int, int] = (0, 0)
+    ) -> FloatArray:
+        """Highest terrain height over each cell's area (exact for the bilinear surface):
+        ``shape`` cells from cell ``first`` (row, col) of the grid whose cell ``[0, 0]`` is
+        centred at ``origin`` (a part of a grid holds exactly what the whole grid holds there).
 
         A bilinear patch is linear along grid-parallel lines, so over a rectangle its maximum
         is at a corner of the rectangle cut by the heightmap's grid lines: sample the lattice
@@ -1043,15 +1231,15 @@ class Environment:
             return np.full(shape, NO_SURFACE)
         hny, hnx = hm.heights.shape
 
-        def axis(o: float, n: int, h_o: float, h_n: int) -> tuple[FloatArray, IntArray]:
-            borders = o + (np.arange(n + 1) - 0.5) * cell
+        def axis(o: float, k: int, n: int, h_o: float, h_n: int) -> tuple[FloatArray, IntArray]:
+            borders = o + (np.arange(k, k + n + 1) - 0.5) * cell
             lines = h_o + np.arange(h_n) * hm.cell
             lines = lines[(lines > borders[0]) & (lines < borders[-1])]
             coords = np.union1d(borders, lines)
             return coords, np.searchsorted(coords, borders)
 
-        xs, bx = axis(float(origin[0]), nx, float(hm.origin[0]), hnx)
-        ys, by = axis(float(origin[1]), ny, float(hm.origin[1]), hny)
+        xs, bx = axis(float(origin[0]), first[1], nx, float(hm.origin[0]), hnx)
+        ys, by = axis(float(origin[1]), first[0], ny, float(hm.origin[1]), hny)
         gx, gy = np.meshgrid(xs, ys)
         lattice = hm.sample(np.stack([gx, gy], axis=-1))
         lattice = np.where(lattice < _VOID_BELOW, -np.inf, lattice)
@@ -1060,34 +1248,128 @@ class Environment:
         cells = np.maximum(np.maximum.reduceat(rows, bx[:-1], axis=1), rows[:, bx[1:]])
         return np.where(np.isfinite(cells), cells, NO_SURFACE)
 
-    def _static_tile(self, cell: float, ti: int, tj: int) -> tuple[FloatArray, BoolArray]:
-        key = (cell, ti, tj)
-        tile = self._tiles.get(key)
-        if tile is not None:
-            return tile
+    def _cell_id(self, cell: float) -> int:
+        cid = self._cell_ids.get(cell)
+        if cid is None:
+            cid = self._cell_ids[cell] = len(self._cells)
+            self._cells.append(cell)
+        return cid
+
+    def _fill_static(self, cells: FloatArray, n: IntArray, i0: IntArray, j0: IntArray) -> None:
+        """Make the static grids of windows ready: windows of cell sizes ``cells``, ``n`` cells
+        a side, whose cell ``[0, 0]`` is lattice cell ``(i0, j0)`` (``(m,)`` each). The blocks
+        of the static tiles they cover that no window covered before are rasterised, every
+        block of a tile's new ones' bounding rectangle at once and every rectangle of the
+        call in one batch (:meth:`_raster_static`)."""
+        b = self.block_cells
+        ids = np.array([self._cell_id(c) for c in cells.tolist()], dtype=np.int64)
+        w, bi = _ranges_to_pairs(i0 // b, (i0 + n - 1) // b)
+        v, bj = _ranges_to_pairs(j0[w] // b, (j0[w] + n[w] - 1) // b)
+        key = np.unique(_block_key(ids[w[v]], bi[v], bj))
+        filled = self._filled
+        at = np.minimum(np.searchsorted(filled, key), max(filled.size - 1, 0))
+        todo = key[filled[at] != key] if filled.size else key
+        if todo.size == 0:
+            return
+        cid, bi, bj = _block_of_key(todo)
+        kb = self.tile_cells // b
+        ti, tj = bi // kb, bj // kb
+        # one rectangle per tile: the bounds of its new blocks (in blocks, from the tile's first)
+        tiles, which = np.unique(_block_key(cid, ti, tj), return_inverse=True)
+        g = tiles.size
+        lo_i = np.full(g, kb, dtype=np.int64)
+        lo_j = np.full(g, kb, dtype=np.int64)
+        hi_i = np.full(g, -1, dtype=np.int64)
+        hi_j = np.full(g, -1, dtype=np.int64)
+        np.minimum.at(lo_i, which, bi - ti * kb)
+        np.minimum.at(lo_j, which, bj - tj * kb)
+        np.maximum.at(hi_i, which, bi - ti * kb)
+        np.maximum.at(hi_j, which, bj - tj * kb)
+        t_cid, t_i, t_j = _block_of_key(tiles)
+        self._raster_static(t_cid, t_i, t_j, lo_i * b, (hi_i + 1) * b, lo_j * b, (hi_j + 1) * b)
+        # every block of the rectangles is filled now
+        r, bi = _ranges_to_pairs(lo_i, hi_i)
+        q, bj = _ranges_to_pairs(lo_j[r], hi_j[r])
+        r = r[q]
+        done = _block_key(t_cid[r], t_i[r] * kb + bi[q], t_j[r] * kb + bj)
+        self._filled = np.union1d(filled, done)
+
+    def _raster_static(
+        self, cid: IntArray, ti: IntArray, tj: IntArray, r0: IntArray, r1: IntArray, c0: IntArray,
+        c1: IntArray,
+    ) -> None:
+        """Rasterise the static scene into rectangles of static tiles, all in one batch: tile
+        ``(ti, tj)`` of cell size ``self._cells[cid]``, its rows ``r0`` to ``r1`` and columns
+        ``c0`` to ``c1`` (ends excluded; ``(g,)`` each). Every cell gets the numbers of its
+        whole tile's rasterisation (the same grid, origin and arithmetic: the tile is a cache
+        of the lattice, not a grid of its own)."""
         t = self.tile_cells
-        origin = np.array([tj * t * cell, ti * t * cell])
-        shape = (t, t)
-        elev = self._heightmap_cells(origin, cell, shape)
-        avoid = np.zeros(shape, dtype=bool)
-        lo = origin - cell
-        hi = origin + t * cell
+        g = cid.size
+        cell = np.array(self._cells)[cid]
+        origin = np.column_stack([tj * t * cell, ti * t * cell])  # (each cell of a tile from its origin)
+        h = r1 - r0
+        w = c1 - c0
+        size = h * w
+        off = np.cumsum(size) - size
+        elev = np.full(int(size.sum()), NO_SURFACE)
+        avoid = np.zeros(elev.size, dtype=bool)
+        h_l, w_l, r0_l, c0_l, off_l = h.tolist(), w.tolist(), r0.tolist(), c0.tolist(), off.tolist()
+        if self.heightmap is not None:
+            cell_l = cell.tolist()
+            for k in range(g):
+                elev[off_l[k] : off_l[k] + h_l[k] * w_l[k]] = self._heightmap_cells(
+                    origin[k], cell_l[k], (h_l[k], w_l[k]), (r0_l[k], c0_l[k])).ravel()
+        # the rectangles' world bounds, with a cell of margin
+        lo = origin + np.column_stack([c0 - 1, r0 - 1]) * cell[:, None]
+        hi = origin + np.column_stack([c1, r1]) * cell[:, None]
+
+        # where a cell (row, col) of a rectangle is in the rectangles' flat arrays: its
+        # rectangle's base + row * width + col
+        base = off - r0 * w - c0
+
+        def paste(rect: IntArray, row: IntArray, col: IntArray, z: FloatArray,
+                  avoided: BoolArray | bool) -> None:
+            at = base.take(rect) + row * w.take(rect) + col
+            np.maximum.at(elev, at, z)
+            if avoided is True:
+                avoid[at] = True
+            elif avoided is not False:
+                avoid[at[avoided]] = True
+
         s = self._static_boxes
-        near = s[np.all((self._box_hi[s] >= lo) & (self._box_lo[s] <= hi), axis=1)]
-        self._raster_into(origin, cell, elev, avoid, near, [])
+        if s.size:
+            index = self._rect_index.get(-1)
+            if index is None:
+                index = self._rect_index[-1] = _RectIndex(self._box_lo[s], self._box_hi[s])
+            rect, box = index.pairs(lo, hi)
+            box = s[box]
+            pair, row, col = raster_boxes(origin[rect], cell[rect], (r1[rect], c1[rect]),
+                                          self._box_center[box, :2], 0.5 * self._box_size[box, 0],
+                                          0.5 * self._box_size[box, 1], self._box_yaw[box],
+                                          first=(r0[rect], c0[rect]))
+            rect, box = rect[pair], box[pair]
+            paste(rect, row, col, self._box_center[box, 2] + self._box_size[box, 2],
+                  self._box_role[box] == ROLE_AVOID)
         for i, soup in enumerate(self._soups):
             if soup.dynamic or soup.faces.shape[0] == 0:
                 continue
             tris, tlo, thi = self._soup_triangles(i)
-            sel = np.all((thi >= lo) & (tlo <= hi), axis=1)
-            if np.any(sel):
-                _, r, c, z = raster_triangles(origin, cell, shape, tris[sel])
-                np.maximum.at(elev, (r, c), z)
-                if soup.role == ROLE_AVOID:
-                    avoid[r, c] = True
-        self._tiles[key] = (elev, avoid)
-        self.stats["tiles_rasterised"] += 1
-        return elev, avoid
+            index = self._rect_index.get(i)
+            if index is None:
+                index = self._rect_index[i] = _RectIndex(tlo, thi)
+            rect, tri = index.pairs(lo, hi)
+            for pair, row, col, z in raster_triangle_pieces(origin[rect], cell[rect], (r1[rect], c1[rect]),
+                                                            tris[tri], first=(r0[rect], c0[rect])):
+                paste(rect.take(pair), row, col, z, soup.role == ROLE_AVOID)
+        for k, (c, i, j) in enumerate(zip(cid.tolist(), ti.tolist(), tj.tolist(), strict=True)):
+            key = (self._cells[c], i, j)
+            tile = self._tiles.get(key)
+            if tile is None:
+                tile = self._tiles[key] = (np.full((t, t), NO_SURFACE), np.zeros((t, t), dtype=bool))
+            cut = (slice(r0_l[k], r0_l[k] + h_l[k]), slice(c0_l[k], c0_l[k] + w_l[k]))
+            tile[0][cut] = elev[off_l[k] : off_l[k] + h_l[k] * w_l[k]].reshape(h_l[k], w_l[k])
+            tile[1][cut] = avoid[off_l[k] : off_l[k] + h_l[k] * w_l[k]].reshape(h_l[k], w_l[k])
+        self.stats["tiles_rasterised"] += g
 
     def _cache_moving_boxes(self, cell: float, ids: IntArray) -> None:
         """Rasterise the moving boxes ``ids`` not cached yet, all in one vectorised call."""
@@ -1163,8 +1445,8 @@ class Environment:
     ) -> list[WindowGrids]:
         """:meth:`window` for many characters at once (``(n, 2)`` centres): the moving boxes
         near any of them are rasterised in a single vectorised batch, once per move.
-        ``params``: one :class:`WindowParams` for every window, or one per centre (windows of
-        the same size and cell share that batch; the foot shape may differ)."""
+        ``params``: one :class:`WindowParams` for every window, or one per centre (the foot
+        shape and cell may differ; windows of one size share one elevation stack)."""
         ctr = np.asarray(centers_xy, dtype=np.float64).reshape(-1, 2)
         m = ctr.shape[0]
         if params is None or isinstance(params, WindowParams):
@@ -1173,15 +1455,54 @@ class Environment:
             plist = list(params)
             if len(plist) != m:
                 raise ValueError("give one WindowParams per centre, or one for all")
-        groups: dict[tuple[int, float], list[int]] = {}
-        for w, prm in enumerate(plist):
-            groups.setdefault((int(prm.n_cells), float(prm.cell)), []).append(w)
+        if m == 0:
+            return []
+        cells = np.array([float(prm.cell) for prm in plist])
+        sides = np.array([int(prm.n_cells) for prm in plist], dtype=np.intp)
+        # each window's cell [0, 0] on the world lattice, and its bounds with a cell of margin
+        i0s = np.rint(ctr[:, 1] / cells).astype(np.intp) - sides // 2
+        j0s = np.rint(ctr[:, 0] / cells).astype(np.intp) - sides // 2
+        lo_w = np.column_stack([j0s, i0s]) * cells[:, None] - cells[:, None]
+        hi_w = lo_w + (sides + 1)[:, None] * cells[:, None]
+        self._fill_static(cells, sides, i0s, j0s)
+        near_boxes = self._near_moving_boxes(lo_w, hi_w, cells, sides)
+        # windows of one size share one stack (whatever their cells)
+        groups: dict[int, list[int]] = {}
+        for w, n in enumerate(sides.tolist()):
+            groups.setdefault(n, []).append(w)
         out: list[WindowGrids | None] = [None] * m
-        for (n, cell), ws in groups.items():
-            made = self._windows_of(ctr[ws], n, cell, [plist[w] for w in ws])
+        for n, ws in groups.items():
+            made = self._windows_of(n, cells[ws], i0s[ws], j0s[ws], lo_w[ws], hi_w[ws],
+                                    [near_boxes[w] for w in ws], [plist[w] for w in ws])
             for w, grids in zip(ws, made, strict=True):
                 out[w] = grids
         return [g for g in out if g is not None]
+
+    def _near_moving_boxes(
+        self, lo_w: FloatArray, hi_w: FloatArray, cells: FloatArray, sides: IntArray
+    ) -> list[IntArray]:
+        """The moving boxes near each window (bounds ``lo_w``, ``hi_w`` ``(m, 2)``), their
+        rasters made for the windows' cell sizes: one batch per window size and cell size, in
+        the order of the windows (a moving box's raster is cut from its batch's lattice)."""
+        m = lo_w.shape[0]
+        if not self._dynamic_boxes.size:
+            return [np.zeros(0, dtype=np.intp)] * m
+        # Moving boxes sorted by their min x: each window scans only a narrow x range.
+        d_sorted, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
+        first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left").tolist()
+        last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right").tolist()
+        near_arrays = []
+        for w in range(m):
+            sl = slice(first[w], last[w])
+            ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
+                  & (lo_sorted[sl, 1] <= hi_w[w, 1]))
+            near_arrays.append(d_sorted[sl][ok])
+        batches: dict[tuple[int, float], list[IntArray]] = {}
+        for w, (n, cell) in enumerate(zip(sides.tolist(), cells.tolist(), strict=True)):
+            batches.setdefault((n, cell), []).append(near_arrays[w])
+        for (_, cell), arrays in batches.items():
+            self._cache_moving_boxes(cell, np.unique(np.concatenate(arrays)))
+        return near_arrays
 
     def _dynamic_by_x(self) -> tuple[IntArray, FloatArray, FloatArray, float]:
         """The moving boxes sorted by their min x, their bounds, and the widest one's width
@@ -1266,43 +1587,31 @@ class Environment:
         return self._box_index_dynamic
 
     def _windows_of(
-        self, ctr: FloatArray, n: int, cell: float, plist: list[WindowParams]
+        self, n: int, cells: FloatArray, i0s: IntArray, j0s: IntArray, lo_w: FloatArray, hi_w: FloatArray,
+        near_boxes: list[IntArray], plist: list[WindowParams],
     ) -> list[WindowGrids]:
-        """The windows of one size and cell around ``ctr`` ``(m, 2)``: their static grids
-        copied from the tiles into one stack ``(m, n, n)``, then every moving box's and
-        moving mesh's cached raster near each of them pasted into that stack at once (one
-        ``maximum.at`` for all windows; each window's grids are its slice of the stack)."""
-        m = ctr.shape[0]
-        i0s = np.rint(ctr[:, 1] / cell).astype(np.intp) - n // 2
-        j0s = np.rint(ctr[:, 0] / cell).astype(np.intp) - n // 2
-        lo_w = np.column_stack([j0s, i0s]) * cell - cell
-        hi_w = lo_w + (n + 1) * cell
-        i0_list, j0_list = i0s.tolist(), j0s.tolist()
+        """The windows of one size ``n`` (cell sizes ``cells (m,)``, cell [0, 0] at lattice
+        cell ``(i0s, j0s)``, bounds ``lo_w``, ``hi_w``, the moving boxes ``near_boxes`` near
+        each): their static grids copied from the tiles into one stack ``(m, n, n)``, then
+        every moving box's and moving mesh's cached raster near each of them pasted into that
+        stack at once (one ``maximum.at`` for all windows; each window's grids are its slice
+        of the stack)."""
+        m = cells.size
+        i0_list, j0_list, cell_list = i0s.tolist(), j0s.tolist(), cells.tolist()
         elev_all = np.empty((m, n, n))
         avoid_all = np.empty((m, n, n), dtype=bool)
         for w in range(m):
-            self._static_window(cell, n, i0_list[w], j0_list[w], elev_all[w], avoid_all[w])
+            self._static_window(cell_list[w], n, i0_list[w], j0_list[w], elev_all[w], avoid_all[w])
         # The moving pieces (a box's or a mesh's raster) near each window: (window, piece).
         pieces: list[tuple[IntArray, IntArray, FloatArray]] = []
         piece_window: list[int] = []
         piece_avoid: list[bool] = []
         if self._dynamic_boxes.size:
-            # Moving boxes sorted by their min x: each window scans only a narrow x range.
-            d_sorted, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
-            first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left").tolist()
-            last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right").tolist()
-            near_arrays = []
-            for w in range(m):
-                sl = slice(first[w], last[w])
-                ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
-                      & (lo_sorted[sl, 1] <= hi_w[w, 1]))
-                near_arrays.append(d_sorted[sl][ok])
-            self._cache_moving_boxes(cell, np.unique(np.concatenate(near_arrays)))
             avoid_box = (self._box_role == ROLE_AVOID).tolist()
             raster = self._moving_raster
-            for w, near in enumerate(near_arrays):
+            for w, near in enumerate(near_boxes):
                 for b in near.tolist():
-                    pieces.append(raster[(cell, "box", b)])
+                    pieces.append(raster[(cell_list[w], "box", b)])
                     piece_window.append(w)
                     piece_avoid.append(avoid_box[b])
         for i, soup in enumerate(self._soups):
@@ -1313,7 +1622,7 @@ class Environment:
             s_hi = t_hi.max(axis=0) + self._offset(i)[:2]
             for w in range(m):
                 if np.all(s_hi >= lo_w[w]) and np.all(s_lo <= hi_w[w]):
-                    r, c, z = self._moving_soup_cells(cell, i)
+                    r, c, z = self._moving_soup_cells(cell_list[w], i)
                     # The raster is sorted by row: only the window's rows are taken (a moving
                     # ground of a million triangles covers far more than one window).
                     a, b = np.searchsorted(r, [i0_list[w], i0_list[w] + n])
@@ -1336,6 +1645,7 @@ class Environment:
         for w in range(m):
             prm = plist[w]
             half = (float(prm.foot_half_extents[0]), float(prm.foot_half_extents[1]))
+            cell = cell_list[w]
             origin = np.array([j0_list[w] * cell, i0_list[w] * cell])
             out.append(WindowGrids(origin, cell, elev_all[w], avoid_all[w], half, float(prm.foot_yaw),
                                    stack=(elev_all, w)))
@@ -1345,7 +1655,8 @@ class Environment:
         self, cell: float, n: int, i0: int, j0: int, elev: FloatArray, avoid: BoolArray
     ) -> None:
         """The static grids of the window whose cell [0, 0] is lattice cell (i0, j0), copied
-        from the tiles into ``elev`` and ``avoid`` ``(n, n)``."""
+        from the tiles (filled there by :meth:`_fill_static`) into ``elev`` and ``avoid``
+        ``(n, n)``."""
         t = self.tile_cells
         for ti in range(i0 // t, (i0 + n - 1) // t + 1):
             r_lo = max(i0, ti * t)
@@ -1353,7 +1664,7 @@ class Environment:
             for tj in range(j0 // t, (j0 + n - 1) // t + 1):
                 c_lo = max(j0, tj * t)
                 c_hi = min(j0 + n, (tj + 1) * t)
-                te, ta = self._static_tile(cell, ti, tj)
+                te, ta = self._tiles[(cell, ti, tj)]
                 dst = (slice(r_lo - i0, r_hi - i0), slice(c_lo - j0, c_hi - j0))
                 src = (slice(r_lo - ti * t, r_hi - ti * t), slice(c_lo - tj * t, c_hi - tj * t))
                 elev[dst] = te[src]
