@@ -538,7 +538,8 @@ class SpineBatch:
     ``leg_key (L,)``, ``anchor_key``, ``anchor_joint``, ``flexible``, and step 4's index
     arrays (``joint_segment (J,)``, ``curve_ends``/``curve_end_value``: the joints at their
     key segment's ends, ``leg_pivot``, ``leg_key_joint``, ``leg_bone_row``, ``leg_on_bone
-    (L,)``, ``pad_index``), ``membership (L, K)`` (which node each leg hangs from),
+    (L,)``, ``pad_index``), ``membership (L, K)`` (which node each leg hangs from; and
+    ``membership_t`` its transpose),
     ``leg_count (K,)``, ``has_legs (K,)``, ``node_legs (K, M)``: the legs of each node (``M``
     the most legs of any node; ``node_leg_valid (K, M)`` marks the ones that are there).
 
@@ -576,6 +577,7 @@ class SpineBatch:
     pad_index: IntArray = field(init=False)
     others: IntArray = field(init=False)
     membership: FloatArray = field(init=False)
+    membership_t: FloatArray = field(init=False)
     leg_count: FloatArray = field(init=False)
     has_legs: BoolArray = field(init=False)
     node_legs: IntArray = field(init=False)
@@ -677,6 +679,7 @@ class SpineBatch:
         member = (leg_key[:, None] == np.arange(n_k)[None, :]).astype(np.float64)
         count = member.sum(axis=0)
         set_(self, "membership", member)
+        set_(self, "membership_t", np.ascontiguousarray(member.T))
         set_(self, "leg_count", np.maximum(count, _EPS))
         set_(self, "has_legs", count > _EPS)
         most = int(count.max()) if n_l else 0
@@ -975,12 +978,23 @@ def _rigid_move(spines: SpineBatch, xy: FloatArray, turn: FloatArray, dist: Floa
 # ------------------------------------------------------------------------------- step 3
 
 
+def feet_ahead(spines: SpineBatch, plan: SpinePlan, foot_world: FloatArray) -> FloatArray:
+    """``(C, L)`` how far each foot ``foot_world (C, L, 3)`` is ahead of its key node along
+    the node's heading (what :func:`terrain_guides` and :func:`node_pitch` measure the feet
+    by; give it to them when both run on the same plan and feet)."""
+    leg = spines.leg_key
+    heading = plan.key_heading[:, leg]
+    rel_xy = foot_world[..., :2] - plan.key_xy[:, leg]
+    return np.asarray(rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading))
+
+
 def terrain_guides(
     spines: SpineBatch,
     plan: SpinePlan,
     height_at: HeightFn,
     foot_world: npt.ArrayLike | None = None,
     samples_per_node: int = 12,
+    ahead: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Each key node's preferred height and environment pitch (thesis §4.2.3, figure 4.14).
 
@@ -992,60 +1006,52 @@ def terrain_guides(
     hole uses the ground under the whole body). Returns ``(height, pitch)``, each
     ``(C, K)``: ground height plus the node's rest height, and the slope angle (nose up).
     The controller adds the pseudo-physics offset to ``height`` before :func:`finish_spine`.
+    ``ahead``: :func:`feet_ahead` of these feet, when the caller has it already.
     """
     xy = plan.key_xy
     c, k = xy.shape[0], xy.shape[1]
-    arc = np.zeros((c, k))  # arc length of each node from the head
-    vector_norm(xy[:, 1:] - xy[:, :-1]).cumsum(axis=1, out=arc[:, 1:])
-    margin = spines.slice_margin
-    mid = 0.5 * (arc[:, :-1] + arc[:, 1:])
-    lo = np.empty((c, k))
-    lo[:, 0] = arc[:, 0] - margin
-    lo[:, 1:] = mid
-    hi = np.empty((c, k))
-    hi[:, :-1] = mid
-    hi[:, -1] = arc[:, -1] + margin
     n = max(2, int(samples_per_node))
-    s = lo[..., None] + (hi - lo)[..., None] * _unit_samples(n)  # (C, K, n)
-    pts = _polyline_at(xy, arc, s)  # (C, K, n, 2)
-    z = np.asarray(height_at(pts.reshape(-1, 2)), dtype=np.float64).reshape(s.shape)
-    valid = z > 0.5 * NO_SURFACE
-    x = s
-    lost = ~valid.any(axis=2)  # (C, K)
-    if lost.any():
-        # A node over a hole (nothing under its stretch) uses the ground under the whole body.
-        whole = np.broadcast_to(valid.reshape(c, 1, -1), (c, k, valid[0].size))
-        x = np.concatenate([x, np.broadcast_to(s.reshape(c, 1, -1), whole.shape)], axis=2)
-        z = np.concatenate([z, np.broadcast_to(z.reshape(c, 1, -1), whole.shape)], axis=2)
-        valid = np.concatenate([valid, whole & lost[..., None]], axis=2)
+    d = xy[:, 1:] - xy[:, :-1]  # (C, K - 1, 2)
+    arc = np.zeros((c, k))  # arc length of each node from the head
+    np.sqrt(np.add.reduce(d * d, axis=-1)).cumsum(axis=1, out=arc[:, 1:])
+    margin = spines.slice_margin
+    # node i's stretch: from bounds[i] (half-way to the node in front) to bounds[i + 1]
+    bounds = np.empty((c, k + 1))
+    bounds[:, 0] = arc[:, 0] - margin
+    np.add(arc[:, :-1], arc[:, 1:], out=bounds[:, 1:k])
+    bounds[:, 1:k] *= 0.5
+    bounds[:, k] = arc[:, -1] + margin
+    lo = bounds[:, :-1]
     n_l = spines.n_legs
-    if foot_world is not None and n_l:
+    with_feet = foot_world is not None and n_l > 0
+    own = spines.node_legs  # (K, M): each node's row gets a column per leg of its own
+    width = n + (own.shape[1] if with_feet else 0)
+    x = np.empty((c, k, width))
+    z = np.empty((c, k, width))
+    valid = np.empty((c, k, width), dtype=bool)
+    s = x[..., :n]
+    np.add(lo[..., None], (bounds[:, 1:] - lo)[..., None] * _unit_samples(n), out=s)  # (C, K, n)
+    z[..., :n] = np.asarray(height_at(_polyline_at(xy, d, arc, s).reshape(-1, 2)),
+                            dtype=np.float64).reshape(c, k, n)
+    np.greater(z[..., :n], 0.5 * NO_SURFACE, out=valid[..., :n])
+    if with_feet:
         feet = np.asarray(foot_world, dtype=np.float64).reshape(c, n_l, 3)
-        node_of_leg = spines.leg_key
-        heading = plan.key_heading[:, node_of_leg]
-        fwd = np.empty((c, n_l, 2))  # each leg's node's forward direction
-        fwd[..., 0] = np.cos(heading)
-        fwd[..., 1] = np.sin(heading)
-        rel = feet[..., :2] - xy[:, node_of_leg]
+        if ahead is None:
+            ahead = feet_ahead(spines, plan, feet)
         # arc length grows from the head to the back: a foot ahead of its node comes before it
-        fx = arc[:, node_of_leg] - np.einsum("cli,cli->cl", rel, fwd)  # (C, L)
-        # Each node's row gets a column per leg of its own (as many as the node with the most
-        # legs has; the spare ones not valid).
-        m = x.shape[2]
-        own = spines.node_legs  # (K, M)
-        n_own = own.shape[1]
-        x_all = np.empty((c, k, m + n_own))
-        x_all[..., :m] = x
-        x_all[..., m:] = fx[:, own]
-        z_all = np.empty((c, k, m + n_own))
-        z_all[..., :m] = z
-        z_all[..., m:] = feet[:, own, 2]
-        valid_all = np.empty((c, k, m + n_own), dtype=bool)
-        valid_all[..., :m] = valid
-        valid_all[..., m:] = spines.node_leg_valid
-        x, z, valid = x_all, z_all, valid_all
-    nothing = ~valid.any(axis=2, keepdims=True)
-    if nothing.any():
+        fx = arc[:, spines.leg_key] - ahead  # (C, L)
+        x[..., n:] = fx[:, own]
+        z[..., n:] = feet[:, own, 2]
+        valid[..., n:] = spines.node_leg_valid
+    lost = ~np.logical_or.reduce(valid[..., :n], axis=2)  # (C, K)
+    if np.count_nonzero(lost):
+        # A node over a hole (nothing under its stretch) uses the ground under the whole body.
+        whole = np.broadcast_to(valid[..., :n].reshape(c, 1, -1), (c, k, k * n))
+        x = np.concatenate([x, np.broadcast_to(s.reshape(c, 1, -1), whole.shape)], axis=2)
+        z = np.concatenate([z, np.broadcast_to(z[..., :n].reshape(c, 1, -1), whole.shape)], axis=2)
+        valid = np.concatenate([valid, whole & lost[..., None]], axis=2)
+    nothing = ~np.logical_or.reduce(valid, axis=2, keepdims=True)
+    if np.count_nonzero(nothing):
         # No ground and no feet at all: a flat floor at 0 keeps the numbers finite.
         x = np.concatenate([x, arc[..., None]], axis=2)
         z = np.concatenate([z, np.zeros((c, k, 1))], axis=2)
@@ -1055,19 +1061,22 @@ def terrain_guides(
     return ground[..., 0] + spines.key_rest_height, -np.arctan(slope[..., 0])
 
 
-def _polyline_at(xy: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
-    """Points at arc lengths ``s`` ``(C, K, n)`` along the key polyline (continued straight
-    past both ends): ``(C, K, n, 2)``."""
+def _polyline_at(xy: FloatArray, d: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
+    """Points at arc lengths ``s`` ``(C, K, n)`` along the key polyline ``xy (C, K, 2)``
+    (segments ``d (C, K - 1, 2)``, nodes' arc lengths ``arc (C, K)``; continued straight past
+    both ends): ``(C, K, n, 2)``."""
     c, k = xy.shape[0], xy.shape[1]
     flat = s.reshape(c, -1)
-    seg = _clamp((flat[..., None] >= arc[:, None, 1:-1]).sum(axis=-1), 0, k - 2)  # (C, m)
-    rows = np.arange(c)[:, None]
-    a = xy[rows, seg]
-    b = xy[rows, seg + 1]
-    s0 = arc[rows, seg]
-    span = arc[rows, seg + 1] - s0
-    f = (flat - s0) / np.maximum(span, _EPS)
-    return (a + f[..., None] * (b - a)).reshape(*s.shape, 2)
+    # each segment's start, direction, start's arc length and length, looked up per point
+    table = np.empty((c, k - 1, 6))
+    table[..., 0:2] = xy[:, :-1]
+    table[..., 2:4] = d
+    table[..., 4] = arc[:, :-1]
+    np.subtract(arc[:, 1:], arc[:, :-1], out=table[..., 5])
+    seg = np.add.reduce(flat[..., None] >= arc[:, None, 1:-1], axis=-1)  # (C, m): in 0 .. K - 2
+    at = table[np.arange(c)[:, None], seg]  # (C, m, 6)
+    f = (flat - at[..., 4]) / np.maximum(at[..., 5], _EPS)
+    return (at[..., 0:2] + f[..., None] * at[..., 2:4]).reshape(*s.shape, 2)
 
 
 def node_pitch(
@@ -1076,9 +1085,11 @@ def node_pitch(
     node_z: npt.ArrayLike,
     env_pitch: npt.ArrayLike,
     foot_world: npt.ArrayLike | None,
+    ahead: FloatArray | None = None,
 ) -> FloatArray:
     """Each key node's pitch ``(C, K)`` (thesis §4.2.3): environment pitch averaged with the
-    pitch its feet induce.
+    pitch its feet induce (``ahead``: :func:`feet_ahead` of ``foot_world``, when the caller
+    has it already).
 
     A foot's induced pitch is the angle of the perpendicular to the node-to-foot vector in
     the node's vertical plane, pointing forward: a foot ahead of (or higher than) its place
@@ -1096,9 +1107,8 @@ def node_pitch(
     feet = np.asarray(foot_world, dtype=np.float64).reshape(c, spines.n_legs, 3)
     z = _as_shape(node_z, (c, k))
     leg = spines.leg_key
-    heading = plan.key_heading[:, leg]
-    rel_xy = feet[..., :2] - plan.key_xy[:, leg]
-    ahead = rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading)
+    if ahead is None:
+        ahead = feet_ahead(spines, plan, feet)
     below = z[:, leg] - feet[..., 2]
     rest_ahead = spines.rest_foot_ahead
     # The rest place on the sloped ground: further below the node behind it, less ahead.
@@ -1445,11 +1455,12 @@ def reach_repeats(
         to_foot = (feet if rows is None else feet[rows]) - hip
         dist = vector_norm(to_foot)
         reach = reach_all if rows is None else reach_all[rows]
-        stretched = (dist > reach + 1e-12).any(axis=1)
-        if not stretched.any():
+        stretched = np.logical_or.reduce(dist > reach + 1e-12, axis=1)
+        n_stretched = np.count_nonzero(stretched)
+        if not n_stretched:
             break
         excess = np.maximum(dist - slack * reach, 0.0)
-        if rows is None and stretched.all():
+        if rows is None and n_stretched == stretched.size:
             cap = cap_all
             base = start
         else:
@@ -1461,7 +1472,7 @@ def reach_repeats(
             base = start[rows]
         pull = to_foot * (excess * excess / np.maximum(dist, _EPS))[..., None]
         weight = excess @ member  # (c, K)
-        shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
+        shift = (spines.membership_t @ pull) / np.maximum(weight, _EPS)[..., None]  # (c, K, 3)
         moved = sub.guide_xyz + shift - base
         size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, cap / np.maximum(size, _EPS))
@@ -1537,6 +1548,7 @@ __all__ = [
     "SpinePose",
     "SpineState",
     "build_spine",
+    "feet_ahead",
     "finish_spine",
     "frame_from_yaw_pitch",
     "ground_guides",
