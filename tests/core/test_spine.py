@@ -24,9 +24,6 @@ from procloco_addon.core.locomotion.spine import (
     leg_frames,
     node_pitch,
     plan_spine,
-    reach_repeats,
-    reach_repeats_along,
-    refit,
     repeat_for_reach,
     spine_step,
     terrain_guides,
@@ -724,46 +721,6 @@ def test_a_batch_of_different_spines_steps_each_as_it_would_alone() -> None:
     # the settings did act: the visual yaw turned the third character's nodes only
     assert np.abs(pose.key_yaw[2] - plan.key_heading[2]).max() > 0.01
     assert np.abs(pose.key_yaw[:2] - plan.key_heading[:2]).max() == 0.0
-
-
-def test_guides_built_along_the_reach_repeats_are_those_of_each_characters_last_repeat() -> None:
-    """``reach_repeats_along`` builds other guides in the same calls as the repeats (the
-    controller's release of last frame's pulls): the repeats come out as without them, and
-    each character gets the poses of the guides made from its own last repeat (characters
-    pulled several times, once and never in one batch)."""
-    base = quadruped(arched=True)
-    batch = SpineBatch.stack([base, _scaled(base, 1.3), _scaled(base, 0.8)], [SpineParams()] * 3)
-    size = np.array([1.0, 1.3, 0.8])
-    origins = np.array([[0.0, 0.0], [2.0, 1.0], [-1.5, 2.5]])
-    state = SpineState.at_rest(batch, origins, np.array([0.0, 1.0, -2.0]))
-    plan = plan_spine(batch, state, np.array([0.3, 1.2, -1.9]), 0.02 * size, DT)
-    pose = finish_spine(batch, plan, *terrain_guides(batch, plan, _wavy))
-    feet = hip_positions(batch, pose)
-    feet[..., 2] -= 0.55 * size[:, None]
-    feet[0, :, 0] += 0.15  # the first character's feet far ahead, its pulls capped: pulled four times
-    # the last character pulled once, the middle one never
-    reach = np.array([0.56, 10.0, 0.549])[:, None] * size[:, None] * np.ones(4)
-    cap = np.array([0.005, 1.0, 1.0])
-    lift = np.array([0.0, 0.01, 0.02])
-
-    def along(rows: np.ndarray | None, guides: np.ndarray) -> np.ndarray:
-        return np.asarray(guides + lift)
-
-    first = refit(batch, pose, along(None, pose.guide_xyz))
-    out = reach_repeats_along(batch, pose, feet, reach, iterations=4, max_shift=cap, along=along,
-                              along_start=(first, hip_positions(batch, first)))
-    plain, plain_hips = reach_repeats(batch, pose, feet, reach, iterations=4, max_shift=cap)
-    moved = np.abs(plain.guide_xyz - pose.guide_xyz).max(axis=(1, 2))
-    assert moved[0] > 0.0
-    assert moved[2] > 0.0
-    assert moved[1] == 0.0
-    assert_close(out.pose.joints, plain.joints, "joints")
-    assert_close(out.hips, plain_hips, "hips")
-    want = refit(batch, plain, plain.guide_xyz + lift)
-    assert out.along is not None
-    assert out.along_hips is not None
-    assert_close(out.along.joints, want.joints, "along joints")
-    assert_close(out.along_hips, hip_positions(batch, want), "along hips")
 
 
 def test_a_batch_needs_one_structure_and_one_kind_of_spine() -> None:

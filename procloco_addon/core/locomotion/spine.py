@@ -1428,50 +1428,11 @@ def reach_repeats(
     slack: float = 0.995,
     max_shift: npt.ArrayLike = np.inf,
     hips: FloatArray | None = None,
-) -> tuple[SpinePose, FloatArray]:
-    """:func:`repeat_for_reach`, and the hips ``(C, L, 3)`` of the pose it returns."""
-    out = reach_repeats_along(spines, pose, foot_world, leg_reach, iterations, slack, max_shift, hips)
-    return out.pose, out.hips
-
-
-#: ``(rows, guides) -> guides``: guides ``(m, K, 3)`` to build beside the repeats' guides
-#: ``(m, K, 3)`` of characters ``rows`` (None: all of them); see :func:`reach_repeats_along`.
-AlongFn = Callable[[IntArray | None, FloatArray], FloatArray]
-
-
-@dataclass(frozen=True)
-class Repeats:
-    """What :func:`reach_repeats_along` returns: the pose, its hips ``(C, L, 3)``, and
-    (when it built other guides along) each character's pose and hips from the guides
-    built along with its last build (else None)."""
-
-    pose: SpinePose
-    hips: FloatArray
-    along: SpinePose | None = None
-    along_hips: FloatArray | None = None
-
-
-def reach_repeats_along(
-    spines: SpineBatch,
-    pose: SpinePose,
-    foot_world: npt.ArrayLike,
-    leg_reach: npt.ArrayLike,
-    iterations: int = 3,
-    slack: float = 0.995,
-    max_shift: npt.ArrayLike = np.inf,
-    hips: FloatArray | None = None,
-    along: AlongFn | None = None,
-    along_start: tuple[SpinePose, FloatArray] | None = None,
-) -> Repeats:
-    """:func:`reach_repeats`, with other guides built beside each repeat's: ``along(rows,
-    guides)`` gives them from the repeat's guides of the characters ``rows``, each built in
-    the same call as the repeat (a second row per character: a step of a few characters
-    costs about the array operations of one build, not of two) with the repeat's tangents;
-    ``along_start``: the pose and hips of such guides for ``pose`` itself (built with it).
-    The controller builds the release of last frame's pulls this way (the guides it will
-    want if this repeat is the last one)."""
+) -> tuple[SpinePose, FloatArray | None]:
+    """:func:`repeat_for_reach`, and the hips ``(C, L, 3)`` of the pose it returns when it
+    measured them on that pose for every character (else None)."""
     if spines.n_legs == 0:
-        return Repeats(pose, hip_positions(spines, pose) if hips is None else hips)
+        return pose, hips
     feet = np.asarray(foot_world, dtype=np.float64)
     n_chars = pose.joints.shape[0]
     reach_all = np.asarray(leg_reach, dtype=np.float64)
@@ -1483,14 +1444,14 @@ def reach_repeats_along(
         cap_all = cap_all.reshape(-1, 1, 1)
     member = spines.membership
     start = pose.guide_xyz
-    pose_hips = hip_positions(spines, pose) if hips is None else hips
-    if along is not None and along_start is None:
-        raise ValueError("reach_repeats_along: along needs along_start (its guides for the pose given)")
-    side, side_hips = along_start if along_start is not None else (None, None)
     # The characters still stretched (only they are rebuilt): None while that is all of them.
     rows: IntArray | None = None
-    hip = pose_hips  # the hips of those characters
-    for _ in range(max(0, int(iterations))):
+    sub_spines = spines
+    last_hips: FloatArray | None = None
+    for i in range(max(0, int(iterations))):
+        sub = pose if rows is None else pose_rows(pose, rows)
+        hip = hips if i == 0 and hips is not None else hip_positions(sub_spines, sub)
+        last_hips = hip if rows is None else None
         to_foot = (feet if rows is None else feet[rows]) - hip
         dist = vector_norm(to_foot)
         reach = reach_all if rows is None else reach_all[rows]
@@ -1502,8 +1463,6 @@ def reach_repeats_along(
         if rows is None and n_stretched == stretched.size:
             cap = cap_all
             base = start
-            sub = pose
-            sub_spines = spines
         else:
             rows = (np.arange(n_chars) if rows is None else rows)[stretched]
             to_foot, dist, excess = to_foot[stretched], dist[stretched], excess[stretched]
@@ -1517,41 +1476,10 @@ def reach_repeats_along(
         moved = sub.guide_xyz + shift - base
         size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, cap / np.maximum(size, _EPS))
-        guides = base + moved
-        if along is None:
-            new = refit(sub_spines, sub, guides)
-            hip = hip_positions(sub_spines, new)
-        else:
-            m = guides.shape[0]
-            both_spines = sub_spines if sub_spines.n_rows == 1 else sub_spines.take(np.tile(np.arange(m), 2))
-            both = build_spine(both_spines, np.concatenate((guides, along(rows, guides))),
-                               np.concatenate((sub.key_yaw, sub.key_yaw)),
-                               np.concatenate((sub.key_pitch, sub.key_pitch)),
-                               np.concatenate((sub.tangent, sub.tangent)))
-            both_hips = hip_positions(both_spines, both)
-            new, hip = pose_part(both, slice(None, m)), both_hips[:m]
-            built, built_hips = pose_part(both, slice(m, None)), both_hips[m:]
-            if rows is None or side is None or side_hips is None:  # (side is set: along_start)
-                side, side_hips = built, built_hips
-            else:
-                side, side_hips = pose_with_rows(side, rows, built), _with_rows(side_hips, rows, built_hips)
+        new = refit(sub_spines, sub, base + moved)
         pose = new if rows is None else pose_with_rows(pose, rows, new)
-        pose_hips = hip if rows is None else _with_rows(pose_hips, rows, hip)
-    return Repeats(pose, pose_hips, side, side_hips)
-
-
-def _with_rows(a: FloatArray, rows: IntArray, sub: FloatArray) -> FloatArray:
-    """``a`` with rows ``rows`` replaced by ``sub`` (a copy)."""
-    if rows.size == a.shape[0]:
-        return sub
-    out = a.copy()
-    out[rows] = sub
-    return out
-
-
-def pose_part(pose: SpinePose, rows: slice) -> SpinePose:
-    """The poses of a slice of characters (views of ``pose``'s arrays)."""
-    return SpinePose(*(getattr(pose, f.name)[rows] for f in fields(SpinePose)))
+        last_hips = None
+    return pose, last_hips
 
 
 def pose_rows(pose: SpinePose, rows: IntArray) -> SpinePose:
@@ -1631,7 +1559,6 @@ __all__ = [
     "pose_rows",
     "pose_with_rows",
     "reach_repeats",
-    "reach_repeats_along",
     "refit",
     "repeat_for_reach",
     "spine_step",

@@ -18,7 +18,6 @@ Characters without a spine never reach this module's loops.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -29,7 +28,6 @@ from ..geometry import rotate_xy, vector_norm, wrap_angle
 from .morphology import LegBatch
 from .pelvis import Body
 from .spine import (
-    Repeats,
     SpineBatch,
     SpineModel,
     SpineParams,
@@ -42,10 +40,10 @@ from .spine import (
     leg_frames,
     node_pitch,
     plan_spine,
-    pose_part,
     pose_rows,
     pose_with_rows,
-    reach_repeats_along,
+    reach_repeats,
+    refit,
     terrain_guides,
     visual_yaw,
 )
@@ -71,7 +69,6 @@ class SpineGroup:
     height: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     pitch: FloatArray = field(default_factory=lambda: np.zeros((0, 0)))
     reach_shift: FloatArray | None = None
-    doubled: SpineBatch | None = None
 
 
 @dataclass
@@ -260,28 +257,15 @@ def pose(
         if sb.any_visual_yaw:
             turn = visual_yaw(sb, g.plan, at.foot[g.legs])
             yaw = yaw + (turn if sb.all_visual_yaw else np.where(sb.visual_yaw[:, None], turn, 0.0))
-        # last frame's pulls, let go over the release time (release_pull): the guides they
-        # give if no leg is stretched now are built with the free ones, and with each
-        # repeat's the guides they give if that repeat is the last
-        decayed = None
-        if g.reach_shift is not None and g.reach_shift.shape == (c, k, 3) and dt > 0.0:
-            decayed = g.reach_shift * math.exp(-dt / max(p.reach_release_time, 1e-9))
-        guides = np.empty((c if decayed is None else 2 * c, k, 3))  # the free guides, then released ones
-        guides[:c, :, :2] = g.plan.key_xy
-        guides[:c, :, 2] = z
-        if decayed is None:
-            free = build_spine(sb, guides, yaw, g.pitch)
-            hips_free = hip_positions(sb, free)
-        else:
-            np.add(guides[:c], _released(decayed, np.zeros((c, k, 3))), out=guides[c:])
-            both_sb = _doubled(g)
-            both = build_spine(both_sb, guides, np.concatenate((yaw, yaw)),
-                               np.concatenate((g.pitch, g.pitch)))
-            both_hips = hip_positions(both_sb, both)
-            free, hips_free = pose_part(both, slice(None, c)), both_hips[:c]
+        guide = np.empty((c, k, 3))
+        guide[..., :2] = g.plan.key_xy
+        guide[..., 2] = z
+        pose = build_spine(sb, guide, yaw, g.pitch)
+        hips_free = hip_positions(sb, pose)
         link.hips_free[g.legs] = hips_free
         # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
         max_shift = p.guard_max_drop * at.body_thickness[g.chars]
+        free = pose
         reach = spine_reach(g, at, p.swing_reach_slack)
         # a swinging foot pulls as if it were already down at its landing height (within
         # its growing reach), so the body is as low as that foot needs when it lands
@@ -290,17 +274,11 @@ def pose(
         if np.count_nonzero(swing):
             feet[swing, 2] = np.minimum(feet[swing, 2], at.target[g.legs][swing, 2])
         feet[..., 2] += at.foot_lift[g.legs]
-        if decayed is None:
-            out = reach_repeats_along(sb, free, feet, reach, iterations=6, max_shift=max_shift,
-                                      hips=hips_free)
-        else:
-            out = reach_repeats_along(sb, free, feet, reach, iterations=6, max_shift=max_shift,
-                                      hips=hips_free, along=functools.partial(_release_guides, free, decayed),
-                                      along_start=(pose_part(both, slice(c, None)), both_hips[c:]))
-        pose, g.reach_shift, hips = release_pull(free, out, decayed, feet, reach)
+        pose, hips = reach_repeats(sb, pose, feet, reach, iterations=6, max_shift=max_shift, hips=hips_free)
+        pose, g.reach_shift, hips = release_pull(g, free, pose, feet, reach, dt, p.reach_release_time, hips)
         g.pose = pose
         frames = leg_frames(sb, pose)
-        link.hips[g.legs] = hips
+        link.hips[g.legs] = hip_positions(sb, pose, frames) if hips is None else hips
         link.leg_rot[g.legs] = frames
         aj = sb.anchor_joint
         frame = pose.joint_frame[:, aj]
@@ -311,65 +289,41 @@ def pose(
         body.height_target[g.chars] = body.pos[g.chars, 2]
 
 
-def _released(decayed: FloatArray, need: FloatArray) -> FloatArray:
-    """Each node's guide shift ``(g, K, 3)`` with last frame's pulls let go gradually: the
-    decayed pull where it is longer than this frame's ``need`` (the repeats' shift), else
-    the need."""
-    return np.asarray(np.where((vector_norm(decayed) > vector_norm(need))[..., None], decayed, need))
-
-
-def _release_guides(
-    free: SpinePose, decayed: FloatArray, rows: IntArray | None, pulled: FloatArray,
-) -> FloatArray:
-    """The guides of :func:`release_pull`'s slow pose for characters ``rows`` (None: all),
-    had the repeats' guides ``pulled (m, K, 3)`` been their last."""
-    base = free.guide_xyz if rows is None else free.guide_xyz[rows]
-    return np.asarray(base + _released(decayed if rows is None else decayed[rows], pulled - base))
-
-
 def release_pull(
-    free: SpinePose, pulled: Repeats, decayed: FloatArray | None, feet: FloatArray, reach: FloatArray,
-) -> tuple[SpinePose, FloatArray, FloatArray]:
+    g: SpineGroup, free: SpinePose, pulled: SpinePose, feet: FloatArray, reach: FloatArray,
+    dt: float, release_time: float, pulled_hips: FloatArray | None = None,
+) -> tuple[SpinePose, FloatArray, FloatArray | None]:
     """A node pulled toward a stretched leg's foot goes back to its guide over
     ``release_time``, not in one frame when the foot steps (the chest would drop and
     spring back by centimetres per frame); the pull itself acts at once. ``free``: step
-    4 without pulls, ``pulled``: the repeats with this frame's pulls, and along them the
-    pose and hips of the free guides shifted by :func:`_released` of last frame's pulls
-    ``decayed (g, K, 3)`` (let go over the time since; None: nothing to let go). Returns
-    the pose, each node's guide shift ``(g, K, 3)`` (kept for the next frame) and the hips
-    of the returned pose."""
-    need = pulled.pose.guide_xyz - free.guide_xyz
-    if decayed is None or pulled.along is None or pulled.along_hips is None:
-        return pulled.pose, need, pulled.hips
+    4 without pulls, ``pulled``: with this frame's pulls (``pulled_hips``: its hips, when
+    known). Returns the pose, each node's guide shift ``(g, K, 3)`` (kept for the next
+    frame) and the hips of the returned pose when known (else None)."""
+    need = pulled.guide_xyz - free.guide_xyz
+    if g.reach_shift is None or g.reach_shift.shape != need.shape or dt <= 0.0:
+        return pulled, need, pulled_hips
+    decayed = g.reach_shift * math.exp(-dt / max(release_time, 1e-9))
     keep = vector_norm(decayed) > vector_norm(need)
     if not np.count_nonzero(keep):
-        return pulled.pose, need, pulled.hips
+        return pulled, need, pulled_hips
     trial = np.where(keep[..., None], decayed, need)
-    slow, slow_hips = pulled.along, pulled.along_hips  # (step 4 on free.guide_xyz + trial)
+    sb = g.spines
+    slow = refit(sb, free, free.guide_xyz + trial)
+    slow_hips = hip_positions(sb, slow)
+    if pulled_hips is None:
+        pulled_hips = hip_positions(sb, pulled)
     # kept only where it leaves no leg further from its foot than the pull did
-    over = vector_norm(feet - slow_hips) > np.maximum(vector_norm(feet - pulled.hips), reach) + 1e-9
+    over = vector_norm(feet - slow_hips) > np.maximum(vector_norm(feet - pulled_hips), reach) + 1e-9
     ok = ~np.logical_or.reduce(over, axis=1)
     shift = np.where(ok[:, None, None], trial, need)
     n_ok = np.count_nonzero(ok)
     if n_ok == ok.size:
         return slow, shift, slow_hips
     if not n_ok:
-        return pulled.pose, shift, pulled.hips
+        return pulled, shift, pulled_hips
     rows = np.flatnonzero(ok)
-    return (pose_with_rows(pulled.pose, rows, pose_rows(slow, rows)), shift,
-            np.where(ok[:, None, None], slow_hips, pulled.hips))
-
-
-def _doubled(g: SpineGroup) -> SpineBatch:
-    """The group's batch twice over (its characters, then again), for step 4's free and
-    released guides in one build (a batch of one row broadcasts: itself)."""
-    sb = g.spines
-    if sb.n_rows == 1:
-        return sb
-    if g.doubled is None:
-        every = np.arange(sb.n_rows)
-        g.doubled = sb.take(np.concatenate((every, every)))
-    return g.doubled
+    return (pose_with_rows(pulled, rows, pose_rows(slow, rows)), shift,
+            np.where(ok[:, None, None], slow_hips, pulled_hips))
 
 
 def spine_reach(g: SpineGroup, at: PoseInputs, slack_share: float) -> FloatArray:
