@@ -747,6 +747,8 @@ def test_taking_rows_of_a_batch_takes_every_per_character_array() -> None:
         value = getattr(batch, f.name)
         if isinstance(value, np.ndarray) and value.shape[:1] == (5,):
             np.testing.assert_array_equal(getattr(sub, f.name), value[rows], err_msg=f.name)
+        elif isinstance(value, np.ndarray) and value.shape[:2] == (2, 5):  # (yaw, pitch) pairs of rows
+            np.testing.assert_array_equal(getattr(sub, f.name), value[:, rows], err_msg=f.name)
         elif isinstance(value, np.ndarray):
             assert getattr(sub, f.name) is value, f.name
     assert sub.models == (models[1], models[3])

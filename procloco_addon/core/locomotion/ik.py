@@ -118,10 +118,10 @@ def _bend_reach(
     th[:, 0] = 0.0
     dphi = (hinge * ((raw > lo) & (raw < hi))).cumsum(axis=1)
     z = lengths * np.exp(1j * th.cumsum(axis=1))
-    end = z.sum(axis=1)
+    end = np.add.reduce(z, axis=1)
     r = np.abs(end)
     # d|E|/dκ = Re(conj(E) dE) / |E| with dE = i sum(l φ' e^{iφ})
-    dr = -(end.conj() * (z * dphi).sum(axis=1)).imag / np.maximum(r, 1e-12)
+    dr = -(end.conj() * np.add.reduce(z * dphi, axis=1)).imag / np.maximum(r, 1e-12)
     return th, r, dr, end
 
 
@@ -130,8 +130,8 @@ class BendLegs:
     """What :func:`solve_bend` finds from the legs alone, once per leg set: segment
     ``lengths``, ``n_segments``, limits ``lo``/``hi`` ``(N, s)``, the ``hinge`` pattern (rest
     hinges; a leg straight at rest bends toward the side its limits allow), the ``valid``
-    joints, the reach straight and folded ``(N,)`` and the reach at ``κ`` = ``knots`` ``(K,)``,
-    ``knot_reach (N, K)``."""
+    joints, the reach straight and folded ``(N,)``, the reach at ``κ`` = ``knots`` ``(K,)``,
+    ``knot_reach (N, K)``, and each leg's ``total_length (N,)``."""
 
     lengths: FloatArray
     n_segments: IntArray
@@ -144,6 +144,7 @@ class BendLegs:
     knots: FloatArray
     knot_reach: FloatArray
     max_bend: float
+    total_length: FloatArray
 
     @classmethod
     def make(
@@ -167,13 +168,13 @@ class BendLegs:
         _, reach, _, _ = _bend_reach(np.tile(knots, n), hinge[every], lengths[every], lo[every], hi[every])
         knot_reach = reach.reshape(n, k)
         return cls(lengths, n_segments, lo, hi, hinge, valid, knot_reach[:, 0].copy(),
-                   knot_reach[:, -1].copy(), knots, knot_reach, float(max_bend))
+                   knot_reach[:, -1].copy(), knots, knot_reach, float(max_bend), lengths.sum(axis=1))
 
     def take(self, rows: IntArray) -> BendLegs:
         """These legs only."""
         return BendLegs(self.lengths[rows], self.n_segments[rows], self.lo[rows], self.hi[rows],
                         self.hinge[rows], self.valid[rows], self.r_straight[rows], self.r_folded[rows],
-                        self.knots, self.knot_reach[rows], self.max_bend)
+                        self.knots, self.knot_reach[rows], self.max_bend, self.total_length[rows])
 
 
 def solve_bend(
@@ -199,15 +200,15 @@ def solve_bend(
     n = target.shape[0]
     rows = np.arange(n)
     hinge, lengths, lo, hi, max_bend = legs.hinge, legs.lengths, legs.lo, legs.hi, legs.max_bend
-    dist = np.sqrt(np.einsum("ij,ij->i", target, target))
-    tol = tolerance * lengths.sum(axis=1)
+    dist = np.sqrt(np.add.reduce(target * target, axis=1))
+    tol = tolerance * legs.total_length
     # out of reach either way: straight, or folded as far as allowed
     too_far = legs.r_straight <= dist
     too_close = legs.r_folded >= dist
     settled = too_far | too_close
     # the start: the table's knots either side of the target distance, interpolated
     k = legs.knots.size
-    j = np.minimum(np.maximum((legs.knot_reach > dist[:, None]).sum(axis=1), 1), k - 1)
+    j = np.minimum(np.maximum(np.add.reduce(legs.knot_reach > dist[:, None], axis=1), 1), k - 1)
     r0, r1 = legs.knot_reach[rows, j - 1], legs.knot_reach[rows, j]
     span = r0 - r1
     guess = legs.knots[j - 1] + (legs.knots[1] - legs.knots[0]) * np.minimum(
@@ -223,7 +224,7 @@ def solve_bend(
             break
         f = r - dist
         done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
-        if done.all():
+        if np.count_nonzero(done) == n:
             break
         longer = f > 0.0
         k_lo = np.where(longer, kappa, k_lo)
@@ -269,7 +270,8 @@ def solve_ccd(
     for _ in range(max_sweeps):
         pts = forward_planar(theta, lengths)
         end = pts[rows, n_segments]
-        if (np.einsum("ij,ij->i", end - target, end - target) <= tol2).all():
+        miss = end - target
+        if np.count_nonzero(np.add.reduce(miss * miss, axis=1) <= tol2) == n:
             break
         for j in range(s - 1, -1, -1):
             pivot = pts[:, j]
@@ -325,17 +327,17 @@ def solve_dls(
     t_len, t_seg, t_target, t_lo, t_hi = lengths, n_segments, target, lo, hi
     t_lo_in, t_hi_in = lo + 1e-9, hi - 1e-9
     t_valid = np.arange(s)[None, :] < n_segments[:, None]
-    t_lam2 = (damping * lengths.sum(axis=1)) ** 2
+    t_lam2 = (damping * np.add.reduce(lengths, axis=1)) ** 2
     t_tol2 = np.zeros(n) + np.asarray(tolerance, dtype=np.float64) ** 2
     rows = todo
     for _ in range(max_iterations):
         pts = forward_planar(th, t_len)
         end = pts[rows, t_seg]
         err = t_target - end
-        converged = np.einsum("ij,ij->i", err, err) <= t_tol2
-        if converged.any():
+        converged = np.add.reduce(err * err, axis=1) <= t_tol2
+        if np.count_nonzero(converged):
             theta[todo] = th
-            if converged.all():
+            if np.count_nonzero(converged) == converged.size:
                 return theta
             keep = ~converged
             todo, th, pts, end, err = todo[keep], th[keep], pts[keep], end[keep], err[keep]
@@ -343,23 +345,27 @@ def solve_dls(
             t_len, t_seg, t_target = lengths[todo], n_segments[todo], target[todo]
             t_lo, t_hi, t_lo_in, t_hi_in = lo[todo], hi[todo], t_lo_in[keep], t_hi_in[keep]
             t_valid, t_lam2, t_tol2 = t_valid[keep], t_lam2[keep], t_tol2[keep]
+        # the Jacobian's columns (-r_y, r_x), r from each joint to the end effector
         r = end[:, None, :] - pts[:, :s, :]
-        jac = np.empty((todo.size, 2, s))  # (m, 2, s)
-        jac[:, 0] = -r[..., 1]
-        jac[:, 1] = r[..., 0]
-        grad = np.einsum("mks,mk->ms", jac, err)
+        jx = -r[..., 1]
+        jy = r[..., 0]
+        ex, ey = err[:, 0], err[:, 1]
+        grad = jx * ex[:, None] + jy * ey[:, None]  # (m, s)
         blocked = ((th <= t_lo_in) & (grad < 0.0)) | ((th >= t_hi_in) & (grad > 0.0))
-        jac *= (t_valid & ~blocked)[:, None, :]
-        a11 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 0]) + t_lam2
-        a22 = np.einsum("ms,ms->m", jac[:, 1], jac[:, 1]) + t_lam2
-        a12 = np.einsum("ms,ms->m", jac[:, 0], jac[:, 1])
+        free = t_valid & ~blocked
+        jx *= free
+        jy *= free
+        a11 = np.add.reduce(jx * jx, axis=1) + t_lam2
+        a22 = np.add.reduce(jy * jy, axis=1) + t_lam2
+        a12 = np.add.reduce(jx * jy, axis=1)
         det = a11 * a22 - a12 * a12
-        x0 = (a22 * err[:, 0] - a12 * err[:, 1]) / det
-        x1 = (a11 * err[:, 1] - a12 * err[:, 0]) / det
-        step = jac[:, 0] * x0[:, None] + jac[:, 1] * x1[:, None]
-        biggest = np.abs(step).max(axis=1, keepdims=True)
+        x0 = (a22 * ex - a12 * ey) / det
+        x1 = (a11 * ey - a12 * ex) / det
+        step = jx * x0[:, None] + jy * x1[:, None]
+        biggest = np.maximum.reduce(np.abs(step), axis=1, keepdims=True)
         step *= np.minimum(1.0, max_turn / np.maximum(biggest, 1e-12))
-        th = np.minimum(np.maximum(th + step, t_lo), t_hi)
+        step += th
+        th = np.minimum(np.maximum(step, t_lo), t_hi)
     theta[todo] = th
     return theta
 
@@ -367,13 +373,13 @@ def solve_dls(
 @dataclass(frozen=True, eq=False)
 class _LegSet:
     """What :func:`solve_legs` finds from a ``LegBatch`` alone, once per batch: for the leg
-    plane, ``rest_dc (N, 2, 2)`` (the rest foot's horizontal direction as the matrix giving
-    the dot and cross products with another), the fade length ``fade (N,)``, the rest
+    plane, ``rest_xy (N, 2)`` (the rest foot's horizontal offset from the hip), the fade
+    length ``fade (N,)``, the rest
     normal ``normal (N, 3)`` and its quarter turn about z ``normal_turned`` (z zeroed), the
     legs of one, two and more segments (``one``, ``two``, ``many``) and the last ones'
     :class:`BendLegs`."""
 
-    rest_dc: FloatArray
+    rest_xy: FloatArray
     fade: FloatArray
     normal: FloatArray
     normal_flat: FloatArray
@@ -391,9 +397,7 @@ def _leg_set(legs: LegBatch) -> _LegSet:
     """:class:`_LegSet` of ``legs``, made on first use (a ``LegBatch`` is immutable)."""
     made = _LEG_SETS.get(legs)
     if made is None:
-        rel = legs.rest_foot - legs.hip_offset
-        rx, ry = rel[:, 0], rel[:, 1]
-        rest_dc = np.stack([np.stack([rx, ry], axis=1), np.stack([-ry, rx], axis=1)], axis=1)
+        rest_xy = np.ascontiguousarray((legs.rest_foot - legs.hip_offset)[:, :2])
         nrm = legs.plane_normal
         flat = nrm.copy()
         flat[:, 2] = 0.0
@@ -402,7 +406,7 @@ def _leg_set(legs: LegBatch) -> _LegSet:
         many = np.flatnonzero(seg >= 3)
         bend = BendLegs.make(legs.segment_lengths[many], seg[many], legs.joint_min[many],
                              legs.joint_max[many], legs.rest_angles[many])
-        made = _LegSet(rest_dc, 0.25 * legs.leg_length, nrm, flat, turned, np.flatnonzero(seg == 1),
+        made = _LegSet(rest_xy, 0.25 * legs.leg_length, nrm, flat, turned, np.flatnonzero(seg == 1),
                        np.flatnonzero(seg == 2), many, bend)
         _LEG_SETS[legs] = made
     return made
@@ -419,17 +423,20 @@ def leg_plane_normals(
     the foot comes under the hip), then the component along the hip-target line is removed.
     """
     d = target_body
-    d_h = d[:, :2]
-    dot_cross = np.einsum("nij,nj->ni", legs.rest_dc, d_h)
-    yaw = np.arctan2(dot_cross[:, 1], dot_cross[:, 0])
-    h2 = np.einsum("ij,ij->i", d_h, d_h)
+    dx, dy, dz = d[:, 0], d[:, 1], d[:, 2]
+    rx, ry = legs.rest_xy[:, 0], legs.rest_xy[:, 1]
+    # the dot and cross products of the rest foot's horizontal direction with the foot's
+    yaw = np.arctan2(-ry * dx + rx * dy, rx * dx + ry * dy)
+    h2 = dx * dx + dy * dy
     fade = np.minimum(np.sqrt(h2) / legs.fade, 1.0)
     psi = yaw_weight * fade * yaw
-    pref = np.cos(psi)[:, None] * legs.normal_flat + np.sin(psi)[:, None] * legs.normal_turned
+    pref = np.cos(psi)[:, None] * legs.normal_flat
+    pref += np.sin(psi)[:, None] * legs.normal_turned
     pref[:, 2] = legs.normal[:, 2]
-    d_len = np.sqrt(h2 + d[:, 2] * d[:, 2])[:, None]
-    d_hat = np.divide(d, d_len, out=np.zeros_like(d), where=d_len > 1e-12)
-    normal = pref - np.einsum("ij,ij->i", pref, d_hat)[:, None] * d_hat
+    d_len = np.sqrt(h2 + dz * dz)[:, None]
+    # (a target at the hip itself: no line, d_hat 0)
+    d_hat = d / np.where(d_len > 1e-12, d_len, np.inf)
+    normal = pref - np.add.reduce(pref * d_hat, axis=1)[:, None] * d_hat
     norm = vector_norm(normal, keepdims=True)
     # target along the preferred normal itself: keep the unprojected rest normal
     return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), legs.normal), d_hat
@@ -450,15 +457,16 @@ def follow_normals(
     the wanted one as soon as that stops jumping (so poses do not drift). Where ``prev`` lies
     along the axis the wanted normal is taken as it is.
     """
-    p = prev - np.einsum("ij,ij->i", prev, axis)[:, None] * axis
+    p = prev - np.add.reduce(prev * axis, axis=1)[:, None] * axis
     p_len = vector_norm(p, keepdims=True)
-    p = p / np.maximum(p_len, 1e-12)
+    p /= np.maximum(p_len, 1e-12)
     side = cross(axis, p)  # p turned a quarter about the axis
     # the turn from p to normal about the axis: sin = (p x normal) . axis = (axis x p) . normal
-    turn = np.arctan2(np.einsum("ij,ij->i", side, normal), np.einsum("ij,ij->i", p, normal))
+    turn = np.arctan2(np.add.reduce(side * normal, axis=1), np.add.reduce(p * normal, axis=1))
     turn = np.minimum(np.maximum(turn, -max_turn), max_turn)[:, None]
     # Rodrigues about the axis; p is perpendicular to it
-    out = np.cos(turn) * p + np.sin(turn) * side
+    out = np.cos(turn) * p
+    out += np.sin(turn) * side
     return np.where(p_len > 1e-6, out, normal)
 
 
@@ -497,15 +505,15 @@ def solve_legs(
     ls = _leg_set(legs)
     n = legs.n_legs
     theta0 = legs.rest_angles if init is None else init
-    target_body = np.einsum("nji,nj->ni", body_rot, target_world - hip_world)
+    target_body = ((target_world - hip_world)[:, None, :] @ body_rot)[:, 0]  # body_rot^T (target - hip)
     normal_body, axis = leg_plane_normals(target_body, ls, legs.yaw_weight)
     if prev_normal is not None:
         prev = np.asarray(prev_normal, dtype=np.float64)
         normal_body = follow_normals(normal_body, prev, axis, max_plane_turn)
     a, b = plane_axes(normal_body, _UP)
     target_2d = np.empty((n, 2))
-    target_2d[:, 0] = np.einsum("ij,ij->i", target_body, a)
-    target_2d[:, 1] = np.einsum("ij,ij->i", target_body, b)
+    np.add.reduce(target_body * a, axis=1, out=target_2d[:, 0])
+    np.add.reduce(target_body * b, axis=1, out=target_2d[:, 1])
 
     theta = theta0.copy()
     one, two, many, bend = ls.one, ls.two, ls.many, ls.bend
@@ -577,11 +585,18 @@ def solve_legs(
             theta[idx[miss[better]]] = refined[better]
 
     pts = forward_planar(theta, legs.segment_lengths)
-    joints_body = pts[..., 0:1] * a[:, None, :] + pts[..., 1:2] * b[:, None, :]
-    joints_world = hip_world[:, None, :] + np.einsum("nij,nkj->nki", body_rot, joints_body)
+    # the leg plane's axes and normal in the world: body_rot @ (a, b, normal)
+    axes = np.empty((n, 3, 3))
+    axes[..., 0] = a
+    axes[..., 1] = b
+    axes[..., 2] = normal_body
+    world = body_rot @ axes
+    joints_world = pts[..., 0:1] * world[:, None, :, 0]
+    joints_world += pts[..., 1:2] * world[:, None, :, 1]
+    joints_world += hip_world[:, None, :]
     end_world = joints_world[np.arange(n), legs.n_segments]
     error = vector_norm(end_world - target_world)
-    normal_world = np.einsum("nij,nj->ni", body_rot, normal_body)
+    normal_world = world[..., 2]
     return IKResult(
         joints=joints_world, plane_normal=normal_world, angles=theta, error=error, normal_body=normal_body
     )

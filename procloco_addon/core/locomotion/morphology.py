@@ -394,10 +394,10 @@ def plane_axes(normal: FloatArray, up: FloatArray) -> tuple[FloatArray, FloatArr
 
     A plane whose normal is ``up`` itself (a horizontal leg plane) takes the x axis as ``a``.
     """
-    b = up - np.einsum("...j,...j->...", up, normal)[..., None] * normal
+    b = up - np.add.reduce(up * normal, axis=-1)[..., None] * normal
     b_norm = vector_norm(b, keepdims=True)
     horizontal_plane = b_norm[..., 0] < 1e-9
-    if np.any(horizontal_plane):
+    if np.count_nonzero(horizontal_plane):
         alt = cross(normal, np.array([1.0, 0.0, 0.0]))
         b = np.where(horizontal_plane[..., None], alt, b)
         b_norm = vector_norm(b, keepdims=True)

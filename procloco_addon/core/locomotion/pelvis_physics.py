@@ -32,7 +32,6 @@ flight phase is an exact parabola (second differences equal ``-g h²``).
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 
@@ -133,6 +132,40 @@ def _acceleration(
     ``v_T = 0``), ``g + (v0 - v) / t_prop`` in propulsion with ``v0 = (y_T - y) / flight +
     g flight / 2`` (eq. 4.5c), 0 in swing."""
     return stance_g + (((preferred - height) / flight + half_g_flight) * aim - velocity) / time_left
+
+
+def substep_maps(
+    t: PhaseTimes, h: FloatArray | float, preferred: FloatArray, gravity: float | FloatArray,
+    pad: bool = False,
+) -> FloatArray:
+    """Each sub-step's update of the particles as ``(K, N, 3, 3)`` affine maps of ``(height,
+    velocity, 1)``: sub-steps of length ``h`` (one for all or ``(K, N)``) with the phase times
+    ``t`` (``(K, N)`` fields) toward heights ``preferred (N,)``. Semi-implicit Euler with
+    :func:`_acceleration`: ``v' = v + (a - g) h``, ``y' = y + v' h``, where ``a - g`` is affine
+    in ``y`` and ``v``. ``pad``: ``K`` rounded up to a power of two with identities."""
+    k, n = t.time_left.shape
+    rows = 1 << max(k - 1, 0).bit_length() if pad else k
+    inv_t = 1.0 / t.time_left  # (0 in swing)
+    aim = t.aim * inv_t
+    # v' = cv v + ch y + c0
+    cv = 1.0 - h * inv_t
+    ch = -(h * aim) / t.flight
+    c0 = h * ((t.stance_g - gravity) + (preferred / t.flight + t.half_g_flight) * aim)
+    out = np.empty((rows, n, 3, 3))
+    m = out[:k]
+    m[..., 0, 0] = 1.0 + h * ch
+    m[..., 0, 1] = h * cv
+    m[..., 0, 2] = h * c0
+    m[..., 1, 0] = ch
+    m[..., 1, 1] = cv
+    m[..., 1, 2] = c0
+    m[..., 2, :] = _LAST_ROW
+    out[k:] = _IDENTITY
+    return out
+
+
+_LAST_ROW = np.array([0.0, 0.0, 1.0])
+_IDENTITY = np.eye(3)
 
 
 def node_acceleration(
@@ -297,35 +330,41 @@ class PelvisPhysics:
         disk_duration: FloatArray,
         preferred: FloatArray,
         h: FloatArray | float,
-        min_time: FloatArray | None = None,
+        min_time: FloatArray | float | None = None,
         trace: bool = False,
     ) -> FloatArray:
         """Integrate one sub-step of length ``h`` per row of needle ``phases`` ``(K, N)`` (each
         leg's phase at the middle of the sub-step), in order. What depends on the phases
-        alone (swing or stance, stance progress) is found for all rows at once; only the
-        particles' update runs per sub-step (:func:`_acceleration`). ``trace``: return the
-        heights after every sub-step ``(K, N)`` (else only the last ``(1, N)``)."""
+        alone (swing or stance, stance progress) is found for all rows at once; so is each
+        sub-step's update of a particle, which is affine in its height and velocity
+        (:func:`substep_maps`): the updates are then applied in order, or composed in a
+        balanced tree of 3x3 products when only the end matters. ``trace``: return the heights
+        after every sub-step ``(K, N)`` (else only the last ``(1, N)``)."""
         period = 1.0 / np.maximum(rate_leg, 1e-9)
         swing = in_swing(phases, disk_start, disk_duration)
         progress = stance_elapsed(phases, disk_start, disk_duration) / (1.0 - disk_duration)
         stance_time = (1.0 - disk_duration) * period
         swing_time = disk_duration * period
-        gravity = self.gravity
-        t = phase_times(swing, progress, stance_time, swing_time, gravity,
-                        float(np.max(h)) if min_time is None else min_time)
-        # (one step length for all: repeated, not broadcast, so ``zip`` is not strict)
-        steps = itertools.repeat(h) if isinstance(h, float) else np.broadcast_to(h, phases.shape)
-        height, velocity = self.height, self.velocity
-        seen = []
-        for g_k, t_k, aim_k, flight, half_g, h_k in zip(t.stance_g, t.time_left, t.aim, t.flight,
-                                                        t.half_g_flight, steps, strict=False):
-            a_foot = _acceleration(g_k, t_k, aim_k, flight, half_g, height, velocity, preferred)
-            velocity = velocity + (a_foot - gravity) * h_k
-            height = height + velocity * h_k
-            if trace:
-                seen.append(height)
-        self.height, self.velocity = height, velocity
-        return np.array(seen) if trace else height[None]
+        if min_time is None:
+            min_time = h if isinstance(h, float) else float(np.max(h))
+        t = phase_times(swing, progress, stance_time, swing_time, self.gravity, min_time)
+        state = np.empty((self.height.shape[0], 3, 1))  # (height, velocity, 1) of each particle
+        state[:, 0, 0] = self.height
+        state[:, 1, 0] = self.velocity
+        state[:, 2, 0] = 1.0
+        if trace:
+            maps = substep_maps(t, h, preferred, self.gravity)
+            seen = np.empty(phases.shape)
+            for k in range(phases.shape[0]):
+                state = maps[k] @ state
+                seen[k] = state[:, 0, 0]
+        else:
+            maps = substep_maps(t, h, preferred, self.gravity, pad=True)
+            while maps.shape[0] > 1:  # (a power of two: padded with identities)
+                maps = maps[1::2] @ maps[0::2]
+            state = maps[0] @ state
+        self.height, self.velocity = state[:, 0, 0].copy(), state[:, 1, 0].copy()
+        return seen if trace else self.height[None]
 
     def step(
         self,

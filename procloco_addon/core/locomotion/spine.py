@@ -48,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..geometry import vector_norm, wrap_angle, z_rotations
-from ..hermite import hermite_basis
+from ..hermite import HERMITE_MATRIX, hermite_basis
 from ..hull import upper_hull_eval
 from ..world.terrain import NO_SURFACE
 
@@ -64,6 +64,8 @@ _CURVE_SAMPLES = 25  # dense samples per key segment for arc-length lookups
 _CURVE_S = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
 _CURVE_BASIS = hermite_basis(_CURVE_S)  # (m, 4), the same for every curve
 _CURVE_STEP = float(_CURVE_S[1] - _CURVE_S[0])
+_CURVE_STEP_BASIS = _CURVE_BASIS[1:] - _CURVE_BASIS[:-1]  # (m - 1, 4): from one sample to the next
+_POWERS = np.array([3.0, 2.0, 1.0, 0.0])  # s³, s², s, 1
 _EPS = 1e-12
 _TWO_PI = 2.0 * np.pi
 DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
@@ -515,8 +517,10 @@ _PER_CHARACTER = (
     "bone_dir", "bone_length", "hip_pivot_offset", "slice_margin", "rest_foot_ahead",
     "rest_foot_depth", "rest_foot_yaw", "yaw_weight", "yaw_weight_sum", "yaw_has", "turn_rate",
     "relax_time", "foot_pitch_weight", "foot_pitch_nodes", "visual_yaw", "visual_yaw_gain",
-    "max_visual_yaw",
+    "max_visual_yaw", "bone_vector",
 )
+#: SpineBatch fields ``(2, B, ...)``: one row per character on their second axis.
+_PER_CHARACTER_PAIRS = ("rest_chord_turn", "turn_limit")
 
 
 @dataclass(frozen=True, eq=False)
@@ -534,7 +538,8 @@ class SpineBatch:
     ``leg_key (L,)``, ``anchor_key``, ``anchor_joint``, ``flexible``, and step 4's index
     arrays (``joint_segment (J,)``, ``curve_ends``/``curve_end_value``: the joints at their
     key segment's ends, ``leg_pivot``, ``leg_key_joint``, ``leg_bone_row``, ``leg_on_bone
-    (L,)``, ``pad_index``), ``membership (L, K)`` (which node each leg hangs from),
+    (L,)``, ``pad_index``), ``membership (L, K)`` (which node each leg hangs from; and
+    ``membership_t`` its transpose),
     ``leg_count (K,)``, ``has_legs (K,)``, ``node_legs (K, M)``: the legs of each node (``M``
     the most legs of any node; ``node_leg_valid (K, M)`` marks the ones that are there).
 
@@ -543,9 +548,11 @@ class SpineBatch:
     (``joint_rest (B, J, 3)``, ``bone_length (B, J - 1)``, ``rest_unturn (B, J - 1, 3, 3)``,
     ...), constants of steps 3-4 computed from the rest pose once (``rest_foot_ahead``,
     ``rest_foot_depth``, ``rest_foot_yaw (B, L)``: each foot's rest place seen from its node,
-    ``yaw_weight (B, L, K)``, ...), and the settings as arrays (``turn_rate``,
-    ``relax_time``, ``foot_pitch_weight``, ``visual_yaw``, ``visual_yaw_gain``,
-    ``max_visual_yaw (B,)``).
+    ``yaw_weight (B, L, K)``, step 4's ``bone_vector (B, J - 1, 3, 1)``: each bone at rest,
+    ...), and the settings as arrays (``turn_rate``, ``relax_time``, ``foot_pitch_weight``,
+    ``visual_yaw``, ``visual_yaw_gain``, ``max_visual_yaw (B,)``). Two pairs hold a row per
+    character on their second axis: ``rest_chord_turn (2, B, J - 1)`` (the rest chords' yaw
+    and pitch) and ``turn_limit (2, B, J - 2)`` (the inner joints' yaw and pitch limits).
     """
 
     models: tuple[SpineModel, ...]
@@ -570,6 +577,7 @@ class SpineBatch:
     pad_index: IntArray = field(init=False)
     others: IntArray = field(init=False)
     membership: FloatArray = field(init=False)
+    membership_t: FloatArray = field(init=False)
     leg_count: FloatArray = field(init=False)
     has_legs: BoolArray = field(init=False)
     node_legs: IntArray = field(init=False)
@@ -598,6 +606,9 @@ class SpineBatch:
     rest_unturn: FloatArray = field(init=False)
     bone_dir: FloatArray = field(init=False)
     bone_length: FloatArray = field(init=False)
+    bone_vector: FloatArray = field(init=False)
+    rest_chord_turn: FloatArray = field(init=False)
+    turn_limit: FloatArray = field(init=False)
     hip_pivot_offset: FloatArray = field(init=False)
     slice_margin: FloatArray = field(init=False)
     rest_foot_ahead: FloatArray = field(init=False)
@@ -668,6 +679,7 @@ class SpineBatch:
         member = (leg_key[:, None] == np.arange(n_k)[None, :]).astype(np.float64)
         count = member.sum(axis=0)
         set_(self, "membership", member)
+        set_(self, "membership_t", np.ascontiguousarray(member.T))
         set_(self, "leg_count", np.maximum(count, _EPS))
         set_(self, "has_legs", count > _EPS)
         most = int(count.max()) if n_l else 0
@@ -698,6 +710,12 @@ class SpineBatch:
             set_(self, name, rows([getattr(m, name) for m in models]))
         set_(self, "rest_head_angle", rows([_segment_angles(m.key_rest[None, :, :2])[0, 0] for m in models]))
         set_(self, "slice_margin", rows([m.slice_margin for m in models]))
+        # step 4's bones at rest as column vectors, the rest chords' (yaw, pitch) and the
+        # joints' (yaw, pitch) limits between two bones, each (2, B, ...)
+        set_(self, "bone_vector", (self.bone_dir * self.bone_length[..., None])[..., None])
+        set_(self, "rest_chord_turn", np.stack([self.rest_chord_yaw, self.rest_chord_pitch]))
+        set_(self, "turn_limit",
+             np.stack([self.joint_yaw_limit[:, 1:n_j - 1], self.joint_pitch_limit[:, 1:n_j - 1]]))
 
         # Steps 3's feet at rest, seen from their node (node_pitch, visual_yaw).
         ahead, depth, yaw, weight = [], [], [], []
@@ -741,6 +759,8 @@ class SpineBatch:
         object.__setattr__(out, "params", tuple(self.params[i] for i in pick))
         for name in _PER_CHARACTER:
             object.__setattr__(out, name, getattr(self, name)[rows])
+        for name in _PER_CHARACTER_PAIRS:
+            object.__setattr__(out, name, getattr(self, name)[:, rows])
         return out
 
 
@@ -958,12 +978,23 @@ def _rigid_move(spines: SpineBatch, xy: FloatArray, turn: FloatArray, dist: Floa
 # ------------------------------------------------------------------------------- step 3
 
 
+def feet_ahead(spines: SpineBatch, plan: SpinePlan, foot_world: FloatArray) -> FloatArray:
+    """``(C, L)`` how far each foot ``foot_world (C, L, 3)`` is ahead of its key node along
+    the node's heading (what :func:`terrain_guides` and :func:`node_pitch` measure the feet
+    by; give it to them when both run on the same plan and feet)."""
+    leg = spines.leg_key
+    heading = plan.key_heading[:, leg]
+    rel_xy = foot_world[..., :2] - plan.key_xy[:, leg]
+    return np.asarray(rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading))
+
+
 def terrain_guides(
     spines: SpineBatch,
     plan: SpinePlan,
     height_at: HeightFn,
     foot_world: npt.ArrayLike | None = None,
     samples_per_node: int = 12,
+    ahead: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Each key node's preferred height and environment pitch (thesis §4.2.3, figure 4.14).
 
@@ -975,60 +1006,52 @@ def terrain_guides(
     hole uses the ground under the whole body). Returns ``(height, pitch)``, each
     ``(C, K)``: ground height plus the node's rest height, and the slope angle (nose up).
     The controller adds the pseudo-physics offset to ``height`` before :func:`finish_spine`.
+    ``ahead``: :func:`feet_ahead` of these feet, when the caller has it already.
     """
     xy = plan.key_xy
     c, k = xy.shape[0], xy.shape[1]
-    arc = np.zeros((c, k))  # arc length of each node from the head
-    vector_norm(xy[:, 1:] - xy[:, :-1]).cumsum(axis=1, out=arc[:, 1:])
-    margin = spines.slice_margin
-    mid = 0.5 * (arc[:, :-1] + arc[:, 1:])
-    lo = np.empty((c, k))
-    lo[:, 0] = arc[:, 0] - margin
-    lo[:, 1:] = mid
-    hi = np.empty((c, k))
-    hi[:, :-1] = mid
-    hi[:, -1] = arc[:, -1] + margin
     n = max(2, int(samples_per_node))
-    s = lo[..., None] + (hi - lo)[..., None] * _unit_samples(n)  # (C, K, n)
-    pts = _polyline_at(xy, arc, s)  # (C, K, n, 2)
-    z = np.asarray(height_at(pts.reshape(-1, 2)), dtype=np.float64).reshape(s.shape)
-    valid = z > 0.5 * NO_SURFACE
-    x = s
-    lost = ~valid.any(axis=2)  # (C, K)
-    if lost.any():
-        # A node over a hole (nothing under its stretch) uses the ground under the whole body.
-        whole = np.broadcast_to(valid.reshape(c, 1, -1), (c, k, valid[0].size))
-        x = np.concatenate([x, np.broadcast_to(s.reshape(c, 1, -1), whole.shape)], axis=2)
-        z = np.concatenate([z, np.broadcast_to(z.reshape(c, 1, -1), whole.shape)], axis=2)
-        valid = np.concatenate([valid, whole & lost[..., None]], axis=2)
+    d = xy[:, 1:] - xy[:, :-1]  # (C, K - 1, 2)
+    arc = np.zeros((c, k))  # arc length of each node from the head
+    np.sqrt(np.add.reduce(d * d, axis=-1)).cumsum(axis=1, out=arc[:, 1:])
+    margin = spines.slice_margin
+    # node i's stretch: from bounds[i] (half-way to the node in front) to bounds[i + 1]
+    bounds = np.empty((c, k + 1))
+    bounds[:, 0] = arc[:, 0] - margin
+    np.add(arc[:, :-1], arc[:, 1:], out=bounds[:, 1:k])
+    bounds[:, 1:k] *= 0.5
+    bounds[:, k] = arc[:, -1] + margin
+    lo = bounds[:, :-1]
     n_l = spines.n_legs
-    if foot_world is not None and n_l:
+    with_feet = foot_world is not None and n_l > 0
+    own = spines.node_legs  # (K, M): each node's row gets a column per leg of its own
+    width = n + (own.shape[1] if with_feet else 0)
+    x = np.empty((c, k, width))
+    z = np.empty((c, k, width))
+    valid = np.empty((c, k, width), dtype=bool)
+    s = x[..., :n]
+    np.add(lo[..., None], (bounds[:, 1:] - lo)[..., None] * _unit_samples(n), out=s)  # (C, K, n)
+    z[..., :n] = np.asarray(height_at(_polyline_at(xy, d, arc, s).reshape(-1, 2)),
+                            dtype=np.float64).reshape(c, k, n)
+    np.greater(z[..., :n], 0.5 * NO_SURFACE, out=valid[..., :n])
+    if with_feet:
         feet = np.asarray(foot_world, dtype=np.float64).reshape(c, n_l, 3)
-        node_of_leg = spines.leg_key
-        heading = plan.key_heading[:, node_of_leg]
-        fwd = np.empty((c, n_l, 2))  # each leg's node's forward direction
-        fwd[..., 0] = np.cos(heading)
-        fwd[..., 1] = np.sin(heading)
-        rel = feet[..., :2] - xy[:, node_of_leg]
+        if ahead is None:
+            ahead = feet_ahead(spines, plan, feet)
         # arc length grows from the head to the back: a foot ahead of its node comes before it
-        fx = arc[:, node_of_leg] - np.einsum("cli,cli->cl", rel, fwd)  # (C, L)
-        # Each node's row gets a column per leg of its own (as many as the node with the most
-        # legs has; the spare ones not valid).
-        m = x.shape[2]
-        own = spines.node_legs  # (K, M)
-        n_own = own.shape[1]
-        x_all = np.empty((c, k, m + n_own))
-        x_all[..., :m] = x
-        x_all[..., m:] = fx[:, own]
-        z_all = np.empty((c, k, m + n_own))
-        z_all[..., :m] = z
-        z_all[..., m:] = feet[:, own, 2]
-        valid_all = np.empty((c, k, m + n_own), dtype=bool)
-        valid_all[..., :m] = valid
-        valid_all[..., m:] = spines.node_leg_valid
-        x, z, valid = x_all, z_all, valid_all
-    nothing = ~valid.any(axis=2, keepdims=True)
-    if nothing.any():
+        fx = arc[:, spines.leg_key] - ahead  # (C, L)
+        x[..., n:] = fx[:, own]
+        z[..., n:] = feet[:, own, 2]
+        valid[..., n:] = spines.node_leg_valid
+    lost = ~np.logical_or.reduce(valid[..., :n], axis=2)  # (C, K)
+    if np.count_nonzero(lost):
+        # A node over a hole (nothing under its stretch) uses the ground under the whole body.
+        whole = np.broadcast_to(valid[..., :n].reshape(c, 1, -1), (c, k, k * n))
+        x = np.concatenate([x, np.broadcast_to(s.reshape(c, 1, -1), whole.shape)], axis=2)
+        z = np.concatenate([z, np.broadcast_to(z[..., :n].reshape(c, 1, -1), whole.shape)], axis=2)
+        valid = np.concatenate([valid, whole & lost[..., None]], axis=2)
+    nothing = ~np.logical_or.reduce(valid, axis=2, keepdims=True)
+    if np.count_nonzero(nothing):
         # No ground and no feet at all: a flat floor at 0 keeps the numbers finite.
         x = np.concatenate([x, arc[..., None]], axis=2)
         z = np.concatenate([z, np.zeros((c, k, 1))], axis=2)
@@ -1038,19 +1061,22 @@ def terrain_guides(
     return ground[..., 0] + spines.key_rest_height, -np.arctan(slope[..., 0])
 
 
-def _polyline_at(xy: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
-    """Points at arc lengths ``s`` ``(C, K, n)`` along the key polyline (continued straight
-    past both ends): ``(C, K, n, 2)``."""
+def _polyline_at(xy: FloatArray, d: FloatArray, arc: FloatArray, s: FloatArray) -> FloatArray:
+    """Points at arc lengths ``s`` ``(C, K, n)`` along the key polyline ``xy (C, K, 2)``
+    (segments ``d (C, K - 1, 2)``, nodes' arc lengths ``arc (C, K)``; continued straight past
+    both ends): ``(C, K, n, 2)``."""
     c, k = xy.shape[0], xy.shape[1]
     flat = s.reshape(c, -1)
-    seg = _clamp((flat[..., None] >= arc[:, None, 1:-1]).sum(axis=-1), 0, k - 2)  # (C, m)
-    rows = np.arange(c)[:, None]
-    a = xy[rows, seg]
-    b = xy[rows, seg + 1]
-    s0 = arc[rows, seg]
-    span = arc[rows, seg + 1] - s0
-    f = (flat - s0) / np.maximum(span, _EPS)
-    return (a + f[..., None] * (b - a)).reshape(*s.shape, 2)
+    # each segment's start, direction, start's arc length and length, looked up per point
+    table = np.empty((c, k - 1, 6))
+    table[..., 0:2] = xy[:, :-1]
+    table[..., 2:4] = d
+    table[..., 4] = arc[:, :-1]
+    np.subtract(arc[:, 1:], arc[:, :-1], out=table[..., 5])
+    seg = np.add.reduce(flat[..., None] >= arc[:, None, 1:-1], axis=-1)  # (C, m): in 0 .. K - 2
+    at = table[np.arange(c)[:, None], seg]  # (C, m, 6)
+    f = (flat - at[..., 4]) / np.maximum(at[..., 5], _EPS)
+    return (at[..., 0:2] + f[..., None] * at[..., 2:4]).reshape(*s.shape, 2)
 
 
 def node_pitch(
@@ -1059,9 +1085,11 @@ def node_pitch(
     node_z: npt.ArrayLike,
     env_pitch: npt.ArrayLike,
     foot_world: npt.ArrayLike | None,
+    ahead: FloatArray | None = None,
 ) -> FloatArray:
     """Each key node's pitch ``(C, K)`` (thesis §4.2.3): environment pitch averaged with the
-    pitch its feet induce.
+    pitch its feet induce (``ahead``: :func:`feet_ahead` of ``foot_world``, when the caller
+    has it already).
 
     A foot's induced pitch is the angle of the perpendicular to the node-to-foot vector in
     the node's vertical plane, pointing forward: a foot ahead of (or higher than) its place
@@ -1079,9 +1107,8 @@ def node_pitch(
     feet = np.asarray(foot_world, dtype=np.float64).reshape(c, spines.n_legs, 3)
     z = _as_shape(node_z, (c, k))
     leg = spines.leg_key
-    heading = plan.key_heading[:, leg]
-    rel_xy = feet[..., :2] - plan.key_xy[:, leg]
-    ahead = rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading)
+    if ahead is None:
+        ahead = feet_ahead(spines, plan, feet)
     below = z[:, leg] - feet[..., 2]
     rest_ahead = spines.rest_foot_ahead
     # The rest place on the sloped ground: further below the node behind it, less ahead.
@@ -1134,29 +1161,51 @@ def _sample_curve(
     """Points ``(C, J, 3)`` on the Hermite curve through the key nodes ``(C, K, 3)`` along
     their unit ``tangent`` ``(C, K, 3)`` (from the head toward the back) at the joints' arc
     fractions: joint ``j`` at ``fraction[..., j]`` of the arc of key segment ``segment[j]``;
-    the joints ``ends`` at the parameters ``end_value`` exactly (0 or 1: the key nodes)."""
+    the joints ``ends`` at the parameters ``end_value`` exactly (0 or 1: the key nodes).
+
+    Each segment's arc length is tabulated at ``_CURVE_SAMPLES`` parameters (the chords
+    between them, from one product with the basis's differences) and a joint's parameter
+    interpolated linearly between the two samples around its arc length."""
     c, k = key_xyz.shape[:2]
     m = _CURVE_SAMPLES
-    chord = vector_norm(key_xyz[:, 1:] - key_xyz[:, :-1], keepdims=True)  # (C, K - 1, 1)
+    n_j = segment.shape[0]
+    d = key_xyz[:, 1:] - key_xyz[:, :-1]
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
     ctrl[:, :, 0] = key_xyz[:, :-1]
     ctrl[:, :, 1] = key_xyz[:, 1:]
-    ctrl[:, :, 2] = tangent[:, :-1] * chord
-    ctrl[:, :, 3] = tangent[:, 1:] * chord
-    dense = _CURVE_BASIS @ ctrl  # (C, K - 1, m, 3): (m, 4) weights times (4, 3) controls
+    chord = np.sqrt(np.add.reduce(d * d, axis=-1, keepdims=True))  # (C, K - 1, 1)
+    np.multiply(tangent[:, :-1], chord, out=ctrl[:, :, 2])
+    np.multiply(tangent[:, 1:], chord, out=ctrl[:, :, 3])
+    step = _CURVE_STEP_BASIS @ ctrl  # (C, K - 1, m - 1, 3): between consecutive dense samples
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
-    vector_norm(dense[:, :, 1:] - dense[:, :, :-1]).cumsum(axis=2, out=table[:, :, 1:])
+    np.sqrt(np.add.reduce(step * step, axis=-1)).cumsum(axis=2, out=table[:, :, 1:])
     tab = table[:, segment]  # (C, J, m)
-    target = fraction * tab[..., -1]
-    idx = _clamp((tab < target[..., None]).sum(axis=-1), 1, m - 1)  # (C, J)
-    rows = np.arange(c)[:, None]
-    l0 = table[rows, segment, idx - 1]
-    l1 = table[rows, segment, idx]
+    target = fraction * tab[..., m - 1]
+    # the first sample at or past the target (a fraction is at most 1: never past the end)
+    idx = np.add.reduce(tab < target[..., None], axis=-1)
+    np.maximum(idx, 1, out=idx)
+    flat = tab.reshape(-1)
+    at = idx + _row_offsets(c * n_j, m).reshape(c, n_j)
+    l1 = flat[at]
+    l0 = flat[at - 1]
     frac = (target - l0) / np.maximum(l1 - l0, _EPS)
-    param = _CURVE_S[idx - 1] + _clamp(frac, 0.0, 1.0) * _CURVE_STEP
+    param = (idx - 1) * _CURVE_STEP + np.minimum(np.maximum(frac, 0.0), 1.0) * _CURVE_STEP
     # Exact ends: key joints sit on their key node.
     param[:, ends] = end_value
-    return np.asarray(np.einsum("cjf,cjfd->cjd", hermite_basis(param), ctrl[:, segment]))
+    basis = (param[..., None] ** _POWERS) @ HERMITE_MATRIX  # (C, J, 4): hermite_basis
+    return np.asarray((basis[:, :, None, :] @ ctrl[:, segment])[:, :, 0])
+
+
+_ROW_OFFSETS: dict[tuple[int, int], IntArray] = {}
+
+
+def _row_offsets(n: int, m: int) -> IntArray:
+    """``np.arange(n) * m``, made once per ``(n, m)``: where each row of an ``(n, m)``
+    array starts in its flattening."""
+    out = _ROW_OFFSETS.get((n, m))
+    if out is None:
+        out = _ROW_OFFSETS[(n, m)] = np.arange(n, dtype=np.intp) * m
+    return out
 
 
 def build_spine(
@@ -1179,51 +1228,87 @@ def build_spine(
     guide = np.asarray(key_xyz, dtype=np.float64)
     c = guide.shape[0]
     n_j = spines.n_joints
+    n_b = n_j - 1
     yaw = _as_shape(key_yaw, guide.shape[:2])
     pitch = _as_shape(key_pitch, guide.shape[:2])
     if tangent is None:
         tangent = -_direction(yaw, spines.rest_key_pitch + pitch)  # the curve runs from the head to the back
     samples = _sample_curve(guide, tangent, spines.joint_segment, spines.joint_fraction, spines.curve_ends,
                             spines.curve_end_value)
-    chord_yaw, chord_pitch = _yaw_pitch(samples[:, 1:] - samples[:, :-1])  # (C, J - 1)
-    yaw_dev, pitch_dev = _limit_joints(spines, _wrap(chord_yaw - spines.rest_chord_yaw),
-                                       chord_pitch - spines.rest_chord_pitch)
+    # each bone's turn from rest (yaw, pitch) = (dev[0], dev[1]), each (C, J - 1)
+    chord = samples[:, 1:] - samples[:, :-1]
+    cx, cy = chord[..., 0], chord[..., 1]
+    dev = np.empty((2, c, n_b))
+    np.subtract(np.arctan2(cy, cx), spines.rest_chord_yaw, out=dev[0])
+    _wrap_in_place(dev[0])
+    np.subtract(np.arctan2(chord[..., 2], np.hypot(cx, cy)), spines.rest_chord_pitch, out=dev[1])
+    # Mostly no joint is at its limit (then every turn stays as it is): one test for both.
+    within = np.abs(dev[:, :, 1:] - dev[:, :, :-1]) < spines.turn_limit
+    if n_b >= 2 and np.count_nonzero(within) < within.size:
+        dev[0], dev[1] = _limit_joints(spines, dev[0], dev[1])
 
     # Joint frames: the mean turn of the bones on either side (one bone at the ends). For a
     # bone pointing backward, a positive pitch deviation lowers the nose. Bones and joints
-    # are turned in one call: (C, J - 1) bone angles, then (C, J) joint angles.
-    pad_y = yaw_dev[:, spines.pad_index]
-    pad_p = pitch_dev[:, spines.pad_index]
-    turn_yaw = np.empty((c, 2 * n_j - 1))
-    turn_pitch = np.empty((c, 2 * n_j - 1))
-    np.add(spines.rest_chord_yaw, yaw_dev, out=turn_yaw[:, :n_j - 1])
-    np.add(spines.rest_chord_pitch, pitch_dev, out=turn_pitch[:, :n_j - 1])
-    turn_yaw[:, n_j - 1:] = pad_y[:, :-1] + 0.5 * _wrap(pad_y[:, 1:] - pad_y[:, :-1])
-    turn_pitch[:, n_j - 1:] = -0.5 * (pad_p[:, :-1] + pad_p[:, 1:])
-    turned = frame_from_yaw_pitch(turn_yaw, turn_pitch)
+    # are turned in one call: (C, J - 1) bone angles, then (C, J) joint angles, yaw then pitch.
+    turn = np.empty((2, c, n_b + n_j))
+    np.add(spines.rest_chord_turn, dev, out=turn[:, :, :n_b])
+    pad = dev[:, :, spines.pad_index]  # (2, C, J + 1)
+    half = pad[:, :, 1:] - pad[:, :, :-1]
+    _wrap_in_place(half[0])
+    half *= 0.5
+    np.add(pad[:, :, :-1], half, out=turn[:, :, n_b:])
+    np.negative(turn[1, :, n_b:], out=turn[1, :, n_b:])
+    turned = _frames(turn)  # (C, 2 J - 1, 3, 3)
     # Rz(yaw) Ry(-pitch) of the turned chord after the rest chord's inverse (rest_unturn)
-    rotation = turned[:, :n_j - 1] @ spines.rest_unturn
-    bone_world = np.einsum("...bij,...bj->...bi", rotation, spines.bone_dir) * spines.bone_length[..., None]
+    rotation = turned[:, :n_b] @ spines.rest_unturn
+    bone_world = (rotation @ spines.bone_vector)[..., 0]  # (C, J - 1, 3)
 
     aj = spines.anchor_joint
     anchor = guide[:, spines.anchor_key]
     joints = np.empty((c, n_j, 3))
     joints[:, aj] = anchor
     if aj < n_j - 1:
-        joints[:, aj + 1:] = anchor[:, None] + bone_world[:, aj:].cumsum(axis=1)
+        np.add(anchor[:, None], bone_world[:, aj:].cumsum(axis=1), out=joints[:, aj + 1:])
     if aj > 0:
-        joints[:, :aj] = anchor[:, None] - bone_world[:, :aj][:, ::-1].cumsum(axis=1)[:, ::-1]
+        np.subtract(anchor[:, None], bone_world[:, aj - 1::-1].cumsum(axis=1)[:, ::-1], out=joints[:, :aj])
     return SpinePose(
         joints=joints,
         bone_rotation=rotation,
-        joint_frame=turned[:, n_j - 1:],
+        joint_frame=turned[:, n_b:],
         guide_xyz=guide.copy(),
         key_yaw=np.array(yaw, copy=True),
         key_pitch=np.array(pitch, copy=True),
         tangent=tangent,
-        yaw_dev=yaw_dev,
-        pitch_dev=pitch_dev,
+        yaw_dev=dev[0],
+        pitch_dev=dev[1],
     )
+
+
+def _wrap_in_place(a: FloatArray) -> None:
+    """``a = _wrap(a)``, in place."""
+    a += np.pi
+    np.mod(a, _TWO_PI, out=a)
+    a -= np.pi
+
+
+#: Entries of ``Rz(yaw) @ Ry(-pitch)`` (``frame_from_yaw_pitch``) in :func:`_frames`' table
+#: of cos/sin of yaw and pitch and their products, and their signs.
+_FRAME_ENTRIES = np.array([4, 2, 5, 6, 0, 7, 3, 8, 1])
+_FRAME_SIGNS = np.array([1.0, -1.0, -1.0, 1.0, 1.0, -1.0, 1.0, 1.0, 1.0])
+
+
+def _frames(turn: FloatArray) -> FloatArray:
+    """``frame_from_yaw_pitch(turn[0], turn[1])`` for ``turn (2, C, n)``: ``(C, n, 3, 3)``,
+    from one table of the cosines, sines and their products."""
+    c, n = turn.shape[1], turn.shape[2]
+    table = np.empty((9, c, n))  # cy, cp, sy, sp, cy cp, cy sp, sy cp, sy sp, 0
+    np.cos(turn, out=table[0:2])
+    np.sin(turn, out=table[2:4])
+    np.multiply(table[0:4:2, None], table[None, 1:4:2], out=table[4:8].reshape(2, 2, c, n))
+    table[8] = 0.0
+    out = table.reshape(9, c * n).T[:, _FRAME_ENTRIES]
+    out *= _FRAME_SIGNS
+    return out.reshape(c, n, 3, 3)
 
 
 def _limit_joints(
@@ -1370,11 +1455,12 @@ def reach_repeats(
         to_foot = (feet if rows is None else feet[rows]) - hip
         dist = vector_norm(to_foot)
         reach = reach_all if rows is None else reach_all[rows]
-        stretched = (dist > reach + 1e-12).any(axis=1)
-        if not stretched.any():
+        stretched = np.logical_or.reduce(dist > reach + 1e-12, axis=1)
+        n_stretched = np.count_nonzero(stretched)
+        if not n_stretched:
             break
         excess = np.maximum(dist - slack * reach, 0.0)
-        if rows is None and stretched.all():
+        if rows is None and n_stretched == stretched.size:
             cap = cap_all
             base = start
         else:
@@ -1386,7 +1472,7 @@ def reach_repeats(
             base = start[rows]
         pull = to_foot * (excess * excess / np.maximum(dist, _EPS))[..., None]
         weight = excess @ member  # (c, K)
-        shift = np.einsum("lk,cld->ckd", member, pull) / np.maximum(weight, _EPS)[..., None]
+        shift = (spines.membership_t @ pull) / np.maximum(weight, _EPS)[..., None]  # (c, K, 3)
         moved = sub.guide_xyz + shift - base
         size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, cap / np.maximum(size, _EPS))
@@ -1462,6 +1548,7 @@ __all__ = [
     "SpinePose",
     "SpineState",
     "build_spine",
+    "feet_ahead",
     "finish_spine",
     "frame_from_yaw_pitch",
     "ground_guides",

@@ -18,6 +18,7 @@ Characters without a spine never reach this module's loops.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -34,6 +35,7 @@ from .spine import (
     SpinePose,
     SpineState,
     build_spine,
+    feet_ahead,
     hip_positions,
     leg_frames,
     node_pitch,
@@ -213,10 +215,11 @@ def guides(
     pref = rigid_height[link.node_char].copy()
     for g in link.groups:
         feet = support[g.legs]
-        height, env_pitch = terrain_guides(g.spines, g.plan, height_at, feet)
+        ahead = feet_ahead(g.spines, g.plan, feet)
+        height, env_pitch = terrain_guides(g.spines, g.plan, height_at, feet, ahead=ahead)
         a = alpha[g.chars][:, None]
         g.height = g.height + a * (height - g.height)
-        pitch = node_pitch(g.spines, g.plan, g.height, env_pitch, feet)
+        pitch = node_pitch(g.spines, g.plan, g.height, env_pitch, feet, ahead)
         g.pitch = g.pitch + a * (pitch - g.pitch)
         pref[g.nodes] = g.height
     return pref
@@ -268,7 +271,7 @@ def pose(
         # its growing reach), so the body is as low as that foot needs when it lands
         feet = at.foot[g.legs]
         swing = at.swinging[g.legs]
-        if swing.any():
+        if np.count_nonzero(swing):
             feet[swing, 2] = np.minimum(feet[swing, 2], at.target[g.legs][swing, 2])
         feet[..., 2] += at.foot_lift[g.legs]
         pose, hips = reach_repeats(sb, pose, feet, reach, iterations=6, max_shift=max_shift, hips=hips_free)
@@ -279,7 +282,7 @@ def pose(
         link.leg_rot[g.legs] = frames
         aj = sb.anchor_joint
         frame = pose.joint_frame[:, aj]
-        body.pos[g.chars] = pose.joints[:, aj] - np.einsum("...ij,...j->...i", frame, sb.anchor_rest)
+        body.pos[g.chars] = pose.joints[:, aj] - (frame @ sb.anchor_rest[..., None])[..., 0]
         body.yaw[g.chars] = np.arctan2(frame[:, 1, 0], frame[:, 0, 0])
         body.pitch[g.chars] = np.arctan2(frame[:, 2, 0], np.hypot(frame[:, 0, 0], frame[:, 1, 0]))
         body.roll[g.chars] = 0.0
@@ -299,9 +302,9 @@ def release_pull(
     need = pulled.guide_xyz - free.guide_xyz
     if g.reach_shift is None or g.reach_shift.shape != need.shape or dt <= 0.0:
         return pulled, need, pulled_hips
-    decayed = g.reach_shift * float(np.exp(-dt / max(release_time, 1e-9)))
+    decayed = g.reach_shift * math.exp(-dt / max(release_time, 1e-9))
     keep = vector_norm(decayed) > vector_norm(need)
-    if not keep.any():
+    if not np.count_nonzero(keep):
         return pulled, need, pulled_hips
     trial = np.where(keep[..., None], decayed, need)
     sb = g.spines
@@ -311,11 +314,12 @@ def release_pull(
         pulled_hips = hip_positions(sb, pulled)
     # kept only where it leaves no leg further from its foot than the pull did
     over = vector_norm(feet - slow_hips) > np.maximum(vector_norm(feet - pulled_hips), reach) + 1e-9
-    ok = ~over.any(axis=1)
+    ok = ~np.logical_or.reduce(over, axis=1)
     shift = np.where(ok[:, None, None], trial, need)
-    if ok.all():
+    n_ok = np.count_nonzero(ok)
+    if n_ok == ok.size:
         return slow, shift, slow_hips
-    if not ok.any():
+    if not n_ok:
         return pulled, shift, pulled_hips
     rows = np.flatnonzero(ok)
     return (pose_with_rows(pulled, rows, pose_rows(slow, rows)), shift,
