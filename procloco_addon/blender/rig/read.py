@@ -39,15 +39,21 @@ def _object_world(obj: bpy.types.Object) -> np.ndarray:
 _read_once: dict[str, tuple[_Rest, dict[str, np.ndarray]]] | None = None
 # Legs detected inside a reading_once() block, by the rig's shape (see _shape_key).
 _detected_once: dict[tuple[object, ...], list[LegChain]] = {}
+# Inside a reading_once() block: the meshes each armature deforms (by the armature's name),
+# found in one pass over the file's objects, and the vertices weighted mostly to each vertex
+# group of a mesh (by the mesh datablock and its groups): linked duplicates share their skin.
+_skins_once: dict[str, list[bpy.types.Object]] | None = None
+_members_once: dict[tuple[int, tuple[tuple[int, str], ...]], dict[str, np.ndarray]] = {}
 
 
 @contextmanager
 def reading_once() -> Iterator[None]:
     """Inside the block each rig's rest arrays (bones and skin) are read once, however many
-    legs and readers ask for them, and copies of one rig are detected once: for a reader
-    that changes nothing in between (Generate's settings check reads them once per leg, then
-    for the rig; Generate on many rigs reads them all in one block)."""
-    global _read_once
+    legs and readers ask for them, copies of one rig are detected once, and a skin mesh that
+    several rigs share is read once: for a reader that changes nothing in between
+    (Generate's settings check reads them once per leg, then for the rig; Generate on many
+    rigs reads them all in one block)."""
+    global _read_once, _skins_once
     outer = _read_once
     if outer is None:
         _read_once = {}
@@ -56,7 +62,9 @@ def reading_once() -> Iterator[None]:
     finally:
         if outer is None:
             _read_once = None
+            _skins_once = None
             _detected_once.clear()
+            _members_once.clear()
 
 
 def _rest_of(obj: bpy.types.Object) -> _Rest:
@@ -106,28 +114,77 @@ def _read_rest(obj: bpy.types.Object) -> tuple[_Rest, dict[str, np.ndarray]]:
     return (with_leaf_ends(rest, leaf_skin) if leaf_skin else rest), skin
 
 
+def _skins(obj: bpy.types.Object) -> list[bpy.types.Object]:
+    """The meshes deformed by ``obj`` (an Armature modifier on them names it), in the file's
+    order; inside a :func:`reading_once` block found for every armature in one pass."""
+    global _skins_once
+    if _read_once is None:
+        return [m for m in bpy.data.objects if m.type == "MESH"
+                and any(mod.type == "ARMATURE" and mod.object == obj for mod in m.modifiers)]
+    if _skins_once is None:
+        _skins_once = {}
+        for mesh_obj in bpy.data.objects:
+            if mesh_obj.type != "MESH":
+                continue
+            found = {mod.object.name for mod in mesh_obj.modifiers
+                     if mod.type == "ARMATURE" and mod.object is not None}
+            for name in found:
+                _skins_once.setdefault(name, []).append(mesh_obj)
+    return _skins_once.get(obj.name, [])
+
+
+def _members(mesh: bpy.types.Mesh, groups: dict[int, str]) -> dict[str, np.ndarray]:
+    """The vertices ``(p,)`` of ``mesh`` weighted mostly (>= 0.5) to each of ``groups``
+    (vertex group index -> name), in vertex order, for the groups that have any. Blender reads
+    vertex weights vertex by vertex only: the one loop over the vertices, shared inside a
+    :func:`reading_once` block by the rigs whose skins use the same mesh."""
+    key = (mesh.as_pointer(), tuple(sorted(groups.items())))
+    if _read_once is not None and key in _members_once:
+        return _members_once[key]
+    found: dict[int, list[int]] = {g: [] for g in groups}
+    get = found.get
+    for i, v in enumerate(mesh.vertices):
+        for g in v.groups:
+            chosen = get(g.group)
+            if chosen is not None and g.weight >= 0.5:
+                chosen.append(i)
+    out = {groups[g]: np.array(idx, dtype=np.int64) for g, idx in found.items() if idx}
+    if _read_once is not None:
+        _members_once[key] = out
+    return out
+
+
 def _skin_points(obj: bpy.types.Object, bone_names: Sequence[str]) -> dict[str, np.ndarray]:
     """World rest positions ``(p, 3)`` of the skin vertices weighted mostly (>= 0.5) to each
     of ``bone_names``, over the meshes deformed by ``obj`` (Armature modifier)."""
     wanted = set(bone_names)
     out: dict[str, list[np.ndarray]] = {}
-    for mesh_obj in bpy.data.objects:
-        if mesh_obj.type != "MESH" or not any(m.type == "ARMATURE" and m.object == obj
-                                              for m in mesh_obj.modifiers):
-            continue
+    for mesh_obj in _skins(obj):
         groups = {g.index: g.name for g in mesh_obj.vertex_groups if g.name in wanted}
         if not groups:
             continue
         mesh = mesh_obj.data
+        members = _members(mesh, groups)
+        if not members:
+            continue
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
-        world = _apply(np.array(mesh_obj.matrix_world, dtype=np.float64),
-                       co.reshape(-1, 3).astype(np.float64))
-        for v in mesh.vertices:
-            for g in v.groups:
-                if g.group in groups and g.weight >= 0.5:
-                    out.setdefault(groups[g.group], []).append(world[v.index])
-    return {k: np.array(v) for k, v in out.items() if len(v) >= 3}
+        # Only the weighted vertices, placed element-wise: a matrix product of every vertex
+        # was a BLAS call whose threads then spun on the other core.
+        chosen = np.unique(np.concatenate(list(members.values())))
+        world = _apply_each(np.array(mesh_obj.matrix_world, dtype=np.float64),
+                            co.reshape(-1, 3)[chosen].astype(np.float64))
+        row = np.empty(co.size // 3, dtype=np.int64)
+        row[chosen] = np.arange(chosen.size)
+        for name, idx in members.items():
+            out.setdefault(name, []).append(world[row[idx]])
+    merged = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
+    return {k: v for k, v in merged.items() if len(v) >= 3}
+
+
+def _apply_each(m: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Affine ``m`` ``(4, 4)`` applied to points ``p`` ``(n, 3)`` element-wise (no BLAS call)."""
+    return (p[:, 0:1] * m[:3, 0] + p[:, 1:2] * m[:3, 1]) + p[:, 2:3] * m[:3, 2] + m[:3, 3]
 
 
 def _posed_points(rest: _Rest, posed_local: np.ndarray, bone: int, points: np.ndarray,
