@@ -346,8 +346,9 @@ def read_terrain(context: bpy.types.Context, job: Job) -> Iterator[float]:
     job.timings["read_s"] = job.timings.get("read_s", 0.0) + time.perf_counter() - t0
 
 
-def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
-    """Read and check the rig and its settings (not the terrain: :func:`read_terrain`)."""
+def read(context: bpy.types.Context, obj: bpy.types.Object | None, cache: rig.ReadCache | None = None) -> Job:
+    """Read and check the rig and its settings (not the terrain: :func:`read_terrain`).
+    ``cache``: rigs read before (Live Preview's), reused while unchanged (see ``rig.ReadCache``)."""
     t0 = time.perf_counter()
     if obj is None or obj.type != "ARMATURE":
         name = "Nothing" if obj is None else f"'{obj.name}'"
@@ -362,7 +363,7 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError(problem)
     stale = stale_bones(obj)
     try:
-        with rig.reading_once():  # one reading of the rest arrays for every leg and the rig
+        with rig.reading_once(cache):  # one reading of the rest arrays for every leg and the rig
             legs = settings_legs(obj)
             from_settings = legs is not None
             info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine),

@@ -84,7 +84,7 @@ from .pose import (
 from .rest import RigError, _unit, uniform_scale
 
 if TYPE_CHECKING:
-    from .read import detect_legs, facing_source, leg_from_bones, read_rig, reading_once
+    from .read import ReadCache, detect_legs, facing_source, leg_from_bones, read_rig, reading_once
 
 __all__ = [
     "FOOT_EXTENT_SHARE",
@@ -94,6 +94,7 @@ __all__ = [
     "GroundFn",
     "LegChain",
     "PoseTracks",
+    "ReadCache",
     "RigError",
     "RigInfo",
     "SpineLayout",
@@ -113,7 +114,7 @@ __all__ = [
     "uniform_scale",
 ]
 
-_READ = frozenset({"detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once"})
+_READ = frozenset({"ReadCache", "detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once"})
 
 
 def __getattr__(name: str) -> Any:

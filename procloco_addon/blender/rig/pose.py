@@ -279,8 +279,9 @@ def solve_pose_steps(
     w_inv = affine_inverse(w)
 
     # Desired world rotation (F, 3, 3) of every driven bone; world head of the body bone.
+    # (of the solved bones only: a rig has many more, a Rigify metarig's face among them)
     rest_rot = {n: w_rot @ (m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0))
-                for n, m in info.rest_local.items()}
+                for n, m in ((b, info.rest_local[b]) for b in info.driven_bones)}
     desired: dict[str, np.ndarray] = {}
     desired[info.body_bone] = delta_rot @ rest_rot[info.body_bone]
     body_head_rest = _apply(w, info.rest_local[info.body_bone][:3, 3][None])[0]
@@ -315,12 +316,11 @@ def solve_pose_steps(
         scale2 = np.sum(np.diff(cur_j, axis=1) ** 2, axis=(1, 2))
         weak = size < 1e-4 * scale2
         n_cur = _side_of(np.where(weak[:, None], n_turned, _unit(n_cur)), n_turned)
-        seg_rest = np.diff(rest_j, axis=0)
-        seg_cur = np.diff(cur_j, axis=1)
+        # every bone of the leg at once: (k, 3, 3) at rest, (F, k, 3, 3) now
+        f_rest = np.swapaxes(_frames(np.diff(rest_j, axis=0), n_rest[None]), -1, -2)
+        f_cur = _frames(np.diff(cur_j, axis=1), n_cur[:, None])
         for b, name in enumerate(leg.bones):
-            f_rest = _frames(seg_rest[b], n_rest)
-            f_cur = _frames(seg_cur[:, b], n_cur)
-            desired[name] = f_cur @ np.swapaxes(f_rest, -1, -2)[None] @ rest_rot[name]
+            desired[name] = f_cur[:, b] @ f_rest[b][None] @ rest_rot[name]
         if leg.foot:
             desired[leg.foot[0]] = foot_yaw[:, k] @ rest_rot[leg.foot[0]]
         done += 1

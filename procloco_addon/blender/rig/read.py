@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections.abc import Collection, Iterator, Sequence
 from contextlib import contextmanager
@@ -43,28 +44,109 @@ _detected_once: dict[tuple[object, ...], list[LegChain]] = {}
 # found in one pass over the file's objects, and the vertices weighted mostly to each vertex
 # group of a mesh (by the mesh datablock and its groups): linked duplicates share their skin.
 _skins_once: dict[str, list[bpy.types.Object]] | None = None
-_members_once: dict[tuple[int, tuple[tuple[int, str], ...]], dict[str, np.ndarray]] = {}
+_MembersKey = tuple[int, tuple[tuple[int, str], ...]]
+_members_once: dict[_MembersKey, dict[str, np.ndarray]] = {}
+# The ReadCache of the reading_once() block (None: nothing is kept beyond the block), and
+# the digest of each rig read in the block (see ReadCache).
+_cache_once: ReadCache | None = None
+_digests_once: dict[str, bytes] = {}
+
+
+class ReadCache:
+    """Rigs read before, reused while what they were read from stays the same: Live Preview
+    reads its rig again after each edit of a setting, when the rig itself rarely changed.
+
+    An entry is found by a digest of everything reading a rig takes from Blender in bulk (the
+    object's placement, its bones at rest and as posed now, their constraints, the placement,
+    vertices and vertex groups of its skins) and by the reading's own arguments. Vertex
+    weights come vertex by vertex and are not in the digest: :meth:`forget_meshes` drops what
+    was read from the skins once a mesh was edited (Live Preview calls it from its depsgraph
+    handler, which sees a weight painted, or a vertex moved, as an update of the mesh).
+    Used through :func:`reading_once`."""
+
+    def __init__(self) -> None:
+        self.rest: dict[str, tuple[bytes, tuple[_Rest, dict[str, np.ndarray]]]] = {}
+        self.infos: dict[str, tuple[tuple[object, ...], RigInfo]] = {}
+        self.members: dict[_MembersKey, dict[str, np.ndarray]] = {}
+
+    def forget_meshes(self) -> None:
+        """A mesh was edited: read the skins (and so the rigs) again."""
+        self.clear()
+
+    def clear(self) -> None:
+        self.rest.clear()
+        self.infos.clear()
+        self.members.clear()
 
 
 @contextmanager
-def reading_once() -> Iterator[None]:
+def reading_once(cache: ReadCache | None = None) -> Iterator[None]:
     """Inside the block each rig's rest arrays (bones and skin) are read once, however many
     legs and readers ask for them, copies of one rig are detected once, and a skin mesh that
     several rigs share is read once: for a reader that changes nothing in between
     (Generate's settings check reads them once per leg, then for the rig; Generate on many
-    rigs reads them all in one block)."""
-    global _read_once, _skins_once
+    rigs reads them all in one block). With ``cache`` (on the outermost block), what is read
+    is kept there, and a rig found unchanged there is not read again."""
+    global _read_once, _skins_once, _cache_once, _members_once
     outer = _read_once
     if outer is None:
         _read_once = {}
+        if cache is not None:
+            _cache_once = cache
+            _members_once = cache.members
     try:
         yield
     finally:
         if outer is None:
             _read_once = None
             _skins_once = None
+            _cache_once = None
             _detected_once.clear()
-            _members_once.clear()
+            _digests_once.clear()
+            _members_once = {}
+
+
+def _digest(obj: bpy.types.Object) -> bytes:
+    """What reading ``obj`` takes from Blender, but its current pose (:func:`_pose_digest`)
+    and the skins' vertex weights, as a digest (see :class:`ReadCache`); once per
+    :func:`reading_once` block."""
+    if obj.name in _digests_once:
+        return _digests_once[obj.name]
+    h = hashlib.blake2b(digest_size=16)
+    h.update(np.array(obj.matrix_world, dtype=np.float64).tobytes())
+    bones = obj.data.bones
+    n = len(bones)
+    h.update(repr([(b.name, b.parent.name if b.parent else None, b.use_connect) for b in bones]).encode())
+    for prop, size in (("matrix_local", 16), ("head_local", 3), ("tail_local", 3)):
+        buf = np.empty(n * size, dtype=np.float32)
+        bones.foreach_get(prop, buf)
+        h.update(buf.tobytes())
+    pbones = obj.pose.bones
+    constraints = [(pb.name, [(c.type, c.enabled, round(float(c.influence), 9),
+                               getattr(getattr(c, "target", None), "name", None),
+                               getattr(c, "subtarget", None), getattr(c, "use_tail", None))
+                              for c in pb.constraints])
+                   for pb in pbones if len(pb.constraints)]
+    h.update(repr([pb.name for pb in pbones]).encode() + repr(constraints).encode())
+    for mesh_obj in _skins(obj):
+        mesh = mesh_obj.data
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        h.update(repr((mesh_obj.name, mesh.name, [g.name for g in mesh_obj.vertex_groups])).encode())
+        h.update(np.array(mesh_obj.matrix_world, dtype=np.float64).tobytes() + co.tobytes())
+    _digests_once[obj.name] = out = h.digest()
+    return out
+
+
+def _pose_digest(obj: bpy.types.Object, at_rest: Collection[str]) -> bytes:
+    """The current pose of ``obj``'s bones but those taken ``at_rest`` (a generated Action's,
+    posed anew at every frame), as a digest."""
+    pbones = obj.pose.bones
+    buf = np.empty((len(pbones), 16), dtype=np.float32)
+    pbones.foreach_get("matrix_basis", buf.ravel())
+    if at_rest:
+        buf[[i for i, pb in enumerate(pbones) if pb.name in at_rest]] = 0.0
+    return hashlib.blake2b(buf.tobytes(), digest_size=16).digest()
 
 
 def _rest_of(obj: bpy.types.Object) -> _Rest:
@@ -73,10 +155,19 @@ def _rest_of(obj: bpy.types.Object) -> _Rest:
 
 def _read(obj: bpy.types.Object) -> tuple[_Rest, dict[str, np.ndarray]]:
     """``obj``'s rest arrays and its skin points by bone name (see :func:`_skin_points`),
-    read once per :func:`reading_once` block."""
+    read once per :func:`reading_once` block (and kept in its :class:`ReadCache`)."""
     if _read_once is not None and obj is not None and obj.name in _read_once:
         return _read_once[obj.name]
-    read = _read_rest(obj)
+    if _cache_once is not None and obj is not None and obj.type == "ARMATURE":
+        digest = _digest(obj)
+        kept = _cache_once.rest.get(obj.name)
+        if kept is not None and kept[0] == digest:
+            read = kept[1]
+        else:
+            read = _read_rest(obj)
+            _cache_once.rest[obj.name] = (digest, read)
+    else:
+        read = _read_rest(obj)
     if _read_once is not None:
         _read_once[obj.name] = read
     return read
@@ -261,7 +352,26 @@ def read_rig(
     named in ``at_rest``, which are taken at rest.
     Raises :class:`RigError` for anything that cannot be animated (not an armature, bad
     legs, legs with no common body bone, non-uniform scale).
+
+    Inside a :func:`reading_once` block with a :class:`ReadCache`, a rig read before with the
+    same arguments and found unchanged is the one read then (the same object).
     """
+    if _cache_once is None or obj is None or obj.type != "ARMATURE":
+        return _read_rig(obj, legs, forward_axis, spine, at_rest)
+    key = (_digest(obj), _pose_digest(obj, at_rest), None if legs is None else tuple(legs), forward_axis,
+           bool(spine), tuple(sorted(at_rest)))
+    kept = _cache_once.infos.get(obj.name)
+    if kept is not None and kept[0] == key:
+        return kept[1]
+    info = _read_rig(obj, legs, forward_axis, spine, at_rest)
+    _cache_once.infos[obj.name] = (key, info)
+    return info
+
+
+def _read_rig(
+    obj: bpy.types.Object, legs: Sequence[LegChain] | None, forward_axis: str, spine: bool,
+    at_rest: Collection[str],
+) -> RigInfo:
     rest, skin = _read(obj)
     if legs is None:
         legs = detect_legs(obj)
