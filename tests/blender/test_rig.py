@@ -551,3 +551,65 @@ def test_a_standing_foot_keeps_its_pitch_on_an_edge_and_a_moved_one_finds_its_ow
     moved = rig.solve_pose(info, body, joints, ground=ground).rotations[:, toe]
     assert turn(moved[3], moved[2]) > 1.0
     assert np.abs(moved[4:] - moved[3:4]).max() < 1e-8
+
+
+def _same_info(a: rig.RigInfo, b: rig.RigInfo) -> bool:
+    return (a.legs == b.legs and a.body_bone == b.body_bone
+            and all(np.array_equal(x, y) for x, y in zip(a.joints, b.joints, strict=True))
+            and all(np.array_equal(x, y) for x, y in zip(a.foot_points, b.foot_points, strict=True))
+            and np.array_equal(a.contact, b.contact) and np.array_equal(a.world, b.world)
+            and all(np.array_equal(a.basis[n], b.basis[n]) for n in a.basis))
+
+
+def test_a_read_cache_gives_an_unchanged_rig_back_and_reads_a_changed_one_again(
+        empty_scene: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Live Preview's ReadCache: the rig read before when nothing it was read from changed;
+    read again (as a fresh reading gives it) when the rig moved or a bone that is not driven
+    was posed; its skins' weights, which are not in the digest, when it is told a mesh was
+    edited (forget_meshes)."""
+    from procloco_addon.blender.rig import read
+
+    arm = creatures.build_wolf(empty_scene)
+    skin = next(o for o in bpy.data.objects if o.type == "MESH")
+    cache = rig.ReadCache()
+    calls: list[str] = []
+    real = read._read_rest
+
+    def counted(obj: Any) -> Any:
+        calls.append(obj.name)
+        return real(obj)
+
+    def cached() -> tuple[rig.RigInfo, int]:
+        """The reading through the cache, and how many times the rest arrays were read for it."""
+        before = len(calls)
+        with rig.reading_once(cache):
+            info = rig.read_rig(arm, spine=True)
+        return info, len(calls) - before
+
+    monkeypatch.setattr(read, "_read_rest", counted)
+    first, n = cached()
+    assert n == 1
+    again, n = cached()
+    assert again is first and n == 0
+    assert _same_info(first, rig.read_rig(arm, spine=True))
+    arm.location.x += 0.5  # moved: read again
+    bpy.context.view_layer.update()
+    moved, n = cached()
+    assert moved is not first and n == 1
+    assert np.allclose(moved.joints[0] - first.joints[0], [0.5, 0.0, 0.0])
+    arm.pose.bones["spine"].rotation_quaternion = (0.9, 0.1, 0.0, 0.0)  # the tail tip: not driven
+    bpy.context.view_layer.update()
+    posed, n = cached()
+    assert posed is not moved and n == 0  # the same rest arrays: the pose read again
+    assert _same_info(posed, rig.read_rig(arm, spine=True))
+    assert not _same_info(posed, moved)
+    # A hind toe's vertices taken out of its group: the weights are not in the digest...
+    group = skin.vertex_groups["toe.L"]
+    group.remove([v.index for v in skin.data.vertices if any(g.group == group.index for g in v.groups)])
+    kept, n = cached()
+    assert kept is posed and n == 0
+    cache.forget_meshes()  # ... until the cache is told a mesh was edited
+    reread, n = cached()
+    assert reread is not posed and n == 1
+    assert _same_info(reread, rig.read_rig(arm, spine=True))
+    assert not _same_info(reread, posed)  # that foot's sole comes from its bones now

@@ -422,7 +422,13 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     foot = np.repeat(np.arange(len(legs)), counts)  # the foot of each sole point
     ends = np.stack([np.asarray(joints_world[k], dtype=np.float64)[:, -1] for k in legs], axis=1)  # (F, J, 3)
     rest_points = np.concatenate([info.foot_points[k] - info.joints[k][-1] for k in legs])  # (P, 3)
-    rel = np.einsum("fpij,pj->fpi", leg_yaw[:, legs][:, foot], rest_points)  # (F, P, 3)
+    # (F, P, 3): each point turned with its foot's heading, a rotation about Z (written out:
+    # the rotations gathered per point were a tenth of the pitch)
+    cos, sin = leg_yaw[:, legs, 0, 0][:, foot], leg_yaw[:, legs, 1, 0][:, foot]
+    rel = np.empty((n_frames, foot.size, 3))
+    rel[..., 0] = cos * rest_points[:, 0] - sin * rest_points[:, 1]
+    rel[..., 1] = sin * rest_points[:, 0] + cos * rest_points[:, 1]
+    rel[..., 2] = rest_points[:, 2]
     # (over a moving ground a foot standing still may find other ground under it)
     first = (np.repeat(np.arange(n_frames)[:, None], len(legs), axis=1) if dynamic else
              _stands_since(ends, leg_yaw[:, legs], HELD * max(float(np.mean(info.leg_length)), 1e-3)))
@@ -440,7 +446,6 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
     under[at] = np.asarray(ground(at[0] if dynamic else np.zeros_like(at[0]), ends[at][:, :2]),
                            dtype=np.float64)
     lifts = ends[..., 2] - info.foot_height[legs][None] - under  # (F, J)
-    frame_of = np.repeat(np.arange(n_frames)[:, None], rel.shape[1], axis=1)  # (F, P)
     heights = np.full(asked.shape, -np.inf)
     changed = np.ones((n_frames, len(legs)), dtype=bool)
     # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
@@ -455,9 +460,11 @@ def _pitch_feet(info: RigInfo, joints_world: Sequence[np.ndarray], leg_yaw: np.n
         # Heights asked again only where a foot turned since they were read (elsewhere its
         # points stand where they stood).
         ask = asked & (changed & own)[:, foot]
-        xy = ends[:, foot, :2] + np.einsum("fpij,fpj->fpi", turns[:, foot, :2], rel)
-        key = frame_of[ask] if dynamic else np.zeros(int(ask.sum()), dtype=np.int64)
-        heights[ask] = np.asarray(ground(key, xy[ask]), dtype=np.float64)
+        at_f, at_p = np.nonzero(ask)  # (only the points asked are placed)
+        at_j = foot[at_p]
+        xy = ends[at_f, at_j, :2] + np.einsum("pij,pj->pi", turns[at_f, at_j, :2], rel[at_f, at_p])
+        key = at_f if dynamic else np.zeros(at_f.size, dtype=np.int64)
+        heights[at_f, at_p] = np.asarray(ground(key, xy), dtype=np.float64)
         theta, _d = _foot_pitch(rel, starts, ends, heights, limit, lifts, reach)
         theta = theta[first, chosen]  # a standing foot's from where it began to stand
         if pitched is not None:
