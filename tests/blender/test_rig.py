@@ -618,3 +618,43 @@ def test_a_read_cache_gives_an_unchanged_rig_back_and_reads_a_changed_one_again(
     assert n == 1
     assert _same_info(reread, rig.read_rig(arm, spine=True))
     assert not _same_info(reread, posed)  # that foot's sole comes from its bones now
+
+
+def test_rigs_solved_together_get_the_poses_they_get_alone(empty_scene: Any) -> None:
+    """solve_poses_steps: two wolves (one turned, both walking their own way, feet pitched on
+    a shared ground) and a spider in one call; each rig's channels as solved alone (the wolves
+    in one pass: but for the last bit), in the order given."""
+    from procloco_addon.core.steps import run_steps
+
+    wolves = [creatures.build_wolf(empty_scene, name=f"Wolf{k}", location=(3.0 * k, 0.0, 0.0))
+              for k in range(2)]
+    wolves[1].rotation_euler = (0.0, 0.0, 0.4)
+    spider = creatures.build_spider(empty_scene, location=(0.0, 4.0, 0.0))
+    bpy.context.view_layer.update()
+
+    def ground(frame_index: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        return 0.03 * np.sin(3.0 * xy[:, 0]) * np.cos(2.0 * xy[:, 1])  # bumps under the toes
+
+    ground.dynamic = False  # type: ignore[attr-defined]
+    n = 10
+    t = np.linspace(0.0, 1.0, n)
+    inputs = []
+    for k, arm in enumerate([wolves[0], spider, wolves[1]]):
+        info = rig.read_rig(arm)
+        body = np.repeat(info.body.matrix[None], n, axis=0)
+        body[:, :3, 3] += np.outer(t, [0.3, 0.1 * k, 0.0])
+        move = np.outer(t, [0.3, 0.1 * k, 0.02])[:, None]
+        joints = [np.repeat(j[None], n, axis=0) + move for j in info.joints]
+        for leg_joints in joints:
+            leg_joints[:, 1:-1] += 0.01 * np.sin(7.0 * t + k)[:, None, None]  # the knees move
+        planted = np.zeros((n, len(info.legs)), dtype=bool)
+        planted[: n // 2, ::2] = True
+        inputs.append(rig.PoseInputs(info, body, tuple(joints), ground, planted=planted))
+    together = run_steps(rig.solve_poses_steps(inputs))
+    for inp, got in zip(inputs, together, strict=True):
+        alone = rig.solve_pose(inp.info, inp.body_world, inp.joints_world, ground=ground, planted=inp.planted)
+        assert got.bones == alone.bones
+        np.testing.assert_allclose(got.rotations, alone.rotations, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(got.locations, alone.locations, rtol=0.0, atol=1e-12)
+    feet = [together[0].bones.index(leg.foot[0]) for leg in inputs[0].info.legs]
+    assert np.ptp(together[0].rotations[:, feet], axis=0).max() > 1e-3  # the feet were pitched

@@ -74,12 +74,14 @@ from .morphology import FOOT_EXTENT_SHARE, morphology_of
 from .names import HELPER_WORDS, LEG_WORDS, split_name
 from .pose import (
     GroundFn,
+    PoseInputs,
     PoseTracks,
     _bend_normal,
     _frames,
     matrix_to_quaternion,
     solve_pose,
     solve_pose_steps,
+    solve_poses_steps,
 )
 from .rest import RigError, _unit, uniform_scale
 
@@ -93,6 +95,7 @@ __all__ = [
     "BodyInfo",
     "GroundFn",
     "LegChain",
+    "PoseInputs",
     "PoseTracks",
     "ReadCache",
     "RigError",
@@ -110,6 +113,7 @@ __all__ = [
     "reading_once",
     "solve_pose",
     "solve_pose_steps",
+    "solve_poses_steps",
     "split_name",
     "uniform_scale",
 ]
