@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import re
 from collections.abc import Collection, Iterator, Sequence
@@ -50,6 +51,9 @@ _members_once: dict[_MembersKey, dict[str, np.ndarray]] = {}
 # the digest of each rig read in the block (see ReadCache).
 _cache_once: ReadCache | None = None
 _digests_once: dict[str, bytes] = {}
+# Inside a reading_once() block: the rigs read by their shape (see read_rig), their copies
+# placed from them.
+_copies_once: dict[tuple[object, ...], RigInfo] = {}
 
 
 class ReadCache:
@@ -103,6 +107,7 @@ def reading_once(cache: ReadCache | None = None) -> Iterator[None]:
             _cache_once = None
             _detected_once.clear()
             _digests_once.clear()
+            _copies_once.clear()
             _members_once = {}
 
 
@@ -110,10 +115,22 @@ def _digest(obj: bpy.types.Object) -> bytes:
     """What reading ``obj`` takes from Blender, but its current pose (:func:`_pose_digest`)
     and the skins' vertex weights, as a digest (see :class:`ReadCache`); once per
     :func:`reading_once` block."""
+    h = hashlib.blake2b(_shape_digest(obj), digest_size=16)
+    h.update(np.array(obj.matrix_world, dtype=np.float64)[:3, 3].tobytes())
+    # (which meshes: their weights are not in the digest)
+    h.update(repr([(m.name, m.data.name, m.data.as_pointer()) for m in _skins(obj)]).encode())
+    return h.digest()
+
+
+def _shape_digest(obj: bpy.types.Object) -> bytes:
+    """:func:`_digest` but where the rig stands: its bones, constraints, the turn and scale of
+    its object, its skins' vertices, groups and placement relative to it, as a digest; once
+    per :func:`reading_once` block."""
     if obj.name in _digests_once:
         return _digests_once[obj.name]
     h = hashlib.blake2b(digest_size=16)
-    h.update(np.array(obj.matrix_world, dtype=np.float64).tobytes())
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    h.update(world[:3, :3].tobytes())
     bones = obj.data.bones
     n = len(bones)
     h.update(repr([(b.name, b.parent.name if b.parent else None, b.use_connect) for b in bones]).encode())
@@ -132,10 +149,37 @@ def _digest(obj: bpy.types.Object) -> bytes:
         mesh = mesh_obj.data
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
-        h.update(repr((mesh_obj.name, mesh.name, [g.name for g in mesh_obj.vertex_groups])).encode())
-        h.update(np.array(mesh_obj.matrix_world, dtype=np.float64).tobytes() + co.tobytes())
+        h.update(repr([g.name for g in mesh_obj.vertex_groups]).encode())
+        placed = np.array(mesh_obj.matrix_world, dtype=np.float64)
+        placed[:3, 3] -= world[:3, 3]
+        h.update(placed.tobytes() + co.tobytes())
     _digests_once[obj.name] = out = h.digest()
     return out
+
+
+def _weights_digest(obj: bpy.types.Object) -> bytes:
+    """The vertices weighted to each bone in ``obj``'s skins (:func:`_members`), as a digest."""
+    h = hashlib.blake2b(digest_size=16)
+    names = {b.name for b in obj.data.bones}
+    for mesh_obj in _skins(obj):
+        groups = {g.index: g.name for g in mesh_obj.vertex_groups if g.name in names}
+        for name, idx in _members(mesh_obj.data, groups).items() if groups else ():
+            h.update(name.encode() + b"\0" + idx.tobytes())
+    return h.digest()
+
+
+def _placed(first: RigInfo, obj: bpy.types.Object) -> RigInfo:
+    """``first``, read from a copy of ``obj`` standing elsewhere (:func:`read_rig`), moved to
+    where ``obj`` stands."""
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    shift = world[:3, 3] - first.world[:3, 3]
+    layout = first.spine_layout
+    return dataclasses.replace(
+        first, object_name=obj.name, world=world,
+        body=BodyInfo(first.body.origin + shift, first.body.forward, first.body.left),
+        joints=tuple(j + shift for j in first.joints), contact=first.contact + shift,
+        foot_points=tuple(p + shift for p in first.foot_points),
+        spine_layout=None if layout is None else dataclasses.replace(layout, joints=layout.joints + shift))
 
 
 def _pose_digest(obj: bpy.types.Object, at_rest: Collection[str]) -> bytes:
@@ -356,15 +400,23 @@ def read_rig(
     Inside a :func:`reading_once` block with a :class:`ReadCache`, a rig read before with the
     same arguments and found unchanged is the one read then (the same object).
     """
-    if _cache_once is None or obj is None or obj.type != "ARMATURE":
+    if _read_once is None or obj is None or obj.type != "ARMATURE":
         return _read_rig(obj, legs, forward_axis, spine, at_rest)
-    key = (_digest(obj), _pose_digest(obj, at_rest), None if legs is None else tuple(legs), forward_axis,
-           bool(spine), tuple(sorted(at_rest)))
-    kept = _cache_once.infos.get(obj.name)
-    if kept is not None and kept[0] == key:
-        return kept[1]
-    info = _read_rig(obj, legs, forward_axis, spine, at_rest)
-    _cache_once.infos[obj.name] = (key, info)
+    asked = (_pose_digest(obj, at_rest), None if legs is None else tuple(legs), forward_axis, bool(spine),
+             tuple(sorted(at_rest)))
+    if _cache_once is not None:
+        key = (_digest(obj), *asked)
+        kept = _cache_once.infos.get(obj.name)
+        if kept is not None and kept[0] == key:
+            return kept[1]
+    # A copy of a rig read in this block (the same bones, pose, constraints, skins and
+    # weights; its object only moved): that reading, moved to where it stands.
+    copy = (_shape_digest(obj), _weights_digest(obj), *asked)
+    first = _copies_once.get(copy)
+    info = _read_rig(obj, legs, forward_axis, spine, at_rest) if first is None else _placed(first, obj)
+    _copies_once.setdefault(copy, info)
+    if _cache_once is not None:
+        _cache_once.infos[obj.name] = (key, info)
     return info
 
 
