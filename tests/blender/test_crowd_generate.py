@@ -456,7 +456,22 @@ def test_copies_of_a_rig_read_together_are_read_once_and_placed(empty_scene: Any
     monkeypatch.setattr(read, "_read_rig", counted)
     with rig.reading_once():
         together = {o.name: rig.read_rig(o) for o in wolves}
+        # What is made from a reading is shared by its copies (but what to key only on a plain
+        # rig: see the copies with a constraint below).
+        first, copy = together["Wolf0"], together["Wolf1"]
+        assert rig.shared(copy, ("x",), object, plain=True) is rig.shared(first, ("x",), object, plain=True)
+        assert rig.shared(together["Wolf2"], ("x",), object) is not rig.shared(first, ("x",), object)
     assert calls == ["Wolf0", "Wolf2", "Wolf3"]  # Wolf1 placed from Wolf0
+    constrained = [_place(empty_scene, "wolf", f"Held{k}", (3.0 * k, 5.0)) for k in range(2)]
+    for obj in constrained:
+        obj.pose.bones["spine"].constraints.new("LIMIT_ROTATION")
+    bpy.context.view_layer.update()
+    with rig.reading_once():
+        held = [rig.read_rig(o) for o in constrained]
+        assert calls[3:] == ["Held0"]  # a copy all the same
+        assert rig.shared(held[1], ("x",), object) is rig.shared(held[0], ("x",), object)
+        assert rig.shared(held[1], ("x",), object, plain=True) is not rig.shared(held[0], ("x",), object,
+                                                                                  plain=True)
     for name, info in together.items():
         mine = alone[name]
         assert info.object_name == name

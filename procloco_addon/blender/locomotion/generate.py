@@ -368,7 +368,9 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None, cache: rig.Re
             from_settings = legs is not None
             info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine),
                                 at_rest=stale)
-        morph = rig.morphology_of(info, float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
+        limits = (float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
+        # (copies of a rig read together share their morphology: it is in the body frame)
+        morph = rig.shared(info, ("morphology", *limits), lambda: rig.morphology_of(info, *limits))
     except rig.RigError as err:
         raise GenerateError(str(err)) from err
     gait = _gait_of(obj, info.legs, from_settings)
@@ -385,7 +387,9 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None, cache: rig.Re
         raise GenerateError("No ground mesh found: add a mesh under the creature (or choose the terrain "
                             "collection)" + scene_terrain.hidden_note(context, [obj]))
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
-    plan, warnings = plan_keys(obj, info)
+    # (copies of a plain rig read together key the same bones)
+    plan, shared_warnings = rig.shared(info, ("plan",), lambda: plan_keys(obj, info), plain=True)
+    warnings = list(shared_warnings)
     changes = _gait_changes(obj, info.legs, frames, warnings)
     auto = None
     # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)

@@ -86,7 +86,7 @@ from .pose import (
 from .rest import RigError, _unit, uniform_scale
 
 if TYPE_CHECKING:
-    from .read import ReadCache, detect_legs, facing_source, leg_from_bones, read_rig, reading_once
+    from .read import ReadCache, detect_legs, facing_source, leg_from_bones, read_rig, reading_once, shared
 
 __all__ = [
     "FOOT_EXTENT_SHARE",
@@ -111,6 +111,7 @@ __all__ = [
     "morphology_of",
     "read_rig",
     "reading_once",
+    "shared",
     "solve_pose",
     "solve_pose_steps",
     "solve_poses_steps",
@@ -118,7 +119,8 @@ __all__ = [
     "uniform_scale",
 ]
 
-_READ = frozenset({"ReadCache", "detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once"})
+_READ = frozenset({"ReadCache", "detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once",
+                   "shared"})
 
 
 def __getattr__(name: str) -> Any:

@@ -7,8 +7,9 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import re
-from collections.abc import Collection, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
+from typing import TypeVar, cast
 
 import bpy
 import numpy as np
@@ -32,6 +33,8 @@ from .rest import (
 )
 from .spine import _spine_chain, _spine_layout
 
+_T = TypeVar("_T")
+
 
 def _object_world(obj: bpy.types.Object) -> np.ndarray:
     return np.array(obj.matrix_world, dtype=np.float64)
@@ -54,6 +57,12 @@ _digests_once: dict[str, bytes] = {}
 # Inside a reading_once() block: the rigs read by their shape (see read_rig), their copies
 # placed from them.
 _copies_once: dict[tuple[object, ...], RigInfo] = {}
+# Inside a reading_once() block: each reading's copy key (by the id of its RigInfo, kept in
+# _copies_once or by its job), whether the rig is plain (no constraint, no driver), and what
+# readers derive from a reading and share with its copies (shared()).
+_copy_keys_once: dict[int, tuple[tuple[object, ...], bool]] = {}
+_shared_once: dict[tuple[object, ...], object] = {}
+_plain_once: dict[str, bool] = {}
 
 
 class ReadCache:
@@ -108,6 +117,9 @@ def reading_once(cache: ReadCache | None = None) -> Iterator[None]:
             _detected_once.clear()
             _digests_once.clear()
             _copies_once.clear()
+            _copy_keys_once.clear()
+            _shared_once.clear()
+            _plain_once.clear()
             _members_once = {}
 
 
@@ -144,6 +156,9 @@ def _shape_digest(obj: bpy.types.Object) -> bytes:
                                getattr(c, "subtarget", None), getattr(c, "use_tail", None))
                               for c in pb.constraints])
                    for pb in pbones if len(pb.constraints)]
+    drivers = [adt for adt in (obj.animation_data, obj.data.animation_data)
+               if adt is not None and len(adt.drivers)]
+    _plain_once[obj.name] = not constraints and not drivers
     h.update(repr([pb.name for pb in pbones]).encode() + repr(constraints).encode())
     for mesh_obj in _skins(obj):
         mesh = mesh_obj.data
@@ -166,6 +181,21 @@ def _weights_digest(obj: bpy.types.Object) -> bytes:
         for name, idx in _members(mesh_obj.data, groups).items() if groups else ():
             h.update(name.encode() + b"\0" + idx.tobytes())
     return h.digest()
+
+
+def shared(info: RigInfo, what: tuple[object, ...], make: Callable[[], _T], plain: bool = False) -> _T:
+    """``make()``, something a reader derives from ``info`` alone (and ``what``, its other
+    inputs), made once for ``info`` and the copies of its rig read in the same
+    :func:`reading_once` block (:func:`read_rig`), and shared by them; made anew outside a
+    block. ``plain``: only for copies of a plain rig (no constraint on any bone, no driver),
+    what depends on more of the rig than its reading (what to key: its controls)."""
+    found = _copy_keys_once.get(id(info))
+    if found is None or (plain and not found[1]):
+        return make()
+    key = (found[0], *what)
+    if key not in _shared_once:
+        _shared_once[key] = make()
+    return cast(_T, _shared_once[key])
 
 
 def _placed(first: RigInfo, obj: bpy.types.Object) -> RigInfo:
@@ -415,6 +445,7 @@ def read_rig(
     first = _copies_once.get(copy)
     info = _read_rig(obj, legs, forward_axis, spine, at_rest) if first is None else _placed(first, obj)
     _copies_once.setdefault(copy, info)
+    _copy_keys_once[id(info)] = (copy, _plain_once[obj.name])
     if _cache_once is not None:
         _cache_once.infos[obj.name] = (key, info)
     return info
