@@ -349,6 +349,11 @@ def read_terrain(context: bpy.types.Context, job: Job) -> Iterator[float]:
 def read(context: bpy.types.Context, obj: bpy.types.Object | None, cache: rig.ReadCache | None = None) -> Job:
     """Read and check the rig and its settings (not the terrain: :func:`read_terrain`).
     ``cache``: rigs read before (Live Preview's), reused while unchanged (see ``rig.ReadCache``)."""
+    with rig.reading_once(cache):  # one reading of the rest arrays for every leg and the rig
+        return _read(context, obj)
+
+
+def _read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     t0 = time.perf_counter()
     if obj is None or obj.type != "ARMATURE":
         name = "Nothing" if obj is None else f"'{obj.name}'"
@@ -363,11 +368,9 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None, cache: rig.Re
         raise GenerateError(problem)
     stale = stale_bones(obj)
     try:
-        with rig.reading_once(cache):  # one reading of the rest arrays for every leg and the rig
-            legs = settings_legs(obj)
-            from_settings = legs is not None
-            info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine),
-                                at_rest=stale)
+        legs = settings_legs(obj)
+        from_settings = legs is not None
+        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine), at_rest=stale)
         limits = (float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
         # (copies of a rig read together share their morphology: it is in the body frame)
         morph = rig.shared(info, ("morphology", *limits), lambda: rig.morphology_of(info, *limits))

@@ -81,6 +81,7 @@ class ReadCache:
         self.rest: dict[str, tuple[bytes, tuple[_Rest, dict[str, np.ndarray]]]] = {}
         self.infos: dict[str, tuple[tuple[object, ...], RigInfo]] = {}
         self.members: dict[_MembersKey, dict[str, np.ndarray]] = {}
+        self.shared: dict[tuple[object, ...], object] = {}
 
     def forget_meshes(self) -> None:
         """A mesh was edited: read the skins (and so the rigs) again."""
@@ -90,6 +91,7 @@ class ReadCache:
         self.rest.clear()
         self.infos.clear()
         self.members.clear()
+        self.shared.clear()
 
 
 @contextmanager
@@ -186,16 +188,18 @@ def _weights_digest(obj: bpy.types.Object) -> bytes:
 def shared(info: RigInfo, what: tuple[object, ...], make: Callable[[], _T], plain: bool = False) -> _T:
     """``make()``, something a reader derives from ``info`` alone (and ``what``, its other
     inputs), made once for ``info`` and the copies of its rig read in the same
-    :func:`reading_once` block (:func:`read_rig`), and shared by them; made anew outside a
-    block. ``plain``: only for copies of a plain rig (no constraint on any bone, no driver),
-    what depends on more of the rig than its reading (what to key: its controls)."""
+    :func:`reading_once` block (:func:`read_rig`), and shared by them (with a
+    :class:`ReadCache`, kept there with the reading); made anew outside a block.
+    ``plain``: only for copies of a plain rig (no constraint on any bone, no driver), what
+    depends on more of the rig than its reading (what to key: its controls)."""
     found = _copy_keys_once.get(id(info))
     if found is None or (plain and not found[1]):
         return make()
     key = (found[0], *what)
-    if key not in _shared_once:
-        _shared_once[key] = make()
-    return cast(_T, _shared_once[key])
+    kept = _shared_once if _cache_once is None else _cache_once.shared  # (a ReadCache keeps it)
+    if key not in kept:
+        kept[key] = make()
+    return cast(_T, kept[key])
 
 
 def _placed(first: RigInfo, obj: bpy.types.Object) -> RigInfo:
@@ -438,6 +442,7 @@ def read_rig(
         key = (_digest(obj), *asked)
         kept = _cache_once.infos.get(obj.name)
         if kept is not None and kept[0] == key:
+            _copy_keys_once[id(kept[1])] = (key, _plain_once[obj.name])  # (what shared() kept too)
             return kept[1]
     # A copy of a rig read in this block (the same bones, pose, constraints, skins and
     # weights; its object only moved): that reading, moved to where it stands.
@@ -445,7 +450,7 @@ def read_rig(
     first = _copies_once.get(copy)
     info = _read_rig(obj, legs, forward_axis, spine, at_rest) if first is None else _placed(first, obj)
     _copies_once.setdefault(copy, info)
-    _copy_keys_once[id(info)] = (copy, _plain_once[obj.name])
+    _copy_keys_once[id(info)] = (copy if _cache_once is None else key, _plain_once[obj.name])
     if _cache_once is not None:
         _cache_once.infos[obj.name] = (key, info)
     return info
