@@ -76,7 +76,8 @@ def _drive(obj: bpy.types.Object) -> tuple[float, float, float, float, float]:
             whole, whole_cpu = time.perf_counter() - t0, time.process_time() - c_start
             return (whole if first is None else first, whole, longest,
                     whole_cpu if first_cpu is None else first_cpu, whole_cpu)
-        time.sleep(wait)
+        if wait > 0.0:  # (a timer asking for no wait is called again at once, as Blender does)
+            time.sleep(wait)
 
 
 def main() -> int:

@@ -121,7 +121,13 @@ class Channel:
 
 def is_slotted() -> bool:
     """True on Blender 4.4+ (slotted Actions), False on 4.2/4.3 (legacy ``action.fcurves``)."""
-    return bpy.app.version >= (4, 4, 0) and "slots" in bpy.types.Action.bl_rna.properties
+    global _SLOTTED
+    if _SLOTTED is None:  # (asked per F-curve written: looked up once)
+        _SLOTTED = bpy.app.version >= (4, 4, 0) and "slots" in bpy.types.Action.bl_rna.properties
+    return _SLOTTED
+
+
+_SLOTTED: bool | None = None
 
 
 def _interpolation_code(name: str) -> int:

@@ -428,6 +428,64 @@ def test_copies_of_a_rig_read_together_are_detected_once(empty_scene: Any,
     assert [list(j.info.legs) for j in jobs] == [alone[o.name] for o in rigs]
 
 
+def test_copies_of_a_rig_read_together_are_read_once_and_placed(empty_scene: Any,
+                                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """A copy of a rig read in the same Generate (the same bones, pose, constraints, skins and
+    weights; only its object moved) is the first one's reading moved to where it stands: the
+    same as its own reading but for the last bits. A copy posed otherwise, or whose skin is
+    weighted otherwise, is read on its own."""
+    from procloco_addon.blender import rig
+    from procloco_addon.blender.rig import read
+
+    _ground()
+    wolves = [_place(empty_scene, "wolf", f"Wolf{k}", (3.0 * k, 0.0)) for k in range(4)]
+    wolves[1].location.z = 0.4  # (on a table: a copy all the same)
+    wolves[2].pose.bones["spine"].rotation_quaternion = (0.9, 0.1, 0.0, 0.0)  # its tail tip posed
+    skin = next(o for o in bpy.data.objects if o.type == "MESH" and o.name.startswith("Wolf3"))
+    group = skin.vertex_groups["toe.L"]
+    group.remove([v.index for v in skin.data.vertices if any(g.group == group.index for g in v.groups)])
+    bpy.context.view_layer.update()
+    alone = {o.name: rig.read_rig(o) for o in wolves}
+    calls: list[str] = []
+    real = read._read_rig
+
+    def counted(obj: Any, *args: Any) -> Any:
+        calls.append(obj.name)
+        return real(obj, *args)
+
+    monkeypatch.setattr(read, "_read_rig", counted)
+    with rig.reading_once():
+        together = {o.name: rig.read_rig(o) for o in wolves}
+        # What is made from a reading is shared by its copies (but what to key only on a plain
+        # rig: see the copies with a constraint below).
+        first, copy = together["Wolf0"], together["Wolf1"]
+        assert rig.shared(copy, ("x",), object, plain=True) is rig.shared(first, ("x",), object, plain=True)
+        assert rig.shared(together["Wolf2"], ("x",), object) is not rig.shared(first, ("x",), object)
+    assert calls == ["Wolf0", "Wolf2", "Wolf3"]  # Wolf1 placed from Wolf0
+    constrained = [_place(empty_scene, "wolf", f"Held{k}", (3.0 * k, 5.0)) for k in range(2)]
+    for obj in constrained:
+        obj.pose.bones["spine"].constraints.new("LIMIT_ROTATION")
+    bpy.context.view_layer.update()
+    with rig.reading_once():
+        held = [rig.read_rig(o) for o in constrained]
+        assert calls[3:] == ["Held0"]  # a copy all the same
+        assert rig.shared(held[1], ("x",), object) is rig.shared(held[0], ("x",), object)
+        assert rig.shared(held[1], ("x",), object, plain=True) is not rig.shared(held[0], ("x",), object,
+                                                                                  plain=True)
+    for name, info in together.items():
+        mine = alone[name]
+        assert info.object_name == name
+        assert info.legs == mine.legs
+        np.testing.assert_array_equal(info.world, mine.world)
+        pairs = [(info.contact, mine.contact), (info.body.origin, mine.body.origin),
+                 *zip(info.joints, mine.joints, strict=True),
+                 *zip(info.foot_points, mine.foot_points, strict=True)]
+        for a, b in pairs:
+            np.testing.assert_allclose(a, b, rtol=0.0, atol=1e-12)
+    assert not np.allclose(together["Wolf3"].foot_points[2], together["Wolf0"].foot_points[2]
+                           + together["Wolf3"].world[:3, 3] - together["Wolf0"].world[:3, 3], atol=1e-6)
+
+
 def test_reading_a_herd_shows_its_progress_and_stops_on_escape(empty_scene: Any) -> None:
     """The rigs are read in the modal steps, one a step: the progress bar moves while a herd
     is read, and Esc then leaves everything as it was (nothing is read ahead of the steps)."""

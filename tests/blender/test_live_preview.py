@@ -236,6 +236,64 @@ def test_the_current_frame_is_shown_before_the_rest_of_the_range(wolf: Any, cloc
     assert np.ptp(hips_track(wolf)[:, 1]) > 0.01  # and the whole range walks
 
 
+def test_the_last_frame_is_shown_before_the_whole_range_is_written(wolf: Any, clock: Clock,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """On the range's last frame too the current pose comes first (one frame keyed), and the
+    timer asks for no wait between its slices while the walk is under way."""
+    wolf.procloco.live_preview = True
+    bpy.context.scene.frame_set(FRAMES)
+    monkeypatch.setattr(handler, "BUDGET_S", 0.0)  # one step a tick
+    waits = []
+    partial = None
+    for _ in range(500):
+        waits.append(handler.tick())
+        clock.now += 0.01
+        current = wolf.animation_data.action if wolf.animation_data else None
+        if current is not None and current.get(preview.PARTIAL_TAG):
+            partial = current.name
+            break
+    assert partial is not None, "the last frame's pose was never written on its own"
+    assert handler._state.run is not None  # the whole walk is still to come
+    assert waits[-1] == 0.0  # (a run in flight is advanced at the next turn of the event loop)
+    early = pose_eval.pose_matrices(wolf, [FRAMES], [HIPS, *FEET])[0]
+    settle(clock)
+    final = pose_eval.pose_matrices(wolf, [FRAMES], [HIPS, *FEET])[0]
+    np.testing.assert_allclose(early[:, :3, 3], final[:, :3, 3], atol=1e-5)
+    assert len(procloco_actions()) == 1
+
+
+def test_a_setting_edited_reuses_the_rig_read_and_a_painted_weight_is_read_again(
+        wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
+    from procloco_addon.blender.rig import read
+
+    calls: list[str] = []
+    real = read._read_rig
+
+    def counted(obj: Any, *args: Any) -> Any:
+        calls.append(obj.name)
+        return real(obj, *args)
+
+    monkeypatch.setattr(read, "_read_rig", counted)
+    wolf.procloco.live_preview = True
+    settle(clock)
+    clock.now += 1.0
+    wolf.procloco.speed = 1.1
+    settle(clock)  # (read again: the bones the preview keys are now read at rest)
+    assert calls == [wolf.name] * 2
+    clock.now += 1.0
+    wolf.procloco.speed = 1.2
+    settle(clock)
+    assert calls == [wolf.name] * 2  # a setting edited: the rig as read before
+    assert travelled(wolf) > 0.5 * 1.2 * (FRAMES - 1) / 24.0
+    skin = next(o for o in bpy.data.objects if o.type == "MESH" and o.name != "Ground")
+    skin.vertex_groups["toe.L"].add([0], 0.2, "REPLACE")  # a weight painted
+    bpy.context.view_layer.update()  # (the depsgraph handler sees the mesh edited)
+    clock.now += 1.0
+    wolf.procloco.speed = 1.0
+    settle(clock)
+    assert calls == [wolf.name] * 3
+
+
 def test_moving_a_terrain_object_regenerates(wolf: Any, clock: Clock) -> None:
     wolf.procloco.live_preview = True
     settle(clock)

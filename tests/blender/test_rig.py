@@ -551,3 +551,110 @@ def test_a_standing_foot_keeps_its_pitch_on_an_edge_and_a_moved_one_finds_its_ow
     moved = rig.solve_pose(info, body, joints, ground=ground).rotations[:, toe]
     assert turn(moved[3], moved[2]) > 1.0
     assert np.abs(moved[4:] - moved[3:4]).max() < 1e-8
+
+
+def _same_info(a: rig.RigInfo, b: rig.RigInfo) -> bool:
+    return (a.legs == b.legs and a.body_bone == b.body_bone
+            and all(np.array_equal(x, y) for x, y in zip(a.joints, b.joints, strict=True))
+            and all(np.array_equal(x, y) for x, y in zip(a.foot_points, b.foot_points, strict=True))
+            and np.array_equal(a.contact, b.contact) and np.array_equal(a.world, b.world)
+            and all(np.array_equal(a.basis[n], b.basis[n]) for n in a.basis))
+
+
+def test_a_read_cache_gives_an_unchanged_rig_back_and_reads_a_changed_one_again(
+        empty_scene: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Live Preview's ReadCache: the rig read before when nothing it was read from changed;
+    read again (as a fresh reading gives it) when the rig moved or a bone that is not driven
+    was posed; its skins' weights, which are not in the digest, when it is told a mesh was
+    edited (forget_meshes)."""
+    from procloco_addon.blender.rig import read
+
+    arm = creatures.build_wolf(empty_scene)
+    skin = next(o for o in bpy.data.objects if o.type == "MESH")
+    cache = rig.ReadCache()
+    calls: list[str] = []
+    real = read._read_rest
+
+    def counted(obj: Any) -> Any:
+        calls.append(obj.name)
+        return real(obj)
+
+    def cached() -> tuple[rig.RigInfo, int]:
+        """The reading through the cache, and how many times the rest arrays were read for it."""
+        before = len(calls)
+        with rig.reading_once(cache):
+            info = rig.read_rig(arm, spine=True)
+        return info, len(calls) - before
+
+    monkeypatch.setattr(read, "_read_rest", counted)
+    first, n = cached()
+    assert n == 1
+    again, n = cached()
+    assert again is first
+    assert n == 0
+    assert _same_info(first, rig.read_rig(arm, spine=True))
+    arm.location.x += 0.5  # moved: read again
+    bpy.context.view_layer.update()
+    moved, n = cached()
+    assert moved is not first
+    assert n == 1
+    assert np.allclose(moved.joints[0] - first.joints[0], [0.5, 0.0, 0.0])
+    arm.pose.bones["spine"].rotation_quaternion = (0.9, 0.1, 0.0, 0.0)  # the tail tip: not driven
+    bpy.context.view_layer.update()
+    posed, n = cached()
+    assert posed is not moved
+    assert n == 0
+    assert _same_info(posed, rig.read_rig(arm, spine=True))
+    assert not _same_info(posed, moved)
+    # A hind toe's vertices taken out of its group: the weights are not in the digest...
+    group = skin.vertex_groups["toe.L"]
+    group.remove([v.index for v in skin.data.vertices if any(g.group == group.index for g in v.groups)])
+    kept, n = cached()
+    assert kept is posed
+    assert n == 0
+    cache.forget_meshes()  # ... until the cache is told a mesh was edited
+    reread, n = cached()
+    assert reread is not posed
+    assert n == 1
+    assert _same_info(reread, rig.read_rig(arm, spine=True))
+    assert not _same_info(reread, posed)  # that foot's sole comes from its bones now
+
+
+def test_rigs_solved_together_get_the_poses_they_get_alone(empty_scene: Any) -> None:
+    """solve_poses_steps: two wolves (one turned, both walking their own way, feet pitched on
+    a shared ground) and a spider in one call; each rig's channels as solved alone (the wolves
+    in one pass: but for the last bit), in the order given."""
+    from procloco_addon.core.steps import run_steps
+
+    wolves = [creatures.build_wolf(empty_scene, name=f"Wolf{k}", location=(3.0 * k, 0.0, 0.0))
+              for k in range(2)]
+    wolves[1].rotation_euler = (0.0, 0.0, 0.4)
+    spider = creatures.build_spider(empty_scene, location=(0.0, 4.0, 0.0))
+    bpy.context.view_layer.update()
+
+    def ground(frame_index: np.ndarray, xy: np.ndarray) -> np.ndarray:
+        return 0.03 * np.sin(3.0 * xy[:, 0]) * np.cos(2.0 * xy[:, 1])  # bumps under the toes
+
+    ground.dynamic = False  # type: ignore[attr-defined]
+    n = 10
+    t = np.linspace(0.0, 1.0, n)
+    inputs = []
+    for k, arm in enumerate([wolves[0], spider, wolves[1]]):
+        info = rig.read_rig(arm)
+        body = np.repeat(info.body.matrix[None], n, axis=0)
+        body[:, :3, 3] += np.outer(t, [0.3, 0.1 * k, 0.0])
+        move = np.outer(t, [0.3, 0.1 * k, 0.02])[:, None]
+        joints = [np.repeat(j[None], n, axis=0) + move for j in info.joints]
+        for leg_joints in joints:
+            leg_joints[:, 1:-1] += 0.01 * np.sin(7.0 * t + k)[:, None, None]  # the knees move
+        planted = np.zeros((n, len(info.legs)), dtype=bool)
+        planted[: n // 2, ::2] = True
+        inputs.append(rig.PoseInputs(info, body, tuple(joints), ground, planted=planted))
+    together = run_steps(rig.solve_poses_steps(inputs))
+    for inp, got in zip(inputs, together, strict=True):
+        alone = rig.solve_pose(inp.info, inp.body_world, inp.joints_world, ground=ground, planted=inp.planted)
+        assert got.bones == alone.bones
+        np.testing.assert_allclose(got.rotations, alone.rotations, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(got.locations, alone.locations, rtol=0.0, atol=1e-12)
+    feet = [together[0].bones.index(leg.foot[0]) for leg in inputs[0].info.legs]
+    assert np.ptp(together[0].rotations[:, feet], axis=0).max() > 1e-3  # the feet were pitched

@@ -38,6 +38,7 @@ from typing import Any
 import bpy
 from bpy.app.handlers import persistent
 
+from .. import rig
 from ..locomotion import generate
 from ..modal import Steps, advance
 from . import preview
@@ -61,8 +62,12 @@ DEBOUNCE_S = 0.2
 POLL_S = 0.05
 #: Longest time one timer call works before handing control back to the UI.
 BUDGET_S = 0.05
-#: Seconds between timer calls while a regeneration runs.
-STEP_S = 0.01
+#: Seconds between timer calls while a regeneration runs: none, the next call comes at the
+#: next turn of Blender's event loop, once it has handled the interface's events and redraws
+#: (a wait here would only delay the walk: ten of them made a tenth of a second).
+STEP_S = 0.0
+#: Seconds to wait when the timer is called while ProcLoco itself is changing the scene.
+BUSY_S = 0.01
 
 
 @dataclass
@@ -95,6 +100,7 @@ class _State:
     def __init__(self) -> None:
         self.watches = {}
         self.cache = preview.TerrainCache()
+        self.reads = rig.ReadCache()  # the rigs as read for their last regeneration
 
 
 _state = _State()
@@ -214,8 +220,8 @@ def _start_due(context: Any, now: float) -> None:
         if current or watch.error is not None:
             continue
         done: list[generate.Job] = []
-        _state.run = _Run(name, preview.regenerate_steps(context, name, signature, _state.cache, done),
-                          signature, done)
+        _state.run = _Run(name, preview.regenerate_steps(context, name, signature, _state.cache, done,
+                                                         _state.reads), signature, done)
         return
 
 
@@ -250,7 +256,7 @@ def tick() -> float | None:
     """The timer: poll, start or advance a regeneration. Returns the seconds until it wants
     to run again, or None when no rig is watched (the timer then ends; :func:`wake` starts it)."""
     if _state.busy:
-        return STEP_S
+        return BUSY_S
     context = bpy.context
     scene = getattr(context, "scene", None)
     if scene is None:
@@ -313,7 +319,14 @@ def _owned_by_a_rig(obj: bpy.types.Object) -> bool:
 
 @persistent
 def _on_depsgraph_update(_scene: Any, depsgraph: Any = None) -> None:
-    if _state.busy or not _state.watches or depsgraph is None:
+    if depsgraph is None:
+        return
+    # An edited mesh (a weight painted, a vertex moved; a rig's pose updates its skin object,
+    # never the mesh) may be a skin: the rigs are read again.
+    if (_state.reads.infos or _state.reads.rest) and any(
+            isinstance(update.id, bpy.types.Mesh) for update in depsgraph.updates):
+        _state.reads.forget_meshes()
+    if _state.busy or not _state.watches:
         return
     moved = False
     for update in depsgraph.updates:
@@ -337,6 +350,7 @@ def _forget(*_args: Any) -> None:
     _stop_run()
     _state.watches.clear()
     _state.cache.clear()
+    _state.reads.clear()
 
 
 @persistent
@@ -408,3 +422,4 @@ def unregister() -> None:
         bpy.app.timers.unregister(tick)
     _state.watches.clear()
     _state.cache.clear()
+    _state.reads.clear()

@@ -29,7 +29,7 @@ from typing import Any
 import bpy
 import numpy as np
 
-from .. import actions, scene_terrain
+from .. import actions, rig, scene_terrain
 from ..locomotion import generate
 from ..modal import Steps, steps_with_result
 
@@ -302,7 +302,8 @@ def _read_terrain(context: bpy.types.Context, job: generate.Job, cache: TerrainC
         assert job.terrain is not None
         cache.put(job.obj_name, key, job.terrain)
         return
-    terrain.environment.clear_cache()  # as freshly read (its caches are memory only)
+    # (the terrain's own caches, its planning windows' rasterised tiles among them, are kept:
+    # they never change a result, and the next walk crosses much the same ground)
     try:
         scene_terrain.check_ground_under(terrain, job.info.contact, job.obj_name,
                                          reach=float(np.mean(job.info.leg_length)))
@@ -313,16 +314,18 @@ def _read_terrain(context: bpy.types.Context, job: generate.Job, cache: TerrainC
 
 
 def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple[str, str],
-                     cache: TerrainCache, done: list[generate.Job]) -> Steps:
+                     cache: TerrainCache, done: list[generate.Job],
+                     reads: rig.ReadCache | None = None) -> Steps:
     """Re-generate the walk of ``obj_name`` into a new preview Action, as progress steps
-    ``(text, fraction)``; the finished job is appended to ``done``.
+    ``(text, fraction)``; the finished job is appended to ``done``. ``cache`` and ``reads``:
+    the terrain and the rig as read for the last regeneration, reused while unchanged.
 
     Raises :class:`.generate.GenerateError` on bad input. When it fails or is closed early,
     the rig has what it had before (the previous preview Action, assigned, its pose), and
     no Action it wrote is left.
     """
     obj = bpy.data.objects[obj_name]
-    job = generate.read(context, obj)
+    job = generate.read(context, obj, reads)
     yield "reading the terrain", 0.0
     for fraction in _read_terrain(context, job, cache, signature[1]):
         yield "reading the terrain", 0.1 * fraction
@@ -338,7 +341,9 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
     try:
         for i, fraction in enumerate(generate.simulate(job)):
             yield obj_name, 0.1 + 0.8 * fraction
-            if i == k and k < n - 1:  # the current frame first, the rest of the range follows
+            # The current frame first, the rest of the range follows (on the last frame too:
+            # one frame is keyed in a fraction of the time the whole range takes).
+            if i == k and n > 1:
                 made = yield from steps_with_result(
                     generate.write_all_steps(context, [_frame_job(job, k)]), "showing the current frame",
                     0.1 + 0.8 * fraction, 0.0, generate.GenerateError, "the preview")

@@ -346,8 +346,14 @@ def read_terrain(context: bpy.types.Context, job: Job) -> Iterator[float]:
     job.timings["read_s"] = job.timings.get("read_s", 0.0) + time.perf_counter() - t0
 
 
-def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
-    """Read and check the rig and its settings (not the terrain: :func:`read_terrain`)."""
+def read(context: bpy.types.Context, obj: bpy.types.Object | None, cache: rig.ReadCache | None = None) -> Job:
+    """Read and check the rig and its settings (not the terrain: :func:`read_terrain`).
+    ``cache``: rigs read before (Live Preview's), reused while unchanged (see ``rig.ReadCache``)."""
+    with rig.reading_once(cache):  # one reading of the rest arrays for every leg and the rig
+        return _read(context, obj)
+
+
+def _read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     t0 = time.perf_counter()
     if obj is None or obj.type != "ARMATURE":
         name = "Nothing" if obj is None else f"'{obj.name}'"
@@ -362,12 +368,12 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError(problem)
     stale = stale_bones(obj)
     try:
-        with rig.reading_once():  # one reading of the rest arrays for every leg and the rig
-            legs = settings_legs(obj)
-            from_settings = legs is not None
-            info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine),
-                                at_rest=stale)
-        morph = rig.morphology_of(info, float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
+        legs = settings_legs(obj)
+        from_settings = legs is not None
+        info = rig.read_rig(obj, legs, settings.forward_axis, spine=bool(settings.use_spine), at_rest=stale)
+        limits = (float(settings.spine_yaw_limit), float(settings.spine_pitch_limit))
+        # (copies of a rig read together share their morphology: it is in the body frame)
+        morph = rig.shared(info, ("morphology", *limits), lambda: rig.morphology_of(info, *limits))
     except rig.RigError as err:
         raise GenerateError(str(err)) from err
     gait = _gait_of(obj, info.legs, from_settings)
@@ -384,7 +390,9 @@ def read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         raise GenerateError("No ground mesh found: add a mesh under the creature (or choose the terrain "
                             "collection)" + scene_terrain.hidden_note(context, [obj]))
     heading = float(np.arctan2(info.body.forward[1], info.body.forward[0])) + float(settings.heading)
-    plan, warnings = plan_keys(obj, info)
+    # (copies of a plain rig read together key the same bones)
+    plan, shared_warnings = rig.shared(info, ("plan",), lambda: plan_keys(obj, info), plain=True)
+    warnings = list(shared_warnings)
     changes = _gait_changes(obj, info.legs, frames, warnings)
     auto = None
     # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
@@ -517,6 +525,9 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
     superseded: list[tuple[bpy.types.Action, bpy.types.Action]] = []
     frame = (context.scene.frame_current, context.scene.frame_subframe)
     try:
+        # Every rig's pose solved first (numpy over every frame: the first half of the work),
+        # the copies of a creature together; then each keyed and checked on its rig.
+        solved = yield from scaled_steps(rig.solve_poses_steps(_pose_inputs(jobs)), 0.0, 0.5 * share)
         for k, job in enumerate(jobs):
             obj = bpy.data.objects[job.obj_name]
             done.append((obj, actions.remember_assignment(obj)))
@@ -525,7 +536,7 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
             # one, nor a walk of another kind (a loop made from a walk keeps the walk).
             own = (current is not None and _SECONDARY_SOURCE not in current
                    and current.get(ACTION_KIND, "") == job.action_kind)
-            steps = _keyed_action_steps(context, job, own, superseded)
+            steps = _keyed_action_steps(context, job, solved[k], own, superseded)
             while True:
                 try:
                     fraction = next(steps)
@@ -533,7 +544,7 @@ def write_all_steps(context: bpy.types.Context, jobs: Sequence[Job],
                     made.append(finished.value)
                     break
                 try:
-                    yield share * (k + fraction) / len(jobs)
+                    yield share * (0.5 + 0.5 * (k + fraction) / len(jobs))
                 except BaseException:
                     steps.close()  # this rig's Action deleted, its pose put back
                     raise
@@ -574,27 +585,37 @@ _SECONDARY_SOURCE = "_procloco_secondary_source"
 ACTION_KIND = "_procloco_kind"
 
 
+def _pose_inputs(jobs: Sequence[Job]) -> list[rig.PoseInputs]:
+    """What ``rig.solve_poses_steps`` solves each finished job's pose from; jobs on one
+    terrain share one ground function (their feet are pitched together)."""
+    grounds: dict[int, rig.GroundFn] = {}
+    out = []
+    for job in jobs:
+        assert job.result is not None
+        body_world, joints_world = simulation.world_tracks(job)
+        leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
+        key = id(job.terrain)
+        if key not in grounds:
+            grounds[key] = simulation.ground_function(job)
+        out.append(rig.PoseInputs(job.info, body_world, tuple(joints_world), grounds[key], spine_rotation,
+                                  spine_joints, leg_frames, ~np.asarray(job.result.swing, dtype=bool)))
+    return out
+
+
 def _keyed_action_steps(
-    context: bpy.types.Context, job: Job, replace: bool,
+    context: bpy.types.Context, job: Job, tracks: rig.PoseTracks, replace: bool,
     superseded: list[tuple[bpy.types.Action, bpy.types.Action]],
 ) -> Generator[float, None, bpy.types.Action]:
-    """A new generated Action holding ``job.result``, keyed on the rig's bones or their
-    controls (:mod:`..pose_writer`) and assigned to the rig (``replace``, ``superseded``: see
+    """A new generated Action holding ``job.result``, whose pose ``tracks`` were solved by
+    ``rig.solve_poses_steps``, keyed on the rig's bones or their controls (:mod:`..pose_writer`)
+    and assigned to the rig (``replace``, ``superseded``: see
     :func:`.actions.assign_generated_action`); yields the fraction done. On failure (or closed
     early) the Action is deleted and the rig's pose put back; the caller puts back the rig's
     assignment."""
 
     t0 = time.perf_counter()
     obj = bpy.data.objects[job.obj_name]
-    body_world, joints_world = simulation.world_tracks(job)
-    leg_frames, spine_rotation, spine_joints = simulation.spine_tracks(job)
-    # Solving the pose is the first half of the work (numpy over every frame), keying and
-    # checking it on the evaluated rig the second.
     assert job.result is not None
-    tracks = yield from scaled_steps(rig.solve_pose_steps(
-        job.info, body_world, joints_world, ground=simulation.ground_function(job),
-        spine_rotation=spine_rotation, spine_joints=spine_joints, leg_frames=leg_frames,
-        planted=~np.asarray(job.result.swing, dtype=bool)), 0.0, 0.5)
     info = job.info
     plan = job.plan
     if plan is None:
@@ -630,7 +651,7 @@ def _keyed_action_steps(
         written = 0.8 if reduce.is_enabled(obj) else 1.0
         report = yield from scaled_steps(pose_writer.write_pose_steps(
             action, obj, request, plan, check=job.check_after, replace=replace, superseded=superseded),
-            0.5, written)
+            0.0, written)
         if job.auto_gait is not None:
             rig_gait.store_auto_track(action, simulation.auto_track(job))
         job.key_reduction = yield from scaled_steps(_reduce_keys_steps(obj, action, job, plan), written, 1.0)

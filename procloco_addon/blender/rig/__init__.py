@@ -74,17 +74,19 @@ from .morphology import FOOT_EXTENT_SHARE, morphology_of
 from .names import HELPER_WORDS, LEG_WORDS, split_name
 from .pose import (
     GroundFn,
+    PoseInputs,
     PoseTracks,
     _bend_normal,
     _frames,
     matrix_to_quaternion,
     solve_pose,
     solve_pose_steps,
+    solve_poses_steps,
 )
 from .rest import RigError, _unit, uniform_scale
 
 if TYPE_CHECKING:
-    from .read import detect_legs, facing_source, leg_from_bones, read_rig, reading_once
+    from .read import ReadCache, detect_legs, facing_source, leg_from_bones, read_rig, reading_once, shared
 
 __all__ = [
     "FOOT_EXTENT_SHARE",
@@ -93,7 +95,9 @@ __all__ = [
     "BodyInfo",
     "GroundFn",
     "LegChain",
+    "PoseInputs",
     "PoseTracks",
+    "ReadCache",
     "RigError",
     "RigInfo",
     "SpineLayout",
@@ -107,13 +111,16 @@ __all__ = [
     "morphology_of",
     "read_rig",
     "reading_once",
+    "shared",
     "solve_pose",
     "solve_pose_steps",
+    "solve_poses_steps",
     "split_name",
     "uniform_scale",
 ]
 
-_READ = frozenset({"detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once"})
+_READ = frozenset({"ReadCache", "detect_legs", "facing_source", "leg_from_bones", "read_rig", "reading_once",
+                   "shared"})
 
 
 def __getattr__(name: str) -> Any:

@@ -4,9 +4,12 @@
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import re
-from collections.abc import Collection, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
+from typing import TypeVar, cast
 
 import bpy
 import numpy as np
@@ -30,6 +33,8 @@ from .rest import (
 )
 from .spine import _spine_chain, _spine_layout
 
+_T = TypeVar("_T")
+
 
 def _object_world(obj: bpy.types.Object) -> np.ndarray:
     return np.array(obj.matrix_world, dtype=np.float64)
@@ -39,24 +44,187 @@ def _object_world(obj: bpy.types.Object) -> np.ndarray:
 _read_once: dict[str, tuple[_Rest, dict[str, np.ndarray]]] | None = None
 # Legs detected inside a reading_once() block, by the rig's shape (see _shape_key).
 _detected_once: dict[tuple[object, ...], list[LegChain]] = {}
+# Inside a reading_once() block: the meshes each armature deforms (by the armature's name),
+# found in one pass over the file's objects, and the vertices weighted mostly to each vertex
+# group of a mesh (by the mesh datablock and its groups): linked duplicates share their skin.
+_skins_once: dict[str, list[bpy.types.Object]] | None = None
+_MembersKey = tuple[int, tuple[tuple[int, str], ...]]
+_members_once: dict[_MembersKey, dict[str, np.ndarray]] = {}
+# The ReadCache of the reading_once() block (None: nothing is kept beyond the block), and
+# the digest of each rig read in the block (see ReadCache).
+_cache_once: ReadCache | None = None
+_digests_once: dict[str, bytes] = {}
+# Inside a reading_once() block: the rigs read by their shape (see read_rig), their copies
+# placed from them.
+_copies_once: dict[tuple[object, ...], RigInfo] = {}
+# Inside a reading_once() block: each reading's copy key (by the id of its RigInfo, kept in
+# _copies_once or by its job), whether the rig is plain (no constraint, no driver), and what
+# readers derive from a reading and share with its copies (shared()).
+_copy_keys_once: dict[int, tuple[tuple[object, ...], bool]] = {}
+_shared_once: dict[tuple[object, ...], object] = {}
+_plain_once: dict[str, bool] = {}
+
+
+class ReadCache:
+    """Rigs read before, reused while what they were read from stays the same: Live Preview
+    reads its rig again after each edit of a setting, when the rig itself rarely changed.
+
+    An entry is found by a digest of everything reading a rig takes from Blender in bulk (the
+    object's placement, its bones at rest and as posed now, their constraints, the placement,
+    vertices and vertex groups of its skins) and by the reading's own arguments. Vertex
+    weights come vertex by vertex and are not in the digest: :meth:`forget_meshes` drops what
+    was read from the skins once a mesh was edited (Live Preview calls it from its depsgraph
+    handler, which sees a weight painted, or a vertex moved, as an update of the mesh).
+    Used through :func:`reading_once`."""
+
+    def __init__(self) -> None:
+        self.rest: dict[str, tuple[bytes, tuple[_Rest, dict[str, np.ndarray]]]] = {}
+        self.infos: dict[str, tuple[tuple[object, ...], RigInfo]] = {}
+        self.members: dict[_MembersKey, dict[str, np.ndarray]] = {}
+        self.shared: dict[tuple[object, ...], object] = {}
+
+    def forget_meshes(self) -> None:
+        """A mesh was edited: read the skins (and so the rigs) again."""
+        self.clear()
+
+    def clear(self) -> None:
+        self.rest.clear()
+        self.infos.clear()
+        self.members.clear()
+        self.shared.clear()
 
 
 @contextmanager
-def reading_once() -> Iterator[None]:
+def reading_once(cache: ReadCache | None = None) -> Iterator[None]:
     """Inside the block each rig's rest arrays (bones and skin) are read once, however many
-    legs and readers ask for them, and copies of one rig are detected once: for a reader
-    that changes nothing in between (Generate's settings check reads them once per leg, then
-    for the rig; Generate on many rigs reads them all in one block)."""
-    global _read_once
+    legs and readers ask for them, copies of one rig are detected once, and a skin mesh that
+    several rigs share is read once: for a reader that changes nothing in between
+    (Generate's settings check reads them once per leg, then for the rig; Generate on many
+    rigs reads them all in one block). With ``cache`` (on the outermost block), what is read
+    is kept there, and a rig found unchanged there is not read again."""
+    global _read_once, _skins_once, _cache_once, _members_once
     outer = _read_once
     if outer is None:
         _read_once = {}
+        if cache is not None:
+            _cache_once = cache
+            _members_once = cache.members
     try:
         yield
     finally:
         if outer is None:
             _read_once = None
+            _skins_once = None
+            _cache_once = None
             _detected_once.clear()
+            _digests_once.clear()
+            _copies_once.clear()
+            _copy_keys_once.clear()
+            _shared_once.clear()
+            _plain_once.clear()
+            _members_once = {}
+
+
+def _digest(obj: bpy.types.Object) -> bytes:
+    """What reading ``obj`` takes from Blender, but its current pose (:func:`_pose_digest`)
+    and the skins' vertex weights, as a digest (see :class:`ReadCache`); once per
+    :func:`reading_once` block."""
+    h = hashlib.blake2b(_shape_digest(obj), digest_size=16)
+    h.update(np.array(obj.matrix_world, dtype=np.float64)[:3, 3].tobytes())
+    # (which meshes: their weights are not in the digest)
+    h.update(repr([(m.name, m.data.name, m.data.as_pointer()) for m in _skins(obj)]).encode())
+    return h.digest()
+
+
+def _shape_digest(obj: bpy.types.Object) -> bytes:
+    """:func:`_digest` but where the rig stands: its bones, constraints, the turn and scale of
+    its object, its skins' vertices, groups and placement relative to it, as a digest; once
+    per :func:`reading_once` block."""
+    if obj.name in _digests_once:
+        return _digests_once[obj.name]
+    h = hashlib.blake2b(digest_size=16)
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    h.update(world[:3, :3].tobytes())
+    bones = obj.data.bones
+    n = len(bones)
+    h.update(repr([(b.name, b.parent.name if b.parent else None, b.use_connect) for b in bones]).encode())
+    for prop, size in (("matrix_local", 16), ("head_local", 3), ("tail_local", 3)):
+        buf = np.empty(n * size, dtype=np.float32)
+        bones.foreach_get(prop, buf)
+        h.update(buf.tobytes())
+    pbones = obj.pose.bones
+    constraints = [(pb.name, [(c.type, c.enabled, round(float(c.influence), 9),
+                               getattr(getattr(c, "target", None), "name", None),
+                               getattr(c, "subtarget", None), getattr(c, "use_tail", None))
+                              for c in pb.constraints])
+                   for pb in pbones if len(pb.constraints)]
+    drivers = [adt for adt in (obj.animation_data, obj.data.animation_data)
+               if adt is not None and len(adt.drivers)]
+    _plain_once[obj.name] = not constraints and not drivers
+    h.update(repr([pb.name for pb in pbones]).encode() + repr(constraints).encode())
+    for mesh_obj in _skins(obj):
+        mesh = mesh_obj.data
+        co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", co)
+        h.update(repr([g.name for g in mesh_obj.vertex_groups]).encode())
+        placed = np.array(mesh_obj.matrix_world, dtype=np.float64)
+        placed[:3, 3] -= world[:3, 3]
+        h.update(placed.tobytes() + co.tobytes())
+    _digests_once[obj.name] = out = h.digest()
+    return out
+
+
+def _weights_digest(obj: bpy.types.Object) -> bytes:
+    """The vertices weighted to each bone in ``obj``'s skins (:func:`_members`), as a digest."""
+    h = hashlib.blake2b(digest_size=16)
+    names = {b.name for b in obj.data.bones}
+    for mesh_obj in _skins(obj):
+        groups = {g.index: g.name for g in mesh_obj.vertex_groups if g.name in names}
+        for name, idx in _members(mesh_obj.data, groups).items() if groups else ():
+            h.update(name.encode() + b"\0" + idx.tobytes())
+    return h.digest()
+
+
+def shared(info: RigInfo, what: tuple[object, ...], make: Callable[[], _T], plain: bool = False) -> _T:
+    """``make()``, something a reader derives from ``info`` alone (and ``what``, its other
+    inputs), made once for ``info`` and the copies of its rig read in the same
+    :func:`reading_once` block (:func:`read_rig`), and shared by them (with a
+    :class:`ReadCache`, kept there with the reading); made anew outside a block.
+    ``plain``: only for copies of a plain rig (no constraint on any bone, no driver), what
+    depends on more of the rig than its reading (what to key: its controls)."""
+    found = _copy_keys_once.get(id(info))
+    if found is None or (plain and not found[1]):
+        return make()
+    key = (found[0], *what)
+    kept = _shared_once if _cache_once is None else _cache_once.shared  # (a ReadCache keeps it)
+    if key not in kept:
+        kept[key] = make()
+    return cast(_T, kept[key])
+
+
+def _placed(first: RigInfo, obj: bpy.types.Object) -> RigInfo:
+    """``first``, read from a copy of ``obj`` standing elsewhere (:func:`read_rig`), moved to
+    where ``obj`` stands."""
+    world = np.array(obj.matrix_world, dtype=np.float64)
+    shift = world[:3, 3] - first.world[:3, 3]
+    layout = first.spine_layout
+    return dataclasses.replace(
+        first, object_name=obj.name, world=world,
+        body=BodyInfo(first.body.origin + shift, first.body.forward, first.body.left),
+        joints=tuple(j + shift for j in first.joints), contact=first.contact + shift,
+        foot_points=tuple(p + shift for p in first.foot_points),
+        spine_layout=None if layout is None else dataclasses.replace(layout, joints=layout.joints + shift))
+
+
+def _pose_digest(obj: bpy.types.Object, at_rest: Collection[str]) -> bytes:
+    """The current pose of ``obj``'s bones but those taken ``at_rest`` (a generated Action's,
+    posed anew at every frame), as a digest."""
+    pbones = obj.pose.bones
+    buf = np.empty((len(pbones), 16), dtype=np.float32)
+    pbones.foreach_get("matrix_basis", buf.ravel())
+    if at_rest:
+        buf[[i for i, pb in enumerate(pbones) if pb.name in at_rest]] = 0.0
+    return hashlib.blake2b(buf.tobytes(), digest_size=16).digest()
 
 
 def _rest_of(obj: bpy.types.Object) -> _Rest:
@@ -65,10 +233,19 @@ def _rest_of(obj: bpy.types.Object) -> _Rest:
 
 def _read(obj: bpy.types.Object) -> tuple[_Rest, dict[str, np.ndarray]]:
     """``obj``'s rest arrays and its skin points by bone name (see :func:`_skin_points`),
-    read once per :func:`reading_once` block."""
+    read once per :func:`reading_once` block (and kept in its :class:`ReadCache`)."""
     if _read_once is not None and obj is not None and obj.name in _read_once:
         return _read_once[obj.name]
-    read = _read_rest(obj)
+    if _cache_once is not None and obj is not None and obj.type == "ARMATURE":
+        digest = _digest(obj)
+        kept = _cache_once.rest.get(obj.name)
+        if kept is not None and kept[0] == digest:
+            read = kept[1]
+        else:
+            read = _read_rest(obj)
+            _cache_once.rest[obj.name] = (digest, read)
+    else:
+        read = _read_rest(obj)
     if _read_once is not None:
         _read_once[obj.name] = read
     return read
@@ -106,28 +283,77 @@ def _read_rest(obj: bpy.types.Object) -> tuple[_Rest, dict[str, np.ndarray]]:
     return (with_leaf_ends(rest, leaf_skin) if leaf_skin else rest), skin
 
 
+def _skins(obj: bpy.types.Object) -> list[bpy.types.Object]:
+    """The meshes deformed by ``obj`` (an Armature modifier on them names it), in the file's
+    order; inside a :func:`reading_once` block found for every armature in one pass."""
+    global _skins_once
+    if _read_once is None:
+        return [m for m in bpy.data.objects if m.type == "MESH"
+                and any(mod.type == "ARMATURE" and mod.object == obj for mod in m.modifiers)]
+    if _skins_once is None:
+        _skins_once = {}
+        for mesh_obj in bpy.data.objects:
+            if mesh_obj.type != "MESH":
+                continue
+            found = {mod.object.name for mod in mesh_obj.modifiers
+                     if mod.type == "ARMATURE" and mod.object is not None}
+            for name in found:
+                _skins_once.setdefault(name, []).append(mesh_obj)
+    return _skins_once.get(obj.name, [])
+
+
+def _members(mesh: bpy.types.Mesh, groups: dict[int, str]) -> dict[str, np.ndarray]:
+    """The vertices ``(p,)`` of ``mesh`` weighted mostly (>= 0.5) to each of ``groups``
+    (vertex group index -> name), in vertex order, for the groups that have any. Blender reads
+    vertex weights vertex by vertex only: the one loop over the vertices, shared inside a
+    :func:`reading_once` block by the rigs whose skins use the same mesh."""
+    key = (mesh.as_pointer(), tuple(sorted(groups.items())))
+    if _read_once is not None and key in _members_once:
+        return _members_once[key]
+    found: dict[int, list[int]] = {g: [] for g in groups}
+    get = found.get
+    for i, v in enumerate(mesh.vertices):
+        for g in v.groups:
+            chosen = get(g.group)
+            if chosen is not None and g.weight >= 0.5:
+                chosen.append(i)
+    out = {groups[g]: np.array(idx, dtype=np.int64) for g, idx in found.items() if idx}
+    if _read_once is not None:
+        _members_once[key] = out
+    return out
+
+
 def _skin_points(obj: bpy.types.Object, bone_names: Sequence[str]) -> dict[str, np.ndarray]:
     """World rest positions ``(p, 3)`` of the skin vertices weighted mostly (>= 0.5) to each
     of ``bone_names``, over the meshes deformed by ``obj`` (Armature modifier)."""
     wanted = set(bone_names)
     out: dict[str, list[np.ndarray]] = {}
-    for mesh_obj in bpy.data.objects:
-        if mesh_obj.type != "MESH" or not any(m.type == "ARMATURE" and m.object == obj
-                                              for m in mesh_obj.modifiers):
-            continue
+    for mesh_obj in _skins(obj):
         groups = {g.index: g.name for g in mesh_obj.vertex_groups if g.name in wanted}
         if not groups:
             continue
         mesh = mesh_obj.data
+        members = _members(mesh, groups)
+        if not members:
+            continue
         co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
         mesh.vertices.foreach_get("co", co)
-        world = _apply(np.array(mesh_obj.matrix_world, dtype=np.float64),
-                       co.reshape(-1, 3).astype(np.float64))
-        for v in mesh.vertices:
-            for g in v.groups:
-                if g.group in groups and g.weight >= 0.5:
-                    out.setdefault(groups[g.group], []).append(world[v.index])
-    return {k: np.array(v) for k, v in out.items() if len(v) >= 3}
+        # Only the weighted vertices, placed element-wise: a matrix product of every vertex
+        # was a BLAS call whose threads then spun on the other core.
+        chosen = np.unique(np.concatenate(list(members.values())))
+        world = _apply_each(np.array(mesh_obj.matrix_world, dtype=np.float64),
+                            co.reshape(-1, 3)[chosen].astype(np.float64))
+        row = np.empty(co.size // 3, dtype=np.int64)
+        row[chosen] = np.arange(chosen.size)
+        for name, idx in members.items():
+            out.setdefault(name, []).append(world[row[idx]])
+    merged = {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in out.items()}
+    return {k: v for k, v in merged.items() if len(v) >= 3}
+
+
+def _apply_each(m: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Affine ``m`` ``(4, 4)`` applied to points ``p`` ``(n, 3)`` element-wise (no BLAS call)."""
+    return (p[:, 0:1] * m[:3, 0] + p[:, 1:2] * m[:3, 1]) + p[:, 2:3] * m[:3, 2] + m[:3, 3]
 
 
 def _posed_points(rest: _Rest, posed_local: np.ndarray, bone: int, points: np.ndarray,
@@ -204,7 +430,36 @@ def read_rig(
     named in ``at_rest``, which are taken at rest.
     Raises :class:`RigError` for anything that cannot be animated (not an armature, bad
     legs, legs with no common body bone, non-uniform scale).
+
+    Inside a :func:`reading_once` block with a :class:`ReadCache`, a rig read before with the
+    same arguments and found unchanged is the one read then (the same object).
     """
+    if _read_once is None or obj is None or obj.type != "ARMATURE":
+        return _read_rig(obj, legs, forward_axis, spine, at_rest)
+    asked = (_pose_digest(obj, at_rest), None if legs is None else tuple(legs), forward_axis, bool(spine),
+             tuple(sorted(at_rest)))
+    if _cache_once is not None:
+        key = (_digest(obj), *asked)
+        kept = _cache_once.infos.get(obj.name)
+        if kept is not None and kept[0] == key:
+            _copy_keys_once[id(kept[1])] = (key, _plain_once[obj.name])  # (what shared() kept too)
+            return kept[1]
+    # A copy of a rig read in this block (the same bones, pose, constraints, skins and
+    # weights; its object only moved): that reading, moved to where it stands.
+    copy = (_shape_digest(obj), _weights_digest(obj), *asked)
+    first = _copies_once.get(copy)
+    info = _read_rig(obj, legs, forward_axis, spine, at_rest) if first is None else _placed(first, obj)
+    _copies_once.setdefault(copy, info)
+    _copy_keys_once[id(info)] = (copy if _cache_once is None else key, _plain_once[obj.name])
+    if _cache_once is not None:
+        _cache_once.infos[obj.name] = (key, info)
+    return info
+
+
+def _read_rig(
+    obj: bpy.types.Object, legs: Sequence[LegChain] | None, forward_axis: str, spine: bool,
+    at_rest: Collection[str],
+) -> RigInfo:
     rest, skin = _read(obj)
     if legs is None:
         legs = detect_legs(obj)
