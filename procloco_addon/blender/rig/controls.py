@@ -484,17 +484,11 @@ def _stretch_switches(obj: bpy.types.Object, chain: set[str]) -> list[Switch]:
             if float(pbones[n].ik_stretch) > 0.0 and n not in driven]
 
 
-def _fk_switch(obj: bpy.types.Object, switches: Sequence[Switch], chain: Sequence[str]) -> Switch | None:
-    """The leg's IK/FK switch set to its other value (0 <-> 1) when that leaves no IK upstream
-    of ``chain``: the leg in FK, left set on the rig; else None (the rig as it was)."""
+def _fk_switch(switches: Sequence[Switch]) -> Switch | None:
+    """A leg's IK/FK switch (set to IK, 0 or 1) at its other value, or None."""
     for s in switches:
-        if s.kind != "IK_FK" or s.value not in (0.0, 1.0):
-            continue
-        value = 1.0 - s.value
-        _set_props(obj, {(s.bone, s.prop): value})
-        if not ConstraintGraph(obj).iks_upstream(chain):
-            return Switch(s.bone, s.prop, value, s.kind)
-        _set_props(obj, {(s.bone, s.prop): s.value})
+        if s.kind == "IK_FK" and s.value in (0.0, 1.0):
+            return Switch(s.bone, s.prop, 1.0 - s.value, s.kind)
     return None
 
 
@@ -533,20 +527,24 @@ def plan_controls(
         want_fk = [drive == "FK" or (drive == "AUTO" and chain is None) for chain in chains]
         # A switch shared with a leg that stays in IK stays as it is.
         ik_only = {(s.bone, s.prop) for k, sw in enumerate(switches) if not want_fk[k] for s in sw}
-        fk_legs = False
+        fk: dict[int, Switch] = {}
         for k, (bones, _foot) in enumerate(legs):
-            if want_fk[k]:
-                mine = [s for s in switches[k] if (s.bone, s.prop) not in ik_only]
-                fk = _fk_switch(obj, mine, bones) if graph.iks_upstream(bones) else None
-                if fk is not None:
-                    switches[k] = [fk]
-                    fk_legs = True
-                    continue
-            chain = chains[k]
-            if chain is not None:
-                switches[k].extend(_stretch_switches(obj, chain))
-        if fk_legs:  # read the graph again with those legs in FK
+            flip = _fk_switch([s for s in switches[k] if (s.bone, s.prop) not in ik_only])
+            if want_fk[k] and flip is not None and graph.iks_upstream(bones):
+                fk[k] = flip
+        if fk:  # those legs in FK (one evaluation); one whose IK is still upstream stays in IK
+            _set_props(obj, {(s.bone, s.prop): s.value for s in fk.values()})
             graph = ConstraintGraph(obj)
+            still_ik = {k for k in fk if graph.iks_upstream(legs[k][0])}
+            if still_ik:
+                _set_props(obj, {(fk[k].bone, fk[k].prop): 1.0 - fk[k].value for k in still_ik})
+                graph = ConstraintGraph(obj)
+                fk = {k: s for k, s in fk.items() if k not in still_ik}
+        for k, chain in enumerate(chains):
+            if k in fk:
+                switches[k] = [fk[k]]
+            elif chain is not None:
+                switches[k].extend(_stretch_switches(obj, chain))
         return _plan(graph, legs, body, list(others), solved, switches)
     finally:
         if originals:
