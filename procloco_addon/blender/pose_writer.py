@@ -19,14 +19,17 @@ does it, for plain rigs and for control rigs:
   plane), keyed, and the rig is evaluated again,
   until the solved bones are within 0.1 mm (and 0.1 degree) of their targets, or a pass no
   longer helps (two to four passes on generated Rigify rigs; a pass costs one depsgraph
-  evaluation per frame). A pole is turned about the hip-to-end axis until the knee lands
-  (by what the knee misses when that is under a quarter turn: a knee on the far side is no
-  offset to turn by). Each frame keeps the keys of the pass that placed it best (its feet and
-  body first, its knees a hundredth as much): a pass may improve most frames and flip a knee
-  in another. Whatever lies between the control and the deform bones (foot-roll mechanisms,
-  parent switches) is Blender's own.
-- **Switches** (:class:`.rig.controls.Switch`) are keyed at their chosen value, the IK
-  chains' stretch (``ik_stretch``) off included.
+  evaluation per frame). A ``TURN`` control that follows another one of its FK chain
+  (:attr:`.rig.controls.ControlKey.follows`) is corrected for its parent's turn in the same
+  pass, so a whole FK leg lands in one pass. A pole is turned about the hip-to-end axis
+  until the knee lands (by what the knee misses when that is under a quarter turn: a knee on
+  the far side is no offset to turn by). Each frame keeps the keys of the pass that placed it
+  best (its feet and body first, its knees a hundredth as much): a pass may improve most
+  frames and flip a knee in another. Whatever lies between the control and the deform
+  bones (foot-roll mechanisms, parent switches) is Blender's own.
+- **Switches** (:class:`.rig.controls.Switch`) are keyed at their chosen value (a leg's
+  IK/FK switch at IK, or at FK for a leg driven by its FK controls), the IK chains' stretch
+  (``ik_stretch``) off included.
 
 The targets are given for the object's world matrix at the first frame (``world0``); when the
 object moves (an animated parent, object keys, constraints), each frame's target is carried
@@ -536,6 +539,7 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                 _key(action, obj, frames, ctrl_names, best_basis, located)
             break
         last = worst
+        turned: dict[str, np.ndarray] = {}  # TURN control -> its world turn this pass (F, 3, 3)
         for j, c in enumerate(controls):
             m = ev[:, col[c.bone]]
             want = m.copy()
@@ -547,6 +551,7 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                 d = nearest_rotation(armature[:, index[c.anchor], :3, :3])
                 e = nearest_rotation(ev[:, col[c.anchor], :3, :3])
                 want[:, :3, :3] = d @ np.swapaxes(e, -1, -2) @ m[:, :3, :3]
+                turned[c.bone] = d @ np.swapaxes(e, -1, -2)
             elif c.mode == "IK":  # turned like its anchor, moved by the end-effector's error
                 d = nearest_rotation(armature[:, index[c.anchor], :3, :3])
                 e = nearest_rotation(ev[:, col[c.anchor], :3, :3])
@@ -567,6 +572,8 @@ def _solve_controls(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
                 want[:, :3, 3] = joints[:, 0] + turned_pole
             # The control's matrix is (what its parent and constraints give) @ basis.
             base = m @ affine_inverse(basis[:, j])
+            if c.follows in turned:  # its parent turns too this pass: it carries the control along
+                base[:, :3, :3] = turned[c.follows] @ base[:, :3, :3]
             basis[:, j] = affine_inverse(base) @ want
 
 
@@ -597,7 +604,10 @@ def _turn_about(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarra
 
 
 def _angles(want: np.ndarray, got: np.ndarray) -> np.ndarray:
-    """Angles (radians) ``(F,)`` between rotations ``want`` and ``got`` ``(F, 3, 3)`` (got may be scaled)."""
+    """Angles (radians) ``(F,)`` between rotations ``want`` and ``got`` ``(F, 3, 3)`` (either may
+    be scaled: a target a few millionths short, from float32 rest matrices, reads as a 0.2 degree
+    turn near ``arccos(1)``)."""
+    want = want / np.linalg.norm(want, axis=-2, keepdims=True)
     got = got / np.linalg.norm(got, axis=-2, keepdims=True)
     cos = (np.trace(np.swapaxes(want, -1, -2) @ got, axis1=-2, axis2=-1) - 1.0) / 2.0
     return np.asarray(np.arccos(np.clip(cos, -1.0, 1.0)))

@@ -18,6 +18,10 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
 - ``swapped``: the horse with its L/R names on the wrong sides.
 - ``rigify_horse``, ``rigify_bird`` (9 cm legs), ``rigify_basic_human``: Blender's own
   metarigs, which earlier detection got wrong (hoof-only front legs, legs ending at the knee).
+- ``generated_wolf``, ``generated_horse``, ``generated_cat``, ``generated_quadruped``,
+  ``generated_human``, ``generated_bird``: the control rigs Rigify generates from its metarigs
+  (``rigify_generate``): legs of ``ORG-`` bones copying FK and IK chains (the quadrupeds'
+  three-bone paws), deform ``DEF-`` bones in B-Bone segments, no skin.
 - ``shark``: Rigify's shark metarig (fins only); ``on_side`` / ``upside_down``: the horse
   turned 90° and 180° about its forward axis.
 """
@@ -26,6 +30,7 @@ from __future__ import annotations
 
 import math
 import re
+import tempfile
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -837,6 +842,37 @@ def _metarig(kind: str) -> Callable[[Any, str], Any]:
     return build_metarig
 
 
+#: Generated Rigify rigs saved once per process (kind -> .blend), appended from there after.
+_GENERATED: dict[str, str] = {}
+
+
+def _generated(kind: str) -> Callable[[Any, str], Any]:
+    """A builder of the rig Rigify generates from its ``kind`` metarig (``rigify_generate``,
+    a few seconds; once per process, then appended from a saved copy), named as asked."""
+
+    def build_generated(scene: Any, name: str) -> Any:
+        if kind not in _GENERATED:
+            metarig = _metarig(kind)(scene, "metarig")
+            bpy.ops.pose.rigify_generate()
+            rig = metarig.data.rigify_target_rig
+            bpy.data.objects.remove(metarig)
+            rig.name = "rig"
+            path = f"{tempfile.mkdtemp(prefix='procloco_rigify_')}/{kind}.blend"
+            bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+            _GENERATED[kind] = path
+        else:
+            with bpy.data.libraries.load(_GENERATED[kind], link=False) as (_src, dst):
+                dst.objects = ["rig"]
+            rig = dst.objects[0]
+            scene.collection.objects.link(rig)
+        rig.name = name
+        bpy.context.view_layer.objects.active = rig
+        bpy.context.view_layer.update()
+        return rig
+
+    return build_generated
+
+
 def _pair(hip: str, end: str, hind_hip: str = "", hind_end: str = "") -> Expected:
     legs = {"L1": (f"{hip}.L", f"{end}.L"), "R1": (f"{hip}.R", f"{end}.R")}
     if hind_hip:
@@ -976,6 +1012,22 @@ FIXTURES: dict[str, Fixture] = {
         lambda sc, n: build(sc, n, _DRAGON_NUMBERED[0]),
         Expected({k: (_DRAGON_NUMBERED[1][h], _DRAGON_NUMBERED[1][e]) for k, (h, e) in _DRAGON_LEGS.items()}),
     ),
+    "generated_wolf": Fixture(
+        _generated("wolf"), _pair("ORG-front_thigh", "ORG-front_foot", "ORG-thigh", "ORG-foot"), False
+    ),
+    "generated_horse": Fixture(
+        _generated("horse"), _pair("ORG-upper_arm", "ORG-f_hoof", "ORG-thigh", "ORG-r_hoof"), False
+    ),
+    "generated_cat": Fixture(
+        _generated("cat"), _pair("ORG-upper_arm", "ORG-hand", "ORG-thigh", "ORG-foot"), False
+    ),
+    "generated_quadruped": Fixture(
+        _generated("basic_quadruped"),
+        _pair("ORG-front_thigh", "ORG-front_foot", "ORG-thigh", "ORG-foot"),
+        False,
+    ),
+    "generated_human": Fixture(_generated("human"), _pair("ORG-thigh", "ORG-shin"), False),
+    "generated_bird": Fixture(_generated("bird"), _pair("ORG-thigh", "ORG-shin"), False),
     "shark": Fixture(
         _metarig("shark"), Expected(refusal="no chain of bones from the body reaches the ground"), False
     ),

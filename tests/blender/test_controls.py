@@ -20,7 +20,7 @@ import pytest
 from procloco_addon.blender import actions
 from procloco_addon.blender.locomotion import generate
 from procloco_addon.core import metrics
-from tests.blender.pose_eval import bone_heads_tails, ray_heights_over_time
+from tests.blender.pose_eval import bone_heads_tails, pose_matrices, ray_heights_over_time
 from tools.examples import creatures
 
 pytestmark = pytest.mark.blender
@@ -146,52 +146,74 @@ def _check_motion(m: dict[str, float]) -> None:
 # ---------------------------------------------------------------------------------------
 # Generated Rigify rigs
 
+def _fk(names: str, sides: str = "LR") -> set[str]:
+    """``"thigh_fk shin_fk"`` -> ``{"thigh_fk.L", "shin_fk.L", "thigh_fk.R", "shin_fk.R"}``."""
+    return {f"{n}.{s}" for n in names.split() for s in sides}
+
+
 _RIGIFY = {
-    # kind: (feet deform bones, probe bones, pelvis deform bone, controls, switch bones)
+    # kind: (feet deform bones, probe bones, pelvis deform bone, controls, switch bones, knees)
+    # The quadrupeds' legs are Rigify's three-bone paws: their IK chain does not place every
+    # leg bone (the paw follows a target a stretchy helper chain places), so Drive Legs: Auto
+    # walks them on their FK controls.
     "wolf": (["DEF-front_toe.L", "DEF-front_toe.R", "DEF-toe.L", "DEF-toe.R"],
              ["DEF-front_toe.L", "DEF-front_toe.R", "DEF-toe.L", "DEF-toe.R", "DEF-foot.L", "DEF-foot.R"],
              "DEF-spine.004",
-             {"torso", "foot_ik.L", "foot_ik.R", "front_foot_ik.L", "front_foot_ik.R", "thigh_ik_target.L",
-              "thigh_ik_target.R", "front_thigh_ik_target.L", "front_thigh_ik_target.R"},
-             ["thigh_parent.L", "thigh_parent.R", "front_thigh_parent.L", "front_thigh_parent.R"]),
+             {"torso"} | _fk("front_thigh_fk front_shin_fk front_foot_fk front_toe")
+             | _fk("thigh_fk shin_fk foot_fk toe"),
+             ["front_thigh_parent.L", "front_thigh_parent.R", "thigh_parent.L", "thigh_parent.R"],
+             ["DEF-front_shin.L", "DEF-front_shin.R", "DEF-shin.L", "DEF-shin.R"]),
     "human": (["DEF-foot.L", "DEF-foot.R"], ["DEF-foot.L", "DEF-foot.R", "DEF-toe.L", "DEF-toe.R"],
               "DEF-spine",
               {"torso", "foot_ik.L", "foot_ik.R", "thigh_ik_target.L", "thigh_ik_target.R"},
-              ["thigh_parent.L", "thigh_parent.R"]),
+              ["thigh_parent.L", "thigh_parent.R"],
+              ["DEF-shin.L", "DEF-shin.R"]),
     # The cat's paws: Rigify's three-bone IK legs, whose toes (its metarig's palms and toes
     # do not meet tail to head) once made the whole rig's tails count as meaningless.
     "cat": (["DEF-f_toe.L", "DEF-f_toe.R", "DEF-r_toe.L", "DEF-r_toe.R"],
             ["DEF-f_toe.L", "DEF-f_toe.R", "DEF-r_toe.L", "DEF-r_toe.R"],
             "DEF-spine.001",
-            {"torso", "hand_ik.L", "hand_ik.R", "foot_ik.L", "foot_ik.R", "upper_arm_ik_target.L",
-             "upper_arm_ik_target.R", "thigh_ik_target.L", "thigh_ik_target.R"},
-            ["upper_arm_parent.L", "upper_arm_parent.R", "thigh_parent.L", "thigh_parent.R"]),
+            {"torso"} | _fk("upper_arm_fk forearm_fk hand_fk f_toe thigh_fk shin_fk foot_fk r_toe"),
+            ["upper_arm_parent.L", "upper_arm_parent.R", "thigh_parent.L", "thigh_parent.R"],
+            ["DEF-forearm.L", "DEF-forearm.R", "DEF-shin.L", "DEF-shin.R"]),
 }
 
 
 @pytest.mark.parametrize("kind", ["wolf", "human", "cat"])
 def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str], kind: str) -> None:
     rig, ground = _open_rig(rigify_files[kind])
-    feet, probes, pelvis, wanted, switch_bones = _RIGIFY[kind]
-    # The animator left the legs in FK: the result must not depend on it.
+    feet, probes, pelvis, wanted, switch_bones, knees = _RIGIFY[kind]
+    fk = kind != "human"
+    # The animator left the legs in the other mode: the result must not depend on it.
     for b in switch_bones:
-        rig.pose.bones[b]["IK_FK"] = 1.0
+        rig.pose.bones[b]["IK_FK"] = 0.0 if fk else 1.0
+    assert rig.procloco.drive_legs == "AUTO"
     assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
     listed = {item.label: item.controls for item in rig.procloco.legs}
     for text in listed.values():
-        assert text.startswith("IK "), listed
-        assert "pole " in text, listed
-        assert "IK_FK = 0" in text, listed
+        if fk:
+            assert text.startswith("FK "), listed
+            assert "IK_FK = 1" in text, listed
+            assert "pole" not in text, listed
+        else:
+            assert text.startswith("IK "), listed
+            assert "pole " in text, listed
+            assert "IK_FK = 0" in text, listed
     job = _run(rig, speed={"wolf": 0.6, "human": 0.8, "cat": 0.3}[kind])
     keyed = _keyed_bones(rig)
     assert wanted <= keyed, keyed
     assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
     switches = _prop_keys(rig)
     for b in switch_bones:
-        assert switches[(b, "IK_FK")] == 0.0
-        assert switches[(b, "pole_vector")] == 1.0
+        assert switches[(b, "IK_FK")] == (1.0 if fk else 0.0)
+        if fk:  # the pole switch is the animator's: not keyed
+            assert (b, "pole_vector") not in switches, switches
+        else:
+            assert switches[(b, "pole_vector")] == 1.0
+    if fk:
+        assert not [b for b in keyed if "_ik" in b], keyed  # no IK control, pole or stretch
+        assert not _stretch_keys(rig)
     assert not job.warnings, job.warnings
-    knees = [f.replace("foot", "shin") for f in feet] if kind == "human" else None
     m = _measure(rig, job, feet, probes, pelvis, ground, knees)
     if kind != "human":  # the quadrupeds' flexible spine, keyed on Rigify's spine tweaks
         spine = list(job.info.spine[::-1])  # the core's bones, head first
@@ -206,9 +228,9 @@ def test_generated_rigify_rig_walks_on_its_controls(rigify_files: dict[str, str]
         assert np.ptp(bend) > 3.0, "the spine flexes as it walks"
     _check_motion(m)
     assert m["reach"] <= 0.01, m
-    # The poles put the knees on the side the walk bends them; Rigify's own IK bends them a
-    # little its own way (a wolf's three-bone legs are bent by its paw mechanism, unchecked).
-    assert m["knee"] <= 0.03, m
+    # The poles put the human's knees on the side the walk bends them (Rigify's own IK bends
+    # them a little its own way); the FK controls put every knee where it was solved.
+    assert m["knee"] <= (0.001 if fk else 0.03), m
 
 
 def test_secondary_motion_swings_the_generated_wolf_tail_controls(rigify_files: dict[str, str]) -> None:
@@ -249,10 +271,15 @@ def test_secondary_motion_swings_the_generated_wolf_tail_controls(rigify_files: 
     assert not [b for b in keyed if b.startswith(_MECHANISM)], keyed
 
 
-def test_clear_gives_back_the_rigify_rig_as_it_was(rigify_files: dict[str, str]) -> None:
-    rig, _ground_obj = _open_rig(rigify_files["human"])
-    rig.pose.bones["thigh_parent.L"]["IK_FK"] = 1.0
-    rig.pose.bones["foot_ik.R"].location = (0.0, 0.05, 0.02)
+@pytest.mark.parametrize(("kind", "switch"), [("human", "thigh_parent.L"), ("wolf", "front_thigh_parent.L")])
+def test_clear_gives_back_the_rigify_rig_as_it_was(rigify_files: dict[str, str], kind: str,
+                                                   switch: str) -> None:
+    # The human walks on its IK controls (IK_FK keyed 0), the wolf on its FK controls (1).
+    rig, _ground_obj = _open_rig(rigify_files[kind])
+    rig.pose.bones[switch]["IK_FK"] = 0.4
+    foot = "foot_ik.R" if kind == "human" else "front_foot_fk.R"
+    rig.pose.bones[foot].location = (0.0, 0.05, 0.02)
+    rig.pose.bones[foot].rotation_quaternion = (0.99, 0.1, 0.0, 0.0)
     bpy.context.view_layer.update()
 
     def state() -> tuple[Any, ...]:
@@ -267,12 +294,58 @@ def test_clear_gives_back_the_rigify_rig_as_it_was(rigify_files: dict[str, str])
 
     before = state()
     _run(rig, frames=12)
+    assert _prop_keys(rig)[(switch, "IK_FK")] == (0.0 if kind == "human" else 1.0)
     assert bpy.ops.procloco.clear_generated_action() == {"FINISHED"}
     after = state()
     assert after[0] == before[0]
     assert np.allclose(after[1], before[1], atol=1e-6)
     assert np.allclose(after[2], before[2], atol=1e-5)
     assert after[3] == before[3]  # the IK chains stretch again
+
+
+def test_drive_legs_chooses_the_ik_or_the_fk_controls(rigify_files: dict[str, str]) -> None:
+    from procloco_addon.blender.locomotion.panel import PROCLOCO_PT_rig_legs
+    from tests.blender.ui_recorder import draw_panel
+
+    # The human walks on its FK controls when asked: every deform bone exactly as solved, its
+    # feet too (through its IK controls Rigify's foot roll stretches DEF-foot by 0.02 %).
+    rig, ground = _open_rig(rigify_files["human"])
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    ui = draw_panel(PROCLOCO_PT_rig_legs, bpy.context)
+    assert ui.has_prop("drive_legs", rig.procloco)
+    assert "Detect Legs again" not in ui.texts()
+    rig.procloco.drive_legs = "FK"
+    stale = draw_panel(PROCLOCO_PT_rig_legs, bpy.context).texts()
+    assert "Detect Legs again to list the controls this keys" in stale
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    assert [leg.controls for leg in rig.procloco.legs] == [
+        f"FK thigh_fk.{s}, shin_fk.{s}, foot_fk.{s}, IK_FK = 1 on thigh_parent.{s}" for s in "LR"]
+    job = _run(rig, speed=0.8)
+    keyed = _keyed_bones(rig)
+    assert {"torso"} | _fk("thigh_fk shin_fk foot_fk") <= keyed, keyed
+    assert not keyed & {"foot_ik.L", "foot_ik.R", "thigh_ik_target.L", "thigh_ik_target.R"}, keyed
+    assert not _stretch_keys(rig)
+    assert not job.warnings, job.warnings
+    frames = [int(f) for f in job.frames]
+    names = [n for s in "LR" for n in (f"DEF-thigh.{s}", f"DEF-thigh.{s}.001", f"DEF-shin.{s}",
+                                        f"DEF-shin.{s}.001", f"DEF-foot.{s}", f"DEF-toe.{s}")]
+    mats = pose_matrices(rig, frames, names)
+    rest = np.array([np.array(rig.matrix_world @ rig.data.bones[n].matrix_local) for n in names])
+    stretch = np.linalg.norm(mats[..., :3, 1], axis=-1) / np.linalg.norm(rest[:, :3, 1], axis=-1)
+    assert np.abs(stretch - 1.0).max() < 1e-4
+    m = _measure(rig, job, ["DEF-foot.L", "DEF-foot.R"], ["DEF-foot.L", "DEF-foot.R"], "DEF-spine", ground,
+                 ["DEF-shin.L", "DEF-shin.R"])
+    _check_motion(m)
+    assert m["reach"] <= 0.001, m
+    assert m["knee"] <= 0.001, m
+
+    # The wolf's paws on their IK controls when asked (they squash and may flip: README).
+    rig, _ground = _open_rig(rigify_files["wolf"])
+    rig.procloco.drive_legs = "IK"
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    for leg in rig.procloco.legs:
+        assert leg.controls.startswith("IK "), leg.controls
+        assert "IK_FK = 0" in leg.controls, leg.controls
 
 
 @pytest.mark.parametrize("kind", ["human", "bird"])
@@ -490,7 +563,7 @@ def test_generated_rigify_wolf_under_an_animated_empty_keeps_its_feet_planted(
     carrier.keyframe_insert("location", frame=48)
     rig.parent = carrier
     bpy.context.view_layer.update()
-    feet, probes, pelvis, wanted, _switches = _RIGIFY["wolf"]
+    feet, probes, pelvis, wanted, _switches, _knees = _RIGIFY["wolf"]
     assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
     job = _run(rig, speed=0.6)
     assert wanted <= _keyed_bones(rig)

@@ -92,37 +92,59 @@ def test_imported_rigs_give_the_same_legs(empty_scene: Any, name: str, exported:
 # The walk, measured on the posed rig
 
 
+def deform_bones(obj: Any, name: str) -> list[str]:
+    """The deform bones that show solved bone ``name`` (what is measured): the bone itself,
+    or on a generated Rigify rig the ``DEF-`` B-Bone segments that follow ``ORG-`` bone
+    ``name`` (``DEF-thigh.L``, ``DEF-thigh.L.001``)."""
+    bones = obj.data.bones
+    if bones[name].use_deform or not name.startswith("ORG-"):
+        return [name]
+    first = "DEF-" + name[4:]
+    out = [first] if first in bones else []
+    while out and f"{first}.{len(out):03d}" in bones:
+        out.append(f"{first}.{len(out):03d}")
+    return out or [name]
+
+
 def _far_joint_offsets(obj: Any, info: rig.RigInfo) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Per leg, the end-effector's far joint ``(3,)`` and the sole probes ``(p, 3)`` in the
-    local frame of the bone carrying them (the last leg bone; the first foot bone)."""
+    local frame of the deform bone carrying them (the last segment of the last leg bone; the
+    first foot bone)."""
     world = np.array(obj.matrix_world)
     ends, soles = [], []
     for leg, joints, probes in zip(info.legs, info.joints, info.foot_points, strict=True):
-        last = world @ info.rest_local[leg.end]
+        last = world @ np.array(obj.data.bones[deform_bones(obj, leg.end)[-1]].matrix_local)
         ends.append((np.linalg.inv(last) @ np.append(joints[-1], 1.0))[:3])
-        carrier = world @ info.rest_local[leg.foot[0] if leg.foot else leg.end]
+        carrier = world @ np.array(obj.data.bones[deform_bones(obj, leg.foot[0] if leg.foot else leg.end)[0]]
+                                   .matrix_local)
         inv = np.linalg.inv(carrier)
         soles.append(probes @ inv[:3, :3].T + inv[:3, 3] if probes.size else np.zeros((0, 3)))
     return ends, soles
 
 
 def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
-    """The numbers of "What done means for the motion" from the evaluated rig on ``ground``:
-    the keys of ``test_generate.check_thresholds``, plus ``travel`` and the largest per-frame
-    turn of the leg and foot bones (``bone_turn``, ``planted_turn``, degrees)."""
+    """The numbers of "What done means for the motion" from the evaluated deform bones
+    (:func:`deform_bones`) on ``ground``: the keys of ``test_generate.check_thresholds``, plus
+    ``travel`` and the largest per-frame turn of the leg and foot bones (``bone_turn``,
+    ``planted_turn``, degrees). ``bone``: the largest relative change of a leg bone's length
+    (joint to joint), or of a leg's deform segment's own length (a B-Bone segment stretched to
+    the next one); ``foot_stretch``: the same for the foot bones' segments."""
     info, res = job.info, job.result
     frames = [int(f) for f in job.frames]
-    names = [b for leg in info.legs for b in (*leg.bones, *leg.foot)]
+    shown = {b: deform_bones(obj, b) for leg in info.legs for b in (*leg.bones, *leg.foot)}
+    names = [d for segments in shown.values() for d in segments]
     mats = pose_matrices(obj, frames, names)
     where = {n: i for i, n in enumerate(names)}
+    world = np.array(obj.matrix_world)
+    rest = world @ np.array([np.array(obj.data.bones[n].matrix_local) for n in names])
     end_off, sole_off = _far_joint_offsets(obj, info)
     joints, soles = [], []
     for k, leg in enumerate(info.legs):
-        heads = mats[:, [where[b] for b in leg.bones]][..., :3, 3]
-        last = mats[:, where[leg.end]]
+        heads = mats[:, [where[shown[b][0]] for b in leg.bones]][..., :3, 3]
+        last = mats[:, where[shown[leg.end][-1]]]
         tip = np.einsum("fij,j->fi", last[:, :3, :3], end_off[k]) + last[:, :3, 3]
         joints.append(np.concatenate([heads, tip[:, None]], axis=1))
-        carrier = mats[:, where[leg.foot[0] if leg.foot else leg.end]]
+        carrier = mats[:, where[shown[leg.foot[0] if leg.foot else leg.end][0]]]
         soles.append(np.einsum("fij,pj->fpi", carrier[:, :3, :3], sole_off[k]) + carrier[:, None, :3, 3])
     ends = np.stack([j[:, -1] for j in joints], axis=1)
     hips = np.stack([j[:, 0] for j in joints], axis=1)
@@ -135,12 +157,20 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     depth = np.where(heights > -np.inf, heights + lift - probes[..., 2], -np.inf)
     out["penetration"] = float(depth.max())
     rest_seg = [np.linalg.norm(np.diff(j, axis=0), axis=1) for j in info.joints]
+    length = np.linalg.norm(mats[..., :3, 1], axis=-1) / np.linalg.norm(rest[:, :3, 1], axis=-1)
+    stretch = np.abs(length - 1.0)
+    in_foot = np.isin(names, [d for leg in info.legs for b in leg.foot for d in shown[b]])
+    out["foot_stretch"] = float(stretch[:, in_foot].max(initial=0.0))
     out["bone"] = max(
-        float(np.max(np.abs(np.linalg.norm(np.diff(j, axis=1), axis=-1) - r) / r))
-        for j, r in zip(joints, rest_seg, strict=True)
+        float(stretch[:, ~in_foot].max()),
+        *(float(np.max(np.abs(np.linalg.norm(np.diff(j, axis=1), axis=-1) - r) / r))
+          for j, r in zip(joints, rest_seg, strict=True)),
     )
     out["reach"] = float(np.linalg.norm(ends - res.feet, axis=-1).max())
-    out["extension"] = float((np.linalg.norm(ends - hips, axis=-1) / info.leg_length).max())
+    # A leg stretched beyond its length: beyond what its deform bones' own measured length
+    # change explains (B-Bone segments a few millionths long on a straight leg).
+    reach = np.linalg.norm(ends - hips, axis=-1) / info.leg_length
+    out["extension"] = float(reach.max()) / (1.0 + out["bone"])
     step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)
     planted = np.zeros(ends.shape[:2], dtype=bool)
     planted[:-1] = step < 1e-3 * float(info.leg_length.mean())
@@ -167,17 +197,15 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     out["turn_at"] = (names[int(b_max)], int(frames[int(f_max)]))
     stance = ~res.swing
     both = stance[:-1] & stance[1:]
-    foot_cols = [(where[b], k) for k, leg in enumerate(info.legs) for b in leg.foot]
+    foot_cols = [(where[d], k) for k, leg in enumerate(info.legs) for b in leg.foot for d in shown[b]]
     # Foot and toe bones move with the foot: each one's head keeps its rest distance from the
     # end-effector's far joint (none stays behind at the start).
     drift = [0.0]
     for k, leg in enumerate(info.legs):
         for b in leg.foot:
-            rest_d = np.linalg.norm(
-                np.array(obj.matrix_world) @ np.append(info.rest_local[b][:3, 3], 1.0)
-                - np.append(info.joints[k][-1], 1.0)
-            )
-            now_d = np.linalg.norm(mats[:, where[b], :3, 3] - ends[:, k], axis=-1)
+            d = shown[b][0]
+            rest_d = np.linalg.norm(rest[where[d], :3, 3] - info.joints[k][-1])
+            now_d = np.linalg.norm(mats[:, where[d], :3, 3] - ends[:, k], axis=-1)
             drift.append(float(np.abs(now_d - rest_d).max()))
     out["foot_drift"] = max(drift)
     out["planted_turn"] = max(
@@ -201,8 +229,15 @@ def left_behind(obj: Any, frames: list[int], travel: float) -> list[str]:
     return [n for n, d in zip(names, moved.tolist(), strict=True) if d < 0.5 * travel]
 
 
-def check_motion(m: dict[str, Any]) -> None:
+#: Fixtures whose deform foot bones stretch a little (the largest relative change allowed;
+#: README, known limitations): the generated Rigify human, walked through its IK controls,
+#: whose toe follows another bone of Rigify's foot-roll mechanism than its ankle does.
+FOOT_STRETCH = {"generated_human": 3e-4}
+
+
+def check_motion(m: dict[str, Any], name: str = "") -> None:
     check_thresholds(m)  # the per-frame bone turns too (check_no_pops)
+    assert m["foot_stretch"] < FOOT_STRETCH.get(name, 1e-4), m
     assert m["foot_drift"] <= 1e-4 * m["leg"], m
     assert not m["left_behind"], m
 
@@ -275,7 +310,7 @@ def test_generate_walks_the_rigs_users_bring(empty_scene: Any, name: str) -> Non
     _report(name, job, m)
     _BUILT_WALKS[name] = {"legs": [(leg.label, leg.bones) for leg in job.info.legs], **m}
     assert m["travel"] > 0.5 * float(job.info.leg_length.mean()), m
-    check_motion(m)
+    check_motion(m, name)
 
 
 @pytest.mark.parametrize(

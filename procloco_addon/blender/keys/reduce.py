@@ -37,7 +37,7 @@ import numpy as np
 from ...core import keyfit
 from ...core.steps import run_steps
 from .. import actions, pose_writer
-from ..rig.controls import ControlPlan
+from ..rig.controls import ConstraintGraph, ControlPlan
 
 __all__ = [
     "Reduction",
@@ -175,15 +175,7 @@ def channel_tolerances(obj: bpy.types.Object, channels: Sequence[actions.Channel
     keyed = {b for ch in channels if (b := _bone_of(ch.data_path)) is not None and b in bones}
     world = np.array(obj.matrix_world, dtype=np.float64)
     scale = float(np.mean(np.linalg.norm(world[:3, :3], axis=0))) or 1.0
-
-    def chain(name: str) -> list[str]:
-        out = []
-        b = bones.get(name)
-        while b is not None:
-            out.append(b.name)
-            b = b.parent
-        return out
-
+    chain = _moved_by(obj)
     chains = {f: chain(f) for f in feet if f in bones}
     depth = {b: max(1, sum(1 for a in chain(b) if a in keyed)) for b in keyed}
     angle: dict[str, float] = {}
@@ -222,6 +214,20 @@ def channel_tolerances(obj: bpy.types.Object, channels: Sequence[actions.Channel
         else:  # anything else keyed densely: kept all but exact
             out[c] = 1e-6
     return out
+
+
+def _moved_by(obj: bpy.types.Object) -> Any:
+    """A function: bone name -> the set of bones whose pose moves it, itself included: its
+    parents and, on a control rig, the bones its constraints follow, upstream to the controls
+    (:class:`..rig.controls.ConstraintGraph`: Rigify's ``ORG-foot.L`` is moved by
+    ``foot_fk.L``, ``shin_fk.L``, ``thigh_fk.L`` and ``torso`` when its leg is in FK)."""
+    graph = ConstraintGraph(obj)
+    nodes = graph.nodes
+
+    def moved_by(name: str) -> set[str]:
+        return set(graph.upstream([name])) if name in nodes else {name}
+
+    return moved_by
 
 
 #: A quaternion component's tolerance grows at most this much where it hardly turns the bone.
@@ -323,14 +329,11 @@ def reduce_action_steps(
     if step_tolerance is None:
         step_tolerance = _STEP_SHARE * foot_tolerance
     lengths = np.array([obj.data.bones[n].length for n in check])
-    # ancestry[b, c]: channel c belongs to checked bone b or one of its parents
+    # ancestry[b, c]: channel c belongs to checked bone b or a bone that moves it
     ancestry = np.zeros((len(check), len(chans)), dtype=bool)
+    moved_by = _moved_by(obj)
     for b, name in enumerate(check):
-        bone = obj.data.bones[name]
-        line = set()
-        while bone is not None:
-            line.add(bone.name)
-            bone = bone.parent
+        line = moved_by(name)
         ancestry[b] = [o in line for o in bone_of]
     # steady[f, c]: channel c moves a foot planted from frame f to f + 1 (it is in the foot's
     # parent chain, or listed with it): there its error may change only by a share of its

@@ -141,6 +141,7 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
     settings = obj.procloco
     legs = rig.detect_legs(obj)
     keyed = leg_controls(obj, legs)
+    settings.controls_drive = settings.drive_legs
     if not settings.legs:
         rig_gait.set_new_rig_default(obj)  # no gait chosen yet: Auto
     scaled = None

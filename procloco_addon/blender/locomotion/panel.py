@@ -35,6 +35,11 @@ class PROCLOCO_PT_rig_legs(RigPanel, bpy.types.Panel):
         handler.panel_drawn(obj)  # the chosen chains are drawn in the viewport while this is open
         layout.template_list(PROCLOCO_UL_legs.bl_idname, "", settings, "legs", settings, "active_leg_index",
                              rows=min(max(len(settings.legs), 3), 8))
+        if any(leg.controls for leg in settings.legs):  # a control rig: which controls walk it
+            row = layout.row()
+            row.prop(settings, "drive_legs")
+            if settings.controls_drive != settings.drive_legs:
+                layout.label(text="Detect Legs again to list the controls this keys", icon="INFO")
         index = settings.active_leg_index
         if not 0 <= index < len(settings.legs):
             return

@@ -148,6 +148,21 @@ class PROCLOCO_PG_rig_settings(bpy.types.PropertyGroup):
         ),
         default="AUTO",
     )
+    drive_legs: EnumProperty(
+        name="Drive Legs",
+        description="Which controls Generate Locomotion keys for legs that have both IK and FK controls "
+                    "(an IK/FK switch, as on generated Rigify rigs)",
+        items=(
+            ("AUTO", "Auto", "IK controls, except for legs whose IK chain cannot place every leg bone at its "
+             "length (Rigify's three-bone paws): FK controls there"),
+            ("IK", "IK Controls", "The IK foot controls and knee poles"),
+            ("FK", "FK Controls",
+             "The FK controls of every leg bone: the deform bones land exactly as solved"),
+        ),
+        default="AUTO",
+    )
+    # the Drive Legs the legs' controls were listed for (Detect Legs)
+    controls_drive: StringProperty(default="AUTO", options={"HIDDEN"})
 
     # --- locomotion -----------------------------------------------------------------
     speed: FloatProperty(

@@ -31,9 +31,19 @@ Pro's ``ik_fk_switch``) and to turn its pole on (Rigify's ``pole_vector``) are
 When every bone of a leg is (or copies) a bone of an IK chain, that chain's stretch
 (``ik_stretch``) is keyed off too: Blender's IK shortens stretchy bones when that reaches the
 target with less bending (Rigify's chains stretch by 0.1).
-A leg with no IK upstream (an FK control rig) has each of its driven bones turned by the
-nearest control upstream of it that does not carry the hip (its FK control: Auto-Rig Pro's
-``c_thigh_fk.l``), parent first.
+
+**Drive Legs** (``drive``, the rig's ``drive_legs``) chooses between a leg's IK and FK
+controls when its IK/FK switch offers both: ``"IK"``; ``"FK"`` (the switch set to its other
+value, keyed, when that leaves no IK upstream of the leg); ``"AUTO"``: FK where the leg's IK
+chain does not solve every bone of the leg. Rigify's three-bone paws (``limbs.paw``,
+``front_paw``, ``rear_paw``: wolf, cat, horse, quadruped) are such legs: their paw bone copies
+a target that stretchy helper chains place, so through the IK control the deform bones
+shorten by 2-3 % and a knee flips at some frames, while their FK controls (``thigh_fk.L``,
+``shin_fk.L``, ``foot_fk.L``, ``toe.L``) drive the ``ORG-`` chain, and with it the deform
+bones, exactly as solved.
+A leg with no IK upstream (an FK control rig, or a leg switched to FK) has each of its driven
+bones turned by the nearest control upstream of it that does not carry the hip (its FK
+control: Auto-Rig Pro's ``c_thigh_fk.l``, Rigify's ``thigh_fk.L``), parent first.
 The **body control** is the most upstream control that carries the body bone and every hip but
 no IK control and, where another one does, has a parent (Rigify's ``torso``, Auto-Rig Pro's
 ``c_root_master.x``, not the placement roots ``root``/``c_traj``).
@@ -51,6 +61,7 @@ from dataclasses import dataclass, field
 import bpy
 
 __all__ = [
+    "DRIVE_MODES",
     "ConstraintGraph",
     "ControlKey",
     "ControlPlan",
@@ -289,12 +300,17 @@ class ControlKey:
     ``"IK"`` (it turns like ``anchor`` and moves by the error of the leg's
     end-effector ``leg``), ``"POLE"`` (placed on the side of leg ``leg``'s knee, at its
     current distance from it).
+
+    ``follows``: for ``"TURN"``, the control (turned before it in the same pass) whose turn it
+    inherits (its parent in an FK chain: ``shin_fk.L`` follows ``thigh_fk.L``), so that a
+    whole FK chain lands in one pass.
     """
 
     bone: str
     mode: str
     anchor: str
     leg: int = -1
+    follows: str = ""
 
 
 @dataclass(frozen=True)
@@ -436,11 +452,26 @@ def _choose_switches(obj: bpy.types.Object, leg_bones: Sequence[str], chain: Seq
     return out
 
 
-def _stretch_switches(obj: bpy.types.Object, graph: ConstraintGraph, bones: Sequence[str]) -> list[Switch]:
-    """The bones of the IK chain that ``bones`` are or copy and that may stretch (``ik_stretch``
-    > 0, not driven), each a switch to no stretch. Blender's IK shortens a stretchy chain's bones
-    when that reaches the target with less bending: a generated Rigify human's thigh and
-    shin by up to 2.5 % while it walks. The walk never asks a leg to reach beyond its length."""
+def _ik_solves(graph: ConstraintGraph, bones: Sequence[str]) -> set[str] | None:
+    """The bones of the IK chains that solve leg ``bones`` (each bone is, or copies, a bone of
+    an IK chain), or None when some bone of the leg follows something else (the paw of
+    Rigify's three-bone legs copies the target its stretchy helper chains place)."""
+    chain: set[str] = set()
+    for b in bones:
+        solving = {b} if graph.nodes[b].in_ik else {
+            d for d, kind in graph.nodes[b].deps.items() if kind == 1 and graph.nodes[d].in_ik}
+        if not solving:
+            return None
+        chain |= solving
+    return chain
+
+
+def _stretch_switches(obj: bpy.types.Object, chain: set[str]) -> list[Switch]:
+    """The bones of the IK ``chain`` that solves a leg (:func:`_ik_solves`) that may stretch
+    (``ik_stretch`` > 0, not driven), each a switch to no stretch. Blender's IK shortens a
+    stretchy chain's bones when that reaches the target with less bending: a generated Rigify
+    human's thigh and shin by up to 2.5 % while it walks. The walk never asks a leg to reach
+    beyond its length."""
     adt = obj.animation_data
     driven = set()
     if adt is not None:
@@ -449,19 +480,20 @@ def _stretch_switches(obj: bpy.types.Object, graph: ConstraintGraph, bones: Sequ
             if m is not None and not fc.mute:
                 driven.add(_unescape(m.group(1)))
     pbones = obj.pose.bones
-    # Only when every bone of the leg is, or copies, a bone of an IK chain: that chain solves the
-    # leg and its stretch only squashes it. Where a bone follows something else (the paw of
-    # Rigify's three-bone legs copies the target its stretchy helper chains place), the stretch
-    # is part of the mechanism and stays.
-    chain: set[str] = set()
-    for b in bones:
-        solving = {b} if graph.nodes[b].in_ik else {
-            d for d, kind in graph.nodes[b].deps.items() if kind == 1 and graph.nodes[d].in_ik}
-        if not solving:
-            return []
-        chain |= solving
     return [Switch(n, "ik_stretch", 0.0, "STRETCH") for n in sorted(chain)
             if float(pbones[n].ik_stretch) > 0.0 and n not in driven]
+
+
+def _fk_switch(switches: Sequence[Switch]) -> Switch | None:
+    """A leg's IK/FK switch (set to IK, 0 or 1) at its other value, or None."""
+    for s in switches:
+        if s.kind == "IK_FK" and s.value in (0.0, 1.0):
+            return Switch(s.bone, s.prop, 1.0 - s.value, s.kind)
+    return None
+
+
+#: How Generate Locomotion drives a leg that has both IK and FK controls (``drive``).
+DRIVE_MODES = ("AUTO", "IK", "FK")
 
 
 def plan_controls(
@@ -469,13 +501,20 @@ def plan_controls(
     legs: Sequence[tuple[Sequence[str], Sequence[str]]],
     body: str,
     others: Sequence[str] = (),
+    drive: str | None = None,
 ) -> ControlPlan:
     """Which bones to key for the solved bones of ``obj`` (see the module doc).
 
     legs: per leg ``(bones hip to end-effector, foot bones)``; ``body``: the body bone;
-    ``others``: further solved bones (spine, chain bones), parents first. The rig is left as
-    it was (switches are tried and put back).
+    ``others``: further solved bones (spine, chain bones), parents first. ``drive``: for legs
+    with an IK/FK switch, ``"IK"`` (their IK controls), ``"FK"`` (their FK controls) or
+    ``"AUTO"`` (FK where the leg's IK chain does not solve every bone of the leg, so that
+    driving it through the IK control would squash or flip the deform bones); None: the
+    rig's own setting (``Object.procloco.drive_legs``). The rig is left as it was (switches
+    are tried and put back).
     """
+    if drive is None:
+        drive = str(getattr(getattr(obj, "procloco", None), "drive_legs", "AUTO"))
     solved = [body, *others, *(b for bones, foot in legs for b in (*bones, *foot[:1]))]
     originals: dict[tuple[str, str], float] = {}
     try:
@@ -484,8 +523,28 @@ def plan_controls(
             switches.append(_choose_switches(obj, [*bones, *foot[:1]], bones, originals))
         # _choose_switches leaves its choices set: read the graph in that state.
         graph = ConstraintGraph(obj)
+        chains = [_ik_solves(graph, bones) for bones, _foot in legs]
+        want_fk = [drive == "FK" or (drive == "AUTO" and chain is None) for chain in chains]
+        # A switch shared with a leg that stays in IK stays as it is.
+        ik_only = {(s.bone, s.prop) for k, sw in enumerate(switches) if not want_fk[k] for s in sw}
+        fk: dict[int, Switch] = {}
         for k, (bones, _foot) in enumerate(legs):
-            switches[k].extend(_stretch_switches(obj, graph, bones))
+            flip = _fk_switch([s for s in switches[k] if (s.bone, s.prop) not in ik_only])
+            if want_fk[k] and flip is not None and graph.iks_upstream(bones):
+                fk[k] = flip
+        if fk:  # those legs in FK (one evaluation); one whose IK is still upstream stays in IK
+            _set_props(obj, {(s.bone, s.prop): s.value for s in fk.values()})
+            graph = ConstraintGraph(obj)
+            still_ik = {k for k in fk if graph.iks_upstream(legs[k][0])}
+            if still_ik:
+                _set_props(obj, {(fk[k].bone, fk[k].prop): 1.0 - fk[k].value for k in still_ik})
+                graph = ConstraintGraph(obj)
+                fk = {k: s for k, s in fk.items() if k not in still_ik}
+        for k, chain in enumerate(chains):
+            if k in fk:
+                switches[k] = [fk[k]]
+            elif chain is not None:
+                switches[k].extend(_stretch_switches(obj, chain))
         return _plan(graph, legs, body, list(others), solved, switches)
     finally:
         if originals:
@@ -559,7 +618,9 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
                 if not fk:
                     break
                 ctrl = min(fk, key=lambda c: (up[c], c))
-                controls.append(ControlKey(ctrl, "TURN", b))
+                above = graph.upstream([ctrl])
+                follows = min((c for c in fk_ctrls if c in above), key=lambda c: above[c], default="")
+                controls.append(ControlKey(ctrl, "TURN", b, follows=follows))
                 used.add(ctrl)
                 covered.add(b)
                 fk_ctrls.append(ctrl)
