@@ -108,21 +108,30 @@ _BEND_KNOTS = 33
 
 def _bend_reach(
     kappa: FloatArray, hinge: FloatArray, lengths: FloatArray, lo: FloatArray, hi: FloatArray
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Joint angles ``(N, s)``, reach and d(reach)/dκ ``(N,)`` of chains bent by ``kappa (N,)``
-    (:func:`solve_bend`), and the end effector ``(N,)`` as a complex number (x + iy)."""
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Joint angles ``(N, s)`` and reach ``(N,)`` of chains bent by ``kappa (N,)``
+    (:func:`solve_bend`), the end effector ``(N,)`` as a complex number (x + iy), and what
+    :func:`_bend_slope` takes besides: the unclamped hinge turns ``(N, s)`` and each segment
+    as a complex number ``(N, s)``."""
     # (called a few times per leg and frame: written with few, plain array operations; the
-    # planar chain as complex numbers: the end is sum(l e^{iφ}), its derivative i sum(l φ' e^{iφ}))
+    # planar chain as complex numbers: the end is sum(l e^{iφ}))
     raw = kappa[:, None] * hinge
     th = np.minimum(np.maximum(raw, lo), hi)
     th[:, 0] = 0.0
-    dphi = (hinge * ((raw > lo) & (raw < hi))).cumsum(axis=1)
     z = lengths * np.exp(1j * th.cumsum(axis=1))
     end = np.add.reduce(z, axis=1)
-    r = np.abs(end)
-    # d|E|/dκ = Re(conj(E) dE) / |E| with dE = i sum(l φ' e^{iφ})
-    dr = -(end.conj() * np.add.reduce(z * dphi, axis=1)).imag / np.maximum(r, 1e-12)
-    return th, r, dr, end
+    return th, np.abs(end), end, raw, z
+
+
+def _bend_slope(
+    raw: FloatArray, hinge: FloatArray, lo: FloatArray, hi: FloatArray, z: FloatArray, end: FloatArray,
+    r: FloatArray,
+) -> FloatArray:
+    """d(reach)/dκ ``(N,)`` of the chains :func:`_bend_reach` gave ``raw, z, end, r`` (found
+    only when a Newton step is taken): d|E|/dκ = Re(conj(E) dE) / |E| with
+    dE = i sum(l φ' e^{iφ})."""
+    dphi = (hinge * ((raw > lo) & (raw < hi))).cumsum(axis=1)
+    return np.asarray(-(end.conj() * np.add.reduce(z * dphi, axis=1)).imag / np.maximum(r, 1e-12))
 
 
 @dataclass(frozen=True, eq=False)
@@ -165,7 +174,7 @@ class BendLegs:
         knots = np.linspace(0.0, max_bend, _BEND_KNOTS)
         k = knots.size
         every = np.repeat(np.arange(n), k)  # (n * k,) each leg at every knot
-        _, reach, _, _ = _bend_reach(np.tile(knots, n), hinge[every], lengths[every], lo[every], hi[every])
+        _, reach, _, _, _ = _bend_reach(np.tile(knots, n), hinge[every], lengths[every], lo[every], hi[every])
         knot_reach = reach.reshape(n, k)
         return cls(lengths, n_segments, lo, hi, hinge, valid, knot_reach[:, 0].copy(),
                    knot_reach[:, -1].copy(), knots, knot_reach, float(max_bend), lengths.sum(axis=1))
@@ -219,13 +228,14 @@ def solve_bend(
     k_lo = np.zeros(n)  # straight: longest reach
     k_hi = np.full(n, max_bend)
     for i in range(iterations + 1):
-        th, r, dr, end = _bend_reach(kappa, hinge, lengths, lo, hi)
+        th, r, end, raw, z = _bend_reach(kappa, hinge, lengths, lo, hi)
         if i == iterations:
             break
         f = r - dist
         done = settled | (np.abs(f) <= tol) | (k_hi - k_lo <= 1e-12)
         if np.count_nonzero(done) == n:
             break
+        dr = _bend_slope(raw, hinge, lo, hi, z, end, r)
         longer = f > 0.0
         k_lo = np.where(longer, kappa, k_lo)
         k_hi = np.where(longer, k_hi, kappa)
