@@ -427,12 +427,13 @@ def raster_boxes(
     row = i0[box] + down
     if per_box:
         cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
-        dx = (org[box, 0] + col * cl) - center_xy[box, 0]
-        dy = (org[box, 1] + row * cl) - center_xy[box, 1]
+        # (a column taken, then gathered: one index array, not two)
+        dx = (org[:, 0][box] + col * cl) - center_xy[:, 0][box]
+        dy = (org[:, 1][box] + row * cl) - center_xy[:, 1][box]
         hit = _overlaps(dx, dy, cl, half_x[box], half_y[box], cos[box], sin[box])
     else:
-        dx = (org[0] + col * cell) - center_xy[box, 0]
-        dy = (org[1] + row * cell) - center_xy[box, 1]
+        dx = (org[0] + col * cell) - center_xy[:, 0][box]
+        dy = (org[1] + row * cell) - center_xy[:, 1][box]
         hit = _overlaps(dx, dy, cell, half_x[box], half_y[box], cos[box], sin[box])
     return box[hit], row[hit], col[hit]
 
@@ -1344,11 +1345,11 @@ class Environment:
             rect, box = index.pairs(lo, hi)
             box = s[box]
             pair, row, col = raster_boxes(origin[rect], cell[rect], (r1[rect], c1[rect]),
-                                          self._box_center[box, :2], 0.5 * self._box_size[box, 0],
-                                          0.5 * self._box_size[box, 1], self._box_yaw[box],
+                                          self._box_center[box, :2], 0.5 * self._box_size[:, 0][box],
+                                          0.5 * self._box_size[:, 1][box], self._box_yaw[box],
                                           first=(r0[rect], c0[rect]))
             rect, box = rect[pair], box[pair]
-            paste(rect, row, col, self._box_center[box, 2] + self._box_size[box, 2],
+            paste(rect, row, col, self._box_center[:, 2][box] + self._box_size[:, 2][box],
                   self._box_role[box] == ROLE_AVOID)
         for i, soup in enumerate(self._soups):
             if soup.dynamic or soup.faces.shape[0] == 0:
@@ -1392,7 +1393,7 @@ class Environment:
         order = np.argsort(which, kind="stable")
         which, r, c = which[order], r[order] + i0, c[order] + j0
         bounds = np.searchsorted(which, np.arange(todo.size + 1))
-        top = (self._box_center[todo, 2] + self._box_size[todo, 2])[which]
+        top = (self._box_center[:, 2][todo] + self._box_size[:, 2][todo])[which]
         cuts = bounds.tolist()
         for k, b in enumerate(todo.tolist()):
             sl = slice(cuts[k], cuts[k + 1])
@@ -1573,8 +1574,8 @@ class Environment:
         rect = rect[pair]
         box = self._dynamic_boxes[index.items[at]]
         blo, bhi = self._box_lo, self._box_hi
-        hit = ((blo[box, 0] - eps <= hi[rect, 0]) & (bhi[box, 0] + eps >= lo[rect, 0])
-               & (blo[box, 1] - eps <= hi[rect, 1]) & (bhi[box, 1] + eps >= lo[rect, 1]))
+        hit = ((blo[:, 0][box] - eps <= hi[:, 0][rect]) & (bhi[:, 0][box] + eps >= lo[:, 0][rect])
+               & (blo[:, 1][box] - eps <= hi[:, 1][rect]) & (bhi[:, 1][box] + eps >= lo[:, 1][rect]))
         out = wide.copy()
         out[rect[hit]] = True
         return out
