@@ -635,7 +635,8 @@ class _BucketIndex:
             self.shape = (1, 1)
             self.offsets = np.zeros(3, dtype=np.intp)
             self.items = np.zeros(0, dtype=np.intp)
-            self._dims = np.ones(2)
+            self._dims = (1.0, 1.0)
+            self._ox = self._oy = 0.0
             return
         # (coordinates one at a time: a reduction across the two columns of an (n, 2) array
         # is a strided loop, several times slower than two contiguous ones)
@@ -689,7 +690,8 @@ class _BucketIndex:
         # the grid read it
         self.offsets = np.zeros(buckets + 2, dtype=np.intp)
         np.cumsum(np.bincount(key, minlength=buckets + 1), out=self.offsets[1:])
-        self._dims = np.array([float(nbx), float(nby)])
+        self._dims = (float(nbx), float(nby))
+        self._ox, self._oy = ox, oy
 
     def pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
         """(point, item) candidate pairs for points ``(n, 2)``."""
@@ -697,10 +699,13 @@ class _BucketIndex:
             e = np.zeros(0, dtype=np.intp)
             return e, e.copy()
         nby, nbx = self.shape
-        cell = np.floor((xy - self.origin) / self.bucket)  # (n, 2) bucket column and row
-        ok = (cell >= 0.0) & (cell < self._dims)
+        # each point's bucket column and row (the coordinates one at a time: operations
+        # across the two columns of an (n, 2) array are strided loops, over twice as slow)
+        cx = np.floor((xy[:, 0] - self._ox) / self.bucket)
+        cy = np.floor((xy[:, 1] - self._oy) / self.bucket)
+        ok = (cx >= 0.0) & (cx < self._dims[0]) & (cy >= 0.0) & (cy < self._dims[1])
         # a point outside the grid reads the empty bucket past the last one
-        key = np.where(ok[:, 0] & ok[:, 1], cell[:, 1] * nbx + cell[:, 0], nbx * nby).astype(np.intp)
+        key = np.where(ok, cy * nbx + cx, nbx * nby).astype(np.intp)
         # _ranges_to_pairs of the buckets' item ranges, the offsets read once
         lo = self.offsets[key]
         count = self.offsets[key + 1] - lo
