@@ -24,6 +24,8 @@ import functools
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import vector_norm
+
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
 BoolArray = npt.NDArray[np.bool_]
@@ -159,7 +161,7 @@ def project_along(
     pts = np.asarray(points, dtype=np.float64)
     origin = np.asarray(origin_xy, dtype=np.float64)
     direction = np.asarray(direction_xy, dtype=np.float64)
-    norm = np.linalg.norm(direction, axis=-1, keepdims=True)
+    norm = vector_norm(direction, keepdims=True)
     unit = direction / np.where(norm > 1e-12, norm, 1.0)
     rel = pts[..., :2] - origin[..., None, :]
     return np.einsum("...nk,...k->...n", rel, unit), pts[..., 2]

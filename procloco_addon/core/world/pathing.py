@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import planar_length
+from ..geometry import planar_length, vector_norm
 from ..hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
@@ -737,7 +737,7 @@ def lift_each(
     points[:, :2] = samples
     np.maximum(z, required, out=points[:, 2])
     d3 = np.diff(points, axis=0)
-    seg3 = np.sqrt(np.add.reduce(d3 * d3, axis=1))
+    seg3 = vector_norm(d3)
     way3 = np.empty((nk, 3))
     way3[:, :2] = samples[kidx]
     way3[:, 2] = kz
