@@ -774,7 +774,7 @@ class _Batch:
             lr = fr - r0[who]
             lc = fc - c0[who]
             ok = (lr >= 0) & (lr < hh[who]) & (lc >= 0) & (lc < ww[who])
-            core[who[ok], lr[ok], lc[ok]] = True
+            core.reshape(-1)[((who * H + lr) * W + lc)[ok]] = True  # (one flat index)
         self.core = core
         # Lift-off zone: the cells the foot covers where it stands.
         self.start_rc = rows[:, col["start_r"] : col["start_c"] + 1] - ints[:, :2]
@@ -786,7 +786,7 @@ class _Batch:
         ok = self.sweep_in & inside[:, None] & (lr >= 0) & (lr < hh[:, None]) & (lc >= 0) & (lc < ww[:, None])
         liftoff = np.zeros((n, H, W), dtype=bool)
         kk, jj = np.nonzero(ok)
-        liftoff[kk, lr[kk, jj], lc[kk, jj]] = True
+        liftoff.reshape(-1)[(kk * H + lr[kk, jj]) * W + lc[kk, jj]] = True
         at = np.arange(n)
         here = avoid[at, np.where(inside, sc[:, 0], 0), np.where(inside, sc[:, 1], 0)]
         # What swings must clear (pathing.clearance_elevation): avoided cells above the foot

@@ -756,7 +756,11 @@ def lift_each(
     seg = np.cumsum(is_knot) - 1
     seg = np.minimum(seg, nk - 2) if owner is None else np.minimum(seg, (np.asarray(tails) - 1)[owner])
     t = np.minimum(np.maximum((arc - ks[seg]) / h_safe[seg], 0.0), 1.0)
-    powers = np.stack([t**3, t**2, t, np.ones_like(t)], axis=-1)
+    powers = np.empty((t.size, 4))
+    powers[:, 0] = t**3
+    powers[:, 1] = t**2
+    powers[:, 2] = t
+    powers[:, 3] = 1.0
     if n == 1:
         w = powers @ HERMITE_MATRIX
     else:

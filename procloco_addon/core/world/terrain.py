@@ -855,7 +855,11 @@ class WindowGrids:
     def rowcol(self, xy: npt.ArrayLike) -> FloatArray:
         """Continuous (row, col) coordinates of world points ``(..., 2)``: ``(..., 2)``."""
         p = np.asarray(xy, dtype=np.float64)
-        return np.asarray((p[..., ::-1] - self.origin[::-1]) / self.cell)
+        # (a coordinate at a time: an operation across the two columns is a strided loop)
+        out = np.empty(p.shape)
+        out[..., 0] = (p[..., 1] - self.origin[1]) / self.cell
+        out[..., 1] = (p[..., 0] - self.origin[0]) / self.cell
+        return out
 
     def cell_of(self, xy: npt.ArrayLike) -> IntArray:
         """Integer (row, col) of the cell containing each point ``(..., 2)``."""
