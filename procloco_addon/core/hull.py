@@ -163,8 +163,11 @@ def project_along(
     direction = np.asarray(direction_xy, dtype=np.float64)
     norm = vector_norm(direction, keepdims=True)
     unit = direction / np.where(norm > 1e-12, norm, 1.0)
-    rel = pts[..., :2] - origin[..., None, :]
-    return np.einsum("...nk,...k->...n", rel, unit), pts[..., 2]
+    # (the two products summed written out, x and y apart: a sum of two does not depend on
+    # its order, and the operations run along the points instead of over pairs)
+    x = (pts[..., 0] - origin[..., 0, None]) * unit[..., 0, None]
+    x += (pts[..., 1] - origin[..., 1, None]) * unit[..., 1, None]
+    return x, pts[..., 2]
 
 
 def hull_height_and_pitch(

@@ -591,9 +591,14 @@ def solve_legs(
     axes[..., 1] = b
     axes[..., 2] = normal_body
     world = body_rot @ axes
-    joints_world = pts[..., 0:1] * world[:, None, :, 0]
-    joints_world += pts[..., 1:2] * world[:, None, :, 1]
-    joints_world += hip_world[:, None, :]
+    # (coordinate by coordinate: the operations run along the joints, not over triples)
+    joints_world = np.empty((*pts.shape[:2], 3))
+    p0, p1 = pts[..., 0], pts[..., 1]
+    for c in range(3):
+        col = p0 * world[:, None, c, 0]
+        col += p1 * world[:, None, c, 1]
+        col += hip_world[:, None, c]
+        joints_world[..., c] = col
     end_world = joints_world[np.arange(n), legs.n_segments]
     error = vector_norm(end_world - target_world)
     normal_world = world[..., 2]
