@@ -19,8 +19,12 @@ Outside the profile's ``x`` range the hull is continued flat (the nearest end's 
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import numpy.typing as npt
+
+from .geometry import vector_norm
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.intp]
@@ -107,28 +111,43 @@ def upper_hull_eval(
     return height, np.where(outside, 0.0, slope)
 
 
+@functools.lru_cache(maxsize=16)
+def _pairs(n: int) -> tuple[IntArray, IntArray]:
+    """The pairs ``i <= j`` of ``n`` points (read only)."""
+    i_of, j_of = np.triu_indices(n)
+    return i_of, j_of
+
+
 def _hull_heights(xa: FloatArray, za: FloatArray, q: FloatArray, mask: BoolArray) -> FloatArray:
-    # pairs (i, j) of points: what does not depend on the queries is found once per pair,
-    # what depends on one point and the query once per point; only the interpolation and its
-    # maximum run over (query, i, j)
-    xi = xa[..., :, None]  # (..., n, 1)
-    xj = xa[..., None, :]  # (..., 1, n)
-    zi = za[..., :, None]
-    zj = za[..., None, :]
-    pair = mask[..., :, None] & mask[..., None, :]  # (..., n, n)
+    # The points of each profile sorted by x: a pair (i, j) with x_i > x_j can only count
+    # where x_i == x_j == q, as the pair (j, i) does with the same height, so the pairs
+    # i <= j hold every height that counts. What does not depend on the queries is found
+    # once per pair; the interpolation, the test x_i <= q <= x_j and the maximum run over
+    # (query, pair, profile), the profiles last (the long axis).
+    n = xa.shape[-1]
+    m = q.shape[-1]
+    i_of, j_of = _pairs(n)
+    xt = xa.reshape(-1, n).T  # (n, B)
+    order = np.argsort(xt, axis=0, kind="stable")
+    ok = np.take_along_axis(mask.reshape(-1, n).T, order, axis=0)
+    x = np.where(ok, np.take_along_axis(xt, order, axis=0), 0.0)
+    z = np.where(ok, np.take_along_axis(za.reshape(-1, n).T, order, axis=0), 0.0)
+    xi, xj, zi, zj = x[i_of], x[j_of], z[i_of], z[j_of]  # (P, B)
+    pair = ok[i_of] & ok[j_of]
     dx = xj - xi
-    wide = dx > 1e-12
-    slope = np.where(wide, (zj - zi) / np.where(wide, dx, 1.0), 0.0)
-    # A point exactly at q (i == j, or equal x) contributes its own height.
-    level = np.maximum(zi, zj)
-    qq = q[..., :, None]  # (..., m, 1)
-    left = xa[..., None, :] <= qq  # (..., m, n): x_i <= q
-    right = qq <= xa[..., None, :]  # x_j >= q
-    ok = pair[..., None, :, :] & left[..., :, :, None] & right[..., :, None, :]
-    run = (qq - xa[..., None, :])[..., :, :, None]  # (..., m, n, 1): q - x_i
-    val = np.where(wide[..., None, :, :], zi[..., None, :, :] + slope[..., None, :, :] * run,
-                   level[..., None, :, :])
-    return np.asarray(np.max(val, axis=(-2, -1), where=ok, initial=-np.inf))
+    wide = (dx > 1e-12) & pair
+    # a pair without width (a point exactly at q, or equal x) gives its higher point's height
+    # (its slope -0.0: adding -0.0 * run, run >= 0, leaves any height as it is)
+    slope = np.where(wide, (zj - zi) / np.where(wide, dx, 1.0), -0.0)
+    base = np.where(wide, zi, np.where(pair, np.maximum(zi, zj), -np.inf))
+    qs = np.ascontiguousarray(q.reshape(-1, m).T)[:, None, :]  # (m, 1, B)
+    run = qs - xi  # (m, P, B): q - x_i
+    inside = run >= 0.0
+    inside &= qs <= xj
+    val = slope * run
+    val += base
+    val[~inside] = -np.inf
+    return np.asarray(val.max(axis=1).T.reshape(q.shape))
 
 
 def project_along(
@@ -142,10 +161,13 @@ def project_along(
     pts = np.asarray(points, dtype=np.float64)
     origin = np.asarray(origin_xy, dtype=np.float64)
     direction = np.asarray(direction_xy, dtype=np.float64)
-    norm = np.linalg.norm(direction, axis=-1, keepdims=True)
+    norm = vector_norm(direction, keepdims=True)
     unit = direction / np.where(norm > 1e-12, norm, 1.0)
-    rel = pts[..., :2] - origin[..., None, :]
-    return np.einsum("...nk,...k->...n", rel, unit), pts[..., 2]
+    # (the two products summed written out, x and y apart: a sum of two does not depend on
+    # its order, and the operations run along the points instead of over pairs)
+    x = (pts[..., 0] - origin[..., 0, None]) * unit[..., 0, None]
+    x += (pts[..., 1] - origin[..., 1, None]) * unit[..., 1, None]
+    return x, pts[..., 2]
 
 
 def hull_height_and_pitch(

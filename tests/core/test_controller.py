@@ -19,6 +19,7 @@ from procloco_addon.core.locomotion.rig import rate_scale, stroke_limits
 from procloco_addon.core.locomotion.sim import Controls, Simulation, check_motion
 from procloco_addon.core.locomotion.state import Phase
 from procloco_addon.core.locomotion.types import ControllerParams, StepControls
+from procloco_addon.core.world.pathing import FootTrajectory
 from procloco_addon.core.world.terrain import (
     NO_SURFACE,
     ROLE_AVOID,
@@ -534,15 +535,11 @@ def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytes
 
     holder: dict[str, Controller] = {}
 
-    class Detour:
+    def detour(start: np.ndarray, end: np.ndarray, width: float) -> FootTrajectory:
         """A trajectory swinging 1.5 leg lengths out to the side (a path around an obstacle)."""
-
-        def __init__(self, start: np.ndarray, end: np.ndarray, width: float) -> None:
-            self.start, self.end, self.width = start, end, width
-
-        def point_at(self, u: np.ndarray) -> np.ndarray:
-            line = self.start[None, :] + u[:, None] * (self.end - self.start)[None, :]
-            return line + np.outer(np.sin(np.pi * u), [0.0, self.width, 0.03])
+        u = np.linspace(0.0, 1.0, 65)
+        line = start[None, :] + u[:, None] * (end - start)[None, :]
+        return FootTrajectory.from_points(line + np.outer(np.sin(np.pi * u), [0.0, width, 0.03]))
 
     def detouring(rq: FootRequest) -> Couple:
         couple = plan_footsteps([rq])[0]
@@ -551,8 +548,8 @@ def test_a_swing_detouring_beyond_the_legs_reach_is_not_taken(monkeypatch: pytes
         if not couple.ok or ctrl.forced[leg]:
             return couple  # a foot that must move takes what it gets
         start = np.asarray(rq.foot_start, dtype=np.float64)
-        wide = Detour(start, couple.footprint, 0.8)
-        return Couple(ok=True, footprint=couple.footprint, trajectory=wide,  # type: ignore[arg-type]
+        wide = detour(start, couple.footprint, 0.8)
+        return Couple(ok=True, footprint=couple.footprint, trajectory=wide,
                       score=couple.score, target_score=couple.target_score, path_score=couple.path_score,
                       n_couples=1, n_paths=1)
 

@@ -28,6 +28,7 @@ from procloco_addon.core.world.pathing import (
     lift_each,
     line_of_sight_reduce,
     octile_field,
+    points_at_each,
     region_frame,
     region_masks,
     search_region,
@@ -231,6 +232,29 @@ def _check_trajectory(w: WindowGrids, traj: FootTrajectory, start: np.ndarray, s
     assert np.all(gaps <= traj.length / 20 + 1e-9)
     assert np.sum(gaps) <= traj.length + 1e-9
     assert np.allclose(p[[0, -1]], pts[[0, -1]])
+
+
+def test_swings_sampled_together_are_each_ones_interpolation() -> None:
+    # points_at_each against np.interp coordinate by coordinate on each trajectory alone:
+    # trajectories of every length (one point, no length, a repeated point, long ones), at
+    # fractions on and between knots and outside [0, 1]
+    rng = np.random.default_rng(4)
+    trajs = []
+    for k in range(40):
+        pts = np.cumsum(rng.normal(size=(int(rng.integers(1, 30)), 3)), axis=0)
+        if k % 5 == 0 and pts.shape[0] > 3:
+            pts[2] = pts[1]
+        if k % 7 == 0:
+            pts[:] = pts[0]
+        trajs.append(FootTrajectory.from_points(pts))
+    u = np.concatenate([np.linspace(0.0, 1.0, 17), [-0.5, 1.5, 0.3]])
+    got = points_at_each(trajs, u)
+    assert got.shape == (40, u.size, 3)
+    for traj, g in zip(trajs, got, strict=True):
+        s = np.clip(u, 0.0, 1.0) * traj.length
+        want = np.stack([np.interp(s, traj.arc, traj.points[:, k]) for k in range(3)], axis=1)
+        assert_close(g, want, "points")
+        assert_close(traj.point_at(u), want, "point_at")
 
 
 def random_window(seed: int) -> tuple[Environment, WindowGrids]:

@@ -164,6 +164,13 @@ class Controller:
         self._leg_cache: dict[tuple[int, float], LegGeometry] = {}
         self.lod: list[PlannerLOD | None] = list(lod) if lod is not None else [None] * c
         self.body: Body = pelvis.start_body(start_xy, start_yaw, c, n)
+        # the body's rotations and rigid hips, kept while it neither moves nor turns (a step
+        # asks for them up to seven times): the yaw, pitch and roll they were made from, the
+        # rotations (read only), and the position and rotations of the hips
+        self._rot_key: tuple[bytes, bytes, bytes] | None = None
+        self._rot = np.zeros((0, 3, 3))
+        self._hips_of: tuple[bytes, FloatArray] | None = None
+        self._hips = np.zeros((0, 3))
         # the needle already runs at the speed the commanded stroke asks for
         self.gait.rate_scale = rate_scale(self.rig, self.gait, self.link.has_spine,
                                           np.asarray(controls.speed, dtype=np.float64))
@@ -355,8 +362,15 @@ class Controller:
         return self.rig.foot_half
 
     def rotations(self) -> FloatArray:
-        """``(C, 3, 3)`` current body-to-world rotations."""
-        return rotation_matrices(self.body.yaw, self.body.pitch, self.body.roll)
+        """``(C, 3, 3)`` current body-to-world rotations (read only; made again when the body
+        turned)."""
+        body = self.body
+        key = (body.yaw.tobytes(), body.pitch.tobytes(), body.roll.tobytes())
+        if key != self._rot_key:
+            rot = rotation_matrices(body.yaw, body.pitch, body.roll)
+            rot.setflags(write=False)
+            self._rot_key, self._rot = key, rot
+        return self._rot
 
     def hips_world(self, rot: FloatArray | None = None) -> FloatArray:
         """``(N, 3)`` world hips: the rigid body's, or where the spine put them."""
@@ -364,8 +378,15 @@ class Controller:
         if link.all_legs:  # every leg on a spine: nothing rigid
             return np.array(link.hips, copy=True)
         r = self.rotations() if rot is None else rot
-        lc = self.leg_char
-        hips = self.body.pos[lc] + np.einsum("nij,nj->ni", r[lc], self.legs.hip_offset)
+        pos = self.body.pos.tobytes()
+        made = self._hips_of
+        if made is not None and made[1] is r and made[0] == pos:  # (the kept rotations, unchanged)
+            hips = self._hips.copy()
+        else:
+            lc = self.leg_char
+            hips = self.body.pos[lc] + np.einsum("nij,nj->ni", r[lc], self.legs.hip_offset)
+            if r is self._rot:
+                self._hips_of, self._hips = (pos, r), hips.copy()
         if link.groups:
             hips[link.spine_legs] = link.hips[link.spine_legs]
         return np.asarray(hips)

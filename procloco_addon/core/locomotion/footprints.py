@@ -305,8 +305,8 @@ def _hip_checks(
     # joints take over it: the ground under it must stay below. Samples ``(S, m)``: sample
     # by sample, the arithmetic runs along the footprints.
     t = ((np.arange(_LEG_SAMPLES) + 0.5) / _LEG_SAMPLES)[:, None]
-    fx, fy, fz = xy[rows, 0], xy[rows, 1], z[rows]
-    vx, vy, vz = hip[rows, 0] - fx, hip[rows, 1] - fy, hip_z[rows] - fz
+    fx, fy, fz = xy[:, 0][rows], xy[:, 1][rows], z[rows]
+    vx, vy, vz = hip[:, 0][rows] - fx, hip[:, 1][rows] - fy, hip_z[rows] - fz
     flat = np.sqrt(vx * vx + vy * vy)
     chord = np.sqrt(vx * vx + vy * vy + vz * vz)
     bow = arch[rows] * 0.5 * np.sqrt(np.maximum(leg[rows] * leg[rows] - chord * chord, 0.0))
@@ -774,7 +774,7 @@ class _Batch:
             lr = fr - r0[who]
             lc = fc - c0[who]
             ok = (lr >= 0) & (lr < hh[who]) & (lc >= 0) & (lc < ww[who])
-            core[who[ok], lr[ok], lc[ok]] = True
+            core.reshape(-1)[((who * H + lr) * W + lc)[ok]] = True  # (one flat index)
         self.core = core
         # Lift-off zone: the cells the foot covers where it stands.
         self.start_rc = rows[:, col["start_r"] : col["start_c"] + 1] - ints[:, :2]
@@ -786,7 +786,7 @@ class _Batch:
         ok = self.sweep_in & inside[:, None] & (lr >= 0) & (lr < hh[:, None]) & (lc >= 0) & (lc < ww[:, None])
         liftoff = np.zeros((n, H, W), dtype=bool)
         kk, jj = np.nonzero(ok)
-        liftoff[kk, lr[kk, jj], lc[kk, jj]] = True
+        liftoff.reshape(-1)[(kk * H + lr[kk, jj]) * W + lc[kk, jj]] = True
         at = np.arange(n)
         here = avoid[at, np.where(inside, sc[:, 0], 0), np.where(inside, sc[:, 1], 0)]
         # What swings must clear (pathing.clearance_elevation): avoided cells above the foot
@@ -997,13 +997,14 @@ def _straight_plans(
     frac = arc / safe[owner]
     sx = w0x[owner] + dx[owner] * frac
     sy = w0y[owner] + dy[owner] * frac
-    rows = np.rint((sy - org[owner, 1]) / cl[owner] - r0[owner]).astype(np.intp)
-    cols = np.rint((sx - org[owner, 0]) / cl[owner] - c0[owner]).astype(np.intp)
+    rows = np.rint((sy - org[:, 1][owner]) / cl[owner] - r0[owner]).astype(np.intp)
+    cols = np.rint((sx - org[:, 0][owner]) / cl[owner] - c0[owner]).astype(np.intp)
     hh = batch.hh[ks][owner]
     ww = batch.ww[ks][owner]
     inside = (rows >= 0) & (rows < hh) & (cols >= 0) & (cols < ww)
     bad = ~inside
-    bad[inside] = blocked[owner[inside], rows[inside], cols[inside]]
+    _, H, W = blocked.shape
+    bad[inside] = blocked.reshape(-1)[((owner * H + rows) * W + cols)[inside]]
     clean = ~np.logical_or.reduceat(bad, bounds[:-1])
     samples = np.column_stack([sx, sy])
     bl = bounds.tolist()
@@ -1276,18 +1277,22 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     b, d = np.nonzero(member)
     r = cr[b, d]
     c = cc[b, d]
-    ok = mask[b, r, c] & ~forbidden[b, r, c] & (elev[b, r, c] > _VOID_BELOW)
+    # the stacks read through flat indices (one gather each, not one per axis)
+    _, H, W = elev.shape
+    at = (b * H + r) * W + c
+    here = elev.reshape(-1).take(at)
+    ok = mask.reshape(-1).take(at) & ~forbidden.reshape(-1).take(at) & (here > _VOID_BELOW)
     cl = cell[b]
-    x = origin[b, 0] + (c + c0[b] + sub[b, 1]) * cl
-    y = origin[b, 1] + (r + r0[b] + sub[b, 0]) * cl
+    x = origin[:, 0][b] + (c + c0[b] + sub[:, 1][b]) * cl
+    y = origin[:, 1][b] + (r + r0[b] + sub[:, 0][b]) * cl
     hip = rows[:, col["hip_x"] : col["hip_y"] + 1]
-    dx = x - hip[b, 0]
-    dy = y - hip[b, 1]
-    ok &= planar_length(dx, dy) <= rows[b, col["reach"]]
+    dx = x - hip[:, 0][b]
+    dy = y - hip[:, 1][b]
+    ok &= planar_length(dx, dy) <= rows[:, col["reach"]][b]
     # Landing height: the highest surface under the foot box at its exact offset.
     land_off, land_in = _offset_kernels(batch, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
-    ok &= np.abs(z - rows[b, col["start_z"]]) <= rows[b, col["max_dz"]]
+    ok &= np.abs(z - rows[:, col["start_z"]][b]) <= rows[:, col["max_dz"]][b]
     hip_z = rows[:, col["hip_z"]]
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
@@ -1295,33 +1300,32 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
         settings = rows[:, col["straddle"] : col["foot_r"] + 1]
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
-            np.column_stack([x[sel], y[sel]]), z[sel], elev[owner, r[sel], c[sel]],
+            np.column_stack([x[sel], y[sel]]), z[sel], here[sel],
             hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
         )
-        clearance = np.where(clear, 1.0, rows[b, col["low"]])
+        clearance = np.where(clear, 1.0, rows[:, col["low"]][b])
     else:
         clearance = np.ones(ok.size)
     keep = np.flatnonzero(ok)
     b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
     clearance = clearance[keep]
+    here = here[keep]
     # Neighbour criteria (8, k), neighbour by neighbour; past the stacked boxes "not free"
     # with no ground (read where they are, not from padded copies of the stacks).
-    _, H, W = elev.shape
-    here = elev[b, r, c]
     nr = r + _NEIGHBOURS[:, 0, None]
     nc = c + _NEIGHBOURS[:, 1, None]
     out = (nr < 0) | (nr >= H) | (nc < 0) | (nc >= W)
     at = (b * H + np.where(out, 0, nr)) * W + np.where(out, 0, nc)
     ne = np.where(out, -np.inf, elev.reshape(-1)[at])
-    edge_h = rows[b, col["edge_height"]]
+    edge_h = rows[:, col["edge_height"]][b]
     taken = out | forbidden.reshape(-1)[at] | (ne < _VOID_BELOW)
     free = np.count_nonzero(~taken & (np.abs(ne - here) <= edge_h), axis=0)
     rim = np.any(here - ne > edge_h, axis=0)
-    ex = x - rows[b, col["pref_x"]]
-    ey = y - rows[b, col["pref_y"]]
-    distance = np.clip(1.0 - planar_length(ex, ey) / rows[b, col["fixed"]], 0.0, 1.0)
+    ex = x - rows[:, col["pref_x"]][b]
+    ey = y - rows[:, col["pref_y"]][b]
+    distance = np.clip(1.0 - planar_length(ex, ey) / rows[:, col["fixed"]][b], 0.0, 1.0)
     free_score = free / 8.0
-    edge = np.where(rim, rows[b, col["edge_score"]], 1.0)
+    edge = np.where(rim, rows[:, col["edge_score"]][b], 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
     partial = distance * free_score * edge * clearance
     live = np.flatnonzero(partial > 0.0)
@@ -1348,7 +1352,7 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     keep = np.flatnonzero(score > 0.0)
     b, d, r, c, xy, z, score = b[keep], d[keep], r[keep], c[keep], xy[keep], z[keep], score[keep]
     # Best first; ties: nearer the preferred footprint, then row, then column.
-    order = np.lexsort((c, r, np.hypot(disc[d, 0], disc[d, 1]), -score, b))
+    order = np.lexsort((c, r, np.hypot(disc[:, 0][d], disc[:, 1][d]), -score, b))
     b = b[order]
     cells = np.column_stack([r[order], c[order]])
     score = score[order]

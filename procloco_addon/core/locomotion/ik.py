@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import cross, vector_norm
+from ..geometry import cross, sum_last, vector_norm
 from .morphology import LegBatch, plane_axes
 
 FloatArray = npt.NDArray[np.float64]
@@ -209,7 +209,7 @@ def solve_bend(
     n = target.shape[0]
     rows = np.arange(n)
     hinge, lengths, lo, hi, max_bend = legs.hinge, legs.lengths, legs.lo, legs.hi, legs.max_bend
-    dist = np.sqrt(np.add.reduce(target * target, axis=1))
+    dist = np.sqrt(sum_last(target * target))
     tol = tolerance * legs.total_length
     # out of reach either way: straight, or folded as far as allowed
     too_far = legs.r_straight <= dist
@@ -281,7 +281,7 @@ def solve_ccd(
         pts = forward_planar(theta, lengths)
         end = pts[rows, n_segments]
         miss = end - target
-        if np.count_nonzero(np.add.reduce(miss * miss, axis=1) <= tol2) == n:
+        if np.count_nonzero(sum_last(miss * miss) <= tol2) == n:
             break
         for j in range(s - 1, -1, -1):
             pivot = pts[:, j]
@@ -344,7 +344,7 @@ def solve_dls(
         pts = forward_planar(th, t_len)
         end = pts[rows, t_seg]
         err = t_target - end
-        converged = np.add.reduce(err * err, axis=1) <= t_tol2
+        converged = sum_last(err * err) <= t_tol2
         if np.count_nonzero(converged):
             theta[todo] = th
             if np.count_nonzero(converged) == converged.size:
@@ -365,9 +365,9 @@ def solve_dls(
         free = t_valid & ~blocked
         jx *= free
         jy *= free
-        a11 = np.add.reduce(jx * jx, axis=1) + t_lam2
-        a22 = np.add.reduce(jy * jy, axis=1) + t_lam2
-        a12 = np.add.reduce(jx * jy, axis=1)
+        a11 = sum_last(jx * jx) + t_lam2
+        a22 = sum_last(jy * jy) + t_lam2
+        a12 = sum_last(jx * jy)
         det = a11 * a22 - a12 * a12
         x0 = (a22 * ex - a12 * ey) / det
         x1 = (a11 * ey - a12 * ex) / det
@@ -446,7 +446,7 @@ def leg_plane_normals(
     d_len = np.sqrt(h2 + dz * dz)[:, None]
     # (a target at the hip itself: no line, d_hat 0)
     d_hat = d / np.where(d_len > 1e-12, d_len, np.inf)
-    normal = pref - np.add.reduce(pref * d_hat, axis=1)[:, None] * d_hat
+    normal = pref - sum_last(pref * d_hat)[:, None] * d_hat
     norm = vector_norm(normal, keepdims=True)
     # target along the preferred normal itself: keep the unprojected rest normal
     return np.where(norm > 1e-6, normal / np.maximum(norm, 1e-12), legs.normal), d_hat
@@ -601,9 +601,14 @@ def solve_legs(
     axes[..., 1] = b
     axes[..., 2] = normal_body
     world = body_rot @ axes
-    joints_world = pts[..., 0:1] * world[:, None, :, 0]
-    joints_world += pts[..., 1:2] * world[:, None, :, 1]
-    joints_world += hip_world[:, None, :]
+    # (coordinate by coordinate: the operations run along the joints, not over triples)
+    joints_world = np.empty((*pts.shape[:2], 3))
+    p0, p1 = pts[..., 0], pts[..., 1]
+    for c in range(3):
+        col = p0 * world[:, None, c, 0]
+        col += p1 * world[:, None, c, 1]
+        col += hip_world[:, None, c]
+        joints_world[..., c] = col
     end_world = joints_world[np.arange(n), legs.n_segments]
     error = vector_norm(end_world - target_world)
     normal_world = world[..., 2]

@@ -78,7 +78,11 @@ def make_watch(env: Environment, rig: Rig, p: ControllerParams, foot: FloatArray
 
 def ring_points(watch: Watch, legs: IntArray, spot: FloatArray) -> FloatArray:
     """The watch rings' points ``(m * 16, 2)`` around the spots ``spot (m, 3)`` of ``legs``."""
-    return np.asarray((spot[:, None, :2] + watch.offsets[legs]).reshape(-1, 2))
+    off = watch.offsets[legs]
+    out = np.empty(off.shape)  # (x and y apart: the sums run along the rings, not over pairs)
+    out[..., 0] = spot[:, 0, None] + off[..., 0]
+    out[..., 1] = spot[:, 1, None] + off[..., 1]
+    return out.reshape(-1, 2)
 
 
 def _ring_near(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray) -> BoolArray:

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import rotate_xy, vector_norm, wrap_angle
+from ..world.pathing import points_at_each
 from ..world.terrain import Environment, WindowGrids, WindowParams
 from . import spine_link
 from .fallback import straight_step
@@ -288,8 +289,11 @@ def _within_reach(
     the swing sampled at ``u_grid``. A swing that would leave the leg's reach is not taken,
     unless the foot must move (``forced``: its way out may be a detour); every swing is
     checked at once (``reach.within_reach_all``)."""
-    sampled = {i: cp.trajectory.point_at(u_grid) for i, cp in enumerate(couples)
-               if cp.ok and cp.trajectory is not None}
+    trajs = [(i, cp.trajectory) for i, cp in enumerate(couples) if cp.ok and cp.trajectory is not None]
+    sampled: dict[int, FloatArray] = {}
+    if trajs:  # every swing sampled in one go
+        swings = points_at_each([tr for _, tr in trajs], u_grid)
+        sampled = dict(zip([i for i, _ in trajs], swings, strict=True))
     judged = [i for i in sampled if not forced[rows_of[i][0]]]
     ok = dict.fromkeys(sampled, True)
     if judged:

@@ -119,7 +119,7 @@ def hip_distance(
         [end_xy, (start[..., 0, 2] + samples[..., -1, 2] - samples[..., 0, 2])[..., None]], axis=-1
     )
     hip = start + u[:, None] * (end[..., None, :] - start)
-    horizontal = np.linalg.norm(samples[..., :2] - hip[..., :2], axis=-1)
+    horizontal = vector_norm(samples[..., :2] - hip[..., :2])
     drop = (p.guard_max_drop * rig.body_thickness[rig.leg_char[legs]])[..., None]
     below = hip[..., 2] - (samples[..., 2] + rig.foot_lift[legs][..., None])
     vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)

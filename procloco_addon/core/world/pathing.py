@@ -52,13 +52,14 @@ coordinates ``(r, c)``; world xy ↔ grid through :class:`~.terrain.WindowGrids`
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import planar_length
+from ..geometry import planar_length, vector_norm
 from ..hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
@@ -124,16 +125,8 @@ class FootTrajectory:
 
         Equal steps of ``u`` are equal distances along the curve (constant speed).
         """
-        # (np.clip as maximum/minimum and the coordinates written into one array: the same
-        # values with fewer calls; a crowd step samples every planned swing)
-        uu = np.minimum(np.maximum(np.asarray(u, dtype=np.float64), 0.0), 1.0)
-        if self.length <= 0.0:
-            return np.broadcast_to(self.points[0], (*uu.shape, 3)).copy()
-        s = uu * self.length
-        out = np.empty((*uu.shape, 3))
-        for k in range(3):
-            out[..., k] = np.interp(s, self.arc, self.points[:, k])
-        return out
+        uu = np.asarray(u, dtype=np.float64)
+        return points_at_each([self], uu.reshape(-1))[0].reshape((*uu.shape, 3))
 
     def tangent_at(self, u: npt.ArrayLike) -> FloatArray:
         """Unit direction of travel at fractions ``u`` ``(n,)``: ``(n, 3)``."""
@@ -153,6 +146,47 @@ class FootTrajectory:
     @property
     def end(self) -> FloatArray:
         return self.points[-1]
+
+
+def points_at_each(trajectories: Sequence[FootTrajectory], u: FloatArray) -> FloatArray:
+    """:meth:`FootTrajectory.point_at` of many trajectories at the same fractions ``u``
+    ``(n,)``: ``(T, n, 3)``. The arithmetic of ``np.interp`` on each one's arc lengths and
+    points (the knot at or before each sample; a sample on a knot or past either end gets
+    that knot's point, the others the segment's slope times the way into it plus its first
+    point), for all of them at once."""
+    uu = np.minimum(np.maximum(u, 0.0), 1.0)  # (np.clip without its dispatch)
+    t = len(trajectories)
+    size = np.array([tr.points.shape[0] for tr in trajectories])
+    k = int(size.max())
+    # every trajectory in a row of its own (past its end the arc is never at or before a
+    # sample; its points there are never read), the points coordinate by coordinate
+    at = np.repeat(np.arange(t) * k - (np.cumsum(size) - size), size) + np.arange(int(size.sum()))
+    arc = np.full(t * k, np.inf)
+    arc[at] = np.concatenate([tr.arc for tr in trajectories])
+    pts = np.empty((3, t * k))
+    pts[:, at] = np.concatenate([tr.points for tr in trajectories]).T
+    length = np.array([tr.length for tr in trajectories])
+    s = uu[None, :] * length[:, None]  # (t, n)
+    last = size[:, None] - 1
+    j = np.minimum(np.count_nonzero(arc.reshape(t, k)[:, None, :] <= s[:, :, None], axis=2) - 1, last)
+    base = np.arange(t)[:, None] * k
+    j0 = np.maximum(j, 0) + base
+    j1 = np.minimum(j + 1, last) + base
+    a0 = arc[j0]
+    p0 = pts[:, j0]  # (3, t, n)
+    p1 = pts[:, j1]
+    inner = (j >= 0) & (j < last) & (a0 != s)  # (there the segment has a length)
+    slope = (p1 - p0) / np.where(inner, arc[j1] - a0, 1.0)
+    out = slope * (s - a0) + p0
+    again = np.isnan(out) & inner
+    if np.count_nonzero(again):  # (np.interp: a NaN one way is tried the other way)
+        out = np.where(again, slope * (s - arc[j1]) + p1, out)
+        out = np.where(again & np.isnan(out) & (p0 == p1), p0, out)
+    out = np.where(inner, out, p0)
+    still = length <= 0.0  # no length: the first point everywhere
+    if np.count_nonzero(still):
+        out[:, still] = pts[:, base[still, 0], None]
+    return np.ascontiguousarray(out.transpose(1, 2, 0))
 
 
 # ---------------------------------------------------------------------------------------
@@ -722,7 +756,11 @@ def lift_each(
     seg = np.cumsum(is_knot) - 1
     seg = np.minimum(seg, nk - 2) if owner is None else np.minimum(seg, (np.asarray(tails) - 1)[owner])
     t = np.minimum(np.maximum((arc - ks[seg]) / h_safe[seg], 0.0), 1.0)
-    powers = np.stack([t**3, t**2, t, np.ones_like(t)], axis=-1)
+    powers = np.empty((t.size, 4))
+    powers[:, 0] = t**3
+    powers[:, 1] = t**2
+    powers[:, 2] = t
+    powers[:, 3] = 1.0
     if n == 1:
         w = powers @ HERMITE_MATRIX
     else:
@@ -737,7 +775,7 @@ def lift_each(
     points[:, :2] = samples
     np.maximum(z, required, out=points[:, 2])
     d3 = np.diff(points, axis=0)
-    seg3 = np.sqrt(np.add.reduce(d3 * d3, axis=1))
+    seg3 = vector_norm(d3)
     way3 = np.empty((nk, 3))
     way3[:, :2] = samples[kidx]
     way3[:, 2] = kz

@@ -427,12 +427,13 @@ def raster_boxes(
     row = i0[box] + down
     if per_box:
         cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
-        dx = (org[box, 0] + col * cl) - center_xy[box, 0]
-        dy = (org[box, 1] + row * cl) - center_xy[box, 1]
+        # (a column taken, then gathered: one index array, not two)
+        dx = (org[:, 0][box] + col * cl) - center_xy[:, 0][box]
+        dy = (org[:, 1][box] + row * cl) - center_xy[:, 1][box]
         hit = _overlaps(dx, dy, cl, half_x[box], half_y[box], cos[box], sin[box])
     else:
-        dx = (org[0] + col * cell) - center_xy[box, 0]
-        dy = (org[1] + row * cell) - center_xy[box, 1]
+        dx = (org[0] + col * cell) - center_xy[:, 0][box]
+        dy = (org[1] + row * cell) - center_xy[:, 1][box]
         hit = _overlaps(dx, dy, cell, half_x[box], half_y[box], cos[box], sin[box])
     return box[hit], row[hit], col[hit]
 
@@ -634,7 +635,8 @@ class _BucketIndex:
             self.shape = (1, 1)
             self.offsets = np.zeros(3, dtype=np.intp)
             self.items = np.zeros(0, dtype=np.intp)
-            self._dims = np.ones(2)
+            self._dims = (1.0, 1.0)
+            self._ox = self._oy = 0.0
             return
         # (coordinates one at a time: a reduction across the two columns of an (n, 2) array
         # is a strided loop, several times slower than two contiguous ones)
@@ -688,7 +690,8 @@ class _BucketIndex:
         # the grid read it
         self.offsets = np.zeros(buckets + 2, dtype=np.intp)
         np.cumsum(np.bincount(key, minlength=buckets + 1), out=self.offsets[1:])
-        self._dims = np.array([float(nbx), float(nby)])
+        self._dims = (float(nbx), float(nby))
+        self._ox, self._oy = ox, oy
 
     def pairs(self, xy: FloatArray) -> tuple[IntArray, IntArray]:
         """(point, item) candidate pairs for points ``(n, 2)``."""
@@ -696,10 +699,13 @@ class _BucketIndex:
             e = np.zeros(0, dtype=np.intp)
             return e, e.copy()
         nby, nbx = self.shape
-        cell = np.floor((xy - self.origin) / self.bucket)  # (n, 2) bucket column and row
-        ok = (cell >= 0.0) & (cell < self._dims)
+        # each point's bucket column and row (the coordinates one at a time: operations
+        # across the two columns of an (n, 2) array are strided loops, over twice as slow)
+        cx = np.floor((xy[:, 0] - self._ox) / self.bucket)
+        cy = np.floor((xy[:, 1] - self._oy) / self.bucket)
+        ok = (cx >= 0.0) & (cx < self._dims[0]) & (cy >= 0.0) & (cy < self._dims[1])
         # a point outside the grid reads the empty bucket past the last one
-        key = np.where(ok[:, 0] & ok[:, 1], cell[:, 1] * nbx + cell[:, 0], nbx * nby).astype(np.intp)
+        key = np.where(ok, cy * nbx + cx, nbx * nby).astype(np.intp)
         # _ranges_to_pairs of the buckets' item ranges, the offsets read once
         lo = self.offsets[key]
         count = self.offsets[key + 1] - lo
@@ -849,7 +855,11 @@ class WindowGrids:
     def rowcol(self, xy: npt.ArrayLike) -> FloatArray:
         """Continuous (row, col) coordinates of world points ``(..., 2)``: ``(..., 2)``."""
         p = np.asarray(xy, dtype=np.float64)
-        return np.asarray((p[..., ::-1] - self.origin[::-1]) / self.cell)
+        # (a coordinate at a time: an operation across the two columns is a strided loop)
+        out = np.empty(p.shape)
+        out[..., 0] = (p[..., 1] - self.origin[1]) / self.cell
+        out[..., 1] = (p[..., 0] - self.origin[0]) / self.cell
+        return out
 
     def cell_of(self, xy: npt.ArrayLike) -> IntArray:
         """Integer (row, col) of the cell containing each point ``(..., 2)``."""
@@ -1361,11 +1371,11 @@ class Environment:
             rect, box = index.pairs(lo, hi)
             box = s[box]
             pair, row, col = raster_boxes(origin[rect], cell[rect], (r1[rect], c1[rect]),
-                                          self._box_center[box, :2], 0.5 * self._box_size[box, 0],
-                                          0.5 * self._box_size[box, 1], self._box_yaw[box],
+                                          self._box_center[box, :2], 0.5 * self._box_size[:, 0][box],
+                                          0.5 * self._box_size[:, 1][box], self._box_yaw[box],
                                           first=(r0[rect], c0[rect]))
             rect, box = rect[pair], box[pair]
-            paste(rect, row, col, self._box_center[box, 2] + self._box_size[box, 2],
+            paste(rect, row, col, self._box_center[:, 2][box] + self._box_size[:, 2][box],
                   self._box_role[box] == ROLE_AVOID)
         index, owner, first = self._static_rect_index()
         rect_all, tri_all = index.pairs(lo, hi)
@@ -1410,7 +1420,7 @@ class Environment:
         order = np.argsort(which, kind="stable")
         which, r, c = which[order], r[order] + i0, c[order] + j0
         bounds = np.searchsorted(which, np.arange(todo.size + 1))
-        top = (self._box_center[todo, 2] + self._box_size[todo, 2])[which]
+        top = (self._box_center[:, 2][todo] + self._box_size[:, 2][todo])[which]
         cuts = bounds.tolist()
         for k, b in enumerate(todo.tolist()):
             sl = slice(cuts[k], cuts[k + 1])
@@ -1591,8 +1601,8 @@ class Environment:
         rect = rect[pair]
         box = self._dynamic_boxes[index.items[at]]
         blo, bhi = self._box_lo, self._box_hi
-        hit = ((blo[box, 0] - eps <= hi[rect, 0]) & (bhi[box, 0] + eps >= lo[rect, 0])
-               & (blo[box, 1] - eps <= hi[rect, 1]) & (bhi[box, 1] + eps >= lo[rect, 1]))
+        hit = ((blo[:, 0][box] - eps <= hi[:, 0][rect]) & (bhi[:, 0][box] + eps >= lo[:, 0][rect])
+               & (blo[:, 1][box] - eps <= hi[:, 1][rect]) & (bhi[:, 1][box] + eps >= lo[:, 1][rect]))
         out = wide.copy()
         out[rect[hit]] = True
         return out
