@@ -262,6 +262,83 @@ def test_the_last_frame_is_shown_before_the_whole_range_is_written(wolf: Any, cl
     assert len(procloco_actions()) == 1
 
 
+def keys_of(obj: Any) -> dict[Any, tuple[np.ndarray, np.ndarray]]:
+    """The rig's Action, F-curve by F-curve: ``{channel: (frames, values)}``."""
+    action = obj.animation_data.action
+    return {channel: (frames, values) for channel, frames, values in actions.read_channels(action, obj)}
+
+
+def assert_same_keys(got: dict[Any, Any], want: dict[Any, Any]) -> None:
+    assert got.keys() == want.keys()
+    for channel, (frames, values) in want.items():  # (the same code on the same inputs: exact)
+        np.testing.assert_array_equal(got[channel][0], frames, err_msg=str(channel))
+        np.testing.assert_array_equal(got[channel][1], values, err_msg=str(channel))
+
+
+def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
+        wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A regeneration on the same terrain starts from the last run's state at the last frame
+    its inputs leave as they were (a Gait Change at frame 8 edited: frames 1-7 stand; the
+    range made longer or shorter), and its walk is Generate's key for key; an edit of the
+    speed simulates the whole range."""
+    from procloco_addon.blender.locomotion import simulation
+    from procloco_addon.core.locomotion.sim import Simulation
+
+    monkeypatch.setattr(simulation, "CHECKPOINT_FRAMES", 2)  # (states at frames 0, 2, 4, ...)
+    steps: list[int] = []
+    real = Simulation.step
+
+    def counted(self: Any, *args: Any) -> Any:
+        steps.append(self.n_frames)  # (frames recorded before the step: its frame index is this)
+        return real(self, *args)
+
+    monkeypatch.setattr(Simulation, "step", counted)
+    bpy.context.scene.frame_set(8)
+    assert bpy.ops.procloco.add_gait_change() == {"FINISHED"}
+    change = wolf.procloco.gait_changes[0]
+    change.speed, change.transition_time = 0.6, 0.1
+    wolf.procloco.live_preview = True
+    settle(clock)
+    assert steps == list(range(1, FRAMES))  # the first run: every frame
+    before = keys_of(wolf)
+
+    steps.clear()
+    clock.now += 1.0
+    change.speed = 0.3  # from frame 8 (index 7) on: the state at frame index 6 stands
+    # (both speeds below the rig's: Auto's planning window, sized by the fastest, is the same)
+    settle(clock)
+    assert steps == [7, 8, 9]
+    shown = keys_of(wolf)
+    assert any(not np.array_equal(shown[c][1], before[c][1]) for c in before)  # it did change
+
+    steps.clear()
+    clock.now += 1.0
+    wolf.procloco.frame_end = FRAMES + 2  # two frames more (no animated terrain: the same terrain)
+    settle(clock)
+    assert steps == [9, 10, 11]  # from the state kept at frame index 8
+    clock.now += 1.0
+    wolf.procloco.frame_end = FRAMES  # and back
+    settle(clock)
+    assert steps == [9, 10, 11, 9]
+    assert_same_keys(keys_of(wolf), shown)
+
+    steps.clear()
+    clock.now += 1.0
+    wolf.procloco.speed = 0.9  # from the first frame on
+    settle(clock)
+    assert steps == list(range(1, FRAMES))
+    clock.now += 1.0
+    wolf.procloco.speed = 0.8  # back: the last run's inputs differ from the first frame on too
+    settle(clock)
+    assert steps == list(range(1, FRAMES)) * 2
+    assert_same_keys(keys_of(wolf), shown)
+
+    wolf.procloco.live_preview = False
+    settle(clock)  # kept
+    bpy.ops.procloco.generate_locomotion()  # the same settings, simulated from the first frame
+    assert_same_keys(keys_of(wolf), shown)
+
+
 def test_a_setting_edited_reuses_the_rig_read_and_a_painted_weight_is_read_again(
         wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
     from procloco_addon.blender.rig import read

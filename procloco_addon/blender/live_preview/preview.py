@@ -30,7 +30,7 @@ import bpy
 import numpy as np
 
 from .. import actions, rig, scene_terrain
-from ..locomotion import generate
+from ..locomotion import generate, simulation
 from ..modal import Steps, steps_with_result
 
 __all__ = [
@@ -250,10 +250,17 @@ def _mark(action: bpy.types.Action, signature: str, partial: bool) -> None:
 
 class TerrainCache:
     """The terrain last read for each rig, reused while its objects do not change (an edit
-    of the gait or the speed re-simulates without reading the scene's meshes again)."""
+    of the gait or the speed re-simulates without reading the scene's meshes again), and
+    each rig's last simulation (``simulation.Checkpoints``: a run on the same terrain
+    starts from the last frame whose inputs are unchanged)."""
 
     def __init__(self) -> None:
         self._items: dict[str, tuple[tuple[Any, ...], scene_terrain.SceneTerrain]] = {}
+        self._runs: dict[str, simulation.Checkpoints] = {}
+
+    def runs(self, rig: str) -> simulation.Checkpoints:
+        """The last simulation of ``rig`` (empty at first)."""
+        return self._runs.setdefault(rig, simulation.Checkpoints())
 
     def get(self, rig: str, key: tuple[Any, ...]) -> scene_terrain.SceneTerrain | None:
         item = self._items.get(rig)
@@ -264,6 +271,7 @@ class TerrainCache:
 
     def clear(self) -> None:
         self._items.clear()
+        self._runs.clear()
 
 
 class _FromFrame:
@@ -295,7 +303,11 @@ def _frame_job(job: generate.Job, k: int) -> generate.Job:
 
 def _read_terrain(context: bpy.types.Context, job: generate.Job, cache: TerrainCache,
                   terrain_signature: str) -> Generator[float, None, None]:
-    key = (terrain_signature, int(job.frames[0]), int(job.frames[-1]), round(job.lift, 9))
+    # (objects that move by themselves are read over the range: without any, the same terrain
+    # serves any range, and a run over a longer or shorter range starts from the last one's)
+    animated = any(scene_terrain._maybe_animated(bpy.data.objects[name]) for name in job.terrain_objects)
+    key = (terrain_signature, (int(job.frames[0]), int(job.frames[-1])) if animated else None,
+           round(job.lift, 9))
     terrain = cache.get(job.obj_name, key)
     if terrain is None:
         yield from generate.read_terrain(context, job)
@@ -339,7 +351,7 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
     n = int(job.frames.size)
     k = int(np.clip(context.scene.frame_current - job.frames[0], 0, n - 1))
     try:
-        for i, fraction in enumerate(generate.simulate(job)):
+        for i, fraction in enumerate(generate.simulate(job, cache.runs(obj_name))):
             yield obj_name, 0.1 + 0.8 * fraction
             # The current frame first, the rest of the range follows (on the last frame too:
             # one frame is keyed in a fraction of the time the whole range takes).

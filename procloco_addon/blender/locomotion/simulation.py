@@ -19,7 +19,10 @@ before the step into frame ``k``.
 
 from __future__ import annotations
 
+import copy
 import functools
+import hashlib
+import pickle
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -46,9 +49,9 @@ from ...core.world.terrain import NO_SURFACE
 from .job import Job, RigTracks
 
 __all__ = [
-    "auto_track", "batch_key", "batch_simulation", "ground_function", "planning_cell", "run", "run_all",
-    "simulation_of", "speed_at",
-    "spine_params", "spine_tracks", "world_tracks",
+    "CHECKPOINT_FRAMES", "Checkpoints", "auto_track", "batch_key", "batch_simulation", "ground_function",
+    "planning_cell", "run", "run_all", "simulation_inputs", "simulation_of", "speed_at", "spine_params",
+    "spine_tracks", "step_digests", "world_tracks",
 ]
 
 
@@ -159,7 +162,12 @@ def batch_key(job: Job) -> tuple[Any, ...]:
 
 
 def batch_simulation(jobs: Sequence[Job]) -> Simulation:
-    """One core simulation of every rig of ``jobs`` (their shared terrain read and at its
+    """:func:`simulation_inputs` made into a :class:`Simulation`."""
+    return Simulation(**simulation_inputs(jobs))
+
+
+def simulation_inputs(jobs: Sequence[Job]) -> dict[str, Any]:
+    """The arguments of the one core simulation of every rig of ``jobs`` (their shared terrain read and at its
     first frame; their frames, seconds per frame and :func:`batch_key` alike): each rig a
     character with its own morphology, gait and gait changes, speeds, heading or path,
     settings, effects and start (its ``phase`` and ``cycle_scale`` already in its gaits, see
@@ -198,27 +206,32 @@ def batch_simulation(jobs: Sequence[Job]) -> Simulation:
     avoid = [job.use_avoid_others for job in jobs]
     seeds = [job.seed for job, c in zip(jobs, chars, strict=True)
              if c.effects.progression or c.effects.randomize_gait]
-    return Simulation(
-        terrain.environment, [c.morphology for c in chars], [c.gait for c in chars],
-        start_xy=np.array([c.start_xy for c in chars]), start_yaw=[c.start_yaw for c in chars],
-        controls=controls, gait_changes=changes, dt=dt, seed=seeds[0] if seeds else jobs[0].seed,
-        phase=phases if np.any(phases != 0.0) else None,
-        params=chars[0].params if single else [c.params for c in chars],
-        planner=[c.planner for c in chars], spine=spine if any(sp is not None for sp in spine) else None,
-        auto_gait=[job.auto_gait for job in jobs], effects=[c.effects for c in chars],
+    return {
+        "env": terrain.environment, "morphologies": [c.morphology for c in chars],
+        "gaits": [c.gait for c in chars], "start_xy": np.array([c.start_xy for c in chars]),
+        "start_yaw": [c.start_yaw for c in chars], "controls": controls, "gait_changes": changes, "dt": dt,
+        "seed": seeds[0] if seeds else jobs[0].seed, "phase": phases if np.any(phases != 0.0) else None,
+        "params": chars[0].params if single else [c.params for c in chars],
+        "planner": [c.planner for c in chars],
+        "spine": spine if any(sp is not None for sp in spine) else None,
+        "auto_gait": [job.auto_gait for job in jobs], "effects": [c.effects for c in chars],
         # Avoid Other Rigs: bodies and planted feet of the others kept clear, paths steered
         # around them (core.locomotion.crowd); a rig alone has no one to avoid
-        avoid=avoid if not single and any(avoid) else None)
+        "avoid": avoid if not single and any(avoid) else None,
+    }
 
 
-def run(job: Job) -> Iterator[float]:
+def run(job: Job, kept: Checkpoints | None = None) -> Iterator[float]:
     """Simulate ``job`` (one core step per frame after the first); yields the fraction done
-    and stores its :class:`~.job.RigTracks` in ``job.result``. Meanwhile ``job.partial(n)``
-    gives the first ``n`` frames' tracks (Live Preview writes a frame before the rest ran)."""
-    return run_all([job])
+    (once per frame) and stores its :class:`~.job.RigTracks` in ``job.result``. Meanwhile
+    ``job.partial(n)`` gives the first ``n`` frames' tracks (Live Preview writes a frame
+    before the rest ran). ``kept``: the states of the rig's last run (Live Preview's), from
+    which the frames this job's inputs leave as they were are taken instead of simulated
+    again (see :class:`Checkpoints`); it then keeps this run's."""
+    return run_all([job], kept)
 
 
-def run_all(jobs: Sequence[Job]) -> Iterator[float]:
+def run_all(jobs: Sequence[Job], kept: Checkpoints | None = None) -> Iterator[float]:
     """:func:`run` for rigs simulated together (:func:`batch_simulation`): one core step per
     frame moves every rig; each job gets its own tracks."""
     terrain = jobs[0].terrain
@@ -226,17 +239,111 @@ def run_all(jobs: Sequence[Job]) -> Iterator[float]:
         raise RuntimeError("the job's terrain has not been read (generate.read_terrain)")
     n_frames = jobs[0].frames.shape[0]
     terrain.apply_frame(0)
-    sim = batch_simulation(jobs)
+    inputs = simulation_inputs(jobs)
+    first = 0
+    if kept is None:
+        sim = Simulation(**inputs)
+    else:
+        sim, first = kept.start(inputs, terrain, n_frames)
     for i, job in enumerate(jobs):
         job.partial = functools.partial(_partial_tracks, sim, i)
-    yield 1.0 / n_frames
-    for f in range(1, n_frames):
+    for f in range(first + 1):  # (frames taken from the last run: nothing to do)
+        yield (f + 1) / n_frames
+    for f in range(first + 1, n_frames):
         terrain.apply_frame(f)
         sim.step()
+        if kept is not None:
+            kept.reached(sim, f)
         yield (f + 1) / n_frames
     res = sim.result()
     for i, job in enumerate(jobs):
         job.result = RigTracks.of(res, i)
+
+
+#: Frames between two states a :class:`Checkpoints` keeps (a copy of a wolf's state takes
+#: about 0.6 ms, a step 3: one in 10 frames adds 2 % to a run).
+CHECKPOINT_FRAMES = 10
+
+
+def _digest(value: Any) -> bytes:
+    return hashlib.blake2b(pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL), digest_size=16).digest()
+
+
+def step_digests(inputs: dict[str, Any], n_frames: int) -> list[bytes]:
+    """What each frame of a simulation made from ``inputs`` (:func:`simulation_inputs`) is
+    made from: item 0 digests every argument but the per-step ones (the commands and the
+    gait changes), item ``f`` the commands and the gait changes due of the step into frame
+    ``f`` (as ``Simulation.step`` takes them). Two simulations on one terrain whose first
+    ``k + 1`` items are equal have equal states at frame ``k``: the simulation is a function
+    of its arguments and of what each step takes (same code, same process)."""
+    controls = inputs["controls"]
+    changes = sorted(inputs["gait_changes"], key=lambda g: g.time)
+    dt = float(inputs["dt"])
+    fixed = {k: v for k, v in inputs.items() if k not in ("env", "controls", "gait_changes")}
+    out = [_digest((fixed, controls(0.0)))]
+    for f in range(1, n_frames):
+        t_end = f * dt  # (Simulation.step: (steps so far + 1) * dt)
+        out.append(_digest((controls(t_end), [c for c in changes if c.time <= t_end + 1e-12])))
+    return out
+
+
+class Checkpoints:
+    """One rig's simulation as its last run left it, kept by Live Preview to start the next
+    run of that rig from: the run's :func:`step_digests`, its states (deep copies of the
+    ``Simulation``, every :data:`CHECKPOINT_FRAMES` frames from frame 0) and its recorded
+    frames. A run on the same terrain object (the preview's ``TerrainCache`` hands the same
+    one while the terrain is unchanged) whose first frames are made from the same inputs
+    starts from the latest state among them (an edit of a later Gait Change, or of the end
+    of the range, re-simulates only from there); a run of a cut-short regeneration keeps
+    the states it reached. The walk is the same as simulated from frame 0, bit for bit."""
+
+    def __init__(self) -> None:
+        self.terrain: Any = None
+        self.digests: list[bytes] = []
+        self.states: dict[int, Simulation] = {}
+        self.sim: Simulation | None = None
+
+    def clear(self) -> None:
+        self.__init__()  # type: ignore[misc]
+
+    def start(self, inputs: dict[str, Any], terrain: Any, n_frames: int) -> tuple[Simulation, int]:
+        """The simulation of ``inputs`` at its latest frame the kept run has (a copy of that
+        state), or made anew at frame 0; with that frame index. Keeps this run from now on."""
+        digests = step_digests(inputs, n_frames)
+        same = 0
+        if terrain is self.terrain and self.sim is not None:
+            for old, new in zip(self.digests, digests, strict=False):
+                if old != new:
+                    break
+                same += 1
+        kept = {f: s for f, s in self.states.items() if f < same}
+        first = max(kept, default=-1)
+        if first < 0:
+            sim = Simulation(**inputs)
+            first = 0
+            kept = {}
+        else:
+            assert self.sim is not None
+            sim = copy.deepcopy(kept[first], {id(inputs["env"]): inputs["env"]})
+            sim._controls = inputs["controls"]  # (equal for the frames kept; the new ones' from here on)
+            sim._changes = sorted(inputs["gait_changes"], key=lambda g: g.time)
+            sim._frames = [dict(fr) for fr in self.sim._frames[:first + 1]]
+            sim._stats = self.sim._stats[:first + 1]
+        self.terrain, self.digests, self.states, self.sim = terrain, digests, kept, sim
+        if first not in kept:
+            self.reached(sim, first)
+        return sim, first
+
+    def reached(self, sim: Simulation, f: int) -> None:
+        """``sim`` is at frame ``f``: keep a copy of its state every :data:`CHECKPOINT_FRAMES`."""
+        if f % CHECKPOINT_FRAMES or f in self.states:
+            return
+        frames, stats = sim._frames, sim._stats
+        sim._frames, sim._stats = [], []  # (taken from the run itself when resumed)
+        try:
+            self.states[f] = copy.deepcopy(sim, {id(sim.env): sim.env})
+        finally:
+            sim._frames, sim._stats = frames, stats
 
 
 def _partial_tracks(sim: Simulation, char: int, n: int) -> RigTracks:
