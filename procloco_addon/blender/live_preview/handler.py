@@ -202,7 +202,9 @@ def _start_due(context: Any, now: float) -> None:
             continue
         _state.busy = True
         try:
-            signature = preview.input_signature(context, obj)
+            # (this tick's poll has just read the rig's settings)
+            seen = watch.seen[0] if watch.seen is not None else None
+            signature = preview.input_signature(context, obj, seen)
         finally:
             _state.busy = False
         on = bool(obj.procloco.live_preview)

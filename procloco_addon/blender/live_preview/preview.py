@@ -127,12 +127,16 @@ def _path_part(context: bpy.types.Context, obj: bpy.types.Object) -> Any:
         return str(err)
 
 
-def input_signature(context: bpy.types.Context, obj: bpy.types.Object) -> tuple[str, str]:
+def input_signature(context: bpy.types.Context, obj: bpy.types.Object,
+                    settings: tuple[Any, ...] | None = None) -> tuple[str, str]:
     """``(whole, terrain)``: digests of everything the walk of ``obj`` is made from (its
     settings, its path curve as evaluated, the terrain objects' placement and meshes), and of
-    the terrain part alone (the key of the terrain read kept between regenerations)."""
+    the terrain part alone (the key of the terrain read kept between regenerations).
+    ``settings``: the rig's :func:`settings_signature` if just taken (the timer's poll)."""
     terrain = repr(_terrain_part(context, obj)).encode()
-    whole = repr((settings_signature(obj, context.scene), _path_part(context, obj))).encode() + terrain
+    if settings is None:
+        settings = settings_signature(obj, context.scene)
+    whole = repr((settings, _path_part(context, obj))).encode() + terrain
     return (hashlib.blake2b(whole, digest_size=16).hexdigest(),
             hashlib.blake2b(terrain, digest_size=16).hexdigest())
 
