@@ -278,13 +278,14 @@ def assert_same_keys(got: dict[Any, Any], want: dict[Any, Any]) -> None:
 def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
         wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
     """A regeneration on the same terrain starts from the last run's state at the last frame
-    its inputs leave as they were (a Gait Change at frame 8 edited: frames 1-7 stand; the
-    range made longer or shorter), and its walk is Generate's key for key; an edit of the
-    speed simulates the whole range."""
+    its inputs leave as they were, kept before the current frame, before each Gait Change
+    and at the last frame (a Gait Change added at the current frame, then edited; the range
+    made longer or shorter), and its walk is Generate's key for key; an edit of the speed
+    simulates the whole range."""
     from procloco_addon.blender.locomotion import simulation
     from procloco_addon.core.locomotion.sim import Simulation
 
-    monkeypatch.setattr(simulation, "CHECKPOINT_FRAMES", 2)  # (states at frames 0, 2, 4, ...)
+    monkeypatch.setattr(simulation, "CHECKPOINT_FRAMES", 1000)  # (no states kept on a regular beat)
     steps: list[int] = []
     real = Simulation.step
 
@@ -293,10 +294,7 @@ def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
         return real(self, *args)
 
     monkeypatch.setattr(Simulation, "step", counted)
-    bpy.context.scene.frame_set(8)
-    assert bpy.ops.procloco.add_gait_change() == {"FINISHED"}
-    change = wolf.procloco.gait_changes[0]
-    change.speed, change.transition_time = 0.6, 0.1
+    bpy.context.scene.frame_set(8)  # (frame index 7)
     wolf.procloco.live_preview = True
     settle(clock)
     assert steps == list(range(1, FRAMES))  # the first run: every frame
@@ -304,10 +302,15 @@ def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
 
     steps.clear()
     clock.now += 1.0
-    change.speed = 0.3  # from frame 8 (index 7) on: the state at frame index 6 stands
-    # (both speeds below the rig's: Auto's planning window, sized by the fastest, is the same)
+    assert bpy.ops.procloco.add_gait_change() == {"FINISHED"}  # at the current frame
+    change = wolf.procloco.gait_changes[0]
+    change.speed, change.transition_time = 0.6, 0.1
     settle(clock)
-    assert steps == [7, 8, 9]
+    assert steps == [7, 8, 9]  # from the state kept before the current frame
+    clock.now += 1.0
+    change.speed = 0.3  # (both speeds below the rig's: Auto's planning window, sized by the fastest, stays)
+    settle(clock)
+    assert steps == [7, 8, 9] * 2  # from the state kept before the Gait Change
     shown = keys_of(wolf)
     assert any(not np.array_equal(shown[c][1], before[c][1]) for c in before)  # it did change
 
@@ -315,11 +318,11 @@ def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
     clock.now += 1.0
     wolf.procloco.frame_end = FRAMES + 2  # two frames more (no animated terrain: the same terrain)
     settle(clock)
-    assert steps == [9, 10, 11]  # from the state kept at frame index 8
+    assert steps == [10, 11]  # from the state kept at the last frame
     clock.now += 1.0
-    wolf.procloco.frame_end = FRAMES  # and back
+    wolf.procloco.frame_end = FRAMES  # and back: nothing to simulate
     settle(clock)
-    assert steps == [9, 10, 11, 9]
+    assert steps == [10, 11]
     assert_same_keys(keys_of(wolf), shown)
 
     steps.clear()

@@ -355,7 +355,9 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
     n = int(job.frames.size)
     k = int(np.clip(context.scene.frame_current - job.frames[0], 0, n - 1))
     try:
-        for i, fraction in enumerate(generate.simulate(job, cache.runs(obj_name))):
+        kept = cache.runs(obj_name)
+        kept.current = k  # (a state before it kept: a Gait Change added there starts from it)
+        for i, fraction in enumerate(generate.simulate(job, kept)):
             yield obj_name, 0.1 + 0.8 * fraction
             # The current frame first, the rest of the range follows (on the last frame too:
             # one frame is keyed in a fraction of the time the whole range takes).

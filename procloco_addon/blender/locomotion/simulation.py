@@ -33,7 +33,8 @@ from ...core.geometry import wrap_angle
 from ...core.locomotion import scaling
 from ...core.locomotion.footprints import PlannerParams
 from ...core.locomotion.gait import Gait
-from ...core.locomotion.morphology import Morphology
+from ...core.locomotion.morphology import LegBatch, Morphology
+from ...core.locomotion.rig import Rig
 from ...core.locomotion.sim import (
     Controls,
     Effects,
@@ -260,9 +261,14 @@ def run_all(jobs: Sequence[Job], kept: Checkpoints | None = None) -> Iterator[fl
         job.result = RigTracks.of(res, i)
 
 
-#: Frames between two states a :class:`Checkpoints` keeps (a copy of a wolf's state takes
-#: about 0.6 ms, a step 3: one in 10 frames adds 2 % to a run).
-CHECKPOINT_FRAMES = 10
+#: Frames between two states a :class:`Checkpoints` keeps besides those before each Gait
+#: Change, before the current frame and at the last frame (a copy of a wolf's state takes
+#: about 0.4 ms, against 3 ms a step).
+CHECKPOINT_FRAMES = 20
+
+# Parts of a simulation that never change once it is made (the creatures' fixed geometry and
+# settings): shared between a simulation and the copies of its states.
+_FIXED = (Rig, LegBatch, Morphology, ControllerParams, PlannerParams, SpineParams)
 
 
 def _digest(value: Any) -> bytes:
@@ -290,18 +296,24 @@ def step_digests(inputs: dict[str, Any], n_frames: int) -> list[bytes]:
 class Checkpoints:
     """One rig's simulation as its last run left it, kept by Live Preview to start the next
     run of that rig from: the run's :func:`step_digests`, its states (deep copies of the
-    ``Simulation``, every :data:`CHECKPOINT_FRAMES` frames from frame 0) and its recorded
-    frames. A run on the same terrain object (the preview's ``TerrainCache`` hands the same
-    one while the terrain is unchanged) whose first frames are made from the same inputs
-    starts from the latest state among them (an edit of a later Gait Change, or of the end
-    of the range, re-simulates only from there); a run of a cut-short regeneration keeps
-    the states it reached. The walk is the same as simulated from frame 0, bit for bit."""
+    ``Simulation`` at frame 0, every :data:`CHECKPOINT_FRAMES` frames, before each Gait
+    Change and before :attr:`current`, and at the last frame) and its recorded frames. A run
+    on the same terrain object (the preview's ``TerrainCache`` hands the same one while the
+    terrain is unchanged) whose first frames are made from the same inputs starts from the
+    latest state among them (an edit of a later Gait Change, one added at the current frame,
+    or the range made longer, re-simulates only from there); a run of a cut-short
+    regeneration keeps the states it reached. The walk is the same as simulated from frame 0,
+    bit for bit."""
 
     def __init__(self) -> None:
+        #: The frame index the next run shows first (Live Preview's current frame).
+        self.current = 0
         self.terrain: Any = None
         self.digests: list[bytes] = []
         self.states: dict[int, Simulation] = {}
         self.sim: Simulation | None = None
+        self._at: set[int] = set()
+        self._memo: dict[int, Any] = {}
 
     def clear(self) -> None:
         self.__init__()  # type: ignore[misc]
@@ -324,26 +336,42 @@ class Checkpoints:
             kept = {}
         else:
             assert self.sim is not None
-            sim = copy.deepcopy(kept[first], {id(inputs["env"]): inputs["env"]})
+            sim = copy.deepcopy(kept[first], dict(self._memo))
             sim._controls = inputs["controls"]  # (equal for the frames kept; the new ones' from here on)
             sim._changes = sorted(inputs["gait_changes"], key=lambda g: g.time)
             sim._frames = [dict(fr) for fr in self.sim._frames[:first + 1]]
             sim._stats = self.sim._stats[:first + 1]
+        dt = float(inputs["dt"])
+        changes = {round(g.time / dt) - 1 for g in inputs["gait_changes"]}
+        self._at = {f for f in (*changes, self.current - 1, n_frames - 1) if 0 < f < n_frames}
+        self._memo = _fixed_parts(sim)
         self.terrain, self.digests, self.states, self.sim = terrain, digests, kept, sim
         if first not in kept:
             self.reached(sim, first)
         return sim, first
 
     def reached(self, sim: Simulation, f: int) -> None:
-        """``sim`` is at frame ``f``: keep a copy of its state every :data:`CHECKPOINT_FRAMES`."""
-        if f % CHECKPOINT_FRAMES or f in self.states:
+        """``sim`` is at frame ``f``: keep a copy of its state if it is one to keep."""
+        if (f % CHECKPOINT_FRAMES and f not in self._at) or f in self.states:
             return
         frames, stats = sim._frames, sim._stats
         sim._frames, sim._stats = [], []  # (taken from the run itself when resumed)
         try:
-            self.states[f] = copy.deepcopy(sim, {id(sim.env): sim.env})
+            self.states[f] = copy.deepcopy(sim, dict(self._memo))
         finally:
             sim._frames, sim._stats = frames, stats
+
+
+def _fixed_parts(sim: Simulation) -> dict[int, Any]:
+    """A ``copy.deepcopy`` memo that shares the terrain and the fixed parts of ``sim``
+    (:data:`_FIXED`, among its own and its controller's attributes) with its copies."""
+    memo: dict[int, Any] = {id(sim.env): sim.env}
+    for value in (*vars(sim).values(), *vars(sim.controller).values()):
+        items = value if isinstance(value, list | tuple) else (value,)
+        for item in items:
+            if isinstance(item, _FIXED):
+                memo[id(item)] = item
+    return memo
 
 
 def _partial_tracks(sim: Simulation, char: int, n: int) -> RigTracks:
