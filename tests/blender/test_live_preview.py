@@ -342,6 +342,55 @@ def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
     assert_same_keys(keys_of(wolf), shown)
 
 
+def test_a_terrain_object_moved_where_the_walk_never_looked_simulates_nothing_again(
+        wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A terrain object moved far from the walk (out of every planning window and point the
+    simulation asked) leaves the whole walk as it was: nothing is simulated again. Moved
+    under the walk's start, every frame is. Either way the walk is Generate's key for key."""
+    from procloco_addon.core.locomotion.sim import Simulation
+
+    steps: list[int] = []
+    real = Simulation.step
+
+    def counted(self: Any, *args: Any) -> Any:
+        steps.append(self.n_frames)
+        return real(self, *args)
+
+    monkeypatch.setattr(Simulation, "step", counted)
+    bpy.ops.mesh.primitive_cube_add(size=0.2, location=(3.0, 3.0, 0.1))
+    crate = bpy.context.active_object
+    bpy.context.view_layer.objects.active = wolf
+    wolf.procloco.live_preview = True
+    settle(clock)
+    assert steps == list(range(1, FRAMES))
+    far = keys_of(wolf)
+
+    steps.clear()
+    clock.now += 1.0
+    crate.location = (3.2, 2.5, 0.1)  # still far from the walk
+    bpy.context.view_layer.update()  # (the depsgraph handler sees the move)
+    settle(clock)
+    assert steps == []
+    assert preview.up_to_date(wolf, preview.input_signature(bpy.context, wolf)[0])  # (of the new terrain)
+    assert_same_keys(keys_of(wolf), far)
+
+    clock.now += 1.0
+    crate.location = (0.0, 0.0, -0.05)  # under the wolf's start (a step of 5 cm)
+    bpy.context.view_layer.update()
+    settle(clock)
+    assert steps == list(range(1, FRAMES))
+    shown = keys_of(wolf)
+    assert any(not np.array_equal(shown[c][1], far[c][1]) for c in far)
+
+    wolf.procloco.live_preview = False
+    settle(clock)
+    bpy.ops.procloco.generate_locomotion()
+    assert_same_keys(keys_of(wolf), shown)
+    crate.location = (3.2, 2.5, 0.1)
+    bpy.ops.procloco.generate_locomotion()
+    assert_same_keys(keys_of(wolf), far)
+
+
 def test_a_setting_edited_reuses_the_rig_read_and_a_painted_weight_is_read_again(
         wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
     from procloco_addon.blender.rig import read

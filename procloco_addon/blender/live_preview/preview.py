@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from collections.abc import Generator
+from collections.abc import Generator, Sequence
 from typing import Any
 
 import bpy
@@ -101,20 +101,54 @@ def _terrain_part(context: bpy.types.Context, obj: bpy.types.Object) -> tuple[An
     """Where the terrain objects are and what their meshes hold. Objects that move by
     themselves (keys, constraints, parents) are sampled over the range by Generate: their
     placement at the current frame is left out, or every frame change would look like an edit."""
-    out: list[Any] = []
-    for ob in scene_terrain.terrain_objects(context, [obj], obj.procloco.terrain_collection):
-        animated = scene_terrain._maybe_animated(ob)
-        entry: list[Any] = [ob.name, ob.type, str(getattr(ob, "procloco_role", "AUTO")), animated]
-        if not animated:
-            entry.append(np.array(ob.matrix_world, dtype=np.float64).round(9).tobytes())
-        data = ob.data
-        if ob.type == "MESH" and data is not None:
-            co = np.empty(len(data.vertices) * 3, dtype=np.float32)
-            data.vertices.foreach_get("co", co)
-            entry += [data.name, hashlib.blake2b(co.tobytes(), digest_size=16).hexdigest(),
-                      tuple(m.type for m in ob.modifiers)]
-        out.append(tuple(entry))
-    return tuple(out)
+    return tuple(_terrain_entry(ob) for ob in scene_terrain.terrain_objects(context, [obj],
+                                                                             obj.procloco.terrain_collection))
+
+
+def _terrain_entry(ob: bpy.types.Object) -> tuple[Any, ...]:
+    animated = scene_terrain._maybe_animated(ob)
+    entry: list[Any] = [ob.name, ob.type, str(getattr(ob, "procloco_role", "AUTO")), animated]
+    if not animated:
+        entry.append(np.array(ob.matrix_world, dtype=np.float64).round(9).tobytes())
+    data = ob.data
+    if ob.type == "MESH" and data is not None:
+        co = np.empty(len(data.vertices) * 3, dtype=np.float32)
+        data.vertices.foreach_get("co", co)
+        entry += [data.name, hashlib.blake2b(co.tobytes(), digest_size=16).hexdigest(),
+                  tuple(m.type for m in ob.modifiers)]
+    return tuple(entry)
+
+
+_Boxes = dict[str, tuple[Any, np.ndarray]]
+
+
+def _terrain_boxes(context: bpy.types.Context, names: Sequence[str]) -> _Boxes:
+    """Each terrain object's :func:`_terrain_entry` and world xy bounds ``(4,)`` (x0, y0, x1,
+    y1) as evaluated now."""
+    depsgraph = context.evaluated_depsgraph_get()
+    out = {}
+    for name in names:
+        ob = bpy.data.objects.get(name)
+        if ob is None:
+            continue
+        ev = ob.evaluated_get(depsgraph)
+        corners = np.array([tuple(c) for c in ev.bound_box], dtype=np.float64).reshape(-1, 3)
+        world = corners @ np.array(ev.matrix_world, dtype=np.float64)[:3, :3].T + np.array(
+            ev.matrix_world, dtype=np.float64)[:3, 3]
+        out[name] = (_terrain_entry(ob), np.concatenate([world[:, :2].min(axis=0), world[:, :2].max(axis=0)]))
+    return out
+
+
+def _changed_boxes(old: _Boxes, new: _Boxes) -> np.ndarray:
+    """``(m, 4)`` the world xy bounds, before and after, of the terrain objects that changed
+    (moved, edited, added or taken away) from ``old`` to ``new`` (:func:`_terrain_boxes`)."""
+    boxes = []
+    for name in old.keys() | new.keys():
+        a, b = old.get(name), new.get(name)
+        if a is not None and b is not None and a[0] == b[0]:
+            continue
+        boxes += [item[1] for item in (a, b) if item is not None]
+    return np.array(boxes, dtype=np.float64).reshape(-1, 4)
 
 
 def _path_part(context: bpy.types.Context, obj: bpy.types.Object) -> Any:
@@ -261,6 +295,8 @@ class TerrainCache:
     def __init__(self) -> None:
         self._items: dict[str, tuple[tuple[Any, ...], scene_terrain.SceneTerrain]] = {}
         self._runs: dict[str, simulation.Checkpoints] = {}
+        # the last two terrains read for each rig, with their objects' _terrain_boxes
+        self._boxes: dict[str, list[tuple[scene_terrain.SceneTerrain, _Boxes]]] = {}
 
     def runs(self, rig: str) -> simulation.Checkpoints:
         """The last simulation of ``rig`` (empty at first)."""
@@ -273,9 +309,23 @@ class TerrainCache:
     def put(self, rig: str, key: tuple[Any, ...], terrain: scene_terrain.SceneTerrain) -> None:
         self._items[rig] = (key, terrain)
 
+    def read(self, rig: str, terrain: scene_terrain.SceneTerrain, boxes: _Boxes) -> None:
+        """``terrain`` was read for ``rig``, its objects as :func:`_terrain_boxes` says."""
+        self._boxes[rig] = [*self._boxes.get(rig, [])[-1:], (terrain, boxes)]
+
+    def changed(self, rig: str, old: Any, new: Any) -> np.ndarray | None:
+        """The world xy bounds ``(m, 4)`` of what changed from terrain ``old`` to ``new`` of
+        ``rig`` (:func:`_changed_boxes`), None when either is not one of its last two reads."""
+        found = {id(terrain): boxes for terrain, boxes in self._boxes.get(rig, [])
+                 if terrain is old or terrain is new}
+        if old is None or id(old) not in found or id(new) not in found:
+            return None
+        return _changed_boxes(found[id(old)], found[id(new)])
+
     def clear(self) -> None:
         self._items.clear()
         self._runs.clear()
+        self._boxes.clear()
 
 
 class _FromFrame:
@@ -317,6 +367,8 @@ def _read_terrain(context: bpy.types.Context, job: generate.Job, cache: TerrainC
         yield from generate.read_terrain(context, job)
         assert job.terrain is not None
         cache.put(job.obj_name, key, job.terrain)
+        # (where its objects are: a run that never looked where they changed starts from the last one)
+        cache.read(job.obj_name, job.terrain, _terrain_boxes(context, job.terrain_objects))
         return
     # (the terrain's own caches, its planning windows' rasterised tiles among them, are kept:
     # they never change a result, and the next walk crosses much the same ground)
@@ -357,6 +409,7 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
     try:
         kept = cache.runs(obj_name)
         kept.current = k  # (a state before it kept: a Gait Change added there starts from it)
+        kept.changed = cache.changed(obj_name, kept.terrain, job.terrain)
         for i, fraction in enumerate(generate.simulate(job, kept)):
             yield obj_name, 0.1 + 0.8 * fraction
             # The current frame first, the rest of the range follows (on the last frame too:

@@ -308,7 +308,12 @@ class Checkpoints:
     def __init__(self) -> None:
         #: The frame index the next run shows first (Live Preview's current frame).
         self.current = 0
+        #: When the next run's terrain is not the kept run's: the world xy bounds ``(m, 4)``
+        #: (x0, y0, x1, y1) of what changed between them (None: unknown, nothing is reused).
+        self.changed: np.ndarray | None = None
         self.terrain: Any = None
+        self.seen = np.empty((0, 4))  # (frames, 4): the bounds of the terrain each step looked at
+        self._looks = _Looks(None)  # (every run's and state's terrain: the run's own in it)
         self.digests: list[bytes] = []
         self.states: dict[int, Simulation] = {}
         self.sim: Simulation | None = None
@@ -322,18 +327,28 @@ class Checkpoints:
         """The simulation of ``inputs`` at its latest frame the kept run has (a copy of that
         state), or made anew at frame 0; with that frame index. Keeps this run from now on."""
         digests = step_digests(inputs, n_frames)
+        looks = self._looks
+        looks.env = inputs["env"]
+        looks.take()
+        inputs = {**inputs, "env": looks}
         same = 0
-        if terrain is self.terrain and self.sim is not None:
+        if self.sim is not None and (terrain is self.terrain or self._unseen_change(terrain)):
             for old, new in zip(self.digests, digests, strict=False):
                 if old != new:
                     break
                 same += 1
+            if terrain is not self.terrain:  # only the frames before the first look at what changed
+                assert self.changed is not None
+                same = min(same, _first_look(self.seen[:same], self.changed, _margin(inputs)))
         kept = {f: s for f, s in self.states.items() if f < same}
         first = max(kept, default=-1)
+        seen = self.seen[:first + 1]
         if first < 0:
             sim = Simulation(**inputs)
             first = 0
             kept = {}
+            looks.note(sim._frames[-1]["joints"][..., :2])
+            seen = looks.take()[None]
         else:
             assert self.sim is not None
             sim = copy.deepcopy(kept[first], dict(self._memo))
@@ -346,14 +361,32 @@ class Checkpoints:
         self._at = {f for f in (*changes, self.current - 1, n_frames - 1) if 0 < f < n_frames}
         self._memo = _fixed_parts(sim)
         self.terrain, self.digests, self.states, self.sim = terrain, digests, kept, sim
+        self.changed = None
+        # (the frames not reached yet looked everywhere, as far as the next run knows)
+        rest = np.tile([-np.inf, -np.inf, np.inf, np.inf], (n_frames - seen.shape[0], 1))
+        self.seen = np.concatenate([seen, rest])
         if first not in kept:
-            self.reached(sim, first)
+            self._keep(sim, first)
         return sim, first
 
+    def _unseen_change(self, terrain: Any) -> bool:
+        """The kept run's terrain and ``terrain`` differ only where :attr:`changed` says, and
+        neither moves over the range nor is raised differently."""
+        old = self.terrain
+        return (self.changed is not None and old is not None and not old.dynamic_index
+                and not terrain.dynamic_index and old.z_offset == terrain.z_offset)
+
     def reached(self, sim: Simulation, f: int) -> None:
-        """``sim`` is at frame ``f``: keep a copy of its state if it is one to keep."""
-        if (f % CHECKPOINT_FRAMES and f not in self._at) or f in self.states:
-            return
+        """``sim`` is at frame ``f``: note where it looked, keep a copy of its state if it is
+        one to keep."""
+        if f > 0:
+            # (the ground under the frame's feet is asked when the result is made)
+            self._looks.note(sim._frames[-1]["joints"][..., :2])
+            self.seen[f] = self._looks.take()
+        if (f % CHECKPOINT_FRAMES == 0 or f in self._at) and f not in self.states:
+            self._keep(sim, f)
+
+    def _keep(self, sim: Simulation, f: int) -> None:
         frames, stats = sim._frames, sim._stats
         sim._frames, sim._stats = [], []  # (taken from the run itself when resumed)
         try:
@@ -365,7 +398,10 @@ class Checkpoints:
 def _fixed_parts(sim: Simulation) -> dict[int, Any]:
     """A ``copy.deepcopy`` memo that shares the terrain and the fixed parts of ``sim``
     (:data:`_FIXED`, among its own and its controller's attributes) with its copies."""
-    memo: dict[int, Any] = {id(sim.env): sim.env}
+    env = sim.env
+    memo: dict[int, Any] = {id(env): env}
+    if isinstance(env, _Looks):
+        memo[id(env.env)] = env.env
     for value in (*vars(sim).values(), *vars(sim.controller).values()):
         items = value if isinstance(value, list | tuple) else (value,)
         for item in items:
@@ -433,3 +469,77 @@ def ground_function(job: Job) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
 
     ground.dynamic = bool(terrain.dynamic_index)  # type: ignore[attr-defined]
     return ground
+
+
+class _Looks:
+    """A simulation's terrain (``core.world.terrain.Environment``) noting the world xy bounds
+    of what it is asked (points, planning windows, rectangles) until :meth:`take`n. An
+    answer depends only on the scene inside what is asked (a window's cells on the scene
+    over their own bounds), so a run that never looked at a part of the scene walks the
+    same without it."""
+
+    def __init__(self, env: Any) -> None:
+        self.env = env
+        self._lo = np.full(2, np.inf)
+        self._hi = np.full(2, -np.inf)
+
+    def __getattr__(self, name: str) -> Any:
+        if name in ("env", "_lo", "_hi") or name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(self.env, name)
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> _Looks:
+        return self  # (the states of a run share it: it is the terrain of the run resumed)
+
+    def note(self, xy: Any, lo_pad: Any = 0.0, hi_pad: Any = 0.0) -> None:
+        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if p.shape[0]:
+            self._lo = np.minimum(self._lo, np.min(p - lo_pad, axis=0))
+            self._hi = np.maximum(self._hi, np.max(p + hi_pad, axis=0))
+
+    def take(self) -> np.ndarray:
+        """``(4,)`` x0, y0, x1, y1 of what was asked since the last take (empty: inf, -inf)."""
+        out = np.concatenate([self._lo, self._hi])
+        self._lo = np.full(2, np.inf)
+        self._hi = np.full(2, -np.inf)
+        return out
+
+    def height_at(self, xy: Any) -> Any:
+        self.note(xy)
+        return self.env.height_at(xy)
+
+    def forbidden_at(self, xy: Any) -> Any:
+        self.note(xy)
+        return self.env.forbidden_at(xy)
+
+    def moving_near(self, lo: Any, hi: Any) -> Any:
+        self.note(lo)
+        self.note(hi)
+        return self.env.moving_near(lo, hi)
+
+    def windows(self, centers_xy: Any, params: Any = None) -> Any:
+        ctr = np.asarray(centers_xy, dtype=np.float64).reshape(-1, 2)
+        plist = [params] * ctr.shape[0] if params is None or not isinstance(params, list | tuple) else params
+        # (a window's cells reach half its side and a cell of margin from its centre, rounded)
+        half = np.array([(0.5 * p.n_cells + 2.0) * p.cell if p is not None else np.inf for p in plist])
+        self.note(ctr, half[:, None], half[:, None])
+        return self.env.windows(centers_xy, params)
+
+
+def _margin(inputs: dict[str, Any]) -> float:
+    """How far beyond what changed a look may be affected: two planning cells."""
+    params = inputs["params"]
+    cells = [p.window_cell for p in (params if isinstance(params, list) else [params])]
+    return 2.0 * float(max(cells))
+
+
+def _first_look(seen: np.ndarray, changed: np.ndarray, margin: float) -> int:
+    """The first frame among ``seen`` ``(F, 4)`` (each frame's looks' bounds) whose looks
+    come within ``margin`` of a box of ``changed`` ``(m, 4)``; F when none does."""
+    if seen.shape[0] == 0:
+        return 0
+    c = np.asarray(changed, dtype=np.float64).reshape(-1, 4)
+    hit = ((seen[:, None, 0] <= c[None, :, 2] + margin) & (seen[:, None, 2] >= c[None, :, 0] - margin)
+           & (seen[:, None, 1] <= c[None, :, 3] + margin) & (seen[:, None, 3] >= c[None, :, 1] - margin))
+    hits = np.flatnonzero(hit.any(axis=1))
+    return int(hits[0]) if hits.size else int(seen.shape[0])
