@@ -493,9 +493,9 @@ class _Looks:
 
     def note(self, xy: Any, lo_pad: Any = 0.0, hi_pad: Any = 0.0) -> None:
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        if p.shape[0]:
-            self._lo = np.minimum(self._lo, np.min(p - lo_pad, axis=0))
-            self._hi = np.maximum(self._hi, np.max(p + hi_pad, axis=0))
+        if p.shape[0]:  # (a point that is not a number asks nothing: fmin and fmax pass it over)
+            self._lo = np.fmin(self._lo, np.fmin.reduce(p - lo_pad, axis=0))
+            self._hi = np.fmax(self._hi, np.fmax.reduce(p + hi_pad, axis=0))
 
     def take(self) -> np.ndarray:
         """``(4,)`` x0, y0, x1, y1 of what was asked since the last take (empty: inf, -inf)."""
