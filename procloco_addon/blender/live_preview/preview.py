@@ -3,8 +3,11 @@
 
 A regeneration is Generate Locomotion's own pipeline (``locomotion.generate``: read, read
 the terrain, simulate, write) run as progress steps (:func:`regenerate_steps`) that the
-timer in :mod:`.handler` advances a slice at a time. Two things differ from the button:
+timer in :mod:`.handler` advances a slice at a time. Three things differ from the button:
 
+* the simulation starts from the rig's last run (``simulation.Checkpoints``, kept in the
+  :class:`TerrainCache`) at the last frame the edit leaves as it was: the same walk, only
+  the frames from there on simulated again;
 * the current frame's pose is written first: once the simulation has reached the current
   frame, a one-frame Action holding that pose is assigned (so the viewport shows the new
   pose long before the range is done); the whole walk then replaces it;
