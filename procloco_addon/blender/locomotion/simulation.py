@@ -20,6 +20,7 @@ before the step into frame ``k``.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import functools
 import hashlib
 import pickle
@@ -286,10 +287,20 @@ def step_digests(inputs: dict[str, Any], n_frames: int) -> list[bytes]:
     changes = sorted(inputs["gait_changes"], key=lambda g: g.time)
     dt = float(inputs["dt"])
     fixed = {k: v for k, v in inputs.items() if k not in ("env", "controls", "gait_changes")}
-    out = [_digest((fixed, controls(0.0)))]
+    first = controls(0.0)
+    out = [_digest((fixed, first))]
+    names = [f.name for f in dataclasses.fields(first)]
+    due, due_key = 0, b""
     for f in range(1, n_frames):
         t_end = f * dt  # (Simulation.step: (steps so far + 1) * dt)
-        out.append(_digest((controls(t_end), [c for c in changes if c.time <= t_end + 1e-12])))
+        ctl = controls(t_end)
+        # (a command that is the very object of the first step's, its foot spacing or path
+        # arrays, is in item 0 already)
+        values = tuple("=" if getattr(ctl, k) is getattr(first, k) else getattr(ctl, k) for k in names)
+        count = sum(1 for c in changes if c.time <= t_end + 1e-12)
+        if count != due:
+            due, due_key = count, _digest(changes[:count])
+        out.append(_digest((values, due_key)))
     return out
 
 
