@@ -18,8 +18,8 @@ of the range, and the rows are, from the edit:
 
 then (row "later") a Gait Change at three quarters of the range is added and its speed edited, the
 current frame the last (Live Preview re-simulates only from the frame the edit changes), and (row
-"crate") a crate the walk reaches at about frame 80 is moved sideways (timed from the end of the
-debounce a move waits for; re-simulated from the first frame that looked near it); with, last,
+"crate") a crate the walk reaches at about frame 80 is moved sideways after a quiet time (re-simulated
+from the first frame that looked near it); with, last,
 ``generate_locomotion`` run straight through on the same edit (read, simulate,
 write). Times are the best of ``--repeat`` edits. The edit comes after a quiet time, so the
 regeneration starts at once (edits in a burst wait ``DEBOUNCE_S`` after the last one; add
@@ -143,7 +143,6 @@ def main() -> int:
         time.sleep(handler.DEBOUNCE_S)
         crate.location.x += dx
         bpy.context.view_layer.update()  # (the depsgraph handler sees the move)
-        time.sleep(handler.DEBOUNCE_S)  # (a move is a drag: it waits for the debounce)
         got = _drive(wolf)
         best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
                 min(best[4], got[4]))

@@ -428,13 +428,28 @@ def test_moving_a_terrain_object_regenerates(wolf: Any, clock: Clock) -> None:
     settle(clock)
     low = pose_eval.pose_matrices(wolf, [FRAMES], list(FEET))[0, :, 2, 3]
     clock.now += 1.0
-    bpy.data.objects["Ground"].location.z = 0.05
+    bpy.data.objects["Ground"].location.z = 0.02
     bpy.context.view_layer.update()  # the depsgraph handler sees the move
-    assert handler._state.watches[wolf.name].due is not None
+    assert handler._state.watches[wolf.name].due == clock.now  # after a quiet time: at once
+    handler.tick()
+    assert handler._state.run is not None
+    clock.now += 0.01
+    bpy.data.objects["Ground"].location.z = 0.05  # a drag: the moves that follow wait for the last
+    bpy.context.view_layer.update()
+    assert handler._state.watches[wolf.name].hinted  # (seen when the run in flight is done)
     settle(clock)
     high = pose_eval.pose_matrices(wolf, [FRAMES], list(FEET))[0, :, 2, 3]
     np.testing.assert_allclose(high - low, 0.05, atol=0.01)  # the feet stand on the raised ground
     assert len(procloco_actions()) == 1
+    clock.now += 1.0
+    bpy.data.objects["Ground"].location.z = 0.06
+    bpy.context.view_layer.update()
+    assert handler._state.watches[wolf.name].due == clock.now
+    clock.now += 0.05
+    bpy.data.objects["Ground"].location.z = 0.07  # before the timer ran: waits for the drag to stop
+    bpy.context.view_layer.update()
+    assert handler._state.watches[wolf.name].due == pytest.approx(clock.now + handler.DEBOUNCE_S)
+    settle(clock)
 
 
 def test_editing_the_path_curve_and_dragging_a_gait_sector_regenerate(wolf: Any, clock: Clock) -> None:
