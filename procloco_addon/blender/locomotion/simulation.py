@@ -23,6 +23,7 @@ import copy
 import dataclasses
 import functools
 import hashlib
+import os
 import pickle
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -288,7 +289,10 @@ def step_digests(inputs: dict[str, Any], n_frames: int) -> list[bytes]:
     dt = float(inputs["dt"])
     fixed = {k: v for k, v in inputs.items() if k not in ("env", "controls", "gait_changes")}
     first = controls(0.0)
-    out = [_digest((fixed, first))]
+    try:
+        out = [_digest((fixed, first))]
+    except (pickle.PicklingError, TypeError, AttributeError):  # (an argument pickle cannot take)
+        return [os.urandom(16) for _ in range(n_frames)]  # equal to no other run's: nothing reused
     names = [f.name for f in dataclasses.fields(first)]
     due, due_key = 0, b""
     for f in range(1, n_frames):
@@ -502,11 +506,14 @@ class _Looks:
     def __deepcopy__(self, memo: dict[int, Any]) -> _Looks:
         return self  # (the states of a run share it: it is the terrain of the run resumed)
 
-    def note(self, xy: Any, lo_pad: Any = 0.0, hi_pad: Any = 0.0) -> None:
+    def note(self, xy: Any, pad: Any = None) -> None:
+        """Note the points ``xy`` ``(n, 2)`` (``pad``: ``(n, 1)``, the half sides of squares
+        about them)."""
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
         if p.shape[0]:  # (a point that is not a number asks nothing: fmin and fmax pass it over)
-            self._lo = np.fmin(self._lo, np.fmin.reduce(p - lo_pad, axis=0))
-            self._hi = np.fmax(self._hi, np.fmax.reduce(p + hi_pad, axis=0))
+            lo, hi = (p, p) if pad is None else (p - pad, p + pad)
+            self._lo = np.fmin(self._lo, np.fmin.reduce(lo, axis=0))
+            self._hi = np.fmax(self._hi, np.fmax.reduce(hi, axis=0))
 
     def take(self) -> np.ndarray:
         """``(4,)`` x0, y0, x1, y1 of what was asked since the last take (empty: inf, -inf)."""
@@ -533,7 +540,7 @@ class _Looks:
         plist = [params] * ctr.shape[0] if params is None or not isinstance(params, list | tuple) else params
         # (a window's cells reach half its side and a cell of margin from its centre, rounded)
         half = np.array([(0.5 * p.n_cells + 2.0) * p.cell if p is not None else np.inf for p in plist])
-        self.note(ctr, half[:, None], half[:, None])
+        self.note(ctr, half[:, None])
         return self.env.windows(centers_xy, params)
 
 
