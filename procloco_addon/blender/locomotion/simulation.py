@@ -255,9 +255,9 @@ def run_all(jobs: Sequence[Job], kept: Checkpoints | None = None) -> Iterator[fl
     for f in range(first + 1, n_frames):
         terrain.apply_frame(f)
         sim.step()
-        if kept is not None:
-            kept.reached(sim, f)
         yield (f + 1) / n_frames
+        if kept is not None:  # (after the yield: Live Preview shows a frame before it is kept)
+            kept.reached(sim, f)
     res = sim.result()
     for i, job in enumerate(jobs):
         job.result = RigTracks.of(res, i)
