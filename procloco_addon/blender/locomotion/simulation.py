@@ -265,8 +265,9 @@ def run_all(jobs: Sequence[Job], kept: Checkpoints | None = None) -> Iterator[fl
 
 #: Frames between two states a :class:`Checkpoints` keeps besides those before each Gait
 #: Change, before the current frame and at the last frame (a copy of a wolf's state takes
-#: about 0.4 ms, against 3 ms a step).
-CHECKPOINT_FRAMES = 20
+#: about 0.5-1.5 ms, against 3 ms a step; an edit at a frame not foreseen, a terrain object
+#: moved, re-simulates up to this many frames more).
+CHECKPOINT_FRAMES = 30
 
 # Parts of a simulation that never change once it is made (the creatures' fixed geometry and
 # settings): shared between a simulation and the copies of its states.
@@ -509,7 +510,8 @@ class _Looks:
     def note(self, xy: Any, pad: Any = None) -> None:
         """Note the points ``xy`` ``(n, 2)`` (``pad``: ``(n, 1)``, the half sides of squares
         about them)."""
-        p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        p = (xy if type(xy) is np.ndarray and xy.ndim == 2 and xy.shape[1] == 2
+             else np.asarray(xy, dtype=np.float64).reshape(-1, 2))
         if p.shape[0]:  # (a point that is not a number asks nothing: fmin and fmax pass it over)
             lo, hi = (p, p) if pad is None else (p - pad, p + pad)
             self._lo = np.fmin(self._lo, np.fmin.reduce(lo, axis=0))
