@@ -267,7 +267,7 @@ def run_all(jobs: Sequence[Job], kept: Checkpoints | None = None) -> Iterator[fl
 #: Change, before the current frame and at the last frame (a copy of a wolf's state takes
 #: about 0.5-1.5 ms, against 3 ms a step; an edit at a frame not foreseen, a terrain object
 #: moved, re-simulates up to this many frames more).
-CHECKPOINT_FRAMES = 30
+CHECKPOINT_FRAMES = 20
 
 # Parts of a simulation that never change once it is made (the creatures' fixed geometry and
 # settings): shared between a simulation and the copies of its states.
