@@ -16,12 +16,17 @@ of the range, and the rows are, from the edit:
 * pose, CPU and whole, CPU: this process's CPU time to the current frame's pose and to the
   whole walk (a loaded machine stretches the wall times; the CPU times much less);
 
-with, last, ``generate_locomotion`` run straight through on the same edit (read, simulate,
+then (row "later") a Gait Change at three quarters of the range is added and its speed edited, the
+current frame the last (Live Preview re-simulates only from the frame the edit changes), and (row
+"crate") a crate the walk reaches at about frame 80 is moved sideways after a quiet time (re-simulated
+from the first frame that looked near it); with, last,
+``generate_locomotion`` run straight through on the same edit (read, simulate,
 write). Times are the best of ``--repeat`` edits. The edit comes after a quiet time, so the
 regeneration starts at once (edits in a burst wait ``DEBOUNCE_S`` after the last one; add
 it to these figures for them). Ends with
 ``RESULT live_preview first_s=<middle frame> whole_s=<middle frame> first_cpu_s=<first frame, CPU>
-generate_s=<s> generate_cpu_s=<s> longest_call_s=<s>``.
+last_s=<last frame> later_s=<later edit> crate_s=<crate moved> generate_s=<s> generate_cpu_s=<s>
+longest_call_s=<s>``.
 """
 
 from __future__ import annotations
@@ -110,6 +115,40 @@ def main() -> int:
         rows[where] = best
         print(f"{where + f' ({frame})':>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s "
               f"{best[3]:9.3f}s {best[4]:10.3f}s")
+    # A later edit: a Gait Change at three quarters of the range (its speed below the rig's,
+    # so Auto's planning window stays) edited, the current frame the last.
+    scene.frame_set(3 * args.frames // 4)
+    bpy.context.view_layer.objects.active = wolf
+    bpy.ops.procloco.add_gait_change()
+    change = wolf.procloco.gait_changes[0]
+    change.speed = 0.5
+    scene.frame_set(args.frames)
+    _drive(wolf)
+    best = (float("inf"), float("inf"), 0.0, float("inf"), float("inf"))
+    for speed in [0.45, 0.5] * args.repeat:
+        time.sleep(handler.DEBOUNCE_S)
+        change.speed = speed
+        got = _drive(wolf)
+        best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
+                min(best[4], got[4]))
+    rows["later"] = best
+    print(f"{f'later ({args.frames})':>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s "
+          f"{best[3]:9.3f}s {best[4]:10.3f}s")
+    wolf.procloco.gait_changes.clear()
+    _drive(wolf)
+    # A crate the walk reaches late (about frame 80 of 120) moved sideways by 0.3 m and back.
+    crate = bpy.data.objects["Crate3"]
+    best = (float("inf"), float("inf"), 0.0, float("inf"), float("inf"))
+    for dx in [0.3, -0.3] * args.repeat:
+        time.sleep(handler.DEBOUNCE_S)
+        crate.location.x += dx
+        bpy.context.view_layer.update()  # (the depsgraph handler sees the move)
+        got = _drive(wolf)
+        best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
+                min(best[4], got[4]))
+    rows["crate"] = best
+    print(f"{f'crate ({args.frames})':>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s "
+          f"{best[3]:9.3f}s {best[4]:10.3f}s")
     wolf.procloco.live_preview = False
     _drive(wolf)
     scene.frame_set(1)
@@ -123,7 +162,9 @@ def main() -> int:
     print(f"Generate Locomotion straight through (same edits): {generate_s:.3f}s, CPU {generate_cpu:.3f}s")
     longest = max(r[2] for r in rows.values())
     print(f"RESULT live_preview first_s={rows['middle'][0]:.3f} whole_s={rows['middle'][1]:.3f} "
-          f"first_cpu_s={rows['first'][3]:.3f} generate_s={generate_s:.3f} generate_cpu_s={generate_cpu:.3f} "
+          f"first_cpu_s={rows['first'][3]:.3f} last_s={rows['last'][0]:.3f} later_s={rows['later'][0]:.3f} "
+          f"crate_s={rows['crate'][0]:.3f} "
+          f"generate_s={generate_s:.3f} generate_cpu_s={generate_cpu:.3f} "
           f"longest_call_s={longest:.3f}")
     sys.stdout.flush()
     os._exit(0)  # (Blender's own exit handlers are not needed here)

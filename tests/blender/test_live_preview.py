@@ -262,6 +262,135 @@ def test_the_last_frame_is_shown_before_the_whole_range_is_written(wolf: Any, cl
     assert len(procloco_actions()) == 1
 
 
+def keys_of(obj: Any) -> dict[Any, tuple[np.ndarray, np.ndarray]]:
+    """The rig's Action, F-curve by F-curve: ``{channel: (frames, values)}``."""
+    action = obj.animation_data.action
+    return {channel: (frames, values) for channel, frames, values in actions.read_channels(action, obj)}
+
+
+def assert_same_keys(got: dict[Any, Any], want: dict[Any, Any]) -> None:
+    assert got.keys() == want.keys()
+    for channel, (frames, values) in want.items():  # (the same code on the same inputs: exact)
+        np.testing.assert_array_equal(got[channel][0], frames, err_msg=str(channel))
+        np.testing.assert_array_equal(got[channel][1], values, err_msg=str(channel))
+
+
+def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
+        wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A regeneration on the same terrain starts from the last run's state at the last frame
+    its inputs leave as they were, kept before the current frame, before each Gait Change
+    and at the last frame (a Gait Change added at the current frame, then edited; the range
+    made longer or shorter), and its walk is Generate's key for key; an edit of the speed
+    simulates the whole range."""
+    from procloco_addon.blender.locomotion import simulation
+    from procloco_addon.core.locomotion.sim import Simulation
+
+    monkeypatch.setattr(simulation, "CHECKPOINT_FRAMES", 1000)  # (no states kept on a regular beat)
+    steps: list[int] = []
+    real = Simulation.step
+
+    def counted(self: Any, *args: Any) -> Any:
+        steps.append(self.n_frames)  # (frames recorded before the step: its frame index is this)
+        return real(self, *args)
+
+    monkeypatch.setattr(Simulation, "step", counted)
+    bpy.context.scene.frame_set(8)  # (frame index 7)
+    wolf.procloco.live_preview = True
+    settle(clock)
+    assert steps == list(range(1, FRAMES))  # the first run: every frame
+    before = keys_of(wolf)
+
+    steps.clear()
+    clock.now += 1.0
+    assert bpy.ops.procloco.add_gait_change() == {"FINISHED"}  # at the current frame
+    change = wolf.procloco.gait_changes[0]
+    change.speed, change.transition_time = 0.6, 0.1
+    settle(clock)
+    assert steps == [7, 8, 9]  # from the state kept before the current frame
+    clock.now += 1.0
+    change.speed = 0.3  # (both speeds below the rig's: Auto's planning window, sized by the fastest, stays)
+    settle(clock)
+    assert steps == [7, 8, 9] * 2  # from the state kept before the Gait Change
+    shown = keys_of(wolf)
+    assert any(not np.array_equal(shown[c][1], before[c][1]) for c in before)  # it did change
+
+    steps.clear()
+    clock.now += 1.0
+    wolf.procloco.frame_end = FRAMES + 2  # two frames more (no animated terrain: the same terrain)
+    settle(clock)
+    assert steps == [10, 11]  # from the state kept at the last frame
+    clock.now += 1.0
+    wolf.procloco.frame_end = FRAMES  # and back: nothing to simulate
+    settle(clock)
+    assert steps == [10, 11]
+    assert_same_keys(keys_of(wolf), shown)
+
+    steps.clear()
+    clock.now += 1.0
+    wolf.procloco.speed = 0.9  # from the first frame on
+    settle(clock)
+    assert steps == list(range(1, FRAMES))
+    clock.now += 1.0
+    wolf.procloco.speed = 0.8  # back: the last run's inputs differ from the first frame on too
+    settle(clock)
+    assert steps == list(range(1, FRAMES)) * 2
+    assert_same_keys(keys_of(wolf), shown)
+
+    wolf.procloco.live_preview = False
+    settle(clock)  # kept
+    bpy.ops.procloco.generate_locomotion()  # the same settings, simulated from the first frame
+    assert_same_keys(keys_of(wolf), shown)
+
+
+def test_a_terrain_object_moved_where_the_walk_never_looked_simulates_nothing_again(
+        wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A terrain object moved far from the walk (out of every planning window and point the
+    simulation asked) leaves the whole walk as it was: nothing is simulated again. Moved
+    under the walk's start, every frame is. Either way the walk is Generate's key for key."""
+    from procloco_addon.core.locomotion.sim import Simulation
+
+    steps: list[int] = []
+    real = Simulation.step
+
+    def counted(self: Any, *args: Any) -> Any:
+        steps.append(self.n_frames)
+        return real(self, *args)
+
+    monkeypatch.setattr(Simulation, "step", counted)
+    bpy.ops.mesh.primitive_cube_add(size=0.2, location=(3.0, 3.0, 0.1))
+    crate = bpy.context.active_object
+    bpy.context.view_layer.objects.active = wolf
+    wolf.procloco.live_preview = True
+    settle(clock)
+    assert steps == list(range(1, FRAMES))
+    far = keys_of(wolf)
+
+    steps.clear()
+    clock.now += 1.0
+    crate.location = (3.2, 2.5, 0.1)  # still far from the walk
+    bpy.context.view_layer.update()  # (the depsgraph handler sees the move)
+    settle(clock)
+    assert steps == []
+    assert preview.up_to_date(wolf, preview.input_signature(bpy.context, wolf)[0])  # (of the new terrain)
+    assert_same_keys(keys_of(wolf), far)
+
+    clock.now += 1.0
+    crate.location = (0.0, 0.0, -0.05)  # under the wolf's start (a step of 5 cm)
+    bpy.context.view_layer.update()
+    settle(clock)
+    assert steps == list(range(1, FRAMES))
+    shown = keys_of(wolf)
+    assert any(not np.array_equal(shown[c][1], far[c][1]) for c in far)
+
+    wolf.procloco.live_preview = False
+    settle(clock)
+    bpy.ops.procloco.generate_locomotion()
+    assert_same_keys(keys_of(wolf), shown)
+    crate.location = (3.2, 2.5, 0.1)
+    bpy.ops.procloco.generate_locomotion()
+    assert_same_keys(keys_of(wolf), far)
+
+
 def test_a_setting_edited_reuses_the_rig_read_and_a_painted_weight_is_read_again(
         wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
     from procloco_addon.blender.rig import read
@@ -299,13 +428,28 @@ def test_moving_a_terrain_object_regenerates(wolf: Any, clock: Clock) -> None:
     settle(clock)
     low = pose_eval.pose_matrices(wolf, [FRAMES], list(FEET))[0, :, 2, 3]
     clock.now += 1.0
-    bpy.data.objects["Ground"].location.z = 0.05
+    bpy.data.objects["Ground"].location.z = 0.02
     bpy.context.view_layer.update()  # the depsgraph handler sees the move
-    assert handler._state.watches[wolf.name].due is not None
+    assert handler._state.watches[wolf.name].due == clock.now  # after a quiet time: at once
+    handler.tick()
+    assert handler._state.run is not None
+    clock.now += 0.01
+    bpy.data.objects["Ground"].location.z = 0.05  # a drag: the moves that follow wait for the last
+    bpy.context.view_layer.update()
+    assert handler._state.watches[wolf.name].hinted  # (seen when the run in flight is done)
     settle(clock)
     high = pose_eval.pose_matrices(wolf, [FRAMES], list(FEET))[0, :, 2, 3]
     np.testing.assert_allclose(high - low, 0.05, atol=0.01)  # the feet stand on the raised ground
     assert len(procloco_actions()) == 1
+    clock.now += 1.0
+    bpy.data.objects["Ground"].location.z = 0.06
+    bpy.context.view_layer.update()
+    assert handler._state.watches[wolf.name].due == clock.now
+    clock.now += 0.05
+    bpy.data.objects["Ground"].location.z = 0.07  # before the timer ran: waits for the drag to stop
+    bpy.context.view_layer.update()
+    assert handler._state.watches[wolf.name].due == pytest.approx(clock.now + handler.DEBOUNCE_S)
+    settle(clock)
 
 
 def test_editing_the_path_curve_and_dragging_a_gait_sector_regenerate(wolf: Any, clock: Clock) -> None:

@@ -12,8 +12,8 @@ calling it until it returns None (background mode runs no timers):
   terrain); the message bus wakes the timer when a ProcLoco setting is edited in the UI
   (property ``update`` callbacks are not used: on Blender 4.2 a property group with Python
   callbacks crashes Blender at exit once the extension was uninstalled);
-* an edit after a quiet time starts a regeneration at once; edits that follow each other
-  within :data:`DEBOUNCE_S` wait until that long after the last one;
+* an edit (or an object moved) after a quiet time starts a regeneration at once; edits
+  that follow each other within :data:`DEBOUNCE_S` wait until that long after the last one;
 * before re-generating, the inputs' digest (:func:`.preview.input_signature`) is compared
   with the one the shown preview was made from: a change that changes nothing (or
   ProcLoco's own writes seen by the depsgraph) costs no regeneration;
@@ -94,6 +94,7 @@ class _State:
     watches: dict[str, _Watch]
     run: _Run | None = None
     busy: bool = False  # ProcLoco itself is changing the scene: the depsgraph hints are its own
+    last_move: float = float("-inf")  # when the depsgraph last reported an object moved or edited
     clock: Callable[[], float] = time.monotonic
     registered: bool = False
 
@@ -202,7 +203,9 @@ def _start_due(context: Any, now: float) -> None:
             continue
         _state.busy = True
         try:
-            signature = preview.input_signature(context, obj)
+            # (this tick's poll has just read the rig's settings)
+            seen = watch.seen[0] if watch.seen is not None else None
+            signature = preview.input_signature(context, obj, seen)
         finally:
             _state.busy = False
         on = bool(obj.procloco.live_preview)
@@ -338,16 +341,21 @@ def _on_depsgraph_update(_scene: Any, depsgraph: Any = None) -> None:
     if not moved:
         return
     now = _state.clock()
+    # A move after a quiet time is looked at at once (a single move: G, a value, Enter); a drag
+    # sends many: the ones that follow wait until it stops.
+    quiet = now - _state.last_move >= DEBOUNCE_S
+    _state.last_move = now
     for name, watch in _state.watches.items():
         if _state.run is not None and _state.run.rig == name:
             watch.hinted = True  # looked at when it is done
         else:
-            watch.due = now + DEBOUNCE_S  # a drag sends many: wait until it stops
+            watch.due = now if quiet else now + DEBOUNCE_S
     wake()
 
 
 def _forget(*_args: Any) -> None:
     _stop_run()
+    _state.last_move = float("-inf")
     _state.watches.clear()
     _state.cache.clear()
     _state.reads.clear()

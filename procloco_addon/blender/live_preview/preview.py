@@ -3,8 +3,11 @@
 
 A regeneration is Generate Locomotion's own pipeline (``locomotion.generate``: read, read
 the terrain, simulate, write) run as progress steps (:func:`regenerate_steps`) that the
-timer in :mod:`.handler` advances a slice at a time. Two things differ from the button:
+timer in :mod:`.handler` advances a slice at a time. Three things differ from the button:
 
+* the simulation starts from the rig's last run (``simulation.Checkpoints``, kept in the
+  :class:`TerrainCache`) at the last frame the edit leaves as it was: the same walk, only
+  the frames from there on simulated again;
 * the current frame's pose is written first: once the simulation has reached the current
   frame, a one-frame Action holding that pose is assigned (so the viewport shows the new
   pose long before the range is done); the whole walk then replaces it;
@@ -23,14 +26,14 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
-from collections.abc import Generator
+from collections.abc import Generator, Sequence
 from typing import Any
 
 import bpy
 import numpy as np
 
 from .. import actions, rig, scene_terrain
-from ..locomotion import generate
+from ..locomotion import generate, simulation
 from ..modal import Steps, steps_with_result
 
 __all__ = [
@@ -101,20 +104,54 @@ def _terrain_part(context: bpy.types.Context, obj: bpy.types.Object) -> tuple[An
     """Where the terrain objects are and what their meshes hold. Objects that move by
     themselves (keys, constraints, parents) are sampled over the range by Generate: their
     placement at the current frame is left out, or every frame change would look like an edit."""
-    out: list[Any] = []
-    for ob in scene_terrain.terrain_objects(context, [obj], obj.procloco.terrain_collection):
-        animated = scene_terrain._maybe_animated(ob)
-        entry: list[Any] = [ob.name, ob.type, str(getattr(ob, "procloco_role", "AUTO")), animated]
-        if not animated:
-            entry.append(np.array(ob.matrix_world, dtype=np.float64).round(9).tobytes())
-        data = ob.data
-        if ob.type == "MESH" and data is not None:
-            co = np.empty(len(data.vertices) * 3, dtype=np.float32)
-            data.vertices.foreach_get("co", co)
-            entry += [data.name, hashlib.blake2b(co.tobytes(), digest_size=16).hexdigest(),
-                      tuple(m.type for m in ob.modifiers)]
-        out.append(tuple(entry))
-    return tuple(out)
+    return tuple(_terrain_entry(ob) for ob in scene_terrain.terrain_objects(context, [obj],
+                                                                             obj.procloco.terrain_collection))
+
+
+def _terrain_entry(ob: bpy.types.Object) -> tuple[Any, ...]:
+    animated = scene_terrain._maybe_animated(ob)
+    entry: list[Any] = [ob.name, ob.type, str(getattr(ob, "procloco_role", "AUTO")), animated]
+    if not animated:
+        entry.append(np.array(ob.matrix_world, dtype=np.float64).round(9).tobytes())
+    data = ob.data
+    if ob.type == "MESH" and data is not None:
+        co = np.empty(len(data.vertices) * 3, dtype=np.float32)
+        data.vertices.foreach_get("co", co)
+        entry += [data.name, hashlib.blake2b(co.tobytes(), digest_size=16).hexdigest(),
+                  tuple(m.type for m in ob.modifiers)]
+    return tuple(entry)
+
+
+_Boxes = dict[str, tuple[Any, np.ndarray]]
+
+
+def _terrain_boxes(context: bpy.types.Context, names: Sequence[str]) -> _Boxes:
+    """Each terrain object's :func:`_terrain_entry` and world xy bounds ``(4,)`` (x0, y0, x1,
+    y1) as evaluated now."""
+    depsgraph = context.evaluated_depsgraph_get()
+    out = {}
+    for name in names:
+        ob = bpy.data.objects.get(name)
+        if ob is None:
+            continue
+        ev = ob.evaluated_get(depsgraph)
+        corners = np.array([tuple(c) for c in ev.bound_box], dtype=np.float64).reshape(-1, 3)
+        world = corners @ np.array(ev.matrix_world, dtype=np.float64)[:3, :3].T + np.array(
+            ev.matrix_world, dtype=np.float64)[:3, 3]
+        out[name] = (_terrain_entry(ob), np.concatenate([world[:, :2].min(axis=0), world[:, :2].max(axis=0)]))
+    return out
+
+
+def _changed_boxes(old: _Boxes, new: _Boxes) -> np.ndarray:
+    """``(m, 4)`` the world xy bounds, before and after, of the terrain objects that changed
+    (moved, edited, added or taken away) from ``old`` to ``new`` (:func:`_terrain_boxes`)."""
+    boxes = []
+    for name in old.keys() | new.keys():
+        a, b = old.get(name), new.get(name)
+        if a is not None and b is not None and a[0] == b[0]:
+            continue
+        boxes += [item[1] for item in (a, b) if item is not None]
+    return np.array(boxes, dtype=np.float64).reshape(-1, 4)
 
 
 def _path_part(context: bpy.types.Context, obj: bpy.types.Object) -> Any:
@@ -127,12 +164,16 @@ def _path_part(context: bpy.types.Context, obj: bpy.types.Object) -> Any:
         return str(err)
 
 
-def input_signature(context: bpy.types.Context, obj: bpy.types.Object) -> tuple[str, str]:
+def input_signature(context: bpy.types.Context, obj: bpy.types.Object,
+                    settings: tuple[Any, ...] | None = None) -> tuple[str, str]:
     """``(whole, terrain)``: digests of everything the walk of ``obj`` is made from (its
     settings, its path curve as evaluated, the terrain objects' placement and meshes), and of
-    the terrain part alone (the key of the terrain read kept between regenerations)."""
+    the terrain part alone (the key of the terrain read kept between regenerations).
+    ``settings``: the rig's :func:`settings_signature` if just taken (the timer's poll)."""
     terrain = repr(_terrain_part(context, obj)).encode()
-    whole = repr((settings_signature(obj, context.scene), _path_part(context, obj))).encode() + terrain
+    if settings is None:
+        settings = settings_signature(obj, context.scene)
+    whole = repr((settings, _path_part(context, obj))).encode() + terrain
     return (hashlib.blake2b(whole, digest_size=16).hexdigest(),
             hashlib.blake2b(terrain, digest_size=16).hexdigest())
 
@@ -250,10 +291,19 @@ def _mark(action: bpy.types.Action, signature: str, partial: bool) -> None:
 
 class TerrainCache:
     """The terrain last read for each rig, reused while its objects do not change (an edit
-    of the gait or the speed re-simulates without reading the scene's meshes again)."""
+    of the gait or the speed re-simulates without reading the scene's meshes again), and
+    each rig's last simulation (``simulation.Checkpoints``: a run on the same terrain
+    starts from the last frame whose inputs are unchanged)."""
 
     def __init__(self) -> None:
         self._items: dict[str, tuple[tuple[Any, ...], scene_terrain.SceneTerrain]] = {}
+        self._runs: dict[str, simulation.Checkpoints] = {}
+        # the last two terrains read for each rig, with their objects' _terrain_boxes
+        self._boxes: dict[str, list[tuple[scene_terrain.SceneTerrain, _Boxes]]] = {}
+
+    def runs(self, rig: str) -> simulation.Checkpoints:
+        """The last simulation of ``rig`` (empty at first)."""
+        return self._runs.setdefault(rig, simulation.Checkpoints())
 
     def get(self, rig: str, key: tuple[Any, ...]) -> scene_terrain.SceneTerrain | None:
         item = self._items.get(rig)
@@ -262,8 +312,23 @@ class TerrainCache:
     def put(self, rig: str, key: tuple[Any, ...], terrain: scene_terrain.SceneTerrain) -> None:
         self._items[rig] = (key, terrain)
 
+    def read(self, rig: str, terrain: scene_terrain.SceneTerrain, boxes: _Boxes) -> None:
+        """``terrain`` was read for ``rig``, its objects as :func:`_terrain_boxes` says."""
+        self._boxes[rig] = [*self._boxes.get(rig, [])[-1:], (terrain, boxes)]
+
+    def changed(self, rig: str, old: Any, new: Any) -> np.ndarray | None:
+        """The world xy bounds ``(m, 4)`` of what changed from terrain ``old`` to ``new`` of
+        ``rig`` (:func:`_changed_boxes`), None when either is not one of its last two reads."""
+        found = {id(terrain): boxes for terrain, boxes in self._boxes.get(rig, [])
+                 if terrain is old or terrain is new}
+        if old is None or id(old) not in found or id(new) not in found:
+            return None
+        return _changed_boxes(found[id(old)], found[id(new)])
+
     def clear(self) -> None:
         self._items.clear()
+        self._runs.clear()
+        self._boxes.clear()
 
 
 class _FromFrame:
@@ -295,12 +360,18 @@ def _frame_job(job: generate.Job, k: int) -> generate.Job:
 
 def _read_terrain(context: bpy.types.Context, job: generate.Job, cache: TerrainCache,
                   terrain_signature: str) -> Generator[float, None, None]:
-    key = (terrain_signature, int(job.frames[0]), int(job.frames[-1]), round(job.lift, 9))
+    # (objects that move by themselves are read over the range: without any, the same terrain
+    # serves any range, and a run over a longer or shorter range starts from the last one's)
+    animated = any(scene_terrain._maybe_animated(bpy.data.objects[name]) for name in job.terrain_objects)
+    key = (terrain_signature, (int(job.frames[0]), int(job.frames[-1])) if animated else None,
+           round(job.lift, 9))
     terrain = cache.get(job.obj_name, key)
     if terrain is None:
         yield from generate.read_terrain(context, job)
         assert job.terrain is not None
         cache.put(job.obj_name, key, job.terrain)
+        # (where its objects are: a run that never looked where they changed starts from the last one)
+        cache.read(job.obj_name, job.terrain, _terrain_boxes(context, job.terrain_objects))
         return
     # (the terrain's own caches, its planning windows' rasterised tiles among them, are kept:
     # they never change a result, and the next walk crosses much the same ground)
@@ -339,7 +410,10 @@ def regenerate_steps(context: bpy.types.Context, obj_name: str, signature: tuple
     n = int(job.frames.size)
     k = int(np.clip(context.scene.frame_current - job.frames[0], 0, n - 1))
     try:
-        for i, fraction in enumerate(generate.simulate(job)):
+        kept = cache.runs(obj_name)
+        kept.current = k  # (a state before it kept: a Gait Change added there starts from it)
+        kept.changed = cache.changed(obj_name, kept.terrain, job.terrain)
+        for i, fraction in enumerate(generate.simulate(job, kept)):
             yield obj_name, 0.1 + 0.8 * fraction
             # The current frame first, the rest of the range follows (on the last frame too:
             # one frame is keyed in a fraction of the time the whole range takes).

@@ -482,13 +482,14 @@ def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.Contro
     return plan, list(dict.fromkeys(warnings))
 
 
-def simulate(job: Job) -> Iterator[float]:
-    """Run the core simulation for ``job``, yielding the fraction of frames done.
+def simulate(job: Job, kept: simulation.Checkpoints | None = None) -> Iterator[float]:
+    """Run the core simulation for ``job``, yielding the fraction of frames done (once per
+    frame). ``kept``: the rig's last run, to start from (Live Preview; ``simulation.run``).
 
     The result lands in ``job.result`` when the generator is exhausted.
     """
     t0 = time.perf_counter()
-    yield from simulation.run(job)
+    yield from simulation.run(job, kept)
     job.timings["simulate_s"] = time.perf_counter() - t0
 
 
