@@ -66,6 +66,9 @@ _CURVE_BASIS = hermite_basis(_CURVE_S)  # (m, 4), the same for every curve
 _CURVE_STEP = float(_CURVE_S[1] - _CURVE_S[0])
 _CURVE_STEP_BASIS = _CURVE_BASIS[1:] - _CURVE_BASIS[:-1]  # (m - 1, 4): from one sample to the next
 _POWERS = np.array([3.0, 2.0, 1.0, 0.0])  # s³, s², s, 1
+#: ``(i - 1) * _CURVE_STEP`` at ``i`` (from 1): the parameter of the dense sample before sample ``i``
+_CURVE_S_BEFORE = np.concatenate([[0.0], np.arange(_CURVE_SAMPLES - 1) * _CURVE_STEP])
+_ONES3 = np.ones(3)  # a product with it sums the x, y, z of vectors (in that order)
 _EPS = 1e-12
 _TWO_PI = 2.0 * np.pi
 DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
@@ -1169,42 +1172,59 @@ def _sample_curve(
     c, k = key_xyz.shape[:2]
     m = _CURVE_SAMPLES
     n_j = segment.shape[0]
-    d = key_xyz[:, 1:] - key_xyz[:, :-1]
+    pair = _segment_pairs(k)  # (K - 1, 2): each key segment's two nodes
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
-    ctrl[:, :, 0] = key_xyz[:, :-1]
-    ctrl[:, :, 1] = key_xyz[:, 1:]
-    chord = np.sqrt(np.add.reduce(d * d, axis=-1, keepdims=True))  # (C, K - 1, 1)
-    np.multiply(tangent[:, :-1], chord, out=ctrl[:, :, 2])
-    np.multiply(tangent[:, 1:], chord, out=ctrl[:, :, 3])
+    ends_xyz = ctrl[:, :, 0:2]
+    ends_xyz[...] = key_xyz[:, pair]
+    d = ends_xyz[:, :, 1] - ends_xyz[:, :, 0]
+    chord = np.sqrt((d * d) @ _ONES3)  # (C, K - 1)
+    np.multiply(tangent[:, pair], chord[..., None, None], out=ctrl[:, :, 2:4])
     step = _CURVE_STEP_BASIS @ ctrl  # (C, K - 1, m - 1, 3): between consecutive dense samples
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
-    np.sqrt(np.add.reduce(step * step, axis=-1)).cumsum(axis=2, out=table[:, :, 1:])
+    step *= step
+    np.sqrt(step @ _ONES3).cumsum(axis=2, out=table[:, :, 1:])
     tab = table[:, segment]  # (C, J, m)
     target = fraction * tab[..., m - 1]
     # the first sample at or past the target (a fraction is at most 1: never past the end)
     idx = np.add.reduce(tab < target[..., None], axis=-1)
     np.maximum(idx, 1, out=idx)
     flat = tab.reshape(-1)
-    at = idx + _row_offsets(c * n_j, m).reshape(c, n_j)
+    at = idx + _row_offsets(c, n_j, m)
     l1 = flat[at]
     l0 = flat[at - 1]
-    frac = (target - l0) / np.maximum(l1 - l0, _EPS)
-    param = (idx - 1) * _CURVE_STEP + np.minimum(np.maximum(frac, 0.0), 1.0) * _CURVE_STEP
+    frac = target - l0
+    frac /= np.maximum(l1 - l0, _EPS)
+    np.maximum(frac, 0.0, out=frac)
+    np.minimum(frac, 1.0, out=frac)
+    frac *= _CURVE_STEP
+    param = _CURVE_S_BEFORE[idx]
+    param += frac
     # Exact ends: key joints sit on their key node.
     param[:, ends] = end_value
     basis = (param[..., None] ** _POWERS) @ HERMITE_MATRIX  # (C, J, 4): hermite_basis
     return np.asarray((basis[:, :, None, :] @ ctrl[:, segment])[:, :, 0])
 
 
-_ROW_OFFSETS: dict[tuple[int, int], IntArray] = {}
+_ROW_OFFSETS: dict[tuple[int, int, int], IntArray] = {}
 
 
-def _row_offsets(n: int, m: int) -> IntArray:
-    """``np.arange(n) * m``, made once per ``(n, m)``: where each row of an ``(n, m)``
-    array starts in its flattening."""
-    out = _ROW_OFFSETS.get((n, m))
+def _row_offsets(c: int, n: int, m: int) -> IntArray:
+    """``(np.arange(c * n) * m).reshape(c, n)``, made once per ``(c, n, m)``: where each row
+    of a ``(c, n, m)`` array starts in its flattening."""
+    out = _ROW_OFFSETS.get((c, n, m))
     if out is None:
-        out = _ROW_OFFSETS[(n, m)] = np.arange(n, dtype=np.intp) * m
+        out = _ROW_OFFSETS[(c, n, m)] = (np.arange(c * n, dtype=np.intp) * m).reshape(c, n)
+    return out
+
+
+_SEGMENT_PAIRS: dict[int, IntArray] = {}
+
+
+def _segment_pairs(k: int) -> IntArray:
+    """``(k - 1, 2)``: the two key nodes of each of ``k`` nodes' segments, made once per ``k``."""
+    out = _SEGMENT_PAIRS.get(k)
+    if out is None:
+        out = _SEGMENT_PAIRS[k] = np.stack([np.arange(k - 1), np.arange(1, k)], axis=1).astype(np.intp)
     return out
 
 
@@ -1226,22 +1246,29 @@ def build_spine(
     yaw and pitch limits.
     """
     guide = np.asarray(key_xyz, dtype=np.float64)
-    c = guide.shape[0]
-    n_j = spines.n_joints
-    n_b = n_j - 1
     yaw = _as_shape(key_yaw, guide.shape[:2])
     pitch = _as_shape(key_pitch, guide.shape[:2])
     if tangent is None:
         tangent = -_direction(yaw, spines.rest_key_pitch + pitch)  # the curve runs from the head to the back
+    return _build(spines, guide.copy(), np.array(yaw, copy=True), np.array(pitch, copy=True), tangent)
+
+
+def _build(spines: SpineBatch, guide: FloatArray, yaw: FloatArray, pitch: FloatArray, tangent: FloatArray
+           ) -> SpinePose:
+    """:func:`build_spine` on arrays the pose may keep as they are (nobody changes them)."""
+    c = guide.shape[0]
+    n_j = spines.n_joints
+    n_b = n_j - 1
     samples = _sample_curve(guide, tangent, spines.joint_segment, spines.joint_fraction, spines.curve_ends,
                             spines.curve_end_value)
     # each bone's turn from rest (yaw, pitch) = (dev[0], dev[1]), each (C, J - 1)
     chord = samples[:, 1:] - samples[:, :-1]
     cx, cy = chord[..., 0], chord[..., 1]
     dev = np.empty((2, c, n_b))
-    np.subtract(np.arctan2(cy, cx), spines.rest_chord_yaw, out=dev[0])
+    np.arctan2(cy, cx, out=dev[0])
+    np.arctan2(chord[..., 2], np.hypot(cx, cy), out=dev[1])
+    dev -= spines.rest_chord_turn
     _wrap_in_place(dev[0])
-    np.subtract(np.arctan2(chord[..., 2], np.hypot(cx, cy)), spines.rest_chord_pitch, out=dev[1])
     # Mostly no joint is at its limit (then every turn stays as it is): one test for both.
     within = np.abs(dev[:, :, 1:] - dev[:, :, :-1]) < spines.turn_limit
     if n_b >= 2 and np.count_nonzero(within) < within.size:
@@ -1275,9 +1302,9 @@ def build_spine(
         joints=joints,
         bone_rotation=rotation,
         joint_frame=turned[:, n_b:],
-        guide_xyz=guide.copy(),
-        key_yaw=np.array(yaw, copy=True),
-        key_pitch=np.array(pitch, copy=True),
+        guide_xyz=guide,
+        key_yaw=yaw,
+        key_pitch=pitch,
         tangent=tangent,
         yaw_dev=dev[0],
         pitch_dev=dev[1],
@@ -1364,10 +1391,13 @@ def finish_spine(
     return build_spine(spines, guide, yaw, pitch)
 
 
-def refit(spines: SpineBatch, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePose:
+def refit(spines: SpineBatch, pose: SpinePose, key_xyz: npt.ArrayLike, *, keep: bool = False) -> SpinePose:
     """Step 4 again on new guides ``(C, K, 3)`` with the same tangents (thesis §4.2.4: when
-    the leg IK cannot reach, the spine is rebuilt on the closest positions it can hold)."""
-    return build_spine(spines, key_xyz, pose.key_yaw, pose.key_pitch, pose.tangent)
+    the leg IK cannot reach, the spine is rebuilt on the closest positions it can hold).
+    ``keep``: the new pose may hold ``key_xyz`` itself (the caller made it for it and will
+    not change it), else it holds a copy."""
+    guide = np.asarray(key_xyz, dtype=np.float64)
+    return _build(spines, guide if keep else guide.copy(), pose.key_yaw, pose.key_pitch, pose.tangent)
 
 
 def leg_frames(spines: SpineBatch, pose: SpinePose) -> FloatArray:
@@ -1476,7 +1506,7 @@ def reach_repeats(
         moved = sub.guide_xyz + shift - base
         size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, cap / np.maximum(size, _EPS))
-        new = refit(sub_spines, sub, base + moved)
+        new = refit(sub_spines, sub, base + moved, keep=True)
         pose = new if rows is None else pose_with_rows(pose, rows, new)
         last_hips = None
     return pose, last_hips
