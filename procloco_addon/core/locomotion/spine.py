@@ -911,44 +911,68 @@ def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) ->
     spine (continued straight behind the back node) at its chord length from the node in
     front."""
     c, k = xy.shape[0], xy.shape[1]
-    head_dir = xy[:, 0] - xy[:, 1]
-    head_dir /= vector_norm(head_dir, keepdims=True)
-    tail_dir = xy[:, -1] - xy[:, -2]
-    tail_dir /= vector_norm(tail_dir, keepdims=True)
-    reach = dist + spines.key_chord_sum + 1.0
+    # the new head ahead of the old one, and a point far beyond the back node (each end's
+    # direction and distance in one array: (C, 2 ends, ...))
+    end_dir = xy[:, _END_NODES] - xy[:, _END_NEIGHBOURS]
+    end_dir /= np.sqrt((end_dir * end_dir) @ _ONES2)[..., None]
+    how_far = np.empty((c, 2))
+    how_far[:, 0] = dist
+    np.add(dist, spines.key_chord_sum, out=how_far[:, 1])
+    how_far[:, 1] += 1.0
     support = np.empty((c, k + 2, 2))  # the new head, the old spine, far beyond the back node
-    support[:, 0] = xy[:, 0] + dist[:, None] * head_dir
     support[:, 1:-1] = xy
-    support[:, -1] = xy[:, -1] + reach[:, None] * tail_dir
+    end_dir *= how_far[..., None]
+    support[:, _SUPPORT_ENDS] = xy[:, _END_NODES] + end_dir
     a = support[:, :-1]  # segment starts (C, S, 2)
     d = support[:, 1:] - a
-    dx, dy = d[..., 0], d[..., 1]
-    dd = dx * dx + dy * dy  # (the products summed in the order np.einsum takes)
+    dd = (d * d) @ _ONES2  # (the products summed in the order np.einsum takes)
     usable = dd > _EPS
     four_dd = 4.0 * dd
-    two_dd = 2.0 * np.maximum(dd, _EPS)
-    seg_idx = np.arange(k + 1)
+    two_dd = np.maximum(dd, _EPS)
+    two_dd *= 2.0
+    seg_idx = _unit_index(k + 1)
     out = np.empty_like(xy)
     out[:, 0] = support[:, 0]
-    g = np.zeros(c, dtype=np.int64)
-    t = np.zeros(c)
-    rows = np.arange(c)
+    rows = _unit_index(c)
+    g = t = rows  # (the first node is looked for on every segment from its start)
     for i in range(1, k):
         f = a - out[:, i - 1, None, :]
-        fx, fy = f[..., 0], f[..., 1]
-        b = 2.0 * (fx * dx + fy * dy)
-        cc = (fx * fx + fy * fy) - spines.key_chord_sq[:, i - 1, None]
+        b = (f * d) @ _ONES2
+        b *= 2.0
+        cc = (f * f) @ _ONES2
+        cc -= spines.key_chord_sq[:, i - 1, None]
         disc = b * b - four_dd * cc
-        root = (-b + np.sqrt(np.maximum(disc, 0.0))) / two_dd
+        root = np.sqrt(np.maximum(disc, 0.0))
+        root -= b
+        root /= two_dd
         ok = usable & (disc >= 0.0) & (root <= 1.0 + 1e-12)
         if i == 1:  # from the head: every segment, from its start
             ok &= root >= -1e-12
         else:  # the segment the last node is on, from where it is; the ones after it
-            t_min = np.where(seg_idx[None, :] == g[:, None], t[:, None], 0.0)
-            ok &= (seg_idx[None, :] >= g[:, None]) & (root >= t_min - 1e-12)
+            on = seg_idx == g[:, None]
+            t_min = np.where(on, t[:, None], 0.0)
+            t_min -= 1e-12
+            ok &= (seg_idx >= g[:, None]) & (root >= t_min)
         g = ok.argmax(axis=1)  # the long last segment always qualifies
-        t = _clamp(root[rows, g], 0.0, 1.0)
+        t = np.minimum(np.maximum(root[rows, g], 0.0), 1.0)
         out[:, i] = a[rows, g] + t[:, None] * d[rows, g]
+    return out
+
+
+#: The end nodes of a spine (the head, the back node), their neighbours, and where the
+#: points ahead of and behind them go in :func:`_advance_on_support`'s support polyline.
+_END_NODES = np.array([0, -1])
+_END_NEIGHBOURS = np.array([1, -2])
+_SUPPORT_ENDS = np.array([0, -1])
+_ONES2 = np.ones(2)
+_INDEX: dict[int, IntArray] = {}
+
+
+def _unit_index(n: int) -> IntArray:
+    """``np.arange(n)``, made once per ``n``."""
+    out = _INDEX.get(n)
+    if out is None:
+        out = _INDEX[n] = np.arange(n)
     return out
 
 
