@@ -66,6 +66,9 @@ _CURVE_BASIS = hermite_basis(_CURVE_S)  # (m, 4), the same for every curve
 _CURVE_STEP = float(_CURVE_S[1] - _CURVE_S[0])
 _CURVE_STEP_BASIS = _CURVE_BASIS[1:] - _CURVE_BASIS[:-1]  # (m - 1, 4): from one sample to the next
 _POWERS = np.array([3.0, 2.0, 1.0, 0.0])  # s³, s², s, 1
+#: ``(i - 1) * _CURVE_STEP`` at ``i`` (from 1): the parameter of the dense sample before sample ``i``
+_CURVE_S_BEFORE = np.concatenate([[0.0], np.arange(_CURVE_SAMPLES - 1) * _CURVE_STEP])
+_ONES3 = np.ones(3)  # a product with it sums the x, y, z of vectors (in that order)
 _EPS = 1e-12
 _TWO_PI = 2.0 * np.pi
 DEFAULT_JOINT_YAW_LIMIT = float(np.radians(25.0))
@@ -908,44 +911,68 @@ def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) ->
     spine (continued straight behind the back node) at its chord length from the node in
     front."""
     c, k = xy.shape[0], xy.shape[1]
-    head_dir = xy[:, 0] - xy[:, 1]
-    head_dir /= vector_norm(head_dir, keepdims=True)
-    tail_dir = xy[:, -1] - xy[:, -2]
-    tail_dir /= vector_norm(tail_dir, keepdims=True)
-    reach = dist + spines.key_chord_sum + 1.0
+    # the new head ahead of the old one, and a point far beyond the back node (each end's
+    # direction and distance in one array: (C, 2 ends, ...))
+    end_dir = xy[:, _END_NODES] - xy[:, _END_NEIGHBOURS]
+    end_dir /= np.sqrt((end_dir * end_dir) @ _ONES2)[..., None]
+    how_far = np.empty((c, 2))
+    how_far[:, 0] = dist
+    np.add(dist, spines.key_chord_sum, out=how_far[:, 1])
+    how_far[:, 1] += 1.0
     support = np.empty((c, k + 2, 2))  # the new head, the old spine, far beyond the back node
-    support[:, 0] = xy[:, 0] + dist[:, None] * head_dir
     support[:, 1:-1] = xy
-    support[:, -1] = xy[:, -1] + reach[:, None] * tail_dir
+    end_dir *= how_far[..., None]
+    support[:, _SUPPORT_ENDS] = xy[:, _END_NODES] + end_dir
     a = support[:, :-1]  # segment starts (C, S, 2)
     d = support[:, 1:] - a
-    dx, dy = d[..., 0], d[..., 1]
-    dd = dx * dx + dy * dy  # (the products summed in the order np.einsum takes)
+    dd = (d * d) @ _ONES2  # (the products summed in the order np.einsum takes)
     usable = dd > _EPS
     four_dd = 4.0 * dd
-    two_dd = 2.0 * np.maximum(dd, _EPS)
-    seg_idx = np.arange(k + 1)
+    two_dd = np.maximum(dd, _EPS)
+    two_dd *= 2.0
+    seg_idx = _unit_index(k + 1)
     out = np.empty_like(xy)
     out[:, 0] = support[:, 0]
-    g = np.zeros(c, dtype=np.int64)
-    t = np.zeros(c)
-    rows = np.arange(c)
+    rows = _unit_index(c)
+    g = t = rows  # (the first node is looked for on every segment from its start)
     for i in range(1, k):
         f = a - out[:, i - 1, None, :]
-        fx, fy = f[..., 0], f[..., 1]
-        b = 2.0 * (fx * dx + fy * dy)
-        cc = (fx * fx + fy * fy) - spines.key_chord_sq[:, i - 1, None]
+        b = (f * d) @ _ONES2
+        b *= 2.0
+        cc = (f * f) @ _ONES2
+        cc -= spines.key_chord_sq[:, i - 1, None]
         disc = b * b - four_dd * cc
-        root = (-b + np.sqrt(np.maximum(disc, 0.0))) / two_dd
+        root = np.sqrt(np.maximum(disc, 0.0))
+        root -= b
+        root /= two_dd
         ok = usable & (disc >= 0.0) & (root <= 1.0 + 1e-12)
         if i == 1:  # from the head: every segment, from its start
             ok &= root >= -1e-12
         else:  # the segment the last node is on, from where it is; the ones after it
-            t_min = np.where(seg_idx[None, :] == g[:, None], t[:, None], 0.0)
-            ok &= (seg_idx[None, :] >= g[:, None]) & (root >= t_min - 1e-12)
+            on = seg_idx == g[:, None]
+            t_min = np.where(on, t[:, None], 0.0)
+            t_min -= 1e-12
+            ok &= (seg_idx >= g[:, None]) & (root >= t_min)
         g = ok.argmax(axis=1)  # the long last segment always qualifies
-        t = _clamp(root[rows, g], 0.0, 1.0)
+        t = np.minimum(np.maximum(root[rows, g], 0.0), 1.0)
         out[:, i] = a[rows, g] + t[:, None] * d[rows, g]
+    return out
+
+
+#: The end nodes of a spine (the head, the back node), their neighbours, and where the
+#: points ahead of and behind them go in :func:`_advance_on_support`'s support polyline.
+_END_NODES = np.array([0, -1])
+_END_NEIGHBOURS = np.array([1, -2])
+_SUPPORT_ENDS = np.array([0, -1])
+_ONES2 = np.ones(2)
+_INDEX: dict[int, IntArray] = {}
+
+
+def _unit_index(n: int) -> IntArray:
+    """``np.arange(n)``, made once per ``n``."""
+    out = _INDEX.get(n)
+    if out is None:
+        out = _INDEX[n] = np.arange(n)
     return out
 
 
@@ -1169,42 +1196,59 @@ def _sample_curve(
     c, k = key_xyz.shape[:2]
     m = _CURVE_SAMPLES
     n_j = segment.shape[0]
-    d = key_xyz[:, 1:] - key_xyz[:, :-1]
+    pair = _segment_pairs(k)  # (K - 1, 2): each key segment's two nodes
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
-    ctrl[:, :, 0] = key_xyz[:, :-1]
-    ctrl[:, :, 1] = key_xyz[:, 1:]
-    chord = np.sqrt(np.add.reduce(d * d, axis=-1, keepdims=True))  # (C, K - 1, 1)
-    np.multiply(tangent[:, :-1], chord, out=ctrl[:, :, 2])
-    np.multiply(tangent[:, 1:], chord, out=ctrl[:, :, 3])
+    ends_xyz = ctrl[:, :, 0:2]
+    ends_xyz[...] = key_xyz[:, pair]
+    d = ends_xyz[:, :, 1] - ends_xyz[:, :, 0]
+    chord = np.sqrt((d * d) @ _ONES3)  # (C, K - 1)
+    np.multiply(tangent[:, pair], chord[..., None, None], out=ctrl[:, :, 2:4])
     step = _CURVE_STEP_BASIS @ ctrl  # (C, K - 1, m - 1, 3): between consecutive dense samples
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
-    np.sqrt(np.add.reduce(step * step, axis=-1)).cumsum(axis=2, out=table[:, :, 1:])
+    step *= step
+    np.sqrt(step @ _ONES3).cumsum(axis=2, out=table[:, :, 1:])
     tab = table[:, segment]  # (C, J, m)
     target = fraction * tab[..., m - 1]
     # the first sample at or past the target (a fraction is at most 1: never past the end)
     idx = np.add.reduce(tab < target[..., None], axis=-1)
     np.maximum(idx, 1, out=idx)
     flat = tab.reshape(-1)
-    at = idx + _row_offsets(c * n_j, m).reshape(c, n_j)
+    at = idx + _row_offsets(c, n_j, m)
     l1 = flat[at]
     l0 = flat[at - 1]
-    frac = (target - l0) / np.maximum(l1 - l0, _EPS)
-    param = (idx - 1) * _CURVE_STEP + np.minimum(np.maximum(frac, 0.0), 1.0) * _CURVE_STEP
+    frac = target - l0
+    frac /= np.maximum(l1 - l0, _EPS)
+    np.maximum(frac, 0.0, out=frac)
+    np.minimum(frac, 1.0, out=frac)
+    frac *= _CURVE_STEP
+    param = _CURVE_S_BEFORE[idx]
+    param += frac
     # Exact ends: key joints sit on their key node.
     param[:, ends] = end_value
     basis = (param[..., None] ** _POWERS) @ HERMITE_MATRIX  # (C, J, 4): hermite_basis
     return np.asarray((basis[:, :, None, :] @ ctrl[:, segment])[:, :, 0])
 
 
-_ROW_OFFSETS: dict[tuple[int, int], IntArray] = {}
+_ROW_OFFSETS: dict[tuple[int, int, int], IntArray] = {}
 
 
-def _row_offsets(n: int, m: int) -> IntArray:
-    """``np.arange(n) * m``, made once per ``(n, m)``: where each row of an ``(n, m)``
-    array starts in its flattening."""
-    out = _ROW_OFFSETS.get((n, m))
+def _row_offsets(c: int, n: int, m: int) -> IntArray:
+    """``(np.arange(c * n) * m).reshape(c, n)``, made once per ``(c, n, m)``: where each row
+    of a ``(c, n, m)`` array starts in its flattening."""
+    out = _ROW_OFFSETS.get((c, n, m))
     if out is None:
-        out = _ROW_OFFSETS[(n, m)] = np.arange(n, dtype=np.intp) * m
+        out = _ROW_OFFSETS[(c, n, m)] = (np.arange(c * n, dtype=np.intp) * m).reshape(c, n)
+    return out
+
+
+_SEGMENT_PAIRS: dict[int, IntArray] = {}
+
+
+def _segment_pairs(k: int) -> IntArray:
+    """``(k - 1, 2)``: the two key nodes of each of ``k`` nodes' segments, made once per ``k``."""
+    out = _SEGMENT_PAIRS.get(k)
+    if out is None:
+        out = _SEGMENT_PAIRS[k] = np.stack([np.arange(k - 1), np.arange(1, k)], axis=1).astype(np.intp)
     return out
 
 
@@ -1226,22 +1270,29 @@ def build_spine(
     yaw and pitch limits.
     """
     guide = np.asarray(key_xyz, dtype=np.float64)
-    c = guide.shape[0]
-    n_j = spines.n_joints
-    n_b = n_j - 1
     yaw = _as_shape(key_yaw, guide.shape[:2])
     pitch = _as_shape(key_pitch, guide.shape[:2])
     if tangent is None:
         tangent = -_direction(yaw, spines.rest_key_pitch + pitch)  # the curve runs from the head to the back
+    return _build(spines, guide.copy(), np.array(yaw, copy=True), np.array(pitch, copy=True), tangent)
+
+
+def _build(spines: SpineBatch, guide: FloatArray, yaw: FloatArray, pitch: FloatArray, tangent: FloatArray
+           ) -> SpinePose:
+    """:func:`build_spine` on arrays the pose may keep as they are (nobody changes them)."""
+    c = guide.shape[0]
+    n_j = spines.n_joints
+    n_b = n_j - 1
     samples = _sample_curve(guide, tangent, spines.joint_segment, spines.joint_fraction, spines.curve_ends,
                             spines.curve_end_value)
     # each bone's turn from rest (yaw, pitch) = (dev[0], dev[1]), each (C, J - 1)
     chord = samples[:, 1:] - samples[:, :-1]
     cx, cy = chord[..., 0], chord[..., 1]
     dev = np.empty((2, c, n_b))
-    np.subtract(np.arctan2(cy, cx), spines.rest_chord_yaw, out=dev[0])
+    np.arctan2(cy, cx, out=dev[0])
+    np.arctan2(chord[..., 2], np.hypot(cx, cy), out=dev[1])
+    dev -= spines.rest_chord_turn
     _wrap_in_place(dev[0])
-    np.subtract(np.arctan2(chord[..., 2], np.hypot(cx, cy)), spines.rest_chord_pitch, out=dev[1])
     # Mostly no joint is at its limit (then every turn stays as it is): one test for both.
     within = np.abs(dev[:, :, 1:] - dev[:, :, :-1]) < spines.turn_limit
     if n_b >= 2 and np.count_nonzero(within) < within.size:
@@ -1275,9 +1326,9 @@ def build_spine(
         joints=joints,
         bone_rotation=rotation,
         joint_frame=turned[:, n_b:],
-        guide_xyz=guide.copy(),
-        key_yaw=np.array(yaw, copy=True),
-        key_pitch=np.array(pitch, copy=True),
+        guide_xyz=guide,
+        key_yaw=yaw,
+        key_pitch=pitch,
         tangent=tangent,
         yaw_dev=dev[0],
         pitch_dev=dev[1],
@@ -1364,10 +1415,13 @@ def finish_spine(
     return build_spine(spines, guide, yaw, pitch)
 
 
-def refit(spines: SpineBatch, pose: SpinePose, key_xyz: npt.ArrayLike) -> SpinePose:
+def refit(spines: SpineBatch, pose: SpinePose, key_xyz: npt.ArrayLike, *, keep: bool = False) -> SpinePose:
     """Step 4 again on new guides ``(C, K, 3)`` with the same tangents (thesis §4.2.4: when
-    the leg IK cannot reach, the spine is rebuilt on the closest positions it can hold)."""
-    return build_spine(spines, key_xyz, pose.key_yaw, pose.key_pitch, pose.tangent)
+    the leg IK cannot reach, the spine is rebuilt on the closest positions it can hold).
+    ``keep``: the new pose may hold ``key_xyz`` itself (the caller made it for it and will
+    not change it), else it holds a copy."""
+    guide = np.asarray(key_xyz, dtype=np.float64)
+    return _build(spines, guide if keep else guide.copy(), pose.key_yaw, pose.key_pitch, pose.tangent)
 
 
 def leg_frames(spines: SpineBatch, pose: SpinePose) -> FloatArray:
@@ -1476,7 +1530,7 @@ def reach_repeats(
         moved = sub.guide_xyz + shift - base
         size = vector_norm(moved, keepdims=True)
         moved *= np.minimum(1.0, cap / np.maximum(size, _EPS))
-        new = refit(sub_spines, sub, base + moved)
+        new = refit(sub_spines, sub, base + moved, keep=True)
         pose = new if rows is None else pose_with_rows(pose, rows, new)
         last_hips = None
     return pose, last_hips

@@ -308,7 +308,7 @@ def release_pull(
         return pulled, need, pulled_hips
     trial = np.where(keep[..., None], decayed, need)
     sb = g.spines
-    slow = refit(sb, free, free.guide_xyz + trial)
+    slow = refit(sb, free, free.guide_xyz + trial, keep=True)
     slow_hips = hip_positions(sb, slow)
     if pulled_hips is None:
         pulled_hips = hip_positions(sb, pulled)
