@@ -19,6 +19,7 @@ import pytest
 from procloco_addon.blender.locomotion import crowd, generate
 from tests.blender.pose_eval import leg_joints
 from tests.blender.scene_state import snapshot
+from tests.blender.spy import spy
 from tests.blender.test_generate import _measure_on, check_thresholds, modal_double
 from tools.examples import creatures
 
@@ -411,14 +412,7 @@ def test_copies_of_a_rig_read_together_are_detected_once(empty_scene: Any,
     rigs = [*wolves, odd, spider]
     bpy.context.view_layer.update()
     alone = {o.name: rig.detect_legs(o) for o in rigs}
-    calls = []
-    find_legs = read.find_legs
-
-    def counted(rest: Any, constrained: Any, name: str) -> Any:
-        calls.append(name)
-        return find_legs(rest, constrained, name)
-
-    monkeypatch.setattr(read, "find_legs", counted)
+    calls = spy(monkeypatch, read, "find_legs", lambda rest, constrained, name: name)
     with rig.reading_once():
         together = {o.name: rig.detect_legs(o) for o in rigs}
     assert calls == ["Wolf0", "Odd", "Spider"]
@@ -446,14 +440,7 @@ def test_copies_of_a_rig_read_together_are_read_once_and_placed(empty_scene: Any
     group.remove([v.index for v in skin.data.vertices if any(g.group == group.index for g in v.groups)])
     bpy.context.view_layer.update()
     alone = {o.name: rig.read_rig(o) for o in wolves}
-    calls: list[str] = []
-    real = read._read_rig
-
-    def counted(obj: Any, *args: Any) -> Any:
-        calls.append(obj.name)
-        return real(obj, *args)
-
-    monkeypatch.setattr(read, "_read_rig", counted)
+    calls = spy(monkeypatch, read, "_read_rig", lambda obj, *_: obj.name)
     with rig.reading_once():
         together = {o.name: rig.read_rig(o) for o in wolves}
         # What is made from a reading is shared by its copies (but what to key only on a plain

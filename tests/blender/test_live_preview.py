@@ -17,6 +17,7 @@ from procloco_addon.blender.live_preview import handler, preview
 from procloco_addon.blender.locomotion import generate
 from tests.blender import pose_eval
 from tests.blender.scene_state import snapshot
+from tests.blender.spy import spy
 from tests.blender.ui_recorder import draw_panel
 from tools.examples import creatures
 
@@ -286,14 +287,8 @@ def test_an_edit_of_a_later_gait_change_simulates_only_from_there(
     from procloco_addon.core.locomotion.sim import Simulation
 
     monkeypatch.setattr(simulation, "CHECKPOINT_FRAMES", 1000)  # (no states kept on a regular beat)
-    steps: list[int] = []
-    real = Simulation.step
-
-    def counted(self: Any, *args: Any) -> Any:
-        steps.append(self.n_frames)  # (frames recorded before the step: its frame index is this)
-        return real(self, *args)
-
-    monkeypatch.setattr(Simulation, "step", counted)
+    # (frames recorded before a step: its frame index is this)
+    steps = spy(monkeypatch, Simulation, "step", lambda sim, *_: sim.n_frames)
     bpy.context.scene.frame_set(8)  # (frame index 7)
     wolf.procloco.live_preview = True
     settle(clock)
@@ -349,14 +344,7 @@ def test_a_terrain_object_moved_where_the_walk_never_looked_simulates_nothing_ag
     under the walk's start, every frame is. Either way the walk is Generate's key for key."""
     from procloco_addon.core.locomotion.sim import Simulation
 
-    steps: list[int] = []
-    real = Simulation.step
-
-    def counted(self: Any, *args: Any) -> Any:
-        steps.append(self.n_frames)
-        return real(self, *args)
-
-    monkeypatch.setattr(Simulation, "step", counted)
+    steps = spy(monkeypatch, Simulation, "step", lambda sim, *_: sim.n_frames)
     bpy.ops.mesh.primitive_cube_add(size=0.2, location=(3.0, 3.0, 0.1))
     crate = bpy.context.active_object
     bpy.context.view_layer.objects.active = wolf
@@ -395,14 +383,7 @@ def test_a_setting_edited_reuses_the_rig_read_and_a_painted_weight_is_read_again
         wolf: Any, clock: Clock, monkeypatch: pytest.MonkeyPatch) -> None:
     from procloco_addon.blender.rig import read
 
-    calls: list[str] = []
-    real = read._read_rig
-
-    def counted(obj: Any, *args: Any) -> Any:
-        calls.append(obj.name)
-        return real(obj, *args)
-
-    monkeypatch.setattr(read, "_read_rig", counted)
+    calls = spy(monkeypatch, read, "_read_rig", lambda obj, *_: obj.name)
     wolf.procloco.live_preview = True
     settle(clock)
     clock.now += 1.0

@@ -15,6 +15,7 @@ from mathutils import Matrix, Quaternion
 
 from procloco_addon.blender import actions, rig
 from tests.blender.pose_eval import bone_heads_tails, pose_matrices, skin_vertices
+from tests.blender.spy import spy
 from tools.examples import creatures
 
 pytestmark = pytest.mark.blender
@@ -572,12 +573,7 @@ def test_a_read_cache_gives_an_unchanged_rig_back_and_reads_a_changed_one_again(
     arm = creatures.build_wolf(empty_scene)
     skin = next(o for o in bpy.data.objects if o.type == "MESH")
     cache = rig.ReadCache()
-    calls: list[str] = []
-    real = read._read_rest
-
-    def counted(obj: Any) -> Any:
-        calls.append(obj.name)
-        return real(obj)
+    calls = spy(monkeypatch, read, "_read_rest", lambda obj: obj.name)
 
     def cached() -> tuple[rig.RigInfo, int]:
         """The reading through the cache, and how many times the rest arrays were read for it."""
@@ -586,7 +582,6 @@ def test_a_read_cache_gives_an_unchanged_rig_back_and_reads_a_changed_one_again(
             info = rig.read_rig(arm, spine=True)
         return info, len(calls) - before
 
-    monkeypatch.setattr(read, "_read_rest", counted)
     first, n = cached()
     assert n == 1
     again, n = cached()
