@@ -350,19 +350,22 @@ def wavefront_each(
     sweeps = 0
     cand = np.empty(n)
     before = np.empty(n)
+    unchanged = np.empty(n, dtype=bool)
+    all_of = np.logical_and.reduce
     while sweeps < limit:
         np.copyto(before, inner)
         for view, cost in zip(shifted, costs, strict=True):
             np.add(view, cost, out=cand)
             np.minimum(inner, cand, out=inner)
         sweeps += 1
+        np.equal(before, inner, out=unchanged)
         if m == 1:  # one grid: the same test, without the per-grid bookkeeping
-            if np.array_equal(before, inner):
+            if all_of(unchanged):
                 iterations[0] = sweeps
                 settled[0] = True
                 break
             continue
-        same = np.logical_and.reduceat(before == inner, cuts)
+        same = np.logical_and.reduceat(unchanged, cuts)
         iterations[same & ~settled] = sweeps
         settled |= same
         if settled.all():
