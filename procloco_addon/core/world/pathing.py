@@ -51,6 +51,7 @@ coordinates ``(r, c)``; world xy ↔ grid through :class:`~.terrain.WindowGrids`
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -686,13 +687,14 @@ def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
     """Total absolute heading change (radians) of many polylines stored one after the other
     in ``samples`` ``(M, 2)``, polyline ``i`` being rows ``bounds[i]:bounds[i + 1]``."""
     n = len(bounds) - 1
-    d = np.diff(samples, axis=0)
+    # (differences as a[1:] - a[:-1]: np.diff's arithmetic without its Python-level set-up)
+    d = samples[1:] - samples[:-1]
     length = planar_length(d[:, 0], d[:, 1])
-    owner = np.repeat(np.arange(n), np.diff(bounds))
+    owner = np.repeat(np.arange(n), [b - a for a, b in itertools.pairwise(bounds)])
     keep = (length > 1e-9) & (owner[:-1] == owner[1:])
     idx = np.flatnonzero(keep)
     ang = np.arctan2(d[idx, 1], d[idx, 0])
-    turn = np.abs((np.diff(ang) + np.pi) % (2.0 * np.pi) - np.pi)
+    turn = np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)
     who = owner[idx]
     cuts = np.searchsorted(who, np.arange(n + 1)).tolist()
     out = []
@@ -713,13 +715,15 @@ def lift_each(
     must clear), its 2D ``length`` (> 0) and ``waypoints_2d``; ``ramp`` is already capped at
     half the length."""
     n = len(bounds) - 1
+    # (differences as a[1:] - a[:-1]: np.diff's arithmetic without its Python-level set-up)
+    counts = np.array([b - a for a, b in itertools.pairwise(bounds)])
     if n == 1:  # scalars broadcast: the same numbers, fewer calls
         L: FloatArray | float = length[0]
         rp: FloatArray | float = ramp[0]
         sh: FloatArray | float = step_height[0]
         owner = None
     else:
-        owner = np.repeat(np.arange(n), np.diff(bounds))
+        owner = np.repeat(np.arange(n), counts)
         L = np.asarray(length)[owner]
         rp = np.asarray(ramp)[owner]
         sh = np.asarray(step_height)[owner]
@@ -742,9 +746,9 @@ def lift_each(
     ks = arc[kidx]
     kz = required[kidx]
     # Height profile (height_profile per plan): knot j's segment to knot j + 1.
-    h = np.diff(ks)
+    h = ks[1:] - ks[:-1]
     h_safe = np.where(h > 1e-12, h, 1e-12)
-    delta = np.diff(kz) / h_safe
+    delta = (kz[1:] - kz[:-1]) / h_safe
     nk = kidx.size
     slope = np.empty(nk)
     slope[1:-1] = (kz[2:] - kz[:-2]) / np.maximum(ks[2:] - ks[:-2], 1e-12)
@@ -777,7 +781,7 @@ def lift_each(
     points = np.empty((arc.size, 3))
     points[:, :2] = samples
     np.maximum(z, required, out=points[:, 2])
-    d3 = np.diff(points, axis=0)
+    d3 = points[1:] - points[:-1]
     seg3 = vector_norm(d3)
     way3 = np.empty((nk, 3))
     way3[:, :2] = samples[kidx]
@@ -789,13 +793,12 @@ def lift_each(
         arcs[0, 0] = 0.0
         np.cumsum(seg3, out=arcs[0, 1:])
     else:
-        counts = np.diff(bounds)
         table = np.zeros((n, int(counts.max())))
         pos = np.arange(arc.size) - np.repeat(np.asarray(first), counts)
         inner = pos > 0  # a sample after its plan's first: its segment from the one before
         table[owner[inner], pos[inner]] = seg3[inner[1:]]
         arcs = np.cumsum(table, axis=1)
-    ends = arcs[np.arange(n), np.diff(bounds) - 1].tolist()
+    ends = arcs[np.arange(n), counts - 1].tolist()
     out = []
     for i in range(n):
         a, b = bounds[i], bounds[i + 1]
