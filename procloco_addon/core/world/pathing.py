@@ -690,17 +690,18 @@ def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
     # (differences as a[1:] - a[:-1]: np.diff's arithmetic without its Python-level set-up)
     d = samples[1:] - samples[:-1]
     length = planar_length(d[:, 0], d[:, 1])
-    owner = np.repeat(np.arange(n), [b - a for a, b in itertools.pairwise(bounds)])
+    owner = np.arange(n).repeat([b - a for a, b in itertools.pairwise(bounds)])
     keep = (length > 1e-9) & (owner[:-1] == owner[1:])
-    idx = np.flatnonzero(keep)
+    idx = keep.nonzero()[0]
     ang = np.arctan2(d[idx, 1], d[idx, 0])
     turn = np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)
     who = owner[idx]
     cuts = np.searchsorted(who, np.arange(n + 1)).tolist()
+    add = np.add.reduce  # (np.sum's reduction, without its Python-level dispatch)
     out = []
     for i in range(n):
         a, b = cuts[i], cuts[i + 1]
-        out.append(float(np.sum(turn[a : b - 1])) if b - a >= 2 else 0.0)
+        out.append(float(add(turn[a : b - 1])) if b - a >= 2 else 0.0)
     return out
 
 
@@ -723,7 +724,7 @@ def lift_each(
         sh: FloatArray | float = step_height[0]
         owner = None
     else:
-        owner = np.repeat(np.arange(n), counts)
+        owner = np.arange(n).repeat(counts)
         L = np.asarray(length)[owner]
         rp = np.asarray(ramp)[owner]
         sh = np.asarray(step_height)[owner]
@@ -760,7 +761,7 @@ def lift_each(
     is_knot[kidx] = 1
     # The knot at or before each sample (each plan's first sample is a knot), at most its
     # plan's second last: searchsorted(knots, s, "right") - 1 clipped, for increasing s.
-    seg = np.cumsum(is_knot) - 1
+    seg = is_knot.cumsum() - 1
     seg = np.minimum(seg, nk - 2) if owner is None else np.minimum(seg, (np.asarray(tails) - 1)[owner])
     t = np.minimum(np.maximum((arc - ks[seg]) / h_safe[seg], 0.0), 1.0)
     powers = np.empty((t.size, 4))
@@ -794,7 +795,7 @@ def lift_each(
         np.cumsum(seg3, out=arcs[0, 1:])
     else:
         table = np.zeros((n, int(counts.max())))
-        pos = np.arange(arc.size) - np.repeat(np.asarray(first), counts)
+        pos = np.arange(arc.size) - np.asarray(first).repeat(counts)
         inner = pos > 0  # a sample after its plan's first: its segment from the one before
         table[owner[inner], pos[inner]] = seg3[inner[1:]]
         arcs = np.cumsum(table, axis=1)
@@ -1050,7 +1051,7 @@ class PathContext:
         spacing = self.params.sample_spacing * self.grids.cell
         # Drop coincident consecutive waypoints (the start on its own cell centre).
         chords = waypoints[1:] - waypoints[:-1]
-        step = np.sqrt(np.add.reduce(chords * chords, axis=1))  # np.linalg.norm's arithmetic
+        step = vector_norm(chords)  # np.linalg.norm's arithmetic
         waypoints = waypoints[np.concatenate([[True], step > 1e-9])]
         if waypoints.shape[0] < 2:
             p = waypoints[:1]
@@ -1142,11 +1143,11 @@ def _turning(samples: FloatArray) -> float:
     """Total absolute heading change along a 2D polyline ``(m, 2)``, in radians:
     :func:`turning_each` of one polyline (the same arithmetic without its bookkeeping)."""
     d = samples[1:] - samples[:-1]
-    idx = np.flatnonzero(planar_length(d[:, 0], d[:, 1]) > 1e-9)
+    idx = (planar_length(d[:, 0], d[:, 1]) > 1e-9).nonzero()[0]
     if idx.size < 2:
         return 0.0
     ang = np.arctan2(d[idx, 1], d[idx, 0])
-    return float(np.sum(np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)))
+    return float(np.add.reduce(np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)))
 
 
 def _in_place(start: FloatArray, target_z: float, ground: float, step_height: float) -> FootTrajectory:
