@@ -35,6 +35,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
+from .geometry import sum_last
+
 FloatArray = npt.NDArray[np.float64]
 
 #: Hermite matrix of eq. F.4; rows multiply [s³, s², s, 1], columns are P1, P2, T1, T2.
@@ -360,8 +362,8 @@ def cardinal_samples(
     """
     pts = np.asarray(points, dtype=np.float64)
     n_seg = pts.shape[0] - 1
-    chords = pts[1:] - pts[:-1]
-    h = np.sqrt(np.add.reduce(chords * chords, axis=-1))
+    chords: FloatArray = pts[1:] - pts[:-1]
+    h = np.sqrt(sum_last(chords * chords))
     d = pts.shape[1]
     # the control points of every segment (its two points and two tangents), one row each
     ctrl = np.empty((n_seg, 4, d))
@@ -407,17 +409,17 @@ def cardinal_samples(
 
     table_t = _linspace(top, n_seg * k + 1)
     dense = evaluate(table_t)
-    dd = dense[1:] - dense[:-1]
+    dd: FloatArray = dense[1:] - dense[:-1]
     table_len = np.empty(table_t.size)
     table_len[0] = 0.0
-    np.cumsum(np.sqrt(np.add.reduce(dd * dd, axis=-1)), out=table_len[1:])
+    np.cumsum(np.sqrt(sum_last(dd * dd)), out=table_len[1:])
     length = float(table_len[-1])
     arc = _linspace(length, max(2, math.ceil(length / spacing) + 1))
     # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.
     t = np.interp(arc, table_len, table_t)  # arc is within [0, length]: its clip changes nothing
     approx = np.interp(t, table_t, table_len)
     v = evaluate(t, True)
-    speed = np.sqrt(np.add.reduce(v * v, axis=-1))
+    speed = np.sqrt(sum_last(v * v))
     fast = speed > 1e-12
     t = t + np.where(fast, (arc - approx) / np.where(fast, speed, 1.0), 0.0)
     t = np.minimum(np.maximum(t, 0.0), top)

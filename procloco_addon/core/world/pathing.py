@@ -51,6 +51,7 @@ coordinates ``(r, c)``; world xy ↔ grid through :class:`~.terrain.WindowGrids`
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -350,19 +351,22 @@ def wavefront_each(
     sweeps = 0
     cand = np.empty(n)
     before = np.empty(n)
+    unchanged = np.empty(n, dtype=bool)
+    all_of = np.logical_and.reduce
     while sweeps < limit:
         np.copyto(before, inner)
         for view, cost in zip(shifted, costs, strict=True):
             np.add(view, cost, out=cand)
             np.minimum(inner, cand, out=inner)
         sweeps += 1
+        np.equal(before, inner, out=unchanged)
         if m == 1:  # one grid: the same test, without the per-grid bookkeeping
-            if np.array_equal(before, inner):
+            if all_of(unchanged):
                 iterations[0] = sweeps
                 settled[0] = True
                 break
             continue
-        same = np.logical_and.reduceat(before == inner, cuts)
+        same = np.logical_and.reduceat(unchanged, cuts)
         iterations[same & ~settled] = sweeps
         settled |= same
         if settled.all():
@@ -683,19 +687,21 @@ def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
     """Total absolute heading change (radians) of many polylines stored one after the other
     in ``samples`` ``(M, 2)``, polyline ``i`` being rows ``bounds[i]:bounds[i + 1]``."""
     n = len(bounds) - 1
-    d = np.diff(samples, axis=0)
+    # (differences as a[1:] - a[:-1]: np.diff's arithmetic without its Python-level set-up)
+    d = samples[1:] - samples[:-1]
     length = planar_length(d[:, 0], d[:, 1])
-    owner = np.repeat(np.arange(n), np.diff(bounds))
+    owner = np.arange(n).repeat([b - a for a, b in itertools.pairwise(bounds)])
     keep = (length > 1e-9) & (owner[:-1] == owner[1:])
-    idx = np.flatnonzero(keep)
+    idx = keep.nonzero()[0]
     ang = np.arctan2(d[idx, 1], d[idx, 0])
-    turn = np.abs((np.diff(ang) + np.pi) % (2.0 * np.pi) - np.pi)
+    turn = np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)
     who = owner[idx]
     cuts = np.searchsorted(who, np.arange(n + 1)).tolist()
+    add = np.add.reduce  # (np.sum's reduction, without its Python-level dispatch)
     out = []
     for i in range(n):
         a, b = cuts[i], cuts[i + 1]
-        out.append(float(np.sum(turn[a : b - 1])) if b - a >= 2 else 0.0)
+        out.append(float(add(turn[a : b - 1])) if b - a >= 2 else 0.0)
     return out
 
 
@@ -710,13 +716,15 @@ def lift_each(
     must clear), its 2D ``length`` (> 0) and ``waypoints_2d``; ``ramp`` is already capped at
     half the length."""
     n = len(bounds) - 1
+    # (differences as a[1:] - a[:-1]: np.diff's arithmetic without its Python-level set-up)
+    counts = np.array([b - a for a, b in itertools.pairwise(bounds)])
     if n == 1:  # scalars broadcast: the same numbers, fewer calls
         L: FloatArray | float = length[0]
         rp: FloatArray | float = ramp[0]
         sh: FloatArray | float = step_height[0]
         owner = None
     else:
-        owner = np.repeat(np.arange(n), np.diff(bounds))
+        owner = np.arange(n).repeat(counts)
         L = np.asarray(length)[owner]
         rp = np.asarray(ramp)[owner]
         sh = np.asarray(step_height)[owner]
@@ -739,9 +747,9 @@ def lift_each(
     ks = arc[kidx]
     kz = required[kidx]
     # Height profile (height_profile per plan): knot j's segment to knot j + 1.
-    h = np.diff(ks)
+    h = ks[1:] - ks[:-1]
     h_safe = np.where(h > 1e-12, h, 1e-12)
-    delta = np.diff(kz) / h_safe
+    delta = (kz[1:] - kz[:-1]) / h_safe
     nk = kidx.size
     slope = np.empty(nk)
     slope[1:-1] = (kz[2:] - kz[:-2]) / np.maximum(ks[2:] - ks[:-2], 1e-12)
@@ -753,7 +761,7 @@ def lift_each(
     is_knot[kidx] = 1
     # The knot at or before each sample (each plan's first sample is a knot), at most its
     # plan's second last: searchsorted(knots, s, "right") - 1 clipped, for increasing s.
-    seg = np.cumsum(is_knot) - 1
+    seg = is_knot.cumsum() - 1
     seg = np.minimum(seg, nk - 2) if owner is None else np.minimum(seg, (np.asarray(tails) - 1)[owner])
     t = np.minimum(np.maximum((arc - ks[seg]) / h_safe[seg], 0.0), 1.0)
     powers = np.empty((t.size, 4))
@@ -774,7 +782,7 @@ def lift_each(
     points = np.empty((arc.size, 3))
     points[:, :2] = samples
     np.maximum(z, required, out=points[:, 2])
-    d3 = np.diff(points, axis=0)
+    d3 = points[1:] - points[:-1]
     seg3 = vector_norm(d3)
     way3 = np.empty((nk, 3))
     way3[:, :2] = samples[kidx]
@@ -786,13 +794,12 @@ def lift_each(
         arcs[0, 0] = 0.0
         np.cumsum(seg3, out=arcs[0, 1:])
     else:
-        counts = np.diff(bounds)
         table = np.zeros((n, int(counts.max())))
-        pos = np.arange(arc.size) - np.repeat(np.asarray(first), counts)
+        pos = np.arange(arc.size) - np.asarray(first).repeat(counts)
         inner = pos > 0  # a sample after its plan's first: its segment from the one before
         table[owner[inner], pos[inner]] = seg3[inner[1:]]
         arcs = np.cumsum(table, axis=1)
-    ends = arcs[np.arange(n), np.diff(bounds) - 1].tolist()
+    ends = arcs[np.arange(n), counts - 1].tolist()
     out = []
     for i in range(n):
         a, b = bounds[i], bounds[i + 1]
@@ -1044,7 +1051,7 @@ class PathContext:
         spacing = self.params.sample_spacing * self.grids.cell
         # Drop coincident consecutive waypoints (the start on its own cell centre).
         chords = waypoints[1:] - waypoints[:-1]
-        step = np.sqrt(np.add.reduce(chords * chords, axis=1))  # np.linalg.norm's arithmetic
+        step = vector_norm(chords)  # np.linalg.norm's arithmetic
         waypoints = waypoints[np.concatenate([[True], step > 1e-9])]
         if waypoints.shape[0] < 2:
             p = waypoints[:1]
@@ -1136,11 +1143,11 @@ def _turning(samples: FloatArray) -> float:
     """Total absolute heading change along a 2D polyline ``(m, 2)``, in radians:
     :func:`turning_each` of one polyline (the same arithmetic without its bookkeeping)."""
     d = samples[1:] - samples[:-1]
-    idx = np.flatnonzero(planar_length(d[:, 0], d[:, 1]) > 1e-9)
+    idx = (planar_length(d[:, 0], d[:, 1]) > 1e-9).nonzero()[0]
     if idx.size < 2:
         return 0.0
     ang = np.arctan2(d[idx, 1], d[idx, 0])
-    return float(np.sum(np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)))
+    return float(np.add.reduce(np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)))
 
 
 def _in_place(start: FloatArray, target_z: float, ground: float, step_height: float) -> FootTrajectory:
