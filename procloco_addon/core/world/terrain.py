@@ -1118,7 +1118,9 @@ class Environment:
         if hit is None:
             soup = self._soups[i]
             tris = soup.vertices[soup.faces]
-            hit = (tris, tris[..., :2].min(axis=1), tris[..., :2].max(axis=1))
+            a, b, c = tris[:, 0, :2], tris[:, 1, :2], tris[:, 2, :2]
+            # (corner by corner: a reduction across the corners of (f, 3, 2) is a strided loop)
+            hit = (tris, np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c))
             self._soup_tris[i] = hit
         return hit
 
