@@ -611,8 +611,8 @@ def triangle_hits(
     projection of triangles (their :func:`triangle_table` ``(f, 10)``), candidates
     ``point``/``tri`` ``(m,)``. Returns the pairs that hit and the triangle's height at the
     point, ``(k,)`` each."""
-    t = table[tri]
-    q = xy[point]
+    t = table.take(tri, axis=0)  # (take: rows gathered about twice as fast as by indexing)
+    q = xy.take(point, axis=0)
     px = q[:, 0] - t[:, 0]
     py = q[:, 1] - t[:, 1]
     e1x, e1y, e2x, e2y, den = t[:, 2], t[:, 3], t[:, 4], t[:, 5], t[:, 6]
@@ -620,9 +620,9 @@ def triangle_hits(
     v = (e1x * py - e1y * px) / den
     tol = -1e-9
     inside = np.flatnonzero((u >= tol) & (v >= tol) & (u + v <= 1.0 - tol))
-    t = t[inside]  # (the heights of the hits only)
-    z = t[:, 7] + u[inside] * t[:, 8] + v[inside] * t[:, 9]
-    return point[inside], tri[inside], z
+    t = t.take(inside, axis=0)  # (the heights of the hits only)
+    z = t[:, 7] + u.take(inside) * t[:, 8] + v.take(inside) * t[:, 9]
+    return point.take(inside), tri.take(inside), z
 
 
 # ---------------------------------------------------------------------------------------
