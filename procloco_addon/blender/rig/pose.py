@@ -581,15 +581,15 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
         # Heights asked again only where a foot turned since they were read (elsewhere its
         # points stand where they stood).
         ask = asked & (changed & own)[:, foot]
-        at = np.flatnonzero(ask)  # (only the points asked are placed)
-        at_f, at_p = np.divmod(at, foot.size)
+        where = np.flatnonzero(ask)  # (only the points asked are placed)
+        at_f, at_p = np.divmod(where, foot.size)
         at_j = foot.take(at_p)
         row = at_f * len(legs) + at_j  # (the rows of each point's foot gathered with take: faster)
         xy = np.reshape(turns, (-1, 3, 3))[:, :2].take(row, axis=0)
-        xy = np.einsum("pij,pj->pi", xy, rel.reshape(-1, 3).take(at, axis=0))
+        xy = np.einsum("pij,pj->pi", xy, rel.reshape(-1, 3).take(where, axis=0))
         xy += ends.reshape(-1, 3)[:, :2].take(row, axis=0)
         key = frame.take(at_f) if dynamic else np.zeros(at_f.size, dtype=np.int64)
-        heights.reshape(-1)[at] = _ground_in_runs(ground, key, xy)
+        heights.reshape(-1)[where] = _ground_in_runs(ground, key, xy)
         theta, _d = _foot_pitch(rel, starts, ends, heights, limit, lifts, reach)
         theta = theta[first, chosen]  # a standing foot's from where it began to stand
         if pitched is not None:
