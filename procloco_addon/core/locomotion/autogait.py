@@ -397,7 +397,8 @@ class AutoGait:
         for c, fr, speed in zip(auto, frs, speed_list, strict=True):
             p = self.params[c]
             edges = self._edges[c]
-            assert p is not None and edges is not None
+            assert p is not None
+            assert edges is not None
             band = bands[c]
             up, down = 1.0 + p.hysteresis, 1.0 - p.hysteresis
             while band < edges.size and fr > edges[band] * up:
