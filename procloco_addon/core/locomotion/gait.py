@@ -492,7 +492,8 @@ class GaitManager:
         legs = [self.legs_of[c] for c in chars]
         for c, g, lg in zip(chars, gaits, legs, strict=True):
             if g.n_legs != lg.size:
-                raise GaitError(f"character {c}: gait {g.name!r} has {g.n_legs} legs, the character {lg.size}")
+                raise GaitError(f"character {c}: gait {g.name!r} has {g.n_legs} legs, "
+                                f"the character {lg.size}")
         at = np.concatenate(legs)
         self.dst_start[at] = np.concatenate([g.swing_start for g in gaits])
         self.dst_duration[at] = np.concatenate([g.swing_duration for g in gaits])
