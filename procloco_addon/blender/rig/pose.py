@@ -136,24 +136,28 @@ GroundFn = Callable[[np.ndarray, np.ndarray], np.ndarray]
 NEAR_SHARE = 0.3
 
 
-def _sole_reach(rel: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _sole_reach(rel: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, ...]:
     """For the sole points ``rel`` ``(F, P, 3)`` of feet (relative to each end-effector; foot
     ``j``'s points from ``starts[j]`` to the next start): each foot's forward direction ``d``
-    ``(F, J, 2)``, each point's forward reach along its foot's ``a`` ``(F, P)``, and which
-    points are far enough ahead to limit the pitch, ``ahead`` ``(F, P)`` (points just ahead of
-    the ankle and behind it never do: :data:`NEAR_SHARE`)."""
+    ``(F, J, 2)``, each point's forward reach along its foot's ``a`` ``(F, P)``, which points
+    are far enough ahead to limit the pitch, ``ahead`` ``(F, P)`` (points just ahead of the
+    ankle and behind it never do: :data:`NEAR_SHARE`), and each point's distance from the
+    end-effector in the foot's vertical plane and its angle below the forward direction
+    there, ``(F, P)`` each (what :func:`_foot_pitch` reads of the sole, found once for its
+    passes)."""
     d = np.add.reduceat(rel[..., :2], starts, axis=1)
     d_norm = np.linalg.norm(d, axis=-1, keepdims=True)
     d = np.divide(d, d_norm, out=np.zeros_like(d), where=d_norm > 1e-12)
     foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, rel.shape[1])))
     a = np.einsum("fpi,fpi->fp", rel[..., :2], d[:, foot])  # forward reach of each point
     reach = np.maximum.reduceat(a, starts, axis=1)
-    return d, a, a > NEAR_SHARE * np.maximum(reach, 1e-12)[:, foot]
+    b = rel[..., 2]
+    return d, a, a > NEAR_SHARE * np.maximum(reach, 1e-12)[:, foot], np.hypot(a, b), np.arctan2(b, a)
 
 
 def _foot_pitch(
     rel: np.ndarray, starts: np.ndarray, end: np.ndarray, heights: np.ndarray, limit: float,
-    lift: np.ndarray | None = None, reach: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    lift: np.ndarray | None = None, reach: tuple[np.ndarray, ...] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Pitch ``(F, J)`` about each foot's horizontal cross axis that sets its sole on the
     ground, and each foot's forward direction ``(F, J, 2)``.
@@ -168,17 +172,20 @@ def _foot_pitch(
     toes at the ground below (swing, or over a gap). Only the heights of the points ahead
     (:func:`_sole_reach`, ``reach`` when already known) are read.
     """
-    d, a, ahead = _sole_reach(rel, starts) if reach is None else reach
-    foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, rel.shape[1])))
-    b = rel[..., 2]
-    c = heights - end[:, foot, 2]
-    radius = np.hypot(a, b)
+    d, _a, ahead, radius, angle = _sole_reach(rel, starts) if reach is None else reach
+    n_points = rel.shape[1]
+    foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, n_points)))
     # Points just ahead of the ankle are left out: a sole pitched about the ankle swings them
     # back and barely down (the skin under an ankle would forbid any downward pitch).
     ok = ahead & np.isfinite(heights)
-    with np.errstate(invalid="ignore"):  # (the heights not read: -inf)
-        need = np.arcsin(np.clip(c / np.maximum(radius, 1e-12), -1.0, 1.0)) - np.arctan2(b, a)
-    theta = np.maximum.reduceat(np.where(ok, need, -np.inf), starts, axis=1)
+    # (the points that count only: the others' heights are not read)
+    at = np.flatnonzero(ok)
+    row, col = np.divmod(at, n_points)
+    c = heights.reshape(-1).take(at) - end[..., 2].reshape(-1).take(row * starts.size + foot.take(col))
+    need = np.full(heights.shape, -np.inf)
+    need.reshape(-1)[at] = np.arcsin(np.clip(c / np.maximum(radius.reshape(-1).take(at), 1e-12), -1.0, 1.0)) \
+        - angle.reshape(-1).take(at)
+    theta = np.maximum.reduceat(need, starts, axis=1)
     theta = np.where(np.isfinite(theta), theta, 0.0)
     if lift is not None:
         fade = 0.5 * np.maximum.reduceat(np.where(ok, radius, 0.0), starts, axis=1)
@@ -581,11 +588,15 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
         # Heights asked again only where a foot turned since they were read (elsewhere its
         # points stand where they stood).
         ask = asked & (changed & own)[:, foot]
-        at_f, at_p = np.nonzero(ask)  # (only the points asked are placed)
-        at_j = foot[at_p]
-        xy = ends[at_f, at_j, :2] + np.einsum("pij,pj->pi", turns[at_f, at_j, :2], rel[at_f, at_p])
-        key = frame[at_f] if dynamic else np.zeros(at_f.size, dtype=np.int64)
-        heights[at_f, at_p] = _ground_in_runs(ground, key, xy)
+        where = np.flatnonzero(ask)  # (only the points asked are placed)
+        at_f, at_p = np.divmod(where, foot.size)
+        at_j = foot.take(at_p)
+        row = at_f * len(legs) + at_j  # (the rows of each point's foot gathered with take: faster)
+        xy = np.reshape(turns, (-1, 3, 3))[:, :2].take(row, axis=0)
+        xy = np.einsum("pij,pj->pi", xy, rel.reshape(-1, 3).take(where, axis=0))
+        xy += ends.reshape(-1, 3)[:, :2].take(row, axis=0)
+        key = frame.take(at_f) if dynamic else np.zeros(at_f.size, dtype=np.int64)
+        heights.reshape(-1)[where] = _ground_in_runs(ground, key, xy)
         theta, _d = _foot_pitch(rel, starts, ends, heights, limit, lifts, reach)
         theta = theta[first, chosen]  # a standing foot's from where it began to stand
         if pitched is not None:

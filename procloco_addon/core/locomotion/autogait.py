@@ -365,6 +365,13 @@ class AutoGait:
         # each character's last (band, speed, gait): at a steady speed the same gait is asked
         # for frame after frame, and building it cost more than the rest of the update
         self._last: list[tuple[int, float, Gait] | None] = [None] * len(self.params)
+        # what next_band and froude read of each character, made once: the characters with
+        # an auto gait, their boundaries (scaled), hysteresis and g * size
+        self._auto = [c for c, p in enumerate(self.params) if p is not None]
+        self._edges = [p.family.boundaries() * p.speed_scale ** 2 if p is not None else None
+                       for p in self.params]
+        self._g_size = np.array([p.g * max(float(p.size), 1e-9) for c in self._auto
+                                 if (p := self.params[c]) is not None], dtype=np.float64)
 
     def gaits(self, fallback: Sequence[Gait]) -> list[Gait]:
         """Starting gaits: the auto gait at the starting speed, else ``fallback[c]``."""
@@ -376,20 +383,41 @@ class AutoGait:
         v = np.empty(len(self.params))
         v[...] = speed  # (one for all, or one each)
         v = np.where(np.isfinite(v), np.abs(v), 0.0)
-        for c, p in enumerate(self.params):
-            if p is None:
-                continue
-            band = next_band(p.family, int(self.band[c]), float(p.froude(v[c])), p.speed_scale, p.hysteresis)
+        auto = self._auto
+        if not auto:
+            return
+        # every character's Froude number at once (froude's arithmetic), then next_band's
+        # tests in plain floats with each character's boundaries made once
+        speeds = v[auto]
+        frs: list[float] = (speeds * speeds / self._g_size).tolist()
+        speed_list: list[float] = speeds.tolist()
+        bands: list[int] = self.band.tolist()
+        kept_chars: list[int] = []
+        kept_gaits: list[Gait] = []
+        for c, fr, speed in zip(auto, frs, speed_list, strict=True):
+            p = self.params[c]
+            edges = self._edges[c]
+            assert p is not None
+            assert edges is not None
+            band = bands[c]
+            up, down = 1.0 + p.hysteresis, 1.0 - p.hysteresis
+            while band < edges.size and fr > edges[band] * up:
+                band += 1
+            while band > 0 and fr < edges[band - 1] * down:
+                band -= 1
             last = self._last[c]
-            if last is not None and last[0] == band and last[1] == float(v[c]):
+            if last is not None and last[0] == band and last[1] == speed:
                 gait = last[2]
             else:
-                gait = p.gait(band, float(v[c]))
-                self._last[c] = (band, float(v[c]), gait)
-            if band != self.band[c]:
+                gait = p.gait(band, speed)
+                self._last[c] = (band, speed, gait)
+            if band != bands[c]:
                 time = p.transition_cycles * float(manager.cycle_time[c])
                 manager.start_transition([c], [gait], time)
                 self.band[c] = band
                 self.n_changes[c] += 1
             else:
-                manager.retarget(c, gait)
+                kept_chars.append(c)
+                kept_gaits.append(gait)
+        if kept_chars:
+            manager.retarget_many(kept_chars, kept_gaits)

@@ -260,43 +260,64 @@ def steer(
     if ii.size == 0:
         return out_h, out_v
     # candidates (C, K) around each preferred velocity, x and y apart (every (pair,
-    # candidate) array below runs along the candidates)
+    # candidate) array below runs along the candidates; they are worked in place: a
+    # temporary of a hundred characters' pairs is larger than the allocator keeps at hand)
     ang = heading[:, None] + np.repeat(_OFFSETS, _SPEEDS.size)[None, :]
     mag = speed[:, None] * np.tile(_SPEEDS, _OFFSETS.size)[None, :]
     cand_x, cand_y = np.cos(ang) * mag, np.sin(ang) * mag
-    cx, cy = cand_x[ii], cand_y[ii]
+    # reciprocal toward a neighbour that also avoids (2 v - v_i - v_j), a plain velocity
+    # obstacle otherwise (v - v_j)
     vjx, vjy = velocity[jj, 0][:, None], velocity[jj, 1][:, None]
-    # reciprocal toward a neighbour that also avoids, a plain velocity obstacle otherwise
     recip = avoid[jj]
     if np.all(recip):
-        ux = 2.0 * cx - velocity[ii, 0][:, None] - vjx
-        uy = 2.0 * cy - velocity[ii, 1][:, None] - vjy
+        ux = (2.0 * cand_x)[ii]
+        ux -= velocity[ii, 0][:, None]
+        ux -= vjx
+        uy = (2.0 * cand_y)[ii]
+        uy -= velocity[ii, 1][:, None]
+        uy -= vjy
     else:
+        cx, cy = cand_x[ii], cand_y[ii]
         r = recip[:, None]
         ux = np.where(r, 2.0 * cx - velocity[ii, 0][:, None] - vjx, cx - vjx)
         uy = np.where(r, 2.0 * cy - velocity[ii, 1][:, None] - vjy, cy - vjy)
     px, py = d[ii, jj, 0][:, None], d[ii, jj, 1][:, None]
     big_r = (radius[ii] + radius[jj])[:, None]
-    a = ux * ux + uy * uy
-    b = px * ux + py * uy
-    cc = np.broadcast_to(px * px + py * py - big_r ** 2, a.shape)
-    disc = b * b - a * cc
-    with np.errstate(divide="ignore", invalid="ignore"):
-        root = (b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, 1e-18)
-        tc = np.where((b > 0.0) & (disc >= 0.0), root, np.inf)
+    a = ux * ux
+    a += uy * uy
+    b = px * ux
+    b += py * uy
+    cc = px * px + py * py - big_r ** 2  # (pairs, 1)
+    disc = b * b
+    disc -= a * cc
+    np.maximum(a, 1e-18, out=a)  # (a is only ever divided by from here on)
+    root = np.maximum(disc, 0.0)
+    np.sqrt(root, out=root)
+    np.subtract(b, root, out=root)
+    root /= a
+    ahead = b > 0.0
+    # the first contact: the smaller root where the paths meet
+    tc = np.where(ahead & (disc >= 0.0), root, np.inf)
     # already touching: any candidate still closing in is a contact now
-    tc = np.where(cc < 0.0, np.where(b > 0.0, 0.0, np.inf), tc)
+    touching = np.flatnonzero(cc[:, 0] < 0.0)
+    if touching.size:
+        tc[touching] = np.where(ahead[touching], 0.0, np.inf)
     # per character (np.nonzero gives the pairs sorted by ii): the first contact over its pairs
     rows, starts = np.unique(ii, return_index=True)
     first = np.minimum.reduceat(tc, starts, axis=0)
     # keep right: a candidate passing close to a neighbour (within _SIDE_CLOSE of the
     # contact distance, before HORIZON) with the neighbour on its right costs more; the rule
     # is the same seen from both, so two characters agree on how they pass
-    t_close = b / np.maximum(a, 1e-18)
-    d2_close = cc + big_r ** 2 - b * t_close
-    close = (b > 0.0) & (t_close < HORIZON) & (d2_close < (_SIDE_CLOSE * big_r) ** 2)
-    wrong = close & (ux * py - uy * px < 0.0)
-    side = np.logical_or.reduceat(wrong, starts, axis=0)
+    t_close = np.divide(b, a, out=root)
+    d2_close = b * t_close
+    np.subtract(cc + big_r ** 2, d2_close, out=d2_close)
+    close = ahead
+    close &= t_close < HORIZON
+    close &= d2_close < (_SIDE_CLOSE * big_r) ** 2
+    np.multiply(ux, py, out=ux)
+    np.multiply(uy, px, out=uy)
+    close &= ux - uy < 0.0
+    side = np.logical_or.reduceat(close, starts, axis=0)
     w = _W_CONTACT * speed[rows, None]
     contact = w * np.maximum(1.0 / np.maximum(first, 1e-3) - 1.0 / HORIZON, 0.0)
     contact = contact + _W_SIDE * speed[rows, None] * side

@@ -483,6 +483,27 @@ class GaitManager:
             self.src_cycle[char] = gait.cycle_time
             self.cycle_time[char] = gait.cycle_time
 
+    def retarget_many(self, chars: Sequence[int], gaits: Sequence[Gait]) -> None:
+        """:meth:`retarget` of characters ``chars`` (each once) to ``gaits``, in one pass of
+        array operations."""
+        if len(chars) == 1:
+            self.retarget(chars[0], gaits[0])
+            return
+        legs = [self.legs_of[c] for c in chars]
+        for c, g, lg in zip(chars, gaits, legs, strict=True):
+            if g.n_legs != lg.size:
+                raise GaitError(f"character {c}: gait {g.name!r} has {g.n_legs} legs, "
+                                f"the character {lg.size}")
+        at = np.concatenate(legs)
+        self.dst_start[at] = np.concatenate([g.swing_start for g in gaits])
+        self.dst_duration[at] = np.concatenate([g.swing_duration for g in gaits])
+        ch = np.asarray(chars, dtype=np.int64)
+        cycle = np.array([g.cycle_time for g in gaits], dtype=np.float64)
+        self.dst_cycle[ch] = cycle
+        free = ~self.tr_active[ch]
+        self.src_cycle[ch[free]] = cycle[free]
+        self.cycle_time[ch[free]] = cycle[free]
+
     # -------------------------------------------------------------- stepping
     def rate(self) -> FloatArray:
         """``(C,)`` needle speed in cycles per second."""

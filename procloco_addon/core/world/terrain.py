@@ -60,6 +60,11 @@ ROLE_AVOID = 2
 #: pass over such cells but feet never land there.
 NO_SURFACE = -1.0e4
 _VOID_BELOW = NO_SURFACE * 0.5
+#: Side of the point-query buckets of triangles, a share of a typical triangle's: a point's
+#: candidates are about 2 (1 + share)^2 triangles of a triangulated grid (4.5 instead of 8 at
+#: share 1; each triangle is in about (1 + 1 / share)^2 buckets). The 2 M points a 100-wolf
+#: Generate asks of its ground: 0.87 -> 0.49 CPU s, the index built in the same time.
+TRIANGLE_BUCKET = 0.5
 
 
 # ---------------------------------------------------------------------------------------
@@ -607,26 +612,28 @@ def triangle_hits(
     projection of triangles (their :func:`triangle_table` ``(f, 10)``), candidates
     ``point``/``tri`` ``(m,)``. Returns the pairs that hit and the triangle's height at the
     point, ``(k,)`` each."""
-    t = table[tri]
-    q = xy[point]
+    t = table.take(tri, axis=0)  # (take: rows gathered about twice as fast as by indexing)
+    q = xy.take(point, axis=0)
     px = q[:, 0] - t[:, 0]
     py = q[:, 1] - t[:, 1]
     e1x, e1y, e2x, e2y, den = t[:, 2], t[:, 3], t[:, 4], t[:, 5], t[:, 6]
     u = (px * e2y - py * e2x) / den
     v = (e1x * py - e1y * px) / den
     tol = -1e-9
-    inside = (u >= tol) & (v >= tol) & (u + v <= 1.0 - tol)
-    z = t[:, 7] + u * t[:, 8] + v * t[:, 9]
-    return point[inside], tri[inside], z[inside]
+    inside = np.flatnonzero((u >= tol) & (v >= tol) & (u + v <= 1.0 - tol))
+    t = t.take(inside, axis=0)  # (the heights of the hits only)
+    z = t[:, 7] + u.take(inside) * t[:, 8] + v.take(inside) * t[:, 9]
+    return point.take(inside), tri.take(inside), z
 
 
 # ---------------------------------------------------------------------------------------
 # Spatial index for point queries
 # ---------------------------------------------------------------------------------------
 class _BucketIndex:
-    """Items with 2D bounding boxes, bucketed on a regular grid (CSR layout)."""
+    """Items with 2D bounding boxes, bucketed on a regular grid (CSR layout). ``share``: the
+    buckets' side as a share of a typical item's."""
 
-    def __init__(self, lo: FloatArray, hi: FloatArray) -> None:
+    def __init__(self, lo: FloatArray, hi: FloatArray, share: float = 1.0) -> None:
         n = lo.shape[0]
         self.n = n
         if n == 0:
@@ -645,10 +652,11 @@ class _BucketIndex:
         ox, oy = float(lx.min()), float(ly.min())
         self.origin = np.array([ox, oy])
         span = (float(hx.max()) - ox, float(hy.max()) - oy)
-        # Buckets the size of a typical item: each item in about four buckets, a point's
-        # candidates the few items over its bucket (twice that size gave about 18 candidates
-        # per point on a triangulated grid, where the exact test cost more than the lookup).
-        bucket = max(typical, 1e-3)
+        # Buckets the size of a typical item (share 1): each item in about four buckets, a
+        # point's candidates the few items over its bucket (twice that size gave about 18
+        # candidates per point on a triangulated grid, where the exact test cost more than the
+        # lookup). Triangles take half that size (TRIANGLE_BUCKET).
+        bucket = max(typical * share, 1e-3)
         # Keep the bucket grid reasonably small for sparse, large worlds.
         while (span[0] / bucket + 1) * (span[1] / bucket + 1) > 4.0e6:
             bucket *= 2.0
@@ -1121,14 +1129,16 @@ class Environment:
         if hit is None:
             soup = self._soups[i]
             tris = soup.vertices[soup.faces]
-            hit = (tris, tris[..., :2].min(axis=1), tris[..., :2].max(axis=1))
+            a, b, c = tris[:, 0, :2], tris[:, 1, :2], tris[:, 2, :2]
+            # (corner by corner: a reduction across the corners of (f, 3, 2) is a strided loop)
+            hit = (tris, np.minimum(np.minimum(a, b), c), np.maximum(np.maximum(a, b), c))
             self._soup_tris[i] = hit
         return hit
 
     def _soup_hits(self, i: int, xy: FloatArray) -> tuple[IntArray, FloatArray]:
         tris, tlo, thi = self._soup_triangles(i)
         if i not in self._soup_index:
-            self._soup_index[i] = _BucketIndex(tlo, thi)
+            self._soup_index[i] = _BucketIndex(tlo, thi, TRIANGLE_BUCKET)
         off = self._soup_offset.get(i)
         if off is not None:
             xy = xy - off[:2]
@@ -1156,7 +1166,7 @@ class Environment:
             for p, size in zip(parts, sizes, strict=True):  # (soup by soup: no copy of all triangles)
                 triangle_table(p[0], table[first : first + size])
                 first += size
-            self._static_soup_index = (_BucketIndex(tlo, thi), table, owner, ids)
+            self._static_soup_index = (_BucketIndex(tlo, thi, TRIANGLE_BUCKET), table, owner, ids)
         return self._static_soup_index
 
     def _static_rect_index(self) -> tuple[_RectIndex, IntArray, dict[int, int]]:
