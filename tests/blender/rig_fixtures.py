@@ -26,7 +26,8 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
   turned 90° and 180° about its forward axis.
 - ``horse_in_holder``: the horse parented to a moved, turned, half-scaled empty;
   ``horse_numbered``: the horse with no names (``Bone``, ``Bone.001``, ...); ``mirrored``:
-  the horse mirrored as an object (refused: apply the scale).
+  the horse mirrored as an object (refused: apply the scale); ``copy_rotation_controls``:
+  the horse whose deform leg bones copy the rotation of a control chain beside them.
 - ``beetle_gltf``: a sprawling six-legged game beetle, bones ``joint_0`` ... ``joint_19``,
   tails as importers leave them (its first walk is a known failure, see the tests).
 """
@@ -774,6 +775,24 @@ def _mirrored(scene: Any, name: str) -> Any:
     return arm
 
 
+def _copy_rotation_controls(scene: Any, name: str) -> Any:
+    """The horse with a hand-made control chain beside each leg (``femur_ctrl.L`` ...: same
+    joints, no skin) whose bones the deform leg bones copy with Copy Rotation at full
+    influence, as rigs made by hand or exported from other tools often drive their legs: keys
+    on the deform bones would be overwritten."""
+    legs = ("scapula", "humerus", "radius", "cannon", "pastern", "hoof",
+            "femur", "tibia", "metatarsus", "hind_pastern", "hind_hoof")
+    bones = _horse_bones()
+    ctrl = {n: f"{n[:-2]}_ctrl{n[-2:]}" for n, _p, _h, _t in bones if n[:-2] in legs}
+    extra = [(ctrl[n], ctrl.get(p, p) if p else None, h, t) for n, p, h, t in bones if n in ctrl]
+    arm = build(scene, name, [*bones, *extra])
+    for n, c in ctrl.items():
+        con = arm.pose.bones[n].constraints.new("COPY_ROTATION")
+        con.target, con.subtarget = arm, c
+    bpy.context.view_layer.update()
+    return arm
+
+
 _HORSE_NUMBERED = _numbered(_horse_bones())
 _DRAGON_NUMBERED = _numbered(_dragon_bones())
 _DRAGON_LEGS = {
@@ -1081,6 +1100,7 @@ FIXTURES: dict[str, Fixture] = {
     "generated_human": Fixture(_generated("human"), _pair("ORG-thigh", "ORG-shin"), False),
     "generated_bird": Fixture(_generated("bird"), _pair("ORG-thigh", "ORG-shin"), False),
     "horse_in_holder": Fixture(_in_holder, _HORSE_LEGS),
+    "copy_rotation_controls": Fixture(_copy_rotation_controls, _HORSE_LEGS, False),
     "horse_numbered": Fixture(
         lambda sc, n: build(sc, n, _HORSE_NUMBERED[0]),
         Expected({k: (_HORSE_NUMBERED[1][h], _HORSE_NUMBERED[1][e])
