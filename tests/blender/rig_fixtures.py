@@ -24,6 +24,12 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
   three-bone paws), deform ``DEF-`` bones in B-Bone segments, no skin.
 - ``shark``: Rigify's shark metarig (fins only); ``on_side`` / ``upside_down``: the horse
   turned 90° and 180° about its forward axis.
+- ``horse_in_holder``: the horse parented to a moved, turned, half-scaled empty;
+  ``horse_numbered``: the horse with no names (``Bone``, ``Bone.001``, ...); ``mirrored``:
+  the horse mirrored as an object (refused: apply the scale); ``copy_rotation_controls``:
+  the horse whose deform leg bones copy the rotation of a control chain beside them.
+- ``beetle_gltf``: a sprawling six-legged game beetle, bones ``joint_0`` ... ``joint_19``,
+  tails as importers leave them (its first walk is a known failure, see the tests).
 """
 
 from __future__ import annotations
@@ -722,6 +728,72 @@ def _numbered(bones: Sequence[Spec]) -> tuple[list[Spec], dict[str, str]]:
     return [(new[n], new[p] if p else None, h, t) for n, p, h, t in bones], new
 
 
+def _beetle_bones() -> list[Spec]:
+    """A game beetle as a glTF from an engine gives it: a body and a head, six sprawling legs
+    of three bones (coxa, femur rising to a high knee, tibia down to the ground) hanging from
+    the body, every bone named ``joint_N`` in file order. 20 cm high at the hips, legs 38 cm
+    along the bones."""
+    s = 0.2
+    specs: list[Spec] = [
+        ("Body", None, (0.0, 0.16, s), (0.0, -0.12, s)),
+        ("Head", "Body", (0.0, -0.12, s), (0.0, -0.18, 1.05 * s)),
+    ]
+    for side, tag in ((1.0, "L"), (-1.0, "R")):
+        for k, y in enumerate((-0.1, 0.0, 0.1)):
+            out = np.array([1.0, 0.4 * np.sign(y), 0.0]) / math.hypot(1.0, 0.4 * np.sign(y))
+            hip = np.array([0.03, y, s])
+            coxa = hip + 0.02 * out
+            knee = coxa + 0.06 * out + np.array([0.0, 0.0, 0.06])
+            foot = knee + 0.08 * out
+            foot[2] = 0.0
+            points = [(side * float(p[0]), float(p[1]), float(p[2])) for p in (hip, coxa, knee, foot)]
+            specs += _chain([f"coxa{k}.{tag}", f"femur{k}.{tag}", f"tibia{k}.{tag}"], "Body", points)
+    new = {b[0]: f"joint_{i}" for i, b in enumerate(specs)}
+    return [(new[n], new[p] if p else None, h, t) for n, p, h, t in specs]
+
+
+def _in_holder(scene: Any, name: str) -> Any:
+    """The horse parented to an empty that is moved, turned and scaled by 0.5 (a rig kept
+    under a scene's root empty, as imported files and asset packs do): the rig stands where
+    the empty puts it, at half size."""
+    arm = _horse(scene, name)
+    holder = bpy.data.objects.new(f"{name}_Holder", None)
+    scene.collection.objects.link(holder)
+    holder.location = (1.0, 2.0, 0.0)
+    holder.rotation_euler = (0.0, 0.0, 0.5)
+    holder.scale = (0.5, 0.5, 0.5)
+    arm.parent = holder
+    bpy.context.view_layer.update()
+    return arm
+
+
+def _mirrored(scene: Any, name: str) -> Any:
+    """The horse mirrored as an object (Ctrl M, X: scale -1 on X)."""
+    arm = _horse(scene, name)
+    arm.scale = (-1.0, 1.0, 1.0)
+    bpy.context.view_layer.update()
+    return arm
+
+
+def _copy_rotation_controls(scene: Any, name: str) -> Any:
+    """The horse with a hand-made control chain beside each leg (``femur_ctrl.L`` ...: same
+    joints, no skin) whose bones the deform leg bones copy with Copy Rotation at full
+    influence, as rigs made by hand or exported from other tools often drive their legs: keys
+    on the deform bones would be overwritten."""
+    legs = ("scapula", "humerus", "radius", "cannon", "pastern", "hoof",
+            "femur", "tibia", "metatarsus", "hind_pastern", "hind_hoof")
+    bones = _horse_bones()
+    ctrl = {n: f"{n[:-2]}_ctrl{n[-2:]}" for n, _p, _h, _t in bones if n[:-2] in legs}
+    extra = [(ctrl[n], ctrl.get(p, p) if p else None, h, t) for n, p, h, t in bones if n in ctrl]
+    arm = build(scene, name, [*bones, *extra])
+    for n, c in ctrl.items():
+        con = arm.pose.bones[n].constraints.new("COPY_ROTATION")
+        con.target, con.subtarget = arm, c
+    bpy.context.view_layer.update()
+    return arm
+
+
+_HORSE_NUMBERED = _numbered(_horse_bones())
 _DRAGON_NUMBERED = _numbered(_dragon_bones())
 _DRAGON_LEGS = {
     "L1": ("upper_arm.L", "hand.L"),
@@ -896,6 +968,15 @@ class Fixture:
     round_trip: bool = True  # exported and imported through glTF and FBX in the tests
 
 
+_HORSE_LEGS = Expected(
+    {
+        "L1": ("scapula.L", "pastern.L"),
+        "R1": ("scapula.R", "pastern.R"),
+        "L2": ("femur.L", "hind_pastern.L"),
+        "R2": ("femur.R", "hind_pastern.R"),
+    }
+)
+
 FIXTURES: dict[str, Fixture] = {
     "mixamo_t": Fixture(
         lambda sc, n: build(sc, n, _humanoid(MIXAMO, _swap("Left", "Right"))),
@@ -942,17 +1023,7 @@ FIXTURES: dict[str, Fixture] = {
             }
         ),
     ),
-    "horse": Fixture(
-        lambda sc, n: _horse(sc, n),
-        Expected(
-            {
-                "L1": ("scapula.L", "pastern.L"),
-                "R1": ("scapula.R", "pastern.R"),
-                "L2": ("femur.L", "hind_pastern.L"),
-                "R2": ("femur.R", "hind_pastern.R"),
-            }
-        ),
-    ),
+    "horse": Fixture(lambda sc, n: _horse(sc, n), _HORSE_LEGS),
     "swapped": Fixture(
         lambda sc, n: _horse(sc, n, swap=True),
         Expected(
@@ -1028,6 +1099,29 @@ FIXTURES: dict[str, Fixture] = {
     ),
     "generated_human": Fixture(_generated("human"), _pair("ORG-thigh", "ORG-shin"), False),
     "generated_bird": Fixture(_generated("bird"), _pair("ORG-thigh", "ORG-shin"), False),
+    "horse_in_holder": Fixture(_in_holder, _HORSE_LEGS),
+    "copy_rotation_controls": Fixture(_copy_rotation_controls, _HORSE_LEGS, False),
+    "horse_numbered": Fixture(
+        lambda sc, n: build(sc, n, _HORSE_NUMBERED[0]),
+        Expected({k: (_HORSE_NUMBERED[1][h], _HORSE_NUMBERED[1][e])
+                  for k, (h, e) in _HORSE_LEGS.legs.items()}),
+    ),
+    "beetle_gltf": Fixture(
+        lambda sc, n: build(sc, n, _beetle_bones(), plus_y=0.02),
+        Expected(
+            {
+                "L1": ("joint_2", "joint_4"),
+                "R1": ("joint_11", "joint_13"),
+                "L2": ("joint_5", "joint_7"),
+                "R2": ("joint_14", "joint_16"),
+                "L3": ("joint_8", "joint_10"),
+                "R3": ("joint_17", "joint_19"),
+            }
+        ),
+    ),
+    "mirrored": Fixture(
+        _mirrored, Expected(refusal="has a non-uniform or mirrored scale: apply its scale first"), False
+    ),
     "shark": Fixture(
         _metarig("shark"), Expected(refusal="no chain of bones from the body reaches the ground"), False
     ),

@@ -28,8 +28,12 @@ pytestmark = pytest.mark.blender
 FRAMES = 48
 IMPORTS = export_fixtures.IMPORTS
 #: Fixture rigs that also walk after an import (the others are only detected there): the
-#: quadruped whose tails mean nothing through every importer setting, the humanoid once.
-WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [("mixamo_t", "fbx", {})]
+#: quadruped whose tails mean nothing through every importer setting, the humanoid once, the
+#: horse under a moved, turned and half-scaled empty once (FBX keeps the empty).
+WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
+    ("mixamo_t", "fbx", {}),
+    ("horse_in_holder", "fbx", {}),
+]
 
 
 def _select_only(obj: Any) -> None:
@@ -234,6 +238,14 @@ def left_behind(obj: Any, frames: list[int], travel: float) -> list[str]:
 #: whose toe follows another bone of Rigify's foot-roll mechanism than its ankle does.
 FOOT_STRETCH = {"generated_human": 3e-4}
 
+#: Fixtures whose first walk (Detect Legs' defaults, Gait: Auto) fails the thresholds (README,
+#: known limitations): a strict expected failure, so the entry goes once they walk. The
+#: sprawling beetle: the defaults ask a stance sweep twice what its crowded legs allow
+#: (``Rig.stroke_limit``), the needle runs faster, swings last a frame or two and the legs
+#: pop (over 100 degrees in a frame) and feet slide (about 0.1-0.8 m); with the tripod
+#: preset its coxae still pop (80 degrees).
+BAD_FIRST_WALKS = {"beetle_gltf": "a sprawling hexapod's legs pop and its feet slide"}
+
 
 def check_motion(m: dict[str, Any], name: str = "") -> None:
     check_thresholds(m)  # the per-frame bone turns too (check_no_pops)
@@ -309,6 +321,12 @@ def test_generate_walks_the_rigs_users_bring(empty_scene: Any, name: str) -> Non
     job, m = walk(obj)
     _report(name, job, m)
     _BUILT_WALKS[name] = {"legs": [(leg.label, leg.bones) for leg in job.info.legs], **m}
+    if name in BAD_FIRST_WALKS:
+        try:
+            check_motion(m, name)
+        except AssertionError:
+            pytest.xfail(BAD_FIRST_WALKS[name])
+        pytest.fail(f"{name} walks within the thresholds now: take it out of BAD_FIRST_WALKS")
     assert m["travel"] > 0.5 * float(job.info.leg_length.mean()), m
     check_motion(m, name)
 

@@ -17,7 +17,8 @@ parent-switch weights that drivers set are the ones in effect. Each bone depends
 - for every bone of an IK chain, the IK's target and pole.
 
 A **control** is a bone the animator is meant to move: its own transform counts (not replaced
-by a constraint, not rotated by an IK chain) and it is not a mechanism bone (Rigify's and
+by a constraint, its rotation not copied from another bone by a full Copy Rotation, not
+rotated by an IK chain) and it is not a mechanism bone (Rigify's and
 Auto-Rig Pro's ``ORG-``/``MCH-``/``DEF-``/``VIS_``/``WGT-`` bones, or bones only in hidden bone
 collections).
 
@@ -115,6 +116,7 @@ def _active(c: bpy.types.Constraint) -> bool:
 class _Node:
     deps: dict[str, int] = field(default_factory=dict)  # bone -> 0 parent, 1 constraint, 2 IK
     replaced: bool = False  # its own basis is overwritten by a constraint
+    turned: bool = False  # its own rotation is overwritten by a constraint (Copy Rotation)
     in_ik: bool = False  # an IK chain sets its rotation
     ik: list[tuple[str, str | None]] = field(default_factory=list)  # IKs reaching it: (target, pole)
     limits: list[str] = field(default_factory=list)  # limit constraint types on it
@@ -156,6 +158,8 @@ class ConstraintGraph:
                 if kind == "IK":
                     self._add_ik(ev, pb, c)
                 full = float(c.influence) >= 0.999 and getattr(c, "mix_mode", "REPLACE") == "REPLACE"
+                if kind == "COPY_ROTATION" and full and all(getattr(c, f"use_{a}", True) for a in "xyz"):
+                    node.turned = True
                 if kind in _REPLACING and full:
                     node.replaced = True
                     parent_kept = False
@@ -211,9 +215,10 @@ class ConstraintGraph:
             v == 1 for v in node.deps.values())
 
     def keyable(self, name: str) -> bool:
-        """Whether a bone is a control the animator moves (its own transform counts)."""
+        """Whether a bone is a control the animator moves (its own transform counts: no
+        constraint replaces it or its rotation, no IK turns it)."""
         node = self.nodes[name]
-        return name in self.controls and not node.replaced and not node.in_ik
+        return name in self.controls and not node.replaced and not node.turned and not node.in_ik
 
     def upstream(self, names: Iterable[str], blocked: Iterable[str] = ()) -> dict[str, int]:
         """Every bone ``names`` depend on, with its distance (the bones themselves at 0),
