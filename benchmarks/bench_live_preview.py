@@ -32,11 +32,13 @@ longest_call_s=<s>``.
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import platform
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -85,6 +87,21 @@ def _drive(obj: bpy.types.Object) -> tuple[float, float, float, float, float]:
             time.sleep(wait)
 
 
+def _edits(obj: bpy.types.Object, label: str, edits: list[Callable[[], object]]
+           ) -> tuple[float, float, float, float, float]:
+    """Make each edit after a quiet time and drive the preview to its end; print and return
+    the best of each of :func:`_drive`'s figures (the longest call: the worst)."""
+    best = (float("inf"), float("inf"), 0.0, float("inf"), float("inf"))
+    for edit in edits:
+        time.sleep(handler.DEBOUNCE_S)  # a quiet time before the edit
+        edit()
+        got = _drive(obj)
+        best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
+                min(best[4], got[4]))
+    print(f"{label:>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s {best[3]:9.3f}s {best[4]:10.3f}s")
+    return best
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=120)
@@ -105,16 +122,8 @@ def main() -> int:
     for where, frame in (("first", 1), ("middle", args.frames // 2), ("last", args.frames)):
         scene.frame_set(frame)
         _drive(wolf)
-        best = (float("inf"), float("inf"), 0.0, float("inf"), float("inf"))
-        for _ in range(args.repeat):
-            time.sleep(handler.DEBOUNCE_S)  # a quiet time before the edit
-            wolf.procloco.speed = next(speeds)
-            got = _drive(wolf)
-            best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
-                    min(best[4], got[4]))
-        rows[where] = best
-        print(f"{where + f' ({frame})':>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s "
-              f"{best[3]:9.3f}s {best[4]:10.3f}s")
+        rows[where] = _edits(wolf, f"{where} ({frame})",
+                             [lambda: setattr(wolf.procloco, "speed", next(speeds))] * args.repeat)
     # A later edit: a Gait Change at three quarters of the range (its speed below the rig's,
     # so Auto's planning window stays) edited, the current frame the last.
     scene.frame_set(3 * args.frames // 4)
@@ -124,31 +133,20 @@ def main() -> int:
     change.speed = 0.5
     scene.frame_set(args.frames)
     _drive(wolf)
-    best = (float("inf"), float("inf"), 0.0, float("inf"), float("inf"))
-    for speed in [0.45, 0.5] * args.repeat:
-        time.sleep(handler.DEBOUNCE_S)
-        change.speed = speed
-        got = _drive(wolf)
-        best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
-                min(best[4], got[4]))
-    rows["later"] = best
-    print(f"{f'later ({args.frames})':>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s "
-          f"{best[3]:9.3f}s {best[4]:10.3f}s")
+    rows["later"] = _edits(wolf, f"later ({args.frames})",
+                           [functools.partial(setattr, change, "speed", speed)
+                            for speed in [0.45, 0.5] * args.repeat])
     wolf.procloco.gait_changes.clear()
     _drive(wolf)
     # A crate the walk reaches late (about frame 80 of 120) moved sideways by 0.3 m and back.
     crate = bpy.data.objects["Crate3"]
-    best = (float("inf"), float("inf"), 0.0, float("inf"), float("inf"))
-    for dx in [0.3, -0.3] * args.repeat:
-        time.sleep(handler.DEBOUNCE_S)
+
+    def move(dx: float) -> None:
         crate.location.x += dx
         bpy.context.view_layer.update()  # (the depsgraph handler sees the move)
-        got = _drive(wolf)
-        best = (min(best[0], got[0]), min(best[1], got[1]), max(best[2], got[2]), min(best[3], got[3]),
-                min(best[4], got[4]))
-    rows["crate"] = best
-    print(f"{f'crate ({args.frames})':>14} {best[0]:11.3f}s {best[1]:10.3f}s {best[2]:12.3f}s "
-          f"{best[3]:9.3f}s {best[4]:10.3f}s")
+
+    rows["crate"] = _edits(wolf, f"crate ({args.frames})",
+                           [functools.partial(move, dx) for dx in [0.3, -0.3] * args.repeat])
     wolf.procloco.live_preview = False
     _drive(wolf)
     scene.frame_set(1)

@@ -76,6 +76,19 @@ def settle(clock: Clock, limit: int = 2000) -> int:
     raise AssertionError("the timer never settled")
 
 
+def tick_until_partial(obj: Any, clock: Clock, limit: int = 500) -> tuple[str | None, list[Any]]:
+    """Call the timer (the clock 10 ms on a call) until the rig shows a preview of the current
+    frame alone: that Action's name (None if it never did) and what each call asked to wait."""
+    waits = []
+    for _ in range(limit):
+        waits.append(handler.tick())
+        clock.now += 0.01
+        current = obj.animation_data.action if obj.animation_data else None
+        if current is not None and current.get(preview.PARTIAL_TAG):
+            return current.name, waits
+    return None, waits
+
+
 def procloco_actions() -> list[Any]:
     return [a for a in bpy.data.actions if actions.is_generated(a)]
 
@@ -218,14 +231,7 @@ def test_the_current_frame_is_shown_before_the_rest_of_the_range(wolf: Any, cloc
     bpy.context.scene.frame_set(4)
     # one step a tick (a tick's time budget could hold the whole short regeneration)
     monkeypatch.setattr(handler, "BUDGET_S", 0.0)
-    partial = None
-    for _ in range(500):
-        handler.tick()
-        clock.now += 0.01
-        current = wolf.animation_data.action if wolf.animation_data else None
-        if current is not None and current.get(preview.PARTIAL_TAG):
-            partial = current.name
-            break
+    partial, _ = tick_until_partial(wolf, clock)
     assert partial is not None, "the current frame's pose was never written on its own"
     assert handler._state.run is not None  # the rest of the range is still to come
     early = pose_eval.pose_matrices(wolf, [4], [HIPS, *FEET])[0]
@@ -244,15 +250,7 @@ def test_the_last_frame_is_shown_before_the_whole_range_is_written(wolf: Any, cl
     wolf.procloco.live_preview = True
     bpy.context.scene.frame_set(FRAMES)
     monkeypatch.setattr(handler, "BUDGET_S", 0.0)  # one step a tick
-    waits = []
-    partial = None
-    for _ in range(500):
-        waits.append(handler.tick())
-        clock.now += 0.01
-        current = wolf.animation_data.action if wolf.animation_data else None
-        if current is not None and current.get(preview.PARTIAL_TAG):
-            partial = current.name
-            break
+    partial, waits = tick_until_partial(wolf, clock)
     assert partial is not None, "the last frame's pose was never written on its own"
     assert handler._state.run is not None  # the whole walk is still to come
     assert waits[-1] == 0.0  # (a run in flight is advanced at the next turn of the event loop)
