@@ -243,6 +243,43 @@ def test_biped_on_flat_ground() -> None:
     assert not np.any((~res.contact).all(axis=1))
 
 
+def test_a_run_resumed_from_a_snapshot_walks_as_the_run_straight_through() -> None:
+    """Simulation.snapshot / resume (Live Preview's kept states): a state taken at a frame and
+    resumed with the same inputs gives the run straight through, frame for frame (same code);
+    the snapshot holds no recorded frames and the run it was taken of goes on unchanged; a
+    resume with a gait change after the snapshot's frame walks that change from there."""
+    m = morph.quadruped()
+    walk = find_gait_preset("quadruped_walk").gait(m.labels)
+    trot = find_gait_preset("quadruped_trot").gait(m.labels)
+    env, _ = bumpy_with_crates()
+    controls = Controls(speed=0.4, heading=0.2, step_height=0.06)
+    whole = Simulation(env, [m], walk, controls=controls).run(59)  # (60 frames)
+
+    sim = Simulation(env, [m], walk, controls=controls)
+    for _ in range(24):
+        sim.step()
+    kept = sim.snapshot({id(env): env})
+    assert kept.n_frames == 0 and sim.n_frames == 25
+    for _ in range(35):
+        sim.step()
+    assert np.array_equal(sim.result().joints, whole.joints)  # the run goes on as it would
+    again = kept.resume({id(env): env}, sim, 25, controls, [])
+    for _ in range(35):
+        again.step()
+    res = again.result()
+    for name in ("pelvis_position", "joints", "contact", "footprint", "needle"):
+        assert np.array_equal(getattr(res, name), getattr(whole, name)), name
+    assert again.env is env  # (shared through the memo, not copied)
+
+    change = [GaitChange(1.5, trot, transition_time=0.5)]
+    changed = kept.resume({id(env): env}, sim, 25, controls, change)
+    for _ in range(35):
+        changed.step()
+    res = changed.result()
+    assert np.array_equal(res.joints[:37], whole.joints[:37])  # (the change starts at 1.5 s)
+    assert not np.array_equal(res.needle[-10:], whole.needle[-10:])
+
+
 def test_gait_transitions_walk_trot_gallop_without_popping() -> None:
     m = morph.quadruped()
     walk = find_gait_preset("quadruped_walk").gait(m.labels)

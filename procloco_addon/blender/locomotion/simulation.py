@@ -19,7 +19,6 @@ before the step into frame ``k``.
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import functools
 import hashlib
@@ -363,15 +362,13 @@ class Checkpoints:
             sim = Simulation(**inputs)
             first = 0
             kept = {}
-            looks.note(sim._frames[-1]["joints"][..., :2])
+            looks.note(sim.last_joints()[..., :2])
             seen = looks.take()[None]
         else:
             assert self.sim is not None
-            sim = copy.deepcopy(kept[first], dict(self._memo))
-            sim._controls = inputs["controls"]  # (equal for the frames kept; the new ones' from here on)
-            sim._changes = sorted(inputs["gait_changes"], key=lambda g: g.time)
-            sim._frames = [dict(fr) for fr in self.sim._frames[:first + 1]]
-            sim._stats = self.sim._stats[:first + 1]
+            # (the controls and gait changes equal for the frames kept; the new ones' from here on)
+            sim = kept[first].resume(self._memo, self.sim, first + 1, inputs["controls"],
+                                     inputs["gait_changes"])
         dt = float(inputs["dt"])
         changes = {round(g.time / dt) - 1 for g in inputs["gait_changes"]}
         self._at = {f for f in (*changes, self.current - 1, n_frames - 1) if 0 < f < n_frames}
@@ -397,18 +394,13 @@ class Checkpoints:
         one to keep."""
         if f > 0:
             # (the ground under the frame's feet is asked when the result is made)
-            self._looks.note(sim._frames[-1]["joints"][..., :2])
+            self._looks.note(sim.last_joints()[..., :2])
             self.seen[f] = self._looks.take()
         if (f % CHECKPOINT_FRAMES == 0 or f in self._at) and f not in self.states:
             self._keep(sim, f)
 
     def _keep(self, sim: Simulation, f: int) -> None:
-        frames, stats = sim._frames, sim._stats
-        sim._frames, sim._stats = [], []  # (taken from the run itself when resumed)
-        try:
-            self.states[f] = copy.deepcopy(sim, dict(self._memo))
-        finally:
-            sim._frames, sim._stats = frames, stats
+        self.states[f] = sim.snapshot(self._memo)  # (its frames taken from the run when resumed)
 
 
 def _fixed_parts(sim: Simulation) -> dict[int, Any]:

@@ -31,6 +31,7 @@ the ``Effects``) give identical arrays.
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
@@ -651,6 +652,36 @@ class Simulation:
     def n_frames(self) -> int:
         """Frames recorded so far."""
         return len(self._frames)
+
+    def last_joints(self) -> npt.NDArray[np.float64]:
+        """The joints of the last frame recorded (``joints`` of :meth:`result`'s frame)."""
+        return self._frames[-1]["joints"]  # type: ignore[return-value]
+
+    def snapshot(self, memo: dict[int, Any]) -> Simulation:
+        """The state at the current frame, to :meth:`resume` a run from later: a deep copy
+        without the frames recorded so far (the run that keeps them hands them back);
+        ``memo``: objects the copy shares with this simulation, as ``copy.deepcopy`` takes
+        (its terrain, the creatures' fixed geometry)."""
+        frames, stats = self._frames, self._stats
+        self._frames, self._stats = [], []
+        try:
+            return copy.deepcopy(self, dict(memo))
+        finally:
+            self._frames, self._stats = frames, stats
+
+    def resume(self, memo: dict[int, Any], record: Simulation, n_frames: int,
+               controls: Controls | Callable[[float], Controls],
+               gait_changes: Sequence[GaitChange]) -> Simulation:
+        """A simulation to step on from this :meth:`snapshot` (taken at frame ``n_frames - 1``
+        of the run ``record``): a copy with ``record``'s first ``n_frames`` frames and the
+        new run's ``controls`` and ``gait_changes`` (equal to the old ones' up to here; the
+        caller knows, e.g. by digests of both)."""
+        sim = copy.deepcopy(self, dict(memo))
+        sim._controls = controls
+        sim._changes = sorted(gait_changes, key=lambda g: g.time)
+        sim._frames = [dict(fr) for fr in record._frames[:n_frames]]
+        sim._stats = record._stats[:n_frames]
+        return sim
 
     def result(self, n_frames: int | None = None) -> SimResult:
         """Everything recorded so far as a ``SimResult`` (or its first ``n_frames`` frames,
