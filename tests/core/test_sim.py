@@ -259,7 +259,8 @@ def test_a_run_resumed_from_a_snapshot_walks_as_the_run_straight_through() -> No
     for _ in range(24):
         sim.step()
     kept = sim.snapshot({id(env): env})
-    assert kept.n_frames == 0 and sim.n_frames == 25
+    assert kept.n_frames == 0
+    assert sim.n_frames == 25
     for _ in range(35):
         sim.step()
     assert np.array_equal(sim.result().joints, whole.joints)  # the run goes on as it would
