@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Generator, Mapping, Sequence
+from collections.abc import Callable, Generator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -161,7 +161,8 @@ def posed_errors(ref: np.ndarray, got: np.ndarray, lengths: np.ndarray,
 
 
 def channel_tolerances(obj: bpy.types.Object, channels: Sequence[actions.Channel], feet: Sequence[str],
-                       foot_tolerance: float, angle_tolerance: float) -> np.ndarray:
+                       foot_tolerance: float, angle_tolerance: float,
+                       moved_by: Callable[[str], set[str]] | None = None) -> np.ndarray:
     """A first tolerance per channel ``(C,)`` (in the channel's units) from the chain.
 
     A bone's own turn is given ``angle_tolerance`` shared with the keyed bones from the root
@@ -170,12 +171,13 @@ def channel_tolerances(obj: bpy.types.Object, channels: Sequence[actions.Channel
     ``foot_tolerance`` the same way. A quaternion component carries half the angle (a turn is
     about twice the quaternion's change), an Euler angle a third. These are a first guess:
     :func:`reduce_action` checks the posed rig and tightens them where it is off.
+    ``moved_by``: the rig's :func:`_moved_by`, when the caller has it already.
     """
     bones = obj.data.bones
     keyed = {b for ch in channels if (b := _bone_of(ch.data_path)) is not None and b in bones}
     world = np.array(obj.matrix_world, dtype=np.float64)
     scale = float(np.mean(np.linalg.norm(world[:3, :3], axis=0))) or 1.0
-    chain = _moved_by(obj)
+    chain = moved_by if moved_by is not None else _moved_by(obj)
     chains = {f: chain(f) for f in feet if f in bones}
     depth = {b: max(1, sum(1 for a in chain(b) if a in keyed)) for b in keyed}
     angle: dict[str, float] = {}
@@ -216,7 +218,7 @@ def channel_tolerances(obj: bpy.types.Object, channels: Sequence[actions.Channel
     return out
 
 
-def _moved_by(obj: bpy.types.Object) -> Any:
+def _moved_by(obj: bpy.types.Object) -> Callable[[str], set[str]]:
     """A function: bone name -> the set of bones whose pose moves it, itself included: its
     parents and, on a control rig, the bones its constraints follow, upstream to the controls
     (:class:`..rig.controls.ConstraintGraph`: Rigify's ``ORG-foot.L`` is moved by
@@ -351,7 +353,7 @@ def reduce_action_steps(
     ref = worlds[:, None] @ pose_writer.evaluate_pose(obj, frames, check)
     # (evaluating the full pose costs about what one pass does)
     yield 1.0 / (max_passes + 1)
-    base_tol = _SHARE * channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance)
+    base_tol = _SHARE * channel_tolerances(obj, chans, feet, foot_tolerance, angle_tolerance, moved_by)
     tol = np.tile(base_tol, (frames.size, 1))
     _quaternion_shares(chans, values, tol)
     after = before
