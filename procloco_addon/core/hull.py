@@ -115,6 +115,8 @@ def upper_hull_eval(
 def _pairs(n: int) -> tuple[IntArray, IntArray]:
     """The pairs ``i <= j`` of ``n`` points (read only)."""
     i_of, j_of = np.triu_indices(n)
+    i_of.setflags(write=False)
+    j_of.setflags(write=False)
     return i_of, j_of
 
 

@@ -486,6 +486,8 @@ class GaitManager:
     def retarget_many(self, chars: Sequence[int], gaits: Sequence[Gait]) -> None:
         """:meth:`retarget` of characters ``chars`` (each once) to ``gaits``, in one pass of
         array operations."""
+        if not chars:
+            return
         if len(chars) == 1:
             self.retarget(chars[0], gaits[0])
             return

@@ -654,14 +654,17 @@ class Simulation:
         return len(self._frames)
 
     def last_joints(self) -> npt.NDArray[np.float64]:
-        """The joints of the last frame recorded (``joints`` of :meth:`result`'s frame)."""
+        """The joints of the last frame recorded (``joints`` of :meth:`result`'s frame): the
+        recorded array itself, read it without writing to it."""
         return self._frames[-1]["joints"]  # type: ignore[return-value]
 
     def snapshot(self, memo: dict[int, Any]) -> Simulation:
         """The state at the current frame, to :meth:`resume` a run from later: a deep copy
         without the frames recorded so far (the run that keeps them hands them back);
         ``memo``: objects the copy shares with this simulation, as ``copy.deepcopy`` takes
-        (its terrain, the creatures' fixed geometry)."""
+        (its terrain, the creatures' fixed geometry). What is shared is not kept: a terrain
+        whose boxes move is set for each frame by the caller (as the scene's terrain is),
+        both in the run the snapshot comes from and in the run resumed from it."""
         frames, stats = self._frames, self._stats
         self._frames, self._stats = [], []
         try:
