@@ -488,6 +488,30 @@ def test_point_queries_over_many_static_soups_and_a_moving_one_equal_triangle_by
     assert_close(env.height_at(pts), _height_brute_force(moved, pts), "height after the move")
 
 
+@given(st.integers(0, 2**32 - 1))
+def test_one_point_queries_over_static_meshes_equal_the_many_point_query(seed: int) -> None:
+    """A query of one point over static meshes only (the shell's scenes) takes its own plain
+    Python path: each point's height equals that point's height in a query of all of them
+    (ground, crates, points outside the meshes, on triangle edges and corners, NaN)."""
+    rng = np.random.default_rng(seed)
+    soups = [_grid_mesh(rng, int(rng.integers(2, 12)), -1.0, 1.0)]
+    for _ in range(int(rng.integers(0, 4))):
+        c = rng.uniform(-0.8, 0.8, 2)
+        top = float(rng.uniform(0.05, 0.3))
+        quad = np.array([[c[0] - 0.1, c[1] - 0.1, top], [c[0] + 0.1, c[1] - 0.1, top],
+                         [c[0] + 0.1, c[1] + 0.1, top], [c[0] - 0.1, c[1] + 0.1, top + 0.05]])
+        soups.append(TriangleSoup(quad, np.array([[0, 1, 2], [0, 2, 3]]), ROLE_STEP_OVER))
+    env = Environment(None, None, soups)
+    corners = np.concatenate([s.vertices[:, :2] for s in soups])
+    edges = 0.5 * (soups[0].vertices[soups[0].faces[:, 0], :2] + soups[0].vertices[soups[0].faces[:, 1], :2])
+    pts = np.concatenate([rng.uniform(-1.3, 1.3, (60, 2)), corners[:40], edges[:40],
+                          [[np.nan, 0.0], [0.0, np.inf], [1e9, -1e9]]])
+    many = env.height_at(pts)
+    one = np.array([env.height_at(q)[0] for q in pts])
+    assert_close(one, many, "one point at a time")
+    assert ((one > NO_SURFACE) == (many > NO_SURFACE)).all()
+
+
 @given(st.integers(0, 10_000))
 def test_point_queries_over_rotated_boxes_equal_a_box_by_box_test(seed: int) -> None:
     """height_at / forbidden_at over static and moving rotated crates (and the heightmap

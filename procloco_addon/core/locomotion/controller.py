@@ -586,7 +586,7 @@ class Controller:
         env, rig, p = self.env, self.rig, self.params
         land = planning.landing(env, rig, p, self.body, self.link, self.feet, legs, ctl, remaining,
                                 stance_time, land_stance, self.hips_world())
-        u_grid = np.linspace(0.0, 1.0, p.trajectory_samples + 1)
+        u_grid = planning.swing_grid(p.trajectory_samples)
         with prof.phase("maps"):
             grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
             grids = self._crowd_windows(grids)

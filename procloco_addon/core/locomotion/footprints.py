@@ -736,7 +736,7 @@ class _Batch:
         self.sole_x = rows[:, col["sole_x"]]
         self.sole_y = rows[:, col["sole_y"]]
         self.yaw = rows[:, col["yaw"]]
-        self.sweep_off, self.sweep_in = foot_kernels(self.cell, self.half_x, self.half_y, self.yaw, True)
+        self.sweep_off, self.sweep_in = _sweep_kernels(rows[:, _KERNEL_COLS])
         land_reach = int(rows[:, col["land_reach"]].max())
         self.pad = R = max(int(np.abs(self.sweep_off).max()), land_reach)
         Hp, Wp = H + 2 * R, W + 2 * R
@@ -896,6 +896,27 @@ class _Batch:
             row[: b.shape[0], : b.shape[1]] = b
             f.padded[level] = row
         return row
+
+
+def _sweep_kernels(shape: FloatArray) -> tuple[IntArray, BoolArray]:
+    """The swept foot kernels (:func:`~.terrain.foot_kernels`) of plans whose ``cell, half_x,
+    half_y, yaw`` are the rows of ``shape`` ``(n, 4)``; kept per set of rows (a character
+    plans with the same cell, foot and, walking straight, yaw again and again). Read-only
+    arrays."""
+    key = shape.tobytes()
+    hit = _SWEEP_KERNELS.get(key)
+    if hit is None:
+        if len(_SWEEP_KERNELS) > 256:
+            _SWEEP_KERNELS.clear()
+        off, member = foot_kernels(shape[:, 0], shape[:, 1], shape[:, 2], shape[:, 3], True)
+        member.setflags(write=False)
+        hit = _SWEEP_KERNELS[key] = (off, member)
+    return hit
+
+
+#: :func:`_sweep_kernels`' cache, by the bytes of the plans' rows.
+_KERNEL_COLS = [_ROW["cell"], _ROW["half_x"], _ROW["half_y"], _ROW["yaw"]]
+_SWEEP_KERNELS: dict[bytes, tuple[IntArray, BoolArray]] = {}
 
 
 def _next_couple(f: _Foot, cands: _Cands) -> tuple[_Next, float]:
@@ -1263,7 +1284,7 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     within each plan (what :func:`score_candidates` gives each plan)."""
     n = len(plans)
     r0, c0, hh, ww, mask, elev = batch.r0, batch.c0, batch.hh, batch.ww, batch.mask, batch.elev
-    forbidden, cell, origin = batch.grown_inf, batch.cell, batch.origin
+    forbidden = batch.grown_inf
     rows, col = batch.rows, _ROW
     pref_rc = np.column_stack([rows[:, col["pref_r"]] - r0, rows[:, col["pref_c"]] - c0])
     base = np.rint(pref_rc).astype(np.intp)
@@ -1282,17 +1303,19 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     at = (b * H + r) * W + c
     here = elev.reshape(-1).take(at)
     ok = mask.reshape(-1).take(at) & ~forbidden.reshape(-1).take(at) & (here > _VOID_BELOW)
-    cl = cell[b]
-    x = origin[:, 0][b] + (c + c0[b] + sub[:, 1][b]) * cl
-    y = origin[:, 1][b] + (r + r0[b] + sub[:, 0][b]) * cl
+    # each plan's numbers at its candidates, in one gather (rows of _CAND_COLS)
+    (cl, ox_b, oy_b, hx_b, hy_b, reach_b, z0_b, max_dz_b, low_b, edge_h, pref_x, pref_y, fixed,
+     edge_score) = rows.T[_CAND_COLS].take(b, axis=1)
+    x = ox_b + (c + c0[b] + sub[:, 1][b]) * cl
+    y = oy_b + (r + r0[b] + sub[:, 0][b]) * cl
     hip = rows[:, col["hip_x"] : col["hip_y"] + 1]
-    dx = x - hip[:, 0][b]
-    dy = y - hip[:, 1][b]
-    ok &= planar_length(dx, dy) <= rows[:, col["reach"]][b]
+    dx = x - hx_b
+    dy = y - hy_b
+    ok &= planar_length(dx, dy) <= reach_b
     # Landing height: the highest surface under the foot box at its exact offset.
     land_off, land_in = _offset_kernels(batch, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
-    ok &= np.abs(z - rows[:, col["start_z"]][b]) <= rows[:, col["max_dz"]][b]
+    ok &= np.abs(z - z0_b) <= max_dz_b
     hip_z = rows[:, col["hip_z"]]
     if not np.isnan(hip_z).all():
         sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
@@ -1303,13 +1326,14 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
             np.column_stack([x[sel], y[sel]]), z[sel], here[sel],
             hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
         )
-        clearance = np.where(clear, 1.0, rows[:, col["low"]][b])
+        clearance = np.where(clear, 1.0, low_b)
     else:
         clearance = np.ones(ok.size)
     keep = np.flatnonzero(ok)
     b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
     clearance = clearance[keep]
     here = here[keep]
+    edge_h, pref_x, pref_y, fixed, edge_score = (v[keep] for v in (edge_h, pref_x, pref_y, fixed, edge_score))
     # Neighbour criteria (8, k), neighbour by neighbour; past the stacked boxes "not free"
     # with no ground (read where they are, not from padded copies of the stacks).
     nr = r + _NEIGHBOURS[:, 0, None]
@@ -1317,15 +1341,14 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     out = (nr < 0) | (nr >= H) | (nc < 0) | (nc >= W)
     at = (b * H + np.where(out, 0, nr)) * W + np.where(out, 0, nc)
     ne = np.where(out, -np.inf, elev.reshape(-1)[at])
-    edge_h = rows[:, col["edge_height"]][b]
     taken = out | forbidden.reshape(-1)[at] | (ne < _VOID_BELOW)
     free = np.count_nonzero(~taken & (np.abs(ne - here) <= edge_h), axis=0)
     rim = np.any(here - ne > edge_h, axis=0)
-    ex = x - rows[:, col["pref_x"]][b]
-    ey = y - rows[:, col["pref_y"]][b]
-    distance = np.clip(1.0 - planar_length(ex, ey) / rows[:, col["fixed"]][b], 0.0, 1.0)
+    ex = x - pref_x
+    ey = y - pref_y
+    distance = np.clip(1.0 - planar_length(ex, ey) / fixed, 0.0, 1.0)
     free_score = free / 8.0
-    edge = np.where(rim, rows[:, col["edge_score"]][b], 1.0)
+    edge = np.where(rim, edge_score, 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
     partial = distance * free_score * edge * clearance
     live = np.flatnonzero(partial > 0.0)
@@ -1360,6 +1383,11 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     n_valid = [cuts[k + 1] - cuts[k] for k in range(n)]
     return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells[:, 0].tolist(),
                   cells[:, 1].tolist())
+
+
+#: The columns of :attr:`_Plan.row` that :func:`_score_all` reads at each candidate.
+_CAND_COLS = [_ROW[k] for k in ("cell", "ox", "oy", "hip_x", "hip_y", "reach", "start_z", "max_dz", "low",
+                                "edge_height", "pref_x", "pref_y", "fixed", "edge_score")]
 
 
 class _WindowLookup:

@@ -11,6 +11,7 @@ foot's ``PlannerParams``; the planner itself is ``core.locomotion.footprints``."
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -371,8 +372,7 @@ def commit(
     chars = np.array([d[2] for d in done])
     samples_all = np.stack([d[3] for d in done])
     targets = np.stack([d[4] for d in done])
-    ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
-    ease = ease * ease * (3.0 - 2.0 * ease)
+    ease = _second_half_ease(u_grid.tobytes())
     samples_all[:, -1, :2] = targets[:, :2]
     n = samples_all.shape[0] * samples_all.shape[1]
 
@@ -420,6 +420,26 @@ def commit(
     plan.speed[leg_ids] = ctl.speed[chars]
     plan.spacing[leg_ids] = ctl.spacing[leg_ids]
     body.feedback[leg_ids] = targets[:, :2] - land.preferred_xy[rows]
+
+
+@functools.lru_cache(maxsize=8)
+def swing_grid(samples: int) -> FloatArray:
+    """The swing parameters ``u`` of a plan's ``samples + 1`` trajectory samples, 0 to 1
+    (made once per count; read-only)."""
+    u = np.linspace(0.0, 1.0, samples + 1)
+    u.setflags(write=False)
+    return u
+
+
+@functools.lru_cache(maxsize=8)
+def _second_half_ease(u_bytes: bytes) -> FloatArray:
+    """``commit``'s ease over the second half of a swing at the parameters whose bytes are
+    ``u_bytes`` (0 up to half way, then smoothstep to 1; made once per grid, read-only)."""
+    u = np.frombuffer(u_bytes, dtype=np.float64)
+    ease = np.clip((u - 0.5) / 0.5, 0.0, 1.0)
+    ease = ease * ease * (3.0 - 2.0 * ease)
+    ease.setflags(write=False)
+    return ease
 
 
 def planner_params(

@@ -959,6 +959,7 @@ class Environment:
         self.block_cells = 8 if meshes and self.tile_cells % 8 == 0 else self.tile_cells
         self._tiles: dict[_TileKey, tuple[FloatArray, BoolArray]] = {}
         self._filled = np.zeros(0, dtype=np.int64)
+        self._filled_set: set[int] = set()  # the same keys, for the few-window check
         self._cell_ids: dict[float, int] = {}
         self._cells: list[float] = []
         self._rect_index: dict[int, _RectIndex] = {}
@@ -972,6 +973,9 @@ class Environment:
         self._soup_role = np.array([soup.role for soup in self._soups], dtype=np.int_)
         self._static_soup_index: tuple[_BucketIndex, FloatArray, IntArray, IntArray] | None = None
         self._dynamic_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic]
+        # static meshes only: a one-point height query reads them in plain Python floats
+        self._meshes_only = (self.heightmap is None and not self._box_center.shape[0]
+                             and not self._dynamic_soups)
         # Translation of each dynamic soup from its stored vertices (move_soup): the triangles,
         # their index and their raster are kept and only the queries are shifted.
         self._soup_offset: dict[int, FloatArray] = {}
@@ -1065,6 +1069,7 @@ class Environment:
         """Forget every cached tile and raster (memory only; results do not change)."""
         self._tiles.clear()
         self._filled = np.zeros(0, dtype=np.int64)
+        self._filled_set.clear()
         self._moving_raster.clear()
         self._raster_offset.clear()
         self._raster_ok.clear()
@@ -1193,12 +1198,45 @@ class Environment:
         point, tri, z = triangle_hits(table, xy, point, tri)
         return point, z, tri
 
+    def _static_soup_height(self, x: float, y: float) -> float:
+        """The highest static soup triangle under one point (finite ``x``, ``y``), or
+        :data:`NO_SURFACE`: what :meth:`height_at` finds for it, in plain Python floats (a
+        point query of one point is most of a step's queries; the arithmetic of
+        :meth:`_BucketIndex.pairs` and :func:`triangle_hits`, operation by operation, and
+        the maximum taken as ``np.maximum.at`` takes it)."""
+        index, table, _, _ = self._static_soups()
+        if index.n == 0:
+            return NO_SURFACE
+        nby, nbx = index.shape
+        cx = math.floor((x - index._ox) / index.bucket)
+        cy = math.floor((y - index._oy) / index.bucket)
+        key = cy * nbx + cx if 0 <= cx < index._dims[0] and 0 <= cy < index._dims[1] else nbx * nby
+        lo, hi = index.offsets[key : key + 2].tolist()
+        best = NO_SURFACE
+        if hi == lo:
+            return best
+        tol = -1e-9
+        for x0, y0, e1x, e1y, e2x, e2y, den, z0, dz1, dz2 in table.take(index.items[lo:hi], axis=0).tolist():
+            px = x - x0
+            py = y - y0
+            u = (px * e2y - py * e2x) / den
+            v = (e1x * py - e1y * px) / den
+            if u >= tol and v >= tol and u + v <= 1.0 - tol:
+                z = z0 + u * dz1 + v * dz2
+                if z > best or z != z:  # (np.maximum: a NaN stays)
+                    best = z
+        return best
+
     def height_at(self, xy: npt.ArrayLike) -> FloatArray:
         """Highest surface (terrain and every obstacle) under each point ``(n, 2)``: ``(n,)``.
 
         :data:`NO_SURFACE` where there is nothing at all.
         """
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if p.shape[0] == 1 and self._meshes_only:  # (a scene of static meshes: the shell's)
+            x, y = p[0].tolist()
+            if math.isfinite(x) and math.isfinite(y):
+                return np.array([self._static_soup_height(x, y)])
         out = np.full(p.shape[0], NO_SURFACE)
         if self.heightmap is not None:
             out = np.maximum(out, self.heightmap.sample(p))
@@ -1299,6 +1337,8 @@ class Environment:
         block of a tile's new ones' bounding rectangle at once and every rectangle of the
         call in one batch (:meth:`_raster_static`)."""
         b = self.block_cells
+        if self._blocks_filled(cells.tolist(), n.tolist(), i0.tolist(), j0.tolist()):
+            return
         ids = np.array([self._cell_id(c) for c in cells.tolist()], dtype=np.int64)
         w, bi = _ranges_to_pairs(i0 // b, (i0 + n - 1) // b)
         v, bj = _ranges_to_pairs(j0[w] // b, (j0[w] + n[w] - 1) // b)
@@ -1330,6 +1370,31 @@ class Environment:
         r = r[q]
         done = _block_key(t_cid[r], t_i[r] * kb + bi[q], t_j[r] * kb + bj)
         self._filled = np.union1d(filled, done)
+        self._filled_set.update(done.tolist())
+
+    def _blocks_filled(self, cells: list[float], n: list[int], i0: list[int], j0: list[int]) -> bool:
+        """Whether every block the windows of :meth:`_fill_static` cover is filled already,
+        looked up key by key in plain Python (most steps move a window within filled blocks:
+        a few dozen set look-ups instead of :meth:`_fill_static`'s array passes); False when
+        the windows cover too many blocks for that to pay."""
+        b = self.block_cells
+        spans = [((i + k - 1) // b - i // b + 1) * ((j + k - 1) // b - j // b + 1)
+                 for k, i, j in zip(n, i0, j0, strict=True)]
+        if sum(spans) > 1024:
+            return False
+        filled = self._filled_set
+        side = 2 * _KEY_HALF
+        for c, k, i, j in zip(cells, n, i0, j0, strict=True):
+            cid = self._cell_ids.get(c)
+            if cid is None or min(i // b, j // b) < -_KEY_HALF or max(i + k - 1, j + k - 1) // b >= _KEY_HALF:
+                return False  # (keys out of range: the array path raises)
+            cols = range(j // b + _KEY_HALF, (j + k - 1) // b + 1 + _KEY_HALF)
+            for bi in range(i // b, (i + k - 1) // b + 1):
+                row = (cid * side + bi + _KEY_HALF) * side
+                for bj in cols:
+                    if row + bj not in filled:
+                        return False
+        return True
 
     def _raster_static(
         self, cid: IntArray, ti: IntArray, tj: IntArray, r0: IntArray, r1: IntArray, c0: IntArray,
