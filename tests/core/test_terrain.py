@@ -139,6 +139,26 @@ def test_static_tiles_are_rasterised_once_and_moving_boxes_only_when_they_moved(
         env.move_boxes(np.array([0]), b.center[:1], b.yaw[:1])
 
 
+def test_a_window_over_meshes_fills_a_ring_of_blocks_beyond_it() -> None:
+    """Static meshes are rasterised block by block: a window that needs new blocks takes the
+    blocks around it too, so a window moved by a block needs none; its grids are what a fresh
+    rasterisation gives (to its rounding)."""
+    rng = np.random.default_rng(5)
+    env = Environment(None, None, [_grid_mesh(rng, 12, -3.0, 3.0)])
+    params = terrain.WindowParams(n_cells=24, cell=0.05)
+    step = env.block_cells * params.cell
+    env.window(np.zeros(2), params)
+    tiles = env.stats["tiles_rasterised"]
+    for dx, dy in ((step, 0.0), (-step, step), (0.0, -step)):
+        w = env.window(np.array([dx, dy]), params)
+        assert env.stats["tiles_rasterised"] == tiles
+        elev, avoid = env.rasterise(w.origin, w.cell, w.shape)  # (its own grid: other roundings)
+        assert_close(w.elevation, elev, "elevation")
+        assert np.array_equal(w.avoid, avoid)
+    env.window(np.array([3.0 * step, 0.0]), params)
+    assert env.stats["tiles_rasterised"] > tiles
+
+
 def test_box_cells_are_exactly_the_cells_the_rotated_box_overlaps() -> None:
     env = Environment(None, boxes([(0.1, -0.05, 0.5, 0.12, 0.3, 0.6, ROLE_AVOID, False)]))
     w = env.window(np.zeros(2), SMALL)

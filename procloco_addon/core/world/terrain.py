@@ -901,6 +901,8 @@ class WindowGrids:
 # ---------------------------------------------------------------------------------------
 _TileKey = tuple[float, int, int]
 
+#: Blocks filled around a window beyond it when it needs new ones (:meth:`Environment._fill_static`).
+_FILL_AHEAD = 1
 _KEY_HALF = 1 << 20  # block rows and columns from -2**20 to 2**20 - 1 in a key
 
 
@@ -1339,6 +1341,11 @@ class Environment:
         b = self.block_cells
         if self._blocks_filled(cells.tolist(), n.tolist(), i0.tolist(), j0.tolist()):
             return
+        if b < self.tile_cells:
+            # a window that needs new blocks takes a ring of blocks around it too: a window
+            # moving with its character then needs new blocks at every other block it
+            # crosses, not at each (a rectangle's raster is mostly the call's fixed cost)
+            i0, j0, n = i0 - _FILL_AHEAD * b, j0 - _FILL_AHEAD * b, n + 2 * _FILL_AHEAD * b
         ids = np.array([self._cell_id(c) for c in cells.tolist()], dtype=np.int64)
         w, bi = _ranges_to_pairs(i0 // b, (i0 + n - 1) // b)
         v, bj = _ranges_to_pairs(j0[w] // b, (j0[w] + n[w] - 1) // b)
