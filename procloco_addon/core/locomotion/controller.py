@@ -588,7 +588,7 @@ class Controller:
                                 stance_time, land_stance, self.hips_world())
         u_grid = planning.swing_grid(p.trajectory_samples)
         with prof.phase("maps"):
-            grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
+            grids = planning.windows(env, rig, p, self.body, sorted(set(land.chars.tolist())), stats)
             grids = self._crowd_windows(grids)
         with prof.phase("planning"):
             reqs, rows_of = planning.requests(rig, p, land, self.feet, flags[0], flags[1], ctl, grids,

@@ -877,7 +877,7 @@ class WindowGrids:
         """World xy of cell centres ``(..., 2)``."""
         r = np.asarray(rows, dtype=np.float64)
         c = np.asarray(cols, dtype=np.float64)
-        out = np.empty((*np.broadcast_shapes(r.shape, c.shape), 2))
+        out = np.empty((*(r.shape if r.shape == c.shape else np.broadcast_shapes(r.shape, c.shape)), 2))
         out[..., 0] = self.origin[0] + c * self.cell
         out[..., 1] = self.origin[1] + r * self.cell
         return out
