@@ -431,7 +431,8 @@ def raster_boxes(
     col = j0[box] + across
     row = i0[box] + down
     if per_box:
-        cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
+        cl_all = np.asarray(cell, dtype=np.float64)
+        cl = cl_all[box] if cl_all.ndim else np.full(box.size, float(cl_all))
         # (a column taken, then gathered: one index array, not two)
         dx = (org[:, 0][box] + col * cl) - center_xy[:, 0][box]
         dy = (org[:, 1][box] + row * cl) - center_xy[:, 1][box]
