@@ -1462,16 +1462,22 @@ class Environment:
                   self._box_role[box] == ROLE_AVOID)
         index, owner, first = self._static_rect_index()
         rect_all, tri_all = index.pairs(lo, hi)
-        # (rasterised soup by soup, only the soups some rectangle reaches: every triangle's
-        # cells and heights are its own, and the paste takes maxima)
+        # (the triangles of every soup some rectangle reaches in one batch, soup after soup:
+        # every triangle's cells and heights are its own, and the paste takes maxima in the
+        # order the soups came one by one)
         soups_hit = np.unique(owner[tri_all]).tolist() if tri_all.size > 0 else []
-        for i in soups_hit:
-            mine = owner[tri_all] == i if len(soups_hit) > 1 else slice(None)
-            rect, tri = rect_all[mine], tri_all[mine] - first[i]
-            tris = self._soup_triangles(i)[0]
+        if soups_hit:
+            tri_owner = owner[tri_all]
+            order = tri_owner.argsort(kind="stable") if len(soups_hit) > 1 else slice(None)
+            rect, gtri, tri_owner = rect_all[order], tri_all[order], tri_owner[order]
+            cuts = tri_owner.searchsorted(np.asarray([*soups_hit, len(self._soups)])).tolist()
+            tris = np.concatenate([self._soup_triangles(i)[0][gtri[cuts[k] : cuts[k + 1]] - first[i]]
+                                   for k, i in enumerate(soups_hit)])
+            soup_avoided = np.asarray([soup.role == ROLE_AVOID for soup in self._soups])
+            avoided = soup_avoided[tri_owner]
             for pair, row, col, z in raster_triangle_pieces(origin[rect], cell[rect], (r1[rect], c1[rect]),
-                                                            tris[tri], first=(r0[rect], c0[rect])):
-                paste(rect.take(pair), row, col, z, self._soups[i].role == ROLE_AVOID)
+                                                            tris, first=(r0[rect], c0[rect])):
+                paste(rect.take(pair), row, col, z, avoided.take(pair))
         for k, (c, i, j) in enumerate(zip(cid.tolist(), ti.tolist(), tj.tolist(), strict=True)):
             key = (self._cells[c], i, j)
             tile = self._tiles.get(key)
