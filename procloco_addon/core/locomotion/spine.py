@@ -837,11 +837,11 @@ class SpinePose:
 
     def key_positions(self, spines: SpineBatch | SpineModel) -> FloatArray:
         """``(C, K, 3)`` final positions of the key nodes."""
-        return self.joints[:, spines.key_joint]
+        return self.joints.take(spines.key_joint, axis=1)
 
     def key_frames(self, spines: SpineBatch | SpineModel) -> FloatArray:
         """``(C, K, 3, 3)`` final body-to-world rotations of the key nodes."""
-        return self.joint_frame[:, spines.key_joint]
+        return self.joint_frame.take(spines.key_joint, axis=1)
 
 
 # ------------------------------------------------------------------------ steps 1 and 2
@@ -902,7 +902,7 @@ def _turn_from_head(spines: SpineBatch, xy: FloatArray, turn: FloatArray) -> Flo
         xy[:, :i] = _rotate_about(xy[:, :i], xy[:, i], share)
         remaining = remaining - share
     others = spines.others
-    xy[:, others] = _rotate_about(xy[:, others], xy[:, 1], remaining)
+    xy[:, others] = _rotate_about(xy.take(others, axis=1), xy[:, 1], remaining)
     return xy
 
 
@@ -1010,8 +1010,8 @@ def feet_ahead(spines: SpineBatch, plan: SpinePlan, foot_world: FloatArray) -> F
     the node's heading (what :func:`terrain_guides` and :func:`node_pitch` measure the feet
     by; give it to them when both run on the same plan and feet)."""
     leg = spines.leg_key
-    heading = plan.key_heading[:, leg]
-    rel_xy = foot_world[..., :2] - plan.key_xy[:, leg]
+    heading = plan.key_heading.take(leg, axis=1)
+    rel_xy = foot_world[..., :2] - plan.key_xy.take(leg, axis=1)
     return np.asarray(rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading))
 
 
@@ -1066,9 +1066,9 @@ def terrain_guides(
         if ahead is None:
             ahead = feet_ahead(spines, plan, feet)
         # arc length grows from the head to the back: a foot ahead of its node comes before it
-        fx = arc[:, spines.leg_key] - ahead  # (C, L)
-        x[..., n:] = fx[:, own]
-        z[..., n:] = feet[:, own, 2]
+        fx = arc.take(spines.leg_key, axis=1) - ahead  # (C, L)
+        x[..., n:] = fx.take(own, axis=1)
+        z[..., n:] = feet[..., 2].take(own, axis=1)
         valid[..., n:] = spines.node_leg_valid
     lost = ~np.logical_or.reduce(valid[..., :n], axis=2)  # (C, K)
     if np.count_nonzero(lost):
@@ -1136,10 +1136,10 @@ def node_pitch(
     leg = spines.leg_key
     if ahead is None:
         ahead = feet_ahead(spines, plan, feet)
-    below = z[:, leg] - feet[..., 2]
+    below = z.take(leg, axis=1) - feet[..., 2]
     rest_ahead = spines.rest_foot_ahead
     # The rest place on the sloped ground: further below the node behind it, less ahead.
-    ref_below = spines.rest_foot_depth - rest_ahead * np.tan(env[:, leg])
+    ref_below = spines.rest_foot_depth - rest_ahead * np.tan(env.take(leg, axis=1))
     change = _wrap(np.arctan2(ahead, below) - np.arctan2(rest_ahead, ref_below))  # (C, L)
     mean_change = (change @ spines.membership) / spines.leg_count
     # (1 - w) env + w (env + change) = env + w change
@@ -1161,8 +1161,8 @@ def visual_yaw(spines: SpineBatch, plan: SpinePlan, foot_world: npt.ArrayLike) -
         return np.zeros((c, k))
     feet = np.asarray(foot_world, dtype=np.float64).reshape(c, spines.n_legs, 3)
     leg = spines.leg_key
-    rel = feet[..., :2] - plan.key_xy[:, leg]
-    now = np.arctan2(rel[..., 1], rel[..., 0]) - plan.key_heading[:, leg]
+    rel = feet[..., :2] - plan.key_xy.take(leg, axis=1)
+    now = np.arctan2(rel[..., 1], rel[..., 0]) - plan.key_heading.take(leg, axis=1)
     turned = (_wrap(now - spines.rest_foot_yaw)[:, None, :] @ spines.yaw_weight)[:, 0]  # (C, K)
     mean = np.where(spines.yaw_has, turned / spines.yaw_weight_sum, 0.0)
     limit = spines.max_visual_yaw[:, None]
@@ -1199,15 +1199,15 @@ def _sample_curve(
     pair = _segment_pairs(k)  # (K - 1, 2): each key segment's two nodes
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
     ends_xyz = ctrl[:, :, 0:2]
-    ends_xyz[...] = key_xyz[:, pair]
+    ends_xyz[...] = key_xyz.take(pair, axis=1)
     d = ends_xyz[:, :, 1] - ends_xyz[:, :, 0]
     chord = np.sqrt((d * d) @ _ONES3)  # (C, K - 1)
-    np.multiply(tangent[:, pair], chord[..., None, None], out=ctrl[:, :, 2:4])
+    np.multiply(tangent.take(pair, axis=1), chord[..., None, None], out=ctrl[:, :, 2:4])
     step = _CURVE_STEP_BASIS @ ctrl  # (C, K - 1, m - 1, 3): between consecutive dense samples
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
     step *= step
     np.sqrt(step @ _ONES3).cumsum(axis=2, out=table[:, :, 1:])
-    tab = table[:, segment]  # (C, J, m)
+    tab = table.take(segment, axis=1)  # (C, J, m)
     target = fraction * tab[..., m - 1]
     # the first sample at or past the target (a fraction is at most 1: never past the end)
     idx = np.add.reduce(tab < target[..., None], axis=-1)
@@ -1226,7 +1226,7 @@ def _sample_curve(
     # Exact ends: key joints sit on their key node.
     param[:, ends] = end_value
     basis = (param[..., None] ** _POWERS) @ HERMITE_MATRIX  # (C, J, 4): hermite_basis
-    return np.asarray((basis[:, :, None, :] @ ctrl[:, segment])[:, :, 0])
+    return np.asarray((basis[:, :, None, :] @ ctrl.take(segment, axis=1))[:, :, 0])
 
 
 _ROW_OFFSETS: dict[tuple[int, int, int], IntArray] = {}
@@ -1303,7 +1303,7 @@ def _build(spines: SpineBatch, guide: FloatArray, yaw: FloatArray, pitch: FloatA
     # are turned in one call: (C, J - 1) bone angles, then (C, J) joint angles, yaw then pitch.
     turn = np.empty((2, c, n_b + n_j))
     np.add(spines.rest_chord_turn, dev, out=turn[:, :, :n_b])
-    pad = dev[:, :, spines.pad_index]  # (2, C, J + 1)
+    pad = dev.take(spines.pad_index, axis=2)  # (2, C, J + 1)
     half = pad[:, :, 1:] - pad[:, :, :-1]
     _wrap_in_place(half[0])
     half *= 0.5
@@ -1428,11 +1428,11 @@ def leg_frames(spines: SpineBatch, pose: SpinePose) -> FloatArray:
     """Body-to-world rotation each leg hangs from ``(C, L, 3, 3)``: its carrier bone's
     rotation (``SpineModel.leg_bone``), else the frame of its key node."""
     if spines.all_legs_on_bone:
-        return np.asarray(pose.bone_rotation[:, spines.leg_bone_row])
-    key_frames = pose.joint_frame[:, spines.leg_key_joint]
+        return np.asarray(pose.bone_rotation.take(spines.leg_bone_row, axis=1))
+    key_frames = pose.joint_frame.take(spines.leg_key_joint, axis=1)
     if not spines.any_leg_on_bone:
         return np.asarray(key_frames)
-    bone_frames = pose.bone_rotation[:, spines.leg_bone_row]
+    bone_frames = pose.bone_rotation.take(spines.leg_bone_row, axis=1)
     return np.asarray(np.where(spines.leg_on_bone[None, :, None, None], bone_frames, key_frames))
 
 
@@ -1442,7 +1442,7 @@ def hip_positions(spines: SpineBatch, pose: SpinePose, frames: FloatArray | None
     pose's :func:`leg_frames` ``(C, L, 3, 3)`` when the caller has them already)."""
     if frames is None:
         frames = leg_frames(spines, pose)
-    return pose.joints[:, spines.leg_pivot] + np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
+    return pose.joints.take(spines.leg_pivot, axis=1) + np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
 
 
 def repeat_for_reach(

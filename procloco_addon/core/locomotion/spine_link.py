@@ -188,7 +188,7 @@ def advance(link: SpineLink, body: Body, ctl: StepControls, dt: float) -> None:
     for g in link.groups:
         old = g.plan.key_xy
         g.plan = plan_spine(g.spines, SpineState(old), ctl.heading[g.chars], ctl.speed[g.chars] * dt, dt)
-        moved = (g.plan.key_xy - old)[:, g.spines.leg_key]
+        moved = (g.plan.key_xy - old).take(g.spines.leg_key, axis=1)
         link.hips[g.legs, :2] += moved
         link.hips_free[g.legs, :2] += moved
         body_from_plan(g, body)
