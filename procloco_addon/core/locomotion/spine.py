@@ -104,8 +104,17 @@ def _turn_xy(v: FloatArray, angle: FloatArray) -> FloatArray:
 
 
 def _rotate_about(points: FloatArray, centre: FloatArray, angle: FloatArray) -> FloatArray:
-    """Rotate ``points`` ``(C, n, 2)`` about ``centre`` ``(C, 2)`` by ``angle`` ``(C,)``."""
-    out = _turn_xy(points - centre[:, None, :], angle[:, None])
+    """Rotate ``points`` ``(C, n, 2)`` about ``centre`` ``(C, 2)`` by ``angle`` ``(C,)``
+    (:func:`_turn_xy`'s arithmetic, each coordinate written into the result)."""
+    rel = points - centre[:, None, :]
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    x, y = rel[..., 0], rel[..., 1]
+    out = np.empty_like(rel)
+    turned_x, turned_y = out[..., 0], out[..., 1]
+    np.multiply(c, x, out=turned_x)
+    turned_x -= s * y
+    np.multiply(s, x, out=turned_y)
+    turned_y += c * y
     out += centre[:, None, :]
     return out
 
@@ -935,6 +944,9 @@ def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) ->
     out[:, 0] = support[:, 0]
     rows = _unit_index(c)
     g = t = rows  # (the first node is looked for on every segment from its start)
+    seg_rows = _row_offsets(c, 1, k + 1)[:, 0]  # where each row's segments start in d's flattening
+    flat_d = d.reshape(-1, 2)
+    flat_support = support.reshape(-1, 2)  # (a row of support is one longer than of d)
     for i in range(1, k):
         f = a - out[:, i - 1, None, :]
         b = (f * d) @ _ONES2
@@ -954,8 +966,11 @@ def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) ->
             t_min -= 1e-12
             ok &= (seg_idx >= g[:, None]) & (root >= t_min)
         g = ok.argmax(axis=1)  # the long last segment always qualifies
-        t = np.minimum(np.maximum(root[rows, g], 0.0), 1.0)
-        out[:, i] = a[rows, g] + t[:, None] * d[rows, g]
+        # (each row's segment g gathered through the flat arrays: take of a flat index is
+        # several times faster than indexing with two index arrays)
+        at = g + seg_rows
+        t = np.minimum(np.maximum(root.take(at), 0.0), 1.0)
+        out[:, i] = flat_support.take(at + rows, axis=0) + t[:, None] * flat_d.take(at, axis=0)
     return out
 
 
@@ -1498,6 +1513,9 @@ def reach_repeats(
         cap_all = cap_all.reshape(-1, 1, 1)
     member = spines.membership
     start = pose.guide_xyz
+    # (what the legs are measured against, made once for every repeat)
+    limit_all = reach_all + 1e-12
+    aim_all = slack * reach_all
     # The characters still stretched (only they are rebuilt): None while that is all of them.
     rows: IntArray | None = None
     sub_spines = spines
@@ -1508,12 +1526,11 @@ def reach_repeats(
         last_hips = hip if rows is None else None
         to_foot = (feet if rows is None else feet[rows]) - hip
         dist = vector_norm(to_foot)
-        reach = reach_all if rows is None else reach_all[rows]
-        stretched = np.logical_or.reduce(dist > reach + 1e-12, axis=1)
+        stretched = np.logical_or.reduce(dist > (limit_all if rows is None else limit_all[rows]), axis=1)
         n_stretched = np.count_nonzero(stretched)
         if not n_stretched:
             break
-        excess = np.maximum(dist - slack * reach, 0.0)
+        excess = np.maximum(dist - (aim_all if rows is None else aim_all[rows]), 0.0)
         if rows is None and n_stretched == stretched.size:
             cap = cap_all
             base = start
