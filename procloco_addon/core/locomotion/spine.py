@@ -816,9 +816,11 @@ class SpinePlan:
     steer_heading: FloatArray
 
 
-@dataclass(frozen=True)
+@dataclass(eq=False)
 class SpinePose:
-    """Step 4: the drawn spine of every character.
+    """Step 4: the drawn spine of every character (not changed in place once made: not
+    frozen only because a frozen dataclass's construction costs a few microseconds, and
+    a step builds about three).
 
     - ``joints``: ``(C, J, 3)`` world positions of the spine joints (head first).
     - ``bone_rotation``: ``(C, J - 1, 3, 3)`` rotation taking each bone from its rest
@@ -1215,13 +1217,13 @@ def _sample_curve(
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
     ends_xyz = ctrl[:, :, 0:2]
     ends_xyz[...] = key_xyz.take(pair, axis=1)
-    d = ends_xyz[:, :, 1] - ends_xyz[:, :, 0]
+    d = key_xyz[:, 1:] - key_xyz[:, :-1]
     chord = np.sqrt((d * d) @ _ONES3)  # (C, K - 1)
     np.multiply(tangent.take(pair, axis=1), chord[..., None, None], out=ctrl[:, :, 2:4])
     step = _CURVE_STEP_BASIS @ ctrl  # (C, K - 1, m - 1, 3): between consecutive dense samples
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
     step *= step
-    np.sqrt(step @ _ONES3).cumsum(axis=2, out=table[:, :, 1:])
+    np.add.accumulate(np.sqrt(step @ _ONES3), axis=2, out=table[:, :, 1:])
     tab = table.take(segment, axis=1)  # (C, J, m)
     target = fraction * tab[..., m - 1]
     # the first sample at or past the target (a fraction is at most 1: never past the end)
@@ -1372,7 +1374,9 @@ def _frames(turn: FloatArray) -> FloatArray:
     np.sin(turn, out=table[2:4])
     np.multiply(table[0:4:2, None], table[None, 1:4:2], out=table[4:8].reshape(2, 2, c, n))
     table[8] = 0.0
-    out = table.reshape(9, c * n).T[:, _FRAME_ENTRIES]
+    # (the entries taken along the table's first axis, then turned: the same strided layout
+    # as indexing the turned table, which the bone rotations' matrix products depend on)
+    out = table.reshape(9, c * n).take(_FRAME_ENTRIES, axis=0).T
     out *= _FRAME_SIGNS
     return out.reshape(c, n, 3, 3)
 
