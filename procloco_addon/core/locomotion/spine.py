@@ -1294,6 +1294,15 @@ def build_spine(
     return _build(spines, guide.copy(), np.array(yaw, copy=True), np.array(pitch, copy=True), tangent)
 
 
+def build_fresh(
+    spines: SpineBatch, key_xyz: FloatArray, key_yaw: FloatArray, key_pitch: FloatArray
+) -> SpinePose:
+    """:func:`build_spine` on ``(C, K, 3)``, ``(C, K)`` and ``(C, K)`` float arrays the pose may
+    hold as they are (the caller will not change them in place)."""
+    tangent = -_direction(key_yaw, spines.rest_key_pitch + key_pitch)
+    return _build(spines, key_xyz, key_yaw, key_pitch, tangent)
+
+
 def _build(spines: SpineBatch, guide: FloatArray, yaw: FloatArray, pitch: FloatArray, tangent: FloatArray
            ) -> SpinePose:
     """:func:`build_spine` on arrays the pose may keep as they are (nobody changes them)."""
@@ -1461,7 +1470,8 @@ def hip_positions(spines: SpineBatch, pose: SpinePose, frames: FloatArray | None
     pose's :func:`leg_frames` ``(C, L, 3, 3)`` when the caller has them already)."""
     if frames is None:
         frames = leg_frames(spines, pose)
-    return pose.joints.take(spines.leg_pivot, axis=1) + np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
+    turned = np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
+    return pose.joints.take(spines.leg_pivot, axis=1) + turned
 
 
 def repeat_for_reach(
@@ -1622,6 +1632,7 @@ __all__ = [
     "SpinePlan",
     "SpinePose",
     "SpineState",
+    "build_fresh",
     "build_spine",
     "feet_ahead",
     "finish_spine",
