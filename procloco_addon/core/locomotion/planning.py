@@ -23,7 +23,7 @@ from . import spine_link
 from .fallback import straight_step
 from .footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from .morphology import LegBatch
-from .obstacles import Watch, onto_support, ring_points, swing_planned, trajectory_blocked, watch_reset
+from .obstacles import Watch, onto_support, ring_points, swing_planned, watch_reset
 from .pelvis import Body
 from .reach import within_reach_all
 from .rig import Rig
@@ -49,13 +49,14 @@ GeometryOf = Callable[[int, float], LegGeometry]
 
 
 def replan_needed(
-    env: Environment, watch: Watch, rig: Rig, p: ControllerParams, feet: FootState, ctl: StepControls,
-    progress: FloatArray, swing: BoolArray,
+    rig: Rig, p: ControllerParams, feet: FootState, ctl: StepControls, progress: FloatArray, swing: BoolArray,
+    blocked: BoolArray | None,
 ) -> BoolArray:
     """``(N,)`` swinging feet (``swing (N,)``) to re-plan from where they are (sequences 1-3,
     §3.6): before ``replan_until`` of their swing (``progress (N,)``), when the commanded
     heading, speed or spacing changed noticeably since their plan; at any time when a
-    moving obstacle now cuts their way (also kept in ``feet.blocked``)."""
+    moving obstacle now cuts their way (``blocked (N,)``, ``obstacles.look_around``; None
+    where nothing moves; also kept in ``feet.blocked``)."""
     plan = feet.plan
     leg_len = rig.legs.leg_length
     lc = rig.leg_char
@@ -66,8 +67,8 @@ def replan_needed(
     spacing = vector_norm(ctl.spacing - plan.spacing) > p.replan_spacing * leg_len
     need = swing & early & (heading | speed | spacing)
     feet.blocked[:] = False
-    if watch.dynamic:
-        feet.blocked = swing & trajectory_blocked(env, watch, feet, swing, progress, rig.support_tolerance)
+    if blocked is not None:
+        feet.blocked = swing & blocked
         need |= feet.blocked
     return np.asarray(need)
 
