@@ -982,7 +982,7 @@ class Environment:
         # point query's (point, box) pairs (height_at and forbidden_at often ask for the same
         # points one after the other).
         self._raster_ok: dict[float, BoolArray] = {}
-        self._dynamic_sorted: tuple[IntArray, FloatArray, FloatArray, float] | None = None
+        self._dynamic_widest: float | None = None
         self._last_pairs: tuple[tuple[int, ...], bytes, IntArray, IntArray] | None = None
         self._update_box_bounds()
         self.stats = {"tiles_rasterised": 0, "moving_rasterised": 0, "windows": 0}
@@ -1024,7 +1024,7 @@ class Environment:
         self._box_yaw[idx] = np.asarray(yaw, dtype=np.float64).reshape(idx.size)
         self._update_box_bounds(idx)
         self._box_index_dynamic = None
-        self._dynamic_sorted = None
+        self._dynamic_widest = None
         self._last_pairs = None
         for ok in self._raster_ok.values():
             ok[idx] = False
@@ -1519,42 +1519,43 @@ class Environment:
     def _near_moving_boxes(
         self, lo_w: FloatArray, hi_w: FloatArray, cells: FloatArray, sides: IntArray
     ) -> list[IntArray]:
-        """The moving boxes near each window (bounds ``lo_w``, ``hi_w`` ``(m, 2)``), their
-        rasters made for the windows' cell sizes: one batch per window size and cell size, in
-        the order of the windows (a moving box's raster is cut from its batch's lattice)."""
+        """The moving boxes near each window (bounds ``lo_w``, ``hi_w`` ``(m, 2)``: whose xy
+        bounds reach them, their lower x at most the widest box's width before the window),
+        their rasters made for the windows' cell sizes: one batch per window size and cell
+        size (a moving box's raster is cut from its batch's lattice). The candidates come
+        from the moving boxes' point-query index (every box in every bucket its bounds
+        reach: a box reaching a window is in one of its buckets), for every window at once;
+        each window's boxes in increasing order."""
         m = lo_w.shape[0]
         if not self._dynamic_boxes.size:
             return [np.zeros(0, dtype=np.intp)] * m
-        # Moving boxes sorted by their min x: each window scans only a narrow x range.
-        d_sorted, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
-        first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left").tolist()
-        last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right").tolist()
-        near_arrays = []
-        for w in range(m):
-            sl = slice(first[w], last[w])
-            ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
-                  & (lo_sorted[sl, 1] <= hi_w[w, 1]))
-            near_arrays.append(d_sorted[sl][ok])
-        batches: dict[tuple[int, float], list[IntArray]] = {}
+        rect, box, _ = self._moving_box_candidates(lo_w, hi_w, None)
+        # (window, box) once each, by window then box
+        n_all = self._box_center.shape[0]
+        key = np.unique(rect * n_all + box)
+        rect, box = np.divmod(key, n_all)
+        blo, bhi = self._box_lo, self._box_hi
+        lx = blo[:, 0][box]
+        ok = ((lx >= (lo_w[:, 0] - self._widest_moving())[rect]) & (lx <= hi_w[:, 0][rect])
+              & (bhi[:, 0][box] >= lo_w[:, 0][rect]) & (bhi[:, 1][box] >= lo_w[:, 1][rect])
+              & (blo[:, 1][box] <= hi_w[:, 1][rect]))
+        rect, box = rect[ok], box[ok]
+        cuts = np.searchsorted(rect, np.arange(m + 1)).tolist()
+        near_arrays = [box[cuts[w] : cuts[w + 1]] for w in range(m)]
+        batches: dict[tuple[int, float], list[int]] = {}
         for w, (n, cell) in enumerate(zip(sides.tolist(), cells.tolist(), strict=True)):
-            batches.setdefault((n, cell), []).append(near_arrays[w])
-        for (_, cell), arrays in batches.items():
-            self._cache_moving_boxes(cell, np.unique(np.concatenate(arrays)))
+            batches.setdefault((n, cell), []).append(w)
+        for (_, cell), ws in batches.items():
+            todo = box if len(ws) == m else np.concatenate([near_arrays[w] for w in ws])
+            self._cache_moving_boxes(cell, np.unique(todo))
         return near_arrays
 
-    def _dynamic_by_x(self) -> tuple[IntArray, FloatArray, FloatArray, float]:
-        """The moving boxes sorted by their min x, their bounds, and the widest one's width
-        (kept until a box moves)."""
-        if self._dynamic_sorted is None:
+    def _widest_moving(self) -> float:
+        """The widest moving box's x extent (kept until a box moves)."""
+        if self._dynamic_widest is None:
             d = self._dynamic_boxes
-            dlo = self._box_lo[d]
-            order = np.argsort(dlo[:, 0], kind="stable")
-            d_sorted = d[order]
-            lo_sorted = dlo[order]
-            hi_sorted = self._box_hi[d_sorted]
-            widest = float(np.max(hi_sorted[:, 0] - lo_sorted[:, 0]))
-            self._dynamic_sorted = (d_sorted, lo_sorted, hi_sorted, widest)
-        return self._dynamic_sorted
+            self._dynamic_widest = float(np.max(self._box_hi[:, 0][d] - self._box_lo[:, 0][d]))
+        return self._dynamic_widest
 
     def moving_near(self, lo: FloatArray, hi: FloatArray) -> BoolArray:
         """``(m,)`` whether a moving box's or moving mesh's ground footprint (its xy bounds)
@@ -1587,35 +1588,44 @@ class Environment:
         each); rectangles over more than 36 buckets of the index count as reached. The boxes
         looked at: those in the rectangle's buckets of the moving boxes' point-query index
         (every box is in every bucket its bounds reach)."""
-        index = self._dynamic_index()
         m = lo.shape[0]
-        if index.n == 0:
+        if self._dynamic_index().n == 0:
             return np.zeros(m, dtype=bool)
         eps = 1e-9
-        nby, nbx = index.shape
-        ox, oy = float(index.origin[0]), float(index.origin[1])
-        bucket = index.bucket
-        x0 = np.maximum(np.floor((lo[:, 0] - eps - ox) / bucket), 0.0).astype(np.intp)
-        x1 = np.minimum(np.floor((hi[:, 0] + eps - ox) / bucket), nbx - 1.0).astype(np.intp)
-        y0 = np.maximum(np.floor((lo[:, 1] - eps - oy) / bucket), 0.0).astype(np.intp)
-        y1 = np.minimum(np.floor((hi[:, 1] + eps - oy) / bucket), nby - 1.0).astype(np.intp)
-        wx = np.maximum(x1 - x0 + 1, 0)
-        count = wx * np.maximum(y1 - y0 + 1, 0)
-        wide = count > 36
-        count[wide] = 0
-        # (rectangle, bucket) pairs, then (rectangle, box) pairs: the buckets' item ranges
-        rect, local = _ranges_to_pairs(np.zeros(m, dtype=np.intp), count - 1)
-        key = (y0[rect] + local // wx[rect]) * nbx + x0[rect] + local % wx[rect]
-        first = index.offsets[key]
-        pair, at = _ranges_to_pairs(first, index.offsets[key + 1] - 1)
-        rect = rect[pair]
-        box = self._dynamic_boxes[index.items[at]]
+        rect, box, wide = self._moving_box_candidates(lo - eps, hi + eps, 36)
         blo, bhi = self._box_lo, self._box_hi
         hit = ((blo[:, 0][box] - eps <= hi[:, 0][rect]) & (bhi[:, 0][box] + eps >= lo[:, 0][rect])
                & (blo[:, 1][box] - eps <= hi[:, 1][rect]) & (bhi[:, 1][box] + eps >= lo[:, 1][rect]))
         out = wide.copy()
         out[rect[hit]] = True
         return out
+
+    def _moving_box_candidates(
+        self, lo: FloatArray, hi: FloatArray, most: int | None
+    ) -> tuple[IntArray, IntArray, BoolArray]:
+        """(rectangle, moving box) pairs of the boxes in the buckets of the moving boxes'
+        point-query index each rectangle ``[lo, hi]`` (``(m, 2)`` each) covers (a box once
+        per bucket), and which rectangles cover more than ``most`` buckets (None: no limit;
+        those are left out)."""
+        index = self._dynamic_index()
+        m = lo.shape[0]
+        nby, nbx = index.shape
+        ox, oy = float(index.origin[0]), float(index.origin[1])
+        bucket = index.bucket
+        x0 = np.maximum(np.floor((lo[:, 0] - ox) / bucket), 0.0).astype(np.intp)
+        x1 = np.minimum(np.floor((hi[:, 0] - ox) / bucket), nbx - 1.0).astype(np.intp)
+        y0 = np.maximum(np.floor((lo[:, 1] - oy) / bucket), 0.0).astype(np.intp)
+        y1 = np.minimum(np.floor((hi[:, 1] - oy) / bucket), nby - 1.0).astype(np.intp)
+        wx = np.maximum(x1 - x0 + 1, 0)
+        count = wx * np.maximum(y1 - y0 + 1, 0)
+        wide = count > most if most is not None else np.zeros(m, dtype=bool)
+        count[wide] = 0
+        # (rectangle, bucket) pairs, then (rectangle, box) pairs: the buckets' item ranges
+        rect, local = _ranges_to_pairs(np.zeros(m, dtype=np.intp), count - 1)
+        key = (y0[rect] + local // wx[rect]) * nbx + x0[rect] + local % wx[rect]
+        first = index.offsets[key]
+        pair, at = _ranges_to_pairs(first, index.offsets[key + 1] - 1)
+        return rect[pair], self._dynamic_boxes[index.items[at]], wide
 
     def _dynamic_index(self) -> _BucketIndex:
         """The moving boxes' point-query index (built at the first query after they moved)."""
