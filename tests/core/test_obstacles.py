@@ -135,8 +135,8 @@ def test_a_steps_looks_in_one_query_answer_what_each_look_alone_does(seed: int) 
     swing_planned(env, watch, legs, line)
     dyn = np.flatnonzero(env.boxes.dynamic)
     b = env.boxes
-    env.move_boxes(dyn, b.center[dyn] + np.column_stack([rng.normal(0.0, 0.3, (dyn.size, 2)), np.zeros(dyn.size)]),
-                   b.yaw[dyn] + 0.2)
+    shift = np.column_stack([rng.normal(0.0, 0.3, (dyn.size, 2)), np.zeros(dyn.size)])
+    env.move_boxes(dyn, b.center[dyn] + shift, b.yaw[dyn] + 0.2)
     # some planted feet landed at new spots this step
     landed = np.flatnonzero(~swing & (rng.random(n) < 0.5))
     feet.foot[landed, :2] += rng.normal(0.0, 0.2, (landed.size, 2))

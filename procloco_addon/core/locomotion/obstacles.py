@@ -93,12 +93,23 @@ def _ring_near(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray)
     return env.moving_near(spot[:, :2] - reach, spot[:, :2] + reach)
 
 
-def swing_planned(env: Environment, watch: Watch, legs: IntArray, samples: FloatArray) -> None:
+def swing_planned(
+    env: Environment, watch: Watch, legs: IntArray, samples: FloatArray, spot: FloatArray | None = None
+) -> BoolArray | None:
     """Remember the bounds of the swings ``samples (m, k, 3)`` just planned for ``legs`` and
-    whether a moving obstacle reaches them now."""
+    whether a moving obstacle reaches them now. ``spot (m, 3)``: their landing spots, whose
+    rings are asked in the same rectangle query (``_ring_near``: returned, for
+    ``watch_reset``)."""
     box = np.concatenate([samples[..., :2].min(axis=1), samples[..., :2].max(axis=1)], axis=1)
     watch.swing_box[legs] = box
-    watch.swing_stirred[legs] = env.moving_near(box[:, :2], box[:, 2:])
+    if spot is None:
+        watch.swing_stirred[legs] = env.moving_near(box[:, :2], box[:, 2:])
+        return None
+    reach = watch.reach[legs]
+    near = env.moving_near(np.concatenate([box[:, :2], spot[:, :2] - reach]),
+                           np.concatenate([box[:, 2:], spot[:, :2] + reach]))
+    watch.swing_stirred[legs] = near[: legs.size]
+    return near[legs.size :]
 
 
 def watch_reset(
