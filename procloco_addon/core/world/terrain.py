@@ -391,7 +391,8 @@ def raster_boxes(
 
     The grid has cell ``[0, 0]`` centred at ``origin`` ``(2,)``; rectangles have centres
     ``(n, 2)``, half extents ``(n,)`` and yaw ``(n,)``. Returns ``(box, row, col)`` index
-    arrays of every overlapping (rectangle, cell) pair, vectorised over all rectangles. Only
+    arrays of every overlapping (rectangle, cell) pair, rectangle by rectangle (``box`` does
+    not decrease), vectorised over all rectangles. Only
     the grid's rows ``first[0]`` up to ``shape[0]`` and columns ``first[1]`` up to
     ``shape[1]`` are looked at.
 
@@ -921,6 +922,49 @@ def _block_of_key(key: npt.NDArray[np.int64]) -> tuple[IntArray, IntArray, IntAr
     return cid.astype(np.intp), (bi - _KEY_HALF).astype(np.intp), (bj - _KEY_HALF).astype(np.intp)
 
 
+class _BoxRasters:
+    """The lattice rasters of the moving boxes at one cell size, kept until a box moves: box
+    ``b``'s cells are rows ``start[b]:stop[b]`` of the arrays ``(row, col, top)`` of batch
+    ``batch[b]`` (-1: none kept), one batch per call that rasterised boxes (so a window's
+    boxes are read with one gather per batch, not one slice per box)."""
+
+    def __init__(self, n_boxes: int) -> None:
+        self.batch = np.full(n_boxes, -1, dtype=np.intp)
+        self.start = np.zeros(n_boxes, dtype=np.intp)
+        self.stop = np.zeros(n_boxes, dtype=np.intp)
+        self.batches: dict[int, tuple[IntArray, IntArray, FloatArray]] = {}
+        self._next = 0
+
+    def add(self, boxes: IntArray, bounds: IntArray, cells: tuple[IntArray, IntArray, FloatArray]) -> None:
+        """Keep the rasters of ``boxes (k,)``: rows ``bounds[i]:bounds[i + 1]`` of ``cells``."""
+        if len(self.batches) >= 4:  # forget the batches no box reads any more
+            live = set(np.unique(self.batch[self.batch >= 0]).tolist())
+            self.batches = {k: v for k, v in self.batches.items() if k in live}
+        self.batches[self._next] = cells
+        self.batch[boxes] = self._next
+        self.start[boxes] = bounds[:-1]
+        self.stop[boxes] = bounds[1:]
+        self._next += 1
+
+    def cells(self, boxes: IntArray) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+        """The cells of ``boxes (p,)`` (all kept): for each cell its position in ``boxes``,
+        its row, column and top."""
+        parts = []
+        batch = self.batch[boxes]
+        for k in np.unique(batch).tolist():
+            at = np.flatnonzero(batch == k) if len(self.batches) > 1 else np.arange(boxes.size)
+            piece, pos = _ranges_to_pairs(self.start[boxes[at]], self.stop[boxes[at]] - 1)
+            row, col, top = self.batches[k]
+            parts.append((at[piece], row[pos], col[pos], top[pos]))
+        if len(parts) == 1:
+            return parts[0]
+        if not parts:
+            e = np.zeros(0, dtype=np.intp)
+            return e, e, e, np.zeros(0)
+        return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]),
+                np.concatenate([q[2] for q in parts]), np.concatenate([q[3] for q in parts]))
+
+
 class Environment:
     """Terrain and obstacles, with point queries and cached per-character window grids.
 
@@ -963,8 +1007,10 @@ class Environment:
         self._cells: list[float] = []
         self._rect_index: dict[int, _RectIndex] = {}
         self._static_rects: tuple[_RectIndex, IntArray, dict[int, int]] | None = None
-        # Lattice rasters of moving things, reused until they move: key (cell, kind, id).
+        # Lattice rasters of moving soups, reused until they move: key (cell, "soup", id); of
+        # the moving boxes, per cell size (a box's raster is stale once it moved).
         self._moving_raster: dict[tuple[float, str, int], tuple[IntArray, IntArray, FloatArray]] = {}
+        self._box_rasters: dict[float, _BoxRasters] = {}
         self._box_index_static: _BucketIndex | None = None
         self._box_index_dynamic: _BucketIndex | None = None
         self._soup_index: dict[int, _BucketIndex] = {}
@@ -977,11 +1023,9 @@ class Environment:
         self._soup_offset: dict[int, FloatArray] = {}
         # The offset each moving soup's cached lattice raster was made at.
         self._raster_offset: dict[tuple[float, str, int], FloatArray] = {}
-        # Which boxes' lattice rasters are current, per cell size (a box's raster is stale once
-        # it moved); the moving boxes sorted by their min x (rebuilt after a move); the last
-        # point query's (point, box) pairs (height_at and forbidden_at often ask for the same
-        # points one after the other).
-        self._raster_ok: dict[float, BoolArray] = {}
+        # The widest moving box's x extent (found again after a move); the last point query's
+        # (point, box) pairs (height_at and forbidden_at often ask for the same points one
+        # after the other).
         self._dynamic_widest: float | None = None
         self._last_pairs: tuple[tuple[int, ...], bytes, IntArray, IntArray] | None = None
         self._update_box_bounds()
@@ -1026,8 +1070,8 @@ class Environment:
         self._box_index_dynamic = None
         self._dynamic_widest = None
         self._last_pairs = None
-        for ok in self._raster_ok.values():
-            ok[idx] = False
+        for store in self._box_rasters.values():
+            store.batch[idx] = -1
 
     def set_soup_vertices(self, i: int, vertices: npt.ArrayLike) -> None:
         """Replace the vertices ``(v, 3)`` of dynamic soup ``i`` (same topology)."""
@@ -1067,7 +1111,7 @@ class Environment:
         self._filled = np.zeros(0, dtype=np.int64)
         self._moving_raster.clear()
         self._raster_offset.clear()
-        self._raster_ok.clear()
+        self._box_rasters.clear()
 
     def _update_box_bounds(self, idx: IntArray | None = None) -> None:
         if idx is None:
@@ -1411,13 +1455,12 @@ class Environment:
 
     def _cache_moving_boxes(self, cell: float, ids: IntArray) -> None:
         """Rasterise the moving boxes ``ids`` not cached yet, all in one vectorised call."""
-        ok = self._raster_ok.get(cell)
-        if ok is None:
-            ok = self._raster_ok[cell] = np.zeros(self._box_center.shape[0], dtype=bool)
-        todo = ids[~ok[ids]]
+        store = self._box_rasters.get(cell)
+        if store is None:
+            store = self._box_rasters[cell] = _BoxRasters(self._box_center.shape[0])
+        todo = ids[store.batch[ids] < 0]
         if todo.size == 0:
             return
-        ok[todo] = True
         lo = self._box_lo[todo].min(axis=0)
         hi = self._box_hi[todo].max(axis=0)
         i0 = math.floor(lo[1] / cell) - 1
@@ -1427,14 +1470,11 @@ class Environment:
         half = 0.5 * self._box_size[todo]
         which, r, c = raster_boxes(origin, cell, shape, self._box_center[todo, :2], half[:, 0], half[:, 1],
                                    self._box_yaw[todo])
-        order = np.argsort(which, kind="stable")
-        which, r, c = which[order], r[order] + i0, c[order] + j0
+        # (raster_boxes gives the cells box by box: no sort needed)
+        r, c = r + i0, c + j0
         bounds = np.searchsorted(which, np.arange(todo.size + 1))
         top = (self._box_center[:, 2][todo] + self._box_size[:, 2][todo])[which]
-        cuts = bounds.tolist()
-        for k, b in enumerate(todo.tolist()):
-            sl = slice(cuts[k], cuts[k + 1])
-            self._moving_raster[(cell, "box", b)] = (r[sl], c[sl], top[sl])
+        store.add(todo, bounds, (r, c, top))
         self.stats["moving_rasterised"] += int(todo.size)
 
     def _moving_soup_cells(self, cell: float, ident: int) -> tuple[IntArray, IntArray, FloatArray]:
@@ -1650,18 +1690,22 @@ class Environment:
         avoid_all = np.empty((m, n, n), dtype=bool)
         for w in range(m):
             self._static_window(cell_list[w], n, i0_list[w], j0_list[w], elev_all[w], avoid_all[w])
-        # The moving pieces (a box's or a mesh's raster) near each window: (window, piece).
+        # The moving pieces near each window: every (window, box) pair's cells, read from the
+        # boxes' rasters at once per cell size, then each moving mesh's raster.
+        parts: list[tuple[IntArray, IntArray, IntArray, FloatArray, BoolArray]] = []
+        if self._dynamic_boxes.size:
+            sizes = [near.size for near in near_boxes]
+            pair_window = np.repeat(np.arange(m), sizes)
+            pair_box = np.concatenate(near_boxes) if m else np.zeros(0, dtype=np.intp)
+            for cell in set(cell_list):
+                sel = np.flatnonzero(cells[pair_window] == cell) if len(set(cell_list)) > 1 else None
+                boxes = pair_box if sel is None else pair_box[sel]
+                at, r_b, c_b, z_b = self._box_rasters[cell].cells(boxes)
+                pair = at if sel is None else sel[at]
+                parts.append((pair_window[pair], r_b, c_b, z_b, self._box_role[pair_box[pair]] == ROLE_AVOID))
         pieces: list[tuple[IntArray, IntArray, FloatArray]] = []
         piece_window: list[int] = []
         piece_avoid: list[bool] = []
-        if self._dynamic_boxes.size:
-            avoid_box = (self._box_role == ROLE_AVOID).tolist()
-            raster = self._moving_raster
-            for w, near in enumerate(near_boxes):
-                for b in near.tolist():
-                    pieces.append(raster[(cell_list[w], "box", b)])
-                    piece_window.append(w)
-                    piece_avoid.append(avoid_box[b])
         for i, soup in enumerate(self._soups):
             if not (soup.dynamic and soup.faces.shape[0]):
                 continue
@@ -1679,15 +1723,20 @@ class Environment:
                     piece_avoid.append(soup.role == ROLE_AVOID)
         if pieces:
             sizes = [p[0].size for p in pieces]
-            win = np.repeat(np.asarray(piece_window, dtype=np.intp), sizes)
-            r = np.concatenate([p[0] for p in pieces]) - i0s[win]
-            c = np.concatenate([p[1] for p in pieces]) - j0s[win]
-            z = np.concatenate([p[2] for p in pieces])
+            parts.append((np.repeat(np.asarray(piece_window, dtype=np.intp), sizes),
+                          np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces]),
+                          np.concatenate([p[2] for p in pieces]),
+                          np.repeat(np.asarray(piece_avoid, dtype=bool), sizes)))
+        if parts:  # (pasting takes maxima and sets flags: the order of the cells does not matter)
+            win = np.concatenate([q[0] for q in parts])
+            r = np.concatenate([q[1] for q in parts]) - i0s[win]
+            c = np.concatenate([q[2] for q in parts]) - j0s[win]
+            z = np.concatenate([q[3] for q in parts])
+            av = np.concatenate([q[4] for q in parts])
             ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
             at = (win * n + r) * n + c
             np.maximum.at(elev_all.reshape(-1), at[ok], z[ok])
-            av = ok & np.repeat(np.asarray(piece_avoid, dtype=bool), sizes)
-            avoid_all.reshape(-1)[at[av]] = True
+            avoid_all.reshape(-1)[at[ok & av]] = True
         self.stats["windows"] += m
         out: list[WindowGrids] = []
         for w in range(m):
