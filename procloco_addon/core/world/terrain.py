@@ -693,12 +693,22 @@ class _BucketIndex:
         buckets = nbx * nby
         if buckets < 2**16 - 1:
             key = key.astype(np.uint16)  # (a stable sort of 16-bit keys is a radix sort)
-        self.items = item[np.argsort(key, kind="stable")]
+        order = np.argsort(key, kind="stable")
+        self.items = item[order]
         del item
         # each bucket's first entry; one more bucket, empty, past the last: points outside
-        # the grid read it
-        self.offsets = np.zeros(buckets + 2, dtype=np.intp)
-        np.cumsum(np.bincount(key, minlength=buckets + 1), out=self.offsets[1:])
+        # the grid read it. Bucket k's first entry is the number of sorted keys below k: entry
+        # i is it for the buckets after key i - 1 up to key i (a repeat of the entries by the
+        # gaps between the sorted keys; a running sum over every bucket, a serial loop of
+        # about 3 ns a bucket, cost the moving crates' index of the crowd scene a third of
+        # its build over its 31,000 buckets)
+        sk = key[order].astype(np.intp)
+        del order
+        gaps = np.empty(total + 1, dtype=np.intp)
+        gaps[0] = sk[0] + 1
+        np.subtract(sk[1:], sk[:-1], out=gaps[1:-1])
+        gaps[-1] = buckets + 1 - sk[-1]
+        self.offsets = np.arange(total + 1, dtype=np.intp).repeat(gaps)
         self._dims = (float(nbx), float(nby))
         self._ox, self._oy = ox, oy
 
