@@ -311,7 +311,7 @@ def steer(
     t_close = np.divide(b, a, out=root)
     d2_close = b * t_close
     np.subtract(cc + big_r ** 2, d2_close, out=d2_close)
-    close = ahead
+    close = ahead  # (ahead is not read again: it becomes the close-pass mask in place)
     close &= t_close < HORIZON
     close &= d2_close < (_SIDE_CLOSE * big_r) ** 2
     np.multiply(ux, py, out=ux)

@@ -48,7 +48,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..geometry import vector_norm, wrap_angle, z_rotations
-from ..hermite import HERMITE_MATRIX, hermite_basis
+from ..hermite import hermite_basis
 from ..hull import upper_hull_eval
 from ..world.terrain import NO_SURFACE
 
@@ -65,7 +65,6 @@ _CURVE_S = np.linspace(0.0, 1.0, _CURVE_SAMPLES)
 _CURVE_BASIS = hermite_basis(_CURVE_S)  # (m, 4), the same for every curve
 _CURVE_STEP = float(_CURVE_S[1] - _CURVE_S[0])
 _CURVE_STEP_BASIS = _CURVE_BASIS[1:] - _CURVE_BASIS[:-1]  # (m - 1, 4): from one sample to the next
-_POWERS = np.array([3.0, 2.0, 1.0, 0.0])  # s³, s², s, 1
 #: ``(i - 1) * _CURVE_STEP`` at ``i`` (from 1): the parameter of the dense sample before sample ``i``
 _CURVE_S_BEFORE = np.concatenate([[0.0], np.arange(_CURVE_SAMPLES - 1) * _CURVE_STEP])
 _ONES3 = np.ones(3)  # a product with it sums the x, y, z of vectors (in that order)
@@ -1242,7 +1241,7 @@ def _sample_curve(
     param += frac
     # Exact ends: key joints sit on their key node.
     param[:, ends] = end_value
-    basis = (param[..., None] ** _POWERS) @ HERMITE_MATRIX  # (C, J, 4): hermite_basis
+    basis = hermite_basis(param)  # (C, J, 4)
     return np.asarray((basis[:, :, None, :] @ ctrl.take(segment, axis=1))[:, :, 0])
 
 

@@ -155,8 +155,10 @@ def points_at_each(trajectories: Sequence[FootTrajectory], u: FloatArray) -> Flo
     points (the knot at or before each sample; a sample on a knot or past either end gets
     that knot's point, the others the segment's slope times the way into it plus its first
     point), for all of them at once."""
-    uu = np.minimum(np.maximum(u, 0.0), 1.0)  # (np.clip without its dispatch)
     t = len(trajectories)
+    if t == 0:
+        return np.zeros((0, np.shape(u)[0], 3))
+    uu = np.minimum(np.maximum(u, 0.0), 1.0)  # (np.clip without its dispatch)
     size_list = [tr.points.shape[0] for tr in trajectories]
     size = np.array(size_list)
     k = max(size_list)
