@@ -123,3 +123,19 @@ def rotation_matrices(yaw: FloatArray, pitch: FloatArray, roll: FloatArray) -> F
     out[:, 2, 1] = cp * sr
     out[:, 2, 2] = cp * cr
     return out
+
+
+def linspace_to(stop: float, num: int) -> npt.NDArray[np.float64]:
+    """``np.linspace(0.0, stop, num)`` (``num >= 2``) with its arithmetic, without its
+    Python-level set-up: ``arange(num) * (stop / (num - 1))``, the last one ``stop``."""
+    div = num - 1
+    y = np.arange(num, dtype=np.float64)
+    step = stop / div
+    if step == 0.0:
+        y /= div
+        y *= stop
+    else:
+        y *= step
+    y += 0.0
+    y[-1] = stop
+    return y

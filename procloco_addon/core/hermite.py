@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from .geometry import sum_last
+from .geometry import linspace_to, sum_last
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -407,14 +407,14 @@ def cardinal_samples(
         return np.asarray(w[:, 0:1] * c[:, 0] + w[:, 1:2] * c[:, 1] + w[:, 2:3] * c[:, 2]
                           + w[:, 3:4] * c[:, 3])
 
-    table_t = _linspace(top, n_seg * k + 1)
+    table_t = linspace_to(top, n_seg * k + 1)
     dense = evaluate(table_t)
     dd: FloatArray = dense[1:] - dense[:-1]
     table_len = np.empty(table_t.size)
     table_len[0] = 0.0
     np.cumsum(np.sqrt(sum_last(dd * dd)), out=table_len[1:])
     length = float(table_len[-1])
-    arc = _linspace(length, max(2, math.ceil(length / spacing) + 1))
+    arc = linspace_to(length, max(2, math.ceil(length / spacing) + 1))
     # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.
     t = np.interp(arc, table_len, table_t)  # arc is within [0, length]: its clip changes nothing
     approx = np.interp(t, table_t, table_len)
@@ -424,13 +424,3 @@ def cardinal_samples(
     t = t + np.where(fast, (arc - approx) / np.where(fast, speed, 1.0), 0.0)
     t = np.minimum(np.maximum(t, 0.0), top)
     return evaluate(t), arc, length
-
-
-def _linspace(stop: float, num: int) -> FloatArray:
-    """``np.linspace(0.0, stop, num)`` (``num >= 2``), the same numbers with fewer calls."""
-    step = stop / (num - 1)
-    if step == 0.0:
-        return np.zeros(num)
-    y = np.arange(num, dtype=np.float64) * step
-    y[-1] = stop
-    return y

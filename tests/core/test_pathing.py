@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from procloco_addon.core.geometry import linspace_to
 from procloco_addon.core.hull import upper_hull
 from procloco_addon.core.world.pathing import (
     MOVE_LENGTH,
@@ -20,7 +21,6 @@ from procloco_addon.core.world.pathing import (
     PathContext,
     PathParams,
     _hull_knots_increasing,
-    _linspace,
     _segment_clear,
     build_path,
     clearance_profile,
@@ -531,8 +531,8 @@ def test_line_of_sight_reduction_keeps_the_farthest_point_in_sight_of_the_batche
 @given(st.floats(0.0, 50.0), st.integers(2, 300))
 def test_straight_plan_arc_lengths_are_numpys_linspace(stop: float, num: int) -> None:
     """A straight plan's samples are spaced as ``np.linspace(0, length, n)`` spaces them
-    (``pathing._linspace`` writes out its arithmetic without its set-up)."""
-    got = _linspace(stop, num)
+    (``geometry.linspace_to`` writes out its arithmetic without its set-up)."""
+    got = linspace_to(stop, num)
     want = np.linspace(0.0, stop, num)
     assert_close(got, want, "linspace")
     assert got[0] == 0.0

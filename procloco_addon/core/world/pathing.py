@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import planar_length, vector_norm
+from ..geometry import linspace_to, planar_length, vector_norm
 from ..hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
@@ -1065,7 +1065,7 @@ class PathContext:
             if waypoints.shape[0] == 2:  # a straight segment, whatever the tension
                 chord = waypoints[1] - waypoints[0]
                 length = planar_length(float(chord[0]), float(chord[1]))
-                arc = _linspace(length, max(2, math.ceil(length / spacing) + 1))
+                arc = linspace_to(length, max(2, math.ceil(length / spacing) + 1))
                 samples = waypoints[0] + (waypoints[1] - waypoints[0]) * (arc / length)[:, None]
             else:
                 samples, arc, length = cardinal_samples(waypoints, tension, spacing, samples_per_segment=16)
@@ -1143,22 +1143,6 @@ def clearance_elevation(grids: WindowGrids, above: float) -> FloatArray:
     if not grids.avoid.any():
         return grids.elevation
     return np.where(grids.avoid & (grids.elevation > above), NO_SURFACE, grids.elevation)
-
-
-def _linspace(stop: float, num: int) -> FloatArray:
-    """``np.linspace(0.0, stop, num)`` (``num >= 2``) with its arithmetic, without its
-    Python-level set-up: ``arange(num) * (stop / (num - 1))``, the last one ``stop``."""
-    div = num - 1
-    y = np.arange(num, dtype=np.float64)
-    step = stop / div
-    if step == 0.0:
-        y /= div
-        y *= stop
-    else:
-        y *= step
-    y += 0.0
-    y[-1] = stop
-    return y
 
 
 def _turning(samples: FloatArray) -> float:
