@@ -175,8 +175,7 @@ def _mixed_batch(scene: Any) -> list[Any]:
     """20 rigs: 12 spiders, 5 ants, 2 robots and a wolf, spaced so that they barely meet,
     walking about -Y at their default speeds. The spiders' headings differ by a few degrees,
     so that they are not copies of each other (copies start at other phases: see the copies'
-    tests; a phase of the gait judged to the frame can then lift a foot 1.002 frames late by
-    the measure, for any rig)."""
+    tests)."""
     rigs = [_place(scene, "spider", f"Spider{k:02d}", (-5.5 + 1.0 * k, 0.0), scale=4.0) for k in range(12)]
     for k, rig in enumerate(rigs):
         rig.procloco.heading = math.radians(2.0 * (k - 5.5))

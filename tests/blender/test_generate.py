@@ -361,11 +361,7 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
     hips = np.stack([j[:, 0] for j in joints], axis=1)
     leg_len = info.leg_length
     scale = float(leg_len.mean())
-    # Planted: the end-effector does not move to the next frame.
-    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)
-    planted = np.zeros(ends.shape[:2], dtype=bool)
-    planted[:-1] = step < 1e-3 * scale  # swinging feet move far more per frame
-    planted[-1] = planted[-2]
+    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)  # (F - 1, L) each foot's motion
     out: dict[str, float] = {}
     out["slide"] = float(metrics.stance_sliding(ends, ~res.swing).max())
     # Lowest point of each foot: the end-effector, or the foot bones carrying it.
@@ -404,9 +400,19 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
     # A foot lifts at the first frame it has moved to, and lands at the first frame it does
     # not leave: lift-offs are judged on the motion into each frame, touch-downs on the
     # motion out of it, so both are exact to the frame (a cycle that speeds up or slows
-    # down, as with Gait: Auto, does not blur them).
+    # down, as with Gait: Auto, does not blur them). "Moved" is told apart from a planted
+    # foot's jitter on this rig (the posed chain's round-off, over the frames the simulation
+    # has both in stance): a swing eases out of its first frame, so a foot that lifts just
+    # after the needle crossed its sector's start moves a tenth of a millimetre in it, which
+    # a fixed thousandth of the leg would miss, judging the lift a frame late.
+    both_down = ~res.swing[1:] & ~res.swing[:-1]
+    jitter = float(step[both_down].max(initial=0.0))
+    moved = min(1e-3 * scale, max(4.0 * jitter, 1e-7 * scale))
     stayed = np.ones(ends.shape[:2], dtype=bool)
-    stayed[1:] = step < 1e-3 * scale
+    stayed[1:] = step < moved
+    planted = np.zeros(ends.shape[:2], dtype=bool)
+    planted[:-1] = step < moved
+    planted[-1] = planted[-2]
     lifts = metrics.swing_phase_errors(stayed, res.needle, res.phase_rate * job.dt, res.disk_start,
                                        res.disk_duration, ignore=forced, first_frame=2)
     lands = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, res.disk_start,
