@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from procloco_addon.core.geometry import cross, planar_length, vector_norm
+from procloco_addon.core.geometry import column_pair, cross, planar_length, vector_norm
 from tests.core.cross_path import assert_close
 
 
@@ -41,3 +41,15 @@ def test_cross_is_numpys_cross_and_broadcasts(seed: int) -> None:
 def test_planar_length_of_scalars_and_arrays() -> None:
     assert planar_length(3.0, 4.0) == 5.0
     assert_close(planar_length(np.array([3.0, 5.0]), np.array([4.0, 12.0])), [5.0, 13.0], "arrays")
+
+
+@given(st.integers(0, 40), st.sampled_from([np.float64, np.intp, np.bool_]))
+def test_column_pair_is_column_stack_of_two_columns(n: int, dtype: type) -> None:
+    rng = np.random.default_rng(n)
+    a = (rng.normal(size=n) * 10).astype(dtype)
+    b = (rng.normal(size=n) * 10).astype(dtype)
+    got = column_pair(a, b)
+    want = np.column_stack([a, b])
+    assert got.dtype == want.dtype
+    assert got.shape == want.shape
+    assert (got == want).all()

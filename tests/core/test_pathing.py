@@ -20,6 +20,7 @@ from procloco_addon.core.world.pathing import (
     PathContext,
     PathParams,
     _hull_knots_increasing,
+    _linspace,
     _segment_clear,
     build_path,
     clearance_profile,
@@ -525,3 +526,15 @@ def test_line_of_sight_reduction_keeps_the_farthest_point_in_sight_of_the_batche
         i = i + 1 + int(seen[-1]) if seen.size else i + 1
         expected.append(i)
     assert line_of_sight_reduce(~free, pts).tolist() == expected
+
+
+@given(st.floats(0.0, 50.0), st.integers(2, 300))
+def test_straight_plan_arc_lengths_are_numpys_linspace(stop: float, num: int) -> None:
+    """A straight plan's samples are spaced as ``np.linspace(0, length, n)`` spaces them
+    (``pathing._linspace`` writes out its arithmetic without its set-up)."""
+    got = _linspace(stop, num)
+    want = np.linspace(0.0, stop, num)
+    assert_close(got, want, "linspace")
+    assert got[0] == 0.0
+    assert got[-1] == stop
+    assert got.shape == want.shape

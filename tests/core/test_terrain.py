@@ -139,6 +139,26 @@ def test_static_tiles_are_rasterised_once_and_moving_boxes_only_when_they_moved(
         env.move_boxes(np.array([0]), b.center[:1], b.yaw[:1])
 
 
+def test_a_window_over_meshes_fills_a_ring_of_blocks_beyond_it() -> None:
+    """Static meshes are rasterised block by block: a window that needs new blocks takes the
+    blocks around it too, so a window moved by a block needs none; its grids are what a fresh
+    rasterisation gives (to its rounding)."""
+    rng = np.random.default_rng(5)
+    env = Environment(None, None, [_grid_mesh(rng, 12, -3.0, 3.0)])
+    params = terrain.WindowParams(n_cells=24, cell=0.05)
+    step = env.block_cells * params.cell
+    env.window(np.zeros(2), params)
+    tiles = env.stats["tiles_rasterised"]
+    for dx, dy in ((step, 0.0), (-step, step), (0.0, -step)):
+        w = env.window(np.array([dx, dy]), params)
+        assert env.stats["tiles_rasterised"] == tiles
+        elev, avoid = env.rasterise(w.origin, w.cell, w.shape)  # (its own grid: other roundings)
+        assert_close(w.elevation, elev, "elevation")
+        assert np.array_equal(w.avoid, avoid)
+    env.window(np.array([3.0 * step, 0.0]), params)
+    assert env.stats["tiles_rasterised"] > tiles
+
+
 def test_box_cells_are_exactly_the_cells_the_rotated_box_overlaps() -> None:
     env = Environment(None, boxes([(0.1, -0.05, 0.5, 0.12, 0.3, 0.6, ROLE_AVOID, False)]))
     w = env.window(np.zeros(2), SMALL)
@@ -486,6 +506,30 @@ def test_point_queries_over_many_static_soups_and_a_moving_one_equal_triangle_by
     lid_now = TriangleSoup(lid + np.array([-0.6, -0.6, 0.0]), np.array([[0, 1, 2]]), ROLE_AVOID, True)
     moved = [*soups[:-1], lid_now]
     assert_close(env.height_at(pts), _height_brute_force(moved, pts), "height after the move")
+
+
+@given(st.integers(0, 2**32 - 1))
+def test_one_point_queries_over_static_meshes_equal_the_many_point_query(seed: int) -> None:
+    """A query of one point over static meshes only (the shell's scenes) takes its own plain
+    Python path: each point's height equals that point's height in a query of all of them
+    (ground, crates, points outside the meshes, on triangle edges and corners, NaN)."""
+    rng = np.random.default_rng(seed)
+    soups = [_grid_mesh(rng, int(rng.integers(2, 12)), -1.0, 1.0)]
+    for _ in range(int(rng.integers(0, 4))):
+        c = rng.uniform(-0.8, 0.8, 2)
+        top = float(rng.uniform(0.05, 0.3))
+        quad = np.array([[c[0] - 0.1, c[1] - 0.1, top], [c[0] + 0.1, c[1] - 0.1, top],
+                         [c[0] + 0.1, c[1] + 0.1, top], [c[0] - 0.1, c[1] + 0.1, top + 0.05]])
+        soups.append(TriangleSoup(quad, np.array([[0, 1, 2], [0, 2, 3]]), ROLE_STEP_OVER))
+    env = Environment(None, None, soups)
+    corners = np.concatenate([s.vertices[:, :2] for s in soups])
+    edges = 0.5 * (soups[0].vertices[soups[0].faces[:, 0], :2] + soups[0].vertices[soups[0].faces[:, 1], :2])
+    pts = np.concatenate([rng.uniform(-1.3, 1.3, (60, 2)), corners[:40], edges[:40],
+                          [[np.nan, 0.0], [0.0, np.inf], [1e9, -1e9]]])
+    many = env.height_at(pts)
+    one = np.array([env.height_at(q)[0] for q in pts])
+    assert_close(one, many, "one point at a time")
+    assert ((one > NO_SURFACE) == (many > NO_SURFACE)).all()
 
 
 @given(st.integers(0, 10_000))

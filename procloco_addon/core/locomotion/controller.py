@@ -586,9 +586,9 @@ class Controller:
         env, rig, p = self.env, self.rig, self.params
         land = planning.landing(env, rig, p, self.body, self.link, self.feet, legs, ctl, remaining,
                                 stance_time, land_stance, self.hips_world())
-        u_grid = np.linspace(0.0, 1.0, p.trajectory_samples + 1)
+        u_grid = planning.swing_grid(p.trajectory_samples)
         with prof.phase("maps"):
-            grids = planning.windows(env, rig, p, self.body, np.unique(land.chars).tolist(), stats)
+            grids = planning.windows(env, rig, p, self.body, sorted(set(land.chars.tolist())), stats)
             grids = self._crowd_windows(grids)
         with prof.phase("planning"):
             reqs, rows_of = planning.requests(rig, p, land, self.feet, flags[0], flags[1], ctl, grids,

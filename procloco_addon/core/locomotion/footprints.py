@@ -72,7 +72,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import planar_length
+from ..geometry import column_pair, planar_length
 from ..world.pathing import (
     DistanceField,
     FootTrajectory,
@@ -269,7 +269,7 @@ def _legs_cross_each(
     eps = 1e-12
     hit = (((d1 > eps) & (d2 < -eps)) | ((d1 < -eps) & (d2 > eps))) & (
         ((d3 > eps) & (d4 < -eps)) | ((d3 < -eps) & (d4 > eps)))
-    return np.asarray(np.any(hit & valid, axis=0))
+    return np.logical_or.reduce(hit & valid, axis=0)
 
 
 #: Samples along the hip-footprint line of the leg clearance check (a leg's length is some
@@ -298,7 +298,7 @@ def _hip_checks(
     dz = np.where(dz > sink, dz - sink, np.where(dz < 0.0, -dz, 0.0))
     ok &= ~(dh * dh + dz * dz > reach * reach)
     clear = np.ones(ok.size, dtype=bool)
-    rows = np.flatnonzero(ok & np.isfinite(leg))
+    rows = (ok & np.isfinite(leg)).nonzero()[0]
     if rows.size == 0:
         return ok, clear
     # The leg as the straight line from the footprint up to the hip, bowed up by the arch its
@@ -313,7 +313,7 @@ def _hip_checks(
     line = fz + t * vz + (4.0 * t * (1.0 - t)) * bow
     own = t * flat < foot_r[rows]  # under the foot itself
     under = windows.heights(fx + t * vx, fy + t * vy, window_of[rows])
-    clear[rows[np.any((under > line + 1e-9) & ~own, axis=0)]] = False
+    clear[rows[np.logical_or.reduce((under > line + 1e-9) & ~own, axis=0)]] = False
     return ok, clear
 
 
@@ -721,8 +721,8 @@ class _Batch:
         self.c0 = c0 = ints[:, 1]
         self.hh = hh = ints[:, 2]
         self.ww = ww = ints[:, 3]
-        H = int(hh.max())
-        W = int(ww.max())
+        H = int(np.maximum.reduce(hh))
+        W = int(np.maximum.reduce(ww))
         self.mask = region_masks(frames, H, W)
         self.outside = ~self.mask
         self.cell = rows[:, col["cell"]]
@@ -736,9 +736,9 @@ class _Batch:
         self.sole_x = rows[:, col["sole_x"]]
         self.sole_y = rows[:, col["sole_y"]]
         self.yaw = rows[:, col["yaw"]]
-        self.sweep_off, self.sweep_in = foot_kernels(self.cell, self.half_x, self.half_y, self.yaw, True)
-        land_reach = int(rows[:, col["land_reach"]].max())
-        self.pad = R = max(int(np.abs(self.sweep_off).max()), land_reach)
+        self.sweep_off, self.sweep_in = _sweep_kernels(rows[:, _KERNEL_COLS])
+        land_reach = int(np.maximum.reduce(rows[:, col["land_reach"]]))
+        self.pad = R = max(int(np.maximum.reduce(np.abs(self.sweep_off), axis=None)), land_reach)
         Hp, Wp = H + 2 * R, W + 2 * R
         epad = np.full((n, Hp, Wp), -np.inf)
         apad = np.zeros((n, Hp, Wp), dtype=bool)
@@ -762,8 +762,8 @@ class _Batch:
         # Other feet: forbidden as their soles (or foot boxes), with this foot's yaw; the
         # dilation by this foot's box keeps its whole box off them.
         n_other = rows[:, col["n_other"]].astype(np.intp)
-        if n_other.sum():
-            owner = np.repeat(np.arange(n), n_other)
+        if np.add.reduce(n_other):
+            owner = np.arange(n).repeat(n_other)
             feet = np.concatenate([p.o_feet for p in plans])
             hx = self.sole_x[owner]
             hy = self.sole_y[owner]
@@ -785,15 +785,15 @@ class _Batch:
         lc = sc[:, 1, None] + self.sweep_off[None, :, 1]
         ok = self.sweep_in & inside[:, None] & (lr >= 0) & (lr < hh[:, None]) & (lc >= 0) & (lc < ww[:, None])
         liftoff = np.zeros((n, H, W), dtype=bool)
-        kk, jj = np.nonzero(ok)
+        kk, jj = ok.nonzero()
         liftoff.reshape(-1)[(kk * H + lr[kk, jj]) * W + lc[kk, jj]] = True
         at = np.arange(n)
         here = avoid[at, np.where(inside, sc[:, 0], 0), np.where(inside, sc[:, 1], 0)]
         # What swings must clear (pathing.clearance_elevation): avoided cells above the foot
         # plus its step height left out (max_under applies it to the cells it reads).
-        self.apad = apad if apad.any() else None
+        self.apad = apad if np.logical_or.reduce(apad, axis=None) else None
         self.above = rows[:, col["start_z"]] + rows[:, col["step_height"]]
-        on_avoid = np.flatnonzero(inside & here)
+        on_avoid = (inside & here).nonzero()[0]
         if on_avoid.size:
             # The foot stands on an avoided obstacle (it moved under the foot): let it leave
             # across that obstacle's cells rather than be stuck there.
@@ -815,7 +815,7 @@ class _Batch:
         being ``kernel[member[k]]``: ``(p,)``; ``-inf`` where no kernel cell is in the window
         (what :meth:`PathContext.kernel_max` gives). ``clearance``: of the elevation a swing
         must clear (:meth:`PathContext.clearance_grid`)."""
-        used = np.flatnonzero(member.any(axis=0))
+        used = np.logical_or.reduce(member, axis=0).nonzero()[0]
         _, hp, wp = self.epad.shape
         R = self.pad
         koff = kernel[used, 0] * wp + kernel[used, 1]
@@ -826,9 +826,9 @@ class _Batch:
         if clearance and self.apad is not None:
             vals = np.where(self.apad.reshape(-1)[where] & (vals > self.above[plan]), NO_SURFACE, vals)
         sel = member[:, used]
-        if not sel.all():
+        if not np.logical_and.reduce(sel, axis=None):
             vals = np.where(sel.T[:, plan], vals, -np.inf)
-        return np.asarray(vals.max(axis=0))
+        return np.maximum.reduce(vals, axis=0)
 
     def path_context(self, f: _Foot) -> PathContext:
         """The foot's :class:`PathContext` (made on first use; it shares the foot's caches)."""
@@ -896,6 +896,27 @@ class _Batch:
             row[: b.shape[0], : b.shape[1]] = b
             f.padded[level] = row
         return row
+
+
+def _sweep_kernels(shape: FloatArray) -> tuple[IntArray, BoolArray]:
+    """The swept foot kernels (:func:`~.terrain.foot_kernels`) of plans whose ``cell, half_x,
+    half_y, yaw`` are the rows of ``shape`` ``(n, 4)``; kept per set of rows (a character
+    plans with the same cell, foot and, walking straight, yaw again and again). Read-only
+    arrays."""
+    key = shape.tobytes()
+    hit = _SWEEP_KERNELS.get(key)
+    if hit is None:
+        if len(_SWEEP_KERNELS) > 256:
+            _SWEEP_KERNELS.clear()
+        off, member = foot_kernels(shape[:, 0], shape[:, 1], shape[:, 2], shape[:, 3], True)
+        member.setflags(write=False)
+        hit = _SWEEP_KERNELS[key] = (off, member)
+    return hit
+
+
+#: :func:`_sweep_kernels`' cache, by the bytes of the plans' rows.
+_KERNEL_COLS = [_ROW["cell"], _ROW["half_x"], _ROW["half_y"], _ROW["yaw"]]
+_SWEEP_KERNELS: dict[bytes, tuple[IntArray, BoolArray]] = {}
 
 
 def _next_couple(f: _Foot, cands: _Cands) -> tuple[_Next, float]:
@@ -987,9 +1008,9 @@ def _straight_plans(
     moving = length > 1e-9
     spacing = PathParams().sample_spacing * cl
     counts = np.where(moving, np.maximum(2, np.ceil(length / spacing).astype(np.intp) + 1), 1)
-    bounds = np.concatenate([[0], np.cumsum(counts)])
+    bounds = np.concatenate([[0], counts.cumsum()])
     m = ks.size
-    owner = np.repeat(np.arange(m), counts)
+    owner = np.arange(m).repeat(counts)
     i = np.arange(bounds[-1]) - bounds[:-1][owner]
     safe = np.where(moving, length, 1.0)
     arc = i * (length / np.maximum(counts - 1, 1))[owner]
@@ -1006,7 +1027,7 @@ def _straight_plans(
     _, H, W = blocked.shape
     bad[inside] = blocked.reshape(-1)[((owner * H + rows) * W + cols)[inside]]
     clean = ~np.logical_or.reduceat(bad, bounds[:-1])
-    samples = np.column_stack([sx, sy])
+    samples = column_pair(sx, sy)
     bl = bounds.tolist()
     turning = turning_each(samples, bl)
     good = moving & clean
@@ -1018,7 +1039,7 @@ def _straight_plans(
     direct = planar_length(sx[last] - sx[first], sy[last] - sy[first])
     ratio = np.minimum(direct / np.where(good, length, 1.0), 1.0)
     s2 = np.where(good, ratio / (1.0 + np.asarray(turning) / (2.0 * math.pi)), 0.0).tolist()
-    way = np.stack([np.column_stack([w0x, w0y]), np.column_stack([w1x, w1y])], axis=1)
+    way = np.concatenate((w0x[:, None], w0y[:, None], w1x[:, None], w1y[:, None]), axis=1).reshape(m, 2, 2)
     return _StraightPlans(status, s2, samples, arc, length, bl, rows, cols, way)
 
 
@@ -1056,11 +1077,11 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
         t_cell = [(cands.row_list[t], cands.col_list[t]) for t in tgt]
         cl = batch.cell[ks]
         org = batch.origin[ks]
-        end_rc = np.column_stack([(t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
-                                  (t_xy[:, 0] - org[:, 0]) / cl - batch.c0[ks]])
+        end_rc = column_pair((t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
+                             (t_xy[:, 0] - org[:, 0]) / cl - batch.c0[ks])
         blocked = np.stack([batch.blocked_row(f, level) for f, level in evals])
         start_rc = batch.start_rc[ks]
-        shape = np.column_stack([batch.hh[ks], batch.ww[ks]])
+        shape = column_pair(batch.hh[ks], batch.ww[ks])
         sight = segments_clear_each(blocked, np.arange(m), shape, start_rc, end_rc).tolist()
         # Plans: straight ones together, the others one by one (after their wavefronts).
         paths: list[Path2D | None] = [None] * m
@@ -1134,7 +1155,7 @@ def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]
         src = t_cell if f.per_target else f.start_cell
         if (level, src[0], src[1]) in f.fields:
             continue
-        if not f.maps[level][2].any():
+        if not np.logical_or.reduce(f.maps[level][2], axis=None):
             batch.path_context(f).field(level, src)  # closed form
             continue
         todo.append((f, level, src))
@@ -1169,7 +1190,7 @@ def _lift_all(
         counts = [s.samples.shape[0] for s in src]
         bounds = [0, *itertools.accumulate(counts)]
         ks = np.array([evals[i][0].k for i in many])
-        kp = np.repeat(ks, counts)
+        kp = ks.repeat(counts)
         known = [(s.rows, s.cols) for s in src if s.rows is not None and s.cols is not None]
         if len(known) == len(src):
             rows = np.concatenate([r for r, _ in known])
@@ -1263,18 +1284,18 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     within each plan (what :func:`score_candidates` gives each plan)."""
     n = len(plans)
     r0, c0, hh, ww, mask, elev = batch.r0, batch.c0, batch.hh, batch.ww, batch.mask, batch.elev
-    forbidden, cell, origin = batch.grown_inf, batch.cell, batch.origin
+    forbidden = batch.grown_inf
     rows, col = batch.rows, _ROW
-    pref_rc = np.column_stack([rows[:, col["pref_r"]] - r0, rows[:, col["pref_c"]] - c0])
+    pref_rc = column_pair(rows[:, col["pref_r"]] - r0, rows[:, col["pref_c"]] - c0)
     base = np.rint(pref_rc).astype(np.intp)
     sub = pref_rc - base  # the preferred footprint's offset inside its cell (cells)
     rad = rows[:, col["radius"]]
-    disc = _disc_offsets(float(rad.max()))
+    disc = _disc_offsets(float(np.maximum.reduce(rad)))
     member = np.hypot(disc[:, 0], disc[:, 1])[None, :] <= rad[:, None] + 1e-9
     cr = base[:, 0, None] + disc[None, :, 0]
     cc = base[:, 1, None] + disc[None, :, 1]
     member &= (cr >= 0) & (cr < hh[:, None]) & (cc >= 0) & (cc < ww[:, None])
-    b, d = np.nonzero(member)
+    b, d = member.nonzero()
     r = cr[b, d]
     c = cc[b, d]
     # the stacks read through flat indices (one gather each, not one per axis)
@@ -1282,34 +1303,37 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     at = (b * H + r) * W + c
     here = elev.reshape(-1).take(at)
     ok = mask.reshape(-1).take(at) & ~forbidden.reshape(-1).take(at) & (here > _VOID_BELOW)
-    cl = cell[b]
-    x = origin[:, 0][b] + (c + c0[b] + sub[:, 1][b]) * cl
-    y = origin[:, 1][b] + (r + r0[b] + sub[:, 0][b]) * cl
+    # each plan's numbers at its candidates, in one gather (rows of _CAND_COLS)
+    (cl, ox_b, oy_b, hx_b, hy_b, reach_b, z0_b, max_dz_b, low_b, edge_h, pref_x, pref_y, fixed,
+     edge_score) = rows.T[_CAND_COLS].take(b, axis=1)
+    x = ox_b + (c + c0[b] + sub[:, 1][b]) * cl
+    y = oy_b + (r + r0[b] + sub[:, 0][b]) * cl
     hip = rows[:, col["hip_x"] : col["hip_y"] + 1]
-    dx = x - hip[:, 0][b]
-    dy = y - hip[:, 1][b]
-    ok &= planar_length(dx, dy) <= rows[:, col["reach"]][b]
+    dx = x - hx_b
+    dy = y - hy_b
+    ok &= planar_length(dx, dy) <= reach_b
     # Landing height: the highest surface under the foot box at its exact offset.
     land_off, land_in = _offset_kernels(batch, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
-    ok &= np.abs(z - rows[:, col["start_z"]][b]) <= rows[:, col["max_dz"]][b]
+    ok &= np.abs(z - z0_b) <= max_dz_b
     hip_z = rows[:, col["hip_z"]]
-    if not np.isnan(hip_z).all():
-        sel = np.flatnonzero(ok & ~np.isnan(hip_z)[b])
+    if not np.logical_and.reduce(np.isnan(hip_z)):
+        sel = (ok & ~np.isnan(hip_z)[b]).nonzero()[0]
         owner = b[sel]
         settings = rows[:, col["straddle"] : col["foot_r"] + 1]
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
-            np.column_stack([x[sel], y[sel]]), z[sel], here[sel],
+            column_pair(x[sel], y[sel]), z[sel], here[sel],
             hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
         )
-        clearance = np.where(clear, 1.0, rows[:, col["low"]][b])
+        clearance = np.where(clear, 1.0, low_b)
     else:
         clearance = np.ones(ok.size)
-    keep = np.flatnonzero(ok)
+    keep = ok.nonzero()[0]
     b, d, r, c, x, y, z = b[keep], d[keep], r[keep], c[keep], x[keep], y[keep], z[keep]
     clearance = clearance[keep]
     here = here[keep]
+    edge_h, pref_x, pref_y, fixed, edge_score = (v[keep] for v in (edge_h, pref_x, pref_y, fixed, edge_score))
     # Neighbour criteria (8, k), neighbour by neighbour; past the stacked boxes "not free"
     # with no ground (read where they are, not from padded copies of the stacks).
     nr = r + _NEIGHBOURS[:, 0, None]
@@ -1317,27 +1341,26 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     out = (nr < 0) | (nr >= H) | (nc < 0) | (nc >= W)
     at = (b * H + np.where(out, 0, nr)) * W + np.where(out, 0, nc)
     ne = np.where(out, -np.inf, elev.reshape(-1)[at])
-    edge_h = rows[:, col["edge_height"]][b]
     taken = out | forbidden.reshape(-1)[at] | (ne < _VOID_BELOW)
-    free = np.count_nonzero(~taken & (np.abs(ne - here) <= edge_h), axis=0)
-    rim = np.any(here - ne > edge_h, axis=0)
-    ex = x - rows[:, col["pref_x"]][b]
-    ey = y - rows[:, col["pref_y"]][b]
-    distance = np.clip(1.0 - planar_length(ex, ey) / rows[:, col["fixed"]][b], 0.0, 1.0)
+    free = np.add.reduce(~taken & (np.abs(ne - here) <= edge_h), axis=0)
+    rim = np.logical_or.reduce(here - ne > edge_h, axis=0)
+    ex = x - pref_x
+    ey = y - pref_y
+    distance = np.minimum(np.maximum(1.0 - planar_length(ex, ey) / fixed, 0.0), 1.0)
     free_score = free / 8.0
-    edge = np.where(rim, rows[:, col["edge_score"]][b], 1.0)
+    edge = np.where(rim, edge_score, 1.0)
     # Only positive scores are targets: the leg-crossing criterion (0 or 1) is needed for those.
     partial = distance * free_score * edge * clearance
-    live = np.flatnonzero(partial > 0.0)
+    live = (partial > 0.0).nonzero()[0]
     b, d, r, c = b[live], d[live], r[live], c[live]
     x, y, z, partial = x[live], y[live], z[live], partial[live]
-    xy = np.column_stack([x, y])
+    xy = column_pair(x, y)
     n_other = rows[:, col["n_other"]].astype(np.intp)
-    if n_other.max(initial=0) and b.size:
+    j = int(np.maximum.reduce(n_other, initial=0))
+    if j and b.size:
         # each plan's other legs, slot by slot: (j, n) per coordinate
-        j = int(n_other.max())
-        who = np.repeat(np.arange(n), n_other)
-        slot = np.arange(who.size) - np.repeat(np.cumsum(n_other) - n_other, n_other)
+        who = np.arange(n).repeat(n_other)
+        slot = np.arange(who.size) - (n_other.cumsum() - n_other).repeat(n_other)
         legs_xy = []
         for part in (np.concatenate([p.o_hips for p in plans]), np.concatenate([p.o_feet for p in plans])):
             for axis in (0, 1):
@@ -1349,17 +1372,22 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     else:
         crosses = np.zeros(b.size, dtype=bool)
     score = partial * np.where(crosses, 0.0, 1.0)
-    keep = np.flatnonzero(score > 0.0)
+    keep = (score > 0.0).nonzero()[0]
     b, d, r, c, xy, z, score = b[keep], d[keep], r[keep], c[keep], xy[keep], z[keep], score[keep]
     # Best first; ties: nearer the preferred footprint, then row, then column.
     order = np.lexsort((c, r, np.hypot(disc[:, 0][d], disc[:, 1][d]), -score, b))
     b = b[order]
-    cells = np.column_stack([r[order], c[order]])
+    cells = column_pair(r[order], c[order])
     score = score[order]
-    cuts = np.searchsorted(b, np.arange(n + 1)).tolist()
+    cuts = b.searchsorted(np.arange(n + 1)).tolist()
     n_valid = [cuts[k + 1] - cuts[k] for k in range(n)]
     return _Cands(xy[order], cells, z[order], score, cuts, n_valid, score.tolist(), cells[:, 0].tolist(),
                   cells[:, 1].tolist())
+
+
+#: The columns of :attr:`_Plan.row` that :func:`_score_all` reads at each candidate.
+_CAND_COLS = [_ROW[k] for k in ("cell", "ox", "oy", "hip_x", "hip_y", "reach", "start_z", "max_dz", "low",
+                                "edge_height", "pref_x", "pref_y", "fixed", "edge_score")]
 
 
 class _WindowLookup:
@@ -1417,15 +1445,15 @@ def _offset_kernels(batch: _Batch, sub: FloatArray) -> tuple[IntArray, BoolArray
     cell, hx, hy, yaw = batch.cell, batch.half_x, batch.half_y, batch.yaw
     sub_r = np.array([round(v, 9) for v in sub[:, 0].tolist()])
     sub_c = np.array([round(v, 9) for v in sub[:, 1].tolist()])
-    reach = int(batch.rows[:, _ROW["land_reach"]].max())
+    reach = int(np.maximum.reduce(batch.rows[:, _ROW["land_reach"]]))
     off = _rect_offsets(reach, reach)
     col = cell[:, None]
     # the cell centres from the foot's centre, x and y apart
     dx = off[None, :, 1] * col - (sub_c * cell)[:, None]
     dy = off[None, :, 0] * col - (sub_r * cell)[:, None]
     member = _overlaps(dx, dy, col, hx[:, None], hy[:, None], np.cos(yaw)[:, None], np.sin(yaw)[:, None])
-    empty = ~member.any(axis=1)
-    if empty.any():
+    empty = ~np.logical_or.reduce(member, axis=1)
+    if np.logical_or.reduce(empty):
         member[empty, (2 * reach + 1) * reach + reach] = True
     return off, member
 
@@ -1440,7 +1468,7 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
     ev_sel = elev[sel]
     valid = mask[sel] & (ev_sel > _VOID_BELOW)
     e = np.where(valid, ev_sel, -np.inf)
-    tops = e.max(axis=(1, 2)).tolist()
+    tops = np.maximum.reduce(e, axis=(1, 2)).tolist()
     lists = []
     for i, k in enumerate(sliced):
         p = plans[k]
@@ -1455,7 +1483,7 @@ def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[l
         lv_arr = np.full((sel.size, j), math.inf)
         for i, lv in enumerate(lists):
             lv_arr[i, : len(lv)] = lv
-        above = np.count_nonzero(e.reshape(sel.size, 1, -1) > lv_arr[:, :, None], axis=2).tolist()
+        above = np.add.reduce(e.reshape(sel.size, 1, -1) > lv_arr[:, :, None], axis=2).tolist()
     else:
         above = []
         for i in range(sel.size):

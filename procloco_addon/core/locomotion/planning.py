@@ -11,12 +11,13 @@ foot's ``PlannerParams``; the planner itself is ``core.locomotion.footprints``."
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..geometry import rotate_xy, vector_norm, wrap_angle
+from ..geometry import column_pair, rotate_xy, vector_norm, wrap_angle
 from ..world.pathing import points_at_each
 from ..world.terrain import Environment, WindowGrids, WindowParams
 from . import spine_link
@@ -90,9 +91,7 @@ def landing_refs(
     )
     yaw_land = body.yaw[c_of] + turn
     yaw_mid = body.yaw[c_of] + 0.5 * turn
-    travel = (ctl.speed[c_of] * remaining[legs])[:, None] * np.stack(
-        [np.cos(yaw_mid), np.sin(yaw_mid)], axis=1
-    )
+    travel = (ctl.speed[c_of] * remaining[legs])[:, None] * column_pair(np.cos(yaw_mid), np.sin(yaw_mid))
     ref_xy = body.pos[c_of, :2] + travel
     ref_rest = np.zeros((legs.size, 3))
     rest_yaw = np.zeros(legs.size)
@@ -145,7 +144,7 @@ def landing(
         legs_data.rest_foot[legs, :2]
         - ref_rest[:, :2]
         + ctl.spacing[legs]
-        + np.column_stack([sweep, np.zeros(legs.size)])
+        + column_pair(sweep, np.zeros(legs.size))
     )
     preferred_xy = pelvis_land + rotate_xy(offset, yaw_land - rest_yaw)
     feet.preferred[legs, :2] = preferred_xy
@@ -154,9 +153,8 @@ def landing(
     # reach is judged from the hips halfway through the coming stance: a footprint within
     # the reach minus half the sweep stays within reach from touch-down to lift-off
     rest_stance = (1.0 - land_stance[legs]) * stance_time[legs]
-    pelvis_ref = pelvis_land + (0.5 * ctl.speed[c_of] * rest_stance)[:, None] * np.stack(
-        [np.cos(yaw_land), np.sin(yaw_land)], axis=1
-    )
+    pelvis_ref = pelvis_land + (0.5 * ctl.speed[c_of] * rest_stance)[:, None] * column_pair(
+        np.cos(yaw_land), np.sin(yaw_land))
     low = rig.rest_height[legs] * (1.0 - p.max_drop)
     horizontal = np.sqrt(np.maximum(rig.comfort_reach[legs] ** 2 - low * low, 0.0))
     sweep_half = 0.5 * ctl.speed[c_of] * rest_stance
@@ -200,8 +198,8 @@ def requests(
     # the pairs (row j, leg of row j's character), row by row
     first = legs_data.leg_start[c_of]
     count = legs_data.leg_start[c_of + 1] - first
-    pair_row = np.repeat(np.arange(m), count)
-    bounds = np.concatenate([[0], np.cumsum(count)])
+    pair_row = np.arange(m).repeat(count)
+    bounds = np.concatenate([[0], count.cumsum()])
     pair_leg = first[pair_row] + np.arange(pair_row.size) - bounds[:-1][pair_row]
     # each character's hips at the row's stance reference, its other feet where they stand
     # or where swinging ones will land
@@ -210,11 +208,11 @@ def requests(
         (land.yaw_land - land.rest_yaw)[pair_row],
     )
     own = pair_leg == legs[pair_row]
-    other = np.flatnonzero(~own)
+    other = (~own).nonzero()[0]
     other_hips = hips[other]
     other_feet = np.where(swinging[pair_leg[other], None], feet.plan.target[pair_leg[other], :2],
                           feet.foot[pair_leg[other], :2])
-    own_row = np.flatnonzero(own).tolist()
+    own_row = own.nonzero()[0].tolist()
     cut = (bounds - np.arange(m + 1)).tolist()  # row j's other legs: other[cut[j]:cut[j + 1]]
     step_heights = np.asarray(ctl.step_height, dtype=np.float64)[c_of].tolist()
     yaw_land, hip_z = land.yaw_land.tolist(), land.hip_now[:, 2].tolist()
@@ -223,7 +221,7 @@ def requests(
     out: list[FootRequest] = []
     rows_of: list[tuple[int, int, int, FloatArray]] = []
     legs_list, chars = legs.tolist(), c_of.tolist()
-    for j in np.argsort(c_of, kind="stable").tolist():
+    for j in c_of.argsort(kind="stable").tolist():
         leg, c = legs_list[j], chars[j]
         step_height = step_heights[j]
         # the hip may sink toward a footprint by as much as the reach guard lowers it; a
@@ -369,10 +367,9 @@ def commit(
     leg_ids = np.array([d[0] for d in done])
     rows = np.array([d[1] for d in done])
     chars = np.array([d[2] for d in done])
-    samples_all = np.stack([d[3] for d in done])
-    targets = np.stack([d[4] for d in done])
-    ease = np.clip((u_grid - 0.5) / 0.5, 0.0, 1.0)
-    ease = ease * ease * (3.0 - 2.0 * ease)
+    samples_all = np.array([d[3] for d in done])
+    targets = np.array([d[4] for d in done])
+    ease = _second_half_ease(u_grid.tobytes())
     samples_all[:, -1, :2] = targets[:, :2]
     n = samples_all.shape[0] * samples_all.shape[1]
 
@@ -388,7 +385,7 @@ def commit(
 
     h, heights, flags = ask()
     shifted = False
-    for i in np.flatnonzero(h <= VOID).tolist():
+    for i in (h <= VOID).nonzero()[0].tolist():
         shift = onto_support(env, rig, targets[i, :2], int(chars[i]))
         if shift is not None:
             samples_all[i, :, :2] += shift[None, :] * ease[:, None]
@@ -420,6 +417,26 @@ def commit(
     plan.speed[leg_ids] = ctl.speed[chars]
     plan.spacing[leg_ids] = ctl.spacing[leg_ids]
     body.feedback[leg_ids] = targets[:, :2] - land.preferred_xy[rows]
+
+
+@functools.lru_cache(maxsize=8)
+def swing_grid(samples: int) -> FloatArray:
+    """The swing parameters ``u`` of a plan's ``samples + 1`` trajectory samples, 0 to 1
+    (made once per count; read-only)."""
+    u = np.linspace(0.0, 1.0, samples + 1)
+    u.setflags(write=False)
+    return u
+
+
+@functools.lru_cache(maxsize=8)
+def _second_half_ease(u_bytes: bytes) -> FloatArray:
+    """``commit``'s ease over the second half of a swing at the parameters whose bytes are
+    ``u_bytes`` (0 up to half way, then smoothstep to 1; made once per grid, read-only)."""
+    u = np.frombuffer(u_bytes, dtype=np.float64)
+    ease = np.clip((u - 0.5) / 0.5, 0.0, 1.0)
+    ease = ease * ease * (3.0 - 2.0 * ease)
+    ease.setflags(write=False)
+    return ease
 
 
 def planner_params(

@@ -157,11 +157,12 @@ def points_at_each(trajectories: Sequence[FootTrajectory], u: FloatArray) -> Flo
     point), for all of them at once."""
     uu = np.minimum(np.maximum(u, 0.0), 1.0)  # (np.clip without its dispatch)
     t = len(trajectories)
-    size = np.array([tr.points.shape[0] for tr in trajectories])
-    k = int(size.max())
+    size_list = [tr.points.shape[0] for tr in trajectories]
+    size = np.array(size_list)
+    k = max(size_list)
     # every trajectory in a row of its own (past its end the arc is never at or before a
     # sample; its points there are never read), the points coordinate by coordinate
-    at = np.repeat(np.arange(t) * k - (np.cumsum(size) - size), size) + np.arange(int(size.sum()))
+    at = (np.arange(t) * k - (size.cumsum() - size)).repeat(size) + np.arange(sum(size_list))
     arc = np.full(t * k, np.inf)
     arc[at] = np.concatenate([tr.arc for tr in trajectories])
     pts = np.empty((3, t * k))
@@ -169,7 +170,7 @@ def points_at_each(trajectories: Sequence[FootTrajectory], u: FloatArray) -> Flo
     length = np.array([tr.length for tr in trajectories])
     s = uu[None, :] * length[:, None]  # (t, n)
     last = size[:, None] - 1
-    j = np.minimum(np.count_nonzero(arc.reshape(t, k)[:, None, :] <= s[:, :, None], axis=2) - 1, last)
+    j = np.minimum(np.add.reduce(arc.reshape(t, k)[:, None, :] <= s[:, :, None], axis=2) - 1, last)
     base = np.arange(t)[:, None] * k
     j0 = np.maximum(j, 0) + base
     j1 = np.minimum(j + 1, last) + base
@@ -180,12 +181,12 @@ def points_at_each(trajectories: Sequence[FootTrajectory], u: FloatArray) -> Flo
     slope = (p1 - p0) / np.where(inner, arc[j1] - a0, 1.0)
     out = slope * (s - a0) + p0
     again = np.isnan(out) & inner
-    if np.count_nonzero(again):  # (np.interp: a NaN one way is tried the other way)
+    if np.logical_or.reduce(again, axis=None):  # (np.interp: a NaN one way is tried the other way)
         out = np.where(again, slope * (s - arc[j1]) + p1, out)
         out = np.where(again & np.isnan(out) & (p0 == p1), p0, out)
     out = np.where(inner, out, p0)
     still = length <= 0.0  # no length: the first point everywhere
-    if np.count_nonzero(still):
+    if np.logical_or.reduce(still):
         out[:, still] = pts[:, base[still, 0], None]
     return np.ascontiguousarray(out.transpose(1, 2, 0))
 
@@ -1026,7 +1027,7 @@ class PathContext:
             # The target is in sight: the wavefront, its descent and the line-of-sight reduction
             # would keep exactly these two points (the greedy reduction jumps to the farthest
             # visible point), so skip them.
-            way_rc = np.vstack([self.start_rc, end_rc])
+            way_rc = np.array((self.start_rc, end_rc))
             n_naive = 0
         else:
             if self.per_target:
@@ -1062,13 +1063,13 @@ class PathContext:
             if waypoints.shape[0] == 2:  # a straight segment, whatever the tension
                 chord = waypoints[1] - waypoints[0]
                 length = planar_length(float(chord[0]), float(chord[1]))
-                arc = np.linspace(0.0, length, max(2, math.ceil(length / spacing) + 1))
+                arc = _linspace(length, max(2, math.ceil(length / spacing) + 1))
                 samples = waypoints[0] + (waypoints[1] - waypoints[0]) * (arc / length)[:, None]
             else:
                 samples, arc, length = cardinal_samples(waypoints, tension, spacing, samples_per_segment=16)
             cells = np.rint(self.grids.rowcol(samples) - offset).astype(np.intp)
             inside = (cells[:, 0] >= 0) & (cells[:, 0] < h) & (cells[:, 1] >= 0) & (cells[:, 1] < w)
-            if inside.all() and not blocked[cells[:, 0], cells[:, 1]].any():
+            if np.logical_and.reduce(inside) and not np.logical_or.reduce(blocked[cells[:, 0], cells[:, 1]]):
                 break
             tension = 0.0 if attempt == 1 else tension * 0.5
         else:
@@ -1086,8 +1087,11 @@ class PathContext:
         rr = cells[:, 0, None] + (self.region.r0 + kernel[None, :, 0])
         cc = cells[:, 1, None] + (self.region.c0 + kernel[None, :, 1])
         ok = (rr >= 0) & (rr < ny) & (cc >= 0) & (cc < nx)
-        vals = np.where(ok, g[np.clip(rr, 0, ny - 1), np.clip(cc, 0, nx - 1)], -np.inf)
-        return np.asarray(vals.max(axis=1))
+        # (np.clip as a maximum and a minimum: the same cells without its dispatch)
+        r_in = np.minimum(np.maximum(rr, 0), ny - 1)
+        c_in = np.minimum(np.maximum(cc, 0), nx - 1)
+        vals = np.where(ok, g[r_in, c_in], -np.inf)
+        return np.maximum.reduce(vals, axis=1)
 
     def land_height(self, cells: IntArray, kernel: IntArray | None = None) -> FloatArray:
         """Height a foot lands at in region cells ``(k, 2)``: the highest surface under it.
@@ -1137,6 +1141,22 @@ def clearance_elevation(grids: WindowGrids, above: float) -> FloatArray:
     if not grids.avoid.any():
         return grids.elevation
     return np.where(grids.avoid & (grids.elevation > above), NO_SURFACE, grids.elevation)
+
+
+def _linspace(stop: float, num: int) -> FloatArray:
+    """``np.linspace(0.0, stop, num)`` (``num >= 2``) with its arithmetic, without its
+    Python-level set-up: ``arange(num) * (stop / (num - 1))``, the last one ``stop``."""
+    div = num - 1
+    y = np.arange(num, dtype=np.float64)
+    step = stop / div
+    if step == 0.0:
+        y /= div
+        y *= stop
+    else:
+        y *= step
+    y += 0.0
+    y[-1] = stop
+    return y
 
 
 def _turning(samples: FloatArray) -> float:

@@ -431,7 +431,8 @@ def raster_boxes(
     col = j0[box] + across
     row = i0[box] + down
     if per_box:
-        cl = np.broadcast_to(np.asarray(cell, dtype=np.float64), (n,))[box]
+        cl_all = np.asarray(cell, dtype=np.float64)
+        cl = cl_all[box] if cl_all.ndim else np.full(box.size, float(cl_all))
         # (a column taken, then gathered: one index array, not two)
         dx = (org[:, 0][box] + col * cl) - center_xy[:, 0][box]
         dy = (org[:, 1][box] + row * cl) - center_xy[:, 1][box]
@@ -877,7 +878,7 @@ class WindowGrids:
         """World xy of cell centres ``(..., 2)``."""
         r = np.asarray(rows, dtype=np.float64)
         c = np.asarray(cols, dtype=np.float64)
-        out = np.empty((*np.broadcast_shapes(r.shape, c.shape), 2))
+        out = np.empty((*(r.shape if r.shape == c.shape else np.broadcast_shapes(r.shape, c.shape)), 2))
         out[..., 0] = self.origin[0] + c * self.cell
         out[..., 1] = self.origin[1] + r * self.cell
         return out
@@ -901,6 +902,8 @@ class WindowGrids:
 # ---------------------------------------------------------------------------------------
 _TileKey = tuple[float, int, int]
 
+#: Blocks filled around a window beyond it when it needs new ones (:meth:`Environment._fill_static`).
+_FILL_AHEAD = 1
 _KEY_HALF = 1 << 20  # block rows and columns from -2**20 to 2**20 - 1 in a key
 
 
@@ -959,6 +962,7 @@ class Environment:
         self.block_cells = 8 if meshes and self.tile_cells % 8 == 0 else self.tile_cells
         self._tiles: dict[_TileKey, tuple[FloatArray, BoolArray]] = {}
         self._filled = np.zeros(0, dtype=np.int64)
+        self._filled_set: set[int] = set()  # the same keys, for the few-window check
         self._cell_ids: dict[float, int] = {}
         self._cells: list[float] = []
         self._rect_index: dict[int, _RectIndex] = {}
@@ -972,6 +976,9 @@ class Environment:
         self._soup_role = np.array([soup.role for soup in self._soups], dtype=np.int_)
         self._static_soup_index: tuple[_BucketIndex, FloatArray, IntArray, IntArray] | None = None
         self._dynamic_soups = [i for i, soup in enumerate(self._soups) if soup.dynamic]
+        # static meshes only: a one-point height query reads them in plain Python floats
+        self._meshes_only = (self.heightmap is None and not self._box_center.shape[0]
+                             and not self._dynamic_soups)
         # Translation of each dynamic soup from its stored vertices (move_soup): the triangles,
         # their index and their raster are kept and only the queries are shifted.
         self._soup_offset: dict[int, FloatArray] = {}
@@ -1065,6 +1072,7 @@ class Environment:
         """Forget every cached tile and raster (memory only; results do not change)."""
         self._tiles.clear()
         self._filled = np.zeros(0, dtype=np.int64)
+        self._filled_set.clear()
         self._moving_raster.clear()
         self._raster_offset.clear()
         self._raster_ok.clear()
@@ -1193,12 +1201,45 @@ class Environment:
         point, tri, z = triangle_hits(table, xy, point, tri)
         return point, z, tri
 
+    def _static_soup_height(self, x: float, y: float) -> float:
+        """The highest static soup triangle under one point (finite ``x``, ``y``), or
+        :data:`NO_SURFACE`: what :meth:`height_at` finds for it, in plain Python floats (a
+        point query of one point is most of a step's queries; the arithmetic of
+        :meth:`_BucketIndex.pairs` and :func:`triangle_hits`, operation by operation, and
+        the maximum taken as ``np.maximum.at`` takes it)."""
+        index, table, _, _ = self._static_soups()
+        if index.n == 0:
+            return NO_SURFACE
+        nby, nbx = index.shape
+        cx = math.floor((x - index._ox) / index.bucket)
+        cy = math.floor((y - index._oy) / index.bucket)
+        key = cy * nbx + cx if 0 <= cx < index._dims[0] and 0 <= cy < index._dims[1] else nbx * nby
+        lo, hi = index.offsets[key : key + 2].tolist()
+        best = NO_SURFACE
+        if hi == lo:
+            return best
+        tol = -1e-9
+        for x0, y0, e1x, e1y, e2x, e2y, den, z0, dz1, dz2 in table.take(index.items[lo:hi], axis=0).tolist():
+            px = x - x0
+            py = y - y0
+            u = (px * e2y - py * e2x) / den
+            v = (e1x * py - e1y * px) / den
+            if u >= tol and v >= tol and u + v <= 1.0 - tol:
+                z = z0 + u * dz1 + v * dz2
+                if z > best or z != z:  # (np.maximum: a NaN stays)
+                    best = z
+        return best
+
     def height_at(self, xy: npt.ArrayLike) -> FloatArray:
         """Highest surface (terrain and every obstacle) under each point ``(n, 2)``: ``(n,)``.
 
         :data:`NO_SURFACE` where there is nothing at all.
         """
         p = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if p.shape[0] == 1 and self._meshes_only:  # (a scene of static meshes: the shell's)
+            x, y = p[0].tolist()
+            if math.isfinite(x) and math.isfinite(y):
+                return np.array([self._static_soup_height(x, y)])
         out = np.full(p.shape[0], NO_SURFACE)
         if self.heightmap is not None:
             out = np.maximum(out, self.heightmap.sample(p))
@@ -1299,6 +1340,13 @@ class Environment:
         block of a tile's new ones' bounding rectangle at once and every rectangle of the
         call in one batch (:meth:`_raster_static`)."""
         b = self.block_cells
+        if self._blocks_filled(cells.tolist(), n.tolist(), i0.tolist(), j0.tolist()):
+            return
+        if b < self.tile_cells:
+            # a window that needs new blocks takes a ring of blocks around it too: a window
+            # moving with its character then needs new blocks at every other block it
+            # crosses, not at each (a rectangle's raster is mostly the call's fixed cost)
+            i0, j0, n = i0 - _FILL_AHEAD * b, j0 - _FILL_AHEAD * b, n + 2 * _FILL_AHEAD * b
         ids = np.array([self._cell_id(c) for c in cells.tolist()], dtype=np.int64)
         w, bi = _ranges_to_pairs(i0 // b, (i0 + n - 1) // b)
         v, bj = _ranges_to_pairs(j0[w] // b, (j0[w] + n[w] - 1) // b)
@@ -1330,6 +1378,31 @@ class Environment:
         r = r[q]
         done = _block_key(t_cid[r], t_i[r] * kb + bi[q], t_j[r] * kb + bj)
         self._filled = np.union1d(filled, done)
+        self._filled_set.update(done.tolist())
+
+    def _blocks_filled(self, cells: list[float], n: list[int], i0: list[int], j0: list[int]) -> bool:
+        """Whether every block the windows of :meth:`_fill_static` cover is filled already,
+        looked up key by key in plain Python (most steps move a window within filled blocks:
+        a few dozen set look-ups instead of :meth:`_fill_static`'s array passes); False when
+        the windows cover too many blocks for that to pay."""
+        b = self.block_cells
+        spans = [((i + k - 1) // b - i // b + 1) * ((j + k - 1) // b - j // b + 1)
+                 for k, i, j in zip(n, i0, j0, strict=True)]
+        if sum(spans) > 1024:
+            return False
+        filled = self._filled_set
+        side = 2 * _KEY_HALF
+        for c, k, i, j in zip(cells, n, i0, j0, strict=True):
+            cid = self._cell_ids.get(c)
+            if cid is None or min(i // b, j // b) < -_KEY_HALF or max(i + k - 1, j + k - 1) // b >= _KEY_HALF:
+                return False  # (keys out of range: the array path raises)
+            cols = range(j // b + _KEY_HALF, (j + k - 1) // b + 1 + _KEY_HALF)
+            for bi in range(i // b, (i + k - 1) // b + 1):
+                row = (cid * side + bi + _KEY_HALF) * side
+                for bj in cols:
+                    if row + bj not in filled:
+                        return False
+        return True
 
     def _raster_static(
         self, cid: IntArray, ti: IntArray, tj: IntArray, r0: IntArray, r1: IntArray, c0: IntArray,
@@ -1389,16 +1462,22 @@ class Environment:
                   self._box_role[box] == ROLE_AVOID)
         index, owner, first = self._static_rect_index()
         rect_all, tri_all = index.pairs(lo, hi)
-        # (rasterised soup by soup, only the soups some rectangle reaches: every triangle's
-        # cells and heights are its own, and the paste takes maxima)
+        # (the triangles of every soup some rectangle reaches in one batch, soup after soup:
+        # every triangle's cells and heights are its own, and the paste takes maxima in the
+        # order the soups came one by one)
         soups_hit = np.unique(owner[tri_all]).tolist() if tri_all.size > 0 else []
-        for i in soups_hit:
-            mine = owner[tri_all] == i if len(soups_hit) > 1 else slice(None)
-            rect, tri = rect_all[mine], tri_all[mine] - first[i]
-            tris = self._soup_triangles(i)[0]
+        if soups_hit:
+            tri_owner = owner[tri_all]
+            order = tri_owner.argsort(kind="stable") if len(soups_hit) > 1 else slice(None)
+            rect, gtri, tri_owner = rect_all[order], tri_all[order], tri_owner[order]
+            cuts = tri_owner.searchsorted(np.asarray([*soups_hit, len(self._soups)])).tolist()
+            tris = np.concatenate([self._soup_triangles(i)[0][gtri[cuts[k] : cuts[k + 1]] - first[i]]
+                                   for k, i in enumerate(soups_hit)])
+            soup_avoided = np.asarray([soup.role == ROLE_AVOID for soup in self._soups])
+            avoided = soup_avoided[tri_owner]
             for pair, row, col, z in raster_triangle_pieces(origin[rect], cell[rect], (r1[rect], c1[rect]),
-                                                            tris[tri], first=(r0[rect], c0[rect])):
-                paste(rect.take(pair), row, col, z, self._soups[i].role == ROLE_AVOID)
+                                                            tris, first=(r0[rect], c0[rect])):
+                paste(rect.take(pair), row, col, z, avoided.take(pair))
         for k, (c, i, j) in enumerate(zip(cid.tolist(), ti.tolist(), tj.tolist(), strict=True)):
             key = (self._cells[c], i, j)
             tile = self._tiles.get(key)
