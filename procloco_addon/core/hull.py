@@ -112,12 +112,21 @@ def upper_hull_eval(
 
 
 @functools.lru_cache(maxsize=16)
-def _pairs(n: int) -> tuple[IntArray, IntArray]:
-    """The pairs ``i <= j`` of ``n`` points (read only)."""
+def _pairs(n: int) -> IntArray:
+    """``(2 P,)``: the first points of the ``P`` pairs ``i <= j`` of ``n`` points, then their
+    second points (read only)."""
     i_of, j_of = np.triu_indices(n)
-    i_of.setflags(write=False)
-    j_of.setflags(write=False)
-    return i_of, j_of
+    out = np.concatenate([i_of, j_of]).astype(np.intp)
+    out.flags.writeable = False
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _rows(b: int) -> IntArray:
+    """``(b, 1)``: the row index of each of ``b`` rows (read only)."""
+    out = np.arange(b, dtype=np.intp)[:, None]
+    out.flags.writeable = False
+    return out
 
 
 def _hull_heights(xa: FloatArray, za: FloatArray, q: FloatArray, mask: BoolArray) -> FloatArray:
@@ -125,31 +134,39 @@ def _hull_heights(xa: FloatArray, za: FloatArray, q: FloatArray, mask: BoolArray
     # where x_i == x_j == q, as the pair (j, i) does with the same height, so the pairs
     # i <= j hold every height that counts. What does not depend on the queries is found
     # once per pair; the interpolation, the test x_i <= q <= x_j and the maximum run over
-    # (query, pair, profile), the profiles last (the long axis).
+    # (profile, query, pair), the pairs last: an operation on a profile's pairs runs along
+    # them whatever the number of profiles (a spine's few profiles, a crowd's hundreds).
     n = xa.shape[-1]
     m = q.shape[-1]
-    i_of, j_of = _pairs(n)
-    xt = xa.reshape(-1, n).T  # (n, B)
-    order = np.argsort(xt, axis=0, kind="stable")
-    ok = np.take_along_axis(mask.reshape(-1, n).T, order, axis=0)
-    x = np.where(ok, np.take_along_axis(xt, order, axis=0), 0.0)
-    z = np.where(ok, np.take_along_axis(za.reshape(-1, n).T, order, axis=0), 0.0)
-    xi, xj, zi, zj = x[i_of], x[j_of], z[i_of], z[j_of]  # (P, B)
-    pair = ok[i_of] & ok[j_of]
+    ij = _pairs(n)
+    n_pairs = ij.shape[0] // 2
+    xz = np.empty((2, *xa.shape))  # x and z of every profile, sorted together
+    xz[0] = xa
+    xz[1] = za
+    xz = xz.reshape(2, -1, n)
+    order = np.argsort(xz[0], axis=1, kind="stable")  # (B, n)
+    at = (_rows(order.shape[0]), order)
+    ok = mask.reshape(-1, n)[at]
+    xz = np.where(ok, xz[:, at[0], at[1]], 0.0)
+    ends = xz.take(ij, axis=2)  # (2, B, 2 P): x, z of every pair's first points, then second points
+    xi, xj = ends[0, :, :n_pairs], ends[0, :, n_pairs:]  # (B, P)
+    zi, zj = ends[1, :, :n_pairs], ends[1, :, n_pairs:]
+    ok_ends = ok.take(ij, axis=1)  # (take: a gather along a last axis twice as fast as indexing)
+    pair = ok_ends[:, :n_pairs] & ok_ends[:, n_pairs:]
     dx = xj - xi
     wide = (dx > 1e-12) & pair
     # a pair without width (a point exactly at q, or equal x) gives its higher point's height
     # (its slope -0.0: adding -0.0 * run, run >= 0, leaves any height as it is)
     slope = np.where(wide, (zj - zi) / np.where(wide, dx, 1.0), -0.0)
     base = np.where(wide, zi, np.where(pair, np.maximum(zi, zj), -np.inf))
-    qs = np.ascontiguousarray(q.reshape(-1, m).T)[:, None, :]  # (m, 1, B)
-    run = qs - xi  # (m, P, B): q - x_i
+    qs = q.reshape(-1, m, 1)  # (B, m, 1)
+    run = qs - xi[:, None, :]  # (B, m, P): q - x_i
     inside = run >= 0.0
-    inside &= qs <= xj
-    val = slope * run
-    val += base
-    val[~inside] = -np.inf
-    return np.asarray(val.max(axis=1).T.reshape(q.shape))
+    inside &= qs <= xj[:, None, :]
+    val = slope[:, None, :] * run
+    val += base[:, None, :]
+    np.copyto(val, -np.inf, where=~inside)
+    return np.asarray(np.maximum.reduce(val, axis=2).reshape(q.shape))
 
 
 def project_along(

@@ -104,8 +104,17 @@ def _turn_xy(v: FloatArray, angle: FloatArray) -> FloatArray:
 
 
 def _rotate_about(points: FloatArray, centre: FloatArray, angle: FloatArray) -> FloatArray:
-    """Rotate ``points`` ``(C, n, 2)`` about ``centre`` ``(C, 2)`` by ``angle`` ``(C,)``."""
-    out = _turn_xy(points - centre[:, None, :], angle[:, None])
+    """Rotate ``points`` ``(C, n, 2)`` about ``centre`` ``(C, 2)`` by ``angle`` ``(C,)``
+    (:func:`_turn_xy`'s arithmetic, each coordinate written into the result)."""
+    rel = points - centre[:, None, :]
+    c, s = np.cos(angle)[:, None], np.sin(angle)[:, None]
+    x, y = rel[..., 0], rel[..., 1]
+    out = np.empty_like(rel)
+    turned_x, turned_y = out[..., 0], out[..., 1]
+    np.multiply(c, x, out=turned_x)
+    turned_x -= s * y
+    np.multiply(s, x, out=turned_y)
+    turned_y += c * y
     out += centre[:, None, :]
     return out
 
@@ -807,9 +816,11 @@ class SpinePlan:
     steer_heading: FloatArray
 
 
-@dataclass(frozen=True)
+@dataclass(eq=False)
 class SpinePose:
-    """Step 4: the drawn spine of every character.
+    """Step 4: the drawn spine of every character (not changed in place once made: not
+    frozen only because a frozen dataclass's construction costs a few microseconds, and
+    a step builds about three).
 
     - ``joints``: ``(C, J, 3)`` world positions of the spine joints (head first).
     - ``bone_rotation``: ``(C, J - 1, 3, 3)`` rotation taking each bone from its rest
@@ -837,11 +848,11 @@ class SpinePose:
 
     def key_positions(self, spines: SpineBatch | SpineModel) -> FloatArray:
         """``(C, K, 3)`` final positions of the key nodes."""
-        return self.joints[:, spines.key_joint]
+        return self.joints.take(spines.key_joint, axis=1)
 
     def key_frames(self, spines: SpineBatch | SpineModel) -> FloatArray:
         """``(C, K, 3, 3)`` final body-to-world rotations of the key nodes."""
-        return self.joint_frame[:, spines.key_joint]
+        return self.joint_frame.take(spines.key_joint, axis=1)
 
 
 # ------------------------------------------------------------------------ steps 1 and 2
@@ -902,7 +913,7 @@ def _turn_from_head(spines: SpineBatch, xy: FloatArray, turn: FloatArray) -> Flo
         xy[:, :i] = _rotate_about(xy[:, :i], xy[:, i], share)
         remaining = remaining - share
     others = spines.others
-    xy[:, others] = _rotate_about(xy[:, others], xy[:, 1], remaining)
+    xy[:, others] = _rotate_about(xy.take(others, axis=1), xy[:, 1], remaining)
     return xy
 
 
@@ -935,6 +946,9 @@ def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) ->
     out[:, 0] = support[:, 0]
     rows = _unit_index(c)
     g = t = rows  # (the first node is looked for on every segment from its start)
+    seg_rows = _row_offsets(c, 1, k + 1)[:, 0]  # where each row's segments start in d's flattening
+    flat_d = d.reshape(-1, 2)
+    flat_support = support.reshape(-1, 2)  # (a row of support is one longer than of d)
     for i in range(1, k):
         f = a - out[:, i - 1, None, :]
         b = (f * d) @ _ONES2
@@ -954,8 +968,11 @@ def _advance_on_support(spines: SpineBatch, xy: FloatArray, dist: FloatArray) ->
             t_min -= 1e-12
             ok &= (seg_idx >= g[:, None]) & (root >= t_min)
         g = ok.argmax(axis=1)  # the long last segment always qualifies
-        t = np.minimum(np.maximum(root[rows, g], 0.0), 1.0)
-        out[:, i] = a[rows, g] + t[:, None] * d[rows, g]
+        # (each row's segment g gathered through the flat arrays: take of a flat index is
+        # several times faster than indexing with two index arrays)
+        at = g + seg_rows
+        t = np.minimum(np.maximum(root.take(at), 0.0), 1.0)
+        out[:, i] = flat_support.take(at + rows, axis=0) + t[:, None] * flat_d.take(at, axis=0)
     return out
 
 
@@ -1010,8 +1027,8 @@ def feet_ahead(spines: SpineBatch, plan: SpinePlan, foot_world: FloatArray) -> F
     the node's heading (what :func:`terrain_guides` and :func:`node_pitch` measure the feet
     by; give it to them when both run on the same plan and feet)."""
     leg = spines.leg_key
-    heading = plan.key_heading[:, leg]
-    rel_xy = foot_world[..., :2] - plan.key_xy[:, leg]
+    heading = plan.key_heading.take(leg, axis=1)
+    rel_xy = foot_world[..., :2] - plan.key_xy.take(leg, axis=1)
     return np.asarray(rel_xy[..., 0] * np.cos(heading) + rel_xy[..., 1] * np.sin(heading))
 
 
@@ -1066,9 +1083,9 @@ def terrain_guides(
         if ahead is None:
             ahead = feet_ahead(spines, plan, feet)
         # arc length grows from the head to the back: a foot ahead of its node comes before it
-        fx = arc[:, spines.leg_key] - ahead  # (C, L)
-        x[..., n:] = fx[:, own]
-        z[..., n:] = feet[:, own, 2]
+        fx = arc.take(spines.leg_key, axis=1) - ahead  # (C, L)
+        x[..., n:] = fx.take(own, axis=1)
+        z[..., n:] = feet[..., 2].take(own, axis=1)
         valid[..., n:] = spines.node_leg_valid
     lost = ~np.logical_or.reduce(valid[..., :n], axis=2)  # (C, K)
     if np.count_nonzero(lost):
@@ -1136,10 +1153,10 @@ def node_pitch(
     leg = spines.leg_key
     if ahead is None:
         ahead = feet_ahead(spines, plan, feet)
-    below = z[:, leg] - feet[..., 2]
+    below = z.take(leg, axis=1) - feet[..., 2]
     rest_ahead = spines.rest_foot_ahead
     # The rest place on the sloped ground: further below the node behind it, less ahead.
-    ref_below = spines.rest_foot_depth - rest_ahead * np.tan(env[:, leg])
+    ref_below = spines.rest_foot_depth - rest_ahead * np.tan(env.take(leg, axis=1))
     change = _wrap(np.arctan2(ahead, below) - np.arctan2(rest_ahead, ref_below))  # (C, L)
     mean_change = (change @ spines.membership) / spines.leg_count
     # (1 - w) env + w (env + change) = env + w change
@@ -1161,8 +1178,8 @@ def visual_yaw(spines: SpineBatch, plan: SpinePlan, foot_world: npt.ArrayLike) -
         return np.zeros((c, k))
     feet = np.asarray(foot_world, dtype=np.float64).reshape(c, spines.n_legs, 3)
     leg = spines.leg_key
-    rel = feet[..., :2] - plan.key_xy[:, leg]
-    now = np.arctan2(rel[..., 1], rel[..., 0]) - plan.key_heading[:, leg]
+    rel = feet[..., :2] - plan.key_xy.take(leg, axis=1)
+    now = np.arctan2(rel[..., 1], rel[..., 0]) - plan.key_heading.take(leg, axis=1)
     turned = (_wrap(now - spines.rest_foot_yaw)[:, None, :] @ spines.yaw_weight)[:, 0]  # (C, K)
     mean = np.where(spines.yaw_has, turned / spines.yaw_weight_sum, 0.0)
     limit = spines.max_visual_yaw[:, None]
@@ -1199,15 +1216,15 @@ def _sample_curve(
     pair = _segment_pairs(k)  # (K - 1, 2): each key segment's two nodes
     ctrl = np.empty((c, k - 1, 4, 3))  # P1, P2, T1, T2 of each key segment
     ends_xyz = ctrl[:, :, 0:2]
-    ends_xyz[...] = key_xyz[:, pair]
-    d = ends_xyz[:, :, 1] - ends_xyz[:, :, 0]
+    ends_xyz[...] = key_xyz.take(pair, axis=1)
+    d = key_xyz[:, 1:] - key_xyz[:, :-1]
     chord = np.sqrt((d * d) @ _ONES3)  # (C, K - 1)
-    np.multiply(tangent[:, pair], chord[..., None, None], out=ctrl[:, :, 2:4])
+    np.multiply(tangent.take(pair, axis=1), chord[..., None, None], out=ctrl[:, :, 2:4])
     step = _CURVE_STEP_BASIS @ ctrl  # (C, K - 1, m - 1, 3): between consecutive dense samples
     table = np.zeros((c, k - 1, m))  # arc length at each dense sample
     step *= step
-    np.sqrt(step @ _ONES3).cumsum(axis=2, out=table[:, :, 1:])
-    tab = table[:, segment]  # (C, J, m)
+    np.add.accumulate(np.sqrt(step @ _ONES3), axis=2, out=table[:, :, 1:])
+    tab = table.take(segment, axis=1)  # (C, J, m)
     target = fraction * tab[..., m - 1]
     # the first sample at or past the target (a fraction is at most 1: never past the end)
     idx = np.add.reduce(tab < target[..., None], axis=-1)
@@ -1226,7 +1243,7 @@ def _sample_curve(
     # Exact ends: key joints sit on their key node.
     param[:, ends] = end_value
     basis = (param[..., None] ** _POWERS) @ HERMITE_MATRIX  # (C, J, 4): hermite_basis
-    return np.asarray((basis[:, :, None, :] @ ctrl[:, segment])[:, :, 0])
+    return np.asarray((basis[:, :, None, :] @ ctrl.take(segment, axis=1))[:, :, 0])
 
 
 _ROW_OFFSETS: dict[tuple[int, int, int], IntArray] = {}
@@ -1277,6 +1294,15 @@ def build_spine(
     return _build(spines, guide.copy(), np.array(yaw, copy=True), np.array(pitch, copy=True), tangent)
 
 
+def build_fresh(
+    spines: SpineBatch, key_xyz: FloatArray, key_yaw: FloatArray, key_pitch: FloatArray
+) -> SpinePose:
+    """:func:`build_spine` on ``(C, K, 3)``, ``(C, K)`` and ``(C, K)`` float arrays the pose may
+    hold as they are (the caller will not change them in place)."""
+    tangent = -_direction(key_yaw, spines.rest_key_pitch + key_pitch)
+    return _build(spines, key_xyz, key_yaw, key_pitch, tangent)
+
+
 def _build(spines: SpineBatch, guide: FloatArray, yaw: FloatArray, pitch: FloatArray, tangent: FloatArray
            ) -> SpinePose:
     """:func:`build_spine` on arrays the pose may keep as they are (nobody changes them)."""
@@ -1303,7 +1329,7 @@ def _build(spines: SpineBatch, guide: FloatArray, yaw: FloatArray, pitch: FloatA
     # are turned in one call: (C, J - 1) bone angles, then (C, J) joint angles, yaw then pitch.
     turn = np.empty((2, c, n_b + n_j))
     np.add(spines.rest_chord_turn, dev, out=turn[:, :, :n_b])
-    pad = dev[:, :, spines.pad_index]  # (2, C, J + 1)
+    pad = dev.take(spines.pad_index, axis=2)  # (2, C, J + 1)
     half = pad[:, :, 1:] - pad[:, :, :-1]
     _wrap_in_place(half[0])
     half *= 0.5
@@ -1357,7 +1383,9 @@ def _frames(turn: FloatArray) -> FloatArray:
     np.sin(turn, out=table[2:4])
     np.multiply(table[0:4:2, None], table[None, 1:4:2], out=table[4:8].reshape(2, 2, c, n))
     table[8] = 0.0
-    out = table.reshape(9, c * n).T[:, _FRAME_ENTRIES]
+    # (the entries taken along the table's first axis, then turned: the same strided layout
+    # as indexing the turned table, which the bone rotations' matrix products depend on)
+    out = table.reshape(9, c * n).take(_FRAME_ENTRIES, axis=0).T
     out *= _FRAME_SIGNS
     return out.reshape(c, n, 3, 3)
 
@@ -1428,11 +1456,11 @@ def leg_frames(spines: SpineBatch, pose: SpinePose) -> FloatArray:
     """Body-to-world rotation each leg hangs from ``(C, L, 3, 3)``: its carrier bone's
     rotation (``SpineModel.leg_bone``), else the frame of its key node."""
     if spines.all_legs_on_bone:
-        return np.asarray(pose.bone_rotation[:, spines.leg_bone_row])
-    key_frames = pose.joint_frame[:, spines.leg_key_joint]
+        return np.asarray(pose.bone_rotation.take(spines.leg_bone_row, axis=1))
+    key_frames = pose.joint_frame.take(spines.leg_key_joint, axis=1)
     if not spines.any_leg_on_bone:
         return np.asarray(key_frames)
-    bone_frames = pose.bone_rotation[:, spines.leg_bone_row]
+    bone_frames = pose.bone_rotation.take(spines.leg_bone_row, axis=1)
     return np.asarray(np.where(spines.leg_on_bone[None, :, None, None], bone_frames, key_frames))
 
 
@@ -1442,7 +1470,8 @@ def hip_positions(spines: SpineBatch, pose: SpinePose, frames: FloatArray | None
     pose's :func:`leg_frames` ``(C, L, 3, 3)`` when the caller has them already)."""
     if frames is None:
         frames = leg_frames(spines, pose)
-    return pose.joints[:, spines.leg_pivot] + np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
+    turned = np.matmul(frames, spines.hip_pivot_offset[..., None])[..., 0]
+    return pose.joints.take(spines.leg_pivot, axis=1) + turned
 
 
 def repeat_for_reach(
@@ -1498,6 +1527,9 @@ def reach_repeats(
         cap_all = cap_all.reshape(-1, 1, 1)
     member = spines.membership
     start = pose.guide_xyz
+    # (what the legs are measured against, made once for every repeat)
+    limit_all = reach_all + 1e-12
+    aim_all = slack * reach_all
     # The characters still stretched (only they are rebuilt): None while that is all of them.
     rows: IntArray | None = None
     sub_spines = spines
@@ -1508,12 +1540,11 @@ def reach_repeats(
         last_hips = hip if rows is None else None
         to_foot = (feet if rows is None else feet[rows]) - hip
         dist = vector_norm(to_foot)
-        reach = reach_all if rows is None else reach_all[rows]
-        stretched = np.logical_or.reduce(dist > reach + 1e-12, axis=1)
+        stretched = np.logical_or.reduce(dist > (limit_all if rows is None else limit_all[rows]), axis=1)
         n_stretched = np.count_nonzero(stretched)
         if not n_stretched:
             break
-        excess = np.maximum(dist - slack * reach, 0.0)
+        excess = np.maximum(dist - (aim_all if rows is None else aim_all[rows]), 0.0)
         if rows is None and n_stretched == stretched.size:
             cap = cap_all
             base = start
@@ -1601,6 +1632,7 @@ __all__ = [
     "SpinePlan",
     "SpinePose",
     "SpineState",
+    "build_fresh",
     "build_spine",
     "feet_ahead",
     "finish_spine",

@@ -34,7 +34,7 @@ from .spine import (
     SpinePlan,
     SpinePose,
     SpineState,
-    build_spine,
+    build_fresh,
     feet_ahead,
     hip_positions,
     leg_frames,
@@ -188,7 +188,7 @@ def advance(link: SpineLink, body: Body, ctl: StepControls, dt: float) -> None:
     for g in link.groups:
         old = g.plan.key_xy
         g.plan = plan_spine(g.spines, SpineState(old), ctl.heading[g.chars], ctl.speed[g.chars] * dt, dt)
-        moved = (g.plan.key_xy - old)[:, g.spines.leg_key]
+        moved = (g.plan.key_xy - old).take(g.spines.leg_key, axis=1)
         link.hips[g.legs, :2] += moved
         link.hips_free[g.legs, :2] += moved
         body_from_plan(g, body)
@@ -260,7 +260,9 @@ def pose(
         guide = np.empty((c, k, 3))
         guide[..., :2] = g.plan.key_xy
         guide[..., 2] = z
-        pose = build_spine(sb, guide, yaw, g.pitch)
+        # (build_spine without its copies: the guides are made here, and the plan's headings
+        # and the filtered pitch are replaced, not changed in place, from frame to frame)
+        pose = build_fresh(sb, guide, yaw, g.pitch)
         hips_free = hip_positions(sb, pose)
         link.hips_free[g.legs] = hips_free
         # bounded like the rigid pelvis's guard: a foot beyond help steps early instead
@@ -389,7 +391,9 @@ def joints(link: SpineLink, pos: FloatArray) -> FloatArray:
     """``(C, J, 3)`` world spine joints (head first) of every character, ``J`` the most
     joints of any spine; rows past a spine's end repeat its last joint, characters
     without a spine hold their pelvis position ``pos (C, 3)``."""
-    out = np.repeat(pos[:, None, :], link.max_spine_joints, axis=1)
+    full = _all_full(link)
+    out = (np.empty((pos.shape[0], link.max_spine_joints, 3)) if full
+           else np.repeat(pos[:, None, :], link.max_spine_joints, axis=1))
     for g in link.groups:
         if g.pose is None:
             continue
@@ -403,9 +407,20 @@ def bone_rotations(link: SpineLink, n_chars: int) -> FloatArray:
     """``(C, J - 1, 3, 3)`` rotation of every spine bone from its rest (body-frame)
     direction to the world (``SpinePose.bone_rotation``); identity past a spine's end and
     for characters without a spine."""
-    out = np.zeros((n_chars, max(link.max_spine_joints - 1, 0), 3, 3))
-    out[:] = np.eye(3)
+    shape = (n_chars, max(link.max_spine_joints - 1, 0), 3, 3)
+    if _all_full(link):
+        out = np.empty(shape)
+    else:
+        out = np.zeros(shape)
+        out[:] = np.eye(3)
     for g in link.groups:
         if g.pose is not None:
             out[g.chars, : g.spines.n_joints - 1] = g.pose.bone_rotation
     return out
+
+
+def _all_full(link: SpineLink) -> bool:
+    """Every character has a spine of the most joints and a pose: the read-outs above write
+    every row of it (nothing to fill in first)."""
+    return bool(link.has_spine.all()) and all(
+        g.pose is not None and g.spines.n_joints == link.max_spine_joints for g in link.groups)
