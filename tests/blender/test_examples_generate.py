@@ -120,3 +120,34 @@ def test_example_human_walks_over_its_stairs_to_its_goal(empty_scene: Any, repo_
     assert np.linalg.norm(hips[0, :2] - np.array(goal.location)[:2]) < 0.5
     # ... and it is there by the example's last frame: the render shows the climb complete.
     assert np.linalg.norm(hips[1, :2] - np.array(goal.location)[:2]) < 0.5
+
+
+def test_example_ant_walks_from_detect_legs_defaults(empty_scene: Any, repo_root: Path) -> None:
+    """The example ant with its own settings cleared (its speed, step height and cycle time
+    never set, its legs detected again): Detect Legs' defaults and Gait: Auto walk it over
+    the example terrain within the thresholds. Its legs are crowded along its body: the
+    default speed is the fastest at which Auto keeps its swing time (the model's 0.8 leg
+    lengths a cycle ran the cycle six times a second, each swing a frame or two)."""
+    _open_examples(repo_root)
+    obj = bpy.data.objects[example_scene.CREATURE_NAMES["ant"]]
+    settings = obj.procloco
+    for name in ("speed", "step_height", "cycle_time", "gait_mode"):
+        settings.property_unset(name)
+    settings.legs.clear()
+    _select_only(obj)
+    assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
+    assert settings.gait_mode == "AUTO"
+    assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
+    job = generate.prepare(bpy.context, obj)
+    for _ in generate.simulate(job):
+        pass
+    assert job.auto_gait is not None
+    assert float(settings.speed) == pytest.approx(job.auto_gait.top_speed(), rel=1e-6)
+    terrain = bpy.data.collections["Terrain"].objects
+    solid = [o for o in terrain if o.procloco_role != "IGNORE"]
+    avoid = [o for o in terrain if o.procloco_role == "AVOID" and o.animation_data is None]
+    m = _measure_on(obj, job, solid, avoid)
+    m.pop("ends")
+    check_thresholds(without_pops(m))
+    assert m["travel"] > 2.0 * m["scale"], m
+    check_no_pops(m)

@@ -279,3 +279,26 @@ def test_a_quadruped_ramping_up_walks_trots_then_gallops_near_the_stated_froude_
     assert int(sim.auto_gait.n_changes[0]) == 2
     report = check_motion(res, env)
     assert report.passed, report.failures()
+
+
+def test_a_short_stroke_shortens_the_stance_and_keeps_the_swing_time() -> None:
+    # Legs that allow a third of the model's stance sweep (a beetle's, crowded along its
+    # body): up to the top speed the sweep stays within STROKE_SHARE of it and the swing
+    # keeps its time; the faster gaits come at lower speeds, as at a speed 1 / stroke_scale.
+    free = _params(HEX, 0.4)
+    model = ag.SWING_TIME / ag.DUTY_K * 0.4
+    crowded = _params(HEX, 0.4, stroke=model / 3.0)
+    assert free.stroke_scale == 1.0
+    assert crowded.stroke_scale == pytest.approx(ag.STROKE_SHARE / 3.0)
+    swing = ag.SWING_TIME * np.sqrt(0.4 / ag.G)
+    top = crowded.top_speed()
+    assert top == pytest.approx(crowded.stroke_scale * free.top_speed())
+    for v in np.linspace(0.05, 1.0, 12) * top:
+        band, duty, cycle = (float(x[0]) for x in crowded.schedule([v]))
+        assert v * duty * cycle <= ag.STROKE_SHARE * model / 3.0 + 1e-12  # the stance sweep
+        assert (1.0 - duty) * cycle == pytest.approx(swing)  # the swing time
+        assert band == float(free.schedule([v / crowded.stroke_scale])[0][0])
+    # the model's own sweep is kept where the legs allow more, and mammals keep their stride
+    assert _params(HEX, 0.4, stroke=2.0 * model).stroke_scale == 1.0
+    assert _params(QUAD, 0.4, stroke=0.01).band_scale == 1.0
+    assert _params(QUAD, 0.4).top_speed() == np.inf

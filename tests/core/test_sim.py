@@ -708,3 +708,61 @@ def test_result_of_the_first_frames_is_the_start_of_the_whole() -> None:
     # the vanishing first step leaves the hips within reach of the planted feet
     reach = np.linalg.norm(whole.foot[0] - whole.hips[0], axis=1)
     assert (reach <= m.leg_length * (1.0 + 1e-9)).all()
+
+
+def _crowded_hexapod() -> morph.Morphology:
+    """A beetle whose legs hang 10 cm apart along its body, its hips 20 cm above its feet,
+    each leg a short coxa, a femur rising to a high knee and a long tibia down (the Blender
+    tests' ``beetle_gltf``): its legs allow a stance sweep of a third of their length."""
+    chains = []
+    for along in (0.1, 0.0, -0.1):
+        for side in (1.0, -1.0):
+            out = np.array([0.4 * np.sign(along), side, 0.0]) / np.hypot(1.0, 0.4 * np.sign(along))
+            hip = np.array([along, 0.03 * side, 0.0])
+            coxa = hip + 0.02 * out
+            knee = coxa + 0.06 * out + np.array([0.0, 0.0, 0.06])
+            foot = knee + 0.08 * out
+            foot[2] = -0.2
+            chains.append(np.array([hip, coxa, knee, foot]))
+    return morph.Morphology.from_rest_joints(chains, ["L1", "R1", "L2", "R2", "L3", "R3"])
+
+
+def test_auto_gait_of_crowded_legs_keeps_its_swings_and_lands_its_feet_beside_the_body() -> None:
+    from procloco_addon.core.locomotion import autogait
+    from procloco_addon.core.locomotion.scaling import stroke_limit
+
+    m = _crowded_hexapod()
+    leg = float(m.leg_length.mean())
+    hip = autogait.rest_hip_height(m.rest_joints, m.n_segments)
+    stroke = stroke_limit(m)
+    assert stroke < 0.5 * autogait.SWING_TIME / autogait.DUTY_K * leg  # crowded
+    p = autogait.auto_gait_params(m.labels, hip, leg, stroke=stroke)
+    assert p is not None
+    speed = p.top_speed()  # what Detect Legs gives such a rig
+    params, planner = scaled_params(leg, 0.15 * leg, auto_physics=True)
+
+    def walk(auto: autogait.AutoGaitParams) -> Simulation:
+        sim = Simulation(flat(), [m], find_gait_preset("hexapod_tripod").gait(m.labels), dt=1.0 / 24.0,
+                         controls=Controls(speed=speed, heading=0.0, step_height=0.15 * leg),
+                         auto_gait=[auto], params=params, planner=[planner])
+        res = sim.run(72)
+        _assert_motion_ok(res, sim.env)
+        # every foot lands beside the body where its rest pose puts it, none pushed in under
+        # its hip by the foot ahead (where the leg folds and its coxa turns over in a frame)
+        for k in range(m.n_legs):
+            f = np.flatnonzero(~res.contact[:-1, k] & res.contact[1:, k]) + 1
+            assert f.size >= 3
+            side = (res.foot[f, k, :2] - res.pelvis_position[f, 0, :2])[:, 1]
+            np.testing.assert_allclose(np.abs(side), abs(m.rest_foot[k, 1]), atol=0.01)
+        return sim
+
+    # the swing keeps its time: the controller does not run the cycle faster than Auto's
+    assert walk(p).controller.gait.rate_scale[0] == 1.0
+    # (the model's own sweep, twice what the legs allow, ran the whole cycle twice as fast)
+    free = autogait.auto_gait_params(m.labels, hip, leg)
+    assert free is not None
+    sim = Simulation(flat(), [m], find_gait_preset("hexapod_tripod").gait(m.labels), dt=1.0 / 24.0,
+                     controls=Controls(speed=speed, heading=0.0, step_height=0.15 * leg), auto_gait=[free],
+                     params=params, planner=[planner])
+    sim.run(2)
+    assert sim.controller.gait.rate_scale[0] > 1.5

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.locomotion import autogait
+from ...core.locomotion import autogait, scaling
 from ...core.locomotion import gait as core_gait
 from ..locomotion import property_group as locomotion_props
 
@@ -249,12 +249,21 @@ def set_auto_override(obj: Any, band: str, preset: core_gait.GaitPreset | None) 
     settings.auto_gait_overrides = json.dumps(current) if current else ""
 
 
-def auto_params(obj: Any, info: Any) -> autogait.AutoGaitParams | None:
+def auto_params(obj: Any, info: Any, morphology: Any = None) -> autogait.AutoGaitParams | None:
     """Core auto-gait parameters of armature ``obj`` read as ``info`` (``rig.RigInfo``):
     its legs' family, hip height (hips above the ground contacts at rest), leg length,
-    gait speed scale and overrides. None when no family fits the legs (their count, or the
-    labels of the family's shipped presets)."""
+    the longest stance sweep its legs allow (``scaling.stroke_limit`` of ``morphology``, the
+    rig's core morphology, made from ``info`` when not given), gait speed scale and
+    overrides. None when no family fits the legs (their count, or the labels of the
+    family's shipped presets)."""
+    from .. import rig
+
     settings = _settings(obj)
+    try:
+        stroke: float | None = scaling.stroke_limit(morphology if morphology is not None
+                                                    else rig.morphology_of(info))
+    except rig.RigError:
+        stroke = None  # (Generate says what is wrong with the rig)
     labels = [leg.label for leg in info.legs]
     hips = np.array([j[0, 2] for j in info.joints])
     hip_height = float(np.mean(hips - info.contact[:, 2]))
@@ -264,7 +273,7 @@ def auto_params(obj: Any, info: Any) -> autogait.AutoGaitParams | None:
         return autogait.auto_gait_params(
             labels, max(hip_height, 1e-3 * leg_length), leg_length,
             speed_scale=float(settings.gait_speed_scale) if settings is not None else 1.0,
-            overrides=overrides)
+            overrides=overrides, stroke=stroke)
     except core_gait.GaitError:
         if overrides:
             raise  # the animator's own preset does not fit: say so
@@ -377,8 +386,9 @@ def _predicted_track(obj: Any, scene: Any) -> AutoTrack | None:
 
 
 def boundary_speeds(params: autogait.AutoGaitParams) -> np.ndarray:
-    """``(B - 1,)`` speeds in m/s at which each gait after the first begins (speed scale in)."""
-    edges = params.family.boundaries() * params.speed_scale ** 2
+    """``(B - 1,)`` speeds in m/s at which each gait after the first begins (speed scale and
+    the legs' stroke in: ``AutoGaitParams.band_scale``)."""
+    edges = params.family.boundaries() * params.band_scale ** 2
     return np.asarray(np.sqrt(edges * params.g * params.size))
 
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import math
 import time
 from collections.abc import Callable, Generator, Iterator, Sequence
 from typing import Any
@@ -108,20 +109,25 @@ def default_gait(labels: Sequence[str]) -> core_gait.Gait:
 
 
 #: Defaults for a rig with no speed or step height set yet, in leg lengths: a stride of
-#: ``STRIDE`` per cycle, feet lifted by ``STEP``; the gait's cycle scaled by the square root
-#: of the leg length over ``REFERENCE_LEG`` (dynamic similarity), within ``CYCLE_SCALE``.
+#: ``STRIDE`` per cycle (no faster than Gait: Auto walks its legs without running its cycle
+#: faster: ``AutoGaitParams.top_speed``), feet lifted by ``STEP``; the gait's cycle scaled by
+#: the square root of the leg length over ``REFERENCE_LEG`` (dynamic similarity), within
+#: ``CYCLE_SCALE``.
 STRIDE = 0.8
 STEP = 0.15
 REFERENCE_LEG = 0.9
 CYCLE_SCALE = (0.5, 1.6)
 
 
-def scaled_defaults(leg_length: float, cycle_time: float) -> dict[str, float]:
+def scaled_defaults(leg_length: float, cycle_time: float, top_speed: float = math.inf) -> dict[str, float]:
     """Speed, step height and cycle time for a creature whose legs are ``leg_length`` long,
     walking the gait whose preset cycle is ``cycle_time`` seconds: a 9 cm bird and a 2 m
-    horse both get a first walk in proportion to their size."""
+    horse both get a first walk in proportion to their size. The speed is at most
+    ``top_speed`` (m/s): a beetle whose legs are crowded along its body walks no faster
+    than its Auto gait keeps its swings (``AutoGaitParams.top_speed``)."""
     cycle = cycle_time * float(np.clip(np.sqrt(leg_length / REFERENCE_LEG), *CYCLE_SCALE))
-    return {"speed": STRIDE * leg_length / cycle, "step_height": STEP * leg_length, "cycle_time": cycle}
+    return {"speed": min(STRIDE * leg_length / cycle, top_speed), "step_height": STEP * leg_length,
+            "cycle_time": cycle}
 
 
 def leg_reason(item: Any) -> str:
@@ -146,12 +152,17 @@ def detect_into_settings(obj: bpy.types.Object) -> list[rig.LegChain]:
         rig_gait.set_new_rig_default(obj)  # no gait chosen yet: Auto
     scaled = None
     if not settings.is_property_set("speed") and not settings.is_property_set("step_height"):
+        top = math.inf
         try:
-            length = float(rig.read_rig(obj, legs).leg_length.mean())
-        except rig.RigError:
+            info = rig.read_rig(obj, legs)
+            length = float(info.leg_length.mean())
+            if rig_gait.is_auto(obj):
+                auto = rig_gait.auto_params(obj, info)
+                top = auto.top_speed() if auto is not None else math.inf
+        except (rig.RigError, core_gait.GaitError):
             length = 0.0  # Generate will say what is wrong; the defaults stay as they are
         if length > 0.0:
-            scaled = scaled_defaults(length, float(default_gait([leg.label for leg in legs]).cycle_time))
+            scaled = scaled_defaults(length, float(default_gait([leg.label for leg in legs]).cycle_time), top)
     labels = [leg.label for leg in legs]
     old = {item.label or item.name: (item.swing_start, item.swing_duration, tuple(item.offset), item.enabled)
            for item in settings.legs}
@@ -399,7 +410,7 @@ def _read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
     if rig_gait.is_auto(obj) or not (from_settings or settings.is_property_set("gait_mode")):
         try:
-            auto = rig_gait.auto_params(obj, info)
+            auto = rig_gait.auto_params(obj, info, morph)
         except core_gait.GaitError as err:
             raise GenerateError(f"Gait of '{obj.name}': {err}") from err
         if auto is None:

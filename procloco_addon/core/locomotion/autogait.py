@@ -39,6 +39,16 @@ goes through the thesis's §3.3 transition (``GaitManager.start_transition``). W
 the duty factor and the cycle follow the speed continuously (``GaitManager.retarget``:
 a leg takes its new disk only while in stance).
 
+**Crowded legs.** The swing model's constant stance sweep (0.67 leg) is what legs spread
+along the body allow. Legs crowded along it (a beetle's, an ant's) allow less: a foot landing
+must stay behind its neighbour's before that one lifts (``rig.stroke_limits``). Given the
+creature's ``stroke`` (the longest stance sweep its legs allow, ``rig.Rig.stroke_limit``), the
+sweep is at most ``STROKE_SHARE`` of it: the swing keeps its time and the stance shortens,
+so the duty factor falls and the faster gaits come at lower speeds, exactly as if the speed
+were multiplied by ``1 / stroke_scale`` (``AutoGaitParams.band_scale``). Without it the
+controller kept the sweep and ran the whole cycle faster (``rig.rate_scale``): a crowded
+hexapod's swings lasted a frame or two.
+
 **Bias.** ``speed_scale`` multiplies the speeds at which the gait changes (Fr boundaries by
 its square): 1.5 keeps a creature walking to 1.5 times the speed. ``AutoBand`` patterns can
 be replaced by any preset for the same legs (per-band overrides).
@@ -74,6 +84,14 @@ SWING_TIME = 1.0
 DUTY_K = 1.5
 #: Duty factors are kept within these (a foot always both lifts and lands).
 DUTY_MIN, DUTY_MAX = 0.2, 0.9
+#: Share of the legs' longest stance sweep (``AutoGaitParams.stroke``) the swing model's sweep
+#: keeps to. The longest sweep puts a landing foot its clearance behind the neighbour's
+#: foot that is about to lift; the planner's grid forbids a cell when the foot box may touch
+#: it anywhere in the cell, so at the full sweep the landing spot is often taken and the
+#: feet behind are pushed back or inward, under the hip (measured on a crowded beetle: hind
+#: feet landing 7 cm inward, its coxae turning 90-120 degrees in a frame as the swing folds
+#: the leg; at 0.75 of the sweep every foot lands where it was meant to).
+STROKE_SHARE = 0.75
 
 MODEL_STRIDE = "stride"  # mammals and birds: stride from Alexander (1976)
 MODEL_SWING = "swing"  # insects and spiders: constant swing time (Wilson 1966)
@@ -252,6 +270,9 @@ class AutoGaitParams:
       ``creature_size``); ``speed_scale``: the bias of the boundaries; ``hysteresis``:
       relative Fr margin; ``transition_cycles``: a gait change's §3.3 transition time in
       cycles of the gait it leaves; ``g``: gravity.
+    - ``stroke``: the longest stance sweep the legs allow, metres (``rig.Rig.stroke_limit``;
+      None: as long as the model's). The swing model keeps its sweep within
+      ``STROKE_SHARE`` of it (``stroke_scale``).
     """
 
     family: AutoFamily
@@ -262,12 +283,15 @@ class AutoGaitParams:
     hysteresis: float = 0.2
     transition_cycles: float = 0.5
     g: float = G
+    stroke: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.size) and self.size > 0.0):
             raise GaitError(f"auto gait needs a positive creature size, got {self.size!r}")
         if not (math.isfinite(self.speed_scale) and self.speed_scale > 0.0):
             raise GaitError(f"gait speed scale must be positive, got {self.speed_scale!r}")
+        if self.stroke is not None and not (math.isfinite(self.stroke) and self.stroke > 0.0):
+            raise GaitError(f"auto gait needs a positive stroke, got {self.stroke!r}")
         if self.patterns.shape[0] != len(self.family.bands) or len(self.names) != len(self.family.bands):
             raise GaitError("one pattern and one name per band")
 
@@ -278,12 +302,37 @@ class AutoGaitParams:
     def froude(self, speed: npt.ArrayLike) -> FloatArray:
         return froude(speed, self.size, self.g)
 
+    @property
+    def stroke_scale(self) -> float:
+        """The swing model's stance sweep over the model's own (``SWING_TIME / DUTY_K`` sizes),
+        at most 1: ``STROKE_SHARE`` of ``stroke`` where the legs allow less (1 for the stride
+        model and without ``stroke``)."""
+        if self.stroke is None or self.family.model != MODEL_SWING:
+            return 1.0
+        return min(1.0, STROKE_SHARE * self.stroke / (SWING_TIME / DUTY_K * self.size))
+
+    @property
+    def band_scale(self) -> float:
+        """What the speeds of the gait bands and the duty factors are scaled by: the bias
+        ``speed_scale`` times ``stroke_scale`` (a sweep shortened by ``stroke_scale`` at the
+        same swing time is the model's duty at the speed over ``stroke_scale``)."""
+        return self.speed_scale * self.stroke_scale
+
+    def top_speed(self) -> float:
+        """The fastest speed (m/s) at which the swing model's gait keeps its swing time: its
+        duty factor reaches its floor (0.5) there, and faster the controller runs the whole
+        cycle faster. ``inf`` for the stride model."""
+        if self.family.model != MODEL_SWING:
+            return math.inf
+        # 1 / (1 + DUTY_K sqrt(Fr) / band_scale) = 0.5
+        return self.band_scale / DUTY_K * math.sqrt(self.g * self.size)
+
     def gait(self, band: int, speed: float) -> Gait:
         """The gait of band ``band`` at ``speed`` m/s: its pattern, every swing lasting
         ``1 - duty``, and the cycle time."""
         fr = float(self.froude(speed))
         # the duty follows the biased speed, so it stays continuous across the shifted bands
-        duty = float(duty_factor(self.family, band, fr / self.speed_scale ** 2))
+        duty = float(duty_factor(self.family, band, fr / self.band_scale ** 2))
         cycle = float(cycle_time(self.family, fr, duty, self.size, self.g))
         n = self.n_legs
         return Gait(self.patterns[band].copy(), np.full(n, 1.0 - duty), cycle, self.names[band])
@@ -292,8 +341,8 @@ class AutoGaitParams:
         """Along speeds ``(F,)`` m/s: bands ``(F,)``, duty factors ``(F,)`` and cycle times
         ``(F,)`` s, as ``AutoGait`` chooses them (what the panel's chart shows)."""
         fr = self.froude(np.asarray(speed, dtype=np.float64).reshape(-1))
-        bands = band_schedule(self.family, fr, self.speed_scale, self.hysteresis)
-        duty = duty_factor(self.family, bands, fr / self.speed_scale ** 2)
+        bands = band_schedule(self.family, fr, self.band_scale, self.hysteresis)
+        duty = duty_factor(self.family, bands, fr / self.band_scale ** 2)
         cycle = cycle_time(self.family, fr, duty, self.size, self.g)
         return bands, duty, cycle
 
@@ -314,10 +363,12 @@ def auto_gait_params(
     overrides: Mapping[str, GaitPreset] | None = None,
     hysteresis: float = 0.2,
     preset_dir: Path | None = None,
+    stroke: float | None = None,
 ) -> AutoGaitParams | None:
     """Auto gait for legs ``labels`` (None when no family fits the leg count).
 
-    ``overrides``: band name -> preset whose pattern replaces the band's (legs by label).
+    ``overrides``: band name -> preset whose pattern replaces the band's (legs by label);
+    ``stroke``: the longest stance sweep the legs allow (m; ``AutoGaitParams.stroke``).
     Raises ``GaitError`` when a preset does not fit the legs.
     """
     family = family_for(labels)
@@ -334,7 +385,8 @@ def auto_gait_params(
             names.append(preset.name)
         patterns.append(preset.gait(labels).swing_start)
     return AutoGaitParams(family, np.stack(patterns), tuple(names),
-                          creature_size(family, hip_height, leg_length), speed_scale, hysteresis)
+                          creature_size(family, hip_height, leg_length), speed_scale, hysteresis,
+                          stroke=stroke)
 
 
 def rest_hip_height(rest_joints: FloatArray, n_segments: IntArray) -> float:
@@ -358,7 +410,7 @@ class AutoGait:
         self.params = list(params)
         v = np.broadcast_to(np.asarray(speed, dtype=np.float64), (len(self.params),))
         self.band = np.array(
-            [-1 if p is None else int(band_of(p.family, p.froude(v[c]), p.speed_scale))
+            [-1 if p is None else int(band_of(p.family, p.froude(v[c]), p.band_scale))
              for c, p in enumerate(self.params)], dtype=np.int64)
         self.n_changes = np.zeros(len(self.params), dtype=np.int64)
         self._speed = v.copy()
@@ -368,7 +420,7 @@ class AutoGait:
         # what next_band and froude read of each character, made once: the characters with
         # an auto gait, their boundaries (scaled), hysteresis and g * size
         self._auto = [c for c, p in enumerate(self.params) if p is not None]
-        self._edges = [p.family.boundaries() * p.speed_scale ** 2 if p is not None else None
+        self._edges = [p.family.boundaries() * p.band_scale ** 2 if p is not None else None
                        for p in self.params]
         self._g_size = np.array([p.g * max(float(p.size), 1e-9) for c in self._auto
                                  if (p := self.params[c]) is not None], dtype=np.float64)

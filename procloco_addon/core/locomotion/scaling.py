@@ -23,10 +23,12 @@ import numpy as np
 
 from .autogait import AutoGaitParams
 from .footprints import PlannerParams
+from .morphology import LegBatch, Morphology
 from .pelvis_physics import PelvisPhysicsParams
+from .rig import build_rig
 from .types import ControllerParams
 
-__all__ = ["GRAVITY", "REFERENCE_LEG", "planning_window", "scaled_params"]
+__all__ = ["GRAVITY", "REFERENCE_LEG", "planning_window", "scaled_params", "stroke_limit"]
 
 #: Leg length (m) at which the simulation's physical constants are the real ones.
 REFERENCE_LEG = 0.7325  # the Rigify wolf's
@@ -77,3 +79,13 @@ def scaled_params(leg: float, step_height: float, *, auto_physics: bool = False,
                             candidate_radius=params.candidate_radius * leg,
                             fixed_distance=params.fixed_distance * leg, edge_height=EDGE_HEIGHT * leg)
     return params, planner
+
+
+def stroke_limit(morphology: Morphology) -> float:
+    """The longest stance sweep (m) the legs of ``morphology`` allow walking straight ahead,
+    as the controller finds it with the creature-size settings (``rig.Rig.stroke_limit``,
+    the planning window of :func:`planning_window` without Auto): what Gait: Auto's stride
+    keeps within (``AutoGaitParams.stroke``)."""
+    legs = LegBatch.stack([morphology])
+    params, _ = scaled_params(float(legs.leg_length.mean()), 0.0)
+    return float(build_rig(legs, params).stroke_limit[0])
