@@ -1,14 +1,18 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The watch on moving obstacles (``core.locomotion.obstacles``): a look that skips the rings
-no moving thing comes near answers exactly what asking every ring would."""
+no moving thing comes near answers exactly what asking every ring would, and a step's looks
+in one query answer what each asked alone does."""
 
 from __future__ import annotations
+
+import copy
 
 import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from procloco_addon.core.locomotion.obstacles import Watch, look, swing_planned, watch_reset
+from procloco_addon.core.locomotion.obstacles import Watch, look, look_around, swing_planned, watch_reset
+from procloco_addon.core.locomotion.state import start_feet
 from procloco_addon.core.world.terrain import Boxes, Environment
 from tests.core.test_terrain import random_env
 
@@ -101,3 +105,54 @@ def test_a_swing_is_near_a_moving_box_over_its_samples_bounds() -> None:
     swing_planned(env, watch, np.arange(2), np.stack([through, far]))
     assert watch.swing_stirred.tolist() == [True, False]
     assert np.allclose(watch.swing_box[1], [*(far[0, :2]), *(far[-1, :2])])
+
+
+@given(st.integers(0, 10_000))
+@settings(max_examples=15, deadline=None)
+def test_a_steps_looks_in_one_query_answer_what_each_look_alone_does(seed: int) -> None:
+    """``look_around``'s one rectangle query and one point query for the landed, swinging and
+    planted feet give what each part asked alone gives: the landed feet's watch reset, then
+    the swings' checks, then the planted feet's looks (the landed ones among them)."""
+    env = random_env(seed, n_boxes=40)
+    rng = np.random.default_rng(seed)
+    n, k = 24, 10
+    foot = np.column_stack([rng.uniform(-6.0, 6.0, (n, 2)), np.zeros(n)])
+    feet = start_feet(foot, k)
+    swing = rng.random(n) < 0.4
+    legs = np.flatnonzero(swing)
+    # the swings: straight lines 0.5 m long at 5 cm, planned over what was there then
+    step = rng.normal(0.0, 0.5, (legs.size, 2))
+    line = foot[legs][:, None, :] + np.linspace(0.0, 1.0, k + 1)[None, :, None] * np.concatenate(
+        [step, np.zeros((legs.size, 1))], axis=1)[:, None, :]
+    line[..., 2] = 0.05
+    feet.plan.traj[legs] = line
+    feet.plan.target[legs] = line[:, -1]
+    feet.plan.ground[legs] = env.height_at(line[..., :2].reshape(-1, 2)).reshape(legs.size, -1)
+    feet.plan.forbidden[legs] = env.forbidden_at(line[..., :2].reshape(-1, 2)).reshape(legs.size, -1)
+    feet.plan.support[legs] = feet.plan.ground[legs, -1]
+    watch = _watch(env, n, rng)
+    watch_reset(env, watch, np.arange(n), np.where(swing[:, None], feet.plan.target, foot))
+    swing_planned(env, watch, legs, line)
+    dyn = np.flatnonzero(env.boxes.dynamic)
+    b = env.boxes
+    shift = np.column_stack([rng.normal(0.0, 0.3, (dyn.size, 2)), np.zeros(dyn.size)])
+    env.move_boxes(dyn, b.center[dyn] + shift, b.yaw[dyn] + 0.2)
+    # some planted feet landed at new spots this step
+    landed = np.flatnonzero(~swing & (rng.random(n) < 0.5))
+    feet.foot[landed, :2] += rng.normal(0.0, 0.2, (landed.size, 2))
+    progress = rng.uniform(0.0, 1.0, n)
+    tol = np.full(n, 0.01)
+    none = np.zeros(0, dtype=np.intp)
+    nobody = np.zeros(n, dtype=bool)
+    alone_watch, alone_feet = copy.deepcopy(watch), copy.deepcopy(feet)
+    blocked, looked = look_around(env, watch, feet, landed, swing, ~swing, progress, tol)
+    watch_reset(env, alone_watch, landed, alone_feet.foot[landed])
+    want_blocked, _ = look_around(env, alone_watch, alone_feet, none, swing, nobody, progress, tol)
+    want_look = look(env, alone_watch, np.flatnonzero(~swing), alone_feet.foot[~swing], tol)
+    assert np.array_equal(blocked, want_blocked)
+    assert np.array_equal(looked[0], np.flatnonzero(~swing))
+    for got, want in zip(looked[1:], want_look, strict=True):
+        assert np.array_equal(got, want)
+    assert np.array_equal(feet.dodged, alone_feet.dodged)
+    for name in ("ground", "forbidden", "spot", "stirred", "spot_ground", "spot_forbidden", "spot_known"):
+        assert np.array_equal(getattr(watch, name), getattr(alone_watch, name)), name

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from procloco_addon.core.world import terrain
@@ -114,6 +114,29 @@ def test_cached_tiles_and_moving_rasters_equal_a_fresh_rasterisation(seed: int) 
         if dyn.size:
             b = env.boxes
             env.move_boxes(dyn, b.center[dyn] + np.array([0.1, -0.05, 0.0]) * (step + 1), b.yaw[dyn] + 0.3)
+
+
+@given(st.integers(0, 10_000))
+@settings(max_examples=15, deadline=None)
+def test_moving_rasters_kept_over_many_moves_of_some_boxes_equal_a_fresh_rasterisation(seed: int) -> None:
+    """Boxes moved a few at a time keep rasters made at different calls (several batches of
+    the kept rasters, the oldest forgotten once no box reads them), read for windows of two
+    cell sizes in one call."""
+    env = random_env(seed, n_boxes=40)
+    rng = np.random.default_rng(seed)
+    dyn = np.nonzero(env.boxes.dynamic)[0]
+    coarse = WindowParams(n_cells=24, cell=0.1, foot_half_extents=(0.03, 0.03))
+    for step in range(8):
+        centres = rng.uniform(-1.0, 1.0, (4, 2))
+        for w in env.windows(centres, [SMALL, coarse, SMALL, coarse]):
+            elev, avoid = env.rasterise(w.origin, w.cell, w.shape)
+            assert np.allclose(w.elevation, elev, rtol=0.0, atol=1e-12)
+            assert np.array_equal(w.avoid, avoid)
+        some = dyn[rng.random(dyn.size) < 0.3]
+        if some.size:
+            b = env.boxes
+            shift = np.array([0.07, -0.04, 0.0]) * (step + 1)
+            env.move_boxes(some, b.center[some] + shift, b.yaw[some] + 0.2)
 
 
 def test_static_tiles_are_rasterised_once_and_moving_boxes_only_when_they_moved() -> None:

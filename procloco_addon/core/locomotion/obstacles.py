@@ -3,10 +3,11 @@
 
 Owns the watch rings around each planted foot and landing spot (``Watch``: what was there at
 the last look), and the checks built on them: a swing whose remaining trajectory or landing
-spot an obstacle now cuts (``trajectory_blocked``), a planted foot whose support moved or is
-closing in (``check_supports``), a landing spot taken since it was planned (``spot_taken``),
-a foot an obstacle ran into pushed out of it (``push_out``), and a footprint over a hole
-moved onto the ground its foot box reaches (``onto_support``). A look asks the ground only
+spot an obstacle now cuts and a planted foot whose support moved or is closing in (the looks
+of every foot of a step in one query, ``look_around``; ``check_supports``), a landing spot
+taken since it was planned (``spot_taken``), a foot an obstacle ran into pushed out of it
+(``push_out``), and a footprint over a hole moved onto the ground its foot box reaches
+(``onto_support``). A look asks the ground only
 where a moving obstacle is or was near (``look_points``, ``Environment.moving_near``): the
 rest of the scene holds what the watch remembers.
 """
@@ -92,22 +93,34 @@ def _ring_near(env: Environment, watch: Watch, legs: IntArray, spot: FloatArray)
     return env.moving_near(spot[:, :2] - reach, spot[:, :2] + reach)
 
 
-def swing_planned(env: Environment, watch: Watch, legs: IntArray, samples: FloatArray) -> None:
+def swing_planned(
+    env: Environment, watch: Watch, legs: IntArray, samples: FloatArray, spot: FloatArray | None = None
+) -> BoolArray | None:
     """Remember the bounds of the swings ``samples (m, k, 3)`` just planned for ``legs`` and
-    whether a moving obstacle reaches them now."""
+    whether a moving obstacle reaches them now. ``spot (m, 3)``: their landing spots, whose
+    rings are asked in the same rectangle query (``_ring_near``: returned, for
+    ``watch_reset``)."""
     box = np.concatenate([samples[..., :2].min(axis=1), samples[..., :2].max(axis=1)], axis=1)
     watch.swing_box[legs] = box
-    watch.swing_stirred[legs] = env.moving_near(box[:, :2], box[:, 2:])
+    if spot is None:
+        watch.swing_stirred[legs] = env.moving_near(box[:, :2], box[:, 2:])
+        return None
+    reach = watch.reach[legs]
+    near = env.moving_near(np.concatenate([box[:, :2], spot[:, :2] - reach]),
+                           np.concatenate([box[:, 2:], spot[:, :2] + reach]))
+    watch.swing_stirred[legs] = near[: legs.size]
+    return near[legs.size :]
 
 
 def watch_reset(
     env: Environment, watch: Watch, legs: IntArray, spot: FloatArray,
-    queried: tuple[FloatArray, BoolArray, FloatArray, BoolArray] | None = None,
+    queried: tuple[FloatArray, BoolArray, FloatArray, BoolArray] | None = None, near: BoolArray | None = None,
 ) -> None:
     """Remember what is at and around the watched spots ``spot (m, 3)`` of ``legs (m,)`` now
     (a foot landed, or a swing was planned). ``queried``: the heights and forbidden flags at
     their ``ring_points``, then at the spots, when the caller asked for them already (in one
-    query with others)."""
+    query with others); ``near``: whether a moving obstacle reaches their rings now
+    (``_ring_near``), when the caller asked already."""
     if not watch.dynamic or legs.size == 0:
         return
     if queried is None:
@@ -121,7 +134,7 @@ def watch_reset(
     watch.spot_forbidden[legs] = queried[3]
     watch.spot_known[legs] = True
     watch.spot[legs] = spot[:, :2]
-    watch.stirred[legs] = _ring_near(env, watch, legs, spot)
+    watch.stirred[legs] = _ring_near(env, watch, legs, spot) if near is None else near
 
 
 #: A look's point query: the heights and forbidden flags at the spots of the rows
@@ -131,14 +144,16 @@ LookQuery = tuple[FloatArray, BoolArray, tuple[IntArray, IntArray], BoolArray]
 
 
 def look_points(
-    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray
+    env: Environment, watch: Watch, legs: IntArray, spot: FloatArray, near: BoolArray | None = None
 ) -> tuple[FloatArray, tuple[IntArray, IntArray], BoolArray]:
     """What a look at the spots ``spot (m, 3)`` of ``legs`` asks: the points ``(p, 2)`` (the
     spots of the rows ``asked[0]``, then the rings of the rows ``asked[1]``), ``asked`` and
-    which rings a moving obstacle reaches now ``(m,)``. A ring is asked when its spot moved,
-    or a moving obstacle reached it at the last look or reaches it now; a spot too, and when
-    the watch does not know what is there; the others hold what the watch remembers."""
-    near = _ring_near(env, watch, legs, spot)
+    which rings a moving obstacle reaches now ``(m,)`` (``near``: when the caller asked
+    already). A ring is asked when its spot moved, or a moving obstacle reached it at the
+    last look or reaches it now; a spot too, and when the watch does not know what is there;
+    the others hold what the watch remembers."""
+    if near is None:
+        near = _ring_near(env, watch, legs, spot)
     moved = np.any(spot[:, :2] != watch.spot[legs], axis=1)
     stirred = near | moved | watch.stirred[legs]
     rings = np.flatnonzero(stirred)
@@ -186,69 +201,112 @@ def look(
     return here_h, here_f, coming
 
 
-def trajectory_blocked(
-    env: Environment, watch: Watch, feet: FootState, swing: BoolArray, progress: FloatArray, tol: FloatArray
-) -> BoolArray:
-    """``(N,)`` swinging feet (``swing (N,)``) whose remaining trajectory (past ``progress
-    (N,)``) or target a moving obstacle now cuts (by more than the leg's ``tol (N,)``), or
-    that an obstacle closes in on (once per swing: ``feet.dodged`` is updated)."""
-    legs = np.flatnonzero(swing)
+#: The look at the planted feet of a step (``look_around``): their legs ``(m,)``, and the
+#: surface, forbidden flags and whether a moving obstacle closes in at their spots ``(m,)``.
+PlantedLook = tuple[IntArray, FloatArray, BoolArray, BoolArray]
+
+
+def look_around(
+    env: Environment, watch: Watch, feet: FootState, landed: IntArray, swing: BoolArray, planted: BoolArray,
+    progress: FloatArray, tol: FloatArray,
+) -> tuple[BoolArray, PlantedLook]:
+    """The looks of a step's foot-state rules, for every foot at once, in one rectangle query
+    (``Environment.moving_near``) and one point query:
+
+    - the feet ``landed (m,)`` (on ``feet.foot``) remember what is around their new spots
+      (``watch_reset``);
+    - the swinging feet ``swing (N,)``: whether a moving obstacle now cuts the rest of
+      their trajectory (past ``progress (N,)``) or their target (by more than the leg's
+      ``tol (N,)``), or closes in on it (once per swing: ``feet.dodged`` is updated);
+    - the planted feet ``planted (N,)`` (the landed ones among them): their looks
+      (``look``), for ``check_supports``.
+
+    Returns the blocked swings ``(N,)`` and the planted feet's ``PlantedLook``. The swings'
+    and planted feet's legs are apart from the landed ones, and a landed foot's look sees
+    what its reset remembered (its spot did not move since)."""
     out = np.zeros(swing.shape[0], dtype=bool)
-    if legs.size == 0:
-        return out
+    legs = np.flatnonzero(swing)
+    p_legs = np.flatnonzero(planted)
     plan = feet.plan
+    spot_l = feet.foot[landed]
+    targets = plan.target[legs]
+    spot_p = feet.foot[p_legs]
+    box = watch.swing_box[legs]
+    nl, ns, n_p = landed.size, legs.size, p_legs.size
+    # the rings around the landed spots, the swings' landing spots and the planted feet
+    # (their bounding boxes, ``_ring_near``), and the swings' boxes: one rectangle query
+    centre = np.concatenate([spot_l[:, :2], targets[:, :2], spot_p[:, :2]])
+    reach = watch.reach[np.concatenate([landed, legs, p_legs])]
+    near = env.moving_near(np.concatenate([centre - reach, box[:, :2]]),
+                           np.concatenate([centre + reach, box[:, 2:]]))
+    near_l, near_s = near[:nl], near[nl : nl + ns]
+    near_p, near_box = near[nl + ns : nl + ns + n_p], near[nl + ns + n_p :]
+    # a landed foot's watch moves to its spot before the planted feet's looks are made
+    watch.spot_known[landed] = True
+    watch.spot[landed] = spot_l[:, :2]
+    watch.stirred[landed] = near_l
+    # the swings: every other sample (and the landing one), a few centimetres apart on a
+    # stride; those of the swings a moving obstacle reached when they were planned or
+    # reaches now (the others hold what was recorded then)
     k_all = plan.traj.shape[1]
-    # every other sample (and the landing one): a few centimetres apart on a stride
     cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
     k = cols.size
-    u = swing_parameter(feet, progress)[legs]
-    ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
     pts = plan.traj[legs][:, cols]
-    # the samples of the swings a moving obstacle reached when they were planned or reaches
-    # now (the others hold what was recorded then), then the landing spots and their watch
-    # rings (look), in one query
-    targets = plan.target[legs]
-    box = watch.swing_box[legs]
-    asked = np.flatnonzero(watch.swing_stirred[legs] | env.moving_near(box[:, :2], box[:, 2:]))
-    spots_xy, rings, near = look_points(env, watch, legs, targets)
-    xy = np.concatenate([pts[asked, :, :2].reshape(-1, 2), spots_xy])
-    heights = env.height_at(xy)
-    flags = env.forbidden_at(xy)
-    n = asked.size * k
-    surface = plan.ground[legs][:, cols]
-    forbidden = plan.forbidden[legs][:, cols]
-    surface[asked] = heights[:n].reshape(asked.size, k)
-    forbidden[asked] = flags[:n].reshape(asked.size, k)
-    # only what changed since the plan counts: something rose into the path, or became forbidden
-    t = tol[legs]
-    risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
-    cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
-    # the landing spot itself must still be there, and nothing moving may be closing in on
-    # it (once per swing: a foot that already moved its landing spot away lands; spot_taken
-    # still stops it landing on the obstacle)
-    land_surface, _, coming = look(env, watch, legs, targets, tol, (heights[n:], flags[n:], rings, near))
-    moved = np.abs(land_surface - plan.support[legs]) > t
-    coming &= ~feet.dodged[legs]
-    feet.dodged[legs] |= coming
-    out[legs] = cut.any(axis=1) | moved | coming
-    return out
+    asked = np.flatnonzero(watch.swing_stirred[legs] | near_box)
+    xy_s, rings_s, _ = look_points(env, watch, legs, targets, near_s)
+    xy_p, rings_p, _ = look_points(env, watch, p_legs, spot_p, near_p)
+    # one point query: the landed feet's rings and spots, the swings' samples, the swings'
+    # landing spots and their rings, the planted feet's spots and rings
+    xy = np.concatenate([ring_points(watch, landed, spot_l), spot_l[:, :2], pts[asked, :, :2].reshape(-1, 2),
+                         xy_s, xy_p])
+    heights = env.height_at(xy) if xy.shape[0] else np.zeros(0)
+    flags = env.forbidden_at(xy) if xy.shape[0] else np.zeros(0, dtype=bool)
+    a = nl * watch.offsets.shape[1]
+    b = a + nl
+    watch_reset(env, watch, landed, spot_l, (heights[:a], flags[:a], heights[a:b], flags[a:b]), near_l)
+    c = b + asked.size * k
+    d = c + xy_s.shape[0]
+    if ns:
+        surface = plan.ground[legs][:, cols]
+        forbidden = plan.forbidden[legs][:, cols]
+        surface[asked] = heights[b:c].reshape(asked.size, k)
+        forbidden[asked] = flags[b:c].reshape(asked.size, k)
+        # only what changed since the plan counts: something rose into the path, or became
+        # forbidden
+        t = tol[legs]
+        u = swing_parameter(feet, progress)[legs]
+        ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
+        risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
+        cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
+        # the landing spot itself must still be there, and nothing moving may be closing in
+        # on it (once per swing: a foot that already moved its landing spot away lands;
+        # spot_taken still stops it landing on the obstacle)
+        queried = (heights[c:d], flags[c:d], rings_s, near_s)
+        land_surface, _, coming = look(env, watch, legs, targets, tol, queried)
+        moved = np.abs(land_surface - plan.support[legs]) > t
+        coming &= ~feet.dodged[legs]
+        feet.dodged[legs] |= coming
+        out[legs] = cut.any(axis=1) | moved | coming
+    looked: PlantedLook = (p_legs, np.zeros(0), np.zeros(0, dtype=bool), np.zeros(0, dtype=bool))
+    if n_p:
+        looked = (p_legs, *look(env, watch, p_legs, spot_p, tol, (heights[d:], flags[d:], rings_p, near_p)))
+    return out, looked
 
 
 def check_supports(
-    env: Environment, watch: Watch, feet: FootState, planted: BoolArray, tol: FloatArray,
+    env: Environment, feet: FootState, looked: PlantedLook | None, tol: FloatArray,
     push: Callable[[IntArray, FloatArray], None],
 ) -> BoolArray:
-    """``(N,)`` planted feet (``planted (N,)``) whose support moved, rose into them or became
-    forbidden (thesis sequence 4; by more than the leg's ``tol (N,)``), or that a moving
-    obstacle closes in on. A foot an
+    """``(N,)`` planted feet whose support moved, rose into them or became forbidden (thesis
+    sequence 4; by more than the leg's ``tol (N,)``), or that a moving obstacle closes in on,
+    from the look at them (``looked``, ``look_around``; None where nothing moves). A foot an
     obstacle slid under anyway is pushed out by ``push(legs, surface)`` first."""
-    out = np.zeros(planted.shape[0], dtype=bool)
-    if not watch.dynamic or not np.any(planted):
+    out = np.zeros(feet.foot.shape[0], dtype=bool)
+    if looked is None or looked[0].size == 0:
         return out
-    legs = np.flatnonzero(planted)
+    legs, surface, forbidden, coming = looked
     # the foot's own spot, and something moving closing in around it (it steps away
     # before the obstacle reaches it)
-    surface, forbidden, coming = look(env, watch, legs, feet.foot[legs], tol)
     t = tol[legs]
     buried = surface > feet.foot[legs, 2] + t
     bad = (np.abs(surface - feet.support_z[legs]) > t) | buried
@@ -309,19 +367,22 @@ def push_out(
 
 def spot_taken(
     env: Environment, watch: Watch, feet: FootState, points: FloatArray, which: BoolArray, tol: FloatArray
-) -> BoolArray:
+) -> tuple[BoolArray, FloatArray | None]:
     """``(N,)`` whether a moving obstacle now covers the footprints ``points (N, 3)`` of legs
     ``which (N,)`` (rose above them by more than the leg's ``tol (N,)`` or made them
-    forbidden since they were planned)."""
+    forbidden since they were planned), and the surface under them ``(N,)`` (valid at
+    ``which``; None where nothing moves: nothing was asked)."""
     out = np.zeros(which.shape[0], dtype=bool)
     legs = np.flatnonzero(which)
     if not watch.dynamic or legs.size == 0:
-        return out
+        return out, None
     xy = points[legs, :2]
     surface = env.height_at(xy)
     newly_forbidden = env.forbidden_at(xy) & ~feet.plan.forbidden[legs, -1]
     out[legs] = (surface > points[legs, 2] + tol[legs]) | newly_forbidden
-    return out
+    under = np.zeros(which.shape[0])
+    under[legs] = surface
+    return out, under
 
 
 def onto_support(env: Environment, rig: Rig, xy: FloatArray, char: int) -> FloatArray | None:

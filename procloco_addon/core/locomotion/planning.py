@@ -24,7 +24,7 @@ from . import spine_link
 from .fallback import straight_step
 from .footprints import Couple, FootRequest, LegGeometry, PlannerParams, plan_footsteps
 from .morphology import LegBatch
-from .obstacles import Watch, onto_support, ring_points, swing_planned, trajectory_blocked, watch_reset
+from .obstacles import Watch, onto_support, ring_points, swing_planned, watch_reset
 from .pelvis import Body
 from .reach import within_reach_all
 from .rig import Rig
@@ -50,13 +50,14 @@ GeometryOf = Callable[[int, float], LegGeometry]
 
 
 def replan_needed(
-    env: Environment, watch: Watch, rig: Rig, p: ControllerParams, feet: FootState, ctl: StepControls,
-    progress: FloatArray, swing: BoolArray,
+    rig: Rig, p: ControllerParams, feet: FootState, ctl: StepControls, progress: FloatArray, swing: BoolArray,
+    blocked: BoolArray | None,
 ) -> BoolArray:
     """``(N,)`` swinging feet (``swing (N,)``) to re-plan from where they are (sequences 1-3,
     §3.6): before ``replan_until`` of their swing (``progress (N,)``), when the commanded
     heading, speed or spacing changed noticeably since their plan; at any time when a
-    moving obstacle now cuts their way (also kept in ``feet.blocked``)."""
+    moving obstacle now cuts their way (``blocked (N,)``, ``obstacles.look_around``; None
+    where nothing moves; also kept in ``feet.blocked``)."""
     plan = feet.plan
     leg_len = rig.legs.leg_length
     lc = rig.leg_char
@@ -67,8 +68,8 @@ def replan_needed(
     spacing = vector_norm(ctl.spacing - plan.spacing) > p.replan_spacing * leg_len
     need = swing & early & (heading | speed | spacing)
     feet.blocked[:] = False
-    if watch.dynamic:
-        feet.blocked = swing & trajectory_blocked(env, watch, feet, swing, progress, rig.support_tolerance)
+    if blocked is not None:
+        feet.blocked = swing & blocked
         need |= feet.blocked
     return np.asarray(need)
 
@@ -128,7 +129,8 @@ def landing(
     legs: IntArray, ctl: StepControls, remaining: FloatArray, stance_time: FloatArray,
     land_stance: FloatArray, hips: FloatArray,
 ) -> Landing:
-    """The ``Landing`` of every leg in ``legs``; also writes their ``feet.preferred``.
+    """The ``Landing`` of every leg in ``legs``; also writes their ``feet.preferred`` (its
+    height, the ground there, comes with ``commit``'s query).
 
     ``remaining (N,)``: seconds left of each swing; ``stance_time (N,)``: the following
     stance's duration; ``land_stance (N,)``: the stance fraction already gone when the foot
@@ -147,9 +149,7 @@ def landing(
         + column_pair(sweep, np.zeros(legs.size))
     )
     preferred_xy = pelvis_land + rotate_xy(offset, yaw_land - rest_yaw)
-    feet.preferred[legs, :2] = preferred_xy
-    h = env.height_at(preferred_xy)
-    feet.preferred[legs, 2] = np.where(h > VOID, h, 0.0)
+    feet.preferred[legs, :2] = preferred_xy  # (the ground under them: asked by ``commit``)
     # reach is judged from the hips halfway through the coming stance: a footprint within
     # the reach minus half the sweep stays within reach from touch-down to lift-off
     rest_stance = (1.0 - land_stance[legs]) * stance_time[legs]
@@ -324,14 +324,13 @@ def choose(
         stats.n_couples += couple.n_couples
         stats.n_paths += couple.n_paths
         samples = within[i][1] if i in within else None
-        hip_land = land.pelvis_land[j] + hip_own - land.pelvis_ref[j]
-        hip_now = land.hip_now[j]
         if couple.ok and samples is not None and within[i][0]:
             target = np.asarray(couple.footprint, dtype=np.float64).copy()
         elif ((forced[leg] and not swinging[leg]) or feet.blocked[leg]) and (
             straight := straight_step(
                 env, rig, p, leg, feet.foot[leg], land.preferred_xy[j], u_grid, float(ctl.step_height[c]),
-                p.candidate_radius * float(rig.legs.leg_length[leg]), hip_now, hip_land,
+                p.candidate_radius * float(rig.legs.leg_length[leg]), land.hip_now[j],
+                land.pelvis_land[j] + hip_own - land.pelvis_ref[j],
             )
         ) is not None:
             # a foot that must move (left behind, or its support gone), or whose swing a
@@ -361,8 +360,15 @@ def commit(
     point (the planner's grid height is the highest point under the whole foot box), easing
     the change in over the second half of the swing; a footprint whose point hangs over a
     hole (its foot box only partly on the edge) moves onto the ground its box reaches, over
-    the second half of the swing. Also the footprint error ``body.feedback``."""
+    the second half of the swing. Also the footprint error ``body.feedback``, and the ground
+    under every planned foot's preferred footprint (``feet.preferred``, in the same query)."""
+    pref = land.preferred_xy
+
+    def preferred(h: FloatArray) -> None:
+        feet.preferred[land.legs, 2] = np.where(h > VOID, h, 0.0)
+
     if not done:
+        preferred(env.height_at(pref))
         return
     leg_ids = np.array([d[0] for d in done])
     rows = np.array([d[1] for d in done])
@@ -373,17 +379,26 @@ def commit(
     samples_all[:, -1, :2] = targets[:, :2]
     n = samples_all.shape[0] * samples_all.shape[1]
 
-    def ask() -> tuple[FloatArray, FloatArray, BoolArray]:
+    def ask(first: bool) -> tuple[FloatArray, FloatArray, BoolArray]:
         # the ground under the footprints; where things move, in one query with the swings'
-        # samples (the last one is the footprint) and the watch rings of their landing spots
+        # samples (the last one is the footprint) and the watch rings of their landing spots;
+        # the first time, with the preferred footprints last
         if not watch.dynamic:
-            return env.height_at(targets[:, :2]), np.zeros(0), np.zeros(0, dtype=bool)
-        xy = np.concatenate([samples_all[..., :2].reshape(-1, 2), ring_points(watch, leg_ids, targets)])
-        heights = env.height_at(xy)
+            xy = targets[:, :2]
+        else:
+            xy = np.concatenate([samples_all[..., :2].reshape(-1, 2), ring_points(watch, leg_ids, targets)])
+        m = xy.shape[0]
+        asked = np.concatenate([xy, pref]) if first else xy
+        heights = env.height_at(asked)
+        if first:
+            preferred(heights[m:])
+            heights = heights[:m]
+        if not watch.dynamic:
+            return heights, np.zeros(0), np.zeros(0, dtype=bool)
         k = samples_all.shape[1]
-        return heights[k - 1 : n : k], heights, env.forbidden_at(xy)
+        return heights[k - 1 : n : k], heights, env.forbidden_at(asked)[:m]
 
-    h, heights, flags = ask()
+    h, heights, flags = ask(True)
     shifted = False
     for i in (h <= VOID).nonzero()[0].tolist():
         shift = onto_support(env, rig, targets[i, :2], int(chars[i]))
@@ -392,7 +407,7 @@ def commit(
             targets[i, :2] += shift
             shifted = True
     if shifted:
-        h, heights, flags = ask()
+        h, heights, flags = ask(False)
     exact = np.where(h > VOID, h, 0.0)
     drop = targets[:, 2] - exact
     snap = ((drop >= -1e-9) & (drop <= p.snap_tolerance * ctl.step_height[chars])) | (
@@ -404,15 +419,16 @@ def commit(
     plan = feet.plan
     plan.traj[leg_ids] = samples_all
     ring: tuple[FloatArray, BoolArray, FloatArray, BoolArray] | None = None
+    near = None
     if watch.dynamic:
         plan.ground[leg_ids] = heights[:n].reshape(leg_ids.size, -1)
         plan.forbidden[leg_ids] = flags[:n].reshape(leg_ids.size, -1)
-        swing_planned(env, watch, leg_ids, samples_all)
+        near = swing_planned(env, watch, leg_ids, samples_all, targets)
         ring = (heights[n:], flags[n:], plan.ground[leg_ids, -1], plan.forbidden[leg_ids, -1])
     plan.u0[leg_ids] = start_u[leg_ids]
     plan.target[leg_ids] = targets
     plan.support[leg_ids] = exact
-    watch_reset(env, watch, leg_ids, targets, ring)
+    watch_reset(env, watch, leg_ids, targets, ring, near)
     plan.heading[leg_ids] = ctl.heading[chars]
     plan.speed[leg_ids] = ctl.speed[chars]
     plan.spacing[leg_ids] = ctl.spacing[leg_ids]

@@ -16,7 +16,7 @@ import numpy as np
 from ..geometry import clip
 from ..world.terrain import Environment
 from .gait import GaitManager, GaitStep
-from .obstacles import Watch, check_supports, spot_taken, watch_reset
+from .obstacles import Watch, check_supports, look_around, spot_taken
 from .planning import replan_needed
 from .reach import catch_up_time, overstretched, wait_for_support
 from .rig import Rig
@@ -62,19 +62,23 @@ class Schedule:
     to_plan: BoolArray
 
 
-def land(env: Environment, watch: Watch, feet: FootState, landing: BoolArray, flags: Flags) -> None:
+def land(
+    env: Environment, feet: FootState, landing: BoolArray, flags: Flags, under: FloatArray | None
+) -> IntArray:
     """Feet ``landing (N,)`` touch down on their targets (``flags`` = (swinging, forced,
-    failed) updated in place)."""
+    failed) updated in place); ``under (N,)``: the surface under their targets when the
+    caller asked already (``spot_taken``). Returns their legs. Where something moves, the
+    watch remembers what is around them at the step's look (``obstacles.look_around``)."""
     legs = landing.nonzero()[0]
     if legs.size == 0:
-        return
+        return legs
     feet.foot[legs] = feet.plan.target[legs]
-    h = env.height_at(feet.plan.target[legs, :2])
+    h = env.height_at(feet.plan.target[legs, :2]) if under is None else under[legs]
     feet.support_z[legs] = np.where(h > VOID, h, 0.0)
     flags[1][legs] = False
     flags[0][legs] = False
     feet.dodged[legs] = False
-    watch_reset(env, watch, legs, feet.foot[legs])
+    return legs
 
 
 def schedule(
@@ -91,11 +95,10 @@ def schedule(
         (gstep.landed & ~forced) | (forced & (feet.forced_elapsed + dt >= feet.forced_duration))
     ) & swinging
     # a moving obstacle may have taken the landing spot since the last check: step again
-    bad_landing = spot_taken(env, w.watch, feet, feet.plan.target, landing, tol) & (
-        feet.restarts < 2
-    )
+    taken, under = spot_taken(env, w.watch, feet, feet.plan.target, landing, tol)
+    bad_landing = taken & (feet.restarts < 2)
     feet.restarts = np.where(bad_landing, feet.restarts + 1, np.where(landing, 0, feet.restarts))
-    land(env, w.watch, feet, landing & ~bad_landing, flags)
+    landed = land(env, feet, landing & ~bad_landing, flags, under)
     feet.forced_elapsed = np.where(forced, feet.forced_elapsed + dt, 0.0)
     lifted = gstep.lifted | (feet.retry & gstep.swing)
     feet.retry[:] = False
@@ -108,11 +111,15 @@ def schedule(
     step_progress = np.where(forced, dt / feet.forced_duration, rate_leg * dt / w.gait.disk_duration)
     start_u = clip(progress - step_progress, 0.0, 1.0)
     remaining = (1.0 - progress) * np.where(forced, feet.forced_duration, gstep.swing_time)
-    replan = replan_needed(env, w.watch, w.rig, p, feet, ctl, progress, swinging & (gstep.swing | forced))
+    swing = swinging & (gstep.swing | forced)
+    blocked = looked = None
+    if w.watch.dynamic:  # every look of the rules in one query
+        blocked, looked = look_around(env, w.watch, feet, landed, swing, ~swinging, progress, tol)
+    replan = replan_needed(w.rig, p, feet, ctl, progress, swing, blocked)
     # a foot still down in its swing sector (its plan failed) is planted like any other:
     # it must step when its support goes or when it is left behind
     planted = ~gstep.swing | failed
-    support_gone = check_supports(env, w.watch, feet, ~swinging, tol, w.push)
+    support_gone = check_supports(env, feet, looked, tol, w.push)
     if w.crowd is not None:
         # another character's body comes near a planted foot: it steps away; one covers a
         # swinging foot's landing spot: the swing is re-planned

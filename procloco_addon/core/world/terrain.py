@@ -391,7 +391,8 @@ def raster_boxes(
 
     The grid has cell ``[0, 0]`` centred at ``origin`` ``(2,)``; rectangles have centres
     ``(n, 2)``, half extents ``(n,)`` and yaw ``(n,)``. Returns ``(box, row, col)`` index
-    arrays of every overlapping (rectangle, cell) pair, vectorised over all rectangles. Only
+    arrays of every overlapping (rectangle, cell) pair, rectangle by rectangle (``box`` does
+    not decrease), vectorised over all rectangles. Only
     the grid's rows ``first[0]`` up to ``shape[0]`` and columns ``first[1]`` up to
     ``shape[1]`` are looked at.
 
@@ -693,12 +694,22 @@ class _BucketIndex:
         buckets = nbx * nby
         if buckets < 2**16 - 1:
             key = key.astype(np.uint16)  # (a stable sort of 16-bit keys is a radix sort)
-        self.items = item[np.argsort(key, kind="stable")]
+        order = np.argsort(key, kind="stable")
+        self.items = item[order]
         del item
         # each bucket's first entry; one more bucket, empty, past the last: points outside
-        # the grid read it
-        self.offsets = np.zeros(buckets + 2, dtype=np.intp)
-        np.cumsum(np.bincount(key, minlength=buckets + 1), out=self.offsets[1:])
+        # the grid read it. Bucket k's first entry is the number of sorted keys below k: entry
+        # i is it for the buckets after key i - 1 up to key i (a repeat of the entries by the
+        # gaps between the sorted keys; a running sum over every bucket, a serial loop of
+        # about 3 ns a bucket, cost the moving crates' index of the crowd scene a third of
+        # its build over its 31,000 buckets)
+        sk = key[order].astype(np.intp)
+        del order
+        gaps = np.empty(total + 1, dtype=np.intp)
+        gaps[0] = sk[0] + 1
+        np.subtract(sk[1:], sk[:-1], out=gaps[1:-1])
+        gaps[-1] = buckets + 1 - sk[-1]
+        self.offsets = np.arange(total + 1, dtype=np.intp).repeat(gaps)
         self._dims = (float(nbx), float(nby))
         self._ox, self._oy = ox, oy
 
@@ -924,6 +935,49 @@ def _block_of_key(key: npt.NDArray[np.int64]) -> tuple[IntArray, IntArray, IntAr
     return cid.astype(np.intp), (bi - _KEY_HALF).astype(np.intp), (bj - _KEY_HALF).astype(np.intp)
 
 
+class _BoxRasters:
+    """The lattice rasters of the moving boxes at one cell size, kept until a box moves: box
+    ``b``'s cells are rows ``start[b]:stop[b]`` of the arrays ``(row, col, top)`` of batch
+    ``batch[b]`` (-1: none kept), one batch per call that rasterised boxes (so a window's
+    boxes are read with one gather per batch, not one slice per box)."""
+
+    def __init__(self, n_boxes: int) -> None:
+        self.batch = np.full(n_boxes, -1, dtype=np.intp)
+        self.start = np.zeros(n_boxes, dtype=np.intp)
+        self.stop = np.zeros(n_boxes, dtype=np.intp)
+        self.batches: dict[int, tuple[IntArray, IntArray, FloatArray]] = {}
+        self._next = 0
+
+    def add(self, boxes: IntArray, bounds: IntArray, cells: tuple[IntArray, IntArray, FloatArray]) -> None:
+        """Keep the rasters of ``boxes (k,)``: rows ``bounds[i]:bounds[i + 1]`` of ``cells``."""
+        if len(self.batches) >= 4:  # forget the batches no box reads any more
+            live = set(np.unique(self.batch[self.batch >= 0]).tolist())
+            self.batches = {k: v for k, v in self.batches.items() if k in live}
+        self.batches[self._next] = cells
+        self.batch[boxes] = self._next
+        self.start[boxes] = bounds[:-1]
+        self.stop[boxes] = bounds[1:]
+        self._next += 1
+
+    def cells(self, boxes: IntArray) -> tuple[IntArray, IntArray, IntArray, FloatArray]:
+        """The cells of ``boxes (p,)`` (all kept): for each cell its position in ``boxes``,
+        its row, column and top."""
+        parts = []
+        batch = self.batch[boxes]
+        for k in np.unique(batch).tolist():
+            at = np.flatnonzero(batch == k) if len(self.batches) > 1 else np.arange(boxes.size)
+            piece, pos = _ranges_to_pairs(self.start[boxes[at]], self.stop[boxes[at]] - 1)
+            row, col, top = self.batches[k]
+            parts.append((at[piece], row[pos], col[pos], top[pos]))
+        if len(parts) == 1:
+            return parts[0]
+        if not parts:
+            e = np.zeros(0, dtype=np.intp)
+            return e, e, e, np.zeros(0)
+        return (np.concatenate([q[0] for q in parts]), np.concatenate([q[1] for q in parts]),
+                np.concatenate([q[2] for q in parts]), np.concatenate([q[3] for q in parts]))
+
+
 class Environment:
     """Terrain and obstacles, with point queries and cached per-character window grids.
 
@@ -967,8 +1021,10 @@ class Environment:
         self._cells: list[float] = []
         self._rect_index: dict[int, _RectIndex] = {}
         self._static_rects: tuple[_RectIndex, IntArray, dict[int, int]] | None = None
-        # Lattice rasters of moving things, reused until they move: key (cell, kind, id).
+        # Lattice rasters of moving soups, reused until they move: key (cell, "soup", id); of
+        # the moving boxes, per cell size (a box's raster is stale once it moved).
         self._moving_raster: dict[tuple[float, str, int], tuple[IntArray, IntArray, FloatArray]] = {}
+        self._box_rasters: dict[float, _BoxRasters] = {}
         self._box_index_static: _BucketIndex | None = None
         self._box_index_dynamic: _BucketIndex | None = None
         self._soup_index: dict[int, _BucketIndex] = {}
@@ -984,12 +1040,10 @@ class Environment:
         self._soup_offset: dict[int, FloatArray] = {}
         # The offset each moving soup's cached lattice raster was made at.
         self._raster_offset: dict[tuple[float, str, int], FloatArray] = {}
-        # Which boxes' lattice rasters are current, per cell size (a box's raster is stale once
-        # it moved); the moving boxes sorted by their min x (rebuilt after a move); the last
-        # point query's (point, box) pairs (height_at and forbidden_at often ask for the same
-        # points one after the other).
-        self._raster_ok: dict[float, BoolArray] = {}
-        self._dynamic_sorted: tuple[IntArray, FloatArray, FloatArray, float] | None = None
+        # The widest moving box's x extent (found again after a move); the last point query's
+        # (point, box) pairs (height_at and forbidden_at often ask for the same points one
+        # after the other).
+        self._dynamic_widest: float | None = None
         self._last_pairs: tuple[tuple[int, ...], bytes, IntArray, IntArray] | None = None
         self._update_box_bounds()
         self.stats = {"tiles_rasterised": 0, "moving_rasterised": 0, "windows": 0}
@@ -1031,10 +1085,10 @@ class Environment:
         self._box_yaw[idx] = np.asarray(yaw, dtype=np.float64).reshape(idx.size)
         self._update_box_bounds(idx)
         self._box_index_dynamic = None
-        self._dynamic_sorted = None
+        self._dynamic_widest = None
         self._last_pairs = None
-        for ok in self._raster_ok.values():
-            ok[idx] = False
+        for store in self._box_rasters.values():
+            store.batch[idx] = -1
 
     def set_soup_vertices(self, i: int, vertices: npt.ArrayLike) -> None:
         """Replace the vertices ``(v, 3)`` of dynamic soup ``i`` (same topology)."""
@@ -1075,7 +1129,7 @@ class Environment:
         self._filled_set.clear()
         self._moving_raster.clear()
         self._raster_offset.clear()
-        self._raster_ok.clear()
+        self._box_rasters.clear()
 
     def _update_box_bounds(self, idx: IntArray | None = None) -> None:
         if idx is None:
@@ -1490,13 +1544,12 @@ class Environment:
 
     def _cache_moving_boxes(self, cell: float, ids: IntArray) -> None:
         """Rasterise the moving boxes ``ids`` not cached yet, all in one vectorised call."""
-        ok = self._raster_ok.get(cell)
-        if ok is None:
-            ok = self._raster_ok[cell] = np.zeros(self._box_center.shape[0], dtype=bool)
-        todo = ids[~ok[ids]]
+        store = self._box_rasters.get(cell)
+        if store is None:
+            store = self._box_rasters[cell] = _BoxRasters(self._box_center.shape[0])
+        todo = ids[store.batch[ids] < 0]
         if todo.size == 0:
             return
-        ok[todo] = True
         lo = self._box_lo[todo].min(axis=0)
         hi = self._box_hi[todo].max(axis=0)
         i0 = math.floor(lo[1] / cell) - 1
@@ -1506,14 +1559,11 @@ class Environment:
         half = 0.5 * self._box_size[todo]
         which, r, c = raster_boxes(origin, cell, shape, self._box_center[todo, :2], half[:, 0], half[:, 1],
                                    self._box_yaw[todo])
-        order = np.argsort(which, kind="stable")
-        which, r, c = which[order], r[order] + i0, c[order] + j0
+        # (raster_boxes gives the cells box by box: no sort needed)
+        r, c = r + i0, c + j0
         bounds = np.searchsorted(which, np.arange(todo.size + 1))
         top = (self._box_center[:, 2][todo] + self._box_size[:, 2][todo])[which]
-        cuts = bounds.tolist()
-        for k, b in enumerate(todo.tolist()):
-            sl = slice(cuts[k], cuts[k + 1])
-            self._moving_raster[(cell, "box", b)] = (r[sl], c[sl], top[sl])
+        store.add(todo, bounds, (r, c, top))
         self.stats["moving_rasterised"] += int(todo.size)
 
     def _moving_soup_cells(self, cell: float, ident: int) -> tuple[IntArray, IntArray, FloatArray]:
@@ -1598,42 +1648,43 @@ class Environment:
     def _near_moving_boxes(
         self, lo_w: FloatArray, hi_w: FloatArray, cells: FloatArray, sides: IntArray
     ) -> list[IntArray]:
-        """The moving boxes near each window (bounds ``lo_w``, ``hi_w`` ``(m, 2)``), their
-        rasters made for the windows' cell sizes: one batch per window size and cell size, in
-        the order of the windows (a moving box's raster is cut from its batch's lattice)."""
+        """The moving boxes near each window (bounds ``lo_w``, ``hi_w`` ``(m, 2)``: whose xy
+        bounds reach them, their lower x at most the widest box's width before the window),
+        their rasters made for the windows' cell sizes: one batch per window size and cell
+        size (a moving box's raster is cut from its batch's lattice). The candidates come
+        from the moving boxes' point-query index (every box in every bucket its bounds
+        reach: a box reaching a window is in one of its buckets), for every window at once;
+        each window's boxes in increasing order."""
         m = lo_w.shape[0]
         if not self._dynamic_boxes.size:
             return [np.zeros(0, dtype=np.intp)] * m
-        # Moving boxes sorted by their min x: each window scans only a narrow x range.
-        d_sorted, lo_sorted, hi_sorted, widest = self._dynamic_by_x()
-        first = np.searchsorted(lo_sorted[:, 0], lo_w[:, 0] - widest, side="left").tolist()
-        last = np.searchsorted(lo_sorted[:, 0], hi_w[:, 0], side="right").tolist()
-        near_arrays = []
-        for w in range(m):
-            sl = slice(first[w], last[w])
-            ok = ((hi_sorted[sl, 0] >= lo_w[w, 0]) & (hi_sorted[sl, 1] >= lo_w[w, 1])
-                  & (lo_sorted[sl, 1] <= hi_w[w, 1]))
-            near_arrays.append(d_sorted[sl][ok])
-        batches: dict[tuple[int, float], list[IntArray]] = {}
+        rect, box, _ = self._moving_box_candidates(lo_w, hi_w, None)
+        # (window, box) once each, by window then box
+        n_all = self._box_center.shape[0]
+        key = np.unique(rect * n_all + box)
+        rect, box = np.divmod(key, n_all)
+        blo, bhi = self._box_lo, self._box_hi
+        lx = blo[:, 0][box]
+        ok = ((lx >= (lo_w[:, 0] - self._widest_moving())[rect]) & (lx <= hi_w[:, 0][rect])
+              & (bhi[:, 0][box] >= lo_w[:, 0][rect]) & (bhi[:, 1][box] >= lo_w[:, 1][rect])
+              & (blo[:, 1][box] <= hi_w[:, 1][rect]))
+        rect, box = rect[ok], box[ok]
+        cuts = np.searchsorted(rect, np.arange(m + 1)).tolist()
+        near_arrays = [box[cuts[w] : cuts[w + 1]] for w in range(m)]
+        batches: dict[tuple[int, float], list[int]] = {}
         for w, (n, cell) in enumerate(zip(sides.tolist(), cells.tolist(), strict=True)):
-            batches.setdefault((n, cell), []).append(near_arrays[w])
-        for (_, cell), arrays in batches.items():
-            self._cache_moving_boxes(cell, np.unique(np.concatenate(arrays)))
+            batches.setdefault((n, cell), []).append(w)
+        for (_, cell), ws in batches.items():
+            todo = box if len(ws) == m else np.concatenate([near_arrays[w] for w in ws])
+            self._cache_moving_boxes(cell, np.unique(todo))
         return near_arrays
 
-    def _dynamic_by_x(self) -> tuple[IntArray, FloatArray, FloatArray, float]:
-        """The moving boxes sorted by their min x, their bounds, and the widest one's width
-        (kept until a box moves)."""
-        if self._dynamic_sorted is None:
+    def _widest_moving(self) -> float:
+        """The widest moving box's x extent (kept until a box moves)."""
+        if self._dynamic_widest is None:
             d = self._dynamic_boxes
-            dlo = self._box_lo[d]
-            order = np.argsort(dlo[:, 0], kind="stable")
-            d_sorted = d[order]
-            lo_sorted = dlo[order]
-            hi_sorted = self._box_hi[d_sorted]
-            widest = float(np.max(hi_sorted[:, 0] - lo_sorted[:, 0]))
-            self._dynamic_sorted = (d_sorted, lo_sorted, hi_sorted, widest)
-        return self._dynamic_sorted
+            self._dynamic_widest = float(np.max(self._box_hi[:, 0][d] - self._box_lo[:, 0][d]))
+        return self._dynamic_widest
 
     def moving_near(self, lo: FloatArray, hi: FloatArray) -> BoolArray:
         """``(m,)`` whether a moving box's or moving mesh's ground footprint (its xy bounds)
@@ -1666,35 +1717,44 @@ class Environment:
         each); rectangles over more than 36 buckets of the index count as reached. The boxes
         looked at: those in the rectangle's buckets of the moving boxes' point-query index
         (every box is in every bucket its bounds reach)."""
-        index = self._dynamic_index()
         m = lo.shape[0]
-        if index.n == 0:
+        if self._dynamic_index().n == 0:
             return np.zeros(m, dtype=bool)
         eps = 1e-9
-        nby, nbx = index.shape
-        ox, oy = float(index.origin[0]), float(index.origin[1])
-        bucket = index.bucket
-        x0 = np.maximum(np.floor((lo[:, 0] - eps - ox) / bucket), 0.0).astype(np.intp)
-        x1 = np.minimum(np.floor((hi[:, 0] + eps - ox) / bucket), nbx - 1.0).astype(np.intp)
-        y0 = np.maximum(np.floor((lo[:, 1] - eps - oy) / bucket), 0.0).astype(np.intp)
-        y1 = np.minimum(np.floor((hi[:, 1] + eps - oy) / bucket), nby - 1.0).astype(np.intp)
-        wx = np.maximum(x1 - x0 + 1, 0)
-        count = wx * np.maximum(y1 - y0 + 1, 0)
-        wide = count > 36
-        count[wide] = 0
-        # (rectangle, bucket) pairs, then (rectangle, box) pairs: the buckets' item ranges
-        rect, local = _ranges_to_pairs(np.zeros(m, dtype=np.intp), count - 1)
-        key = (y0[rect] + local // wx[rect]) * nbx + x0[rect] + local % wx[rect]
-        first = index.offsets[key]
-        pair, at = _ranges_to_pairs(first, index.offsets[key + 1] - 1)
-        rect = rect[pair]
-        box = self._dynamic_boxes[index.items[at]]
+        rect, box, wide = self._moving_box_candidates(lo - eps, hi + eps, 36)
         blo, bhi = self._box_lo, self._box_hi
         hit = ((blo[:, 0][box] - eps <= hi[:, 0][rect]) & (bhi[:, 0][box] + eps >= lo[:, 0][rect])
                & (blo[:, 1][box] - eps <= hi[:, 1][rect]) & (bhi[:, 1][box] + eps >= lo[:, 1][rect]))
         out = wide.copy()
         out[rect[hit]] = True
         return out
+
+    def _moving_box_candidates(
+        self, lo: FloatArray, hi: FloatArray, most: int | None
+    ) -> tuple[IntArray, IntArray, BoolArray]:
+        """(rectangle, moving box) pairs of the boxes in the buckets of the moving boxes'
+        point-query index each rectangle ``[lo, hi]`` (``(m, 2)`` each) covers (a box once
+        per bucket), and which rectangles cover more than ``most`` buckets (None: no limit;
+        those are left out)."""
+        index = self._dynamic_index()
+        m = lo.shape[0]
+        nby, nbx = index.shape
+        ox, oy = float(index.origin[0]), float(index.origin[1])
+        bucket = index.bucket
+        x0 = np.maximum(np.floor((lo[:, 0] - ox) / bucket), 0.0).astype(np.intp)
+        x1 = np.minimum(np.floor((hi[:, 0] - ox) / bucket), nbx - 1.0).astype(np.intp)
+        y0 = np.maximum(np.floor((lo[:, 1] - oy) / bucket), 0.0).astype(np.intp)
+        y1 = np.minimum(np.floor((hi[:, 1] - oy) / bucket), nby - 1.0).astype(np.intp)
+        wx = np.maximum(x1 - x0 + 1, 0)
+        count = wx * np.maximum(y1 - y0 + 1, 0)
+        wide = count > most if most is not None else np.zeros(m, dtype=bool)
+        count[wide] = 0
+        # (rectangle, bucket) pairs, then (rectangle, box) pairs: the buckets' item ranges
+        rect, local = _ranges_to_pairs(np.zeros(m, dtype=np.intp), count - 1)
+        key = (y0[rect] + local // wx[rect]) * nbx + x0[rect] + local % wx[rect]
+        first = index.offsets[key]
+        pair, at = _ranges_to_pairs(first, index.offsets[key + 1] - 1)
+        return rect[pair], self._dynamic_boxes[index.items[at]], wide
 
     def _dynamic_index(self) -> _BucketIndex:
         """The moving boxes' point-query index (built at the first query after they moved)."""
@@ -1719,18 +1779,22 @@ class Environment:
         avoid_all = np.empty((m, n, n), dtype=bool)
         for w in range(m):
             self._static_window(cell_list[w], n, i0_list[w], j0_list[w], elev_all[w], avoid_all[w])
-        # The moving pieces (a box's or a mesh's raster) near each window: (window, piece).
+        # The moving pieces near each window: every (window, box) pair's cells, read from the
+        # boxes' rasters at once per cell size, then each moving mesh's raster.
+        parts: list[tuple[IntArray, IntArray, IntArray, FloatArray, BoolArray]] = []
+        if self._dynamic_boxes.size:
+            sizes = [near.size for near in near_boxes]
+            pair_window = np.repeat(np.arange(m), sizes)
+            pair_box = np.concatenate(near_boxes) if m else np.zeros(0, dtype=np.intp)
+            for cell in set(cell_list):
+                sel = np.flatnonzero(cells[pair_window] == cell) if len(set(cell_list)) > 1 else None
+                boxes = pair_box if sel is None else pair_box[sel]
+                at, r_b, c_b, z_b = self._box_rasters[cell].cells(boxes)
+                pair = at if sel is None else sel[at]
+                parts.append((pair_window[pair], r_b, c_b, z_b, self._box_role[pair_box[pair]] == ROLE_AVOID))
         pieces: list[tuple[IntArray, IntArray, FloatArray]] = []
         piece_window: list[int] = []
         piece_avoid: list[bool] = []
-        if self._dynamic_boxes.size:
-            avoid_box = (self._box_role == ROLE_AVOID).tolist()
-            raster = self._moving_raster
-            for w, near in enumerate(near_boxes):
-                for b in near.tolist():
-                    pieces.append(raster[(cell_list[w], "box", b)])
-                    piece_window.append(w)
-                    piece_avoid.append(avoid_box[b])
         for i, soup in enumerate(self._soups):
             if not (soup.dynamic and soup.faces.shape[0]):
                 continue
@@ -1748,15 +1812,20 @@ class Environment:
                     piece_avoid.append(soup.role == ROLE_AVOID)
         if pieces:
             sizes = [p[0].size for p in pieces]
-            win = np.repeat(np.asarray(piece_window, dtype=np.intp), sizes)
-            r = np.concatenate([p[0] for p in pieces]) - i0s[win]
-            c = np.concatenate([p[1] for p in pieces]) - j0s[win]
-            z = np.concatenate([p[2] for p in pieces])
+            parts.append((np.repeat(np.asarray(piece_window, dtype=np.intp), sizes),
+                          np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces]),
+                          np.concatenate([p[2] for p in pieces]),
+                          np.repeat(np.asarray(piece_avoid, dtype=bool), sizes)))
+        if parts:  # (pasting takes maxima and sets flags: the order of the cells does not matter)
+            win = np.concatenate([q[0] for q in parts])
+            r = np.concatenate([q[1] for q in parts]) - i0s[win]
+            c = np.concatenate([q[2] for q in parts]) - j0s[win]
+            z = np.concatenate([q[3] for q in parts])
+            av = np.concatenate([q[4] for q in parts])
             ok = (r >= 0) & (r < n) & (c >= 0) & (c < n)
             at = (win * n + r) * n + c
             np.maximum.at(elev_all.reshape(-1), at[ok], z[ok])
-            av = ok & np.repeat(np.asarray(piece_avoid, dtype=bool), sizes)
-            avoid_all.reshape(-1)[at[av]] = True
+            avoid_all.reshape(-1)[at[ok & av]] = True
         self.stats["windows"] += m
         out: list[WindowGrids] = []
         for w in range(m):
