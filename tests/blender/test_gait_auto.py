@@ -194,8 +194,8 @@ def test_a_hexapod_goes_from_a_wave_to_a_tripod(empty_scene: Any) -> None:
     assert list(np.unique(job.result.auto_band)) == [0, 1, 2]  # wave, tetrapod, tripod
     fr = _froude(job)
     first_tripod = int(np.flatnonzero(job.result.auto_band[1:] == 2)[0])
-    assert fr[first_tripod] == pytest.approx(1.2 * autogait.FAMILIES["hexapod"].bands[2].fr_low * crowded ** 2,
-                                             rel=0.05)
+    tripod_low = autogait.FAMILIES["hexapod"].bands[2].fr_low
+    assert fr[first_tripod] == pytest.approx(1.2 * tripod_low * crowded**2, rel=0.05)
     check_thresholds(_measure_on(obj, job, [bpy.data.objects["Plane"]], []))
 
 
