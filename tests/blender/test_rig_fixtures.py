@@ -30,10 +30,12 @@ FRAMES = 48
 IMPORTS = export_fixtures.IMPORTS
 #: Fixture rigs that also walk after an import (the others are only detected there): the
 #: quadruped whose tails mean nothing through every importer setting, the humanoid once, the
-#: horse under a moved, turned and half-scaled empty once (FBX keeps the empty).
+#: horse under a moved, turned and half-scaled empty once (FBX keeps the empty), Auto-Rig
+#: Pro's game-engine skeleton as an engine reads its FBX.
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
     ("mixamo_t", "fbx", {}),
     ("horse_in_holder", "fbx", {}),
+    ("arp_export", "fbx", {}),
 ]
 
 
