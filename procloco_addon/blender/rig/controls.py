@@ -61,6 +61,8 @@ from dataclasses import dataclass, field
 
 import bpy
 
+from .names import split_joints
+
 __all__ = [
     "DRIVE_MODES",
     "ConstraintGraph",
@@ -462,13 +464,27 @@ def _ik_solves(graph: ConstraintGraph, bones: Sequence[str]) -> set[str] | None:
     an IK chain), or None when some bone of the leg follows something else (the paw of
     Rigify's three-bone legs copies the target its stretchy helper chains place)."""
     chain: set[str] = set()
+    halves = _rigid_halves(graph, bones)
     for b in bones:
         solving = {b} if graph.nodes[b].in_ik else {
             d for d, kind in graph.nodes[b].deps.items() if kind == 1 and graph.nodes[d].in_ik}
-        if not solving:
+        if not solving and b not in halves:
             return None
         chain |= solving
     return chain
+
+
+def _rigid_halves(graph: ConstraintGraph, bones: Sequence[str]) -> set[str]:
+    """The bones of leg ``bones`` that are the second half of a limb bone split in two
+    (``names.split_joints``: Auto-Rig Pro's ``thigh_stretch.l`` under ``thigh_twist.l``)
+    and only ride on the first half (no constraint, no IK, no own keys: not a control). The
+    core keeps such a joint at its rest angle, so they need no control of their own."""
+    out = set()
+    for j in split_joints(bones):
+        b, node = bones[j], graph.nodes[bones[j]]
+        if set(node.deps) == {bones[j - 1]} and not node.in_ik and b not in graph.controls:
+            out.add(b)
+    return out
 
 
 def _stretch_switches(obj: bpy.types.Object, chain: set[str]) -> list[Switch]:
@@ -615,8 +631,12 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         else:  # an FK leg: each driven bone turned by its nearest control (its FK control)
             covered = set()
             fk_ctrls: list[str] = []
+            halves = _rigid_halves(graph, bones)
             for b in leg_bones:
                 if b in direct:
+                    continue
+                if b in halves:  # rides on the bone above it, at its rest angle
+                    covered.add(b)
                     continue
                 up = graph.controls_upstream([b])
                 fk = [c for c in up if c not in used and c not in base]
