@@ -879,7 +879,8 @@ def _arp_rig(scene: Any, name: str) -> Any:
         con.target, con.subtarget = arm, f"c_{n}"
     for side in "lr":
         pbones[f"c_foot_ik.{side}"]["ik_fk_switch"] = 1.0
-        for deform_bone, fk, ik in (("thigh_twist", "c_thigh_fk", "thigh_ik"), ("leg_stretch", "c_leg_fk", "leg_ik"),
+        for deform_bone, fk, ik in (("thigh_twist", "c_thigh_fk", "thigh_ik"),
+                                    ("leg_stretch", "c_leg_fk", "leg_ik"),
                                     ("foot", "c_foot_fk", "foot_ik"), ("toes_01", "c_toes_fk", "c_toes_ik")):
             pb = pbones[f"{deform_bone}.{side}"]
             for target in (fk, ik):
@@ -898,7 +899,8 @@ def _arp_rig(scene: Any, name: str) -> Any:
         for angle in (0.0, 90.0, -90.0, 180.0):  # the pole angle that keeps the rest pose
             ik.pole_angle = math.radians(angle)
             bpy.context.view_layer.update()
-            err = (pbones[f"leg_ik.{side}"].matrix.to_translation() - data.bones[f"leg_ik.{side}"].head_local).length
+            knee = pbones[f"leg_ik.{side}"].matrix.to_translation()
+            err = (knee - data.bones[f"leg_ik.{side}"].head_local).length
             if best is None or err < best[0]:
                 best = (err, angle)
         assert best is not None

@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 import pytest
 
-from procloco_addon.blender import rig
+from procloco_addon.blender import actions, rig
 from procloco_addon.blender.locomotion import generate
 from procloco_addon.core import metrics
 from tests.blender import export_fixtures
@@ -357,6 +357,53 @@ def test_imported_rigs_walk_the_same(
     assert [(leg.label, leg.bones) for leg in job.info.legs] == built["legs"]
     assert m["travel"] == pytest.approx(built["travel"], rel=0.05), (m, built)
     check_motion(m)
+
+
+# ---------------------------------------------------------------------------------------
+# Auto-Rig Pro
+
+
+def _straight(obj: Any, frames: list[int], pairs: list[tuple[str, str]]) -> float:
+    """The largest angle (degrees) between the two bones of each pair over ``frames``."""
+    names = [n for pair in pairs for n in pair]
+    mats = pose_matrices(obj, frames, names)
+    y = mats[..., :3, 1] / np.linalg.norm(mats[..., :3, 1], axis=-1, keepdims=True)
+    cos = np.sum(y[:, 0::2] * y[:, 1::2], axis=-1)
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
+
+
+_ARP_HALVES = [(f"thigh_twist.{s}", f"thigh_stretch.{s}") for s in "lr"] + [
+    (f"leg_stretch.{s}", f"leg_twist.{s}") for s in "lr"]
+
+
+@pytest.mark.parametrize("name", ["arp_export", "arp_rig"])
+def test_auto_rig_pro_legs_bend_at_the_knee_not_between_their_twist_and_stretch_bones(
+    empty_scene: Any, name: str
+) -> None:
+    """Auto-Rig Pro splits the thigh and the shin each in a twist and a stretch bone: the
+    walk keeps each pair in line (the core once bent the shin 41 degrees in its middle)."""
+    obj = FIXTURES[name].build(empty_scene, name)
+    job, m = walk(obj)
+    check_motion(m, name)
+    frames = [int(f) for f in job.frames]
+    assert _straight(obj, frames, _ARP_HALVES) < 0.1
+    knees = [(f"thigh_stretch.{s}", f"leg_stretch.{s}") for s in "lr"]
+    assert _straight(obj, frames, knees) > 20.0  # the knees do bend
+
+
+def test_auto_rig_pro_rig_walks_on_its_controls(empty_scene: Any) -> None:
+    """The animator left the legs in FK (``ik_fk_switch`` = 1 on ``c_foot_ik.l``): Drive
+    Legs: Auto keys the IK feet, the poles and the hips controller ``c_root_master.x`` (not
+    the placement bones ``c_pos``/``c_traj``), and no deform or mechanism bone. The hidden
+    ``thigh_stretch.l`` once made Auto choose FK and key only ``c_thigh_fk.l``."""
+    obj = FIXTURES["arp_rig"].build(empty_scene, "arp_rig")
+    job, m = walk(obj)
+    check_motion(m, "arp_rig")
+    assert [leg.controls for leg in obj.procloco.legs] == [
+        f"IK c_foot_ik.{s}, pole c_leg_pole.{s}, ik_fk_switch = 0 on c_foot_ik.{s}" for s in "lr"]
+    keyed = {ch.data_path.split('"')[1] for ch in actions.channels_of(obj.animation_data.action, obj)}
+    assert keyed == {"c_root_master.x", "c_foot_ik.l", "c_foot_ik.r", "c_leg_pole.l", "c_leg_pole.r"}, keyed
+    assert not job.warnings, job.warnings
 
 
 # ---------------------------------------------------------------------------------------
