@@ -823,6 +823,39 @@ def _arp_deform_bones() -> list[Spec]:
     return body + left + _mirror(left, _swap(".l", ".r"))
 
 
+def _arp_dog_bones() -> list[Spec]:
+    """An Auto-Rig Pro dog's deform skeleton, 60 cm at the withers: three-bone legs (``limbs``
+    with ``c_thigh_b``, which deforms) hind ``c_thigh_b.l`` (femur) > ``thigh_twist.l`` >
+    ``thigh_stretch.l`` (tibia) > ``leg_stretch.l`` > ``leg_twist.l`` (metatarsus) >
+    ``foot.l`` > ``toes_01.l`` (the paw) under ``root.x``, and the front legs, a duplicated
+    leg limb (``c_thigh_b_dupli_001.l`` > ``thigh_twist_dupli_001.l`` ...), under the chest
+    ``spine_03.x``: the chains as a published ARP quadruped's deform bones list them. The
+    spine runs from ``root.x`` at the hips forward to the head, the tail back from it."""
+    body = _chain(
+        ["root.x", "spine_01.x", "spine_02.x", "spine_03.x"],
+        None,
+        [(0.0, 0.3, 0.55), (0.0, 0.15, 0.57), (0.0, 0.0, 0.58), (0.0, -0.15, 0.6), (0.0, -0.28, 0.62)],
+    )
+    body += _chain(
+        ["neck.x", "head.x"], "spine_03.x", [(0.0, -0.28, 0.62), (0.0, -0.4, 0.75), (0.0, -0.58, 0.72)]
+    )
+    body += _chain(
+        ["tail_00.x", "tail_01.x"], "root.x", [(0.0, 0.3, 0.55), (0.0, 0.45, 0.5), (0.0, 0.6, 0.4)]
+    )
+
+    def leg(suffix: str, parent: str, points: Sequence[Vec]) -> list[Spec]:
+        hip, stifle, hock, paw, ball, tip = points
+        names = ["c_thigh_b", "thigh_twist", "thigh_stretch", "leg_stretch", "leg_twist", "foot", "toes_01"]
+        return _chain([f"{n}{suffix}.l" for n in names], parent,
+                      [hip, stifle, _lerp(stifle, hock, 0.5), hock, _lerp(hock, paw, 0.5), paw, ball, tip])
+
+    left = leg("", "root.x", [(0.09, 0.3, 0.52), (0.1, 0.2, 0.34), (0.1, 0.36, 0.17), (0.1, 0.33, 0.04),
+                              (0.1, 0.29, 0.012), (0.1, 0.24, 0.0)])
+    left += leg("_dupli_001", "spine_03.x", [(0.09, -0.22, 0.55), (0.1, -0.28, 0.4), (0.1, -0.22, 0.26),
+                                             (0.1, -0.25, 0.05), (0.1, -0.29, 0.012), (0.1, -0.34, 0.0)])
+    return body + left + _mirror(left, _swap(".l", ".r"))
+
+
 def _arp_control_bones() -> list[Spec]:
     """The deform skeleton and the controls and mechanism of an Auto-Rig Pro biped's body and
     legs: ``c_pos`` > ``c_traj`` > ``c_root_master.x`` > ``c_root.x`` (the hips), the spine's
@@ -1209,6 +1242,11 @@ FIXTURES: dict[str, Fixture] = {
     ),
     "arp_rig": Fixture(_arp_rig, _pair_lower("thigh_twist", "leg_twist"), False),
     "arp_export": Fixture(_arp_export, _pair_lower("thigh_twist", "leg_twist")),
+    "arp_dog": Fixture(
+        lambda sc, n: build(sc, n, _arp_dog_bones(), deform=lambda _n: True),
+        Expected({f"{s.upper()}{k}": (f"c_thigh_b{d}.{s}", f"leg_twist{d}.{s}")
+                  for k, d in (("1", "_dupli_001"), ("2", "")) for s in "lr"}),
+    ),
     "generated_wolf": Fixture(
         _generated("wolf"), _pair("ORG-front_thigh", "ORG-front_foot", "ORG-thigh", "ORG-foot"), False
     ),

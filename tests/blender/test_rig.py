@@ -46,6 +46,9 @@ def test_split_name(name: str, side: int, tokens: tuple[str, ...]) -> None:
         # Auto-Rig Pro: the thigh and the shin each split in a twist and a stretch half.
         (("thigh_twist.l", "thigh_stretch.l", "leg_stretch.l", "leg_twist.l"), [1, 3]),
         (("lThighBend", "lThighTwist", "lShin"), [1]),  # Genesis 8
+        # An Auto-Rig Pro dog's hind leg: c_thigh_b.l is a bone of its own (the hip).
+        (("c_thigh_b.l", "thigh_twist.l", "thigh_stretch.l", "leg_stretch.l"), [2]),
+        (("thigh_twist_dupli_001.l", "thigh_stretch_dupli_001.l", "leg_stretch_dupli_001.l"), [1]),
         # Knees: two limbs, even when both are stretch bones or share a word.
         (("mixamorig:LeftUpLeg", "mixamorig:LeftLeg"), []),
         (("thigh_stretch.l", "leg_stretch.l"), []),

@@ -372,11 +372,12 @@ def _straight(obj: Any, frames: list[int], pairs: list[tuple[str, str]]) -> floa
     return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
 
 
-_ARP_HALVES = [(f"thigh_twist.{s}", f"thigh_stretch.{s}") for s in "lr"] + [
-    (f"leg_stretch.{s}", f"leg_twist.{s}") for s in "lr"]
+def _arp_pairs(name: str, first: str, second: str) -> list[tuple[str, str]]:
+    legs = ("", "_dupli_001") if name == "arp_dog" else ("",)
+    return [(f"{first}{d}.{s}", f"{second}{d}.{s}") for d in legs for s in "lr"]
 
 
-@pytest.mark.parametrize("name", ["arp_export", "arp_rig"])
+@pytest.mark.parametrize("name", ["arp_export", "arp_rig", "arp_dog"])
 def test_auto_rig_pro_legs_bend_at_the_knee_not_between_their_twist_and_stretch_bones(
     empty_scene: Any, name: str
 ) -> None:
@@ -386,9 +387,10 @@ def test_auto_rig_pro_legs_bend_at_the_knee_not_between_their_twist_and_stretch_
     job, m = walk(obj)
     check_motion(m, name)
     frames = [int(f) for f in job.frames]
-    assert _straight(obj, frames, _ARP_HALVES) < 0.1
-    knees = [(f"thigh_stretch.{s}", f"leg_stretch.{s}") for s in "lr"]
-    assert _straight(obj, frames, knees) > 20.0  # the knees do bend
+    halves = _arp_pairs(name, "thigh_twist", "thigh_stretch") + _arp_pairs(name, "leg_stretch", "leg_twist")
+    assert _straight(obj, frames, halves) < 0.1
+    knees = _arp_pairs(name, "thigh_stretch", "leg_stretch")
+    assert _straight(obj, frames, knees) > 10.0  # the knees (a dog's hocks) do bend
 
 
 def test_auto_rig_pro_rig_walks_on_its_controls(empty_scene: Any) -> None:

@@ -119,12 +119,14 @@ SPLIT_WORDS = frozenset({"twist", "stretch", "bend"})
 
 def split_joints(bones: Sequence[str]) -> list[int]:
     """The hinges of a leg chain (1 .. len(bones) - 1, hinge ``j`` between ``bones[j - 1]``
-    and ``bones[j]``) that join two halves of one limb bone: both bones name the same limb
-    (``thigh``, ``leg``) and one of them a split (``twist``, ``stretch``, ``bend``). A knee
-    never does: ``thigh_stretch.l`` > ``leg_stretch.l`` name two limbs."""
+    and ``bones[j]``) that join two halves of one limb bone: one of the two names a split
+    (``twist``, ``stretch``, ``bend``) and without those words both name the same limb
+    (``thigh``, ``leg``). A knee never does: ``thigh_stretch.l`` > ``leg_stretch.l`` name two
+    limbs, and Auto-Rig Pro's ``c_thigh_b.l`` > ``thigh_twist.l`` (a three-bone leg's hip)
+    are two bones."""
     out = []
     for j in range(1, len(bones)):
         a, b = set(split_name(bones[j - 1])[1]), set(split_name(bones[j])[1])
-        if (a & b & LEG_WORDS) and ((a | b) & SPLIT_WORDS):
+        if (a | b) & SPLIT_WORDS and a - SPLIT_WORDS == b - SPLIT_WORDS and a & LEG_WORDS:
             out.append(j)
     return out
