@@ -30,6 +30,10 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
   the horse whose deform leg bones copy the rotation of a control chain beside them.
 - ``beetle_gltf``: a sprawling six-legged game beetle, bones ``joint_0`` ... ``joint_19``,
   tails as importers leave them (its legs 10 cm apart along the body).
+- ``arp_rig``, ``arp_export``, ``arp_dog``: Auto-Rig Pro's names and wiring (see its
+  section): a biped's control rig (controls, FK/IK mechanism, deform bones copying them, no
+  skin on controls), its game-engine export (the deform skeleton alone), and a dog's deform
+  skeleton with three-bone legs; thighs and shins each split in a twist and a stretch bone.
 """
 
 from __future__ import annotations

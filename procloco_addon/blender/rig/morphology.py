@@ -28,7 +28,9 @@ def morphology_of(
     sees by the mean :attr:`RigInfo.foot_height` (see ``locomotion.generate``); each leg's
     ``foot_lift`` is its own foot height's difference from that mean. With a
     :attr:`RigInfo.spine_layout` the morphology has the flexible spine
-    (``Morphology.with_spine``) with these per-joint limits (radians).
+    (``Morphology.with_spine``) with these per-joint limits (radians). A hinge between two
+    halves of one limb bone (``names.split_joints``: a twist and a stretch bone), nearly
+    straight at rest, is held at its rest angle.
     """
     to_body = np.linalg.inv(info.body.matrix)
     chains = [_apply(to_body, j) for j in info.joints]
