@@ -393,18 +393,33 @@ def test_auto_rig_pro_legs_bend_at_the_knee_not_between_their_twist_and_stretch_
     assert _straight(obj, frames, knees) > 10.0  # the knees (a dog's hocks) do bend
 
 
-def test_auto_rig_pro_rig_walks_on_its_controls(empty_scene: Any) -> None:
-    """The animator left the legs in FK (``ik_fk_switch`` = 1 on ``c_foot_ik.l``): Drive
-    Legs: Auto keys the IK feet, the poles and the hips controller ``c_root_master.x`` (not
-    the placement bones ``c_pos``/``c_traj``), and no deform or mechanism bone. The hidden
-    ``thigh_stretch.l`` once made Auto choose FK and key only ``c_thigh_fk.l``."""
+_TRANSFORMS = ("location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle", "scale")
+
+
+@pytest.mark.parametrize("drive", ["AUTO", "FK"])
+def test_auto_rig_pro_rig_walks_on_its_controls(empty_scene: Any, drive: str) -> None:
+    """The animator left the legs in FK (``ik_fk_switch`` = 1 on ``c_foot_ik.l``). Drive
+    Legs: Auto keys the IK feet, the poles and the hips controller ``c_root_master.x``; FK
+    keys the FK controls and ``c_root_master.x``. Never a deform or mechanism bone, nor the
+    placement bones ``c_pos``/``c_traj`` (which carry the IK feet: in FK they once moved the
+    body, and with it the idle IK feet). The hidden ``thigh_stretch.l`` once made Auto choose
+    FK and key only ``c_thigh_fk.l``."""
     obj = FIXTURES["arp_rig"].build(empty_scene, "arp_rig")
+    obj.procloco.drive_legs = drive
     job, m = walk(obj)
     check_motion(m, "arp_rig")
-    assert [leg.controls for leg in obj.procloco.legs] == [
-        f"IK c_foot_ik.{s}, pole c_leg_pole.{s}, ik_fk_switch = 0 on c_foot_ik.{s}" for s in "lr"]
-    keyed = {ch.data_path.split('"')[1] for ch in actions.channels_of(obj.animation_data.action, obj)}
-    assert keyed == {"c_root_master.x", "c_foot_ik.l", "c_foot_ik.r", "c_leg_pole.l", "c_leg_pole.r"}, keyed
+    keyed = {ch.data_path.split('"')[1] for ch in actions.channels_of(obj.animation_data.action, obj)
+             if ch.data_path.endswith(_TRANSFORMS)}
+    if drive == "AUTO":
+        assert [leg.controls for leg in obj.procloco.legs] == [
+            f"IK c_foot_ik.{s}, pole c_leg_pole.{s}, ik_fk_switch = 0 on c_foot_ik.{s}" for s in "lr"]
+        legs = {f"{c}.{s}" for c in ("c_foot_ik", "c_leg_pole") for s in "lr"}
+    else:
+        assert [leg.controls for leg in obj.procloco.legs] == [
+            f"FK c_thigh_fk.{s}, c_leg_fk.{s}, c_foot_fk.{s}, ik_fk_switch = 1 on c_foot_ik.{s}"
+            for s in "lr"]
+        legs = {f"{c}.{s}" for c in ("c_thigh_fk", "c_leg_fk", "c_foot_fk") for s in "lr"}
+    assert keyed == {"c_root_master.x"} | legs, keyed
     assert not job.warnings, job.warnings
 
 

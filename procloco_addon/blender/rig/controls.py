@@ -47,7 +47,11 @@ bones turned by the nearest control upstream of it that does not carry the hip (
 control: Auto-Rig Pro's ``c_thigh_fk.l``, Rigify's ``thigh_fk.L``), parent first.
 The **body control** is the most upstream control that carries the body bone and every hip but
 no IK control and, where another one does, has a parent (Rigify's ``torso``, Auto-Rig Pro's
-``c_root_master.x``, not the placement roots ``root``/``c_traj``).
+``c_root_master.x``, not the placement roots ``root``/``c_traj``) and, where another one
+does, carries no IK target's control either (legs walked in FK: Auto-Rig Pro's ``c_traj``
+under ``c_pos`` carries the idle IK feet). The second half of a limb bone split in two
+(``names.split_joints``: ``thigh_stretch.l`` riding on ``thigh_twist.l``) needs no control:
+the core keeps it in line with the first.
 Any other solved bone that is driven gets the nearest control upstream of it (spine and tail
 FK controls). Solved bones that are free are keyed themselves, as on plain FK rigs.
 """
@@ -664,6 +668,11 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         # Not the rig's placement root (Rigify's ``root``, Auto-Rig Pro's ``c_traj``: no parent)
         # while a control under it carries the body too.
         placed = {c for c in body_cands if pbones[c].parent is not None}
+        # Nor, on legs walked in FK, a control that also carries their idle IK feet
+        # (Auto-Rig Pro's ``c_traj`` under ``c_pos``): switched back to IK, the feet would
+        # have travelled with the body.
+        idle_ik = set(graph.upstream([t for node in graph.nodes.values() for t, _p in node.ik if t]))
+        placed = (placed - idle_ik) or placed
         roots = graph.roots(sorted(placed or body_cands))
         if roots:
             up = graph.upstream([body])
