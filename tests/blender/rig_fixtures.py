@@ -30,6 +30,10 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
   the horse whose deform leg bones copy the rotation of a control chain beside them.
 - ``beetle_gltf``: a sprawling six-legged game beetle, bones ``joint_0`` ... ``joint_19``,
   tails as importers leave them (its legs 10 cm apart along the body).
+- ``arp_rig``, ``arp_export``, ``arp_dog``: Auto-Rig Pro's names and wiring (see its
+  section): a biped's control rig (controls, FK/IK mechanism, deform bones copying them, no
+  skin on controls), its game-engine export (the deform skeleton alone), and a dog's deform
+  skeleton with three-bone legs; thighs and shins each split in a twist and a stretch bone.
 """
 
 from __future__ import annotations
@@ -793,6 +797,155 @@ def _copy_rotation_controls(scene: Any, name: str) -> Any:
     return arm
 
 
+# ---------------------------------------------------------------------------------------
+# Auto-Rig Pro (the names and wiring of its rigs, rebuilt by script)
+#
+# What the names are based on: Auto-Rig Pro's own documentation (Game Engine Export: the
+# ``c_traj`` controller, the hips controller ``c_root_master.x`` and the IK feet parented to
+# it, ``forearm_stretch`` named "the final deforming bone"; Auto-Rig: ``c_foot_ik.l``,
+# ``c_leg_pole.l``, ``c_thigh_fk.l``), and its Humanoid export as published skeletons and
+# retargeting maps name it: ``root.x`` (the hips) > ``spine_01.x`` > ``spine_02.x`` >
+# ``neck.x`` > ``head.x``; ``shoulder.l`` > ``arm_stretch.l`` > ``forearm_stretch.l`` >
+# ``hand.l``; ``root.x`` > ``thigh_twist.l`` > ``thigh_stretch.l`` > ``leg_stretch.l`` >
+# ``leg_twist.l`` > ``foot.l`` > ``toes_01.l`` (the thigh's twist half at the hip, the leg's at
+# the ankle), ``.r`` mirrored. Left out of the control rig: the foot-roll and heel bones
+# (``c_foot_roll.l``, ``c_foot_bank``...), ``c_thigh_b.l``, the stretch controllers
+# (``c_stretch_leg.l``), the arms' and head's controls and the spine's ``c_root.x`` pivots
+# beyond one per bone: the fixture has what drives the legs and the body.
+
+#: The left leg's joints: hip, mid-thigh, knee, mid-shin, ankle, ball, toe tip.
+_ARP_LEG = (_HIP, _lerp(_HIP, _KNEE, 0.5), _KNEE, _lerp(_KNEE, _ANKLE, 0.5), _ANKLE, _BALL, _TIP)
+_ARP_DEFORM_LEG = ("thigh_twist.l", "thigh_stretch.l", "leg_stretch.l", "leg_twist.l", "foot.l", "toes_01.l")
+
+
+def _arp_deform_bones() -> list[Spec]:
+    """Auto-Rig Pro's Humanoid deform skeleton (as its game-engine export writes it): see above."""
+    body = _spine(["root.x", "spine_01.x", "spine_02.x"], None, 0.95, 1.5)
+    body += _spine(["neck.x", "head.x"], "spine_02.x", 1.5, 1.75)
+    left = _chain(list(_ARP_DEFORM_LEG), "root.x", list(_ARP_LEG))
+    left += _arm(["arm_stretch.l", "forearm_stretch.l", "hand.l"], "spine_02.x", "shoulder.l", "spine_02.x")
+    return body + left + _mirror(left, _swap(".l", ".r"))
+
+
+def _arp_dog_bones() -> list[Spec]:
+    """An Auto-Rig Pro dog's deform skeleton, 60 cm at the withers: three-bone legs (``limbs``
+    with ``c_thigh_b``, which deforms) hind ``c_thigh_b.l`` (femur) > ``thigh_twist.l`` >
+    ``thigh_stretch.l`` (tibia) > ``leg_stretch.l`` > ``leg_twist.l`` (metatarsus) >
+    ``foot.l`` > ``toes_01.l`` (the paw) under ``root.x``, and the front legs, a duplicated
+    leg limb (``c_thigh_b_dupli_001.l`` > ``thigh_twist_dupli_001.l`` ...), under the chest
+    ``spine_03.x``: the chains as a published ARP quadruped's deform bones list them. The
+    spine runs from ``root.x`` at the hips forward to the head, the tail back from it."""
+    body = _chain(
+        ["root.x", "spine_01.x", "spine_02.x", "spine_03.x"],
+        None,
+        [(0.0, 0.3, 0.55), (0.0, 0.15, 0.57), (0.0, 0.0, 0.58), (0.0, -0.15, 0.6), (0.0, -0.28, 0.62)],
+    )
+    body += _chain(
+        ["neck.x", "head.x"], "spine_03.x", [(0.0, -0.28, 0.62), (0.0, -0.4, 0.75), (0.0, -0.58, 0.72)]
+    )
+    body += _chain(
+        ["tail_00.x", "tail_01.x"], "root.x", [(0.0, 0.3, 0.55), (0.0, 0.45, 0.5), (0.0, 0.6, 0.4)]
+    )
+
+    def leg(suffix: str, parent: str, points: Sequence[Vec]) -> list[Spec]:
+        hip, stifle, hock, paw, ball, tip = points
+        names = ["c_thigh_b", "thigh_twist", "thigh_stretch", "leg_stretch", "leg_twist", "foot", "toes_01"]
+        return _chain([f"{n}{suffix}.l" for n in names], parent,
+                      [hip, stifle, _lerp(stifle, hock, 0.5), hock, _lerp(hock, paw, 0.5), paw, ball, tip])
+
+    left = leg("", "root.x", [(0.09, 0.3, 0.52), (0.1, 0.2, 0.34), (0.1, 0.36, 0.17), (0.1, 0.33, 0.04),
+                              (0.1, 0.29, 0.012), (0.1, 0.24, 0.0)])
+    left += leg("_dupli_001", "spine_03.x", [(0.09, -0.22, 0.55), (0.1, -0.28, 0.4), (0.1, -0.22, 0.26),
+                                             (0.1, -0.25, 0.05), (0.1, -0.29, 0.012), (0.1, -0.34, 0.0)])
+    return body + left + _mirror(left, _swap(".l", ".r"))
+
+
+def _arp_control_bones() -> list[Spec]:
+    """The deform skeleton and the controls and mechanism of an Auto-Rig Pro biped's body and
+    legs: ``c_pos`` > ``c_traj`` > ``c_root_master.x`` > ``c_root.x`` (the hips), the spine's
+    ``c_spine_01.x`` ...; per leg the FK controls ``c_thigh_fk.l`` > ``c_leg_fk.l`` >
+    ``c_foot_fk.l`` > ``c_toes_fk.l``, the IK chain ``thigh_ik.l`` > ``leg_ik.l``, the IK foot
+    ``c_foot_ik.l`` (under ``c_traj``) > ``foot_ik.l`` > ``c_toes_ik.l`` and the pole
+    ``c_leg_pole.l``."""
+    hip, _mid, knee, _low, ankle, ball, tip = _ARP_LEG
+    body: list[Spec] = [
+        ("c_pos", None, (0.0, 0.0, 0.0), (0.0, 0.5, 0.0)),
+        ("c_traj", "c_pos", (0.0, 0.0, 0.0), (0.0, 0.3, 0.0)),
+        ("c_root_master.x", "c_traj", (0.0, 0.0, 0.95), (0.0, 0.25, 0.95)),
+    ]
+    body += [(f"c_{n}", "c_root_master.x" if p is None else f"c_{p}", h, t)
+             for n, p, h, t in _spine(["root.x", "spine_01.x", "spine_02.x"], None, 0.95, 1.5)]
+    left = _chain(["c_thigh_fk.l", "c_leg_fk.l", "c_foot_fk.l", "c_toes_fk.l"], "c_root.x",
+                  [hip, knee, ankle, ball, tip])
+    left += _chain(["thigh_ik.l", "leg_ik.l"], "c_root.x", [hip, knee, ankle])
+    left += _chain(["c_foot_ik.l"], "c_traj", [ankle, ball])
+    left += _chain(["foot_ik.l", "c_toes_ik.l"], "c_foot_ik.l", [ankle, ball, tip])
+    left.append(("c_leg_pole.l", "c_traj", (hip[0], -0.5, knee[2]), (hip[0], -0.6, knee[2])))
+    return _arp_deform_bones() + body + left + _mirror(left, _swap(".l", ".r"))
+
+
+def _arp_deform_names() -> set[str]:
+    return {n for n, _p, _h, _t in _arp_deform_bones()}
+
+
+def _arp_export(scene: Any, name: str) -> Any:
+    """Auto-Rig Pro's game-engine export: the deform skeleton alone, every bone deforming."""
+    return build(scene, name, _arp_deform_bones(), deform=lambda _n: True)
+
+
+def _arp_rig(scene: Any, name: str) -> Any:
+    """An Auto-Rig Pro biped as animators have it in Blender (:func:`_arp_control_bones`).
+    The deform bones follow the controls: ``root.x`` and the spine copy the transforms of
+    ``c_root.x``, ``c_spine_01.x`` ...; per leg ``thigh_twist.l`` (and with it its child
+    ``thigh_stretch.l``), ``leg_stretch.l`` (and ``leg_twist.l``), ``foot.l`` and
+    ``toes_01.l`` copy the rotation of the FK control and of the IK chain's bone, the IK copy's
+    influence driven by ``1 - ik_fk_switch`` on ``c_foot_ik.l`` (1: FK, as the animator left
+    it). ``leg_ik.l`` has the IK to ``c_foot_ik.l`` (two bones) with the pole
+    ``c_leg_pole.l``. Deform and mechanism bones sit in hidden bone collections."""
+    deform = _arp_deform_names()
+    arm = build(scene, name, _arp_control_bones(), deform=lambda n: n in deform)
+    data = arm.data
+    hidden = data.collections.new("Deform and mechanism")
+    shown = data.collections.new("Controls")
+    for b in data.bones:
+        (shown if b.name.startswith("c_") else hidden).assign(b)
+    hidden.is_visible = False
+    pbones = arm.pose.bones
+    for n in ("root.x", "spine_01.x", "spine_02.x"):
+        con = pbones[n].constraints.new("COPY_TRANSFORMS")
+        con.target, con.subtarget = arm, f"c_{n}"
+    for side in "lr":
+        pbones[f"c_foot_ik.{side}"]["ik_fk_switch"] = 1.0
+        for deform_bone, fk, ik in (("thigh_twist", "c_thigh_fk", "thigh_ik"),
+                                    ("leg_stretch", "c_leg_fk", "leg_ik"),
+                                    ("foot", "c_foot_fk", "foot_ik"), ("toes_01", "c_toes_fk", "c_toes_ik")):
+            pb = pbones[f"{deform_bone}.{side}"]
+            for target in (fk, ik):
+                con = pb.constraints.new("COPY_ROTATION")
+                con.target, con.subtarget = arm, f"{target}.{side}"
+            fc = con.driver_add("influence")
+            var = fc.driver.variables.new()
+            var.name, var.type = "switch", "SINGLE_PROP"
+            var.targets[0].id = arm
+            var.targets[0].data_path = f'pose.bones["c_foot_ik.{side}"]["ik_fk_switch"]'
+            fc.driver.expression = "1 - switch"
+        ik = pbones[f"leg_ik.{side}"].constraints.new("IK")
+        ik.target, ik.subtarget, ik.chain_count = arm, f"c_foot_ik.{side}", 2
+        ik.pole_target, ik.pole_subtarget = arm, f"c_leg_pole.{side}"
+        best: tuple[float, float] | None = None
+        for angle in (0.0, 90.0, -90.0, 180.0):  # the pole angle that keeps the rest pose
+            ik.pole_angle = math.radians(angle)
+            bpy.context.view_layer.update()
+            knee = pbones[f"leg_ik.{side}"].matrix.to_translation()
+            err = (knee - data.bones[f"leg_ik.{side}"].head_local).length
+            if best is None or err < best[0]:
+                best = (err, angle)
+        assert best is not None
+        ik.pole_angle = math.radians(best[1])
+    bpy.context.view_layer.update()
+    return arm
+
+
 _HORSE_NUMBERED = _numbered(_horse_bones())
 _DRAGON_NUMBERED = _numbered(_dragon_bones())
 _DRAGON_LEGS = {
@@ -817,6 +970,7 @@ def build(
     connect: bool = True,
     turn: Sequence[float] = (0.0, 0.0, 0.0),
     scale: float = 1.0,
+    deform: Callable[[str], bool] | None = None,
 ) -> Any:
     """An armature of ``bones`` (creature space) with a capsule skin, standing on z = 0.
 
@@ -825,7 +979,8 @@ def build(
     ``plus_y > 0``: every bone points along its own armature +Y with that length, as glTF/FBX
     importers leave them (the tails mean nothing). ``scale``: the object's uniform scale, the
     bones made larger by its inverse (an FBX in centimetres: 0.01). Helper bones
-    (:data:`HELPERS`: roots, IK targets, end markers) deform nothing and have no skin.
+    (:data:`HELPERS`: roots, IK targets, end markers) deform nothing and have no skin;
+    ``deform``: which bones deform (and have skin) instead, on a control rig.
     """
     data = bpy.data.armatures.new(name)
     arm = bpy.data.objects.new(name, data)
@@ -847,9 +1002,10 @@ def build(
             if connect and plus_y == 0.0 and (Vector(eb[p].tail) - Vector(eb[n].head)).length < 1e-6:
                 eb[n].use_connect = True
     bpy.ops.object.mode_set(mode="OBJECT")
+    deforms = deform or (lambda n: not HELPERS.search(n))
     for b in data.bones:
-        b.use_deform = not HELPERS.search(b.name)
-    _skin(arm, [spec for spec in bones if not HELPERS.search(spec[0])], np.array(inv), scene)
+        b.use_deform = deforms(b.name)
+    _skin(arm, [spec for spec in bones if deforms(spec[0])], np.array(inv), scene)
     if any(turn):
         arm.rotation_euler = tuple(turn)
     bpy.context.view_layer.update()
@@ -950,6 +1106,11 @@ def _pair(hip: str, end: str, hind_hip: str = "", hind_end: str = "") -> Expecte
     if hind_hip:
         legs |= {"L2": (f"{hind_hip}.L", f"{hind_end}.L"), "R2": (f"{hind_hip}.R", f"{hind_end}.R")}
     return Expected(legs)
+
+
+def _pair_lower(hip: str, end: str) -> Expected:
+    """:func:`_pair` with Auto-Rig Pro's lower-case sides (``.l``/``.r``)."""
+    return Expected({"L1": (f"{hip}.l", f"{end}.l"), "R1": (f"{hip}.r", f"{end}.r")})
 
 
 HUMAN_LEGS = {"L1": ("thigh", "shin"), "R1": ("thigh", "shin")}
@@ -1082,6 +1243,13 @@ FIXTURES: dict[str, Fixture] = {
     "dragon_numbered": Fixture(
         lambda sc, n: build(sc, n, _DRAGON_NUMBERED[0]),
         Expected({k: (_DRAGON_NUMBERED[1][h], _DRAGON_NUMBERED[1][e]) for k, (h, e) in _DRAGON_LEGS.items()}),
+    ),
+    "arp_rig": Fixture(_arp_rig, _pair_lower("thigh_twist", "leg_twist"), False),
+    "arp_export": Fixture(_arp_export, _pair_lower("thigh_twist", "leg_twist")),
+    "arp_dog": Fixture(
+        lambda sc, n: build(sc, n, _arp_dog_bones(), deform=lambda _n: True),
+        Expected({f"{s.upper()}{k}": (f"c_thigh_b{d}.{s}", f"leg_twist{d}.{s}")
+                  for k, d in (("1", "_dupli_001"), ("2", "")) for s in "lr"}),
     ),
     "generated_wolf": Fixture(
         _generated("wolf"), _pair("ORG-front_thigh", "ORG-front_foot", "ORG-thigh", "ORG-foot"), False

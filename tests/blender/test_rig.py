@@ -40,6 +40,27 @@ def test_split_name(name: str, side: int, tokens: tuple[str, ...]) -> None:
     assert rig.split_name(name) == (side, tokens)
 
 
+@pytest.mark.parametrize(
+    ("bones", "joints"),
+    [
+        # Auto-Rig Pro: the thigh and the shin each split in a twist and a stretch half.
+        (("thigh_twist.l", "thigh_stretch.l", "leg_stretch.l", "leg_twist.l"), [1, 3]),
+        (("lThighBend", "lThighTwist", "lShin"), [1]),  # Genesis 8
+        # An Auto-Rig Pro dog's hind leg: c_thigh_b.l is a bone of its own (the hip).
+        (("c_thigh_b.l", "thigh_twist.l", "thigh_stretch.l", "leg_stretch.l"), [2]),
+        (("thigh_twist_dupli_001.l", "thigh_stretch_dupli_001.l", "leg_stretch_dupli_001.l"), [1]),
+        # Knees: two limbs, even when both are stretch bones or share a word.
+        (("mixamorig:LeftUpLeg", "mixamorig:LeftLeg"), []),
+        (("thigh_stretch.l", "leg_stretch.l"), []),
+        (("Leg1Base.L", "Leg1Mid.L", "Leg1Fore.L"), []),
+    ],
+)
+def test_split_joints_are_the_joints_inside_one_limb_bone(bones: tuple[str, ...], joints: list[int]) -> None:
+    from procloco_addon.blender.rig.names import split_joints
+
+    assert split_joints(bones) == joints
+
+
 # Expected detection per example creature: label -> (IK bones, foot bones).
 EXPECTED = {
     "spider": {f"{s}{n}": (tuple(f"Leg{n}_{seg}.{s}" for seg in ("coxa", "femur", "tibia", "tarsus")), ())

@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 import pytest
 
-from procloco_addon.blender import rig
+from procloco_addon.blender import actions, rig
 from procloco_addon.blender.locomotion import generate
 from procloco_addon.core import metrics
 from tests.blender import export_fixtures
@@ -30,10 +30,12 @@ FRAMES = 48
 IMPORTS = export_fixtures.IMPORTS
 #: Fixture rigs that also walk after an import (the others are only detected there): the
 #: quadruped whose tails mean nothing through every importer setting, the humanoid once, the
-#: horse under a moved, turned and half-scaled empty once (FBX keeps the empty).
+#: horse under a moved, turned and half-scaled empty once (FBX keeps the empty), Auto-Rig
+#: Pro's game-engine skeleton as an engine reads its FBX.
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
     ("mixamo_t", "fbx", {}),
     ("horse_in_holder", "fbx", {}),
+    ("arp_export", "fbx", {}),
 ]
 
 
@@ -355,6 +357,70 @@ def test_imported_rigs_walk_the_same(
     assert [(leg.label, leg.bones) for leg in job.info.legs] == built["legs"]
     assert m["travel"] == pytest.approx(built["travel"], rel=0.05), (m, built)
     check_motion(m)
+
+
+# ---------------------------------------------------------------------------------------
+# Auto-Rig Pro
+
+
+def _straight(obj: Any, frames: list[int], pairs: list[tuple[str, str]]) -> float:
+    """The largest angle (degrees) between the two bones of each pair over ``frames``."""
+    names = [n for pair in pairs for n in pair]
+    mats = pose_matrices(obj, frames, names)
+    y = mats[..., :3, 1] / np.linalg.norm(mats[..., :3, 1], axis=-1, keepdims=True)
+    cos = np.sum(y[:, 0::2] * y[:, 1::2], axis=-1)
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))).max())
+
+
+def _arp_pairs(name: str, first: str, second: str) -> list[tuple[str, str]]:
+    legs = ("", "_dupli_001") if name == "arp_dog" else ("",)
+    return [(f"{first}{d}.{s}", f"{second}{d}.{s}") for d in legs for s in "lr"]
+
+
+@pytest.mark.parametrize("name", ["arp_export", "arp_rig", "arp_dog"])
+def test_auto_rig_pro_legs_bend_at_the_knee_not_between_their_twist_and_stretch_bones(
+    empty_scene: Any, name: str
+) -> None:
+    """Auto-Rig Pro splits the thigh and the shin each in a twist and a stretch bone: the
+    walk keeps each pair in line (the core once bent the shin 41 degrees in its middle)."""
+    obj = FIXTURES[name].build(empty_scene, name)
+    job, m = walk(obj)
+    check_motion(m, name)
+    frames = [int(f) for f in job.frames]
+    halves = _arp_pairs(name, "thigh_twist", "thigh_stretch") + _arp_pairs(name, "leg_stretch", "leg_twist")
+    assert _straight(obj, frames, halves) < 0.1
+    knees = _arp_pairs(name, "thigh_stretch", "leg_stretch")
+    assert _straight(obj, frames, knees) > 10.0  # the knees (a dog's hocks) do bend
+
+
+_TRANSFORMS = ("location", "rotation_quaternion", "rotation_euler", "rotation_axis_angle", "scale")
+
+
+@pytest.mark.parametrize("drive", ["AUTO", "FK"])
+def test_auto_rig_pro_rig_walks_on_its_controls(empty_scene: Any, drive: str) -> None:
+    """The animator left the legs in FK (``ik_fk_switch`` = 1 on ``c_foot_ik.l``). Drive
+    Legs: Auto keys the IK feet, the poles and the hips controller ``c_root_master.x``; FK
+    keys the FK controls and ``c_root_master.x``. Never a deform or mechanism bone, nor the
+    placement bones ``c_pos``/``c_traj`` (which carry the IK feet: in FK they once moved the
+    body, and with it the idle IK feet). The hidden ``thigh_stretch.l`` once made Auto choose
+    FK and key only ``c_thigh_fk.l``."""
+    obj = FIXTURES["arp_rig"].build(empty_scene, "arp_rig")
+    obj.procloco.drive_legs = drive
+    job, m = walk(obj)
+    check_motion(m, "arp_rig")
+    keyed = {ch.data_path.split('"')[1] for ch in actions.channels_of(obj.animation_data.action, obj)
+             if ch.data_path.endswith(_TRANSFORMS)}
+    if drive == "AUTO":
+        assert [leg.controls for leg in obj.procloco.legs] == [
+            f"IK c_foot_ik.{s}, pole c_leg_pole.{s}, ik_fk_switch = 0 on c_foot_ik.{s}" for s in "lr"]
+        legs = {f"{c}.{s}" for c in ("c_foot_ik", "c_leg_pole") for s in "lr"}
+    else:
+        assert [leg.controls for leg in obj.procloco.legs] == [
+            f"FK c_thigh_fk.{s}, c_leg_fk.{s}, c_foot_fk.{s}, ik_fk_switch = 1 on c_foot_ik.{s}"
+            for s in "lr"]
+        legs = {f"{c}.{s}" for c in ("c_thigh_fk", "c_leg_fk", "c_foot_fk") for s in "lr"}
+    assert keyed == {"c_root_master.x"} | legs, keyed
+    assert not job.warnings, job.warnings
 
 
 # ---------------------------------------------------------------------------------------

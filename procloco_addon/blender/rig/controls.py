@@ -47,7 +47,11 @@ bones turned by the nearest control upstream of it that does not carry the hip (
 control: Auto-Rig Pro's ``c_thigh_fk.l``, Rigify's ``thigh_fk.L``), parent first.
 The **body control** is the most upstream control that carries the body bone and every hip but
 no IK control and, where another one does, has a parent (Rigify's ``torso``, Auto-Rig Pro's
-``c_root_master.x``, not the placement roots ``root``/``c_traj``).
+``c_root_master.x``, not the placement roots ``root``/``c_traj``) and, where another one
+does, carries no IK target's control either (legs walked in FK: Auto-Rig Pro's ``c_traj``
+under ``c_pos`` carries the idle IK feet). The second half of a limb bone split in two
+(``names.split_joints``: ``thigh_stretch.l`` riding on ``thigh_twist.l``) needs no control:
+the core keeps it in line with the first.
 Any other solved bone that is driven gets the nearest control upstream of it (spine and tail
 FK controls). Solved bones that are free are keyed themselves, as on plain FK rigs.
 """
@@ -60,6 +64,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import bpy
+
+from .names import split_joints
 
 __all__ = [
     "DRIVE_MODES",
@@ -462,13 +468,27 @@ def _ik_solves(graph: ConstraintGraph, bones: Sequence[str]) -> set[str] | None:
     an IK chain), or None when some bone of the leg follows something else (the paw of
     Rigify's three-bone legs copies the target its stretchy helper chains place)."""
     chain: set[str] = set()
+    halves = _rigid_halves(graph, bones)
     for b in bones:
         solving = {b} if graph.nodes[b].in_ik else {
             d for d, kind in graph.nodes[b].deps.items() if kind == 1 and graph.nodes[d].in_ik}
-        if not solving:
+        if not solving and b not in halves:
             return None
         chain |= solving
     return chain
+
+
+def _rigid_halves(graph: ConstraintGraph, bones: Sequence[str]) -> set[str]:
+    """The bones of leg ``bones`` that are the second half of a limb bone split in two
+    (``names.split_joints``: Auto-Rig Pro's ``thigh_stretch.l`` under ``thigh_twist.l``)
+    and only ride on the first half (no constraint, no IK, no own keys: not a control). The
+    core keeps such a joint at its rest angle, so they need no control of their own."""
+    out = set()
+    for j in split_joints(bones):
+        b, node = bones[j], graph.nodes[bones[j]]
+        if set(node.deps) == {bones[j - 1]} and not node.in_ik and b not in graph.controls:
+            out.add(b)
+    return out
 
 
 def _stretch_switches(obj: bpy.types.Object, chain: set[str]) -> list[Switch]:
@@ -615,8 +635,12 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         else:  # an FK leg: each driven bone turned by its nearest control (its FK control)
             covered = set()
             fk_ctrls: list[str] = []
+            halves = _rigid_halves(graph, bones)
             for b in leg_bones:
                 if b in direct:
+                    continue
+                if b in halves:  # rides on the bone above it, at its rest angle
+                    covered.add(b)
                     continue
                 up = graph.controls_upstream([b])
                 fk = [c for c in up if c not in used and c not in base]
@@ -644,6 +668,11 @@ def _plan(graph: ConstraintGraph, legs: Sequence[tuple[Sequence[str], Sequence[s
         # Not the rig's placement root (Rigify's ``root``, Auto-Rig Pro's ``c_traj``: no parent)
         # while a control under it carries the body too.
         placed = {c for c in body_cands if pbones[c].parent is not None}
+        # Nor, on legs walked in FK, a control that also carries their idle IK feet
+        # (Auto-Rig Pro's ``c_traj`` under ``c_pos``): switched back to IK, the feet would
+        # have travelled with the body.
+        idle_ik = set(graph.upstream([t for node in graph.nodes.values() for t, _p in node.ik if t]))
+        placed = (placed - idle_ik) or placed
         roots = graph.roots(sorted(placed or body_cands))
         if roots:
             up = graph.upstream([body])

@@ -110,3 +110,23 @@ def _leg_number(tokens: Sequence[str]) -> str:
         if t in {"leg", "legs", "limb"} and i + 1 < len(tokens) and tokens[i + 1].isdigit():
             return tokens[i + 1]
     return ""
+
+
+#: Words of the bones a rig splits one limb bone into (Auto-Rig Pro's ``thigh_twist.l`` >
+#: ``thigh_stretch.l``, Genesis' ``lThighBend`` > ``lThighTwist``).
+SPLIT_WORDS = frozenset({"twist", "stretch", "bend"})
+
+
+def split_joints(bones: Sequence[str]) -> list[int]:
+    """The hinges of a leg chain (1 .. len(bones) - 1, hinge ``j`` between ``bones[j - 1]``
+    and ``bones[j]``) that join two halves of one limb bone: one of the two names a split
+    (``twist``, ``stretch``, ``bend``) and without those words both name the same limb
+    (``thigh``, ``leg``). A knee never does: ``thigh_stretch.l`` > ``leg_stretch.l`` name two
+    limbs, and Auto-Rig Pro's ``c_thigh_b.l`` > ``thigh_twist.l`` (a three-bone leg's hip)
+    are two bones."""
+    out = []
+    for j in range(1, len(bones)):
+        a, b = set(split_name(bones[j - 1])[1]), set(split_name(bones[j])[1])
+        if (a | b) & SPLIT_WORDS and a - SPLIT_WORDS == b - SPLIT_WORDS and a & LEG_WORDS:
+            out.append(j)
+    return out
