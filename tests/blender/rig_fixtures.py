@@ -957,6 +957,163 @@ _DRAGON_LEGS = {
 
 
 # ---------------------------------------------------------------------------------------
+# More families users bring (round 5)
+
+
+def _vroid_bones() -> list[Spec]:
+    """A VRoid Studio character as its VRM/glTF has it (VRM 0.x names): ``Root`` >
+    ``J_Bip_C_Hips`` > ``J_Bip_L_UpperLeg`` > ``J_Bip_L_LowerLeg`` > ``J_Bip_L_Foot`` >
+    ``J_Bip_L_ToeBase``, the spine and arms ``J_Bip_C_Spine`` ... ``J_Bip_L_Hand``, eyes
+    ``J_Adj_L_FaceEye``, and the secondary (spring) bones that hang like legs: an ankle-long
+    dress whose chains hang from each thigh (``J_Sec_L_SkirtFront0_01``, a short pivot, >
+    ``J_Sec_L_SkirtFront1_01`` > ... near the floor), coat tails from the hips to the knees
+    (``J_Sec_L_CoatSkirtBack_01`` ...), back hair to the waist and twin tails to the floor
+    (``J_Sec_Hair1_05`` ...), the bust (``J_Sec_L_Bust1``)."""
+    body: list[Spec] = [("Root", None, (0.0, 0.0, 0.0), (0.0, 0.0, 0.1))]
+    body += _spine(["J_Bip_C_Hips", "J_Bip_C_Spine", "J_Bip_C_Chest", "J_Bip_C_UpperChest"], "Root",
+                   0.95, 1.45)
+    body += _spine(["J_Bip_C_Neck", "J_Bip_C_Head"], "J_Bip_C_UpperChest", 1.45, 1.72)
+    body += _chain(["J_Sec_Hair1_01", "J_Sec_Hair2_01", "J_Sec_Hair3_01"], "J_Bip_C_Head",
+                   [(0.0, 0.08, 1.66), (0.0, 0.12, 1.45), (0.0, 0.13, 1.25), (0.0, 0.12, 1.05)])
+    left = _chain(["J_Bip_L_UpperLeg", "J_Bip_L_LowerLeg", "J_Bip_L_Foot", "J_Bip_L_ToeBase"], "J_Bip_C_Hips",
+                  [_HIP, _KNEE, _ANKLE, _BALL, _TIP])
+    left += _arm(["J_Bip_L_UpperArm", "J_Bip_L_LowerArm", "J_Bip_L_Hand"], "J_Bip_C_UpperChest",
+                 "J_Bip_L_Shoulder", "J_Bip_C_UpperChest")
+    hand = left[-1][3]
+    for finger, dy in (("Thumb", -0.02), ("Index", -0.01), ("Middle", 0.0), ("Ring", 0.01), ("Little", 0.02)):
+        start = _plus(hand, (0.0, dy, 0.0))
+        left += _chain([f"J_Bip_L_{finger}{j}" for j in (1, 2, 3)], "J_Bip_L_Hand",
+                       [_plus(start, (0.02 * j, 0.0, -0.02 * j)) for j in range(4)])
+    left.append(("J_Adj_L_FaceEye", "J_Bip_C_Head", (0.03, -0.07, 1.63), (0.03, -0.09, 1.63)))
+    left += _chain(["J_Sec_L_Bust1", "J_Sec_L_Bust2"], "J_Bip_C_UpperChest",
+                   [(0.05, -0.05, 1.33), (0.06, -0.1, 1.31), (0.06, -0.13, 1.3)])
+    # The dress: per thigh a front, side and back chain, a 1 cm pivot at the hip then three
+    # bones flaring down to 12 cm above the floor (VRoid's leg skirt).
+    for part, (dx, dy) in (("Front", (0.0, -0.1)), ("Side", (0.1, 0.0)), ("Back", (0.0, 0.1))):
+        top = _plus(_HIP, (0.5 * dx, 0.5 * dy, 0.0))
+        pivot = _plus(top, (0.0, 0.0, -0.01))
+        bottom = _plus(_HIP, (1.6 * dx + 0.03, 1.6 * dy, 0.12 - _HIP[2]))
+        names = [f"J_Sec_L_Skirt{part}{k}_01" for k in range(4)]
+        left += _chain(names, "J_Bip_L_UpperLeg",
+                       [top, pivot, _lerp(pivot, bottom, 1 / 3), _lerp(pivot, bottom, 2 / 3), bottom])
+    # Coat tails from the hips' back, down to the knees.
+    left += _chain([f"J_Sec_L_CoatSkirtBack_0{k}" for k in (1, 2, 3)], "J_Bip_C_Hips",
+                   [(0.08, 0.12, 0.97), (0.09, 0.16, 0.8), (0.1, 0.19, 0.62), (0.1, 0.21, 0.45)])
+    # A twin tail from the side of the head to the floor (the right one ``J_Sec_Hair1_06``...).
+    left += _chain([f"J_Sec_Hair{k}_05" for k in range(1, 6)], "J_Bip_C_Head",
+                   [(0.1, 0.03, 1.68), (0.16, 0.06, 1.5), (0.2, 0.1, 1.2), (0.22, 0.12, 0.85),
+                    (0.23, 0.13, 0.45), (0.23, 0.13, 0.06)])
+    return body + left + _mirror(left, lambda n: n.replace("_L_", "_R_").replace("_05", "_06"))
+
+
+def _makehuman_bones() -> list[Spec]:
+    """MakeHuman's (MPFB's) default skeleton: ``root`` (the hips) > ``pelvis.L`` >
+    ``upperleg01.L`` > ``upperleg02.L`` > ``lowerleg01.L`` > ``lowerleg02.L`` > ``foot.L`` >
+    ``toe1-1.L`` ... (the thigh and the shin each in two bones, five toes of two or three
+    bones), ``root`` > ``spine05`` ... ``spine01`` > ``neck01`` ... ``head`` > ``jaw``, and
+    ``spine01`` > ``clavicle.L`` > ``shoulder01.L`` > ``upperarm01.L`` > ``upperarm02.L`` >
+    ``lowerarm01.L`` > ``lowerarm02.L`` > ``wrist.L``."""
+    body: list[Spec] = [("root", None, (0.0, 0.0, 0.95), (0.0, 0.0, 1.02))]
+    body += _spine(["spine05", "spine04", "spine03", "spine02", "spine01"], "root", 1.02, 1.45)
+    body += _spine(["neck01", "neck02", "neck03", "head"], "spine01", 1.45, 1.75)
+    body.append(("jaw", "head", (0.0, -0.02, 1.6), (0.0, -0.08, 1.56)))
+    left = _chain(["pelvis.L"], "root", [(0.0, 0.0, 0.95), _HIP])
+    left += _chain(
+        ["upperleg01.L", "upperleg02.L", "lowerleg01.L", "lowerleg02.L", "foot.L"], "pelvis.L",
+        [_HIP, _lerp(_HIP, _KNEE, 0.4), _KNEE, _lerp(_KNEE, _ANKLE, 0.5), _ANKLE, _BALL],
+    )
+    for k in range(1, 6):
+        start = _plus(_BALL, (0.012 * (3 - k), 0.0, 0.0))
+        n = 2 if k == 1 else 3
+        left += _chain([f"toe{k}-{j}.L" for j in range(1, n + 1)], "foot.L",
+                       [_plus(start, (0.0, -0.02 * j, -0.002 * j)) for j in range(n + 1)])
+    left.append(("eye.L", "head", (0.03, -0.07, 1.63), (0.03, -0.09, 1.63)))
+    left.append(("breast.L", "spine02", (0.06, -0.06, 1.3), (0.07, -0.12, 1.28)))
+    left += _arm(["shoulder01.L", "upperarm01.L", "upperarm02.L", "lowerarm01.L", "lowerarm02.L", "wrist.L"],
+                 "spine01", "clavicle.L", "spine01")
+    return body + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _genesis9_bones() -> list[Spec]:
+    """DAZ Genesis 9: ``hip`` > ``pelvis`` > ``l_thigh`` > ``l_shin`` > ``l_foot`` >
+    ``l_metatarsal`` > ``l_toes``, twist bones beside the limb bones (``l_thigh_twist1``,
+    ``l_thigh_twist2`` under the thigh, ``l_shin_twist1``...), ``hip`` > ``spine1`` ...
+    ``spine4`` > ``neck1`` > ``neck2`` > ``head``, the arms ``l_shoulder`` > ``l_upperarm`` >
+    ``l_forearm`` > ``l_hand``."""
+    body = [
+        ("hip", None, (0.0, 0.0, 1.0), (0.0, 0.0, 1.05)),
+        ("pelvis", "hip", (0.0, 0.0, 1.0), (0.0, 0.0, 0.9)),
+    ]
+    body += _spine(["spine1", "spine2", "spine3", "spine4"], "hip")
+    body += _spine(["neck1", "neck2", "head"], "spine4", 1.5, 1.75)
+    left = _chain(["l_thigh", "l_shin", "l_foot", "l_metatarsal", "l_toes"], "pelvis",
+                  [_HIP, _KNEE, _ANKLE, (0.1, -0.05, 0.03), _BALL, _TIP])
+    for bone, (a, b) in (("l_thigh", (_HIP, _KNEE)), ("l_shin", (_KNEE, _ANKLE))):
+        left += [(f"{bone}_twist1", bone, _lerp(a, b, 0.2), _lerp(a, b, 0.5)),
+                 (f"{bone}_twist2", bone, _lerp(a, b, 0.5), _lerp(a, b, 0.8))]
+    left += _arm(["l_upperarm", "l_forearm", "l_hand"], "spine4", "l_shoulder", "spine4")
+    return body + left + _mirror(left, lambda n: "r_" + n[2:] if n.startswith("l_") else n)
+
+
+def _dog_bones() -> list[Spec]:
+    """A game dog, 62 cm at the hips: a spine from the pelvis forward to the head, a jaw and two
+    ears on the head, a relaxed tail of three bones hanging from the pelvis down behind the
+    hind legs to 8 cm above the floor, legs of four bones (the last one the paw's toes)."""
+    body = _chain(["pelvis", "spine", "chest"], None,
+                  [(0.0, 0.3, 0.6), (0.0, 0.1, 0.62), (0.0, -0.15, 0.63), (0.0, -0.3, 0.64)])
+    body += _chain(["neck", "head"], "chest", [(0.0, -0.3, 0.64), (0.0, -0.42, 0.8), (0.0, -0.6, 0.78)])
+    body.append(("jaw", "head", (0.0, -0.45, 0.76), (0.0, -0.6, 0.7)))
+    body += _chain(["tail1", "tail2", "tail3"], "pelvis",
+                   [(0.0, 0.3, 0.6), (0.0, 0.45, 0.48), (0.0, 0.55, 0.3), (0.0, 0.58, 0.08)])
+    left = [("ear.L", "head", (0.05, -0.45, 0.86), (0.08, -0.44, 0.97))]
+    left += _chain(["upperarm.L", "forearm.L", "hand.L", "finger.L"], "chest",
+                   [(0.1, -0.22, 0.6), (0.11, -0.15, 0.36), (0.11, -0.2, 0.1), (0.11, -0.24, 0.03),
+                    (0.11, -0.3, 0.0)])
+    left += _chain(["thigh.L", "shin.L", "foot.L", "toe.L"], "pelvis",
+                   [(0.1, 0.28, 0.58), (0.11, 0.15, 0.38), (0.11, 0.32, 0.14), (0.11, 0.28, 0.03),
+                    (0.11, 0.22, 0.0)])
+    return body + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _bug_bones() -> list[Spec]:
+    """A six-legged game bug, 12 cm at the hips: a thorax and an abdomen sloping down behind,
+    a head with two mandibles reaching down in front to 3 cm above the floor and two long
+    antennae, six legs of three bones (coxa, femur up to the knee, tibia down to the floor)."""
+    s = 0.12
+    specs: list[Spec] = [
+        ("thorax", None, (0.0, 0.05, s), (0.0, -0.06, s)),
+        ("abdomen", "thorax", (0.0, 0.05, s), (0.0, 0.2, 0.6 * s)),
+        ("head", "thorax", (0.0, -0.06, s), (0.0, -0.1, 0.95 * s)),
+    ]
+    left: list[Spec] = []
+    left += _chain(["mandible1.L", "mandible2.L"], "head",
+                   [(0.01, -0.09, 0.9 * s), (0.02, -0.13, 0.6 * s), (0.01, -0.15, 0.03)])
+    left += _chain(["antenna1.L", "antenna2.L"], "head",
+                   [(0.01, -0.1, 1.0 * s), (0.04, -0.16, 1.4 * s), (0.07, -0.24, 1.6 * s)])
+    for k, (y, yaw) in enumerate(((-0.04, -0.5), (0.0, 0.0), (0.04, 0.5)), start=1):
+        out = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+        hip = np.array([0.015, y, s])
+        coxa = hip + 0.015 * out
+        knee = coxa + 0.05 * out + np.array([0.0, 0.0, 0.03])
+        foot = knee + 0.07 * out
+        foot[2] = 0.0
+        left += _chain([f"coxa{k}.L", f"femur{k}.L", f"tibia{k}.L"], "thorax",
+                       [tuple(float(v) for v in p) for p in (hip, coxa, knee, foot)])  # type: ignore[misc]
+    return specs + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _gltf_numbered(bones: Sequence[Spec]) -> tuple[list[Spec], dict[str, str]]:
+    """``bones`` renamed as a glTF exported from a scene with no bone names arrives:
+    ``Armature_Bone``, ``Armature_Bone_001``, ... in order."""
+    new = {b[0]: f"Armature_Bone_{i:03d}" if i else "Armature_Bone" for i, b in enumerate(bones)}
+    return [(new[n], new[p] if p else None, h, t) for n, p, h, t in bones], new
+
+
+_DOG_NUMBERED = _numbered(_dog_bones())
+_BUG_NUMBERED = _gltf_numbered(_bug_bones())
+
+
+# ---------------------------------------------------------------------------------------
 # Building
 
 
@@ -1286,6 +1443,28 @@ FIXTURES: dict[str, Fixture] = {
                 "R3": ("joint_17", "joint_19"),
             }
         ),
+    ),
+    "vroid": Fixture(
+        lambda sc, n: build(sc, n, _vroid_bones()),
+        Expected({f"{s}1": (f"J_Bip_{s}_UpperLeg", f"J_Bip_{s}_LowerLeg") for s in "LR"}),
+    ),
+    "makehuman": Fixture(
+        lambda sc, n: build(sc, n, _makehuman_bones()),
+        Expected({"L1": ("upperleg01.L", "lowerleg02.L"), "R1": ("upperleg01.R", "lowerleg02.R")}),
+    ),
+    "genesis9": Fixture(
+        lambda sc, n: build(sc, n, _genesis9_bones()),
+        Expected({"L1": ("l_thigh", "l_shin"), "R1": ("r_thigh", "r_shin")}),
+    ),
+    "dog_numbered": Fixture(
+        lambda sc, n: build(sc, n, _DOG_NUMBERED[0]),
+        Expected({k: (_DOG_NUMBERED[1][h], _DOG_NUMBERED[1][e])
+                  for k, (h, e) in _pair("upperarm", "hand", "thigh", "foot").legs.items()}),
+    ),
+    "bug_gltf": Fixture(
+        lambda sc, n: build(sc, n, _BUG_NUMBERED[0], plus_y=0.01),
+        Expected({f"{s}{k}": (_BUG_NUMBERED[1][f"coxa{k}.{s}"], _BUG_NUMBERED[1][f"tibia{k}.{s}"])
+                  for k in (1, 2, 3) for s in "LR"}),
     ),
     "mirrored": Fixture(
         _mirrored, Expected(refusal="has a non-uniform or mirrored scale: apply its scale first"), False

@@ -340,6 +340,39 @@ def _measure(obj: Any, job: generate.Job, terrain: dict[str, Any]) -> dict[str, 
     return out
 
 
+def gait_events(ends: np.ndarray, job: generate.Job) -> metrics.PhaseErrors:
+    """The lift-offs and touch-downs of the posed end-effectors ``ends`` ``(F, L, 3)`` judged
+    against each frame's gait circles (they change with Gait Changes and with Gait: Auto).
+
+    Forced steps (a support moved or became forbidden) are not the gait's: not judged. A
+    foot lifts at the first frame it has moved to, and lands at the first frame it does not
+    leave: lift-offs are judged on the motion into each frame, touch-downs on the motion out
+    of it, so both are exact to the frame (a cycle that speeds up or slows down, as with
+    Gait: Auto, does not blur them). "Moved" is told apart from a planted foot's jitter on
+    this rig (the posed chain's round-off, over the frames the simulation has both in
+    stance): a swing eases out of its first frame, so a foot that lifts just after the
+    needle crossed its sector's start moves a tenth of a millimetre in it, which a fixed
+    thousandth of the leg would miss, judging the lift a frame late."""
+    res = job.result
+    scale = float(job.info.leg_length.mean())
+    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)  # (F - 1, L) each foot's motion
+    forced = res.forced | np.roll(res.forced, 1, axis=0) | np.roll(res.forced, -1, axis=0)
+    both_down = ~res.swing[1:] & ~res.swing[:-1]
+    jitter = float(step[both_down].max(initial=0.0))
+    moved = min(1e-3 * scale, max(4.0 * jitter, 1e-7 * scale))
+    stayed = np.ones(ends.shape[:2], dtype=bool)
+    stayed[1:] = step < moved
+    planted = np.zeros(ends.shape[:2], dtype=bool)
+    planted[:-1] = step < moved
+    planted[-1] = planted[-2]
+    lifts = metrics.swing_phase_errors(stayed, res.needle, res.phase_rate * job.dt, res.disk_start,
+                                       res.disk_duration, ignore=forced, first_frame=2)
+    lands = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, res.disk_start,
+                                       res.disk_duration, ignore=forced, first_frame=2)
+    return metrics.PhaseErrors(lifts.lift_leg, lifts.lift_frame, lifts.lift_error,
+                               lands.land_leg, lands.land_frame, lands.land_error)
+
+
 def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[Any]) -> dict[str, Any]:
     """The numbers of "What done means for the motion", from the evaluated rig, against ray
     casts into ``surfaces`` (moving ones where they are at each frame) and the boxes of the
@@ -361,7 +394,6 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
     hips = np.stack([j[:, 0] for j in joints], axis=1)
     leg_len = info.leg_length
     scale = float(leg_len.mean())
-    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)  # (F - 1, L) each foot's motion
     out: dict[str, float] = {}
     out["slide"] = float(metrics.stance_sliding(ends, ~res.swing).max())
     # Lowest point of each foot: the end-effector, or the foot bones carrying it.
@@ -394,31 +426,7 @@ def _measure_on(obj: Any, job: generate.Job, surfaces: list[Any], avoid: list[An
                       for j, r in zip(joints, rest_seg, strict=True))
     out["reach"] = float(np.linalg.norm(ends - res.feet, axis=-1).max())
     out["extension"] = float((np.linalg.norm(ends - hips, axis=-1) / leg_len).max())
-    # Forced steps (a support moved or became forbidden) are not the gait's: not judged. The
-    # gait is each frame's circles (they change with Gait Changes and with Gait: Auto).
-    forced = res.forced | np.roll(res.forced, 1, axis=0) | np.roll(res.forced, -1, axis=0)
-    # A foot lifts at the first frame it has moved to, and lands at the first frame it does
-    # not leave: lift-offs are judged on the motion into each frame, touch-downs on the
-    # motion out of it, so both are exact to the frame (a cycle that speeds up or slows
-    # down, as with Gait: Auto, does not blur them). "Moved" is told apart from a planted
-    # foot's jitter on this rig (the posed chain's round-off, over the frames the simulation
-    # has both in stance): a swing eases out of its first frame, so a foot that lifts just
-    # after the needle crossed its sector's start moves a tenth of a millimetre in it, which
-    # a fixed thousandth of the leg would miss, judging the lift a frame late.
-    both_down = ~res.swing[1:] & ~res.swing[:-1]
-    jitter = float(step[both_down].max(initial=0.0))
-    moved = min(1e-3 * scale, max(4.0 * jitter, 1e-7 * scale))
-    stayed = np.ones(ends.shape[:2], dtype=bool)
-    stayed[1:] = step < moved
-    planted = np.zeros(ends.shape[:2], dtype=bool)
-    planted[:-1] = step < moved
-    planted[-1] = planted[-2]
-    lifts = metrics.swing_phase_errors(stayed, res.needle, res.phase_rate * job.dt, res.disk_start,
-                                       res.disk_duration, ignore=forced, first_frame=2)
-    lands = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, res.disk_start,
-                                       res.disk_duration, ignore=forced, first_frame=2)
-    phase = metrics.PhaseErrors(lifts.lift_leg, lifts.lift_frame, lifts.lift_error,
-                                lands.land_leg, lands.land_frame, lands.land_error)
+    phase = gait_events(ends, job)
     out["forced"] = float(res.forced.any(axis=0).sum())
     out["phase"] = phase.max_abs
     out["phase_events"] = phase.n_events

@@ -22,7 +22,7 @@ from procloco_addon.core import metrics
 from tests.blender import export_fixtures
 from tests.blender.pose_eval import pose_matrices, ray_heights_over_time, skin_vertices
 from tests.blender.rig_fixtures import FIXTURES
-from tests.blender.test_generate import check_thresholds
+from tests.blender.test_generate import check_thresholds, gait_events
 
 pytestmark = pytest.mark.blender
 
@@ -31,11 +31,15 @@ IMPORTS = export_fixtures.IMPORTS
 #: Fixture rigs that also walk after an import (the others are only detected there): the
 #: quadruped whose tails mean nothing through every importer setting, the humanoid once, the
 #: horse under a moved, turned and half-scaled empty once (FBX keeps the empty), Auto-Rig
-#: Pro's game-engine skeleton as an engine reads its FBX.
+#: Pro's game-engine skeleton as an engine reads its FBX, Genesis 9 through both formats
+#: (its shin's twist bones beside the foot: importers once pointed the shin's tail at one).
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
     ("mixamo_t", "fbx", {}),
     ("horse_in_holder", "fbx", {}),
     ("arp_export", "fbx", {}),
+    ("genesis9", "gltf", {}),
+    ("genesis9", "fbx", {}),
+    ("vroid", "gltf", {}),
 ]
 
 
@@ -178,23 +182,8 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     # change explains (B-Bone segments a few millionths long on a straight leg).
     reach = np.linalg.norm(ends - hips, axis=-1) / info.leg_length
     out["extension"] = float(reach.max()) / (1.0 + out["bone"])
-    step = np.linalg.norm(np.diff(ends, axis=0), axis=-1)
-    still = step < 1e-3 * float(info.leg_length.mean())
-    planted = np.zeros(ends.shape[:2], dtype=bool)
-    planted[:-1] = still
-    planted[-1] = planted[-2]
-    # Judged against each frame's circles (Gait: Auto changes them with the speed), lift-offs
-    # on the motion into each frame and touch-downs on the motion out of it, as
-    # ``test_generate._measure_on`` does.
-    stayed = np.ones(ends.shape[:2], dtype=bool)
-    stayed[1:] = still
-    forced = res.forced | np.roll(res.forced, 1, axis=0) | np.roll(res.forced, -1, axis=0)
-    lifts = metrics.swing_phase_errors(stayed, res.needle, res.phase_rate * job.dt, res.disk_start,
-                                       res.disk_duration, ignore=forced, first_frame=2)
-    lands = metrics.swing_phase_errors(planted, res.needle, res.phase_rate * job.dt, res.disk_start,
-                                       res.disk_duration, ignore=forced, first_frame=2)
-    phase = metrics.PhaseErrors(lifts.lift_leg, lifts.lift_frame, lifts.lift_error,
-                                lands.land_leg, lands.land_frame, lands.land_error)
+    # Lift-offs and touch-downs judged as ``test_generate`` judges them.
+    phase = gait_events(ends, job)
     out["phase"], out["phase_events"] = phase.max_abs, phase.n_events
     out["travel"] = float(np.linalg.norm(res.body[-1, :2, 3] - res.body[0, :2, 3]))
     out["leg"] = float(info.leg_length.mean())
@@ -377,19 +366,31 @@ def _arp_pairs(name: str, first: str, second: str) -> list[tuple[str, str]]:
     return [(f"{first}{d}.{s}", f"{second}{d}.{s}") for d in legs for s in "lr"]
 
 
-@pytest.mark.parametrize("name", ["arp_export", "arp_rig", "arp_dog"])
-def test_auto_rig_pro_legs_bend_at_the_knee_not_between_their_twist_and_stretch_bones(
-    empty_scene: Any, name: str
-) -> None:
-    """Auto-Rig Pro splits the thigh and the shin each in a twist and a stretch bone: the
-    walk keeps each pair in line (the core once bent the shin 41 degrees in its middle)."""
+def _split_pairs(name: str) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+    """The halves of one limb bone on the rig ``name`` (pairs of bones that must stay in line)
+    and its knees (pairs that must bend)."""
+    if name == "makehuman":
+        def pairs(first: str, second: str) -> list[tuple[str, str]]:
+            return [(f"{first}.{s}", f"{second}.{s}") for s in "LR"]
+
+        return (pairs("upperleg01", "upperleg02") + pairs("lowerleg01", "lowerleg02"),
+                pairs("upperleg02", "lowerleg01"))
+    return (_arp_pairs(name, "thigh_twist", "thigh_stretch") + _arp_pairs(name, "leg_stretch", "leg_twist"),
+            _arp_pairs(name, "thigh_stretch", "leg_stretch"))
+
+
+@pytest.mark.parametrize("name", ["arp_export", "arp_rig", "arp_dog", "makehuman"])
+def test_legs_split_in_halves_bend_at_the_knee_not_between_the_halves(empty_scene: Any, name: str) -> None:
+    """Auto-Rig Pro splits the thigh and the shin each in a twist and a stretch bone,
+    MakeHuman in ``upperleg01``/``upperleg02`` and ``lowerleg01``/``lowerleg02``: the walk
+    keeps each pair in line (the core once bent ARP's shin 41 degrees in its middle, and
+    MakeHuman's 42)."""
     obj = FIXTURES[name].build(empty_scene, name)
     job, m = walk(obj)
     check_motion(m, name)
     frames = [int(f) for f in job.frames]
-    halves = _arp_pairs(name, "thigh_twist", "thigh_stretch") + _arp_pairs(name, "leg_stretch", "leg_twist")
+    halves, knees = _split_pairs(name)
     assert _straight(obj, frames, halves) < 0.1
-    knees = _arp_pairs(name, "thigh_stretch", "leg_stretch")
     assert _straight(obj, frames, knees) > 10.0  # the knees (a dog's hocks) do bend
 
 

@@ -71,12 +71,15 @@ def _split_foot(rest: _Rest, idx: list[int]) -> tuple[list[int], list[int]]:
 
 
 def _foot_after(rest: _Rest, end: int) -> list[int]:
-    """Flat bones continuing below/after a user-chosen end-effector (at most two)."""
+    """Flat bones continuing below/after a user-chosen end-effector (at most two), never a
+    control or helper bone (an imported ``l_shin``'s tail points at ``l_shin_twist1``)."""
     out: list[int] = []
     cur = end
     chain_len = float(np.linalg.norm(rest.end[end] - rest.head[end]))
+    control = _control_bones(rest)
     for _ in range(2):
-        nxt = _continuing_child(rest, cur)
+        allowed = {c for c in rest.children(cur) if not control[c]}
+        nxt = _continuing_child(rest, cur, allowed) if allowed else None
         if nxt is None:
             break
         d = rest.end[nxt] - rest.head[nxt]
@@ -202,10 +205,12 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
     toes, a heel, a paw's pads). The first branch carrying anything else (another leg, the
     spine, an arm) is the body; the bone below it is the hip. From each hip the chain goes
     down through the continuing child (:func:`.rest._continuing_child`) to a leaf. Control
-    bones (IK targets, poles) are ignored; chains with a non-leg name (jaw, fin, tail...)
-    are dropped.
+    bones (IK targets, poles) are ignored, and so are bones with a non-leg name (jaw, tail,
+    skirt...) where they branch off a limb: VRoid hangs its dress from the thighs, and the
+    thigh stays the hip. Chains with a non-leg name are dropped.
     """
     names = [split_name(n)[1] for n in rest.names]
+    non_leg = np.array([_is_non_leg_name(t) for t in names], dtype=bool)
     control = _control_bones(rest)
     ground = _rig_ground(rest)
     # Bones this low belong to the feet (a paw's pads and fingers, a hoof's parts).
@@ -235,7 +240,7 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
             if p < 0:
                 cur = -1  # hangs from nothing: not a limb of a body
                 break
-            others = [c for c in kids[p] if c != cur and not control[c]]
+            others = [c for c in kids[p] if c != cur and not control[c] and not non_leg[c]]
             if others and not all(appendage(p, c, path) for c in others):
                 break
             cur = p
@@ -247,6 +252,7 @@ def _ground_chains(rest: _Rest) -> list[list[int]]:
         chain = [hip]
         while True:
             allowed = {c for c in kids[chain[-1]] if not control[c]}
+            allowed = {c for c in allowed if not non_leg[c]} or allowed
             nxt = _continuing_child(rest, chain[-1], allowed) if allowed else None
             if nxt is None:
                 break
@@ -403,14 +409,19 @@ def find_legs(rest: _Rest, constrained: np.ndarray, rig_name: str) -> list[LegCh
 
 #: A chain on the midline longer than this many times the paired legs (on average) is a tail.
 TAIL_SHARE = 1.5
+#: A midline chain whose lowest point stays this share of the paired legs' length above
+#: theirs does not stand on the ground: a tail hanging down, not a leg.
+TAIL_CLEARANCE = 0.05
 
 
 def _tails(rest: _Rest, legs: Sequence[LegChain], forward: np.ndarray) -> list[LegChain]:
-    """The midline chains of ``legs`` that are a tail lying on the ground, not a leg (a rig
-    with no names that say so: ``Bone.005``): unpaired, hanging from behind every paired
-    leg's hip, reaching further back, and longer than :data:`TAIL_SHARE` times the paired
-    legs or of more bones than any of them. A pentapod's midline leg (ahead, as long as the
-    others) stays a leg. Only on rigs with two paired legs or more."""
+    """The midline chains of ``legs`` that are a tail, not a leg (a rig with no names that
+    say so: ``Bone.005``): unpaired, hanging from behind every paired leg's hip, reaching
+    further back, and either lying on the ground (longer than :data:`TAIL_SHARE` times the
+    paired legs or of more bones than any of them) or hanging down short of it (its lowest
+    point :data:`TAIL_CLEARANCE` of the paired legs' length above theirs: a dog's relaxed
+    tail). A pentapod's midline leg (ahead, as long as the others, on the ground) stays a
+    leg. Only on rigs with two paired legs or more."""
     paired = [leg for leg in legs if leg.side != 0]
     if len(paired) < 2:
         return []
@@ -421,6 +432,7 @@ def _tails(rest: _Rest, legs: Sequence[LegChain], forward: np.ndarray) -> list[L
     length = float(np.mean([_length(pts(leg)) for leg in paired]))
     bones = max(len(leg.bones) + len(leg.foot) for leg in paired)
     hips_fwd = min(float(pts(leg)[0] @ forward) for leg in paired)
+    ground = min(float(pts(leg)[:, 2].min()) for leg in paired)
     out = []
     for leg in legs:
         if leg.side != 0:
@@ -428,7 +440,8 @@ def _tails(rest: _Rest, legs: Sequence[LegChain], forward: np.ndarray) -> list[L
         p = pts(leg)
         behind = float(p[0] @ forward) < hips_fwd and float(p[-1] @ forward) < float(p[0] @ forward)
         long = _length(p) > TAIL_SHARE * length or len(leg.bones) + len(leg.foot) > bones
-        if behind and long:
+        hanging = float(p[:, 2].min()) - ground > TAIL_CLEARANCE * length
+        if behind and (long or hanging):
             out.append(leg)
     return out
 

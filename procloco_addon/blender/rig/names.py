@@ -22,11 +22,16 @@ LEG_WORDS = frozenset({
     "lowerarm", "scapula", "humerus", "radius", "ulna", "cannon", "pastern", "fetlock", "carpus",
     "metacarpus", "metatarsal", "femoral", "tarsal", "hind", "fore",
 })
-# Words of appendages that may reach down but are not legs (jaws, palps, fins, face bones).
+# Words of appendages that may reach down but are not legs (jaws, palps, fins, face bones),
+# and of the clothes and hair that hang from a character's hips, thighs or head (VRoid's
+# ``J_Sec_L_SkirtBack1_01``, ``J_Sec_L_CoatSkirtBack_01``, ``J_Sec_Hair1_05``: an ankle-long
+# dress or a twin tail reaches the floor like a leg).
 NON_LEG_WORDS = frozenset({
     "jaw", "jaws", "pincer", "pedipalp", "palp", "chelicera", "chelicerae", "antenna", "antennae", "fin",
     "fins", "tail", "wing", "mandible", "fang", "tongue", "ear", "teeth", "tooth", "mouth", "lip", "cheek",
     "nose", "brow", "eyebrow", "eye", "lid", "chin", "whisker", "tentacle", "hair", "beak",
+    "skirt", "dress", "coat", "cape", "cloak", "robe", "gown", "cloth", "sleeve", "hood", "scarf", "ribbon",
+    "bust", "breast", "ponytail", "braid", "bang", "bangs", "tassel", "apron", "belt",
 })
 # Helper words that may end a leg chain: the leaf bone marking a toe's tip (``LeftToe_End``).
 TIP_WORDS = frozenset({"tip", "end", "nub", "null"})
@@ -117,16 +122,31 @@ def _leg_number(tokens: Sequence[str]) -> str:
 SPLIT_WORDS = frozenset({"twist", "stretch", "bend"})
 
 
+#: Leg words that name a whole limb or its end, not one segment: ``Leg01`` > ``Leg02`` are a
+#: thigh and a shin (a game quadruped's hind leg), ``Foot01`` > ``Foot02`` a cannon and a hoof.
+WHOLE_LIMB_WORDS = frozenset({
+    "leg", "legs", "limb", "hind", "fore", "arm", "foot", "feet", "toe", "toes", "paw", "hoof", "claw",
+    "hand", "manus", "pes",
+})
+
+
 def split_joints(bones: Sequence[str]) -> list[int]:
     """The hinges of a leg chain (1 .. len(bones) - 1, hinge ``j`` between ``bones[j - 1]``
     and ``bones[j]``) that join two halves of one limb bone: one of the two names a split
     (``twist``, ``stretch``, ``bend``) and without those words both name the same limb
-    (``thigh``, ``leg``). A knee never does: ``thigh_stretch.l`` > ``leg_stretch.l`` name two
-    limbs, and Auto-Rig Pro's ``c_thigh_b.l`` > ``thigh_twist.l`` (a three-bone leg's hip)
-    are two bones."""
+    (``thigh``, ``leg``); or the two names differ only in their numbers and name the same
+    segment of a limb (MakeHuman's ``upperleg01.L`` > ``upperleg02.L`` and ``lowerleg01.L``
+    > ``lowerleg02.L``, a B-Bone split's ``thigh.L`` > ``thigh.L.001``; not
+    :data:`WHOLE_LIMB_WORDS`). A knee never does: ``thigh_stretch.l`` > ``leg_stretch.l``
+    name two limbs, ``upperleg02.L`` > ``lowerleg01.L`` too, and Auto-Rig Pro's
+    ``c_thigh_b.l`` > ``thigh_twist.l`` (a three-bone leg's hip) are two bones."""
     out = []
     for j in range(1, len(bones)):
         a, b = set(split_name(bones[j - 1])[1]), set(split_name(bones[j])[1])
         if (a | b) & SPLIT_WORDS and a - SPLIT_WORDS == b - SPLIT_WORDS and a & LEG_WORDS:
+            out.append(j)
+            continue
+        words = {t for t in a if not t.isdigit()}
+        if a != b and words == {t for t in b if not t.isdigit()} and words & (LEG_WORDS - WHOLE_LIMB_WORDS):
             out.append(j)
     return out

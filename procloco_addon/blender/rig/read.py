@@ -456,6 +456,25 @@ def read_rig(
     return info
 
 
+def _far_joint(rest: _Rest, leg: LegChain, heads: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """The far joint ``(3,)`` of ``leg``'s end-effector, from the posed ``heads`` and far
+    joints ``ends`` ``(B, 3)``: its own far joint, or the head of its first foot bone when that
+    hangs from it elsewhere among other children. An importer points the tail of a bone with
+    several children at one of them (glTF: the first) or between them (FBX: their mean), and
+    when most bones have one child the rig's tails pass for joints: Genesis 9's ``l_shin``,
+    with ``l_shin_twist1`` and ``l_shin_twist2`` beside ``l_foot``, once ended a fifth of the
+    way down the shin."""
+    end = rest.index[leg.end]
+    if not leg.foot:
+        return ends[end]
+    foot = rest.index[leg.foot[0]]
+    kids = rest.children(end)
+    tol = 1e-4 * max(float(np.linalg.norm(rest.head[foot] - rest.head[end])), 1e-12)
+    if foot in kids and len(kids) > 1 and np.linalg.norm(rest.end[end] - rest.head[foot]) > tol:
+        return heads[foot]
+    return ends[end]
+
+
 def _read_rig(
     obj: bpy.types.Object, legs: Sequence[LegChain] | None, forward_axis: str, spine: bool,
     at_rest: Collection[str],
@@ -531,7 +550,7 @@ def _read_rig(
     foot_pts = []
     for leg, fb in zip(legs, foot_bones, strict=True):
         idx = [rest.index[b] for b in leg.bones]
-        pts = np.vstack([heads[idx], ends[idx[-1]][None]])
+        pts = np.vstack([heads[idx], _far_joint(rest, leg, heads, ends)[None]])
         joints.append(pts)
         below = [pts[-1]]
         for k in fb:
