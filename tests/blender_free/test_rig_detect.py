@@ -22,7 +22,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from procloco_addon.blender.rig.detect import _ground_chains, find_legs, forward_of
-from procloco_addon.blender.rig.names import split_name
+from procloco_addon.blender.rig.names import split_joints, split_name
 from procloco_addon.blender.rig.rest import RigError, _Rest, joint_ends, with_leaf_ends
 
 
@@ -324,6 +324,58 @@ def test_a_tail_lying_on_the_ground_is_not_a_leg(tail_bones: int) -> None:
     legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "creature")
     assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
     assert sorted(leg.label for leg in legs) == ["L2", "L3", "M1", "R2", "R3"]
+
+
+def test_a_tail_hanging_short_of_the_ground_is_not_a_leg() -> None:
+    # No names: a dog's relaxed tail of three bones hangs from the pelvis behind the hind
+    # legs to 8 % of a leg above the floor (shorter than the legs, of fewer bones); a leg
+    # on the midline ahead, standing on the ground, stays a leg.
+    tree = Tree()
+    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
+    for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
+        for side in (1.0, -1.0):
+            pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
+                            [0.2 * side, y - 0.15, 0.0]])
+            tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
+    front = tree.chain(spine[1], np.array([[0.0, -0.5, 1.0], [0.0, -0.7, 0.55], [0.0, -0.75, 0.05],
+                                           [0.0, -0.85, 0.0]]))
+    tree.legs.append([tree.names[i] for i in front])
+    tree.chain(spine[0], np.array([[0.0, 0.5, 1.0], [0.0, 0.7, 0.75], [0.0, 0.85, 0.4], [0.0, 0.9, 0.08]]))
+    rest = _rest(tree.names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "dog")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
+def test_a_dress_hanging_from_the_thighs_is_not_legs() -> None:
+    # VRoid hangs its skirt chains from each thigh (``J_Sec_L_SkirtFront0_01`` ...), an
+    # ankle-long dress to near the floor: the legs are found from the thighs, the skirt is
+    # no leg.
+    tree = Tree()
+    _biped(tree)
+    names = list(tree.names)
+    for leg, side in zip(tree.legs, "LR", strict=True):
+        thigh = names.index(leg[0])
+        x = float(tree.head[thigh][0])
+        skirt = tree.chain(thigh, np.array([[x, -0.05, 0.95], [x, -0.08, 0.6], [x + 0.05, -0.12, 0.3],
+                                            [x + 0.06, -0.14, 0.1]]))
+        names += [f"J_Sec_{side}_SkirtFront{k}_01" for k in range(1, 4)]
+        assert len(names) == skirt[-1] + 1
+    rest = _rest(names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(names), dtype=bool), "vroid")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
+@pytest.mark.parametrize(("bones", "halves"), [
+    (("upperleg01.L", "upperleg02.L", "lowerleg01.L", "lowerleg02.L"), [1, 3]),  # MakeHuman
+    (("DEF-thigh.L", "DEF-thigh.L.001", "DEF-shin.L", "DEF-shin.L.001"), [1, 3]),  # B-Bone split
+    (("thigh_twist.l", "thigh_stretch.l", "leg_stretch.l", "leg_twist.l"), [1, 3]),  # Auto-Rig Pro
+    (("b_LeftLeg01_015", "b_LeftLeg02_016", "b_LeftFoot01_017"), []),  # a thigh and a shin
+    (("joint_2", "joint_3", "joint_4"), []),
+    (("Bone.010", "Bone.011", "Bone.012"), []),
+    (("Leg1Base.L", "Leg1Mid.L", "Leg1Fore.L"), []),
+])
+def test_the_halves_of_one_limb_bone_are_told_from_knees(bones: tuple[str, ...], halves: list[int]) -> None:
+    assert split_joints(bones) == halves
 
 
 def test_detection_imports_without_bpy(repo_root: Any) -> None:
