@@ -32,7 +32,9 @@ IMPORTS = export_fixtures.IMPORTS
 #: quadruped whose tails mean nothing through every importer setting, the humanoid once, the
 #: horse under a moved, turned and half-scaled empty once (FBX keeps the empty), Auto-Rig
 #: Pro's game-engine skeleton as an engine reads its FBX, Genesis 9 through both formats
-#: (its shin's twist bones beside the foot: importers once pointed the shin's tail at one).
+#: (its shin's twist bones beside the foot: importers once pointed the shin's tail at one),
+#: VRoid through glTF, Character Creator 4 through FBX (whose importer connects the hips to
+#: the root: the walk once keyed the hips' location, which Blender ignores).
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
     ("mixamo_t", "fbx", {}),
     ("horse_in_holder", "fbx", {}),
@@ -40,6 +42,7 @@ WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] +
     ("genesis9", "gltf", {}),
     ("genesis9", "fbx", {}),
     ("vroid", "gltf", {}),
+    ("cc4", "fbx", {}),
 ]
 
 

@@ -629,9 +629,13 @@ def _carrier(obj: bpy.types.Object, rest: _Rest, body: int, above: float) -> int
     placement root ``root``, ``CC_Base_BoneRoot``, ``c_root_master``), a mechanism or
     deform copy (``ORG-``, ``DEF-``, ``MCH-``), driven by a constraint, or with its head no
     higher than ``above`` (world z: a root at the ground). A body bone that is itself driven
-    (a control rig's) is left to the controls that drive it.
+    (a control rig's) is left to the controls that drive it. A connected bone cannot move
+    (its head is its parent's tail): its parent carries the body, root or not (FBX's
+    importer connects ``CC_Base_Hip`` to ``CC_Base_BoneRoot``, whose tail it points at the
+    hip, and the walk once keyed the hip's location, which Blender ignores).
     """
     pbones = obj.pose.bones
+    bones = obj.data.bones
     control = _control_bones(rest)
 
     def plain(i: int) -> bool:
@@ -645,8 +649,11 @@ def _carrier(obj: bpy.types.Object, rest: _Rest, body: int, above: float) -> int
     while True:
         p = int(rest.parent[cur])
         if p < 0 or not plain(p) or float(rest.head[p, 2]) <= above:
-            return cur
+            break
         cur = p
+    while bones[rest.names[cur]].use_connect and rest.parent[cur] >= 0:
+        cur = int(rest.parent[cur])
+    return cur
 
 
 def _ik_target(obj: bpy.types.Object, rest: _Rest, leg: LegChain) -> tuple[str, int] | None:
