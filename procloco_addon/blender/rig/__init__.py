@@ -42,7 +42,7 @@ The **body bone** (:attr:`RigInfo.body_bone`) is the legs' common ancestor, or t
 plain bone above it (not a root, control or mechanism bone, not driven by a constraint, well
 above the ground): Character Creator hangs the legs from ``CC_Base_Pelvis`` and the upper
 body from ``CC_Base_Hip`` above it, and moving the pelvis alone would leave the upper body
-behind.
+behind. A connected bone cannot move: its parent carries the body then, a root included.
 
 Geometry is read in **world space** from the armature's rest pose placed by the object's
 world matrix, so scaled, rotated and moved rigs work (a uniform object scale is required:
