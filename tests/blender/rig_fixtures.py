@@ -34,6 +34,13 @@ name with the legs detection must find (:class:`Expected`) or the refusal it mus
   section): a biped's control rig (controls, FK/IK mechanism, deform bones copying them, no
   skin on controls), its game-engine export (the deform skeleton alone), and a dog's deform
   skeleton with three-bone legs; thighs and shins each split in a twist and a stretch bone.
+- Game creatures whose other limbs are the classic traps (their section): a ``scorpion``
+  (pincer arms named ``ClawArm1.L`` ... ``Claw.L``, held just above the floor; a tail curled
+  over the back), a ``raptor`` (long feet and toes, small arms, a level tail, a long neck),
+  a ``centaur`` (a human torso with hanging arms on a horse), a ``mantis`` (raised raptorial
+  forelegs), a ``crab`` (legs splayed sideways, claws near the floor), a ``centipede`` (22
+  legs on a chain of segments), a ``kangaroo`` (forelegs hanging above the floor, a tail on
+  it) and a legless ``snake`` (refused); the scorpion, centaur and kangaroo also unnamed.
 """
 
 from __future__ import annotations
@@ -1114,6 +1121,247 @@ _BUG_NUMBERED = _gltf_numbered(_bug_bones())
 
 
 # ---------------------------------------------------------------------------------------
+# Game creatures whose other limbs are the classic traps for leg detection (round 6)
+
+
+def _out(azimuth: float) -> np.ndarray:
+    """The horizontal unit vector ``azimuth`` degrees from forward (-Y) towards the left (+X)."""
+    a = math.radians(azimuth)
+    return np.array([math.sin(a), -math.cos(a), 0.0])
+
+
+def _vec(p: np.ndarray) -> Vec:
+    return (float(p[0]), float(p[1]), float(p[2]))
+
+
+def _arthropod_leg(hip: Sequence[float], azimuth: float, coxa: float, femur: float, rise: float,
+                   tibia: float, tarsus: float) -> list[Vec]:
+    """The joints of an arthropod's left walking leg from ``hip``: a coxa out, a femur rising
+    ``rise`` to a high knee, a tibia down to a tenth of the hip's height, a tarsus to the floor,
+    each ``azimuth`` degrees from forward."""
+    out = _out(azimuth)
+    h = np.array(hip, dtype=np.float64)
+    c = h + coxa * out + np.array([0.0, 0.0, -0.1 * coxa])
+    k = c + femur * out + np.array([0.0, 0.0, rise])
+    a = k + tibia * out
+    a[2] = 0.12 * h[2]
+    t = a + tarsus * out
+    t[2] = 0.0
+    return [_vec(p) for p in (h, c, k, a, t)]
+
+
+def _scorpion_bones() -> list[Spec]:
+    """A game scorpion 1 m long, its body 16 cm above the floor: ``Root`` > ``Body`` (the
+    mesosoma) > ``Head`` (the prosoma, the legs hanging from it), eight legs
+    ``Leg1_Coxa.L`` > ``Leg1_Femur.L`` > ``Leg1_Tibia.L`` > ``Leg1_Tarsus.L`` ...; two pincer
+    arms (the pedipalps) named as game artists name them, ``ClawArm1.L`` > ``ClawArm2.L`` >
+    ``Claw.L`` > ``ClawFinger.L`` (leg words all: arm, claw), reaching forward and down to
+    4 cm above the floor, longer than the legs; a segmented tail ``Tail1`` ... ``Tail5`` >
+    ``Stinger`` curling up over the back; chelicerae on the head."""
+    z = 0.16
+    bones: list[Spec] = [
+        ("Root", None, (0.0, 0.0, 0.0), (0.0, 0.1, 0.0)),
+        ("Body", "Root", (0.0, 0.2, z), (0.0, -0.02, z)),
+        ("Head", "Body", (0.0, -0.02, z), (0.0, -0.16, 0.95 * z)),
+    ]
+    # The tail: from the back of the body, back and up, then forward over the back.
+    pts = [np.array([0.0, 0.2, z])]
+    for k, angle in enumerate((15.0, 40.0, 70.0, 100.0, 130.0)):
+        a = math.radians(angle)
+        pts.append(pts[-1] + (0.11 - 0.008 * k) * np.array([0.0, math.cos(a), math.sin(a)]))
+    a = math.radians(200.0)
+    pts.append(pts[-1] + 0.07 * np.array([0.0, math.cos(a), math.sin(a)]))
+    bones += _chain([*(f"Tail{k}" for k in range(1, 6)), "Stinger"], "Body", [_vec(p) for p in pts])
+    left: list[Spec] = []
+    for n, (y, azimuth) in enumerate(((-0.13, 55.0), (-0.09, 80.0), (-0.05, 105.0), (-0.01, 130.0)), start=1):
+        left += _chain([f"Leg{n}_{b}.L" for b in ("Coxa", "Femur", "Tibia", "Tarsus")], "Head",
+                       _arthropod_leg((0.035, y, 0.95 * z), azimuth, 0.03, 0.11, 0.07, 0.13, 0.05))
+    left += _chain(["Chelicera.L"], "Head", [(0.015, -0.16, 0.95 * z), (0.02, -0.2, 0.85 * z)])
+    left += _chain(["ClawArm1.L", "ClawArm2.L", "Claw.L", "ClawFinger.L"], "Head",
+                   [(0.04, -0.15, 0.95 * z), (0.15, -0.24, 0.2), (0.12, -0.38, 0.1), (0.08, -0.5, 0.05),
+                    (0.06, -0.57, 0.04)])
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+_SCORPION_LEGS = {f"{s}{k}": (f"Leg{k}_Coxa.{s}", f"Leg{k}_Tibia.{s}") for k in range(1, 5) for s in "LR"}
+
+
+def _raptor_bones() -> list[Spec]:
+    """A game raptor in the Unreal style, 1 m at the hips and 3.6 m long: ``root`` >
+    ``pelvis`` > ``spine_01`` ... ``spine_03`` > ``neck_01`` ... ``neck_04`` > ``head`` >
+    ``jaw``; a tail ``tail_01`` ... ``tail_08`` held level behind; per leg ``thigh_l`` >
+    ``calf_l`` > ``foot_l`` (the long metatarsus, steep) > ``ball_l`` > three toes
+    ``toe_01_l`` > ``toe_01b_l`` ... flat on the floor and the raised sickle claw
+    ``toe_claw_l``; two small arms ``clavicle_l`` > ``upperarm_l`` > ``lowerarm_l`` >
+    ``hand_l`` > ``finger_01_l`` folded under the chest."""
+    bones: list[Spec] = [("root", None, (0.0, 0.0, 0.0), (0.0, 0.2, 0.0))]
+    bones += _chain(["pelvis", "spine_01", "spine_02", "spine_03"], "root",
+                    [(0.0, 0.1, 1.0), (0.0, 0.0, 1.0), (0.0, -0.2, 1.02), (0.0, -0.4, 1.05),
+                     (0.0, -0.55, 1.1)])
+    bones += _chain([f"neck_0{k}" for k in range(1, 5)] + ["head"], "spine_03",
+                    [(0.0, -0.55, 1.1), (0.0, -0.68, 1.25), (0.0, -0.78, 1.42), (0.0, -0.86, 1.58),
+                     (0.0, -0.92, 1.7), (0.0, -1.2, 1.7)])
+    bones.append(("jaw", "head", (0.0, -0.95, 1.66), (0.0, -1.18, 1.6)))
+    bones += _chain([f"tail_0{k}" for k in range(1, 9)], "pelvis",
+                    [(0.0, 0.1 + 0.25 * k, 1.0 - 0.01 * k) for k in range(9)])
+    hip, knee, ankle, ball = (0.16, 0.05, 0.95), (0.18, -0.22, 0.58), (0.18, 0.12, 0.3), (0.18, 0.0, 0.04)
+    left = _chain(["thigh_l", "calf_l", "foot_l", "ball_l"], "pelvis",
+                  [hip, knee, ankle, ball, (0.18, -0.05, 0.02)])
+    for k, dx in ((1, 0.03), (2, 0.0), (3, -0.03)):
+        start = (0.18 + dx, -0.05, 0.02)
+        left += _chain([f"toe_0{k}_l", f"toe_0{k}b_l"], "ball_l",
+                       [start, (0.18 + 1.5 * dx, -0.13, 0.01), (0.18 + 2 * dx, -0.2, 0.0)])
+    left.append(("toe_claw_l", "ball_l", (0.17, 0.0, 0.04), (0.165, -0.06, 0.1)))
+    left += _chain(["clavicle_l", "upperarm_l", "lowerarm_l", "hand_l", "finger_01_l"], "spine_03",
+                   [(0.04, -0.45, 1.0), (0.12, -0.5, 0.98), (0.14, -0.5, 0.8), (0.12, -0.66, 0.82),
+                    (0.11, -0.72, 0.76), (0.1, -0.74, 0.7)])
+    return bones + left + _mirror(left, lambda n: re.sub(r"_l$", "_r", n))
+
+
+def _centaur_bones() -> list[Spec]:
+    """A game centaur: a horse's body 1.45 m at the withers on four legs named as a game
+    artist names a horse's (``front_upperleg.L`` > ``front_lowerleg.L`` > ``front_cannon.L``
+    > ``front_hoof.L``, ``hind_upperleg.L`` ... ``hind_hoof.L``), the human torso rising from
+    its chest ``spine_01`` > ``waist`` > ``spine_02`` > ``chest`` > ``neck`` > ``head`` with
+    two arms hanging straight down beside the horse's shoulders (``shoulder.L`` >
+    ``upperarm.L`` > ``forearm.L`` > ``hand.L`` > ``fingers.L``), and a tail."""
+    bones = _chain(["pelvis", "spine_01"], None, [(0.0, 0.45, 1.35), (0.0, 0.05, 1.38), (0.0, -0.35, 1.42)])
+    bones += _chain(["waist", "spine_02", "chest", "neck", "head"], "spine_01",
+                    [(0.0, -0.35, 1.42), (0.0, -0.5, 1.65), (0.0, -0.55, 1.85), (0.0, -0.55, 2.1),
+                     (0.0, -0.56, 2.2), (0.0, -0.56, 2.42)])
+    bones += _chain(["tail_01", "tail_02"], "pelvis", [(0.0, 0.45, 1.35), (0.0, 0.7, 1.1), (0.0, 0.85, 0.75)])
+    front = [(0.15, -0.3, 1.3), (0.17, -0.38, 0.9), (0.17, -0.36, 0.45), (0.17, -0.37, 0.1),
+             (0.17, -0.42, 0.0)]
+    hind = [(0.17, 0.42, 1.3), (0.2, 0.22, 0.9), (0.2, 0.5, 0.5), (0.2, 0.5, 0.1), (0.2, 0.45, 0.0)]
+    left = _chain(["front_upperleg.L", "front_lowerleg.L", "front_cannon.L", "front_hoof.L"], "spine_01",
+                  front)
+    left += _chain(["hind_upperleg.L", "hind_lowerleg.L", "hind_cannon.L", "hind_hoof.L"], "pelvis", hind)
+    left += _chain(["shoulder.L", "upperarm.L", "forearm.L", "hand.L", "fingers.L"], "chest",
+                   [(0.03, -0.55, 2.05), (0.2, -0.55, 2.05), (0.24, -0.55, 1.75), (0.25, -0.57, 1.47),
+                    (0.25, -0.58, 1.3), (0.25, -0.58, 1.2)])
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _mantis_bones() -> list[Spec]:
+    """A game praying mantis 12 cm long at 10 cm scale (shown at 1:4, so 48 cm): a thorax
+    with four walking legs ``Leg2_Coxa.L`` ... ``Leg3_Tarsus.L``, the long prothorax raised
+    ahead (``Prothorax`` > ``Head`` > ``Antenna1.L``) carrying the raptorial forelegs
+    ``Leg1_Coxa.L`` > ``Leg1_Femur.L`` > ``Leg1_Tibia.L`` > ``Leg1_Tarsus.L`` held up and
+    folded (the tibia folded back against the femur), an abdomen behind."""
+    z = 0.1
+    bones: list[Spec] = [
+        ("Thorax", None, (0.0, 0.04, z), (0.0, -0.04, z)),
+        ("Abdomen", "Thorax", (0.0, 0.04, z), (0.0, 0.26, 0.8 * z)),
+        ("Prothorax", "Thorax", (0.0, -0.04, z), (0.0, -0.16, 1.8 * z)),
+        ("Head", "Prothorax", (0.0, -0.16, 1.8 * z), (0.0, -0.2, 1.75 * z)),
+    ]
+    left: list[Spec] = [("Antenna1.L", "Head", (0.01, -0.2, 1.8 * z), (0.05, -0.3, 2.2 * z))]
+    for n, (y, azimuth) in ((2, (-0.02, 75.0)), (3, (0.03, 125.0))):
+        left += _chain([f"Leg{n}_{b}.L" for b in ("Coxa", "Femur", "Tibia", "Tarsus")], "Thorax",
+                       _arthropod_leg((0.015, y, 0.95 * z), azimuth, 0.015, 0.08, 0.05, 0.1, 0.04))
+    left += _chain([f"Leg1_{b}.L" for b in ("Coxa", "Femur", "Tibia", "Tarsus")], "Prothorax",
+                   [(0.015, -0.13, 1.6 * z), (0.025, -0.15, 1.3 * z), (0.03, -0.2, 2.0 * z),
+                    (0.03, -0.14, 1.3 * z), (0.03, -0.13, 1.5 * z)])
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _crab_bones() -> list[Spec]:
+    """A game crab, its carapace 40 cm wide 12 cm above the floor: ``root`` > ``body`` >
+    eyestalks ``eye.L``; eight legs splayed sideways ``leg1_upper.L`` > ``leg1_mid.L`` >
+    ``leg1_lower.L`` > ``leg1_tip.L`` ... (rising to a high knee, then down to the floor);
+    two claws held in front ``claw_arm.L`` > ``claw_forearm.L`` > ``claw.L`` > ``claw_finger.L``,
+    their tips resting 3 cm above the floor."""
+    z = 0.12
+    bones: list[Spec] = [
+        ("root", None, (0.0, 0.0, 0.0), (0.0, 0.1, 0.0)),
+        ("body", "root", (0.0, 0.1, z), (0.0, -0.1, z)),
+    ]
+    left: list[Spec] = [("eye.L", "body", (0.03, -0.1, z), (0.04, -0.13, 1.4 * z))]
+    for n, (y, azimuth) in enumerate(((-0.06, 75.0), (-0.02, 88.0), (0.02, 100.0), (0.06, 112.0)), start=1):
+        hip = np.array([0.12, y, z])
+        out = _out(azimuth)
+        mid = hip + 0.1 * out + np.array([0.0, 0.0, 0.06])
+        low = mid + 0.12 * out
+        low[2] = 0.05
+        tip = low + 0.04 * out
+        tip[2] = 0.0
+        left += _chain([f"leg{n}_upper.L", f"leg{n}_mid.L", f"leg{n}_lower.L"], "body",
+                       [_vec(p) for p in (hip, mid, low, tip)])
+    left += _chain(["claw_arm.L", "claw_forearm.L", "claw.L", "claw_finger.L"], "body",
+                   [(0.08, -0.1, z), (0.16, -0.2, 0.1), (0.1, -0.3, 0.06), (0.05, -0.36, 0.04),
+                    (0.025, -0.39, 0.03)])
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+#: The centipede's segments and leg pairs.
+_CENTIPEDE_SEGMENTS = 11
+
+
+def _centipede_bones() -> list[Spec]:
+    """A game centipede 1.1 m long, 6 cm high: ``Head`` > ``Segment01`` > ... ``Segment11``
+    (each 10 cm long, a chain running back), a pair of legs on each segment
+    ``Segment03_Leg.L`` > ``Segment03_Foot.L`` (22 legs), antennae and venom claws
+    (``Forcipule.L``) on the head, two cerci at the tail."""
+    z = 0.06
+    n = _CENTIPEDE_SEGMENTS
+    bones: list[Spec] = [("Head", None, (0.0, -0.1, z), (0.0, -0.16, z))]
+    bones += _chain([f"Segment{k:02d}" for k in range(1, n + 1)], "Head",
+                    [(0.0, -0.1 + 0.1 * k, z) for k in range(n + 1)])
+    left: list[Spec] = [
+        ("Antenna1.L", "Head", (0.01, -0.16, z), (0.05, -0.26, 1.4 * z)),
+        ("Forcipule.L", "Head", (0.015, -0.12, 0.8 * z), (0.01, -0.17, 0.5 * z)),
+        ("Cercus.L", f"Segment{n:02d}", (0.01, -0.1 + 0.1 * n, z), (0.04, 0.1 * n, 0.9 * z)),
+    ]
+    for k in range(1, n + 1):
+        y = -0.1 + 0.1 * k - 0.05
+        hip, knee, foot = (0.02, y, z), (0.07, y - 0.01, 1.2 * z), (0.11, y - 0.02, 0.0)
+        left += _chain([f"Segment{k:02d}_Leg.L", f"Segment{k:02d}_Foot.L"], f"Segment{k:02d}",
+                       [hip, knee, foot])
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _kangaroo_bones() -> list[Spec]:
+    """A game kangaroo standing 1.3 m: ``pelvis`` > ``spine_01`` ... ``chest`` > ``neck`` >
+    ``head`` leaning forward, big hind legs ``thigh.L`` > ``shin.L`` > ``foot.L`` (long, flat on
+    the floor) > ``toe.L``, small forelegs ``upperarm.L`` > ``forearm.L`` > ``hand.L``
+    hanging to 16 cm above the floor, and a thick tail ``tail_01`` ... ``tail_05`` lying on
+    the floor behind."""
+    bones = _chain(["pelvis", "spine_01", "spine_02", "chest"], None,
+                   [(0.0, 0.1, 0.65), (0.0, -0.05, 0.75), (0.0, -0.18, 0.88), (0.0, -0.28, 1.0),
+                    (0.0, -0.35, 1.08)])
+    bones += _chain(["neck", "head"], "chest", [(0.0, -0.35, 1.08), (0.0, -0.42, 1.2), (0.0, -0.58, 1.3)])
+    bones += _chain([f"tail_0{k}" for k in range(1, 6)], "pelvis",
+                    [(0.0, 0.1, 0.65), (0.0, 0.35, 0.45), (0.0, 0.6, 0.22), (0.0, 0.85, 0.07),
+                     (0.0, 1.1, 0.01), (0.0, 1.35, 0.0)])
+    left = _chain(["thigh.L", "shin.L", "foot.L", "toe.L"], "pelvis",
+                  [(0.13, 0.08, 0.6), (0.15, -0.15, 0.4), (0.15, 0.2, 0.1), (0.15, -0.12, 0.01),
+                   (0.15, -0.22, 0.0)])
+    left += _chain(["upperarm.L", "forearm.L", "hand.L"], "chest",
+                   [(0.09, -0.3, 0.95), (0.11, -0.36, 0.65), (0.11, -0.4, 0.3), (0.11, -0.44, 0.16)])
+    return bones + left + _mirror(left, _swap(".L", ".R"))
+
+
+def _snake_bones() -> list[Spec]:
+    """A game snake 2 m long lying on the floor in an S: ``root`` > ``spine_01`` ... ``spine_16``
+    > ``head`` > ``jaw`` and ``tongue``; no legs."""
+    bones: list[Spec] = [("root", None, (0.0, 0.0, 0.0), (0.0, -0.1, 0.0))]
+    pts = [(0.2 * math.sin(0.5 * k), -1.0 + 0.12 * k, 0.03) for k in range(17)][::-1]
+    bones += _chain([f"spine_{k:02d}" for k in range(1, 17)], "root", pts)
+    head = pts[-1]
+    bones += [("head", "spine_16", head, (head[0], head[1] - 0.08, 0.035)),
+              ("jaw", "head", (head[0], head[1] - 0.01, 0.025), (head[0], head[1] - 0.07, 0.02)),
+              ("tongue", "jaw", (head[0], head[1] - 0.07, 0.025), (head[0], head[1] - 0.12, 0.025))]
+    return bones
+
+
+_CENTAUR_LEGS = {f"{s}{k}": (f"{row}_upperleg.{s}", f"{row}_hoof.{s}")
+                 for k, row in ((1, "front"), (2, "hind")) for s in "LR"}
+_SCORPION_NUMBERED = _numbered(_scorpion_bones())
+_CENTAUR_NUMBERED = _numbered(_centaur_bones())
+_KANGAROO_NUMBERED = _numbered(_kangaroo_bones())
+
+
+# ---------------------------------------------------------------------------------------
 # Building
 
 
@@ -1465,6 +1713,54 @@ FIXTURES: dict[str, Fixture] = {
         lambda sc, n: build(sc, n, _BUG_NUMBERED[0], plus_y=0.01),
         Expected({f"{s}{k}": (_BUG_NUMBERED[1][f"coxa{k}.{s}"], _BUG_NUMBERED[1][f"tibia{k}.{s}"])
                   for k in (1, 2, 3) for s in "LR"}),
+    ),
+    # Game creatures whose other limbs are the classic traps (round 6)
+    "scorpion": Fixture(lambda sc, n: build(sc, n, _scorpion_bones()), Expected(_SCORPION_LEGS)),
+    "scorpion_numbered": Fixture(
+        lambda sc, n: build(sc, n, _SCORPION_NUMBERED[0], deform=lambda b: b != "Bone"),  # the root: no skin
+        Expected({k: (_SCORPION_NUMBERED[1][h], _SCORPION_NUMBERED[1][e])
+                  for k, (h, e) in _SCORPION_LEGS.items()}),
+        False,
+    ),
+    "raptor": Fixture(
+        lambda sc, n: build(sc, n, _raptor_bones()),
+        Expected({"L1": ("thigh_l", "foot_l"), "R1": ("thigh_r", "foot_r")}),
+        False,
+    ),
+    "centaur": Fixture(lambda sc, n: build(sc, n, _centaur_bones()), Expected(_CENTAUR_LEGS), False),
+    "centaur_numbered": Fixture(
+        lambda sc, n: build(sc, n, _CENTAUR_NUMBERED[0]),
+        Expected({k: (_CENTAUR_NUMBERED[1][h], _CENTAUR_NUMBERED[1][e])
+                  for k, (h, e) in _CENTAUR_LEGS.items()}),
+        False,
+    ),
+    "mantis": Fixture(
+        lambda sc, n: build(sc, n, _mantis_bones()),
+        Expected({f"{s}{k - 1}": (f"Leg{k}_Coxa.{s}", f"Leg{k}_Tibia.{s}") for k in (2, 3) for s in "LR"}),
+        False,
+    ),
+    "crab": Fixture(
+        lambda sc, n: build(sc, n, _crab_bones()),
+        Expected({f"{s}{k}": (f"leg{k}_upper.{s}", f"leg{k}_lower.{s}") for k in range(1, 5) for s in "LR"}),
+        False,
+    ),
+    "centipede": Fixture(
+        lambda sc, n: build(sc, n, _centipede_bones()),
+        Expected({f"{s}{k}": (f"Segment{k:02d}_Leg.{s}", f"Segment{k:02d}_Foot.{s}")
+                  for k in range(1, _CENTIPEDE_SEGMENTS + 1) for s in "LR"}),
+        False,
+    ),
+    "kangaroo": Fixture(lambda sc, n: build(sc, n, _kangaroo_bones()), _pair("thigh", "shin")),
+    "kangaroo_numbered": Fixture(
+        lambda sc, n: build(sc, n, _KANGAROO_NUMBERED[0]),
+        Expected({k: (_KANGAROO_NUMBERED[1][h], _KANGAROO_NUMBERED[1][e])
+                  for k, (h, e) in _pair("thigh", "shin").legs.items()}),
+        False,
+    ),
+    "snake": Fixture(
+        lambda sc, n: build(sc, n, _snake_bones()),
+        Expected(refusal="no chain of bones from the body reaches the ground"),
+        False,
     ),
     "mirrored": Fixture(
         _mirrored, Expected(refusal="has a non-uniform or mirrored scale: apply its scale first"), False

@@ -91,6 +91,25 @@ def test_default_gait_falls_back_to_a_wave() -> None:
     assert int(gait.in_swing(phases).sum(axis=1).max()) == 1
 
 
+def test_default_gait_of_many_leg_pairs_is_a_metachronal_wave() -> None:
+    """A centipede's 11 leg pairs: on each side the rows swing back to front a quarter cycle
+    apart, the sides half a cycle apart. Neither neighbour of a foot in the air, along its side
+    or across, is in the air; every row lifts once a cycle, and each foot is up a fifth of it
+    (the one-foot-at-a-time wave gave it 4 %: swings of a frame or two)."""
+    labels = [f"{s}{k}" for k in range(1, 12) for s in "LR"]
+    gait = generate.default_gait(labels)
+    up = gait.in_swing(np.linspace(0.0, 1.0, 1000, endpoint=False))  # (phases, legs)
+    left, right = up[:, 0::2], up[:, 1::2]
+    assert not np.any(left[:, 1:] & left[:, :-1])
+    assert not np.any(right[:, 1:] & right[:, :-1])
+    assert not np.any(left & right)
+    assert np.all(up.any(axis=0))
+    np.testing.assert_allclose(up.mean(axis=0), 0.22, atol=0.002)
+    # back to front: L11 lifts a quarter cycle before L10
+    start = dict(zip(labels, gait.swing_start.tolist(), strict=True))
+    assert start["L10"] == pytest.approx((start["L11"] + 0.25) % 1.0)
+
+
 # ---------------------------------------------------------------------------------------
 # Bad input: a clear message and nothing changed
 

@@ -92,8 +92,17 @@ def settings_legs(obj: bpy.types.Object) -> list[rig.LegChain] | None:
     return legs
 
 
+#: The metachronal wave of rigs with more leg pairs than the presets: rows a quarter cycle
+#: apart on each side, every fourth row in step, each foot up this share of the cycle.
+WAVE_SWING = 0.22
+
+
 def default_gait(labels: Sequence[str]) -> core_gait.Gait:
-    """A shipped preset matching ``labels``, else a wave gait (one foot up at a time, back to front)."""
+    """A shipped preset matching ``labels``; for more leg pairs than the presets have
+    (``L1``, ``R1`` ... ``L11``, ``R11``: a centipede) the octopod wave repeated along the
+    body (on each side the rows swing back to front a quarter cycle apart, every fourth row in
+    step, the two sides half a cycle apart: a metachronal wave four rows long); else a wave
+    gait (one foot up at a time, back to front)."""
     wanted = sorted(labels)
     for name in _DEFAULT_PRESETS:
         try:
@@ -103,6 +112,11 @@ def default_gait(labels: Sequence[str]) -> core_gait.Gait:
         if sorted(preset.legs) == wanted:
             return preset.gait(labels)
     n = len(labels)
+    rows = n // 2
+    if n % 2 == 0 and rows > 4 and wanted == sorted(f"{s}{k}" for s in "LR" for k in range(1, rows + 1)):
+        start = np.array([(0.25 * (rows - int(lb[1:])) + (0.5 if lb[0] == "R" else 0.0)) % 1.0
+                          for lb in labels])
+        return core_gait.Gait(start, np.full(n, WAVE_SWING), 1.0, "metachronal wave")
     start = (np.arange(n)[::-1] / n) % 1.0
     duration = np.full(n, min(0.45, 0.9 / n))
     return core_gait.Gait(start, duration, max(0.6, 0.15 * n), "wave")

@@ -158,6 +158,33 @@ def _valid_legs(rest: _Rest, chains: list[list[int]]) -> list[list[int]]:
     return [c for c, low, ln in zip(good, lows, lengths, strict=True) if low - ground <= 0.25 * ln]
 
 
+#: A chain stands on the ground when the lowest point of its limb is within this share of
+#: its length of the lowest limb's.
+STAND_SHARE = 0.02
+#: Where two chains or more stand on the ground, a chain whose limb stays this share of
+#: their mean length above it hangs: a scorpion's or a crab's claws held just above the
+#: floor, a kangaroo's forelegs; not a leg.
+HANG_SHARE = 0.05
+
+
+def _standing(rest: _Rest, chains: Sequence[Sequence[int]]) -> list[bool]:
+    """Which of ``chains`` stand on the ground rather than hang above it (:data:`HANG_SHARE`).
+    A limb reaches as low as its chain and every bone below the chain's end (a name run that
+    stops at the shin, ``thigh.L > shin.L``, goes on down to the paw)."""
+    if len(chains) < 3:
+        return [True] * len(chains)
+    reach = np.array([min(float(_chain_points(rest, c)[:, 2].min()),
+                          float(_subtree_points(rest, c[-1])[:, 2].min())) for c in chains])
+    lengths = np.array([_length(_chain_points(rest, c)) for c in chains])
+    gap = reach - float(reach.min())
+    standing = gap <= STAND_SHARE * lengths
+    if int(standing.sum()) < 2:
+        return [True] * len(chains)
+    # Judged against the standing chains' length: a claw's own length says nothing of how
+    # far above the feet it is held.
+    return (gap <= HANG_SHARE * float(lengths[standing].mean())).tolist()
+
+
 def _dedupe(rest: _Rest, chains: list[list[int]], constrained: np.ndarray) -> list[list[int]]:
     """Keep one chain per leg where a rig has parallel copies (Rigify's ORG-/DEF- bones):
     chains whose hips and tips coincide are one leg; the copy with the fewest constrained
@@ -302,7 +329,9 @@ def _chains_along(rest: _Rest) -> list[tuple[list[int], str]]:
     A chain whose hip is low beside the others' (under :data:`HIP_SHARE` of the highest
     hip's height above the ground) is not a leg: it is a foot control hanging from the root
     (an IK bone with its toe bone, ``CTRL_foot.L > CTRL_toe.L``, MMD's leg IK), not a limb
-    carrying the body.
+    carrying the body. Of the others, a chain hanging above the ground the rest stand on
+    (:func:`_standing`) is not a leg either, whatever its bones are called: a scorpion's
+    pincer arms ``ClawArm1.L > ... > ClawFinger.L``, a kangaroo's forelegs.
     """
     named = [c for c in _name_chains(rest)
              if not any(_is_non_leg_name(split_name(rest.names[b])[1]) for b in c)]
@@ -311,7 +340,8 @@ def _chains_along(rest: _Rest) -> list[tuple[list[int], str]]:
         return found
     ground = min(float(_chain_points(rest, c)[:, 2].min()) for c, _r in found)
     hip = np.array([float(rest.head[c[0], 2]) - ground for c, _r in found])
-    return [f for f, h in zip(found, hip.tolist(), strict=True) if h >= HIP_SHARE * float(hip.max())]
+    found = [f for f, h in zip(found, hip.tolist(), strict=True) if h >= HIP_SHARE * float(hip.max())]
+    return [f for f, stands in zip(found, _standing(rest, [c for c, _r in found]), strict=True) if stands]
 
 
 _AXES = {"+X": (1.0, 0.0, 0.0), "-X": (-1.0, 0.0, 0.0), "+Y": (0.0, 1.0, 0.0), "-Y": (0.0, -1.0, 0.0),
