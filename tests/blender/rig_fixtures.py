@@ -1354,7 +1354,7 @@ def _snake_bones() -> list[Spec]:
     return bones
 
 
-_CENTAUR_LEGS = {f"{s}{k}": (f"{row}_upperleg.{s}", f"{row}_hoof.{s}")
+_CENTAUR_LEGS = {f"{s}{k}": (f"{row}_upperleg.{s}", f"{row}_cannon.{s}")
                  for k, row in ((1, "front"), (2, "hind")) for s in "LR"}
 _SCORPION_NUMBERED = _numbered(_scorpion_bones())
 _CENTAUR_NUMBERED = _numbered(_centaur_bones())
@@ -1601,7 +1601,7 @@ FIXTURES: dict[str, Fixture] = {
             }
         ),
     ),
-    "rigify_horse": Fixture(_metarig("horse"), _pair("shoulder", "f_hoof", "thigh", "r_hoof"), False),
+    "rigify_horse": Fixture(_metarig("horse"), _pair("shoulder", "f_toe", "thigh", "r_toe"), False),
     "rigify_bird": Fixture(_metarig("bird"), _pair("thigh", "shin"), False),
     "rigify_basic_human": Fixture(_metarig("basic_human"), _pair("thigh", "shin"), False),
     # Rigs as their tools make them (the hierarchies of the tools, the skin only on deform bones)
@@ -1660,7 +1660,7 @@ FIXTURES: dict[str, Fixture] = {
         _generated("wolf"), _pair("ORG-front_thigh", "ORG-front_foot", "ORG-thigh", "ORG-foot"), False
     ),
     "generated_horse": Fixture(
-        _generated("horse"), _pair("ORG-upper_arm", "ORG-f_hoof", "ORG-thigh", "ORG-r_hoof"), False
+        _generated("horse"), _pair("ORG-upper_arm", "ORG-f_toe", "ORG-thigh", "ORG-r_toe"), False
     ),
     "generated_cat": Fixture(
         _generated("cat"), _pair("ORG-upper_arm", "ORG-hand", "ORG-thigh", "ORG-foot"), False

@@ -34,7 +34,9 @@ IMPORTS = export_fixtures.IMPORTS
 #: Pro's game-engine skeleton as an engine reads its FBX, Genesis 9 through both formats
 #: (its shin's twist bones beside the foot: importers once pointed the shin's tail at one),
 #: VRoid through glTF, Character Creator 4 through FBX (whose importer connects the hips to
-#: the root: the walk once keyed the hips' location, which Blender ignores).
+#: the root: the walk once keyed the hips' location, which Blender ignores), the scorpion
+#: through FBX and the kangaroo through glTF (claws and forelegs held above the floor, judged
+#: on the importers' bones).
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
     ("mixamo_t", "fbx", {}),
     ("horse_in_holder", "fbx", {}),
@@ -43,6 +45,8 @@ WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] +
     ("genesis9", "fbx", {}),
     ("vroid", "gltf", {}),
     ("cc4", "fbx", {}),
+    ("scorpion", "fbx", {}),
+    ("kangaroo", "gltf", {}),
 ]
 
 
@@ -239,11 +243,7 @@ FOOT_STRETCH = {"generated_human": 3e-4}
 #: known limitations): a strict expected failure, so the entry goes once they walk. None:
 #: the sprawling beetle walks since Auto keeps its stance sweep within what its crowded legs
 #: allow and Detect Legs' speed within Auto's top speed (``AutoGaitParams.stroke``).
-BAD_FIRST_WALKS: dict[str, str] = dict.fromkeys(
-    ("centaur", "centaur_numbered"),
-    "a leg ending in a short steep hoof bone (10 cm of a 1.4 m leg, 63 degrees down) solves the "
-    "hoof as a segment: it flips up by 93 degrees in a frame at the start of a swing",
-)
+BAD_FIRST_WALKS: dict[str, str] = {}
 
 
 def check_motion(m: dict[str, Any], name: str = "") -> None:
@@ -362,6 +362,22 @@ def test_imported_rigs_walk_the_same(
     assert [(leg.label, leg.bones) for leg in job.info.legs] == built["legs"]
     assert m["travel"] == pytest.approx(built["travel"], rel=0.05), (m, built)
     check_motion(m)
+
+
+@pytest.mark.parametrize("axis", ["+X", "-X"])
+def test_a_crab_walks_sideways_with_forward_set_to_its_side(empty_scene: Any, axis: str) -> None:
+    """A crab's legs splay sideways and it walks sideways in life: with Forward set to the
+    rig's +X (or -X) before Detect Legs, the eight legs are found and the crab walks along
+    that axis (by default it walks along -Y, its head's way), within the thresholds."""
+    obj = FIXTURES["crab"].build(empty_scene, "crab")
+    obj.procloco.forward_axis = axis
+    job, m = walk(obj)
+    assert len(job.info.legs) == 8
+    check_motion(m, "crab")
+    moved = job.result.body[-1, :2, 3] - job.result.body[0, :2, 3]
+    sign = 1.0 if axis == "+X" else -1.0
+    assert sign * float(moved[0]) > 0.5 * float(job.info.leg_length.mean()), moved
+    assert abs(float(moved[1])) < 0.05 * abs(float(moved[0])), moved
 
 
 # ---------------------------------------------------------------------------------------

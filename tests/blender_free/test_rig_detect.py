@@ -346,6 +346,58 @@ def test_a_tail_hanging_short_of_the_ground_is_not_a_leg() -> None:
     assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
 
 
+def _standing_quadruped(tree: Tree) -> list[int]:
+    """A quadruped of four three-bone legs 1 m high into ``tree`` (its legs appended to
+    ``tree.legs``); returns its spine, back to front."""
+    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
+    for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
+        for side in (1.0, -1.0):
+            pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
+                            [0.2 * side, y - 0.15, 0.0]])
+            tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
+    return spine
+
+
+@pytest.mark.parametrize("names", [False, True])
+def test_claws_held_above_the_ground_the_legs_stand_on_are_not_legs(names: bool) -> None:
+    # A scorpion's pincer arms, a crab's claws: a mirrored pair of limbs longer than the legs
+    # reaching forward and down from the front of the body to 6 % of a leg above the floor
+    # (within a quarter of their own length of it), named with leg words (ClawArm, Claw) or
+    # not at all. Held at 3 % they would stand on the ground, and be legs.
+    tree = Tree()
+    spine = _standing_quadruped(tree)
+    claws = [tree.chain(spine[1], np.array([[0.1 * side, -0.5, 0.95], [0.4 * side, -0.8, 0.8],
+                                            [0.3 * side, -1.2, 0.4], [0.2 * side, -1.5, 0.07]]))
+             for side in (1.0, -1.0)]
+    labels = list(tree.names)
+    if names:
+        for claw, side in zip(claws, "LR", strict=True):
+            for k, i in enumerate(claw):
+                labels[i] = f"{('ClawArm1', 'ClawArm2', 'Claw')[k]}.{side}"
+    rest = _rest(labels, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(labels), dtype=bool), "scorpion")
+    found = sorted([*leg.bones, *leg.foot] for leg in legs)
+    assert found == sorted([labels[tree.names.index(b)] for b in leg] for leg in tree.legs)
+
+
+def test_a_short_steep_last_bone_is_the_foot() -> None:
+    # A game horse's hoof: the leg's last bone, 6 % of the leg, pointing 60 degrees down to
+    # the floor. It is the leg's foot (keeps its pose), not a segment the IK swings (a
+    # centaur's hoof flipped up 93 degrees in a frame at the start of a swing).
+    tree = Tree()
+    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.3], [0.0, -0.5, 1.3]]))
+    for y in (-0.4, 0.4):
+        for side in (1.0, -1.0):
+            pts = np.array([[0.15 * side, y, 1.25], [0.17 * side, y - 0.08, 0.85],
+                            [0.17 * side, y - 0.06, 0.45], [0.17 * side, y - 0.07, 0.1],
+                            [0.17 * side, y - 0.12, 0.0]])
+            tree.legs.append([tree.names[i] for i in tree.chain(spine[0], pts)])
+    rest = _rest(tree.names, tree.parent, np.array(tree.head), np.array(tree.tail))
+    legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "centaur")
+    assert sorted((list(leg.bones), list(leg.foot)) for leg in legs) == sorted(
+        (leg[:-1], leg[-1:]) for leg in tree.legs)
+
+
 def test_a_dress_hanging_from_the_thighs_is_not_legs() -> None:
     # VRoid hangs its skirt chains from each thigh (``J_Sec_L_SkirtFront0_01`` ...), an
     # ankle-long dress to near the floor: the legs are found from the thighs, the skirt is

@@ -42,12 +42,18 @@ class LegChain:
         return self.bones[-1]
 
 
+#: A chain's last bone shorter than this share of the chain is a foot bone (a hoof), however steep.
+TIP_SHARE = 0.1
+
+
 def _split_foot(rest: _Rest, idx: list[int]) -> tuple[list[int], list[int]]:
     """Split a hip-to-tip chain into the IK part and the trailing flat foot bones.
 
-    A trailing bone is part of the foot when it lies nearly flat (less than 45 degrees from
-    horizontal) and both its ends are within 20 % of the leg's length above the lowest point.
-    At least two bones stay in the IK part.
+    A trailing bone is part of the foot when both its ends are within 20 % of the leg's length
+    above the lowest point and it lies nearly flat (less than 45 degrees from horizontal) or,
+    the chain's last bone, is short (under :data:`TIP_SHARE` of the chain: a hoof or a claw
+    pointing down, which the IK would swing about its joint as a segment of the leg). At least
+    two bones stay in the IK part.
     """
     pts = _chain_points(rest, idx)
     length = float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum())
@@ -61,7 +67,7 @@ def _split_foot(rest: _Rest, idx: list[int]) -> tuple[list[int], list[int]]:
             cut -= 1  # a leaf of unknown extent (imported rig): where the foot starts, never a joint
             continue
         horiz = float(np.linalg.norm(d[:2]))
-        flat = abs(d[2]) < horiz  # under 45 degrees
+        flat = abs(d[2]) < horiz or (cut == len(idx) and float(np.linalg.norm(d)) < TIP_SHARE * length)
         low = rest.head[b, 2] - ground < band and rest.end[b, 2] - ground < band
         if flat and low:
             cut -= 1
