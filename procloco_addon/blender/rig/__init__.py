@@ -13,8 +13,9 @@ underscore are private to this package.
 A **leg** is the bone chain from its *hip* bone down to its *end-effector* bone (thesis
 §3.1: "the name of each leg hip joint and the name of its end-effector, e.g. the joint
 before the foot"). Bones after the end-effector that lie flat on the ground (a human's
-foot and toes, a wolf's paw) are the leg's *foot*: they keep their rest orientation
-(turned with the body's heading) instead of being solved by the IK.
+foot and toes, a wolf's paw), and a last bone under a tenth of the leg low by the ground
+however steep (a hoof), are the leg's *foot*: they keep their rest orientation (turned with
+the body's heading) instead of being solved by the IK.
 
 Detection (:func:`detect_legs`, :func:`.detect.find_legs`) works in two passes:
 
@@ -36,7 +37,10 @@ has its hip at the ankle and is not one either. A bone named as a helper that th
 of its chain hangs from (Genesis' ``lThighBend > lThighTwist > lShin``) is a segment of the
 leg, not a helper. A chain on the midline hanging from behind every paired leg, reaching
 further back and longer than the legs (or of more bones) is a tail lying on the ground, not
-a leg, whatever its bones are called.
+a leg, whatever its bones are called. Where two chains or more stand on the ground, a chain
+whose lowest point (its bones and those below its end) stays 5 % of their length above it
+hangs and is not a leg either: a scorpion's pincer arms (``ClawArm1.L > ... > Claw.L``) or
+a crab's claws held just above the floor, a kangaroo's forelegs.
 
 The **body bone** (:attr:`RigInfo.body_bone`) is the legs' common ancestor, or the highest
 plain bone above it (not a root, control or mechanism bone, not driven by a constraint, well
