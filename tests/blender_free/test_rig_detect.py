@@ -380,6 +380,21 @@ def test_claws_held_above_the_ground_the_legs_stand_on_are_not_legs(names: bool)
     assert found == sorted([labels[tree.names.index(b)] for b in leg] for leg in tree.legs)
 
 
+def test_a_paw_raised_alone_in_the_rest_pose_is_still_a_leg() -> None:
+    # A dog modelled with one front paw lifted 10 % of a leg off the floor: its mirror leg
+    # stands, and no other limb hangs as high; claws and forelegs hang in pairs.
+    tree = Tree()
+    _standing_quadruped(tree)
+    head = np.array(tree.head)
+    tail = np.array(tree.tail)
+    raised = [tree.names.index(b) for b in tree.legs[0]]
+    head[raised[1:], 2] += np.array([0.05, 0.1])
+    tail[raised, 2] += np.array([0.05, 0.1, 0.1])
+    rest = _rest(tree.names, tree.parent, head, tail)
+    legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "dog")
+    assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
+
+
 def test_a_short_steep_last_bone_is_the_foot() -> None:
     # A game horse's hoof: the leg's last bone, 6 % of the leg, pointing 60 degrees down to
     # the floor. It is the leg's foot (keeps its pose), not a segment the IK swings (a

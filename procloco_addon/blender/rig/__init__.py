@@ -38,9 +38,10 @@ of its chain hangs from (Genesis' ``lThighBend > lThighTwist > lShin``) is a seg
 leg, not a helper. A chain on the midline hanging from behind every paired leg, reaching
 further back and longer than the legs (or of more bones) is a tail lying on the ground, not
 a leg, whatever its bones are called. Where two chains or more stand on the ground, a chain
-whose lowest point (its bones and those below its end) stays 5 % of their length above it
-hangs and is not a leg either: a scorpion's pincer arms (``ClawArm1.L > ... > Claw.L``) or
-a crab's claws held just above the floor, a kangaroo's forelegs.
+whose lowest point (its bones and those below its end) stays 5 % of their length above it,
+as high as another such chain, hangs and is not a leg either: a scorpion's pincer arms
+(``ClawArm1.L > ... > Claw.L``) or a crab's claws held just above the floor, a kangaroo's
+forelegs (a paw raised alone in the rest pose stays a leg).
 
 The **body bone** (:attr:`RigInfo.body_bone`) is the legs' common ancestor, or the highest
 plain bone above it (not a root, control or mechanism bone, not driven by a constraint, well

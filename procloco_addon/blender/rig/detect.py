@@ -169,14 +169,16 @@ def _valid_legs(rest: _Rest, chains: list[list[int]]) -> list[list[int]]:
 STAND_SHARE = 0.02
 #: Where two chains or more stand on the ground, a chain whose limb stays this share of
 #: their mean length above it hangs: a scorpion's or a crab's claws held just above the
-#: floor, a kangaroo's forelegs; not a leg.
+#: floor, a kangaroo's forelegs; not a leg when another hangs as high (a mirrored pair).
 HANG_SHARE = 0.05
 
 
 def _standing(rest: _Rest, chains: Sequence[Sequence[int]]) -> list[bool]:
-    """Which of ``chains`` stand on the ground rather than hang above it (:data:`HANG_SHARE`).
-    A limb reaches as low as its chain and every bone below the chain's end (a name run that
-    stops at the shin, ``thigh.L > shin.L``, goes on down to the paw)."""
+    """Which of ``chains`` stand on the ground rather than hang above it (:data:`HANG_SHARE`)
+    with another chain hanging as high (within :data:`STAND_SHARE` of the standing chains'
+    length): claws and forelegs come in pairs, while a paw raised alone in the rest pose is
+    still a leg. A limb reaches as low as its chain and every bone below the chain's end (a
+    name run that stops at the shin, ``thigh.L > shin.L``, goes on down to the paw)."""
     if len(chains) < 3:
         return [True] * len(chains)
     reach = np.array([min(float(_chain_points(rest, c)[:, 2].min()),
@@ -188,7 +190,11 @@ def _standing(rest: _Rest, chains: Sequence[Sequence[int]]) -> list[bool]:
         return [True] * len(chains)
     # Judged against the standing chains' length: a claw's own length says nothing of how
     # far above the feet it is held.
-    return (gap <= HANG_SHARE * float(lengths[standing].mean())).tolist()
+    ref = float(lengths[standing].mean())
+    hanging = gap > HANG_SHARE * ref
+    paired = np.abs(gap[:, None] - gap[None, :]) <= STAND_SHARE * ref
+    np.fill_diagonal(paired, False)
+    return (~(hanging & (paired & hanging[None, :]).any(axis=1))).tolist()
 
 
 def _dedupe(rest: _Rest, chains: list[list[int]], constrained: np.ndarray) -> list[list[int]]:
