@@ -36,7 +36,7 @@ IMPORTS = export_fixtures.IMPORTS
 #: VRoid through glTF, Character Creator 4 through FBX (whose importer connects the hips to
 #: the root: the walk once keyed the hips' location, which Blender ignores), the scorpion
 #: through FBX and the kangaroo through glTF (claws and forelegs held above the floor, judged
-#: on the importers' bones).
+#: on the importers' bones), the centaur through FBX (its short hoof the foot there too).
 WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] + [
     ("mixamo_t", "fbx", {}),
     ("horse_in_holder", "fbx", {}),
@@ -47,6 +47,7 @@ WALK_IMPORTED = [("gltf_quadruped", fmt, options) for fmt, options in IMPORTS] +
     ("cc4", "fbx", {}),
     ("scorpion", "fbx", {}),
     ("kangaroo", "gltf", {}),
+    ("centaur", "fbx", {}),
 ]
 
 
