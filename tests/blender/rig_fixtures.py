@@ -1152,7 +1152,7 @@ def _arthropod_leg(hip: Sequence[float], azimuth: float, coxa: float, femur: flo
 
 
 def _scorpion_bones() -> list[Spec]:
-    """A game scorpion 1 m long, its body 16 cm above the floor: ``Root`` > ``Body`` (the
+    """A game scorpion 90 cm long with its claws, its body 16 cm above the floor: ``Root`` > ``Body`` (the
     mesosoma) > ``Head`` (the prosoma, the legs hanging from it), eight legs
     ``Leg1_Coxa.L`` > ``Leg1_Femur.L`` > ``Leg1_Tibia.L`` > ``Leg1_Tarsus.L`` ...; two pincer
     arms (the pedipalps) named as game artists name them, ``ClawArm1.L`` > ``ClawArm2.L`` >
@@ -1188,7 +1188,7 @@ _SCORPION_LEGS = {f"{s}{k}": (f"Leg{k}_Coxa.{s}", f"Leg{k}_Tibia.{s}") for k in 
 
 
 def _raptor_bones() -> list[Spec]:
-    """A game raptor in the Unreal style, 1 m at the hips and 3.6 m long: ``root`` >
+    """A game raptor in the Unreal style, 1 m at the hips and 3.3 m long: ``root`` >
     ``pelvis`` > ``spine_01`` ... ``spine_03`` > ``neck_01`` ... ``neck_04`` > ``head`` >
     ``jaw``; a tail ``tail_01`` ... ``tail_08`` held level behind; per leg ``thigh_l`` >
     ``calf_l`` > ``foot_l`` (the long metatarsus, steep) > ``ball_l`` > three toes
@@ -1244,8 +1244,8 @@ def _centaur_bones() -> list[Spec]:
 
 
 def _mantis_bones() -> list[Spec]:
-    """A game praying mantis 12 cm long at 10 cm scale (shown at 1:4, so 48 cm): a thorax
-    with four walking legs ``Leg2_Coxa.L`` ... ``Leg3_Tarsus.L``, the long prothorax raised
+    """A game praying mantis 45 cm long, its thorax 10 cm above the floor: a thorax with four
+    walking legs ``Leg2_Coxa.L`` ... ``Leg3_Tarsus.L``, the long prothorax raised
     ahead (``Prothorax`` > ``Head`` > ``Antenna1.L``) carrying the raptorial forelegs
     ``Leg1_Coxa.L`` > ``Leg1_Femur.L`` > ``Leg1_Tibia.L`` > ``Leg1_Tarsus.L`` held up and
     folded (the tibia folded back against the femur), an abdomen behind."""
@@ -1267,7 +1267,7 @@ def _mantis_bones() -> list[Spec]:
 
 
 def _crab_bones() -> list[Spec]:
-    """A game crab, its carapace 40 cm wide 12 cm above the floor: ``root`` > ``body`` >
+    """A game crab, its carapace 25 cm wide 12 cm above the floor, its legs spanning 75 cm: ``root`` > ``body`` >
     eyestalks ``eye.L``; eight legs splayed sideways ``leg1_upper.L`` > ``leg1_mid.L`` >
     ``leg1_lower.L`` > ``leg1_tip.L`` ... (rising to a high knee, then down to the floor);
     two claws held in front ``claw_arm.L`` > ``claw_forearm.L`` > ``claw.L`` > ``claw_finger.L``,
