@@ -1267,8 +1267,8 @@ def _mantis_bones() -> list[Spec]:
 
 
 def _crab_bones() -> list[Spec]:
-    """A game crab, its carapace 25 cm wide 12 cm above the floor, its legs spanning 75 cm: ``root`` > ``body`` >
-    eyestalks ``eye.L``; eight legs splayed sideways ``leg1_upper.L`` > ``leg1_mid.L`` >
+    """A game crab, its carapace 25 cm wide 12 cm above the floor, its legs spanning 75 cm:
+    ``root`` > ``body`` > eyestalks ``eye.L``; eight legs splayed sideways ``leg1_upper.L`` > ``leg1_mid.L`` >
     ``leg1_lower.L`` > ``leg1_tip.L`` ... (rising to a high knee, then down to the floor);
     two claws held in front ``claw_arm.L`` > ``claw_forearm.L`` > ``claw.L`` > ``claw_finger.L``,
     their tips resting 3 cm above the floor."""
