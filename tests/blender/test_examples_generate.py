@@ -19,6 +19,7 @@ import pytest
 
 from procloco_addon.blender.locomotion import generate
 from procloco_addon.blender.locomotion import property_group as locomotion_props
+from procloco_addon.blender.quality import measure
 from procloco_addon.blender.secondary import bake
 from tests.blender.pose_eval import pose_matrices
 from tests.blender.test_generate import (
@@ -59,6 +60,11 @@ def test_example_creature_walks_and_swings_within_the_thresholds(empty_scene: An
     assert bpy.ops.procloco.generate_locomotion() == {"FINISHED"}
     walk = obj.animation_data.action
     assert walk.name == f"{obj.name} ProcLoco"
+    # The quality panel's figures (measured on the posed rig; test_quality checks them against
+    # an independent measurement) are all within the design's thresholds: the example ant's
+    # planted tarsi hung up to 15 mm over its downhill slope for 11 frames before its planted
+    # soles were pitched to the ground in full.
+    assert not [key for key in measure.LIMITS if measure.failed(obj, key)], measure.summary_line(obj)
     # The same inputs again, to read what the operator simulated (the posed rig must match it:
     # the "reach" measure compares the posed feet with these targets).
     job = generate.prepare(bpy.context, obj)

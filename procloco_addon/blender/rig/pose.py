@@ -435,7 +435,9 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
 
     ground = rigs[0].ground
     if ground is not None:
-        _pitch_feet(infos, joints_world, foot_yaw, desired, ground, max_foot_pitch)
+        planted = None if rigs[0].planted is None else _stacked([np.asarray(rig.planted, dtype=bool)
+                                                                 for rig in rigs])
+        _pitch_feet(infos, joints_world, foot_yaw, desired, ground, max_foot_pitch, planted)
     done += 1
     yield done / n_steps
 
@@ -519,7 +521,8 @@ def _ground_in_runs(ground: GroundFn, frame_index: np.ndarray, xy: np.ndarray) -
 
 
 def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], leg_yaw: np.ndarray,
-                desired: dict[str, np.ndarray], ground: GroundFn, limit: float) -> None:
+                desired: dict[str, np.ndarray], ground: GroundFn, limit: float,
+                planted: np.ndarray | None = None) -> None:
     """Turn each leg's first foot bone so its sole follows the ground (see :func:`solve_pose`),
     for rigs of one shape (:func:`solve_poses_steps`). ``joints_world``: per leg
     ``(R, F, k + 1, 3)``; ``leg_yaw`` ``(R, F, L, 3, 3)``: the heading turn of each foot
@@ -527,7 +530,12 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
     other: a foot's sole points follow one another, foot after foot. On a ground that does
     not move, a foot that stands still (its heading the same and its end-effector within
     :data:`HELD` of where it stood first, as a planted foot does) keeps the pitch it had
-    there: its sole is pitched once per stance, and cannot flicker on an edge it stands on."""
+    there: its sole is pitched once per stance, and cannot flicker on an edge it stands on.
+    ``planted`` ``(R, F, L)``: the feet the walk plants; their soles are pitched down to the
+    ground in full however high their end-effectors stand (the planner sets a foot on the
+    highest ground under its whole foot box, so on a slope a foot whose toes reach far from
+    its ankle, an ant's tarsus, stands above the ground under its ankle: only a lifted foot's
+    downward pitch fades)."""
     dynamic = bool(getattr(ground, "dynamic", True))
     info = infos[0]
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]
@@ -574,6 +582,8 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
     under[at] = _ground_in_runs(ground, frame[at[0]] if dynamic else np.zeros_like(at[0]), ends[at][:, :2])
     foot_height = np.repeat(_stacked([i.foot_height[legs] for i in infos]), n_frames, axis=0)  # (R F, J)
     lifts = ends[..., 2] - foot_height - under  # (R F, J)
+    if planted is not None:
+        lifts = np.where(planted[:, :, legs].reshape(n_all, len(legs)), 0.0, lifts)
     heights = np.full(asked.shape, -np.inf)
     changed = np.ones((n_all, len(legs)), dtype=bool)
     # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
