@@ -288,6 +288,28 @@ def test_triangle_soups_ground_gaps_and_moving_meshes() -> None:
         env.set_soup_vertices(0, v)
 
 
+def test_a_crowd_of_windows_over_meshes_fills_no_ring_of_blocks() -> None:
+    """In a call of more windows than ``_FILL_AHEAD_WINDOWS`` (a crowd's), each window takes
+    only the blocks it covers: moved by a block, it needs new ones; its grids are the same
+    as the ring's fills give, bit for bit."""
+    rng = np.random.default_rng(5)
+    mesh = _grid_mesh(rng, 12, -3.0, 3.0)
+    params = terrain.WindowParams(n_cells=24, cell=0.05)
+    m = terrain._FILL_AHEAD_WINDOWS + 1
+    centres = np.column_stack([np.linspace(-1.5, 1.5, m), np.zeros(m)])
+    crowd, ringed = Environment(None, None, [mesh]), Environment(None, None, [mesh])
+    step = crowd.block_cells * params.cell
+    crowd.windows(centres, params)
+    for c in centres:
+        ringed.window(c, params)
+    tiles = crowd.stats["tiles_rasterised"]
+    moved = centres + [0.0, step]
+    for got, want in zip(crowd.windows(moved, params), [ringed.window(c, params) for c in moved], strict=True):
+        assert np.array_equal(got.elevation, want.elevation)
+        assert np.array_equal(got.avoid, want.avoid)
+    assert crowd.stats["tiles_rasterised"] > tiles
+
+
 def test_windows_batch_equals_single_windows_and_snaps_to_the_lattice() -> None:
     env = random_env(11)
     centres = np.array([[0.0, 0.0], [0.33, -0.41], [1.2, 0.9]])
@@ -618,7 +640,7 @@ def test_static_window_grids_are_cut_from_whole_tiles_rasterised_bit_for_bit(see
     env = Environment(hm, crates, soups, tile_cells=tile)
     whole: dict[tuple[float, int, int], tuple[np.ndarray, np.ndarray]] = {}
     for _ in range(3):
-        m = int(rng.integers(1, 6))
+        m = int(rng.integers(1, 13))  # (more than _FILL_AHEAD_WINDOWS: no ring of blocks)
         params = [WindowParams(n_cells=int(rng.integers(3, 60)), cell=float(rng.choice([0.03, 0.05, 0.071])))
                   for _ in range(m)]
         for w, prm in zip(env.windows(rng.uniform(-2.5, 2.5, (m, 2)), params), params, strict=True):

@@ -424,7 +424,11 @@ def _read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     # a rig with no legs listed has no gait chosen yet, unless the Gait was set (Circles)
     if rig_gait.is_auto(obj) or not (from_settings or settings.is_property_set("gait_mode")):
         try:
-            auto = rig_gait.auto_params(obj, info, morph)
+            # (copies read together with the same Auto settings share them: the legs' stroke
+            # limit is a search over the morphology)
+            auto = rig.shared(info, ("auto", *limits, float(settings.gait_speed_scale),
+                                     str(settings.auto_gait_overrides)),
+                              lambda: rig_gait.auto_params(obj, info, morph))
         except core_gait.GaitError as err:
             raise GenerateError(f"Gait of '{obj.name}': {err}") from err
         if auto is None:

@@ -913,8 +913,13 @@ class WindowGrids:
 # ---------------------------------------------------------------------------------------
 _TileKey = tuple[float, int, int]
 
-#: Blocks filled around a window beyond it when it needs new ones (:meth:`Environment._fill_static`).
+#: Blocks filled around a window beyond it when it needs new ones (:meth:`Environment._fill_static`),
+#: in a call of at most :data:`_FILL_AHEAD_WINDOWS` windows: a few characters' windows then
+#: rasterise new blocks at every other block they cross, not at each (a call's fixed cost is
+#: most of a small raster); a crowd's call pays that cost once for all its windows, and the
+#: ring would only grow each character's raster (100 wolves: a fifth more cells).
 _FILL_AHEAD = 1
+_FILL_AHEAD_WINDOWS = 8
 _KEY_HALF = 1 << 20  # block rows and columns from -2**20 to 2**20 - 1 in a key
 
 
@@ -1396,7 +1401,7 @@ class Environment:
         b = self.block_cells
         if self._blocks_filled(cells.tolist(), n.tolist(), i0.tolist(), j0.tolist()):
             return
-        if b < self.tile_cells:
+        if b < self.tile_cells and cells.size <= _FILL_AHEAD_WINDOWS:
             # a window that needs new blocks takes a ring of blocks around it too: a window
             # moving with its character then needs new blocks at every other block it
             # crosses, not at each (a rectangle's raster is mostly the call's fixed cost)
