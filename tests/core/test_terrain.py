@@ -303,8 +303,9 @@ def test_a_crowd_of_windows_over_meshes_fills_no_ring_of_blocks() -> None:
     for c in centres:
         ringed.window(c, params)
     tiles = crowd.stats["tiles_rasterised"]
-    moved = centres + [0.0, step]
-    for got, want in zip(crowd.windows(moved, params), [ringed.window(c, params) for c in moved], strict=True):
+    moved = centres + np.array([0.0, step])
+    wanted = [ringed.window(c, params) for c in moved]
+    for got, want in zip(crowd.windows(moved, params), wanted, strict=True):
         assert np.array_equal(got.elevation, want.elevation)
         assert np.array_equal(got.avoid, want.avoid)
     assert crowd.stats["tiles_rasterised"] > tiles
