@@ -304,17 +304,24 @@ def test_foot_controls_hanging_from_the_root_are_not_legs(named: bool) -> None:
     assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
 
 
-@pytest.mark.parametrize("tail_bones", [2, 6])
-def test_a_tail_lying_on_the_ground_is_not_a_leg(tail_bones: int) -> None:
-    # No names to say so: a quadruped whose tail (long, or of many bones) ends on the ground
-    # behind it; a leg on the midline ahead, as long as the others, stays a leg.
-    tree = Tree()
+def _standing_quadruped(tree: Tree) -> list[int]:
+    """A quadruped of four three-bone legs 1 m high into ``tree`` (its legs appended to
+    ``tree.legs``); returns its spine, back to front."""
     spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
     for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
         for side in (1.0, -1.0):
             pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
                             [0.2 * side, y - 0.15, 0.0]])
             tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
+    return spine
+
+
+@pytest.mark.parametrize("tail_bones", [2, 6])
+def test_a_tail_lying_on_the_ground_is_not_a_leg(tail_bones: int) -> None:
+    # No names to say so: a quadruped whose tail (long, or of many bones) ends on the ground
+    # behind it; a leg on the midline ahead, as long as the others, stays a leg.
+    tree = Tree()
+    spine = _standing_quadruped(tree)
     front = tree.chain(spine[1], np.array([[0.0, -0.5, 1.0], [0.0, -0.7, 0.55], [0.0, -0.75, 0.05],
                                            [0.0, -0.85, 0.0]]))
     tree.legs.append([tree.names[i] for i in front])
@@ -331,12 +338,7 @@ def test_a_tail_hanging_short_of_the_ground_is_not_a_leg() -> None:
     # legs to 8 % of a leg above the floor (shorter than the legs, of fewer bones); a leg
     # on the midline ahead, standing on the ground, stays a leg.
     tree = Tree()
-    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
-    for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
-        for side in (1.0, -1.0):
-            pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
-                            [0.2 * side, y - 0.15, 0.0]])
-            tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
+    spine = _standing_quadruped(tree)
     front = tree.chain(spine[1], np.array([[0.0, -0.5, 1.0], [0.0, -0.7, 0.55], [0.0, -0.75, 0.05],
                                            [0.0, -0.85, 0.0]]))
     tree.legs.append([tree.names[i] for i in front])
@@ -344,18 +346,6 @@ def test_a_tail_hanging_short_of_the_ground_is_not_a_leg() -> None:
     rest = _rest(tree.names, tree.parent, np.array(tree.head), np.array(tree.tail))
     legs = find_legs(rest, np.zeros(len(tree.names), dtype=bool), "dog")
     assert sorted([*leg.bones, *leg.foot] for leg in legs) == sorted(tree.legs)
-
-
-def _standing_quadruped(tree: Tree) -> list[int]:
-    """A quadruped of four three-bone legs 1 m high into ``tree`` (its legs appended to
-    ``tree.legs``); returns its spine, back to front."""
-    spine = tree.chain(-1, np.array([[0.0, 0.5, 1.0], [0.0, 0.0, 1.0], [0.0, -0.5, 1.0]]))
-    for carrier, y in ((spine[1], -0.45), (spine[0], 0.45)):
-        for side in (1.0, -1.0):
-            pts = np.array([[0.15 * side, y, 0.95], [0.2 * side, y + 0.1, 0.5], [0.2 * side, y - 0.05, 0.05],
-                            [0.2 * side, y - 0.15, 0.0]])
-            tree.legs.append([tree.names[i] for i in tree.chain(carrier, pts)])
-    return spine
 
 
 @pytest.mark.parametrize("names", [False, True])
