@@ -181,9 +181,10 @@ def _standing(rest: _Rest, chains: Sequence[Sequence[int]]) -> list[bool]:
     name run that stops at the shin, ``thigh.L > shin.L``, goes on down to the paw)."""
     if len(chains) < 3:
         return [True] * len(chains)
-    reach = np.array([min(float(_chain_points(rest, c)[:, 2].min()),
-                          float(_subtree_points(rest, c[-1])[:, 2].min())) for c in chains])
-    lengths = np.array([_length(_chain_points(rest, c)) for c in chains])
+    points = [_chain_points(rest, c) for c in chains]
+    reach = np.array([min(float(p[:, 2].min()), float(_subtree_points(rest, c[-1])[:, 2].min()))
+                      for p, c in zip(points, chains, strict=True)])
+    lengths = np.array([_length(p) for p in points])
     gap = reach - float(reach.min())
     standing = gap <= STAND_SHARE * lengths
     if int(standing.sum()) < 2:

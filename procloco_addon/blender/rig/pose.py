@@ -355,8 +355,10 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
     else:
         leg_delta = _stacked([rig.leg_frames for rig in rigs]) @ body_rest_t[:, None, None]  # type: ignore[misc]
     leg_yaw = _yaw_only(leg_delta)  # (R, F, L, 3, 3)
-    foot_yaw = leg_yaw if rigs[0].planted is None else np.stack(
-        [_held_foot_yaw(leg_yaw[r], np.asarray(rig.planted, dtype=bool)) for r, rig in enumerate(rigs)])
+    planted = None if rigs[0].planted is None else np.stack([np.asarray(rig.planted, dtype=bool)
+                                                             for rig in rigs])  # (R, F, L)
+    foot_yaw = leg_yaw if planted is None else np.stack(
+        [_held_foot_yaw(leg_yaw[r], planted[r]) for r in range(n_rigs)])
     spine_on = info.spine_layout is not None
     if spine_on and any(rig.spine_rotation is None or rig.spine_joints is None for rig in rigs):
         raise ValueError("the rig's spine is driven: give its spine_rotation and spine_joints")
@@ -435,8 +437,6 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
 
     ground = rigs[0].ground
     if ground is not None:
-        planted = None if rigs[0].planted is None else _stacked([np.asarray(rig.planted, dtype=bool)
-                                                                 for rig in rigs])
         _pitch_feet(infos, joints_world, foot_yaw, desired, ground, max_foot_pitch, planted)
     done += 1
     yield done / n_steps
