@@ -132,11 +132,14 @@ def score_candidates(
     xy = grids.xy_of(cells[:, 0] + reg.r0 + sub[0], cells[:, 1] + reg.c0 + sub[1])
     to_hip = xy - hip_xy
     ok &= planar_length(to_hip[:, 0], to_hip[:, 1]) <= reach + 1e-9
-    # Landing height: the highest surface under the foot box at its exact offset.
+    # Landing height: the highest surface under the sole (within the foot box) at its exact
+    # offset, turned with the foot; the highest under the foot box for the straddle check.
     half = np.asarray(leg.foot_half_extents, dtype=np.float64)
-    land_kernel = _offset_kernel(cell, float(half[0]), float(half[1]), float(foot_yaw),
-                                 round(float(sub[0]), 9), round(float(sub[1]), 9))
-    z = ctx.land_height(cells, land_kernel)
+    hx, hy = float(half[0]), float(half[1])
+    sole_x, sole_y = _sole(leg, (hx, hy))
+    at = (float(foot_yaw), round(float(sub[0]), 9), round(float(sub[1]), 9))
+    z = ctx.land_height(cells, _offset_kernel(cell, min(sole_x, hx), min(sole_y, hy), *at))
+    box_z = ctx.land_height(cells, _offset_kernel(cell, hx, hy, *at))
     max_dz = reach if params.max_height_change is None else params.max_height_change
     ok &= np.abs(z - ctx.start[2]) <= max_dz
     if hip_z is not None:
@@ -144,7 +147,7 @@ def score_candidates(
         m = sel.size
         clear = np.ones(ok.size, dtype=bool)
         ok[sel], clear[sel] = _hip_checks(
-            xy[sel], z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
+            xy[sel], z[sel], box_z[sel], elev[r[sel], c[sel]], np.broadcast_to(hip_xy, (m, 2)),
             np.full(m, float(hip_z)), np.tile(_hip_settings(leg, rq.reach_sweep, rq.reach_sink), (m, 1)),
             _WindowLookup([ctx.grids]), np.zeros(m, dtype=np.intp),
         )

@@ -417,6 +417,9 @@ BATCH_SETTINGS = [
     # the checks that need the hip's height (the requests give one)
     replace(P, reach_3d=0.5, reach_sweep=0.05, reach_sink=0.03, leg_length=0.55, leg_arch=0.5,
             max_straddle=0.05),
+    # long toes on a small sole with those checks: it lands under its sole, straddles by its box
+    replace(P, foot_half_extents=(0.12, 0.09), sole_half_extents=(0.02, 0.04), max_straddle=0.03,
+            reach_3d=0.5),
     replace(P, leg_length=0.45, candidate_radius=0.25),
 ]
 
@@ -575,13 +578,66 @@ def test_footprints_stay_within_the_legs_3d_reach_of_the_hip(hip_z: float) -> No
 def test_a_footprint_hanging_over_a_height_step_is_never_a_candidate() -> None:
     from procloco_addon.core.locomotion.footprints import _hip_checks, _WindowLookup
 
-    # Two footprints on the ground (z at their own point 0), one whose foot box reaches 6 cm
-    # higher ground (it lands at 0.06): with max_straddle 1 cm only the first is a candidate.
+    # Two footprints on the ground (z at their own point 0, their soles landing there), one
+    # whose foot box reaches 6 cm higher ground: with max_straddle 1 cm only the first is a
+    # candidate.
     xy = np.array([[0.3, 0.0], [0.3, 0.0]])
-    z = np.array([0.0, 0.06])
+    box_z = np.array([0.0, 0.06])
     inf = math.inf
     settings = np.tile([0.01, inf, 0.0, 0.0, inf, 0.0, 0.03], (2, 1))
-    ok, clear = _hip_checks(xy, z, np.zeros(2), np.zeros((2, 2)), np.full(2, 0.3), settings,
+    ok, clear = _hip_checks(xy, np.zeros(2), box_z, np.zeros(2), np.zeros((2, 2)), np.full(2, 0.3), settings,
                             _WindowLookup([window()]), np.zeros(2, dtype=np.intp))
     assert ok.tolist() == [True, False]
     assert clear.all()
+
+
+def _slope_window(grade: float) -> WindowGrids:
+    """A plane rising ``grade`` metres per metre along +x through z = 0 at x = 0."""
+    x = -3.0 + 0.5 * np.arange(13)
+    ground = Heightmap(np.tile(grade * x, (13, 1)), np.array([-3.0, -3.0]), 0.5)
+    return Environment(ground).window(np.array([0.2, 0.0]), WP)
+
+
+@pytest.mark.parametrize("yaw", [0.0, 0.5 * math.pi])
+def test_a_long_footed_leg_on_a_slope_lands_on_the_ground_under_its_sole(yaw: float) -> None:
+    # Toes reaching 12 cm from the end-effector (a foot box of 24 cm by 18 cm) on a sole of
+    # 4 cm by 1 cm along the foot, up a 1:5 slope: the foot lands at the highest ground under
+    # its sole, turned with its yaw, within a cell of the ground under its point; the foot box
+    # would set it some 3 cm higher, on the ground its toes reach up the slope. The same
+    # footprint for the one-foot reference, and the same with the foot box as sole.
+    grade = 0.2
+    w = _slope_window(grade)
+    long_toes = replace(P, foot_half_extents=(0.12, 0.09), sole_half_extents=(0.04, 0.01), slice_size=None,
+                        candidate_radius=0.0)
+    start = np.array([0.0, 0.0, 0.0])
+    sole_x = 0.04 if yaw == 0.0 else 0.01  # the sole's half size along the slope
+    for params, reach_x in ((long_toes, sole_x), (replace(long_toes, sole_half_extents=None), 0.12)):
+        c = plan(w, (0.3, 0.0), params, start=start, yaw=yaw)
+        assert c.ok
+        point = w.elevation[tuple(w.cell_of(c.footprint[:2]))]
+        top = grade * (c.footprint[0] + reach_x + 0.5 * w.cell)  # the highest cell the print touches
+        assert c.footprint[2] == pytest.approx(top, abs=0.5 * grade * w.cell + 1e-9)
+        if params is long_toes:
+            assert c.footprint[2] - point <= grade * (reach_x + w.cell) + 1e-9
+        rq = params.request(w, start, np.array([0.3, 0.0]), HIP, NO_LEGS, NO_LEGS, yaw)
+        _same_couple(c, plan_footstep(rq))
+
+
+def test_a_long_footed_leg_beside_a_ledge_stands_on_the_ground_its_box_straddling_it() -> None:
+    # A 2 cm step-over crate starting 10 cm ahead of the preferred footprint: the foot box
+    # (toes reaching 12 cm) reaches its top, the sole does not. The foot lands on the ground
+    # (the foot box would set it on the crate's top, 2 cm over the ground under its sole); the
+    # straddle check still reads the box: with max_straddle under the crate's height that
+    # footprint is never a candidate.
+    w = window([(0.3 + 0.1 + 0.5, 0.0, 1.0, 1.0, 0.02, ROLE_STEP_OVER)])
+    long_toes = replace(P, foot_half_extents=(0.12, 0.09), sole_half_extents=(0.02, 0.02), slice_size=None,
+                        candidate_radius=0.0, max_straddle=0.03)
+    pref = np.array([0.3, 0.0])
+    rq = long_toes.request(w, START, pref, HIP, NO_LEGS, NO_LEGS, 0.0, 0.3)
+    c = plan_footsteps([rq])[0]
+    assert c.ok
+    assert c.footprint[2] == pytest.approx(0.0, abs=1e-9)
+    _same_couple(c, plan_footstep(rq))
+    strict = replace(long_toes, max_straddle=0.01).request(w, START, pref, HIP, NO_LEGS, NO_LEGS, 0.0, 0.3)
+    assert not plan_footsteps([strict])[0].ok
+    assert not plan_footstep(strict).ok

@@ -532,10 +532,9 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
     :data:`HELD` of where it stood first, as a planted foot does) keeps the pitch it had
     there: its sole is pitched once per stance, and cannot flicker on an edge it stands on.
     ``planted`` ``(R, F, L)``: the feet the walk plants; their soles are pitched down to the
-    ground in full however high their end-effectors stand (the planner sets a foot on the
-    highest ground under its whole foot box, so on a slope a foot whose toes reach far from
-    its ankle, an ant's tarsus, stands above the ground under its ankle: only a lifted foot's
-    downward pitch fades)."""
+    ground in full however high their end-effectors stand (a footprint may stand a little
+    above the ground under its ankle, the planner's height under its sole where the
+    controller did not snap it: only a lifted foot's downward pitch fades)."""
     dynamic = bool(getattr(ground, "dynamic", True))
     info = infos[0]
     legs = [k for k, leg in enumerate(info.legs) if leg.foot and info.foot_points[k].shape[0]]

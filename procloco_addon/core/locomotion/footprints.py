@@ -158,11 +158,13 @@ class LegGeometry:
     leg, shared by all its plans). Lengths in metres.
 
     ``foot_half_extents``: the foot's ground box (forward, left half sizes): what it keeps
-    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of another foot
-    this foot may not land on, a box about that foot's point (None: a foot box). A foot whose
-    toes reach far from its end-effector has a large foot box but stands on a small sole: two
-    such feet may stand closer than two foot boxes, as long as neither's box covers the
-    other's sole.
+    clear of obstacles, holes and other feet. ``sole_half_extents``: the part of the foot that
+    stands, a box about its point (None: the foot box): another foot may not land on it, and
+    the foot lands at the highest ground under it (within the foot box). A foot whose toes
+    reach far from its end-effector has a large foot box but stands on a small sole: two such
+    feet may stand closer than two foot boxes, as long as neither's box covers the other's
+    sole, and on a slope such a foot stands on the ground under its sole, not on the ground
+    its box reaches up the slope.
 
     Checks that need the hip's height (the request's ``hip_z``; skipped without it):
     ``reach_3d``: largest distance from the hip to a footprint in 3D (None: only the
@@ -278,19 +280,20 @@ _LEG_SAMPLES = 16
 
 
 def _hip_checks(
-    xy: FloatArray, z: FloatArray, centre_z: FloatArray, hip: FloatArray, hip_z: FloatArray,
-    settings: FloatArray, windows: _WindowLookup, window_of: IntArray,
+    xy: FloatArray, z: FloatArray, box_z: FloatArray, centre_z: FloatArray, hip: FloatArray,
+    hip_z: FloatArray, settings: FloatArray, windows: _WindowLookup, window_of: IntArray,
 ) -> tuple[BoolArray, BoolArray]:
-    """The checks of footprints ``xy (k, 2)`` landing at ``z (k,)`` (the ground at their own
-    point ``centre_z (k,)``) that need the hip ``hip (k, 2)`` at ``hip_z (k,)``
-    (:class:`PlannerParams`): which are candidates at all (``max_straddle``, ``reach_3d``)
-    and which of those have their leg line clear (``leg_length``; True where not checked).
+    """The checks of footprints ``xy (k, 2)`` landing at ``z (k,)`` (the highest ground under
+    their foot boxes ``box_z (k,)``, at their own point ``centre_z (k,)``) that need the hip
+    ``hip (k, 2)`` at ``hip_z (k,)`` (:class:`LegGeometry`): which are candidates at all
+    (``max_straddle``, ``reach_3d``) and which of those have their leg line clear
+    (``leg_length``; True where not checked).
     ``settings`` ``(k, 7)``: per footprint ``max_straddle, reach_3d, reach_sweep,
     reach_sink, leg_length, leg_arch, foot radius`` (``inf``: that check off).
     ``windows``: the elevation maps, ``window_of (k,)``: which of them each footprint plans
     in."""
     straddle, reach, sweep, sink, leg, arch, foot_r = settings.T
-    ok = ~(z - centre_z > straddle)
+    ok = ~(box_z - centre_z > straddle)
     dx = xy[:, 0] - hip[:, 0]
     dy = xy[:, 1] - hip[:, 1]
     dh = np.sqrt(dx * dx + dy * dy) + sweep
@@ -1312,8 +1315,11 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
     dx = x - hx_b
     dy = y - hy_b
     ok &= planar_length(dx, dy) <= reach_b
-    # Landing height: the highest surface under the foot box at its exact offset.
-    land_off, land_in = _offset_kernels(batch, sub)
+    # Landing height: the highest surface under the sole at its exact offset, turned with the
+    # foot (thesis §3.4: the foot's bounding box grows the obstacles, the elevations map where
+    # the foot stands lifts its path). The foot box of a foot whose toes reach far from its
+    # end-effector would set it on ground up a slope that its sole never touches.
+    land_off, land_in, box_in = _offset_kernels(batch, sub)
     z = batch.max_under(b, r, c, land_off, land_in)
     ok &= np.abs(z - z0_b) <= max_dz_b
     hip_z = rows[:, col["hip_z"]]
@@ -1322,8 +1328,10 @@ def _score_all(plans: list[_Plan], batch: _Batch) -> _Cands:
         owner = b[sel]
         settings = rows[:, col["straddle"] : col["foot_r"] + 1]
         clear = np.ones(ok.size, dtype=bool)
+        # what the whole foot box reaches, for the straddle check (the sole's when it is the box)
+        box_z = z[sel] if box_in is None else batch.max_under(owner, r[sel], c[sel], land_off, box_in)
         ok[sel], clear[sel] = _hip_checks(
-            column_pair(x[sel], y[sel]), z[sel], here[sel],
+            column_pair(x[sel], y[sel]), z[sel], box_z, here[sel],
             hip[owner], hip_z[owner], settings[owner], _WindowLookup([p.grids for p in plans]), owner,
         )
         clearance = np.where(clear, 1.0, low_b)
@@ -1438,10 +1446,11 @@ class _WindowLookup:
         return np.asarray(np.where(inside, self.flat[at], -np.inf))
 
 
-def _offset_kernels(batch: _Batch, sub: FloatArray) -> tuple[IntArray, BoolArray]:
-    """The landing kernel of each plan of ``batch``: cells covered by a foot box whose centre
-    sits ``sub`` ``(n, 2)`` cells off its cell's centre (sub offsets rounded to 1e-9 cell, as
-    cached)."""
+def _offset_kernels(batch: _Batch, sub: FloatArray) -> tuple[IntArray, BoolArray, BoolArray | None]:
+    """The landing kernels of each plan of ``batch``, a foot whose centre sits ``sub``
+    ``(n, 2)`` cells off its cell's centre (sub offsets rounded to 1e-9 cell, as cached):
+    the cell offsets, the cells under its sole (its part within the foot box) and those under
+    its foot box (None when no plan's sole is smaller), ``(n, k)`` each, turned with its yaw."""
     cell, hx, hy, yaw = batch.cell, batch.half_x, batch.half_y, batch.yaw
     sub_r = np.array([round(v, 9) for v in sub[:, 0].tolist()])
     sub_c = np.array([round(v, 9) for v in sub[:, 1].tolist()])
@@ -1451,11 +1460,23 @@ def _offset_kernels(batch: _Batch, sub: FloatArray) -> tuple[IntArray, BoolArray
     # the cell centres from the foot's centre, x and y apart
     dx = off[None, :, 1] * col - (sub_c * cell)[:, None]
     dy = off[None, :, 0] * col - (sub_r * cell)[:, None]
-    member = _overlaps(dx, dy, col, hx[:, None], hy[:, None], np.cos(yaw)[:, None], np.sin(yaw)[:, None])
-    empty = ~np.logical_or.reduce(member, axis=1)
-    if np.logical_or.reduce(empty):
-        member[empty, (2 * reach + 1) * reach + reach] = True
-    return off, member
+    cos = np.cos(yaw)[:, None]
+    sin = np.sin(yaw)[:, None]
+    sole_x, sole_y = batch.sole_x, batch.sole_y
+    box = None
+    if np.logical_or.reduce((sole_x < hx) | (sole_y < hy)):
+        # a sole within the foot box: the foot lands under its sole
+        box = _overlaps(dx, dy, col, hx[:, None], hy[:, None], cos, sin)
+        hx, hy = np.minimum(sole_x, hx), np.minimum(sole_y, hy)
+    member = _overlaps(dx, dy, col, hx[:, None], hy[:, None], cos, sin)
+    centre = (2 * reach + 1) * reach + reach
+    for m in (member, box):
+        if m is None:
+            continue
+        empty = ~np.logical_or.reduce(m, axis=1)
+        if np.logical_or.reduce(empty):
+            m[empty, centre] = True
+    return off, member, box
 
 
 def _levels_all(plans: list[_Plan], mask: BoolArray, elev: FloatArray) -> list[list[float]]:

@@ -357,7 +357,7 @@ def commit(
 ) -> None:
     """Write every chosen swing into the feet's plans at once, starting at swing progress
     ``start_u (N,)`` (where the foot is now): land on the exact surface under the foot's
-    point (the planner's grid height is the highest point under the whole foot box), easing
+    point (the planner's grid height is the highest point under the foot's sole), easing
     the change in over the second half of the swing; a footprint whose point hangs over a
     hole (its foot box only partly on the edge) moves onto the ground its box reaches, over
     the second half of the swing. Also the footprint error ``body.feedback``, and the ground

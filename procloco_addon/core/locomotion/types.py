@@ -56,7 +56,7 @@ class ControllerParams:
     - ``trajectory_samples``: samples kept of each swing trajectory (constant speed).
     - ``snap_tolerance`` (× step height): a footprint may be lowered by up to this much onto
       the exact surface under its point (the planner's grid height is the highest surface
-      under the whole foot box).
+      under the foot's sole, a box about its point).
     - ``body_samples``: terrain samples under the body box (along, across).
     - ``support_tolerance``: metres the support under a planted foot may move before the
       foot steps again; ``ik_tolerance``: metres within which the leg IK stops.
