@@ -647,40 +647,60 @@ def _hull_knots_increasing(
     sample; in plain Python floats (a few dozen points: cheaper than numpy calls). Of the
     points ``start:stop`` only (indices into the whole lists: many plans' samples one after
     the other are not copied plan by plan)."""
+    if stop is None:
+        stop = len(s)
+    ncol = -_COLLINEAR
     hull: list[int] = []
-    for k in range(start, len(s) if stop is None else stop):
-        sk = s[k]
-        zk = required[k]
-        while len(hull) >= 2:
-            j = hull[-1]
-            i = hull[-2]
-            si = s[i]
-            zi = required[i]
-            a = (s[j] - si) * (zk - zi)
-            b = (required[j] - zi) * (sk - si)
-            if a - b >= -_COLLINEAR * (abs(a) + abs(b)):
+    push = hull.append
+    # the hull's second last and last vertices (si, zi), (sj, zj) kept in locals: a point
+    # costs no list lookups unless it pops a vertex
+    si = zi = sj = zj = 0.0
+    n = 0
+    k = start
+    for sk, zk in zip(s[start:stop], required[start:stop], strict=True):
+        while n >= 2:
+            ax = (sj - si) * (zk - zi)
+            bx = (zj - zi) * (sk - si)
+            if ax - bx >= ncol * (abs(ax) + abs(bx)):
                 hull.pop()
+                n -= 1
+                sj = si
+                zj = zi
+                if n >= 2:
+                    i = hull[-2]
+                    si = s[i]
+                    zi = required[i]
             else:
                 break
-        hull.append(k)
-    if len(hull) <= 2 or min_gap <= 0.0:
+        push(k)
+        n += 1
+        si = sj
+        zi = zj
+        sj = sk
+        zj = zk
+        k += 1
+    if n <= 2 or min_gap <= 0.0:
         return hull
     tol = _chord_tolerance(min_gap)
     keep = [hull[0]]
-    for pos in range(1, len(hull) - 1):
+    a = hull[0]
+    sa = s[a]
+    for pos in range(1, n - 1):
         v = hull[pos]
-        a = keep[-1]
-        sa = s[a]
         if s[v] - sa >= min_gap:
             keep.append(v)
+            a = v
+            sa = s[v]
             continue
         c = hull[pos + 1]
         ra = required[a]
         rise = required[c] - ra
         den = max(s[c] - sa, 1e-12)
-        for i in range(a, c + 1):
-            if not ra + rise * (s[i] - sa) / den >= required[i] - tol:
+        for s_i, r_i in zip(s[a : c + 1], required[a : c + 1], strict=True):
+            if not ra + rise * (s_i - sa) / den >= r_i - tol:
                 keep.append(v)  # the chord that would replace it dips under a sample
+                a = v
+                sa = s[v]
                 break
     keep.append(hull[-1])
     return keep
