@@ -544,18 +544,23 @@ def write_channels(
         raise ValueError("frames must be strictly increasing")
     fcurves = _fcurve_collection(action, obj, create=True)
     ipo = np.full(n_frames, _interpolation_code(interpolation), dtype=np.int32)
-    co = np.empty((n_frames, 2), dtype=np.float32)
-    co[:, 0] = frames
-    existing = {(fc.data_path, fc.array_index): fc for fc in fcurves}
+    co = np.empty((len(channels), n_frames, 2), dtype=np.float32)  # every curve's keys, a row each
+    co[:, :, 0] = frames
+    co[:, :, 1] = values.T
+    existing = {(fc.data_path, fc.array_index): fc for fc in fcurves} if len(fcurves) else {}
+    new = fcurves.new
+    slotted = is_slotted()
     for c, channel in enumerate(channels):
-        old = existing.pop((channel.data_path, channel.index), None)
+        old = existing.pop((channel.data_path, channel.index), None) if existing else None
         if old is not None:
             fcurves.remove(old)
-        fcurve = _new_fcurve(fcurves, channel)
-        co[:, 1] = values[:, c]
+        if slotted:
+            fcurve = new(channel.data_path, index=channel.index, group_name=channel.group)
+        else:
+            fcurve = new(channel.data_path, index=channel.index, action_group=channel.group)
         points = fcurve.keyframe_points
         points.add(n_frames)
-        points.foreach_set("co", co.ravel())
+        points.foreach_set("co", co[c].ravel())
         points.foreach_set("interpolation", ipo)
         fcurve.update()
 
@@ -646,20 +651,30 @@ def sample_channels(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
     if fcurves is None:
         return {}
     wanted = np.asarray(frames, dtype=np.float64).reshape(-1)
+    n_curves = len(fcurves)
+    muted = np.empty(n_curves, dtype=bool)  # (the flags and indices of every curve read in bulk)
+    fcurves.foreach_get("mute", muted)
+    indices = np.empty(n_curves, dtype=np.int32)
+    fcurves.foreach_get("array_index", indices)
     curves = []
-    for fc in fcurves:
-        if fc.mute or (select is not None and not select(fc.data_path)):
+    for fc, mute, index in zip(fcurves, muted.tolist(), indices.tolist(), strict=True):
+        if mute:
             continue
-        if fc.group is not None and fc.group.mute:
+        path = fc.data_path
+        if select is not None and not select(path):
             continue
-        curves.append((fc, len(fc.keyframe_points)))
+        group = fc.group
+        if group is not None and group.mute:
+            continue
+        points = fc.keyframe_points
+        curves.append((fc, path, index, points, len(points)))
     if not curves:
         return {}
-    counts = np.array([n for _fc, n in curves], dtype=np.int64)
+    counts = np.array([c[4] for c in curves], dtype=np.int64)
     start = np.concatenate([[0], np.cumsum(counts)])
     co = np.empty(2 * int(start[-1]), dtype=np.float32)
-    for (fc, n), s in zip(curves, start, strict=False):
-        fc.keyframe_points.foreach_get("co", co[2 * s: 2 * (s + n)])
+    for (_fc, _path, _index, points, n), s in zip(curves, start, strict=False):
+        points.foreach_get("co", co[2 * s: 2 * (s + n)])
     keys = co.reshape(-1, 2).astype(np.float64)
     # Every curve's keys in one sorted run of (curve, frame): one search finds each wanted frame.
     span = float(max(np.abs(keys[:, 0]).max(initial=0.0), np.abs(wanted).max(initial=0.0))) * 2.0 + 2.0
@@ -676,12 +691,13 @@ def sample_channels(action: bpy.types.Action, obj: bpy.types.Object, frames: np.
     values = values.reshape(len(curves), -1)
     complete = found.all(axis=1)
     out: dict[tuple[str, int], np.ndarray] = {}
-    for c, (fc, _n) in enumerate(curves):
+    for c, (fc, path, index, _points, _n) in enumerate(curves):
         row = values[c]
-        if len(fc.modifiers) or not complete[c]:
-            for f in range(wanted.shape[0]) if len(fc.modifiers) else np.flatnonzero(~found[c]):
+        modified = len(fc.modifiers)
+        if modified or not complete[c]:
+            for f in range(wanted.shape[0]) if modified else np.flatnonzero(~found[c]):
                 row[f] = fc.evaluate(float(wanted[f]))
-        out[(fc.data_path, fc.array_index)] = row
+        out[(path, index)] = row
     return out
 
 
@@ -906,16 +922,31 @@ def write_pose_bone_transforms(
         raise ActionError(f"'{obj.name}' is not an armature")
     channels: list[Channel] = []
     columns: list[np.ndarray] = []
-    for b, name in enumerate(bone_names):
-        pbone = pose.bones.get(name)
+    bones = pose.bones
+    modes = []
+    for name in bone_names:
+        pbone = bones.get(name)
         if pbone is None:
             raise ActionError(f"'{obj.name}' has no bone '{name}'")
+        modes.append(pbone.rotation_mode)
+    # The bones of one rotation mode converted together (the conversion is per frame and bone)
+    turned: dict[int, tuple[str, np.ndarray]] = {}
+    if rotations is not None:
+        q = np.asarray(rotations)
+        for mode in dict.fromkeys(modes):
+            cols = [b for b, m in enumerate(modes) if m == mode]
+            if mode == "AXIS_ANGLE":  # (its conversion takes one bone at a time)
+                turned.update((b, rotation_channels(mode, q[:, b, :])) for b in cols)
+                continue
+            prop, vals = rotation_channels(mode, q[:, cols, :])
+            turned.update((b, (prop, vals[:, k])) for k, b in enumerate(cols))
+    for b, name in enumerate(bone_names):
         base = f'pose.bones["{bpy.utils.escape_identifier(name)}"]'
         if locations is not None:
             channels.extend(Channel(f"{base}.location", a, name) for a in range(3))
             columns.append(np.asarray(locations, dtype=np.float64)[:, b, :])
         if rotations is not None:
-            prop, vals = rotation_channels(pbone.rotation_mode, np.asarray(rotations)[:, b, :])
+            prop, vals = turned[b]
             channels.extend(Channel(f"{base}.{prop}", a, name) for a in range(vals.shape[1]))
             columns.append(vals)
         if scales is not None:

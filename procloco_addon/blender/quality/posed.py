@@ -91,12 +91,23 @@ def _chain_order(bones: bpy.types.ArmatureBones, names: Sequence[str]) -> list[s
 def _quaternion_matrices(q: np.ndarray) -> np.ndarray:
     """``(..., 4)`` quaternions (w, x, y, z), normalised as Blender does -> ``(..., 3, 3)``."""
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    # (each component contiguous, each product made once, written into one array: the same
+    # values as the nine entries' expressions stacked, in a fifth of the time)
+    w, x, y, z = np.ascontiguousarray(np.moveaxis(q, -1, 0))
+    xx, yy, zz = x * x, y * y, z * z
+    xy, xz, yz = x * y, x * z, y * z
+    wx, wy, wz = w * x, w * y, w * z
+    m = np.empty((*q.shape[:-1], 3, 3))
+    m[..., 0, 0] = 1 - 2 * (yy + zz)
+    m[..., 0, 1] = 2 * (xy - wz)
+    m[..., 0, 2] = 2 * (xz + wy)
+    m[..., 1, 0] = 2 * (xy + wz)
+    m[..., 1, 1] = 1 - 2 * (xx + zz)
+    m[..., 1, 2] = 2 * (yz - wx)
+    m[..., 2, 0] = 2 * (xz - wy)
+    m[..., 2, 1] = 2 * (yz + wx)
+    m[..., 2, 2] = 1 - 2 * (xx + yy)
+    return m
 
 
 def _bulk(collection: bpy.types.bpy_prop_collection, prop: str, width: int) -> np.ndarray:
@@ -166,13 +177,18 @@ def plain_poses(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str])
     n_frames = frames.shape[0]
     wanted = set(order)
     unknown: list[str] = []
+    known: dict[str, tuple[str, str]] = {}  # the measured channels' bone and property, by path
 
     def measured(path: str) -> bool:
         """Whether the channel ``path`` moves a bone of the measured chains (noting, in
         ``unknown``, properties the composition does not know)."""
         found = _CHANNEL.match(path)
         if found is not None:
-            return _unescape(found.group(1)) in wanted
+            bone = _unescape(found.group(1))
+            if bone in wanted:
+                known[path] = (bone, found.group(2))
+                return True
+            return False
         if path.startswith('pose.bones["'):  # another property of a pose bone: harmless off the chains
             end = path.find('"]', len('pose.bones["'))
             if end < 0 or _unescape(path[len('pose.bones["'):end]) in wanted:
@@ -196,9 +212,8 @@ def plain_poses(obj: bpy.types.Object, frames: np.ndarray, names: Sequence[str])
                                 ("rotation_axis_angle", 4), ("scale", 3))}  # (F, n, k)
     animated = np.zeros(len(order), dtype=bool)
     for (path, index), values in sampled.items():
-        found = _CHANNEL.match(path)
-        assert found is not None
-        j, prop = at[_unescape(found.group(1))], found.group(2)
+        bone, prop = known[path]
+        j = at[bone]
         animated[j] = True
         if prop in chan:
             chan[prop][:, j, index] = values

@@ -485,23 +485,27 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
 HELD = 1e-9
 
 
-def _stands_since(ends: np.ndarray, yaw: np.ndarray, tol: float) -> np.ndarray:
-    """For each frame and foot, the frame it has stood still since ``(F, J)`` (its own when
-    it moved): the same heading ``yaw`` ``(F, J, 3, 3)`` as the frame before and its
-    end-effector ``ends`` ``(F, J, 3)`` within ``tol`` of where it stood then."""
-    n_frames, n_feet = ends.shape[:2]
-    first = np.repeat(np.arange(n_frames)[:, None], n_feet, axis=1)
-    same = np.all(yaw[1:] == yaw[:-1], axis=(-2, -1)).tolist()  # (F - 1, J)
-    where = ends.tolist()
-    for j in range(n_feet):
-        r = 0
-        for f in range(1, n_frames):
-            here, there = where[f][j], where[r][j]
-            if same[f - 1][j] and max(abs(here[0] - there[0]), abs(here[1] - there[1]),
-                                      abs(here[2] - there[2])) <= tol:
-                first[f, j] = r
-            else:
-                r = f
+def _stands_since(ends: np.ndarray, yaw: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """For each rig, frame and foot, the frame it has stood still since ``(R, F, J)`` (its
+    own when it moved): the same heading ``yaw`` ``(R, F, J, 3, 3)`` as the frame before and
+    its end-effector ``ends`` ``(R, F, J, 3)`` within its rig's ``tol`` ``(R,)`` of where it
+    stood then. Frame by frame, every foot of every rig at once."""
+    n_rigs, n_frames, n_feet = ends.shape[:3]
+    first = np.empty((n_rigs, n_frames, n_feet), dtype=np.int64)
+    first[:, 0] = 0
+    if n_frames < 2:
+        return first
+    same = np.all(yaw[:, 1:] == yaw[:, :-1], axis=(-2, -1))  # (R, F - 1, J)
+    lanes = ends.reshape(n_rigs * n_frames * n_feet, 3)
+    lane = (np.arange(n_rigs)[:, None] * n_frames * n_feet + np.arange(n_feet)[None]).reshape(-1)
+    r = np.zeros(n_rigs * n_feet, dtype=np.int64)  # each foot's frame it stands since
+    tol_lane = np.repeat(np.asarray(tol, dtype=np.float64), n_feet)
+    for f in range(1, n_frames):
+        here = lanes.take(lane + f * n_feet, axis=0)
+        there = lanes.take(lane + r * n_feet, axis=0)
+        stay = same[:, f - 1].reshape(-1) & (np.abs(here - there).max(axis=-1) <= tol_lane)
+        r = np.where(stay, r, f)
+        first[:, f] = r.reshape(n_rigs, n_feet)
     return first
 
 
@@ -563,10 +567,10 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
     if dynamic:
         first = own_row
     else:
-        rows = [slice(r * n_frames, (r + 1) * n_frames) for r in range(n_rigs)]
-        first = np.concatenate([r * n_frames + _stands_since(ends[rows[r]], yaw[rows[r]],
-                                                             HELD * max(float(np.mean(one.leg_length)), 1e-3))
-                                for r, one in enumerate(infos)])
+        tol = np.array([HELD * max(float(np.mean(one.leg_length)), 1e-3) for one in infos])
+        since = _stands_since(ends.reshape(n_rigs, n_frames, len(legs), 3),
+                              yaw.reshape(n_rigs, n_frames, len(legs), 3, 3), tol)
+        first = (since + (np.arange(n_rigs) * n_frames)[:, None, None]).reshape(n_all, len(legs))
     own = first == own_row  # (R F, J) the rows a foot's pitch is found at
     chosen = np.arange(len(legs))[None]
     reach = _sole_reach(rel, starts)
