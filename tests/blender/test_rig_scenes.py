@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from procloco_addon.blender import actions
+from procloco_addon.blender.rig import controls
 from tests.blender.rig_fixtures import FIXTURES
 from tests.blender.test_rig_fixtures import FRAMES, check_motion, walk
 
@@ -74,6 +75,34 @@ def test_an_idle_in_the_nla_moves_no_planted_foot(empty_scene: Any) -> None:
     assert obj.animation_data.action is not idle
     assert [s.action for t in obj.animation_data.nla_tracks for s in t.strips] == [idle]
     assert _keys(idle, obj) == before
+
+
+def _idle_in_nla(obj: Any, bone: str) -> Any:
+    """An idle in the NLA: every bone of ``bone``'s kind keyed at rest at the first frame,
+    ``bone`` bent 10° at the last; the rig at the first frame. Returns the idle."""
+    for pb in obj.pose.bones:
+        if pb.rotation_mode == "QUATERNION" and not controls.is_mechanism_name(pb.name):
+            pb.keyframe_insert("rotation_quaternion", frame=1)
+    _bend(obj, bone, math.radians(10.0))
+    obj.pose.bones[bone].keyframe_insert("rotation_quaternion", frame=FRAMES)
+    idle = obj.animation_data.action
+    obj.animation_data.nla_tracks.new().strips.new("Idle", 1, idle)
+    obj.animation_data.action = None
+    bpy.context.scene.frame_set(1)
+    return idle
+
+
+@pytest.mark.slow
+def test_a_rigify_idle_in_the_nla_moves_no_planted_foot(empty_scene: Any) -> None:
+    """On the Rigify horse, the front legs' ORG- chains follow the shoulder controls through
+    constraints (not as children): an idle in the NLA turning ``shoulder.L`` once carried the
+    planted front foot along. The walk keys the controls the legs follow that the idle
+    animates at the pose it was read in (the front foot slid 46 mm)."""
+    obj = FIXTURES["generated_horse"].build(empty_scene, "generated_horse")
+    _idle_in_nla(obj, "shoulder.L")
+    job, m = walk(obj)
+    check_motion(m, "generated_horse")
+    assert "shoulder.L" in job.kept_bones, job.kept_bones
 
 
 def _keys(action: Any, obj: Any) -> dict[tuple[str, int], bytes]:

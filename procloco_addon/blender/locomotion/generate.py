@@ -362,12 +362,13 @@ def animated_bones(obj: bpy.types.Object) -> set[str]:
 
 
 def kept_bones(obj: bpy.types.Object, info: rig.RigInfo, keyed: Sequence[str]) -> tuple[str, ...]:
-    """The bones the solved bones hang from (their ancestors, not solved themselves nor
-    ``keyed``) that the rig's own animation moves (:func:`animated_bones`), in the rig's
-    order. The walk is solved with them as posed when it is read; the new Action keys them
-    there: once it replaces the rig's Action they would keep whatever pose the last frame
-    evaluated gave them (a pelvis bent at the end of an idle), and an NLA strip under it
-    would go on moving them, carrying the planted feet along."""
+    """The bones the solved bones hang from (their ancestors and the bones they follow
+    through constraints, not solved themselves nor ``keyed``) that the rig's own animation
+    moves (:func:`animated_bones`), in the rig's order. The walk is solved with them as
+    posed when it is read; the new Action keys them there: once it replaces the rig's
+    Action they would keep whatever pose the last frame evaluated gave them (a pelvis bent
+    at the end of an idle), and an NLA strip under it would go on moving them, carrying the
+    planted feet along."""
     animated = animated_bones(obj)
     if not animated:
         return ()
@@ -378,6 +379,9 @@ def kept_bones(obj: bpy.types.Object, info: rig.RigInfo, keyed: Sequence[str]) -
         while parent is not None and parent not in above:
             above.add(parent)
             parent = info.parents[parent]
+    # on a control rig also the controls they follow through constraints (a Rigify
+    # horse's shoulder control, which its front leg's ORG- chain hangs from)
+    above |= set(controls.ConstraintGraph(obj).upstream(driven))
     skip = driven | set(keyed)
     return tuple(pb.name for pb in obj.pose.bones if pb.name in above and pb.name in animated
                  and pb.name not in skip)
