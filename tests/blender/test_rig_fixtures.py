@@ -125,17 +125,30 @@ def deform_bones(obj: Any, name: str) -> list[str]:
     return out or [name]
 
 
+def _rest_world(obj: Any, info: rig.RigInfo, name: str) -> np.ndarray:
+    """The world rest matrix ``(4, 4)`` of bone ``name`` as the rig was read: under the bones
+    the animator posed (``RigInfo.rest_posed``: a bent pelvis turns the legs' rest, and the
+    toes with their foot)."""
+    bone = obj.data.bones[name]
+    rest = np.array(bone.matrix_local)
+    above = next((b for b in [bone, *bone.parent_recursive] if b.name in info.rest_posed), None)
+    if above is not None:
+        rest = info.rest_posed[above.name] @ np.linalg.inv(np.array(above.matrix_local)) @ rest
+    return np.array(obj.matrix_world) @ rest
+
+
 def _far_joint_offsets(obj: Any, info: rig.RigInfo) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """Per leg, the end-effector's far joint ``(3,)`` and the sole probes ``(p, 3)`` in the
     local frame of the deform bone carrying them (the last segment of the last leg bone; the
     first foot bone)."""
-    world = np.array(obj.matrix_world)
+    def rest(name: str) -> np.ndarray:
+        return _rest_world(obj, info, name)
+
     ends, soles = [], []
     for leg, joints, probes in zip(info.legs, info.joints, info.foot_points, strict=True):
-        last = world @ np.array(obj.data.bones[deform_bones(obj, leg.end)[-1]].matrix_local)
+        last = rest(deform_bones(obj, leg.end)[-1])
         ends.append((np.linalg.inv(last) @ np.append(joints[-1], 1.0))[:3])
-        carrier = world @ np.array(obj.data.bones[deform_bones(obj, leg.foot[0] if leg.foot else leg.end)[0]]
-                                   .matrix_local)
+        carrier = rest(deform_bones(obj, leg.foot[0] if leg.foot else leg.end)[0])
         inv = np.linalg.inv(carrier)
         soles.append(probes @ inv[:3, :3].T + inv[:3, 3] if probes.size else np.zeros((0, 3)))
     return ends, soles
@@ -154,8 +167,7 @@ def measure(obj: Any, job: generate.Job, ground: Any) -> dict[str, Any]:
     names = [d for segments in shown.values() for d in segments]
     mats = pose_matrices(obj, frames, names)
     where = {n: i for i, n in enumerate(names)}
-    world = np.array(obj.matrix_world)
-    rest = world @ np.array([np.array(obj.data.bones[n].matrix_local) for n in names])
+    rest = np.array([_rest_world(obj, info, n) for n in names])
     end_off, sole_off = _far_joint_offsets(obj, info)
     joints, soles = [], []
     for k, leg in enumerate(info.legs):
@@ -275,10 +287,11 @@ def _length(obj: Any) -> float:
     return float(np.ptp(corners[:, :2], axis=0).max())
 
 
-def _bumpy_ground(obj: Any) -> Any:
+def _bumpy_ground(obj: Any, bumps: float = 0.02) -> Any:
     """Gently bumpy ground under ``obj`` sized to it: a grid ten rig heights across, or three
     times the rig's length where that is more (a 6 cm high centipede 1.2 m long), 1-12 m;
-    bumps of 2 % of the rig's height every two heights, its rest under the rig's feet."""
+    bumps of ``bumps`` (2 %) of the rig's height every two heights, its rest under the rig's
+    feet."""
     height = _height(obj)
     size = min(max(10.0 * height, 3.0 * _length(obj), 1.0), 12.0)
     centre = np.array(obj.matrix_world.translation)
@@ -290,17 +303,18 @@ def _bumpy_ground(obj: Any) -> Any:
     mesh.vertices.foreach_get("co", co)
     co = co.reshape(-1, 3)
     k = np.pi / height  # a bump every two heights
-    bumps = np.sin(k * co[:, 0] + 0.3) * np.cos(k * co[:, 1] + 1.1) - np.sin(0.3) * np.cos(1.1)
-    co[:, 2] = 0.02 * height * bumps
+    waves = np.sin(k * co[:, 0] + 0.3) * np.cos(k * co[:, 1] + 1.1) - np.sin(0.3) * np.cos(1.1)
+    co[:, 2] = bumps * height * waves
     mesh.vertices.foreach_set("co", co.ravel())
     mesh.update()
     return ground
 
 
-def walk(obj: Any) -> tuple[generate.Job, dict[str, Any]]:
+def walk(obj: Any, bumps: float = 0.02) -> tuple[generate.Job, dict[str, Any]]:
     """Detect Legs, then Generate Locomotion with the defaults for ``FRAMES`` frames on
-    gently bumpy ground (as the issue's users tried them); the measured numbers."""
-    ground = _bumpy_ground(obj)
+    gently bumpy ground (as the issue's users tried them; ``bumps``: see
+    :func:`_bumpy_ground`); the measured numbers."""
+    ground = _bumpy_ground(obj, bumps)
     _select_only(obj)
     assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
     obj.procloco.use_scene_range = False

@@ -36,6 +36,7 @@ from ...core.steps import run_steps, scaled_steps
 from .. import actions, pose_writer, rig, scene_terrain, validate
 from ..gait import rig_gait
 from ..rig import controls
+from ..rig.rest import nearest_rotation
 from . import crowd, property_group, simulation
 from .job import GaitChange, Job, settings_values
 
@@ -345,6 +346,47 @@ def stale_bones(obj: bpy.types.Object) -> set[str]:
     return stale
 
 
+def animated_bones(obj: bpy.types.Object) -> set[str]:
+    """Pose bones the rig's own animation moves: its active Action (unless ProcLoco made
+    it) and the Actions of its NLA strips that play (tracks and strips not muted)."""
+    adt = obj.animation_data
+    if adt is None:
+        return set()
+    out = set() if actions.is_generated(adt.action) else actions.keyed_pose_bones(adt.action, obj)
+    for track in adt.nla_tracks:
+        if not track.mute:
+            for strip in track.strips:
+                if not strip.mute and strip.action is not None:
+                    out |= actions.keyed_pose_bones(strip.action, obj)
+    return out
+
+
+def kept_bones(obj: bpy.types.Object, info: rig.RigInfo, keyed: Sequence[str]) -> tuple[str, ...]:
+    """The bones the solved bones hang from (their ancestors and the bones they follow
+    through constraints, not solved themselves nor ``keyed``) that the rig's own animation
+    moves (:func:`animated_bones`), in the rig's order. The walk is solved with them as
+    posed when it is read; the new Action keys them there: once it replaces the rig's
+    Action they would keep whatever pose the last frame evaluated gave them (a pelvis bent
+    at the end of an idle), and an NLA strip under it would go on moving them, carrying the
+    planted feet along."""
+    animated = animated_bones(obj)
+    if not animated:
+        return ()
+    driven = set(info.driven_bones)
+    above: set[str] = set()
+    for name in driven:
+        parent = info.parents[name]
+        while parent is not None and parent not in above:
+            above.add(parent)
+            parent = info.parents[parent]
+    # on a control rig also the controls they follow through constraints (a Rigify
+    # horse's shoulder control, which its front leg's ORG- chain hangs from)
+    above |= set(controls.ConstraintGraph(obj).upstream(driven))
+    skip = driven | set(keyed)
+    return tuple(pb.name for pb in obj.pose.bones if pb.name in above and pb.name in animated
+                 and pb.name not in skip)
+
+
 def prepare(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
     """Read and check everything for one rig. Raises :class:`GenerateError`; changes nothing."""
     job = read(context, obj)
@@ -437,6 +479,8 @@ def _read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
                             "walks with its gait circles")
         elif settings.use_gait_randomizer:
             warnings.append(f"'{obj.name}' uses Auto gait: the gait randomizer is left out")
+    held = tuple(pb.name for pb in obj.pose.bones
+                 if pb.name in stale and pb.name not in info.driven_bones and pb.name not in plan.keyed_bones)
     job = Job(
         obj_name=obj.name,
         info=info,
@@ -454,9 +498,8 @@ def _read(context: bpy.types.Context, obj: bpy.types.Object | None) -> Job:
         gait_changes=changes,
         auto_gait=auto,
         warnings=warnings,
-        held_bones=tuple(pb.name for pb in obj.pose.bones
-                         if pb.name in stale and pb.name not in info.driven_bones
-                         and pb.name not in plan.keyed_bones),
+        held_bones=held,
+        kept_bones=kept_bones(obj, info, [*plan.keyed_bones, *held]),
         plan=plan,
         check_after=any(w not in info.warnings for w in warnings),
     )
@@ -492,6 +535,7 @@ def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.Contro
     bones no control was found for), drivers on keyed channels, limit constraints and
     constraints following objects outside the rig."""
     others = [b for b in info.spine if b != info.body_bone] if info.spine_layout is not None else []
+    others += [t for t in info.foot_ik_targets if t is not None]  # carried with the solved feet
     plan = controls.plan_controls(obj, [(leg.bones, leg.foot) for leg in info.legs], info.body_bone, others)
     ik_bones = {t[0] for t in info.ik_targets if t is not None}
     # Controls that read_rig already solves (an IK target beside a plain rig's foot) are
@@ -501,6 +545,13 @@ def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.Contro
         plan = dataclasses.replace(
             plan, direct=(*plan.direct, *(c.bone for c in solved_too)),
             controls=tuple(c for c in plan.controls if c not in solved_too))
+    # The bones of a leg that an IK solves without a pole (MMD's knee IK) are keyed at their
+    # solved pose too: Blender's IK starts from it, and without a pole the knee would swing
+    # about the hip-to-target axis from wherever the IK settles at each frame.
+    seeded = [b for leg, target in zip(info.legs, info.ik_targets, strict=True) if target is not None
+              and _poleless_ik(obj, leg.bones) for b in leg.bones if b not in plan.direct]
+    if seeded:
+        plan = dataclasses.replace(plan, direct=(*plan.direct, *seeded))
     handled = set(info.driven_bones) - set(plan.uncovered)
     # read_rig's warnings name bones whose constraints override their keys: on a control rig
     # those bones are reached through their controls and are not keyed.
@@ -509,6 +560,12 @@ def plan_keys(obj: bpy.types.Object, info: rig.RigInfo) -> tuple[controls.Contro
     warnings += controls.driver_warnings(obj, keyed)
     warnings += controls.constraint_warnings(controls.ConstraintGraph(obj), keyed, info.driven_bones)
     return plan, list(dict.fromkeys(warnings))
+
+
+def _poleless_ik(obj: bpy.types.Object, bones: Sequence[str]) -> bool:
+    """Whether an enabled IK constraint on one of ``bones`` has no pole target."""
+    return any(c.type == "IK" and c.enabled and c.influence > 0.0 and c.pole_target is None
+               for b in bones for c in obj.pose.bones[b].constraints)
 
 
 def simulate(job: Job, kept: simulation.Checkpoints | None = None) -> Iterator[float]:
@@ -674,7 +731,14 @@ def _keyed_action_steps(
             rest_rotation = np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), (frames.size, n, 4))
             actions.write_pose_bone_transforms(action, obj, frames[[0, -1]], job.held_bones,
                                                rotations=rest_rotation[:2], locations=np.zeros((2, n, 3)))
-        keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones])]
+        if job.kept_bones:
+            basis = np.stack([info.basis[name] for name in job.kept_bones])  # (K, 4, 4)
+            size = np.linalg.norm(basis[:, :3, :3], axis=1)  # (K, 3) each axis's scale
+            turn = rig.matrix_to_quaternion(nearest_rotation(basis[:, :3, :3] / size[:, None, :]))
+            actions.write_pose_bone_transforms(
+                action, obj, frames[[0, -1]], job.kept_bones, rotations=np.stack([turn, turn]),
+                locations=np.stack([basis[:, :3, 3]] * 2), scales=np.stack([size, size]))
+        keyed = [*dict.fromkeys([*tracks.bones, *plan.keyed_bones, *job.held_bones, *job.kept_bones])]
         actions.remember_pose(action, obj, keyed, [(s.bone, s.prop) for s in plan.switches])
         # with Key Reduction on, the reduction's passes take the last fifth of the progress
         from ..keys import reduce

@@ -80,6 +80,10 @@ class Job:
     # Bones only an earlier generation (or bake) keyed, which this one does not drive: keyed
     # at rest so the new Action alone decides the pose (see stale_bones).
     held_bones: tuple[str, ...] = ()
+    # Bones the solved bones hang from (a pelvis between the body bone and the hips, a leg
+    # IK's parent) that the rig's own Action or NLA animates: keyed at the pose the walk was
+    # read in, so the walk's legs hang from what they were solved for (see kept_bones).
+    kept_bones: tuple[str, ...] = ()
     # What gets keyed: the solved bones themselves, or the controls that drive them.
     plan: controls.ControlPlan | None = None
     # Whether something may pull the keyed bones off the plan (drivers, limits): then the

@@ -82,6 +82,14 @@ class RigInfo:
     basis: dict[str, np.ndarray] = field(repr=False)  # bone -> (4, 4) current matrix_basis
     warnings: tuple[str, ...] = ()
     spine_layout: SpineLayout | None = None
+    # Per leg: the bone an IK constraint on the leg's first foot bone aims that bone at (MMD's
+    # toe IK, ``左つま先ＩＫ``), or None; that bone is carried rigidly with the solved foot
+    # and keyed, so the foot keeps the pitch solved for it.
+    foot_ik_targets: tuple[str | None, ...] = ()
+    # Solved bones under a bone the animator posed (a pelvis between the body bone and the
+    # hips): bone -> (4, 4) armature-space rest with that pose (the solved bones at rest).
+    # The walk turns them from there, as their joints were read; the others from rest_local.
+    rest_posed: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
     @property
     def leg_length(self) -> np.ndarray:
@@ -96,4 +104,5 @@ class RigInfo:
             names += list(leg.bones)
             names += list(leg.foot[:1])
         names += [t[0] for t in self.ik_targets if t is not None]
+        names += [t for t in self.foot_ik_targets if t is not None]
         return tuple(dict.fromkeys(names))

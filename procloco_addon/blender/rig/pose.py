@@ -290,7 +290,8 @@ def _shape_of(rig: PoseInputs) -> tuple[object, ...]:
     info = rig.info
     order = _hierarchy_order(info, info.driven_bones)
     return (info.legs, info.body_bone, info.spine, info.spine_layout is not None, info.ik_targets,
-            tuple((n, info.parents[n]) for n in order), tuple(p.shape[0] for p in info.foot_points),
+            info.foot_ik_targets, tuple((n, info.parents[n]) for n in order),
+            tuple(p.shape[0] for p in info.foot_points),
             int(np.shape(rig.body_world)[0]), id(rig.ground), rig.leg_frames is None, rig.planted is None)
 
 
@@ -370,15 +371,20 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
         """Every rig's armature rest matrix of bone ``name`` ``(R, 4, 4)``."""
         return _stacked([i.rest_local[name] for i in infos])
 
+    def posed_rest(name: str) -> np.ndarray:
+        """:func:`per_rig` with the pose of the bones above it that are not solved
+        (``RigInfo.rest_posed``): where the walk's joints were read."""
+        return _stacked([i.rest_posed.get(name, i.rest_local[name]) for i in infos])
+
     # Desired world rotation (R, F, 3, 3) of every driven bone; world head of the body bone.
     # (of the solved bones only: a rig has many more, a Rigify metarig's face among them)
     rest_rot = {}
     for bone in info.driven_bones:
-        m = per_rig(bone)[:, :3, :3]
+        m = posed_rest(bone)[:, :3, :3]
         rest_rot[bone] = (w_rot @ (m / np.linalg.norm(m, axis=-2, keepdims=True)))[:, None]  # (R, 1, 3, 3)
     desired: dict[str, np.ndarray] = {}
     desired[info.body_bone] = delta_rot @ rest_rot[info.body_bone]
-    body_head_rest = np.einsum("rij,rj->ri", w[:, :3, :3], per_rig(info.body_bone)[:, :3, 3]) + w[:, :3, 3]
+    body_head_rest = np.einsum("rij,rj->ri", w[:, :3, :3], posed_rest(info.body_bone)[:, :3, 3]) + w[:, :3, 3]
     body_head = np.einsum("rfij,rj->rfi", delta_rot, body_head_rest) + delta[..., :3, 3]
     spine_heads: dict[str, np.ndarray] = {}
     if spine_on:
@@ -434,10 +440,21 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
         bone, joint = target
         desired[bone] = foot_yaw[:, :, k] @ rest_rot[bone]
         moved_heads[bone] = joints_world[k][:, :, joint]
+    # Bones that IK constraints aim the feet at: carried with the solved foot (below).
+    foot_carried = {t: leg.foot[0] for t, leg in zip(info.foot_ik_targets, info.legs, strict=False)
+                    if t is not None}
 
     ground = rigs[0].ground
     if ground is not None:
         _pitch_feet(infos, joints_world, foot_yaw, desired, ground, max_foot_pitch, planted)
+    # A leg's IK target that carries the bone its foot is aimed at (MMD's 左足ＩＫ > 左つま先ＩＫ,
+    # connected: the toe IK's head is the leg IK's tail) turns with the whole foot, pitch
+    # included (the leg's IK reads only its head).
+    aimed_at = info.foot_ik_targets or (None,) * n_legs
+    for target, leg, aim in zip(info.ik_targets, info.legs, aimed_at, strict=True):
+        if target is not None and target[0] in _ancestors(info, aim):
+            foot = leg.foot[0]
+            desired[target[0]] = desired[foot] @ np.swapaxes(rest_rot[foot], -1, -2) @ rest_rot[target[0]]
     done += 1
     yield done / n_steps
 
@@ -455,7 +472,13 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
             base = np.broadcast_to(rest_l[:, None], (n_rigs, n_frames, 4, 4))
         else:
             base = pose[parent] @ (inv_rest[parent] @ rest_l)[:, None]
-        if name in desired:
+        if name in foot_carried:
+            foot = foot_carried[name]
+            goal = pose[foot] @ (affine_inverse(per_rig(foot)) @ rest_l)[:, None]
+            basis = affine_inverse(base) @ goal
+            basis_out[name] = basis
+            pose[name] = goal
+        elif name in desired:
             goal = np.empty((n_rigs, n_frames, 4, 4))
             goal[..., :3, :3] = w_rot_t @ desired[name]
             if name in moved_heads:
@@ -475,7 +498,7 @@ def _solve_group(rigs: Sequence[PoseInputs], max_foot_pitch: float,
     basis_all = np.stack([basis_out[b] for b in bones], axis=2)  # (R, F, B, 4, 4)
     rotations = matrix_to_quaternion(nearest_rotation(basis_all[..., :3, :3]))
     locations = basis_all[..., :3, 3]
-    keyed = np.array([b in moved_heads for b in bones])
+    keyed = np.array([b in moved_heads or b in foot_carried for b in bones])
     return [PoseTracks(bones, rotations[r], locations[r], keyed) for r in range(n_rigs)]
 
 
@@ -625,8 +648,20 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
         desired[name] = turns[:, :, j] @ desired[name]
 
 
+def _ancestors(info: RigInfo, name: str | None) -> list[str]:
+    """The ancestors of bone ``name`` (none for None), its parent first."""
+    out: list[str] = []
+    cur = info.parents[name] if name is not None else None
+    while cur is not None:
+        out.append(cur)
+        cur = info.parents[cur]
+    return out
+
+
 def _hierarchy_order(info: RigInfo, bones: Sequence[str]) -> list[str]:
-    """``bones`` and all their ancestors, parents first."""
+    """``bones`` and all their ancestors, parents first; the bones IK constraints aim the
+    feet at (``RigInfo.foot_ik_targets``, carried with the solved feet) and their
+    descendants after every other bone."""
     needed: list[str] = []
     for b in bones:
         chain = []
@@ -643,4 +678,6 @@ def _hierarchy_order(info: RigInfo, bones: Sequence[str]) -> list[str]:
             d += 1
             cur = info.parents[cur]
         depth[b] = d
-    return sorted(dict.fromkeys(needed), key=lambda b: depth[b])
+    targets = {t for t in info.foot_ik_targets if t is not None}
+    late = {b for b in needed if targets.intersection([b, *_ancestors(info, b)])} if targets else set()
+    return sorted(dict.fromkeys(needed), key=lambda b: (b in late, depth[b]))

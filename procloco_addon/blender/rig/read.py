@@ -524,12 +524,19 @@ def _read_rig(
         if name in basis:
             basis[name] = np.eye(4)
     ik_targets = [_ik_target(obj, rest, leg) for leg in legs]
+    foot_targets = [_foot_ik_target(obj, rest, leg) for leg in legs]
     driven = {rest.index[b] for leg in legs for b in (*leg.bones, *leg.foot[:1])} | {body_idx}
     if carried:
         driven |= set(chain)
     driven |= {rest.index[t[0]] for t in ik_targets if t is not None}
+    driven |= {rest.index[t] for t in foot_targets if t is not None}
     inv_local = affine_inverse(rest.local)
     posed_local = _posed_rest(rest, basis, driven, inv_local)
+    # The solved bones under a bone the animator posed: their rest as read (see RigInfo.rest_posed).
+    posed = {i for i, n in enumerate(rest.names)
+             if i not in driven and not np.array_equal(basis[n], np.eye(4))}
+    rest_posed = {rest.names[i]: posed_local[i] for i in sorted(driven)
+                  if posed.intersection(rest.ancestors(i))}
     heads = _apply(rest.world, posed_local[:, :3, 3])
     # Each bone's far joint (its tail, or on imported rigs the next bone's head) moves with the bone.
     inv_world = affine_inverse(rest.world)
@@ -582,7 +589,7 @@ def _read_rig(
     layout = _spine_layout(skel, chain, hip_idx, heads, ends) if carried else None
 
     warnings = []
-    handled = {t[0] for t in ik_targets if t is not None}
+    handled = {t[0] for t in ik_targets if t is not None} | {t for t in foot_targets if t is not None}
     for name in sorted(rest.names[i] for i in driven):
         pb = obj.pose.bones[name]
         bad = [c.type for c in pb.constraints
@@ -604,6 +611,8 @@ def _read_rig(
         foot_extent=np.array(foot_ext),
         foot_points=tuple(foot_pts),
         ik_targets=tuple(ik_targets),
+        foot_ik_targets=tuple(foot_targets),
+        rest_posed=rest_posed,
         world=rest.world,
         scale=rest.scale,
         rest_local={n: rest.local[i] for i, n in enumerate(rest.names)},
@@ -671,6 +680,23 @@ def _ik_target(obj: bpy.types.Object, rest: _Rest, leg: LegChain) -> tuple[str, 
             if any(rest.names[a] in chain for a in rest.ancestors(rest.index[target])):
                 continue
             return target, (k + 1 if c.use_tail else k)
+    return None
+
+
+def _foot_ik_target(obj: bpy.types.Object, rest: _Rest, leg: LegChain) -> str | None:
+    """The bone an enabled one-bone IK constraint on the leg's first foot bone aims it at
+    (MMD's ``左足首`` at ``左つま先ＩＫ``), when that bone is of this rig and moves neither
+    with the leg nor with the foot (that would be a dependency cycle)."""
+    if not leg.foot:
+        return None
+    carried = set(leg.bones) | set(leg.foot)
+    for c in obj.pose.bones[leg.foot[0]].constraints:
+        if (c.type != "IK" or not c.enabled or c.influence <= 0.0 or c.target != obj or c.chain_count != 1
+                or c.subtarget not in rest.index or c.subtarget in carried):
+            continue
+        if any(rest.names[a] in carried for a in rest.ancestors(rest.index[c.subtarget])):
+            continue
+        return str(c.subtarget)
     return None
 
 
