@@ -52,11 +52,13 @@ def start_body(start_xy: npt.ArrayLike, start_yaw: npt.ArrayLike, n_chars: int, 
 
 def hull_pose(
     env: Environment, rig: Rig, body_samples: tuple[int, int], body: Body, support: FloatArray,
-    chars: IntArray | None = None,
+    chars: IntArray | None = None, ground: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Hull height (+ body thickness), pitch and roll ``(C,)`` under each character (or
     only under ``chars``; the results are then ``(len(chars),)``), with the feet where the
-    body rests on them, ``support (N, 3)``.
+    body rests on them, ``support (N, 3)``. ``ground``: the surface at
+    ``hull_points(rig, body_samples, body, chars)`` when the caller asked already (in a
+    query of its own; else it is asked here).
 
     Thesis figure 3.8 works on a vertical slice along the body: the terrain under the body
     box is sampled on a grid and reduced to its highest point across the body at each
@@ -77,7 +79,7 @@ def hull_pose(
         row_of[chars] = np.arange(len(chars))
     c = pos.shape[0]
     along_pts, along_ok, across_pts, across_ok = terrain_slices(
-        env, body_samples, pos, yaw, box_center, box_half
+        env, body_samples, pos, yaw, box_center, box_half, ground
     )
     # feet: planted feet where they are, swinging feet where they will land
     owner = rig.leg_char[leg_rows]
@@ -108,33 +110,58 @@ def hull_pose(
     return height + thickness, pitch, roll
 
 
+def hull_points(
+    rig: Rig, body_samples: tuple[int, int], body: Body, chars: IntArray | None = None
+) -> FloatArray:
+    """The points ``(k, 2)`` whose surface :func:`hull_pose` reads (its ``ground``), for the
+    same ``chars``."""
+    if chars is None:
+        return _slice_grid(body_samples, body.pos, body.yaw, rig.box_center, rig.box_half)
+    pos, yaw = body.pos[chars], body.yaw[chars]
+    return _slice_grid(body_samples, pos, yaw, rig.box_center[chars], rig.box_half[chars])
+
+
+def _to_world(pos: FloatArray, cy: FloatArray, sy: FloatArray, loc: FloatArray) -> FloatArray:
+    """Points ``loc (c, k, 2)`` in the frames of pelvises at ``pos (c, 3)`` whose headings'
+    cosines and sines are ``cy``, ``sy (c, 1)``."""
+    return np.asarray(
+        pos[:, None, :2]
+        + np.stack([cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1)
+    )
+
+
+def _slice_grid(
+    body_samples: tuple[int, int], pos: FloatArray, yaw: FloatArray, box_center: FloatArray,
+    box_half: FloatArray,
+) -> FloatArray:
+    """:func:`terrain_slices`' grid under the body boxes: ``(c * na * nc, 2)``."""
+    na, nc = body_samples
+    sa = np.linspace(-1.0, 1.0, na)
+    sc = np.linspace(-1.0, 1.0, nc)
+    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
+    local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
+    return _to_world(pos, np.cos(yaw)[:, None], np.sin(yaw)[:, None], local).reshape(-1, 2)
+
+
 def terrain_slices(
     env: Environment, body_samples: tuple[int, int], pos: FloatArray, yaw: FloatArray, box_center: FloatArray,
-    box_half: FloatArray,
+    box_half: FloatArray, ground: FloatArray | None = None,
 ) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
     """The terrain under body boxes ``box_center``, ``box_half (c, 2)`` of pelvises at ``pos
     (c, 3)`` heading ``yaw (c,)``, sampled on a ``body_samples`` (along, across) grid and
     reduced to its highest point across the body at each position along it and along the
     body at each position across it: points ``(c, w, 3)`` and whether each is on a surface
     ``(c, w)`` of the slice along, then of the slice across (``w`` the larger sample count;
-    padded rows are not valid)."""
+    padded rows are not valid). ``ground``: the surface on the grid (``_slice_grid``) when
+    the caller asked already."""
     c = pos.shape[0]
     na, nc = body_samples
     sa = np.linspace(-1.0, 1.0, na)
     sc = np.linspace(-1.0, 1.0, nc)
-    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
-    local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
     cy, sy = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-
-    def to_world(loc: FloatArray) -> FloatArray:
-        return np.asarray(
-            pos[:, None, :2]
-            + np.stack(
-                [cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1
-            )
-        )
-
-    ground = env.height_at(to_world(local).reshape(-1, 2)).reshape(c, na, nc)
+    if ground is None:
+        ground = env.height_at(_slice_grid(body_samples, pos, yaw, box_center, box_half))
+    ground = ground.reshape(c, na, nc)
     ground = np.where(ground > VOID, ground, -np.inf)
     along_z = ground.max(axis=2)  # (c, na)
     across_z = ground.max(axis=1)  # (c, nc)
@@ -158,7 +185,7 @@ def terrain_slices(
         pts = np.zeros((c, width, 3))
         ok = np.zeros((c, width), dtype=bool)
         k = loc.shape[1]
-        pts[:, :k, :2] = to_world(loc)
+        pts[:, :k, :2] = _to_world(pos, cy, sy, loc)
         pts[:, :k, 2] = np.where(np.isfinite(z), z, 0.0)
         ok[:, :k] = np.isfinite(z)
         return pts, ok
