@@ -14,6 +14,7 @@ rest of the scene holds what the watch remembers.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -249,7 +250,7 @@ def look_around(
     # stride; those of the swings a moving obstacle reached when they were planned or
     # reaches now (the others hold what was recorded then)
     k_all = plan.traj.shape[1]
-    cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
+    cols, u_cols = _look_columns(k_all)
     k = cols.size
     pts = plan.traj[legs][:, cols]
     asked = np.flatnonzero(watch.swing_stirred[legs] | near_box)
@@ -267,17 +268,19 @@ def look_around(
     c = b + asked.size * k
     d = c + xy_s.shape[0]
     if ns:
-        surface = plan.ground[legs][:, cols]
-        forbidden = plan.forbidden[legs][:, cols]
+        planned = plan.ground[legs][:, cols]
+        planned_forbidden = plan.forbidden[legs][:, cols]
+        surface = planned.copy()
+        forbidden = planned_forbidden.copy()
         surface[asked] = heights[b:c].reshape(asked.size, k)
         forbidden[asked] = flags[b:c].reshape(asked.size, k)
         # only what changed since the plan counts: something rose into the path, or became
         # forbidden
         t = tol[legs]
         u = swing_parameter(feet, progress)[legs]
-        ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
-        risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
-        cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
+        ahead = u_cols[None, :] >= u[:, None]
+        risen = (surface > planned + t[:, None]) & (surface > pts[..., 2] + t[:, None])
+        cut = ahead & (risen | (forbidden & ~planned_forbidden))
         # the landing spot itself must still be there, and nothing moving may be closing in
         # on it (once per swing: a foot that already moved its landing spot away lands;
         # spot_taken still stops it landing on the obstacle)
@@ -291,6 +294,17 @@ def look_around(
     if n_p:
         looked = (p_legs, *look(env, watch, p_legs, spot_p, tol, (heights[d:], flags[d:], rings_p, near_p)))
     return out, looked
+
+
+@functools.lru_cache(maxsize=8)
+def _look_columns(k_all: int) -> tuple[IntArray, FloatArray]:
+    """The samples of a plan of ``k_all`` that :func:`look_around` reads (every other one and
+    the landing one) and their swing parameters (read only)."""
+    cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
+    u = np.linspace(0.0, 1.0, k_all)[cols]
+    cols.setflags(write=False)
+    u.setflags(write=False)
+    return cols, u
 
 
 def check_supports(
