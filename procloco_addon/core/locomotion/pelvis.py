@@ -8,6 +8,7 @@ Spine characters' nodes get their heights from the same particles; their poses c
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -130,15 +131,25 @@ def _to_world(pos: FloatArray, cy: FloatArray, sy: FloatArray, loc: FloatArray) 
     )
 
 
+@functools.lru_cache(maxsize=8)
+def _unit_grid(body_samples: tuple[int, int]) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The sample positions along and across a body box of half size 1 (``na``, ``nc``) and
+    their grid ``(na * nc, 2)``, row by row (read only)."""
+    na, nc = body_samples
+    sa = np.linspace(-1.0, 1.0, na)
+    sc = np.linspace(-1.0, 1.0, nc)
+    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
+    for a in (sa, sc, grid):
+        a.setflags(write=False)
+    return sa, sc, grid
+
+
 def _slice_grid(
     body_samples: tuple[int, int], pos: FloatArray, yaw: FloatArray, box_center: FloatArray,
     box_half: FloatArray,
 ) -> FloatArray:
     """:func:`terrain_slices`' grid under the body boxes: ``(c * na * nc, 2)``."""
-    na, nc = body_samples
-    sa = np.linspace(-1.0, 1.0, na)
-    sc = np.linspace(-1.0, 1.0, nc)
-    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
+    grid = _unit_grid(body_samples)[2]
     local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
     return _to_world(pos, np.cos(yaw)[:, None], np.sin(yaw)[:, None], local).reshape(-1, 2)
 
@@ -156,8 +167,7 @@ def terrain_slices(
     the caller asked already."""
     c = pos.shape[0]
     na, nc = body_samples
-    sa = np.linspace(-1.0, 1.0, na)
-    sc = np.linspace(-1.0, 1.0, nc)
+    sa, sc, _ = _unit_grid(body_samples)
     cy, sy = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
     if ground is None:
         ground = env.height_at(_slice_grid(body_samples, pos, yaw, box_center, box_half))
