@@ -91,8 +91,13 @@ def hull_pose(
     feet_ok = np.zeros((c, n_feet), dtype=bool)
     feet_pts[row_of[owner], slot] = feet
     feet_ok[row_of[owner], slot] = True
-    fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
-    left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=1)
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    fwd = np.empty((c, 2))
+    fwd[:, 0] = cos
+    fwd[:, 1] = sin
+    left = np.empty((c, 2))
+    left[:, 0] = -sin
+    left[:, 1] = cos
     # both slices (forward for height and pitch, left for roll) in one batched call
     both_h, both_a = hull_height_and_pitch(
         np.concatenate(
@@ -122,13 +127,14 @@ def hull_points(
     return _slice_grid(body_samples, pos, yaw, rig.box_center[chars], rig.box_half[chars])
 
 
-def _to_world(pos: FloatArray, cy: FloatArray, sy: FloatArray, loc: FloatArray) -> FloatArray:
-    """Points ``loc (c, k, 2)`` in the frames of pelvises at ``pos (c, 3)`` whose headings'
-    cosines and sines are ``cy``, ``sy (c, 1)``."""
-    return np.asarray(
-        pos[:, None, :2]
-        + np.stack([cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1)
-    )
+def _to_world(
+    out: FloatArray, pos: FloatArray, cy: FloatArray, sy: FloatArray, lx: FloatArray, ly: FloatArray
+) -> None:
+    """Points at ``lx``, ``ly`` (each ``(c, k)`` or ``(c, 1)``) in the frames of pelvises at
+    ``pos (c, 3)`` whose headings' cosines and sines are ``cy``, ``sy (c, 1)``, written into
+    ``out (c, k, >= 2)``'s first two columns."""
+    out[..., 0] = pos[:, None, 0] + (cy * lx - sy * ly)
+    out[..., 1] = pos[:, None, 1] + (sy * lx + cy * ly)
 
 
 @functools.lru_cache(maxsize=8)
@@ -150,8 +156,11 @@ def _slice_grid(
 ) -> FloatArray:
     """:func:`terrain_slices`' grid under the body boxes: ``(c * na * nc, 2)``."""
     grid = _unit_grid(body_samples)[2]
-    local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
-    return _to_world(pos, np.cos(yaw)[:, None], np.sin(yaw)[:, None], local).reshape(-1, 2)
+    lx = box_center[:, None, 0] + grid[None, :, 0] * box_half[:, None, 0]
+    ly = box_center[:, None, 1] + grid[None, :, 1] * box_half[:, None, 1]
+    out = np.empty((*lx.shape, 2))
+    _to_world(out, pos, np.cos(yaw)[:, None], np.sin(yaw)[:, None], lx, ly)
+    return out.reshape(-1, 2)
 
 
 def terrain_slices(
@@ -175,33 +184,24 @@ def terrain_slices(
     ground = np.where(ground > VOID, ground, -np.inf)
     along_z = ground.max(axis=2)  # (c, na)
     across_z = ground.max(axis=1)  # (c, nc)
-    along_local = np.stack(
-        [
-            box_center[:, None, 0] + sa[None, :] * box_half[:, None, 0],
-            np.broadcast_to(box_center[:, None, 1], (c, na)),
-        ],
-        axis=-1,
-    )
-    across_local = np.stack(
-        [
-            np.broadcast_to(box_center[:, None, 0], (c, nc)),
-            box_center[:, None, 1] + sc[None, :] * box_half[:, None, 1],
-        ],
-        axis=-1,
-    )
+    # the slices' points in the body frame: along it (x varies, y the box centre's) and
+    # across it
+    along_x = box_center[:, None, 0] + sa[None, :] * box_half[:, None, 0]
+    across_y = box_center[:, None, 1] + sc[None, :] * box_half[:, None, 1]
     width = max(na, nc)
 
-    def padded(loc: FloatArray, z: FloatArray) -> tuple[FloatArray, BoolArray]:
+    def padded(lx: FloatArray, ly: FloatArray, z: FloatArray) -> tuple[FloatArray, BoolArray]:
         pts = np.zeros((c, width, 3))
         ok = np.zeros((c, width), dtype=bool)
-        k = loc.shape[1]
-        pts[:, :k, :2] = _to_world(pos, cy, sy, loc)
-        pts[:, :k, 2] = np.where(np.isfinite(z), z, 0.0)
-        ok[:, :k] = np.isfinite(z)
+        k = z.shape[1]
+        _to_world(pts[:, :k], pos, cy, sy, lx, ly)
+        finite = np.isfinite(z)
+        pts[:, :k, 2] = np.where(finite, z, 0.0)
+        ok[:, :k] = finite
         return pts, ok
 
-    along_pts, along_ok = padded(along_local, along_z)
-    across_pts, across_ok = padded(across_local, across_z)
+    along_pts, along_ok = padded(along_x, box_center[:, None, 1], along_z)
+    across_pts, across_ok = padded(box_center[:, None, 0], across_y, across_z)
     return along_pts, along_ok, across_pts, across_ok
 
 
