@@ -378,7 +378,7 @@ def wavefront_each(
     # Parent move of every reached cell: the move that realises its distance.
     stacked = np.stack([view + cost for view, cost in zip(shifted, costs, strict=True)])
     flat_parent = np.full(m * plane, -1, dtype=np.int8)
-    flat_parent[lo:hi] = np.where(np.isfinite(inner), np.argmin(stacked, axis=0), -1)
+    flat_parent[lo:hi] = np.where(np.isfinite(inner), stacked.argmin(axis=0), -1)
     parent = flat_parent.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
     parent[at, src[:, 0], src[:, 1]] = -1
     grid = dist.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
@@ -503,7 +503,7 @@ def segments_clear_each(
     inside = (r >= 0) & (r < shape[:, 0]) & (c >= 0) & (c < shape[:, 1])
     hit = blocked[which, np.where(inside, r, 0), np.where(inside, c, 0)]
     bad = mask & (~inside | hit)
-    return np.asarray(~np.any(bad, axis=0))
+    return np.asarray(~np.logical_or.reduce(bad, axis=0))
 
 
 def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> BoolArray:
