@@ -369,7 +369,8 @@ def cardinal_samples(
     ctrl = np.empty((n_seg, 4, d))
     ctrl[:, 0] = pts[:-1]
     ctrl[:, 1] = pts[1:]
-    if h.min() > 1e-12:  # no coincident points: cardinal_tangents' guarded divisions are plain ones
+    # no coincident points: cardinal_tangents' guarded divisions are plain ones
+    if np.minimum.reduce(h) > 1e-12:
         direction = np.empty_like(pts)
         direction[1:-1] = (pts[2:] - pts[:-2]) / (h[:-1] + h[1:])[:, None]
         direction[0] = chords[0] / h[0]

@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import linspace_to, planar_length, vector_norm
+from ..geometry import clip, linspace_to, planar_length, vector_norm
 from ..hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
@@ -372,11 +372,13 @@ def wavefront_each(
         same = np.logical_and.reduceat(unchanged, cuts)
         iterations[same & ~settled] = sweeps
         settled |= same
-        if settled.all():
+        if all_of(settled, axis=None):
             break
     iterations[~settled] = sweeps
     # Parent move of every reached cell: the move that realises its distance.
-    stacked = np.stack([view + cost for view, cost in zip(shifted, costs, strict=True)])
+    stacked = np.empty((len(costs), n))
+    for row, view, cost in zip(stacked, shifted, costs, strict=True):
+        np.add(view, cost, out=row)
     flat_parent = np.full(m * plane, -1, dtype=np.int8)
     flat_parent[lo:hi] = np.where(np.isfinite(inner), stacked.argmin(axis=0), -1)
     parent = flat_parent.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
@@ -464,7 +466,7 @@ def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, IntArray,
     last = np.floor(hi - 0.5)
     moving = np.abs(d) > 1e-12
     count = np.where(moving, np.maximum(last - first + 1, 0), 0).astype(np.intp)  # (m, 2)
-    kmax = int(count.max(initial=0))
+    kmax = int(np.maximum.reduce(count, axis=None, initial=0))
     steps = np.arange(kmax)[:, None]
     dd = np.where(moving, d, 1.0)
     k = 2 + 2 * kmax
@@ -475,7 +477,7 @@ def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, IntArray,
     for axis in (0, 1):
         rows = slice(2 + axis * kmax, 2 + (axis + 1) * kmax)
         line = first[:, axis] + steps + 0.5  # (kmax, m)
-        t[rows] = np.clip((line - aa[:, axis]) / dd[:, axis], 0.0, 1.0)
+        t[rows] = clip((line - aa[:, axis]) / dd[:, axis], 0.0, 1.0)
         ok[rows] = steps < count[:, axis]
     p0 = aa[:, 0] + t * d[:, 0]
     p1 = aa[:, 1] + t * d[:, 1]
@@ -836,7 +838,7 @@ def lift_each(
         arcs[0, 0] = 0.0
         np.cumsum(seg3, out=arcs[0, 1:])
     else:
-        table = np.zeros((n, int(counts.max())))
+        table = np.zeros((n, int(np.maximum.reduce(counts))))
         pos = np.arange(arc.size) - np.asarray(first).repeat(counts)
         inner = pos > 0  # a sample after its plan's first: its segment from the one before
         table[owner[inner], pos[inner]] = seg3[inner[1:]]

@@ -313,8 +313,8 @@ def dilate(mask: BoolArray, offsets: IntArray) -> BoolArray:
     pass (``(a - 1) + (b - 1)`` shifted ORs instead of ``a * b - 1``)."""
     h, w = mask.shape[-2:]
     lead = mask.shape[:-2]
-    r_lo, c_lo = (int(v) for v in offsets.min(axis=0))
-    r_hi, c_hi = (int(v) for v in offsets.max(axis=0))
+    r_lo, c_lo = (int(v) for v in np.minimum.reduce(offsets, axis=0))
+    r_hi, c_hi = (int(v) for v in np.maximum.reduce(offsets, axis=0))
     rr = max(-r_lo, r_hi, 0)
     cc = max(-c_lo, c_hi, 0)
     w2 = w + 2 * cc
@@ -374,7 +374,7 @@ def max_filter(values: FloatArray, offsets: IntArray) -> FloatArray:
 def _ranges_to_pairs(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
     """For items with inclusive integer ranges ``[lo, hi]`` return (item, value) pairs."""
     counts = np.maximum(hi - lo + 1, 0)
-    total = int(counts.sum())
+    total = int(np.add.reduce(counts))
     item = np.arange(lo.shape[0], dtype=np.intp).repeat(counts)
     # value = position in the run - run start + lo, with the two shifts repeated as one
     shift = counts.cumsum() - counts - lo
