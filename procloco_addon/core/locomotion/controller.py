@@ -447,11 +447,11 @@ class Controller:
         prof = Profiler(stats.seconds, self.params.clock)
         self.time += dt
         gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
-        if self.avoid.any():
+        if np.logical_or.reduce(self.avoid):
             self._see_others()
         flags = self.feet.flags()
         sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
-        if sched.to_plan.any():
+        if np.logical_or.reduce(sched.to_plan):
             forced = flags[1]
             land_stance = np.where(
                 forced,
@@ -623,7 +623,7 @@ class Controller:
                 else:
                     surface = self.env.height_at(xy)
                 hit = surface > feet.foot[moving, 2]
-                if hit.any():
+                if np.logical_or.reduce(hit):
                     self._push_out(moving[hit], surface[hit])
         # a gait swing whose plan failed leaves the foot planted
         feet.set_flags(active, forced, failed & (gstep.swing | forced))

@@ -155,10 +155,10 @@ def look_points(
     the others hold what the watch remembers."""
     if near is None:
         near = _ring_near(env, watch, legs, spot)
-    moved = np.any(spot[:, :2] != watch.spot[legs], axis=1)
+    moved = np.logical_or.reduce(spot[:, :2] != watch.spot[legs], axis=1)
     stirred = near | moved | watch.stirred[legs]
-    rings = np.flatnonzero(stirred)
-    spots = np.flatnonzero(stirred | ~watch.spot_known[legs])
+    rings = stirred.nonzero()[0]
+    spots = (stirred | ~watch.spot_known[legs]).nonzero()[0]
     xy = np.concatenate([spot[spots, :2], ring_points(watch, legs[rings], spot[rings])])
     return xy, (spots, rings), near
 
@@ -226,8 +226,8 @@ def look_around(
     and planted feet's legs are apart from the landed ones, and a landed foot's look sees
     what its reset remembered (its spot did not move since)."""
     out = np.zeros(swing.shape[0], dtype=bool)
-    legs = np.flatnonzero(swing)
-    p_legs = np.flatnonzero(planted)
+    legs = swing.nonzero()[0]
+    p_legs = planted.nonzero()[0]
     plan = feet.plan
     spot_l = feet.foot[landed]
     targets = plan.target[legs]
@@ -253,7 +253,7 @@ def look_around(
     cols, u_cols = _look_columns(k_all)
     k = cols.size
     pts = plan.traj[legs][:, cols]
-    asked = np.flatnonzero(watch.swing_stirred[legs] | near_box)
+    asked = (watch.swing_stirred[legs] | near_box).nonzero()[0]
     xy_s, rings_s, _ = look_points(env, watch, legs, targets, near_s)
     xy_p, rings_p, _ = look_points(env, watch, p_legs, spot_p, near_p)
     # one point query: the landed feet's rings and spots, the swings' samples, the swings'
@@ -325,7 +325,7 @@ def check_supports(
     buried = surface > feet.foot[legs, 2] + t
     bad = (np.abs(surface - feet.support_z[legs]) > t) | buried
     out[legs] = bad | forbidden | coming
-    if np.any(buried):
+    if np.logical_or.reduce(buried):
         # an obstacle slid under a planted foot anyway: it pushes the foot out (the foot
         # steps off from there)
         at = legs[buried]
@@ -387,7 +387,7 @@ def spot_taken(
     forbidden since they were planned), and the surface under them ``(N,)`` (valid at
     ``which``; None where nothing moves: nothing was asked)."""
     out = np.zeros(which.shape[0], dtype=bool)
-    legs = np.flatnonzero(which)
+    legs = which.nonzero()[0]
     if not watch.dynamic or legs.size == 0:
         return out, None
     xy = points[legs, :2]

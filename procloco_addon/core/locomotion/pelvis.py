@@ -231,7 +231,7 @@ def feedback_move(
     sums = np.bincount(bins, weights=feedback.reshape(-1), minlength=2 * c)
     mean = sums.reshape(c, 2) / np.bincount(leg_char, minlength=c)[:, None]
     significant = vector_norm(mean) > p.feedback_threshold * leg_length
-    if not significant.any():
+    if not np.logical_or.reduce(significant):
         return None
     share = clip(p.feedback_gain * dt / cycle_time, 0.0, 1.0)
     move = np.where(significant[:, None], mean * share[:, None], 0.0)
@@ -268,12 +268,12 @@ def pogo_heights(
                          minlength=physics_on.shape[0]) > 0.0
     switched_on |= physics_on & jumped
     pogo.rate = rate_leg.copy()
-    if switched_on.any():
+    if np.logical_or.reduce(switched_on):
         pogo.physics.reset(
             pref, needle_before, rate_leg, gait.disk_start, gait.disk_duration, nodes=switched_on[node_char]
         )
     pogo.on = physics_on.copy()
-    if not physics_on.any():
+    if not np.logical_or.reduce(physics_on):
         return pref.copy()
     node = pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
     return np.asarray(np.where(physics_on[node_char], pogo.physics.centered_height(node), pref))

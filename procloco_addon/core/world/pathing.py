@@ -135,7 +135,7 @@ class FootTrajectory:
         if self.points.shape[0] < 2 or self.length <= 0.0:
             return np.zeros((*uu.shape, 3))
         last = self.points.shape[0] - 2
-        seg = np.clip(np.searchsorted(self.arc, uu * self.length, side="right") - 1, 0, last)
+        seg = clip(self.arc.searchsorted(uu * self.length, side="right") - 1, 0, last)
         d = self.points[seg + 1] - self.points[seg]
         n = np.linalg.norm(d, axis=-1, keepdims=True)
         return np.asarray(np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), 0.0))
@@ -638,7 +638,7 @@ def height_profile(knots_s: FloatArray, knots_z: FloatArray, s: FloatArray) -> F
     slope[-1] = delta[-1]
     if k > 2:
         slope[1:-1] = (knots_z[2:] - knots_z[:-2]) / np.maximum(knots_s[2:] - knots_s[:-2], 1e-12)
-    seg = np.clip(np.searchsorted(knots_s, s, side="right") - 1, 0, k - 2)
+    seg = clip(knots_s.searchsorted(s, side="right") - 1, 0, k - 2)
     t = np.clip((s - knots_s[seg]) / h_safe[seg], 0.0, 1.0)
     w = hermite_basis(t)
     return np.asarray(
@@ -740,7 +740,7 @@ def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
     ang = np.arctan2(d[idx, 1], d[idx, 0])
     turn = np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)
     who = owner[idx]
-    cuts = np.searchsorted(who, np.arange(n + 1)).tolist()
+    cuts = who.searchsorted(np.arange(n + 1)).tolist()
     add = np.add.reduce  # (np.sum's reduction, without its Python-level dispatch)
     out = []
     for i in range(n):
