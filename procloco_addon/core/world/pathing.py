@@ -347,34 +347,36 @@ def wavefront_each(
     shifted = [dist[lo - off : hi - off] for off in offsets]
     limit = max_iterations if max_iterations is not None else max(h * w for h, w in shapes) + 1
     iterations = np.zeros(m, dtype=np.intp)
-    settled = np.zeros(m, dtype=bool)
     starts = at * plane  # grid i's cells are inner[starts[i] - lo + ...]: the reduceat cuts
     starts[0] = lo
     cuts = starts - lo
     sweeps = 0
     cand = np.empty(n)
     before = np.empty(n)
-    unchanged = np.empty(n, dtype=bool)
-    all_of = np.logical_and.reduce
+    changed = np.empty(n, dtype=bool)
+    # the last sweep that changed each cell (0: none). A sweep that changes nothing in a grid
+    # leaves it as it is for good (its next sweeps compute the same), so a grid stops at the
+    # sweep after its last change, and every grid stops in the first sweep that changes
+    # nothing anywhere (its per-grid bookkeeping once, after the sweeps)
+    last = np.zeros(n, dtype=np.intp) if m > 1 else None
+    any_of = np.logical_or.reduce
     while sweeps < limit:
         np.copyto(before, inner)
         for view, cost in zip(shifted, costs, strict=True):
             np.add(view, cost, out=cand)
             np.minimum(inner, cand, out=inner)
         sweeps += 1
-        np.equal(before, inner, out=unchanged)
-        if m == 1:  # one grid: the same test, without the per-grid bookkeeping
-            if all_of(unchanged):
-                iterations[0] = sweeps
-                settled[0] = True
-                break
-            continue
-        same = np.logical_and.reduceat(unchanged, cuts)
-        iterations[same & ~settled] = sweeps
-        settled |= same
-        if all_of(settled, axis=None):
+        np.not_equal(before, inner, out=changed)
+        if not any_of(changed):
             break
-    iterations[~settled] = sweeps
+        if last is not None:
+            np.copyto(last, sweeps, where=changed)
+    if last is None:
+        iterations[0] = sweeps
+    else:
+        # a grid still changing when the sweeps ran out: every sweep (its last change + 1 would
+        # be one more)
+        iterations[:] = np.minimum(np.maximum.reduceat(last, cuts) + 1, sweeps)
     # Parent move of every reached cell: the move that realises its distance.
     stacked = np.empty((len(costs), n))
     for row, view, cost in zip(stacked, shifted, costs, strict=True):
