@@ -1079,7 +1079,7 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
         org = batch.origin[ks]
         end_rc = column_pair((t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
                              (t_xy[:, 0] - org[:, 0]) / cl - batch.c0[ks])
-        blocked = np.stack([batch.blocked_row(f, level) for f, level in evals])
+        blocked = np.array([batch.blocked_row(f, level) for f, level in evals])  # (np.stack's copy)
         start_rc = batch.start_rc[ks]
         shape = column_pair(batch.hh[ks], batch.ww[ks])
         sight = segments_clear_each(blocked, np.arange(m), shape, start_rc, end_rc).tolist()
@@ -1161,7 +1161,7 @@ def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]
         todo.append((f, level, src))
     if not todo:
         return
-    free = ~np.stack([batch.blocked_row(f, level) for f, level, _ in todo])
+    free = ~np.array([batch.blocked_row(f, level) for f, level, _ in todo])  # (np.stack's copy)
     shapes = [(int(batch.hh[f.k]), int(batch.ww[f.k])) for f, _, _ in todo]
     fields = wavefront_each(free, [src for _, _, src in todo], shapes)
     for (f, level, src), fld in zip(todo, fields, strict=True):
