@@ -413,7 +413,7 @@ def cardinal_samples(
     dd: FloatArray = dense[1:] - dense[:-1]
     table_len = np.empty(table_t.size)
     table_len[0] = 0.0
-    np.cumsum(np.sqrt(sum_last(dd * dd)), out=table_len[1:])
+    np.sqrt(sum_last(dd * dd)).cumsum(out=table_len[1:])
     length = float(table_len[-1])
     arc = linspace_to(length, max(2, math.ceil(length / spacing) + 1))
     # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.

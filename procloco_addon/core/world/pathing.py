@@ -838,13 +838,13 @@ def lift_each(
     if owner is None:
         arcs = np.empty((1, arc.size))
         arcs[0, 0] = 0.0
-        np.cumsum(seg3, out=arcs[0, 1:])
+        seg3.cumsum(out=arcs[0, 1:])
     else:
         table = np.zeros((n, int(np.maximum.reduce(counts))))
         pos = np.arange(arc.size) - np.asarray(first).repeat(counts)
         inner = pos > 0  # a sample after its plan's first: its segment from the one before
         table[owner[inner], pos[inner]] = seg3[inner[1:]]
-        arcs = np.cumsum(table, axis=1)
+        arcs = table.cumsum(axis=1)
     ends = arcs[np.arange(n), counts - 1].tolist()
     out = []
     for i in range(n):

@@ -252,8 +252,8 @@ def foot_kernels(
         half_y = half_y + grow
     ex = c * half_x + s * half_y
     ey = s * half_x + c * half_y
-    rx = int(np.max(np.ceil(ex / cell + 0.5), initial=0))
-    ry = int(np.max(np.ceil(ey / cell + 0.5), initial=0))
+    rx = int(np.maximum.reduce(np.ceil(ex / cell + 0.5), axis=None, initial=0))
+    ry = int(np.maximum.reduce(np.ceil(ey / cell + 0.5), axis=None, initial=0))
     offsets = _rect_offsets(ry, rx)
     col = cell[:, None]
     # the cell centres from the foot's centre (0, 0), x and y apart
