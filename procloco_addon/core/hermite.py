@@ -369,7 +369,8 @@ def cardinal_samples(
     ctrl = np.empty((n_seg, 4, d))
     ctrl[:, 0] = pts[:-1]
     ctrl[:, 1] = pts[1:]
-    if h.min() > 1e-12:  # no coincident points: cardinal_tangents' guarded divisions are plain ones
+    # no coincident points: cardinal_tangents' guarded divisions are plain ones
+    if np.minimum.reduce(h) > 1e-12:
         direction = np.empty_like(pts)
         direction[1:-1] = (pts[2:] - pts[:-2]) / (h[:-1] + h[1:])[:, None]
         direction[0] = chords[0] / h[0]
@@ -412,7 +413,7 @@ def cardinal_samples(
     dd: FloatArray = dense[1:] - dense[:-1]
     table_len = np.empty(table_t.size)
     table_len[0] = 0.0
-    np.cumsum(np.sqrt(sum_last(dd * dd)), out=table_len[1:])
+    np.sqrt(sum_last(dd * dd)).cumsum(out=table_len[1:])
     length = float(table_len[-1])
     arc = linspace_to(length, max(2, math.ceil(length / spacing) + 1))
     # HermiteCurve.param_at_length: the table, then one Newton step on the exact curve.

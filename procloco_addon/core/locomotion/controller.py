@@ -145,6 +145,8 @@ class Controller:
         self.link: SpineLink = spine_link.build_link(legs, spine)
         # the characters without a spine when some have one (else None: all rigid)
         self._rigid: IntArray | None = None if not self.link.groups else np.flatnonzero(~self.link.has_spine)
+        #: The ground under the bodies (``pelvis.hull_points``) when ``_move_feet`` asked for it.
+        self._hull_ground: FloatArray | None = None
         self.gait = GaitManager(legs.leg_char, gaits, phase)
         self.time = 0.0
         self.rig: Rig = build_rig(legs, p, self.char_params)
@@ -445,11 +447,11 @@ class Controller:
         prof = Profiler(stats.seconds, self.params.clock)
         self.time += dt
         gstep, needle_before, rate_leg = self._advance(dt, ctl, prof)
-        if self.avoid.any():
+        if np.logical_or.reduce(self.avoid):
             self._see_others()
         flags = self.feet.flags()
         sched = stepping.schedule(self._world(), self.feet, flags, dt, ctl, gstep, rate_leg, stats)
-        if sched.to_plan.any():
+        if np.logical_or.reduce(sched.to_plan):
             forced = flags[1]
             land_stance = np.where(
                 forced,
@@ -609,10 +611,19 @@ class Controller:
             feet.foot[moving] = sample_polyline(feet.plan.traj[moving], u[moving])
             if self.watch.dynamic:
                 # an obstacle that moved into a swinging foot pushes it out, up or aside (the
-                # trajectory is re-planned at the next step)
-                surface = self.env.height_at(feet.foot[moving, :2])
+                # trajectory is re-planned at the next step); the ground under the bodies that
+                # the pelvis height reads next (hull_pose) comes in the same query (a query of
+                # many points: one of a single point may take another path)
+                xy = feet.foot[moving, :2]
+                rigid = self._rigid
+                if moving.size > 1 and (rigid is None or rigid.size):
+                    under = pelvis.hull_points(self.rig, self.params.body_samples, self.body, rigid)
+                    heights = self.env.height_at(np.concatenate([xy, under]))
+                    surface, self._hull_ground = heights[: moving.size], heights[moving.size :]
+                else:
+                    surface = self.env.height_at(xy)
                 hit = surface > feet.foot[moving, 2]
-                if hit.any():
+                if np.logical_or.reduce(hit):
                     self._push_out(moving[hit], surface[hit])
         # a gait swing whose plan failed leaves the foot planted
         feet.set_flags(active, forced, failed & (gstep.swing | forced))
@@ -628,8 +639,9 @@ class Controller:
         alpha = 1.0 - np.exp(-dt / np.maximum(p.height_time * self.gait.cycle_time, 1e-6))
         rigid = self._rigid
         support = support_points(self.feet, swinging)
+        ground, self._hull_ground = self._hull_ground, None
         if rigid is None or rigid.size:
-            hull = pelvis.hull_pose(self.env, self.rig, p.body_samples, body, support, rigid)
+            hull = pelvis.hull_pose(self.env, self.rig, p.body_samples, body, support, rigid, ground)
             pelvis.settle(body, hull, alpha, rigid)
         pref = body.height_target
         if link.groups:

@@ -524,11 +524,22 @@ def _reach(rq: FootRequest) -> float:
 def _validate(index: int, rq: FootRequest) -> _Plan | Couple:
     """Checks and the search rectangle of one request; a failed :class:`Couple` if it cannot
     be planned at all."""
-    start = np.asarray(rq.foot_start, dtype=np.float64).reshape(3)
-    pref = np.asarray(rq.preferred_xy, dtype=np.float64).reshape(2)
-    hip = np.asarray(rq.hip_xy, dtype=np.float64).reshape(2)
-    o_hips = np.asarray(rq.other_hips_xy, dtype=np.float64).reshape(-1, 2)
-    o_feet = np.asarray(rq.other_feet_xy, dtype=np.float64).reshape(-1, 2)
+    # (reshaped only when not already of their shape: the same arrays)
+    start = np.asarray(rq.foot_start, dtype=np.float64)
+    if start.shape != (3,):
+        start = start.reshape(3)
+    pref = np.asarray(rq.preferred_xy, dtype=np.float64)
+    if pref.shape != (2,):
+        pref = pref.reshape(2)
+    hip = np.asarray(rq.hip_xy, dtype=np.float64)
+    if hip.shape != (2,):
+        hip = hip.reshape(2)
+    o_hips = np.asarray(rq.other_hips_xy, dtype=np.float64)
+    if o_hips.ndim != 2 or o_hips.shape[1] != 2:
+        o_hips = o_hips.reshape(-1, 2)
+    o_feet = np.asarray(rq.other_feet_xy, dtype=np.float64)
+    if o_feet.ndim != 2 or o_feet.shape[1] != 2:
+        o_feet = o_feet.reshape(-1, 2)
     sx, sy, sz = start.tolist()
     px, py = pref.tolist()
     hx, hy = hip.tolist()
@@ -1009,7 +1020,7 @@ def _straight_plans(
     dy = w1y - w0y
     length = planar_length(dx, dy)
     moving = length > 1e-9
-    spacing = PathParams().sample_spacing * cl
+    spacing = _PATH_DEFAULTS.sample_spacing * cl
     counts = np.where(moving, np.maximum(2, np.ceil(length / spacing).astype(np.intp) + 1), 1)
     bounds = np.concatenate([[0], counts.cumsum()])
     m = ks.size
@@ -1082,7 +1093,7 @@ def _run(batch: _Batch, feet: list[_Foot], cands: _Cands) -> None:
         org = batch.origin[ks]
         end_rc = column_pair((t_xy[:, 1] - org[:, 1]) / cl - batch.r0[ks],
                              (t_xy[:, 0] - org[:, 0]) / cl - batch.c0[ks])
-        blocked = np.stack([batch.blocked_row(f, level) for f, level in evals])
+        blocked = np.array([batch.blocked_row(f, level) for f, level in evals])  # (np.stack's copy)
         start_rc = batch.start_rc[ks]
         shape = column_pair(batch.hh[ks], batch.ww[ks])
         sight = segments_clear_each(blocked, np.arange(m), shape, start_rc, end_rc).tolist()
@@ -1164,7 +1175,7 @@ def _fields_for(batch: _Batch, items: list[tuple[_Foot, float, tuple[int, int]]]
         todo.append((f, level, src))
     if not todo:
         return
-    free = ~np.stack([batch.blocked_row(f, level) for f, level, _ in todo])
+    free = ~np.array([batch.blocked_row(f, level) for f, level, _ in todo])  # (np.stack's copy)
     shapes = [(int(batch.hh[f.k]), int(batch.ww[f.k])) for f, _, _ in todo]
     fields = wavefront_each(free, [src for _, _, src in todo], shapes)
     for (f, level, src), fld in zip(todo, fields, strict=True):

@@ -422,7 +422,7 @@ class GaitManager:
     def target_disks(self, time: float | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The interpolated ("computed") disks at ``time``: ``(start (N,), duration (N,),
         cycle_time (C,))``. Outside a transition these are the destination disks."""
-        if not self.tr_active.any():
+        if not np.logical_or.reduce(self.tr_active):
             # no transition: every leg at amount 1 (interpolate_disks' numbers, without its work)
             duration = self.src_duration + (self.dst_duration - self.src_duration)
             return self.dst_start.copy(), duration, self.src_cycle + (self.dst_cycle - self.src_cycle)
@@ -538,7 +538,7 @@ class GaitManager:
         self.disk_start = np.where(swap, new_start, self.disk_start)
         self.disk_duration = np.where(swap, new_duration, self.disk_duration)
         done = self.tr_active & (self.time - self.tr_t0 >= self.tr_duration)
-        if done.any():
+        if np.logical_or.reduce(done):
             # the transition is complete once every leg of the character holds its final disk
             final = (self.disk_start == self.dst_start) & (self.disk_duration == self.dst_duration)
             all_final = np.bincount(self.leg_char, weights=final.astype(np.float64), minlength=self.n_chars)

@@ -14,6 +14,7 @@ rest of the scene holds what the watch remembers.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -154,10 +155,10 @@ def look_points(
     the others hold what the watch remembers."""
     if near is None:
         near = _ring_near(env, watch, legs, spot)
-    moved = np.any(spot[:, :2] != watch.spot[legs], axis=1)
+    moved = np.logical_or.reduce(spot[:, :2] != watch.spot[legs], axis=1)
     stirred = near | moved | watch.stirred[legs]
-    rings = np.flatnonzero(stirred)
-    spots = np.flatnonzero(stirred | ~watch.spot_known[legs])
+    rings = stirred.nonzero()[0]
+    spots = (stirred | ~watch.spot_known[legs]).nonzero()[0]
     xy = np.concatenate([spot[spots, :2], ring_points(watch, legs[rings], spot[rings])])
     return xy, (spots, rings), near
 
@@ -225,8 +226,8 @@ def look_around(
     and planted feet's legs are apart from the landed ones, and a landed foot's look sees
     what its reset remembered (its spot did not move since)."""
     out = np.zeros(swing.shape[0], dtype=bool)
-    legs = np.flatnonzero(swing)
-    p_legs = np.flatnonzero(planted)
+    legs = swing.nonzero()[0]
+    p_legs = planted.nonzero()[0]
     plan = feet.plan
     spot_l = feet.foot[landed]
     targets = plan.target[legs]
@@ -249,10 +250,10 @@ def look_around(
     # stride; those of the swings a moving obstacle reached when they were planned or
     # reaches now (the others hold what was recorded then)
     k_all = plan.traj.shape[1]
-    cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
+    cols, u_cols = _look_columns(k_all)
     k = cols.size
     pts = plan.traj[legs][:, cols]
-    asked = np.flatnonzero(watch.swing_stirred[legs] | near_box)
+    asked = (watch.swing_stirred[legs] | near_box).nonzero()[0]
     xy_s, rings_s, _ = look_points(env, watch, legs, targets, near_s)
     xy_p, rings_p, _ = look_points(env, watch, p_legs, spot_p, near_p)
     # one point query: the landed feet's rings and spots, the swings' samples, the swings'
@@ -267,17 +268,19 @@ def look_around(
     c = b + asked.size * k
     d = c + xy_s.shape[0]
     if ns:
-        surface = plan.ground[legs][:, cols]
-        forbidden = plan.forbidden[legs][:, cols]
+        planned = plan.ground[legs][:, cols]
+        planned_forbidden = plan.forbidden[legs][:, cols]
+        surface = planned.copy()
+        forbidden = planned_forbidden.copy()
         surface[asked] = heights[b:c].reshape(asked.size, k)
         forbidden[asked] = flags[b:c].reshape(asked.size, k)
         # only what changed since the plan counts: something rose into the path, or became
         # forbidden
         t = tol[legs]
         u = swing_parameter(feet, progress)[legs]
-        ahead = np.linspace(0.0, 1.0, k_all)[cols][None, :] >= u[:, None]
-        risen = (surface > plan.ground[legs][:, cols] + t[:, None]) & (surface > pts[..., 2] + t[:, None])
-        cut = ahead & (risen | (forbidden & ~plan.forbidden[legs][:, cols]))
+        ahead = u_cols[None, :] >= u[:, None]
+        risen = (surface > planned + t[:, None]) & (surface > pts[..., 2] + t[:, None])
+        cut = ahead & (risen | (forbidden & ~planned_forbidden))
         # the landing spot itself must still be there, and nothing moving may be closing in
         # on it (once per swing: a foot that already moved its landing spot away lands;
         # spot_taken still stops it landing on the obstacle)
@@ -291,6 +294,17 @@ def look_around(
     if n_p:
         looked = (p_legs, *look(env, watch, p_legs, spot_p, tol, (heights[d:], flags[d:], rings_p, near_p)))
     return out, looked
+
+
+@functools.lru_cache(maxsize=8)
+def _look_columns(k_all: int) -> tuple[IntArray, FloatArray]:
+    """The samples of a plan of ``k_all`` that :func:`look_around` reads (every other one and
+    the landing one) and their swing parameters (read only)."""
+    cols = np.unique(np.concatenate([np.arange(0, k_all, 2), [k_all - 1]]))
+    u = np.linspace(0.0, 1.0, k_all)[cols]
+    cols.setflags(write=False)
+    u.setflags(write=False)
+    return cols, u
 
 
 def check_supports(
@@ -311,7 +325,7 @@ def check_supports(
     buried = surface > feet.foot[legs, 2] + t
     bad = (np.abs(surface - feet.support_z[legs]) > t) | buried
     out[legs] = bad | forbidden | coming
-    if np.any(buried):
+    if np.logical_or.reduce(buried):
         # an obstacle slid under a planted foot anyway: it pushes the foot out (the foot
         # steps off from there)
         at = legs[buried]
@@ -373,7 +387,7 @@ def spot_taken(
     forbidden since they were planned), and the surface under them ``(N,)`` (valid at
     ``which``; None where nothing moves: nothing was asked)."""
     out = np.zeros(which.shape[0], dtype=bool)
-    legs = np.flatnonzero(which)
+    legs = which.nonzero()[0]
     if not watch.dynamic or legs.size == 0:
         return out, None
     xy = points[legs, :2]

@@ -8,6 +8,7 @@ Spine characters' nodes get their heights from the same particles; their poses c
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,11 +53,13 @@ def start_body(start_xy: npt.ArrayLike, start_yaw: npt.ArrayLike, n_chars: int, 
 
 def hull_pose(
     env: Environment, rig: Rig, body_samples: tuple[int, int], body: Body, support: FloatArray,
-    chars: IntArray | None = None,
+    chars: IntArray | None = None, ground: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Hull height (+ body thickness), pitch and roll ``(C,)`` under each character (or
     only under ``chars``; the results are then ``(len(chars),)``), with the feet where the
-    body rests on them, ``support (N, 3)``.
+    body rests on them, ``support (N, 3)``. ``ground``: the surface at
+    ``hull_points(rig, body_samples, body, chars)`` when the caller asked already (in a
+    query of its own; else it is asked here).
 
     Thesis figure 3.8 works on a vertical slice along the body: the terrain under the body
     box is sampled on a grid and reduced to its highest point across the body at each
@@ -77,7 +80,7 @@ def hull_pose(
         row_of[chars] = np.arange(len(chars))
     c = pos.shape[0]
     along_pts, along_ok, across_pts, across_ok = terrain_slices(
-        env, body_samples, pos, yaw, box_center, box_half
+        env, body_samples, pos, yaw, box_center, box_half, ground
     )
     # feet: planted feet where they are, swinging feet where they will land
     owner = rig.leg_char[leg_rows]
@@ -88,8 +91,13 @@ def hull_pose(
     feet_ok = np.zeros((c, n_feet), dtype=bool)
     feet_pts[row_of[owner], slot] = feet
     feet_ok[row_of[owner], slot] = True
-    fwd = np.stack([np.cos(yaw), np.sin(yaw)], axis=1)
-    left = np.stack([-np.sin(yaw), np.cos(yaw)], axis=1)
+    cos, sin = np.cos(yaw), np.sin(yaw)
+    fwd = np.empty((c, 2))
+    fwd[:, 0] = cos
+    fwd[:, 1] = sin
+    left = np.empty((c, 2))
+    left[:, 0] = -sin
+    left[:, 1] = cos
     # both slices (forward for height and pitch, left for roll) in one batched call
     both_h, both_a = hull_height_and_pitch(
         np.concatenate(
@@ -108,63 +116,92 @@ def hull_pose(
     return height + thickness, pitch, roll
 
 
+def hull_points(
+    rig: Rig, body_samples: tuple[int, int], body: Body, chars: IntArray | None = None
+) -> FloatArray:
+    """The points ``(k, 2)`` whose surface :func:`hull_pose` reads (its ``ground``), for the
+    same ``chars``."""
+    if chars is None:
+        return _slice_grid(body_samples, body.pos, body.yaw, rig.box_center, rig.box_half)
+    pos, yaw = body.pos[chars], body.yaw[chars]
+    return _slice_grid(body_samples, pos, yaw, rig.box_center[chars], rig.box_half[chars])
+
+
+def _to_world(
+    out: FloatArray, pos: FloatArray, cy: FloatArray, sy: FloatArray, lx: FloatArray, ly: FloatArray
+) -> None:
+    """Points at ``lx``, ``ly`` (each ``(c, k)`` or ``(c, 1)``) in the frames of pelvises at
+    ``pos (c, 3)`` whose headings' cosines and sines are ``cy``, ``sy (c, 1)``, written into
+    ``out (c, k, >= 2)``'s first two columns."""
+    out[..., 0] = pos[:, None, 0] + (cy * lx - sy * ly)
+    out[..., 1] = pos[:, None, 1] + (sy * lx + cy * ly)
+
+
+@functools.lru_cache(maxsize=8)
+def _unit_grid(body_samples: tuple[int, int]) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The sample positions along and across a body box of half size 1 (``na``, ``nc``) and
+    their grid ``(na * nc, 2)``, row by row (read only)."""
+    na, nc = body_samples
+    sa = np.linspace(-1.0, 1.0, na)
+    sc = np.linspace(-1.0, 1.0, nc)
+    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
+    for a in (sa, sc, grid):
+        a.setflags(write=False)
+    return sa, sc, grid
+
+
+def _slice_grid(
+    body_samples: tuple[int, int], pos: FloatArray, yaw: FloatArray, box_center: FloatArray,
+    box_half: FloatArray,
+) -> FloatArray:
+    """:func:`terrain_slices`' grid under the body boxes: ``(c * na * nc, 2)``."""
+    grid = _unit_grid(body_samples)[2]
+    lx = box_center[:, None, 0] + grid[None, :, 0] * box_half[:, None, 0]
+    ly = box_center[:, None, 1] + grid[None, :, 1] * box_half[:, None, 1]
+    out = np.empty((*lx.shape, 2))
+    _to_world(out, pos, np.cos(yaw)[:, None], np.sin(yaw)[:, None], lx, ly)
+    return out.reshape(-1, 2)
+
+
 def terrain_slices(
     env: Environment, body_samples: tuple[int, int], pos: FloatArray, yaw: FloatArray, box_center: FloatArray,
-    box_half: FloatArray,
+    box_half: FloatArray, ground: FloatArray | None = None,
 ) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
     """The terrain under body boxes ``box_center``, ``box_half (c, 2)`` of pelvises at ``pos
     (c, 3)`` heading ``yaw (c,)``, sampled on a ``body_samples`` (along, across) grid and
     reduced to its highest point across the body at each position along it and along the
     body at each position across it: points ``(c, w, 3)`` and whether each is on a surface
     ``(c, w)`` of the slice along, then of the slice across (``w`` the larger sample count;
-    padded rows are not valid)."""
+    padded rows are not valid). ``ground``: the surface on the grid (``_slice_grid``) when
+    the caller asked already."""
     c = pos.shape[0]
     na, nc = body_samples
-    sa = np.linspace(-1.0, 1.0, na)
-    sc = np.linspace(-1.0, 1.0, nc)
-    grid = np.stack(np.meshgrid(sa, sc, indexing="ij"), axis=-1).reshape(-1, 2)
-    local = box_center[:, None, :] + grid[None, :, :] * box_half[:, None, :]
+    sa, sc, _ = _unit_grid(body_samples)
     cy, sy = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
-
-    def to_world(loc: FloatArray) -> FloatArray:
-        return np.asarray(
-            pos[:, None, :2]
-            + np.stack(
-                [cy * loc[..., 0] - sy * loc[..., 1], sy * loc[..., 0] + cy * loc[..., 1]], axis=-1
-            )
-        )
-
-    ground = env.height_at(to_world(local).reshape(-1, 2)).reshape(c, na, nc)
+    if ground is None:
+        ground = env.height_at(_slice_grid(body_samples, pos, yaw, box_center, box_half))
+    ground = ground.reshape(c, na, nc)
     ground = np.where(ground > VOID, ground, -np.inf)
     along_z = ground.max(axis=2)  # (c, na)
     across_z = ground.max(axis=1)  # (c, nc)
-    along_local = np.stack(
-        [
-            box_center[:, None, 0] + sa[None, :] * box_half[:, None, 0],
-            np.broadcast_to(box_center[:, None, 1], (c, na)),
-        ],
-        axis=-1,
-    )
-    across_local = np.stack(
-        [
-            np.broadcast_to(box_center[:, None, 0], (c, nc)),
-            box_center[:, None, 1] + sc[None, :] * box_half[:, None, 1],
-        ],
-        axis=-1,
-    )
+    # the slices' points in the body frame: along it (x varies, y the box centre's) and
+    # across it
+    along_x = box_center[:, None, 0] + sa[None, :] * box_half[:, None, 0]
+    across_y = box_center[:, None, 1] + sc[None, :] * box_half[:, None, 1]
     width = max(na, nc)
 
-    def padded(loc: FloatArray, z: FloatArray) -> tuple[FloatArray, BoolArray]:
+    def padded(lx: FloatArray, ly: FloatArray, z: FloatArray) -> tuple[FloatArray, BoolArray]:
         pts = np.zeros((c, width, 3))
         ok = np.zeros((c, width), dtype=bool)
-        k = loc.shape[1]
-        pts[:, :k, :2] = to_world(loc)
-        pts[:, :k, 2] = np.where(np.isfinite(z), z, 0.0)
-        ok[:, :k] = np.isfinite(z)
+        k = z.shape[1]
+        _to_world(pts[:, :k], pos, cy, sy, lx, ly)
+        finite = np.isfinite(z)
+        pts[:, :k, 2] = np.where(finite, z, 0.0)
+        ok[:, :k] = finite
         return pts, ok
 
-    along_pts, along_ok = padded(along_local, along_z)
-    across_pts, across_ok = padded(across_local, across_z)
+    along_pts, along_ok = padded(along_x, box_center[:, None, 1], along_z)
+    across_pts, across_ok = padded(box_center[:, None, 0], across_y, across_z)
     return along_pts, along_ok, across_pts, across_ok
 
 
@@ -194,7 +231,7 @@ def feedback_move(
     sums = np.bincount(bins, weights=feedback.reshape(-1), minlength=2 * c)
     mean = sums.reshape(c, 2) / np.bincount(leg_char, minlength=c)[:, None]
     significant = vector_norm(mean) > p.feedback_threshold * leg_length
-    if not significant.any():
+    if not np.logical_or.reduce(significant):
         return None
     share = clip(p.feedback_gain * dt / cycle_time, 0.0, 1.0)
     move = np.where(significant[:, None], mean * share[:, None], 0.0)
@@ -231,12 +268,12 @@ def pogo_heights(
                          minlength=physics_on.shape[0]) > 0.0
     switched_on |= physics_on & jumped
     pogo.rate = rate_leg.copy()
-    if switched_on.any():
+    if np.logical_or.reduce(switched_on):
         pogo.physics.reset(
             pref, needle_before, rate_leg, gait.disk_start, gait.disk_duration, nodes=switched_on[node_char]
         )
     pogo.on = physics_on.copy()
-    if not physics_on.any():
+    if not np.logical_or.reduce(physics_on):
         return pref.copy()
     node = pogo.physics.step(dt, needle_before, rate_leg, gait.disk_start, gait.disk_duration, pref)
     return np.asarray(np.where(physics_on[node_char], pogo.physics.centered_height(node), pref))

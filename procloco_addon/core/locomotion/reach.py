@@ -8,6 +8,7 @@ feet bent to what their legs reach (``solve_ik``, ``ik_targets``; step 5)."""
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 
 import numpy as np
@@ -113,7 +114,7 @@ def hip_distance(
     ``samples (m, k + 1, 3)``."""
     legs = np.asarray(leg)
     start = np.asarray(hip_start)[..., None, :]
-    u = np.linspace(0.0, 1.0, samples.shape[-2])
+    u = _unit_samples(samples.shape[-2])
     end_xy = np.broadcast_to(hip_end_xy, (*samples.shape[:-2], 2))
     end = np.concatenate(
         [end_xy, (start[..., 0, 2] + samples[..., -1, 2] - samples[..., 0, 2])[..., None]], axis=-1
@@ -124,6 +125,15 @@ def hip_distance(
     below = hip[..., 2] - (samples[..., 2] + rig.foot_lift[legs][..., None])
     vertical = np.where(below > 0.0, np.maximum(below - drop, 0.0), -below)
     return np.asarray(np.hypot(horizontal, vertical))
+
+
+@functools.lru_cache(maxsize=8)
+def _unit_samples(n: int) -> FloatArray:
+    """``np.linspace(0, 1, n)``: the swing parameters of ``n`` samples (made once per ``n``;
+    read only)."""
+    u = np.linspace(0.0, 1.0, n)
+    u.setflags(write=False)
+    return u
 
 
 def reach_bound(rig: Rig, leg: int | IntArray, start: float | FloatArray, u: FloatArray) -> FloatArray:
@@ -144,7 +154,7 @@ def within_reach_all(
     touch-down (``hip_distance``, ``reach_bound``): ``(m,)``. The planner's paths may detour
     around obstacles farther than a leg reaches; such a couple is not taken."""
     dist = hip_distance(rig, p, legs, samples, hip_start, hip_end_xy)
-    u = np.linspace(0.0, 1.0, samples.shape[-2])
+    u = _unit_samples(samples.shape[-2])
     return np.asarray(np.all(dist <= reach_bound(rig, legs, dist[:, 0], u), axis=1))
 
 

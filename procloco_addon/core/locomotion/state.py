@@ -117,7 +117,7 @@ class FootState:
         """Pack ``(swinging, forced, failed)`` back into phases. Raises ``ValueError`` on a
         combination that is no phase (a bug in the step's rules)."""
         illegal = (failed & (swinging | forced)) | (forced & ~swinging)
-        if illegal.any():
+        if np.logical_or.reduce(illegal):
             raise ValueError(f"feet {illegal.nonzero()[0].tolist()} in no phase")
         self.phase = phases_of(swinging, forced, failed)
 

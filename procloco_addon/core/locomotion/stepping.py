@@ -137,7 +137,7 @@ def schedule(
     forced_time = forced_step_time(w, feet, dt, ctl, gstep, forced_new)
     rushed = replan & feet.blocked & ~forced_new & (remaining < 0.5 * forced_time)
     forced_new |= rushed
-    if forced_new.any():
+    if np.logical_or.reduce(forced_new):
         forced |= forced_new
         feet.forced_duration[forced_new] = forced_time[forced_new]
         # a forced step leaves in the frame it starts (its first frame's share of the
@@ -160,7 +160,7 @@ def forced_step_time(
     jump there); a foot left behind for cycles (its plans failed) has more than a stride
     to cover."""
     forced_time = np.maximum(w.params.forced_swing * gstep.swing_time, 2.0 * dt)
-    if (forced_new & feet.forced_behind).any():
+    if np.logical_or.reduce(forced_new & feet.forced_behind):
         catch_up = np.maximum(forced_time, catch_up_time(
             w.rig, w.gait.disk_duration, ctl.speed, gstep.swing_time, w.hips(), w.leg_rot(), feet.foot))
         forced_time = np.where(feet.forced_behind, catch_up, forced_time)

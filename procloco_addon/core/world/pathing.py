@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from ..geometry import linspace_to, planar_length, vector_norm
+from ..geometry import clip, linspace_to, planar_length, vector_norm
 from ..hermite import HERMITE_MATRIX, cardinal_samples, hermite_basis
 from .terrain import NO_SURFACE, WindowGrids, dilate, foot_kernel
 
@@ -135,7 +135,7 @@ class FootTrajectory:
         if self.points.shape[0] < 2 or self.length <= 0.0:
             return np.zeros((*uu.shape, 3))
         last = self.points.shape[0] - 2
-        seg = np.clip(np.searchsorted(self.arc, uu * self.length, side="right") - 1, 0, last)
+        seg = clip(self.arc.searchsorted(uu * self.length, side="right") - 1, 0, last)
         d = self.points[seg + 1] - self.points[seg]
         n = np.linalg.norm(d, axis=-1, keepdims=True)
         return np.asarray(np.where(n > 1e-12, d / np.where(n > 1e-12, n, 1.0), 0.0))
@@ -347,38 +347,42 @@ def wavefront_each(
     shifted = [dist[lo - off : hi - off] for off in offsets]
     limit = max_iterations if max_iterations is not None else max(h * w for h, w in shapes) + 1
     iterations = np.zeros(m, dtype=np.intp)
-    settled = np.zeros(m, dtype=bool)
     starts = at * plane  # grid i's cells are inner[starts[i] - lo + ...]: the reduceat cuts
     starts[0] = lo
     cuts = starts - lo
     sweeps = 0
     cand = np.empty(n)
     before = np.empty(n)
-    unchanged = np.empty(n, dtype=bool)
-    all_of = np.logical_and.reduce
+    changed = np.empty(n, dtype=bool)
+    # the last sweep that changed each cell (0: none). A sweep that changes nothing in a grid
+    # leaves it as it is for good (its next sweeps compute the same), so a grid stops at the
+    # sweep after its last change, and every grid stops in the first sweep that changes
+    # nothing anywhere (its per-grid bookkeeping once, after the sweeps)
+    last = np.zeros(n, dtype=np.intp) if m > 1 else None
+    any_of = np.logical_or.reduce
     while sweeps < limit:
         np.copyto(before, inner)
         for view, cost in zip(shifted, costs, strict=True):
             np.add(view, cost, out=cand)
             np.minimum(inner, cand, out=inner)
         sweeps += 1
-        np.equal(before, inner, out=unchanged)
-        if m == 1:  # one grid: the same test, without the per-grid bookkeeping
-            if all_of(unchanged):
-                iterations[0] = sweeps
-                settled[0] = True
-                break
-            continue
-        same = np.logical_and.reduceat(unchanged, cuts)
-        iterations[same & ~settled] = sweeps
-        settled |= same
-        if settled.all():
+        np.not_equal(before, inner, out=changed)
+        if not any_of(changed):
             break
-    iterations[~settled] = sweeps
+        if last is not None:
+            np.copyto(last, sweeps, where=changed)
+    if last is None:
+        iterations[0] = sweeps
+    else:
+        # a grid still changing when the sweeps ran out: every sweep (its last change + 1 would
+        # be one more)
+        iterations[:] = np.minimum(np.maximum.reduceat(last, cuts) + 1, sweeps)
     # Parent move of every reached cell: the move that realises its distance.
-    stacked = np.stack([view + cost for view, cost in zip(shifted, costs, strict=True)])
+    stacked = np.empty((len(costs), n))
+    for row, view, cost in zip(stacked, shifted, costs, strict=True):
+        np.add(view, cost, out=row)
     flat_parent = np.full(m * plane, -1, dtype=np.int8)
-    flat_parent[lo:hi] = np.where(np.isfinite(inner), np.argmin(stacked, axis=0), -1)
+    flat_parent[lo:hi] = np.where(np.isfinite(inner), stacked.argmin(axis=0), -1)
     parent = flat_parent.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
     parent[at, src[:, 0], src[:, 1]] = -1
     grid = dist.reshape(m, hh + 2, w2)[:, 1:-1, 1:-1]
@@ -464,7 +468,7 @@ def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, IntArray,
     last = np.floor(hi - 0.5)
     moving = np.abs(d) > 1e-12
     count = np.where(moving, np.maximum(last - first + 1, 0), 0).astype(np.intp)  # (m, 2)
-    kmax = int(count.max(initial=0))
+    kmax = int(np.maximum.reduce(count, axis=None, initial=0))
     steps = np.arange(kmax)[:, None]
     dd = np.where(moving, d, 1.0)
     k = 2 + 2 * kmax
@@ -475,7 +479,7 @@ def _crossing_samples(a: FloatArray, b: FloatArray) -> tuple[IntArray, IntArray,
     for axis in (0, 1):
         rows = slice(2 + axis * kmax, 2 + (axis + 1) * kmax)
         line = first[:, axis] + steps + 0.5  # (kmax, m)
-        t[rows] = np.clip((line - aa[:, axis]) / dd[:, axis], 0.0, 1.0)
+        t[rows] = clip((line - aa[:, axis]) / dd[:, axis], 0.0, 1.0)
         ok[rows] = steps < count[:, axis]
     p0 = aa[:, 0] + t * d[:, 0]
     p1 = aa[:, 1] + t * d[:, 1]
@@ -503,7 +507,7 @@ def segments_clear_each(
     inside = (r >= 0) & (r < shape[:, 0]) & (c >= 0) & (c < shape[:, 1])
     hit = blocked[which, np.where(inside, r, 0), np.where(inside, c, 0)]
     bad = mask & (~inside | hit)
-    return np.asarray(~np.any(bad, axis=0))
+    return np.asarray(~np.logical_or.reduce(bad, axis=0))
 
 
 def segments_clear(blocked: BoolArray, a: npt.ArrayLike, b: npt.ArrayLike) -> BoolArray:
@@ -555,35 +559,54 @@ def _segment_clear(rows: Any, h: int, w: int, a0: float, a1: float, b0: float, b
     the samples of :func:`_crossing_samples` (the same arithmetic, in plain Python floats),
     nudged by -1e-7 and +1e-7 in both axes, looked up in ``rows`` (a boolean map indexable
     as ``rows[r][c]``; outside ``h`` × ``w`` is blocked). The tests check it against
-    :func:`segments_clear_each` on random maps, on and off the cell lattice."""
+    :func:`segments_clear_each` on random maps, on and off the cell lattice. Each sample is
+    looked up as soon as it is made: the first one blocked ends the walk (most segments that
+    :func:`line_of_sight_reduce` tries are blocked)."""
     d0 = b0 - a0
     d1 = b1 - a1
-    ts = [0.0, 1.0]
-    if abs(d0) > 1e-12:
-        lo, hi = (a0, b0) if a0 <= b0 else (b0, a0)
-        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
-            t = (float(k) + 0.5 - a0) / d0
-            ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
-    if abs(d1) > 1e-12:
-        lo, hi = (a1, b1) if a1 <= b1 else (b1, a1)
-        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
-            t = (float(k) + 0.5 - a1) / d1
-            ts.append(0.0 if t < 0.0 else 1.0 if t > 1.0 else t)
+    # the ends first (t = 0 and 1, computed as the other samples are)
+    if not _point_clear(rows, h, w, a0 + 0.0 * d0, a1 + 0.0 * d1):
+        return False
+    if not _point_clear(rows, h, w, a0 + d0, a1 + d1):
+        return False
     eps = _CORNER_EPS
-    for t in ts:
-        p0 = a0 + t * d0
-        p1 = a1 + t * d1
-        r_lo = round(p0 - eps)
-        r_hi = round(p0 + eps)  # rounding is monotone: r_lo <= r_hi, c_lo <= c_hi
-        c_lo = round(p1 - eps)
-        c_hi = round(p1 + eps)
-        if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
-            return False
-        lo_row = rows[r_lo]
-        hi_row = rows[r_hi]
-        if lo_row[c_lo] or lo_row[c_hi] or hi_row[c_lo] or hi_row[c_hi]:
-            return False
+    for a, b, d in ((a0, b0, d0), (a1, b1, d1)):
+        if abs(d) <= 1e-12:
+            continue
+        lo, hi = (a, b) if a <= b else (b, a)
+        for k in range(math.ceil(lo - 0.5), math.floor(hi - 0.5) + 1):
+            t = (float(k) + 0.5 - a) / d
+            if t < 0.0:
+                t = 0.0
+            elif t > 1.0:
+                t = 1.0
+            p0 = a0 + t * d0
+            p1 = a1 + t * d1
+            r_lo = round(p0 - eps)
+            r_hi = round(p0 + eps)  # rounding is monotone: r_lo <= r_hi, c_lo <= c_hi
+            c_lo = round(p1 - eps)
+            c_hi = round(p1 + eps)
+            if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
+                return False
+            lo_row = rows[r_lo]
+            hi_row = rows[r_hi]
+            if lo_row[c_lo] or lo_row[c_hi] or hi_row[c_lo] or hi_row[c_hi]:
+                return False
     return True
+
+
+def _point_clear(rows: Any, h: int, w: int, p0: float, p1: float) -> bool:
+    """:func:`_segment_clear`'s look-up of one sample (an end of the segment)."""
+    eps = _CORNER_EPS
+    r_lo = round(p0 - eps)
+    r_hi = round(p0 + eps)
+    c_lo = round(p1 - eps)
+    c_hi = round(p1 + eps)
+    if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
+        return False
+    lo_row = rows[r_lo]
+    hi_row = rows[r_hi]
+    return not (lo_row[c_lo] or lo_row[c_hi] or hi_row[c_lo] or hi_row[c_hi])
 
 
 # ---------------------------------------------------------------------------------------
@@ -617,7 +640,7 @@ def height_profile(knots_s: FloatArray, knots_z: FloatArray, s: FloatArray) -> F
     slope[-1] = delta[-1]
     if k > 2:
         slope[1:-1] = (knots_z[2:] - knots_z[:-2]) / np.maximum(knots_s[2:] - knots_s[:-2], 1e-12)
-    seg = np.clip(np.searchsorted(knots_s, s, side="right") - 1, 0, k - 2)
+    seg = clip(knots_s.searchsorted(s, side="right") - 1, 0, k - 2)
     t = np.clip((s - knots_s[seg]) / h_safe[seg], 0.0, 1.0)
     w = hermite_basis(t)
     return np.asarray(
@@ -719,7 +742,7 @@ def turning_each(samples: FloatArray, bounds: list[int]) -> list[float]:
     ang = np.arctan2(d[idx, 1], d[idx, 0])
     turn = np.abs((ang[1:] - ang[:-1] + np.pi) % (2.0 * np.pi) - np.pi)
     who = owner[idx]
-    cuts = np.searchsorted(who, np.arange(n + 1)).tolist()
+    cuts = who.searchsorted(np.arange(n + 1)).tolist()
     add = np.add.reduce  # (np.sum's reduction, without its Python-level dispatch)
     out = []
     for i in range(n):
@@ -815,13 +838,13 @@ def lift_each(
     if owner is None:
         arcs = np.empty((1, arc.size))
         arcs[0, 0] = 0.0
-        np.cumsum(seg3, out=arcs[0, 1:])
+        seg3.cumsum(out=arcs[0, 1:])
     else:
-        table = np.zeros((n, int(counts.max())))
+        table = np.zeros((n, int(np.maximum.reduce(counts))))
         pos = np.arange(arc.size) - np.asarray(first).repeat(counts)
         inner = pos > 0  # a sample after its plan's first: its segment from the one before
         table[owner[inner], pos[inner]] = seg3[inner[1:]]
-        arcs = np.cumsum(table, axis=1)
+        arcs = table.cumsum(axis=1)
     ends = arcs[np.arange(n), counts - 1].tolist()
     out = []
     for i in range(n):

@@ -252,8 +252,8 @@ def foot_kernels(
         half_y = half_y + grow
     ex = c * half_x + s * half_y
     ey = s * half_x + c * half_y
-    rx = int(np.max(np.ceil(ex / cell + 0.5), initial=0))
-    ry = int(np.max(np.ceil(ey / cell + 0.5), initial=0))
+    rx = int(np.maximum.reduce(np.ceil(ex / cell + 0.5), axis=None, initial=0))
+    ry = int(np.maximum.reduce(np.ceil(ey / cell + 0.5), axis=None, initial=0))
     offsets = _rect_offsets(ry, rx)
     col = cell[:, None]
     # the cell centres from the foot's centre (0, 0), x and y apart
@@ -313,8 +313,8 @@ def dilate(mask: BoolArray, offsets: IntArray) -> BoolArray:
     pass (``(a - 1) + (b - 1)`` shifted ORs instead of ``a * b - 1``)."""
     h, w = mask.shape[-2:]
     lead = mask.shape[:-2]
-    r_lo, c_lo = (int(v) for v in offsets.min(axis=0))
-    r_hi, c_hi = (int(v) for v in offsets.max(axis=0))
+    r_lo, c_lo = (int(v) for v in np.minimum.reduce(offsets, axis=0))
+    r_hi, c_hi = (int(v) for v in np.maximum.reduce(offsets, axis=0))
     rr = max(-r_lo, r_hi, 0)
     cc = max(-c_lo, c_hi, 0)
     w2 = w + 2 * cc
@@ -374,10 +374,10 @@ def max_filter(values: FloatArray, offsets: IntArray) -> FloatArray:
 def _ranges_to_pairs(lo: IntArray, hi: IntArray) -> tuple[IntArray, IntArray]:
     """For items with inclusive integer ranges ``[lo, hi]`` return (item, value) pairs."""
     counts = np.maximum(hi - lo + 1, 0)
-    total = int(counts.sum())
-    item = np.repeat(np.arange(lo.shape[0], dtype=np.intp), counts)
+    total = int(np.add.reduce(counts))
+    item = np.arange(lo.shape[0], dtype=np.intp).repeat(counts)
     # value = position in the run - run start + lo, with the two shifts repeated as one
-    shift = np.cumsum(counts) - counts - lo
+    shift = counts.cumsum() - counts - lo
     value = np.arange(total, dtype=np.intp) - shift[item]
     return item, value
 
@@ -423,10 +423,10 @@ def raster_boxes(
     wcols = np.maximum(j1 - j0 + 1, 0)
     hrows = np.maximum(i1 - i0 + 1, 0)
     counts = wcols * hrows
-    box = np.repeat(np.arange(n, dtype=np.intp), counts)
+    box = np.arange(n, dtype=np.intp).repeat(counts)
     if box.size == 0:
         return box, box.copy(), box.copy()
-    start = np.cumsum(counts) - counts
+    start = counts.cumsum() - counts
     local = np.arange(box.size, dtype=np.intp) - start[box]
     down, across = np.divmod(local, np.maximum(wcols[box], 1))
     col = j0[box] + across
@@ -531,10 +531,10 @@ def _raster_triangles(
     i1 = np.minimum(np.floor(_max3(fy) + 0.5).astype(np.intp), np.asarray(shape[0]) - 1)
     wcols = np.maximum(j1 - j0 + 1, 0)
     counts = wcols * np.maximum(i1 - i0 + 1, 0)
-    tri = np.repeat(np.arange(k, dtype=np.intp), counts)
+    tri = np.arange(k, dtype=np.intp).repeat(counts)
     if tri.size == 0:
         return e, e.copy(), e.copy(), np.zeros(0)
-    start = np.cumsum(counts) - counts
+    start = counts.cumsum() - counts
     local = np.arange(tri.size, dtype=np.intp) - start.take(tri)
     down, across = np.divmod(local, np.maximum(wcols, 1).take(tri))
     col = j0.take(tri) + across
@@ -679,8 +679,8 @@ class _BucketIndex:
         total = int(counts.sum(dtype=np.int64))
         if total >= 2**31 - 1:
             idx = np.intp
-        item = np.repeat(np.arange(n, dtype=idx), counts)
-        start = (np.cumsum(counts, dtype=np.int64) - counts).astype(idx)
+        item = np.arange(n, dtype=idx).repeat(counts)
+        start = (counts.cumsum(dtype=np.int64) - counts).astype(idx)
         local = np.arange(total, dtype=idx)
         local -= start[item]  # each entry's place among its item's buckets
         width = wx[item]
@@ -729,7 +729,7 @@ class _BucketIndex:
         # _ranges_to_pairs of the buckets' item ranges, the offsets read once
         lo = self.offsets[key]
         count = self.offsets[key + 1] - lo
-        point = np.repeat(np.arange(xy.shape[0], dtype=np.intp), count)
+        point = np.arange(xy.shape[0], dtype=np.intp).repeat(count)
         shift = count.cumsum() - count - lo
         pos = np.arange(point.size, dtype=np.intp) - shift[point]
         return point, self.items[pos]
