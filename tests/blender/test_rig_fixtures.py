@@ -310,11 +310,12 @@ def _bumpy_ground(obj: Any, bumps: float = 0.02) -> Any:
     return ground
 
 
-def walk(obj: Any, bumps: float = 0.02) -> tuple[generate.Job, dict[str, Any]]:
+def walk(obj: Any, bumps: float = 0.02, ground: Any = None) -> tuple[generate.Job, dict[str, Any]]:
     """Detect Legs, then Generate Locomotion with the defaults for ``FRAMES`` frames on
     gently bumpy ground (as the issue's users tried them; ``bumps``: see
-    :func:`_bumpy_ground`); the measured numbers."""
-    ground = _bumpy_ground(obj, bumps)
+    :func:`_bumpy_ground`), or on ``ground`` (a mesh object) when given; the measured numbers."""
+    bumpy = ground is None
+    ground = _bumpy_ground(obj, bumps) if bumpy else ground
     _select_only(obj)
     assert bpy.ops.procloco.detect_legs() == {"FINISHED"}
     obj.procloco.use_scene_range = False
@@ -324,9 +325,10 @@ def walk(obj: Any, bumps: float = 0.02) -> tuple[generate.Job, dict[str, Any]]:
         pass
     generate.write(bpy.context, job)
     m = measure(obj, job, ground)
-    # The feet did meet the bumps: the ground under them spans over 0.5 % of the rig's height.
-    under = ray_heights_over_time([int(f) for f in job.frames], job.result.feet[..., :2], [ground])
-    assert float(np.ptp(under)) > 0.005 * _height(obj), float(np.ptp(under))
+    if bumpy:
+        # The feet did meet the bumps: the ground under them spans over 0.5 % of the rig's height.
+        under = ray_heights_over_time([int(f) for f in job.frames], job.result.feet[..., :2], [ground])
+        assert float(np.ptp(under)) > 0.005 * _height(obj), float(np.ptp(under))
     return job, m
 
 
@@ -566,10 +568,10 @@ def test_feet_stand_on_their_skin_heel_and_sole_included(empty_scene: Any) -> No
     ground = bpy.data.objects["Grid"]
     under = ray_heights_over_time(frames, pts[..., :2], [ground])
     gap = pts[..., 2] - under  # (F, 16): each shoe vertex above the ground
-    # The shoes never in the ground beyond the design's 5 mm penetration; measured 2.8 mm, at
-    # a corner: a foot pitches about its ankle to the ground ahead, it does not roll to bumps
-    # across it or tip back onto its heel.
-    assert gap.min() > -0.005, gap.min()
+    # The shoes never in the ground beyond the design's 5 mm penetration, nor 2 mm: measured
+    # 1.0 mm, at a corner (2.8 mm before the feet rolled with the bumps across them): a foot
+    # pitches and rolls about its ankle, it does not tip back onto its heel.
+    assert gap.min() > -0.002, gap.min()
     for side in (slice(0, 8), slice(8, 16)):
         lowest = gap[:, side].min(axis=1)
         planted = lowest < 0.005

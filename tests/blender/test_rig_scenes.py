@@ -13,8 +13,8 @@ import bpy
 import numpy as np
 import pytest
 
-from procloco_addon.blender import actions
-from procloco_addon.blender.rig import controls
+from procloco_addon.blender import actions, rig
+from procloco_addon.blender.rig import controls, pose
 from tests.blender.rig_fixtures import FIXTURES
 from tests.blender.test_rig_fixtures import FRAMES, check_motion, walk
 
@@ -112,3 +112,60 @@ def _keys(action: Any, obj: Any) -> dict[tuple[str, int], bytes]:
         assert keys is not None
         out[(ch.data_path, ch.index)] = np.stack(keys).tobytes()
     return out
+
+
+def _side_slope(obj: Any, degrees: float) -> Any:
+    """A plane under ``obj`` tilted ``degrees`` about the rig's forward axis (the direction it
+    walks): its feet stand on ground that falls away to one side, level along their length."""
+    forward = rig.read_rig(obj).body.forward
+    left = np.array([-forward[1], forward[0]])
+    centre = np.array(obj.matrix_world.translation)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=12.0,
+                                    location=(float(centre[0]), float(centre[1]), 0.0))
+    ground = bpy.context.active_object
+    mesh = ground.data
+    co = np.empty(len(mesh.vertices) * 3)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    co[:, 2] = math.tan(math.radians(degrees)) * (co[:, :2] @ left)
+    mesh.vertices.foreach_set("co", co.ravel())
+    mesh.update()
+    return ground
+
+
+def _spy_rolls(monkeypatch: Any) -> list[np.ndarray | None]:
+    """The foot roll turns the pose writer finds (``pose._roll_feet``), call by call."""
+    found: list[np.ndarray | None] = []
+    roll_feet = pose._roll_feet
+
+    def spy(*args: Any) -> np.ndarray | None:
+        found.append(roll_feet(*args))
+        return found[-1]
+
+    monkeypatch.setattr(pose, "_roll_feet", spy)
+    return found
+
+
+@pytest.mark.parametrize("name", ["rigify_basic_human", "generated_human"])
+def test_feet_roll_with_a_side_slope(empty_scene: Any, monkeypatch: Any, name: str) -> None:
+    """Across a 12° side slope (the ground tilted about the walking direction) a human's
+    feet roll with the ground under their width as they pitch with it along their length:
+    pitched only, the downhill edge of their soles stood 5.7 mm in the ground (now 0.01)."""
+    obj = FIXTURES[name].build(empty_scene, name)
+    rolls = _spy_rolls(monkeypatch)
+    _job, m = walk(obj, ground=_side_slope(obj, 12.0))
+    check_motion(m, name)
+    # the planted feet rolled about as far as the ground falls across them
+    turn = np.concatenate([r for r in rolls if r is not None])
+    roll = np.degrees(np.arccos(np.clip(turn[..., 2, 2], -1.0, 1.0)))
+    assert 10.0 < float(roll.max()) <= 12.5, float(roll.max())
+
+
+def test_feet_on_flat_ground_do_not_roll(empty_scene: Any, monkeypatch: Any) -> None:
+    """On flat ground no foot rolls: the feet are posed as the pitch alone poses them."""
+    obj = FIXTURES["rigify_basic_human"].build(empty_scene, "rigify_basic_human")
+    rolls = _spy_rolls(monkeypatch)
+    _job, m = walk(obj, ground=_side_slope(obj, 0.0))
+    check_motion(m, "rigify_basic_human")
+    assert rolls
+    assert all(r is None for r in rolls), rolls

@@ -195,6 +195,53 @@ def _foot_pitch(
     return np.clip(theta, -limit, limit), d
 
 
+def _foot_roll(
+    rel: np.ndarray, starts: np.ndarray, d: np.ndarray, heights: np.ndarray, under: np.ndarray,
+    sides: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> np.ndarray:
+    """Roll ``(F, J)`` about each foot's forward direction ``d`` ``(F, J, 2)`` (positive lifts
+    its left edge) that lays its sole along the ground across its width: the slope from the
+    ground under its right edge to the ground under its left, each the mean over that edge's
+    sole points (``sides``: :func:`_sole_sides`) of their height ``heights`` ``(F, P)`` above
+    the ground ``under`` ``(F, J)`` under the end-effector. 0 where either edge has no ground
+    under it or the sole no width, and on flat ground (every height the same: exactly 0)."""
+    s, left, right = sides
+    n_points = rel.shape[1]
+    foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, n_points)))
+    with np.errstate(invalid="ignore"):  # (-inf over nothing on both: nan, left out)
+        h = heights - under[:, foot]
+    ok = np.isfinite(h)
+    h = np.where(ok, h, 0.0)
+
+    def mean(mask: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n = np.add.reduceat((mask & ok).astype(np.float64), starts, axis=1)
+        total = np.add.reduceat(np.where(mask & ok, v, 0.0), starts, axis=1)
+        return np.divide(total, n, out=np.zeros_like(total), where=n > 0), n
+
+    h_l, n_l = mean(left, h)
+    h_r, n_r = mean(right, h)
+    s_l, _n = mean(left, s)
+    s_r, _n = mean(right, s)
+    width = s_l - s_r
+    good = (n_l > 0) & (n_r > 0) & (width > 1e-12) & (np.abs(d).sum(axis=-1) > 0.0)
+    return np.where(good, np.arctan2(h_l - h_r, np.where(good, width, 1.0)), 0.0)
+
+
+def _sole_sides(rel: np.ndarray, starts: np.ndarray,
+                d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each sole point's reach to the left of its foot's long axis ``s`` ``(F, P)`` (``d``
+    ``(F, J, 2)``: each foot's forward direction), and which points make the left and the
+    right edge of the sole ``(F, P)`` each: those beyond :data:`NEAR_SHARE` of the sole's
+    reach to that side (the points along the axis say nothing of the ground across)."""
+    n_points = rel.shape[1]
+    foot = np.repeat(np.arange(starts.size), np.diff(np.append(starts, n_points)))
+    df = d[:, foot]
+    s = rel[..., 1] * df[..., 0] - rel[..., 0] * df[..., 1]
+    wide_l = np.maximum.reduceat(s, starts, axis=1)[:, foot]
+    wide_r = np.maximum.reduceat(-s, starts, axis=1)[:, foot]
+    return s, (s > 0.0) & (s > NEAR_SHARE * wide_l), (s < 0.0) & (-s > NEAR_SHARE * wide_r)
+
+
 def _axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """Rotations ``(..., 3, 3)`` by ``angle (...)`` about unit ``axis (..., 3)`` (Rodrigues)."""
     k = axis
@@ -610,6 +657,14 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
     lifts = ends[..., 2] - foot_height - under  # (R F, J)
     if planted is not None:
         lifts = np.where(planted[:, :, legs].reshape(n_all, len(legs)), 0.0, lifts)
+    # Roll each foot about its long axis to the ground across its sole (once, from where its
+    # sole points stand unturned; a standing foot keeps the roll it landed with, a lifted
+    # one's fades as its downward pitch does), then pitch the rolled sole.
+    rolls = _roll_feet(ground, rel, starts, ends, reach, under, lifts, own, first, frame, dynamic, limit)
+    if rolls is not None:
+        rel = np.einsum("fpij,fpj->fpi", rolls[:, foot], rel)
+        reach = _sole_reach(rel, starts)
+        asked = reach[2]
     heights = np.full(asked.shape, -np.inf)
     changed = np.ones((n_all, len(legs)), dtype=bool)
     # Pitching moves the sole points sideways too, onto other ground: a few passes (heights
@@ -642,10 +697,46 @@ def _pitch_feet(infos: Sequence[RigInfo], joints_world: Sequence[np.ndarray], le
         changed = angle != angles
         angles = angle
         turns = _axis_rotation(axis, angle)
+    if rolls is not None:
+        turns = turns @ rolls
     turns = turns.reshape(n_rigs, n_frames, len(legs), 3, 3)
     for j, k in enumerate(legs):
         name = info.legs[k].foot[0]
         desired[name] = turns[:, :, j] @ desired[name]
+
+
+def _roll_feet(ground: GroundFn, rel: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+               reach: tuple[np.ndarray, ...], under: np.ndarray, lifts: np.ndarray, own: np.ndarray,
+               first: np.ndarray, frame: np.ndarray, dynamic: bool, limit: float) -> np.ndarray | None:
+    """The roll turns ``(F, J, 3, 3)`` of the feet of :func:`_pitch_feet` (its arrays, rows
+    every rig's frames), about each foot's forward direction (:func:`_foot_roll`), within
+    ``limit``; None where no foot rolls (flat ground: the feet as the pitch alone sets them).
+    Only the edge points of the feet that begin to stand at a row are asked of the ground."""
+    n_all, n_feet = own.shape
+    n_points = rel.shape[1]
+    foot = np.repeat(np.arange(n_feet), np.diff(np.append(starts, n_points)))
+    d = reach[0]
+    sides = _sole_sides(rel, starts, d)
+    where = np.flatnonzero((sides[1] | sides[2]) & own[:, foot])
+    if where.size == 0:
+        return None
+    at_f, at_p = np.divmod(where, n_points)
+    xy = rel.reshape(-1, 3)[:, :2].take(where, axis=0) \
+        + ends.reshape(-1, 3)[:, :2].take(at_f * n_feet + foot.take(at_p), axis=0)
+    key = frame.take(at_f) if dynamic else np.zeros(at_f.size, dtype=np.int64)
+    heights = np.full(sides[0].shape, -np.inf)
+    heights.reshape(-1)[where] = _ground_in_runs(ground, key, xy)
+    roll = _foot_roll(rel, starts, d, heights, np.where(own, under, np.nan), sides)
+    # a lifted foot's roll fades out as it rises by half its length (its downward pitch's fade)
+    fade = 0.5 * np.maximum.reduceat(np.where(reach[2], reach[3], 0.0), starts, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.clip(1.0 - np.maximum(lifts, 0.0) / np.maximum(fade, 1e-12), 0.0, 1.0)
+    roll = np.clip(roll * np.nan_to_num(share, nan=0.0), -limit, limit)
+    roll = roll[first, np.arange(n_feet)[None]]  # a standing foot's from where it began to stand
+    if not np.any(roll):
+        return None
+    axis = np.concatenate([d, np.zeros((n_all, n_feet, 1))], axis=-1)
+    return _axis_rotation(axis, roll)
 
 
 def _ancestors(info: RigInfo, name: str | None) -> list[str]:
