@@ -119,10 +119,12 @@ def biped_rig(obj: bpy.types.Object) -> BipedRig:
         raise BipedError("The active object is not an armature: select the biped rig")
     settings = obj.procloco
     try:
-        from ..locomotion.generate import settings_legs
+        from ..locomotion.generate import settings_legs, stale_bones
 
         legs = settings_legs(obj)
-        info = rig.read_rig(obj, legs, settings.forward_axis)
+        # Bones an earlier ProcLoco Action poses are read at rest, as Generate reads them: a
+        # second plan must not start from the pose the first one left on the rig.
+        info = rig.read_rig(obj, legs, settings.forward_axis, at_rest=stale_bones(obj))
     except rig.RigError as err:
         raise BipedError(str(err)) from err
     if len(info.legs) != 2:
