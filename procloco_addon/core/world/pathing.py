@@ -569,7 +569,6 @@ def _segment_clear(rows: Any, h: int, w: int, a0: float, a1: float, b0: float, b
         return False
     if not _point_clear(rows, h, w, a0 + d0, a1 + d1):
         return False
-    eps = _CORNER_EPS
     for a, b, d in ((a0, b0, d0), (a1, b1, d1)):
         if abs(d) <= 1e-12:
             continue
@@ -580,26 +579,17 @@ def _segment_clear(rows: Any, h: int, w: int, a0: float, a1: float, b0: float, b
                 t = 0.0
             elif t > 1.0:
                 t = 1.0
-            p0 = a0 + t * d0
-            p1 = a1 + t * d1
-            r_lo = round(p0 - eps)
-            r_hi = round(p0 + eps)  # rounding is monotone: r_lo <= r_hi, c_lo <= c_hi
-            c_lo = round(p1 - eps)
-            c_hi = round(p1 + eps)
-            if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
-                return False
-            lo_row = rows[r_lo]
-            hi_row = rows[r_hi]
-            if lo_row[c_lo] or lo_row[c_hi] or hi_row[c_lo] or hi_row[c_hi]:
+            if not _point_clear(rows, h, w, a0 + t * d0, a1 + t * d1):
                 return False
     return True
 
 
 def _point_clear(rows: Any, h: int, w: int, p0: float, p1: float) -> bool:
-    """:func:`_segment_clear`'s look-up of one sample (an end of the segment)."""
+    """:func:`_segment_clear`'s look-up of one sample: its cell and the cells the sample
+    nudged by :data:`_CORNER_EPS` falls in."""
     eps = _CORNER_EPS
     r_lo = round(p0 - eps)
-    r_hi = round(p0 + eps)
+    r_hi = round(p0 + eps)  # rounding is monotone: r_lo <= r_hi, c_lo <= c_hi
     c_lo = round(p1 - eps)
     c_hi = round(p1 + eps)
     if r_lo < 0 or r_hi >= h or c_lo < 0 or c_hi >= w:
