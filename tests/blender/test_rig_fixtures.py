@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import re
+from collections.abc import Callable
 from typing import Any
 
 import bpy
@@ -294,17 +295,27 @@ def _bumpy_ground(obj: Any, bumps: float = 0.02) -> Any:
     feet."""
     height = _height(obj)
     size = min(max(10.0 * height, 3.0 * _length(obj), 1.0), 12.0)
+    k = np.pi / height  # a bump every two heights
+
+    def heights(xy: np.ndarray) -> np.ndarray:
+        waves = np.sin(k * xy[:, 0] + 0.3) * np.cos(k * xy[:, 1] + 1.1) - np.sin(0.3) * np.cos(1.1)
+        return bumps * height * waves
+
+    return grid_under(obj, size, 120, heights)
+
+
+def grid_under(obj: Any, size: float, subdivisions: int, heights: Callable[[np.ndarray], np.ndarray]) -> Any:
+    """A square grid mesh ``size`` across centred under ``obj`` (at z 0), its vertices raised
+    to ``heights`` of their local ``(N, 2)`` x and y."""
     centre = np.array(obj.matrix_world.translation)
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=120, y_subdivisions=120, size=size,
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=subdivisions, y_subdivisions=subdivisions, size=size,
                                     location=(float(centre[0]), float(centre[1]), 0.0))
     ground = bpy.context.active_object
     mesh = ground.data
     co = np.empty(len(mesh.vertices) * 3)
     mesh.vertices.foreach_get("co", co)
     co = co.reshape(-1, 3)
-    k = np.pi / height  # a bump every two heights
-    waves = np.sin(k * co[:, 0] + 0.3) * np.cos(k * co[:, 1] + 1.1) - np.sin(0.3) * np.cos(1.1)
-    co[:, 2] = bumps * height * waves
+    co[:, 2] = heights(co[:, :2])
     mesh.vertices.foreach_set("co", co.ravel())
     mesh.update()
     return ground

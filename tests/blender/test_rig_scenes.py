@@ -13,10 +13,11 @@ import bpy
 import numpy as np
 import pytest
 
-from procloco_addon.blender import actions, rig
+from procloco_addon.blender import rig
 from procloco_addon.blender.rig import controls, pose
 from tests.blender.rig_fixtures import FIXTURES
-from tests.blender.test_rig_fixtures import FRAMES, check_motion, walk
+from tests.blender.test_generate import _action_bytes
+from tests.blender.test_rig_fixtures import FRAMES, check_motion, grid_under, walk
 
 pytestmark = pytest.mark.blender
 
@@ -68,13 +69,13 @@ def test_an_idle_in_the_nla_moves_no_planted_foot(empty_scene: Any) -> None:
     obj.animation_data.nla_tracks.new().strips.new("Idle", 1, idle)
     obj.animation_data.action = None
     bpy.context.scene.frame_set(1)
-    before = _keys(idle, obj)
+    before = _action_bytes(idle, obj)
     job, m = walk(obj)
     check_motion(m, "cc4")
     assert "CC_Base_Pelvis" in job.kept_bones, job.kept_bones
     assert obj.animation_data.action is not idle
     assert [s.action for t in obj.animation_data.nla_tracks for s in t.strips] == [idle]
-    assert _keys(idle, obj) == before
+    assert _action_bytes(idle, obj) == before
 
 
 def _idle_in_nla(obj: Any, bone: str) -> Any:
@@ -105,32 +106,12 @@ def test_a_rigify_idle_in_the_nla_moves_no_planted_foot(empty_scene: Any) -> Non
     assert "shoulder.L" in job.kept_bones, job.kept_bones
 
 
-def _keys(action: Any, obj: Any) -> dict[tuple[str, int], bytes]:
-    out = {}
-    for ch in actions.channels_of(action, obj):
-        keys = actions.read_channel(action, obj, ch.data_path, ch.index)
-        assert keys is not None
-        out[(ch.data_path, ch.index)] = np.stack(keys).tobytes()
-    return out
-
-
 def _side_slope(obj: Any, degrees: float) -> Any:
     """A plane under ``obj`` tilted ``degrees`` about the rig's forward axis (the direction it
     walks): its feet stand on ground that falls away to one side, level along their length."""
     forward = rig.read_rig(obj).body.forward
     left = np.array([-forward[1], forward[0]])
-    centre = np.array(obj.matrix_world.translation)
-    bpy.ops.mesh.primitive_grid_add(x_subdivisions=4, y_subdivisions=4, size=12.0,
-                                    location=(float(centre[0]), float(centre[1]), 0.0))
-    ground = bpy.context.active_object
-    mesh = ground.data
-    co = np.empty(len(mesh.vertices) * 3)
-    mesh.vertices.foreach_get("co", co)
-    co = co.reshape(-1, 3)
-    co[:, 2] = math.tan(math.radians(degrees)) * (co[:, :2] @ left)
-    mesh.vertices.foreach_set("co", co.ravel())
-    mesh.update()
-    return ground
+    return grid_under(obj, 12.0, 4, lambda xy: math.tan(math.radians(degrees)) * (xy @ left))
 
 
 def _spy_rolls(monkeypatch: Any) -> list[np.ndarray | None]:
